@@ -1,0 +1,108 @@
+#!/usr/bin/env python
+"""Benchmarks of snake_pin's hot paths against the closed-form route, in one run.
+
+Prints medians per call (timeit, several repeats) and the ratio closed-form / Pinocchio.
+Usage: python scripts/bench.py [--quick] [--only dynamics,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+import timeit
+from collections.abc import Callable
+
+import numpy as np
+
+from snake_pin import Snake, SnakeParams, paper
+from snake_pin.friction import friction_forces
+
+
+def median_us(fn: Callable[[], object], *, budget: float = 0.2, repeat: int = 7) -> float:
+    """Median time per call in microseconds over ``repeat`` batches of ~``budget`` s."""
+    number = max(1, int(budget / max(timeit.timeit(fn, number=3) / 3, 1e-7)))
+    return statistics.median(timeit.repeat(fn, number=number, repeat=repeat)) / number * 1e6
+
+
+def table(title: str, header: list[str], rows: list[list[str]]) -> None:
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+    print(f"\n## {title}\n")
+    print("| " + " | ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)) + " |")
+    print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
+    for r in rows:
+        print("| " + " | ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) + " |")
+
+
+def bench_dynamics(budget: float) -> None:
+    """H, h and forward dynamics: Pinocchio path vs snake_pin.paper + numpy solve."""
+    rows = []
+    for n in (10, 30, 100):
+        for label, cy in (("iso", 0.5), ("aniso", 5.0)):
+            params = SnakeParams.table1(n=n, c_y=cy)
+            snake = Snake(params)
+            rng = np.random.default_rng(n)
+            q = np.r_[0.1, -0.2, 0.3, rng.uniform(-1, 1, n - 1)]
+            dq = rng.normal(size=n + 2)
+            tau = rng.normal(size=n - 1)
+            e = paper.actuation_matrix(n)
+
+            def closed_fd(q=q, dq=dq, tau=tau, params=params, e=e) -> np.ndarray:
+                return np.linalg.solve(paper.inertia_matrix(params, q),
+                                       e @ tau - paper.bias(params, q, dq))
+
+            def fext_fd(q=q, dq=dq, tau=tau, snake=snake, params=params) -> np.ndarray:
+                import pinocchio as pin
+
+                fext = friction_forces(snake.model, snake.data, params, q, dq)
+                return pin.aba(snake.model, snake.data, q, dq, snake.generalized_torque(tau),
+                               fext)
+
+            pairs = {
+                "H": (lambda s=snake, q=q: s.inertia_matrix(q),
+                      lambda p=params, q=q: paper.inertia_matrix(p, q)),
+                "h": (lambda s=snake, q=q, dq=dq: s.bias(q, dq),
+                      lambda p=params, q=q, dq=dq: paper.bias(p, q, dq)),
+                "forward dynamics": (lambda s=snake, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t),
+                                     closed_fd),
+            }
+            for name, (fast, slow) in pairs.items():
+                if label == "iso" and name == "H":
+                    pass
+                elif name == "H":
+                    continue  # H does not depend on friction
+                t_fast, t_slow = median_us(fast, budget=budget), median_us(slow, budget=budget)
+                rows.append([str(n), name, label if name != "H" else "-", f"{t_fast:.1f}",
+                             f"{t_slow:.1f}", f"{t_slow / t_fast:.1f}x"])
+            if n == 10:
+                t_ref = median_us(fext_fd, budget=budget)
+                rows.append([str(n), "fwd dyn via pin.Force list (reference)", label,
+                             f"{t_ref:.1f}", "-", "-"])
+    table("Dynamics, median us per call", ["n", "quantity", "friction", "pinocchio [us]",
+                                           "closed form [us]", "ratio"], rows)
+
+
+BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="shorter timing batches")
+    parser.add_argument("--only", default=",".join(BENCHES), help="comma-separated benches")
+    args = parser.parse_args()
+    budget = 0.05 if args.quick else 0.2
+    names = [n for n in args.only.split(",") if n]
+    unknown = [n for n in names if n not in BENCHES]
+    if unknown:
+        print(f"bench: unknown bench(es) {unknown}; choose from {list(BENCHES)}", file=sys.stderr)
+        return 2
+    start = time.perf_counter()
+    for name in names:
+        BENCHES[name](budget)
+    print(f"\n(total {time.perf_counter() - start:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

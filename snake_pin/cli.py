@@ -1,0 +1,200 @@
+"""The ``snake-pin`` console script: one parser, one subcommand per job.
+
+Heavy imports happen inside the subcommand that needs them. Every error a user can cause
+ends as one line on stderr and exit status 2; ``--json`` prints exactly one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from .exceptions import SnakePinError
+from .params import ROBOTS, SnakeParams
+
+__all__ = ["build_parser", "main", "parse_angle"]
+
+_ANGLE = re.compile(r"^\s*([+-]?)\s*(\d+(?:\.\d*)?(?:e[+-]?\d+)?)?\s*(\*?\s*pi)?\s*"
+                    r"(?:/\s*(\d+(?:\.\d*)?))?\s*$", re.IGNORECASE)
+
+
+class UsageError(SnakePinError):
+    """A command-line argument is wrong."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line and exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(f"{self.prog}: {message}")
+
+
+def parse_angle(text: str) -> float:
+    """An angle in radians from ``0.3``, ``pi/5``, ``-pi/3``, ``2*pi/3`` or ``pi``."""
+    match = _ANGLE.match(text)
+    if not match or not (match.group(2) or match.group(3)):
+        raise argparse.ArgumentTypeError(f"not an angle: {text!r} (use e.g. 0.3 or pi/5)")
+    sign, number, has_pi, divisor = match.groups()
+    value = float(number) if number else 1.0
+    if has_pi:
+        value *= math.pi
+    if divisor:
+        if float(divisor) == 0.0:
+            raise argparse.ArgumentTypeError(f"division by zero in {text!r}")
+        value /= float(divisor)
+    return -value if sign == "-" else value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from exc
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
+
+
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from exc
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a non-negative number, got {text!r}")
+    return value
+
+
+def _int_at_least(low: int) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from exc
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+        return value
+    return parse
+
+
+def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = False) -> None:
+    parser.add_argument("--robot", choices=ROBOTS, default="table1", help="preset robot")
+    parser.add_argument("--n", type=_int_at_least(2), help="number of links (overrides preset)")
+    parser.add_argument("--passive", type=_int_at_least(1), action="append", default=[],
+                        metavar="K", help="make joint K passive (repeatable)")
+    if friction:
+        parser.add_argument("--cx", type=_non_negative_float, help="c_x [N s/m]")
+        parser.add_argument("--cy", type=_non_negative_float, help="c_y [N s/m]")
+        parser.add_argument("--ctheta", type=_non_negative_float, help="c_theta [N m s]")
+
+
+def _params(args: argparse.Namespace) -> SnakeParams:
+    changes: dict[str, Any] = {}
+    if getattr(args, "n", None) is not None:
+        changes["n"] = args.n
+    if getattr(args, "passive", None):
+        changes["passive"] = tuple(args.passive)
+    for flag, key in (("cx", "c_x"), ("cy", "c_y"), ("ctheta", "c_theta")):
+        if getattr(args, flag, None) is not None:
+            changes[key] = getattr(args, flag)
+    return SnakeParams.preset(args.robot, **changes)
+
+
+def _emit(args: argparse.Namespace, payload: dict[str, Any], text: str) -> None:
+    if getattr(args, "json", False):
+        print(json.dumps(payload, default=_json_default))
+    else:
+        print(text)
+
+
+def _json_default(value: object) -> object:
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if hasattr(value, "item"):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+# ----------------------------------------------------------------- subcommands
+def _cmd_generate(args: argparse.Namespace) -> None:
+    from .urdf import write_urdf
+
+    params = _params(args)
+    out = Path(args.output)
+    if out.suffix != ".urdf":
+        raise UsageError(f"generate: output must end in .urdf, got {out}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_urdf(params, out)
+    _emit(args, {"urdf": str(out), "n": params.n, "passive": list(params.passive)},
+          f"wrote {out} ({params.n} links, passive joints: {list(params.passive) or 'none'})")
+
+
+def _cmd_info(args: argparse.Namespace) -> None:
+    from .experiments.robot import info
+
+    data = info(_params(args))
+    _emit(args, data, "\n".join(f"{k:>13}: {v}" for k, v in data.items()))
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> None:
+    from .experiments import reproduce, stages
+
+    known = [name for name, _ in stages()]
+    for name in args.only or []:
+        if name not in known:
+            raise UsageError(f"reproduce: unknown stage {name!r}; stages: {', '.join(known)}")
+    index = reproduce(args.output, _params(args), quick=args.quick, only=args.only,
+                      log=lambda line: print(line, file=sys.stderr, flush=True))
+    print(f"report: {index}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole command line, built in one place."""
+    parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("generate", help="write the URDF of a snake robot")
+    _robot_options(p)
+    p.add_argument("-o", "--output", required=True, help="output file (.urdf)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_generate)
+
+    p = sub.add_parser("info", help="parameters and model sizes of a robot")
+    _robot_options(p, friction=True)
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("reproduce", help="run every experiment and write the HTML report")
+    _robot_options(p, friction=True)
+    p.add_argument("-o", "--output", default="results", help="output folder")
+    p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")
+    p.add_argument("--only", action="append", metavar="STAGE", help="run only this stage")
+    p.set_defaults(func=_cmd_reproduce)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``snake-pin``; returns the exit status."""
+    try:
+        args = build_parser().parse_args(argv)
+        args.func(args)
+    except SnakePinError as exc:
+        message = str(exc)
+        print(message if message.startswith("snake-pin") else f"snake-pin: {message}",
+              file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"snake-pin: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "),
+              file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

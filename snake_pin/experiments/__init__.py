@@ -1,0 +1,9 @@
+"""Experiments of the paper (and beyond) as report stages of ``snake-pin reproduce``.
+
+Each stage is a function ``stage(context) -> None`` that runs one experiment, writes its
+files into ``context.folder`` and adds a section to ``context.report``.
+"""
+
+from .reproduce import Context, reproduce, stages
+
+__all__ = ["Context", "reproduce", "stages"]

@@ -1,0 +1,123 @@
+"""The self-contained HTML report written by ``snake-pin reproduce``.
+
+A :class:`Report` collects sections (text, tables, figures); :meth:`Report.write`
+produces ``index.html`` with every PNG embedded as a data URI (it opens offline and
+alone) and ``summary.json`` with the numbers.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ._io import atomic_write_bytes
+
+__all__ = ["Report", "Section"]
+
+
+@dataclass
+class Section:
+    """One report section: a title, paragraphs, figures (paths), tables and links."""
+
+    key: str
+    title: str
+    paragraphs: list[str] = field(default_factory=list)
+    figures: list[tuple[Path, str]] = field(default_factory=list)
+    tables: list[tuple[list[str], list[list[Any]]]] = field(default_factory=list)
+    links: list[tuple[str, str]] = field(default_factory=list)
+    numbers: dict[str, Any] = field(default_factory=dict)
+
+    def text(self, paragraph: str) -> Section:
+        """Add a paragraph (plain text, escaped)."""
+        self.paragraphs.append(paragraph)
+        return self
+
+    def figure(self, path: str | os.PathLike[str], caption: str) -> Section:
+        """Add a PNG figure with a caption."""
+        self.figures.append((Path(path), caption))
+        return self
+
+    def table(self, header: list[str], rows: list[list[Any]]) -> Section:
+        """Add a table."""
+        self.tables.append((header, rows))
+        return self
+
+    def link(self, href: str, label: str) -> Section:
+        """Add a link (relative to the report folder)."""
+        self.links.append((href, label))
+        return self
+
+
+@dataclass
+class Report:
+    """Sections in order, written as one HTML page and one JSON summary."""
+
+    title: str
+    sections: list[Section] = field(default_factory=list)
+
+    def section(self, key: str, title: str) -> Section:
+        """Append and return a new section."""
+        sec = Section(key, title)
+        self.sections.append(sec)
+        return sec
+
+    def summary(self) -> dict[str, Any]:
+        """The numbers of every section, keyed by section."""
+        return {sec.key: sec.numbers for sec in self.sections}
+
+    def write(self, folder: str | os.PathLike[str]) -> Path:
+        """Write ``index.html`` and ``summary.json`` into ``folder``; return the HTML path."""
+        folder = Path(folder)
+        parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{_e(self.title)}"
+                 "</title><style>body{font-family:sans-serif;max-width:1100px;margin:auto;"
+                 "padding:1em;line-height:1.45}img{max-width:100%;border:1px solid #ddd}"
+                 "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;"
+                 "padding:3px 8px;text-align:right}figure{margin:1em 0}"
+                 "figcaption{color:#444;font-size:.9em}</style></head><body>",
+                 f"<h1>{_e(self.title)}</h1><ul>"]
+        parts += [f"<li><a href='#{_e(s.key)}'>{_e(s.title)}</a></li>" for s in self.sections]
+        parts.append("</ul>")
+        for sec in self.sections:
+            parts.append(f"<h2 id='{_e(sec.key)}'>{_e(sec.title)}</h2>")
+            parts += [f"<p>{_e(p)}</p>" for p in sec.paragraphs]
+            for header, rows in sec.tables:
+                parts.append("<table><tr>" + "".join(f"<th>{_e(h)}</th>" for h in header)
+                             + "</tr>")
+                parts += ["<tr>" + "".join(f"<td>{_e(_fmt(c))}</td>" for c in row) + "</tr>"
+                          for row in rows]
+                parts.append("</table>")
+            for path, caption in sec.figures:
+                data = base64.b64encode(path.read_bytes()).decode()
+                parts.append(f"<figure><img alt='{_e(caption)}' src='data:image/png;base64,"
+                             f"{data}'><figcaption>{_e(caption)} ({_e(path.name)})"
+                             "</figcaption></figure>")
+            if sec.links:
+                parts.append("<ul>" + "".join(f"<li><a href='{_e(h)}'>{_e(t)}</a></li>"
+                                              for h, t in sec.links) + "</ul>")
+        parts.append("</body></html>\n")
+        index = folder / "index.html"
+        atomic_write_bytes(index, "".join(parts).encode())
+        atomic_write_bytes(folder / "summary.json",
+                           (json.dumps(self.summary(), indent=2, default=_json) + "\n").encode())
+        return index
+
+
+def _e(text: object) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def _fmt(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _json(value: object) -> object:
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

@@ -1,0 +1,151 @@
+"""URDF generation: a planar n-link snake with a floating planar base (Fig. 1), via yourdfpy.
+
+The generated description is the single source of truth for the robot's geometry and
+inertia: :class:`snake_pin.model.Snake` builds its Pinocchio model from it, and the
+engine model reads the same parameters.
+
+Layout (DESIGN §2): link ``link_i``'s frame sits at the link's front end with x pointing
+towards the tail; its centre of mass is at x = l. ``joint_i`` (revolute about z) joins
+``link_i`` to ``link_{i+1}`` at x = 2l of ``link_i``. A ``world`` link and a ``planar``
+joint ``base`` carry the head, so that generic tools see the floating planar base.
+
+Passive joints are marked by ``<limit effort="0">``: a joint with zero effort limit
+cannot be actuated. Pinocchio reads it into ``model.effortLimit`` and
+:func:`passive_joints` recovers the indices from any generated file.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import yourdfpy
+from lxml import etree
+
+from ._io import atomic_write_bytes
+from .exceptions import ParameterError, SnakePinError
+from .params import SnakeParams
+
+__all__ = [
+    "EFFORT_LIMIT",
+    "JOINT_LIMIT",
+    "build_urdf",
+    "passive_joints",
+    "urdf_string",
+    "write_urdf",
+]
+
+#: Rated joint torque written into the URDF [N m] (not enforced by the dynamics).
+EFFORT_LIMIT = 10.0
+#: Joint range written into the URDF [rad] (|phi_i| <= pi/2, the singular search's box).
+JOINT_LIMIT = 0.5 * np.pi
+#: Joint velocity limit written into the URDF [rad/s].
+VELOCITY_LIMIT = 10.0
+#: Link radius as a fraction of the link length (drawing and collision only).
+RADIUS_RATIO = 0.15
+
+_BODY_RGBA = np.array([0.13, 0.55, 0.13, 1.0])
+_HEAD_RGBA = np.array([0.85, 0.33, 0.10, 1.0])
+
+
+def _translation(x: float) -> np.ndarray:
+    pose = np.eye(4)
+    pose[0, 3] = x
+    return pose
+
+
+def _link(params: SnakeParams, index: int) -> yourdfpy.Link:
+    half = params.half_length
+    radius = RADIUS_RATIO * params.link_length
+    # A cylinder's axis is z in URDF: turn it onto the link's x axis, centred at x = l.
+    pose = np.array([[0.0, 0.0, 1.0, half], [0.0, 1.0, 0.0, 0.0],
+                     [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    geometry = yourdfpy.Geometry(cylinder=yourdfpy.Cylinder(radius=radius,
+                                                            length=params.link_length))
+    material = yourdfpy.Material(name="head" if index == 1 else "body")
+    # Thin rod in the plane: I_yy = I_zz = J about the CM; I_xx of the cylinder's section.
+    inertia = np.diag([0.5 * params.mass * radius**2, params.inertia, params.inertia])
+    return yourdfpy.Link(
+        name=f"link_{index}",
+        inertial=yourdfpy.Inertial(origin=_translation(half), mass=params.mass,
+                                   inertia=inertia),
+        visuals=[yourdfpy.Visual(name=f"link_{index}_visual", origin=pose,
+                                 geometry=geometry, material=material)],
+        collisions=[yourdfpy.Collision(name=f"link_{index}_collision", origin=pose,
+                                       geometry=geometry)],
+    )
+
+
+def build_urdf(params: SnakeParams, *, floating_base: bool = True) -> yourdfpy.URDF:
+    """Build the robot description of ``params`` as a yourdfpy object.
+
+    Parameters
+    ----------
+    params
+        Robot parameters; ``params.passive`` joints get a zero effort limit.
+    floating_base
+        Include the ``world`` link and the ``planar`` joint ``base`` (default). Without
+        it the head link is the root, ready for a custom root joint (Pinocchio).
+    """
+    links = [_link(params, i) for i in range(1, params.n + 1)]
+    joints = []
+    for i in range(1, params.n):
+        effort = 0.0 if i in params.passive else EFFORT_LIMIT
+        joints.append(yourdfpy.Joint(
+            name=f"joint_{i}", type="revolute", parent=f"link_{i}", child=f"link_{i + 1}",
+            origin=_translation(params.link_length), axis=np.array([0.0, 0.0, 1.0]),
+            limit=yourdfpy.Limit(effort=effort, velocity=VELOCITY_LIMIT,
+                                 lower=-JOINT_LIMIT, upper=JOINT_LIMIT),
+            dynamics=yourdfpy.Dynamics(damping=0.0, friction=0.0),
+        ))
+    if floating_base:
+        links.insert(0, yourdfpy.Link(name="world"))
+        joints.insert(0, yourdfpy.Joint(name="base", type="planar", parent="world",
+                                        child="link_1", origin=np.eye(4),
+                                        axis=np.array([0.0, 0.0, 1.0])))
+    materials = [yourdfpy.Material(name="head", color=yourdfpy.Color(rgba=_HEAD_RGBA)),
+                 yourdfpy.Material(name="body", color=yourdfpy.Color(rgba=_BODY_RGBA))]
+    robot = yourdfpy.Robot(name=f"snake_{params.name}", links=links, joints=joints,
+                           materials=materials)
+    return yourdfpy.URDF(robot=robot, build_scene_graph=floating_base, load_meshes=False)
+
+
+def urdf_string(params: SnakeParams, *, floating_base: bool = True) -> str:
+    """The URDF text of ``params``, pretty-printed (same parameters, same bytes)."""
+    # yourdfpy's own write_xml_string drops its keyword arguments (``*kwargs``), so
+    # serialise its element tree the way its write_xml_file does.
+    tree = build_urdf(params, floating_base=floating_base).write_xml()
+    return etree.tostring(tree, xml_declaration=True, pretty_print=True,
+                          encoding="UTF-8").decode()
+
+
+def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
+    """Write the URDF of ``params`` to ``path`` whole or not at all; return the path.
+
+    The description is validated with yourdfpy before it is written.
+    """
+    urdf = build_urdf(params)
+    if not urdf.validate():
+        raise SnakePinError(f"yourdfpy rejected the generated description of {params.name}")
+    path = Path(path)
+    if path.suffix != ".urdf":
+        raise ParameterError(f"output file must end in .urdf: {path}")
+    if not path.parent.exists():
+        raise ParameterError(f"output directory does not exist: {path.parent}")
+    atomic_write_bytes(path, urdf_string(params).encode())
+    return path
+
+
+def passive_joints(urdf_text: str) -> tuple[int, ...]:
+    """1-based indices of the joints marked passive (zero effort limit) in a URDF text."""
+    urdf = yourdfpy.URDF.load(io.BytesIO(urdf_text.encode()), build_scene_graph=False,
+                              load_meshes=False)
+    out = []
+    for name, joint in urdf.joint_map.items():
+        match = re.fullmatch(r"joint_(\d+)", name)
+        if match and joint.limit is not None and joint.limit.effort == 0.0:
+            out.append(int(match.group(1)))
+    return tuple(sorted(out))

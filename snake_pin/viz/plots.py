@@ -1,0 +1,105 @@
+"""Matplotlib figures: robot drawings like Fig. 1 and time series of a run."""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .._io import atomic_write_bytes  # noqa: E402
+
+if TYPE_CHECKING:
+    from ..model import Snake
+    from ..sim import Trajectory
+
+__all__ = ["draw_snake", "plot_postures", "plot_trajectory", "save_figure"]
+
+BODY_COLOR = "#228b22"
+HEAD_COLOR = "#d9541a"
+PASSIVE_COLOR = "#1f4fd1"
+
+
+def save_figure(fig: plt.Figure, path: str | os.PathLike[str] | None) -> plt.Figure:
+    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it; return it."""
+    if path is not None:
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        atomic_write_bytes(path, buf.getvalue())
+        plt.close(fig)
+    return fig
+
+
+def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = False,
+               color: str = BODY_COLOR, alpha: float = 1.0, label: str | None = None) -> None:
+    """Draw the snake at ``q`` on ``ax``: links, head dot, passive joints as crosses.
+
+    With ``frames`` each link frame O_i - x_i y_i is drawn at the link's CM (as in Fig. 1).
+    """
+    points = snake.joint_points(q)
+    width = 4.0 if alpha == 1.0 else 2.0
+    ax.plot(points[:, 0], points[:, 1], "-", color=color, lw=width, alpha=alpha,
+            solid_capstyle="round", label=label)
+    ax.plot(points[1:-1, 0], points[1:-1, 1], "o", color="k", ms=2.5, alpha=alpha)
+    ax.plot(points[0, 0], points[0, 1], "o", color=HEAD_COLOR, ms=7, alpha=alpha)
+    for k in snake.params.passive:
+        ax.plot(points[k, 0], points[k, 1], "x", color=PASSIVE_COLOR, ms=10, mew=2.5,
+                alpha=alpha)
+    if frames:
+        poses = snake.link_poses(q)
+        size = 0.6 * snake.params.half_length
+        for x, y, th in poses:
+            ax.arrow(x, y, size * np.cos(th), size * np.sin(th), color="#c0392b",
+                     width=size * 0.06, length_includes_head=True, zorder=4)
+            ax.arrow(x, y, -size * np.sin(th), size * np.cos(th), color="#2874a6",
+                     width=size * 0.06, length_includes_head=True, zorder=4)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.08)
+
+
+def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
+                  path: str | os.PathLike[str] | None = None, *, frames: bool = True,
+                  title: str | None = None) -> plt.Figure:
+    """One panel per (label, q): the robot drawn with its link frames."""
+    count = len(postures)
+    cols = min(count, 3)
+    rows = int(np.ceil(count / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False)
+    for ax, (label, q) in zip(axes.flat, postures, strict=False):
+        draw_snake(ax, snake, q, frames=frames)
+        ax.set_title(label, fontsize=10)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.grid(alpha=0.3)
+    for ax in list(axes.flat)[count:]:
+        ax.axis("off")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None) -> plt.Figure:
+    """Head pose, joint angles and torque norm over time."""
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True)
+    axes[0].plot(traj.t, traj.q[:, 0], label="x_h [m]")
+    axes[0].plot(traj.t, traj.q[:, 1], label="y_h [m]")
+    axes[0].plot(traj.t, traj.q[:, 2], label="theta_1 [rad]")
+    axes[0].legend(loc="best", fontsize=8)
+    axes[1].plot(traj.t, traj.q[:, 3:], lw=0.8)
+    axes[1].set_ylabel("phi [rad]")
+    axes[2].semilogy(traj.t, np.linalg.norm(traj.tau, axis=1) + 1e-12)
+    axes[2].set_ylabel("||tau|| [N m]")
+    axes[2].set_xlabel("t [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    if traj.diverged:
+        fig.suptitle(traj.reason, fontsize=9, color="firebrick")
+    fig.tight_layout()
+    return save_figure(fig, path)

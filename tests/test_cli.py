@@ -1,0 +1,74 @@
+"""Command line: one JSON object with --json, one error line and status 2 on bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from snake_pin.cli import main, parse_angle
+
+
+def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize("argv", [
+    ["generate", "--passive", "12", "-o", "x.urdf"],
+    ["generate", "-o", "robot.txt"],
+    ["generate", "--robot", "cobra", "-o", "x.urdf"],
+    ["info", "--n", "1"],
+    ["info", "--cx", "-1"],
+    ["info", "--cy", "nan"],
+    ["reproduce", "--only", "nothing", "-o", "out"],
+    ["no-such-command"],
+    [],
+])
+def test_bad_input_is_one_line_and_status_2(capsys: pytest.CaptureFixture[str],
+                                            argv: list[str], tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each wrong argument gives exit status 2 and exactly one line on stderr."""
+    monkeypatch.chdir(tmp_path)
+    code, out, err = _run(capsys, *argv)
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and err.startswith("snake-pin")
+    assert out == ""
+
+
+def test_info_json(capsys: pytest.CaptureFixture[str]) -> None:
+    """info --json prints one object with nq, nv, total mass and body length."""
+    code, out, _ = _run(capsys, "info", "--robot", "engine", "--json")
+    data = json.loads(out)
+    assert code == 0 and data["nq"] == data["nv"] == 10
+    assert data["total_mass"] == pytest.approx(8 * 0.417)
+    assert data["body_length"] == pytest.approx(8 * 0.176)
+
+
+def test_generate_writes_urdf(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """generate --n 6 --passive 2 writes a URDF with that joint marked passive."""
+    from snake_pin.urdf import passive_joints
+
+    out_file = tmp_path / "six.urdf"
+    code, _, _ = _run(capsys, "generate", "--n", "6", "--passive", "2", "-o", str(out_file))
+    assert code == 0 and passive_joints(out_file.read_text()) == (2,)
+
+
+def test_reproduce_writes_report(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """reproduce --only robot writes index.html (figures embedded) and summary.json."""
+    code, _, err = _run(capsys, "reproduce", "--only", "robot", "-o", str(tmp_path))
+    assert code == 0 and "[1/1] robot" in err
+    html = (tmp_path / "index.html").read_text()
+    assert "data:image/png;base64," in html
+    assert json.loads((tmp_path / "summary.json").read_text())["robot"]["nq"] == 12
+
+
+@pytest.mark.parametrize(("text", "value"), [("pi/5", math.pi / 5), ("-pi/3", -math.pi / 3),
+                                             ("2*pi/3", 2 * math.pi / 3), ("0.25", 0.25),
+                                             ("pi", math.pi), ("1e-2", 0.01)])
+def test_parse_angle(text: str, value: float) -> None:
+    """Angles accept plain radians and multiples of pi."""
+    assert parse_angle(text) == pytest.approx(value)

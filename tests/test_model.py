@@ -1,0 +1,124 @@
+"""Snake model: dynamics consistency and the physics invariants of DESIGN §5."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from snake_pin import ConfigurationError, Snake, SnakeParams, paper
+
+from .conftest import random_state
+
+angles = st.floats(-np.pi, np.pi, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(2, 16), data=st.data())
+def test_inertia_matrix_is_symmetric_positive_definite(n: int, data: st.DataObject) -> None:
+    """H(q) is symmetric and positive definite for any posture (Section III.1)."""
+    snake = Snake(SnakeParams.table1(n=n))
+    q = np.array(data.draw(st.lists(angles, min_size=n + 2, max_size=n + 2)))
+    h = snake.inertia_matrix(q)
+    assert np.array_equal(h, h.T)
+    assert np.linalg.eigvalsh(h).min() > 0.0
+    assert h[0, 0] == pytest.approx(n * snake.params.mass)
+
+
+def test_forward_dynamics_solves_eq20(table1: Snake, rng: np.random.Generator) -> None:
+    """ABA's q'' satisfies H q'' + h = E tau (eq. 20)."""
+    e = paper.actuation_matrix(table1.n)
+    for _ in range(20):
+        q, dq = random_state(rng, table1.n)
+        tau = rng.normal(size=table1.n - 1)
+        ddq = table1.forward_dynamics(q, dq, tau)
+        residual = table1.inertia_matrix(q) @ ddq + table1.bias(q, dq) - e @ tau
+        assert np.max(np.abs(residual)) < 1e-10
+
+
+def test_passive_joint_torque_is_ignored(rng: np.random.Generator) -> None:
+    """With joint 5 passive, any torque on it leaves q'' unchanged."""
+    snake = Snake(SnakeParams.table1(passive=(5,)))
+    q, dq = random_state(rng, snake.n)
+    tau = rng.normal(size=snake.n - 1)
+    other = tau.copy()
+    other[4] += 3.0
+    assert np.array_equal(snake.forward_dynamics(q, dq, tau), snake.forward_dynamics(q, dq, other))
+    assert snake.actuation_matrix[:, 4].sum() == 0.0
+
+
+def _rk4_with_power(snake: Snake, x: np.ndarray, torques: np.ndarray, dt: float,
+                    params: SnakeParams, *, power: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate [q, dq, work] with RK4; work' = tau . phi' - dq^T C dq (power balance)."""
+    nq = snake.nq
+
+    def f(y: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        q, dq = y[:nq], y[nq:2 * nq]
+        rate = tau @ dq[3:] - dq @ paper.friction_matrix(params, q) @ dq if power else 0.0
+        return np.r_[dq, snake.forward_dynamics(q, dq, tau), rate]
+
+    y = np.r_[x, 0.0]
+    history = [y]
+    for tau in torques:
+        k1 = f(y, tau)
+        k2 = f(y + 0.5 * dt * k1, tau)
+        k3 = f(y + 0.5 * dt * k2, tau)
+        k4 = f(y + dt * k3, tau)
+        y = y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        history.append(y)
+    return np.array(history), y
+
+
+def test_power_balance(rng: np.random.Generator) -> None:
+    """T(t) - T(0) equals the integral of tau . phi' - dq^T C dq (rel. error < 1e-6)."""
+    params = SnakeParams.table1(c_y=4.0)
+    snake = Snake(params)
+    q, dq = random_state(rng, params.n)
+    torques = np.repeat(rng.normal(scale=0.05, size=(40, params.n - 1)), 25, axis=0)
+    history, _ = _rk4_with_power(snake, np.r_[q, dq], torques, 1e-3, params)
+    nq = snake.nq
+    energy = np.array([snake.kinetic_energy(y[:nq], y[nq:2 * nq]) for y in history])
+    work = history[:, -1]
+    change = energy - energy[0]
+    assert np.max(np.abs(change - work)) < 1e-6 * np.max(np.abs(change))
+    assert abs(change[-1]) > 1e-4  # the test is not vacuous: energy did change
+
+
+def test_linear_momentum_conserved_without_friction(rng: np.random.Generator) -> None:
+    """With zero friction the first two rows of H dq (total linear momentum) stay put."""
+    params = SnakeParams.table1(c_x=0.0, c_y=0.0, c_theta=0.0)
+    snake = Snake(params)
+    q, dq = random_state(rng, params.n)
+    torques = np.repeat(rng.normal(scale=0.02, size=(30, params.n - 1)), 100, axis=0)
+    history, _ = _rk4_with_power(snake, np.r_[q, dq], torques, 5e-4, params, power=False)
+    nq = snake.nq
+    momentum = np.array([snake.inertia_matrix(y[:nq])[:2] @ y[nq:2 * nq] for y in history])
+    # RK4 truncation only: relative drift below 1e-8 (a model error gives O(1))
+    assert np.max(np.abs(momentum - momentum[0])) < 1e-8 * np.linalg.norm(momentum[0])
+    assert np.ptp(history[:, 3:nq]) > 0.1  # the body did move
+
+
+def test_g_conserved_with_isotropic_friction(rng: np.random.Generator) -> None:
+    """Section V: with c_x = c_y, g = H1 dq + g2 (eq. 67) is constant for any torques."""
+    params = SnakeParams.table1()  # c_x = c_y = 0.5
+    snake = Snake(params)
+    q, dq = random_state(rng, params.n)
+    # 3 s of piecewise-constant torques of controller size (0.02 N m), RK4 at 0.5 ms
+    torques = np.repeat(rng.normal(scale=0.02, size=(60, params.n - 1)), 100, axis=0)
+    history, _ = _rk4_with_power(snake, np.r_[q, dq], torques, 5e-4, params, power=False)
+    nq = snake.nq
+    g = np.array([snake.inertia_matrix(y[:nq])[:2] @ y[nq:2 * nq] + paper.g2(params, y[:nq])
+                  for y in history])
+    assert np.max(np.abs(g - g[0])) < 1e-8
+    assert np.ptp(history[:, 0]) > 1e-3  # the head did move
+
+
+def test_head_pose_and_bad_sizes(table1: Snake) -> None:
+    """head_pose is w = q[:3]; wrong-sized vectors are ConfigurationErrors."""
+    q = np.arange(12.0)
+    assert np.array_equal(table1.head_pose(q), q[:3])
+    with pytest.raises(ConfigurationError):
+        table1.check_q(np.zeros(11))
+    with pytest.raises(ConfigurationError):
+        table1.check_tau([0.0] * 8)

@@ -1,0 +1,60 @@
+"""SnakeParams: presets and validation at the boundary."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from snake_pin import ParameterError, SnakeParams, SnakePinError
+
+
+def test_table1_preset_matches_design() -> None:
+    """Table 1 robot: n = 10, 2l = 0.12 m, m = 0.182 kg, J = 2.2e-4 kg m^2 (erratum 1)."""
+    p = SnakeParams.table1()
+    assert (p.n, p.link_length, p.mass, p.inertia) == (10, 0.12, 0.182, 2.2e-4)
+    assert (p.c_x, p.c_y, p.c_theta) == (0.5, 0.5, 7.2e-5)
+    assert p.half_length == pytest.approx(0.06) and p.body_length == pytest.approx(1.2)
+    # J is the thin-rod value m (2l)^2 / 12 to two digits, not 0.22.
+    assert p.inertia == pytest.approx(p.mass * p.link_length**2 / 12, rel=0.01)
+
+
+def test_engine_preset() -> None:
+    """Engine robot of Section VI.3: n = 8, 2l = 0.176 m, m = 0.417 kg, J = 1.2e-3."""
+    p = SnakeParams.engine()
+    assert (p.n, p.link_length, p.mass, p.inertia) == (8, 0.176, 0.417, 1.2e-3)
+
+
+@pytest.mark.parametrize("changes", [
+    {"n": 1}, {"n": 2.5}, {"n": True}, {"mass": 0.0}, {"mass": -1.0},
+    {"link_length": 0.0}, {"inertia": -1e-4}, {"c_x": -0.1}, {"c_theta": -1.0},
+    {"c_y": math.nan}, {"mass": math.inf}, {"inertia": "heavy"}, {"passive": (0,)},
+    {"passive": (10,)}, {"passive": ("x",)}, {"name": "no spaces"},
+])
+def test_invalid_parameters_raise_parameter_error(changes: dict) -> None:
+    """Each out-of-domain field is refused with a ParameterError (a SnakePinError)."""
+    with pytest.raises(ParameterError) as info:
+        SnakeParams.table1(**changes)
+    assert isinstance(info.value, SnakePinError)
+    assert str(info.value)
+
+
+def test_passive_indices_are_sorted_and_deduplicated() -> None:
+    """Passive joints normalise to a sorted tuple and leave the rest actuated."""
+    p = SnakeParams.table1(passive=[7, 5, 5])
+    assert p.passive == (5, 7)
+    assert p.actuated == (1, 2, 3, 4, 6, 8, 9)
+
+
+def test_dict_round_trip() -> None:
+    """to_dict/from_dict give back an equal object; unknown keys are refused."""
+    p = SnakeParams.engine(passive=(3,))
+    assert SnakeParams.from_dict(p.to_dict()) == p
+    with pytest.raises(ParameterError):
+        SnakeParams.from_dict({**p.to_dict(), "colour": "red"})
+
+
+def test_unknown_preset() -> None:
+    """An unknown preset name is a ParameterError that lists the choices."""
+    with pytest.raises(ParameterError, match="table1"):
+        SnakeParams.preset("python")
