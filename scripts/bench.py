@@ -64,13 +64,11 @@ def bench_dynamics(budget: float) -> None:
                       lambda p=params, q=q: paper.inertia_matrix(p, q)),
                 "h": (lambda s=snake, q=q, dq=dq: s.bias(q, dq),
                       lambda p=params, q=q, dq=dq: paper.bias(p, q, dq)),
-                "forward dynamics": (lambda s=snake, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t),
-                                     closed_fd),
+                "forward dynamics": (
+                    lambda s=snake, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t), closed_fd),
             }
             for name, (fast, slow) in pairs.items():
-                if label == "iso" and name == "H":
-                    pass
-                elif name == "H":
+                if name == "H" and label != "iso":
                     continue  # H does not depend on friction
                 t_fast, t_slow = median_us(fast, budget=budget), median_us(slow, budget=budget)
                 rows.append([str(n), name, label if name != "H" else "-", f"{t_fast:.1f}",

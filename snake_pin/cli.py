@@ -154,6 +154,82 @@ def _cmd_reproduce(args: argparse.Namespace) -> None:
     print(f"report: {index}")
 
 
+def _parse_q(text: str) -> list[float]:
+    try:
+        return [parse_angle(part) for part in text.replace(" ", "").split(",") if part]
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"--q: {exc}") from exc
+
+
+def _posture(args: argparse.Namespace, n: int) -> list[float]:
+    from . import gaits
+
+    if args.shape == "straight":
+        return gaits.straight(n).tolist()
+    if args.shape == "arc":
+        if args.phi0 is None:
+            raise UsageError("manip: --shape arc needs --phi0")
+        return gaits.arc(n, args.phi0).tolist()
+    if args.shape == "serpenoid":
+        return gaits.Serpenoid(n, args.alpha, args.ts).configuration().tolist()
+    if args.q is None:
+        raise UsageError("manip: --shape q needs --q x,y,theta1,phi1,...")
+    if len(args.q) != n + 2:
+        raise UsageError(f"manip: --q needs {n + 2} values for n = {n}, got {len(args.q)}")
+    return args.q
+
+
+def _cmd_manip(args: argparse.Namespace) -> None:
+    from .manipulability import manipulability
+    from .model import Snake
+
+    params = _params(args)
+    snake = Snake(params)
+    res = manipulability(snake, _posture(args, params.n), free_joint=args.free_joint,
+                         heading=not args.no_heading)
+    tilde = "~" if (args.free_joint or params.passive) else ""
+    _emit(args, res.to_dict(),
+          f"D{tilde} = {res.D:.6g}\nR{tilde} = {res.R:.6g}\nsigma = {res.sigma}\n"
+          f"lambda = {res.lambda_}")
+
+
+def _cmd_sweep(args: argparse.Namespace) -> None:
+    from .model import Snake
+    from .sweeps import sweep
+
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    result = sweep(Snake(_params(args)), args.family, free_joint=args.free_joint,
+                   points=args.points, progress=not args.json)
+    paths = result.write(out)
+    payload = {"family": args.family, "free_joint": args.free_joint,
+               "zeros": result.zeros().tolist(), "R_min": float(result.R.min()),
+               "D_min": float(result.D.min()), "files": {k: str(v) for k, v in paths.items()}}
+    _emit(args, payload, f"wrote {', '.join(str(p) for p in paths.values())}; "
+                         f"R = 0 at {result.label} = {result.zeros().tolist()}")
+
+
+def _cmd_singular(args: argparse.Namespace) -> None:
+    from .singular import find_singular_postures
+
+    params = _params(args)
+    search = find_singular_postures(params, starts=args.starts, bound=args.bound,
+                                    free_joint=args.free_joint, seed=args.seed,
+                                    progress=not args.json)
+    if args.output:
+        from .experiments.manipulability import draw_singular
+
+        out = Path(args.output)
+        out.mkdir(parents=True, exist_ok=True)
+        draw_singular(search, out / "singular_postures.png")
+    lines = [f"{len(search.families)} famil{'y' if len(search.families) == 1 else 'ies'} "
+             f"with R <= {search.threshold:.3g} (typical R {search.R_typical:.3g}), "
+             f"from {search.starts} starts:"]
+    lines += [f"  {'straight' if f.straight else 'non-straight'} x{f.members}: "
+              f"R = {f.R:.3g}, phi = {[round(x, 3) for x in f.phi]}" for f in search.families]
+    _emit(args, search.to_dict(), "\n".join(lines))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line, built in one place."""
     parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0])
@@ -169,6 +245,37 @@ def build_parser() -> argparse.ArgumentParser:
     _robot_options(p, friction=True)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("manip", help="manipulability D, R of one posture (eqs. 30, 31, 42)")
+    _robot_options(p)
+    p.add_argument("--shape", choices=("straight", "arc", "serpenoid", "q"), default="straight")
+    p.add_argument("--phi0", type=parse_angle, help="arc: common joint angle (e.g. pi/10)")
+    p.add_argument("--alpha", type=parse_angle, default=math.pi / 4, help="serpenoid alpha")
+    p.add_argument("--ts", type=float, default=1.5, help="serpenoid T_s")
+    p.add_argument("--q", type=_parse_q, help="full configuration x,y,theta1,phi1,...")
+    p.add_argument("--free-joint", type=_int_at_least(0), metavar="K", help="joint K is free")
+    p.add_argument("--no-heading", action="store_true", help="leave theta_1 out of the task")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_manip)
+
+    p = sub.add_parser("sweep", help="D and R along a posture family (Figs. 2-9)")
+    p.add_argument("family", choices=("arc", "alpha", "ts"))
+    _robot_options(p)
+    p.add_argument("--free-joint", type=_int_at_least(0), metavar="K", help="joint K is free")
+    p.add_argument("--points", type=_int_at_least(2), default=201)
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_sweep)
+
+    p = sub.add_parser("singular", help="search the joint box for singular postures (R = 0)")
+    _robot_options(p)
+    p.add_argument("--starts", type=_int_at_least(1), default=200)
+    p.add_argument("--bound", type=parse_angle, default=math.pi / 2, help="|phi_i| <= bound")
+    p.add_argument("--free-joint", type=_int_at_least(0), metavar="K")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("-o", "--output", help="folder for a drawing of the families")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_singular)
 
     p = sub.add_parser("reproduce", help="run every experiment and write the HTML report")
     _robot_options(p, friction=True)

@@ -92,6 +92,13 @@ class Snake:
         np.copyto(out, upper.T, where=self._strict_lower)
         return out
 
+    def inverse_inertia_matrix(self, q: np.ndarray) -> np.ndarray:
+        """H(q)^-1 by Pinocchio's computeMinverse (symmetric)."""
+        upper = pin.computeMinverse(self.model, self.data, q)  # upper triangle is valid
+        out = upper.copy()
+        np.copyto(out, upper.T, where=self._strict_lower)
+        return out
+
     def coriolis(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Coriolis/centrifugal term W diag(J dq) J dq of eq. (18) by RNEA."""
         return pin.nonLinearEffects(self.model, self.data, q, dq).copy()

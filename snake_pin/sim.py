@@ -122,7 +122,7 @@ class Trajectory:
             raise TrajectoryFileError(f"{path}: array sizes do not match its {params.n}-link robot")
         return traj
 
-    def plot(self, path: str | os.PathLike[str] | None = None):  # noqa: ANN201 - Figure
+    def plot(self, path: str | os.PathLike[str] | None = None):
         """Head position, joint angles and torques over time; saved as PNG if ``path``."""
         from .viz.plots import plot_trajectory
 
@@ -183,7 +183,7 @@ def simulate(snake: Snake, controller: Controller, x0: np.ndarray, t_final: floa
     diverged, reason, k = False, "", 0
     ts[0], xs[0] = 0.0, x
     bar = _progress(steps, progress, getattr(controller, "name", "run"))
-    for k in range(steps):  # noqa: B007 - k is used after the loop
+    for k in range(steps):
         t = k * control_dt
         try:
             tau = np.asarray(controller(x, t), dtype=float)
@@ -223,7 +223,7 @@ def simulate(snake: Snake, controller: Controller, x0: np.ndarray, t_final: floa
                             **(meta or {})})
 
 
-def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,  # noqa: ANN001
+def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,
               nq: int) -> np.ndarray:
     """One classical RK4 step of x' = [dq, accel(x, tau)], written on the halves of x."""
     k1 = accel(x, tau)
@@ -255,7 +255,7 @@ def _divergence(x: np.ndarray, nq: int, max_speed: float, max_distance: float) -
     return ""
 
 
-def _solve_ivp_step(rhs, x: np.ndarray, tau: np.ndarray, t: float,  # noqa: ANN001
+def _solve_ivp_step(rhs, x: np.ndarray, tau: np.ndarray, t: float,
                     span: float) -> np.ndarray:
     from scipy.integrate import solve_ivp
 
@@ -264,7 +264,7 @@ def _solve_ivp_step(rhs, x: np.ndarray, tau: np.ndarray, t: float,  # noqa: ANN0
     return sol.y[:, -1] if sol.success else np.full_like(x, np.nan)
 
 
-def _progress(total: int, enabled: bool, label: str):  # noqa: ANN202
+def _progress(total: int, enabled: bool, label: str):
     if not enabled:
         return None
     from tqdm import tqdm

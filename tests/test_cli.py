@@ -25,6 +25,15 @@ def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]
     ["info", "--cx", "-1"],
     ["info", "--cy", "nan"],
     ["reproduce", "--only", "nothing", "-o", "out"],
+    ["manip", "--shape", "arc"],
+    ["manip", "--shape", "arc", "--phi0", "pi/zero"],
+    ["manip", "--shape", "q", "--q", "0,0,0,1"],
+    ["manip", "--free-joint", "12"],
+    ["manip", "--n", "3"],
+    ["sweep", "spiral", "-o", "out"],
+    ["sweep", "arc", "--points", "1", "-o", "out"],
+    ["singular", "--starts", "0"],
+    ["singular", "--bound", "7"],
     ["no-such-command"],
     [],
 ])
@@ -72,3 +81,33 @@ def test_reproduce_writes_report(capsys: pytest.CaptureFixture[str], tmp_path: P
 def test_parse_angle(text: str, value: float) -> None:
     """Angles accept plain radians and multiples of pi."""
     assert parse_angle(text) == pytest.approx(value)
+
+
+def test_manip_json_matches_library(capsys: pytest.CaptureFixture[str]) -> None:
+    """manip --json prints exactly {D, R, sigma, lambda} equal to manipulability()."""
+    import numpy as np
+
+    from snake_pin import Snake, arc
+    from snake_pin.manipulability import manipulability
+
+    code, out, _ = _run(capsys, "manip", "--shape", "arc", "--phi0", "pi/10", "--json")
+    data = json.loads(out)
+    assert code == 0 and set(data) == {"D", "R", "sigma", "lambda"}
+    ref = manipulability(Snake(), arc(10, math.pi / 10))
+    assert data["R"] == pytest.approx(ref.R) and np.allclose(data["sigma"], ref.sigma)
+
+
+def test_manip_full_configuration(capsys: pytest.CaptureFixture[str]) -> None:
+    """--q takes the full configuration; the straight posture gives R = 0."""
+    code, out, _ = _run(capsys, "manip", "--shape", "q", "--q", "1,2,pi/3" + ",0" * 9, "--json")
+    assert code == 0 and json.loads(out)["R"] == pytest.approx(0.0, abs=1e-14)
+
+
+def test_sweep_and_singular_json(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """sweep writes its files and names the zero; singular prints postures and R."""
+    code, out, _ = _run(capsys, "sweep", "alpha", "--points", "11", "-o", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 0 and data["zeros"] == [0.0] and Path(data["files"]["png"]).exists()
+    code, out, _ = _run(capsys, "singular", "--starts", "3", "--json")
+    data = json.loads(out)
+    assert code == 0 and len(data["postures"]) == len(data["R"])

@@ -27,9 +27,10 @@ class Context:
 
 def stages() -> list[tuple[str, Callable[[Context], None]]]:
     """The report stages in order (imported lazily: each pulls in its own tools)."""
+    from .manipulability import manipulability_stage
     from .robot import robot_stage
 
-    return [("robot", robot_stage)]
+    return [("robot", robot_stage), ("manipulability", manipulability_stage)]
 
 
 def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: bool = False,

@@ -10,10 +10,10 @@ from typing import TYPE_CHECKING
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from .._io import atomic_write_bytes  # noqa: E402
+from .._io import atomic_write_bytes
 
 if TYPE_CHECKING:
     from ..model import Snake
@@ -101,5 +101,47 @@ def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None
         ax.grid(alpha=0.3)
     if traj.diverged:
         fig.suptitle(traj.reason, fontsize=9, color="firebrick")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def _positive(values: np.ndarray, floor: float) -> np.ndarray:
+    return np.maximum(values, floor)
+
+
+def plot_sweep(sweep, path: str | os.PathLike[str] | None = None) -> plt.Figure:
+    """D and R against the swept parameter, log scale (zeros drawn at the floor)."""
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    suffix = f", joint {sweep.free_joint} free" if sweep.free_joint else ""
+    for ax, key, name in ((axes[0], "D", "D"), (axes[1], "R", "R")):
+        values = getattr(sweep, key)
+        positive = values[values > 0]
+        floor = positive.min() / 10 if positive.size else 1e-20
+        ax.semilogy(sweep.values, _positive(values, floor), "-", color="#1f4fd1")
+        zero = values <= 1e-9 * values.max()
+        if np.any(zero):
+            ax.semilogy(sweep.values[zero], np.full(zero.sum(), floor), "v", color="firebrick",
+                        label="numerically 0")
+            ax.legend(fontsize=8)
+        ax.set_xlabel(sweep.label)
+        ax.set_ylabel(f"{name}{'~' if sweep.free_joint else ''}")
+        ax.set_title(f"{name} along '{sweep.family}'{suffix}", fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_r_maps(maps, path: str | os.PathLike[str] | None = None) -> plt.Figure:
+    """log10 R over (alpha, T_s), one panel per map."""
+    fig, axes = plt.subplots(1, len(maps), figsize=(5.2 * len(maps), 4.2), squeeze=False)
+    for ax, rmap in zip(axes[0], maps, strict=True):
+        floor = 1e-8 * rmap.R.max()  # exact zeros (alpha = 0, T_s = 0) would swamp the scale
+        image = ax.pcolormesh(rmap.alpha, rmap.ts, np.log10(np.maximum(rmap.R, floor)),
+                              shading="auto", cmap="viridis")
+        fig.colorbar(image, ax=ax, label="log10 R")
+        ax.set_xlabel("alpha [rad]")
+        ax.set_ylabel("T_s")
+        free = f", joint {rmap.free_joint} free" if rmap.free_joint else ""
+        ax.set_title(f"R of the serpenoid{free}", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path)

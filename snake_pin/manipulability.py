@@ -1,0 +1,272 @@
+"""Dynamic manipulability of an underactuated system (Section III, eqs. 22-42).
+
+One definition serves the snake and any other Pinocchio model. Split the velocity
+coordinates into *unactuated* ones u (for the snake: w = [x_h, y_h, theta_1], plus phi_k
+of a free joint) and *actuated* ones a. Solving (24)-(25) for the unactuated
+accelerations gives (27): u'' = -(H_uu - H_ua H_aa^-1 H_au)^-1 H_ua H_aa^-1 tau + (terms
+without tau). By the block-inverse formula that matrix is exactly the (u, a) block of H^-1,
+so the manipulability ellipsoid is the image of the unit ball under
+
+    A = [H^-1]_{u,a}              (= -(Schur complement)^-1 H_ua H_aa^-1),
+
+with singular values sigma and D = min sigma (30, 42). R = min lambda, lambda the singular
+values of H_ua = H12 (31, 42). For a task other than u with Jacobian J, A = J H^-1 B
+(B selects the actuated columns), which for a fully actuated arm is Yoshikawa's J M^-1.
+Singular values are padded with zeros up to the task dimension, so a wide task with too
+few inputs reports D = R = 0, as the ellipsoid is flat.
+
+Free joint k (Section III.2): the selection S of (33) only reorders coordinates, so
+w~ = [x_h, y_h, theta_1, phi_k] is the unactuated set and the same formula gives D~, R~.
+``heading=False`` leaves theta_1 out of the task and lets it join the second block
+(H11 2x2, H12 2xn), the variant named at the end of Section III.1.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg import lapack
+
+from .exceptions import ConfigurationError, ParameterError
+from .model import Snake
+from .paper import k_matrix
+from .params import SnakeParams
+
+__all__ = [
+    "Manipulability",
+    "dynamic_manipulability",
+    "manipulability",
+    "manipulability_R_batch",
+    "task_split",
+]
+
+
+@dataclass(slots=True)
+class Manipulability:
+    """Manipulability criteria at one configuration.
+
+    Attributes
+    ----------
+    D
+        Smallest singular value of the acceleration map A (eq. 30 / 42).
+    R
+        Smallest singular value of the coupling block H12 (eq. 31 / 42); NaN when the
+        task is not the unactuated coordinates (no coupling block to speak of).
+    sigma, lambda_
+        All singular values, descending, padded with zeros to the task dimension.
+    blocks
+        ``{"H11", "H12", "H22", "A"}`` when requested, else None.
+    """
+
+    D: float
+    R: float
+    sigma: np.ndarray
+    lambda_: np.ndarray
+    blocks: dict[str, np.ndarray] | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict[str, object]:
+        """``{"D", "R", "sigma", "lambda"}`` as plain floats and lists (CLI JSON)."""
+        return {"D": float(self.D), "R": float(self.R), "sigma": self.sigma.tolist(),
+                "lambda": self.lambda_.tolist()}
+
+
+def task_split(n: int, free_joint: int | Sequence[int] | None = None,
+               heading: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Unactuated (task) and actuated velocity indices of an n-link snake.
+
+    The task is w = [x_h, y_h, theta_1] (or [x_h, y_h] without heading) plus phi_k of
+    each free joint k (1-based), i.e. the coordinates without an input.
+    """
+    return _split(n, _free_tuple(n, free_joint), bool(heading))[:2]
+
+
+def _free_tuple(n: int, free_joint: int | Sequence[int] | None) -> tuple[int, ...]:
+    if free_joint is None:
+        return ()
+    free = (free_joint,) if np.isscalar(free_joint) else tuple(free_joint)
+    for k in free:
+        if isinstance(k, (bool, np.bool_)) or int(k) != k or not 1 <= int(k) <= n - 1:
+            raise ParameterError(f"free joint {k} is outside 1..{n - 1}")
+    return tuple(sorted({int(k) for k in free}))
+
+
+@lru_cache(maxsize=256)
+def _split(n: int, free: tuple[int, ...], heading: bool) -> tuple[np.ndarray, ...]:
+    """(task, actuated, flat) indices; flat indexes the (task, actuated) block row-major."""
+    needed = 4 + len(free)
+    if n < needed:
+        what = "no free joint" if not free else f"{len(free)} free joint(s)"
+        raise ParameterError(f"manipulability needs n >= {needed} links with {what}, got n = {n}")
+    task = [0, 1, 2] if heading else [0, 1]
+    task += [2 + k for k in free]
+    act = [i for i in range(2, n + 2) if i not in task]
+    task_a, act_a = np.array(task), np.array(act)
+    flat = _upper_flat(task_a, act_a, n + 2)
+    for arr in (task_a, act_a, flat):
+        arr.setflags(write=False)
+    return task_a, act_a, flat
+
+
+def _upper_flat(rows: np.ndarray, cols: np.ndarray, size: int) -> np.ndarray:
+    """Flat indices of the (rows, cols) block read from the upper triangle of a symmetric
+    matrix, as Pinocchio's CRBA and computeMinverse fill only that triangle."""
+    lo = np.minimum(rows[:, None], cols[None, :])
+    hi = np.maximum(rows[:, None], cols[None, :])
+    return (lo * size + hi).ravel()
+
+
+def _singular_values(a: np.ndarray, rows: int) -> np.ndarray:
+    """Singular values of ``a`` (LAPACK dgesvd, descending), zero-padded to ``rows``.
+
+    Calling LAPACK directly (on the Fortran-ordered transpose, same singular values)
+    avoids numpy.linalg's per-call overhead, about half of its ~9 us here.
+    """
+    out = lapack.dgesvd(a.T, compute_uv=0)
+    values, info = out[1], out[-1]
+    if info != 0:
+        raise ConfigurationError(f"singular value decomposition failed (LAPACK info {info})")
+    if values.size < rows:  # fewer inputs than task directions: the ellipsoid is flat
+        values = np.concatenate([values, np.zeros(rows - values.size)])
+    return values
+
+
+def manipulability(snake: Snake, q: np.ndarray, free_joint: int | Sequence[int] | None = None,
+                   heading: bool = True, *, blocks: bool = False) -> Manipulability:
+    """D and R of the snake at configuration ``q`` (eqs. 30-31, or D~, R~ of eq. 42).
+
+    Parameters
+    ----------
+    snake
+        The robot. Its passive joints (``params.passive``) are free joints unless
+        ``free_joint`` is given.
+    q
+        Configuration [x_h, y_h, theta_1, phi] (D and R do not depend on x_h, y_h, theta_1).
+    free_joint
+        1-based index (or indices) of free joints, applying the selection S of (33).
+    heading
+        Include theta_1 in the task (default); False gives the 2-D variant of III.1.
+    blocks
+        Also return H11, H12, H22 and the acceleration map A.
+    """
+    q = snake.check_q(q)
+    free = snake.params.passive if free_joint is None else free_joint
+    task, act, flat = _split(snake.n, _free_tuple(snake.n, free), bool(heading))
+    # Upper triangles straight from Pinocchio (``flat`` only reads that triangle).
+    h = pin.crba(snake.model, snake.data, q)
+    h_inv = pin.computeMinverse(snake.model, snake.data, q)
+    return _evaluate(h, h_inv, task, act, flat, blocks=blocks)
+
+
+def _evaluate(h: np.ndarray, h_inv: np.ndarray, task: np.ndarray, act: np.ndarray,
+              flat: np.ndarray, *, blocks: bool) -> Manipulability:
+    """Criteria from H and H^-1 (only their upper triangles are read)."""
+    shape = (len(task), len(act))
+    a = h_inv.take(flat).reshape(shape)  # = -(Schur)^-1 H12 H22^-1, the map of eq. (29)
+    h12 = h.take(flat).reshape(shape)
+    sigma = _singular_values(a, len(task))
+    lam = _singular_values(h12, len(task))
+    extra = None
+    if blocks:
+        full = _symmetric(h)
+        extra = {"H11": full[np.ix_(task, task)], "H12": h12, "H22": full[np.ix_(act, act)],
+                 "A": a}
+    return Manipulability(float(sigma[-1]), float(lam[-1]), sigma, lam, extra)
+
+
+def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
+                           unactuated: Sequence[int], task: np.ndarray | str | None = None
+                           ) -> Manipulability:
+    """Dynamic manipulability of any Pinocchio model with unactuated velocity indices.
+
+    Parameters
+    ----------
+    model, data
+        A Pinocchio model and its data.
+    q
+        Configuration (length ``model.nq``).
+    unactuated
+        Velocity indices without an actuator (may be empty for a fully actuated robot).
+    task
+        None: the task is the unactuated coordinates themselves (the snake's w); then
+        R is defined. A (m x nv) Jacobian, or a frame name (its 6-D Jacobian in
+        LOCAL_WORLD_ALIGNED), for any other task: A = J H^-1 B, and R is NaN.
+    """
+    q = np.asarray(q, dtype=float).reshape(-1)
+    if q.size != model.nq or not np.all(np.isfinite(q)):
+        raise ConfigurationError(f"q must have {model.nq} finite entries")
+    nv = model.nv
+    unact = np.array(sorted({int(i) for i in unactuated}), dtype=int)
+    if unact.size and (unact.min() < 0 or unact.max() >= nv):
+        raise ParameterError(f"unactuated indices must lie in 0..{nv - 1}")
+    act = np.array([i for i in range(nv) if i not in set(unact.tolist())], dtype=int)
+    if act.size == 0:
+        raise ParameterError("at least one coordinate must be actuated")
+    h = _symmetric(pin.crba(model, data, q))
+    h_inv = _symmetric(pin.computeMinverse(model, data, q))
+    if task is None:
+        if unact.size == 0:
+            raise ParameterError("a fully actuated model needs a task (Jacobian or frame)")
+        return _evaluate(h, h_inv, unact, act, _upper_flat(unact, act, nv), blocks=False)
+    if isinstance(task, str):
+        if not model.existFrame(task):
+            raise ParameterError(f"no frame named {task!r} in the model")
+        jac = pin.computeFrameJacobian(model, data, q, model.getFrameId(task),
+                                       pin.LOCAL_WORLD_ALIGNED)
+    else:
+        jac = np.asarray(task, dtype=float)
+        if jac.ndim != 2 or jac.shape[1] != nv:
+            raise ConfigurationError(f"task Jacobian must be m x {nv}")
+    sigma = _singular_values(jac @ h_inv[:, act], jac.shape[0])
+    return Manipulability(float(sigma[-1]), float("nan"), sigma, np.full(jac.shape[0], np.nan))
+
+
+def _symmetric(upper: np.ndarray) -> np.ndarray:
+    """Full symmetric matrix from Pinocchio's upper-triangular CRBA / Minverse output."""
+    return np.triu(upper) + np.triu(upper, 1).T
+
+
+def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
+                           free_joint: int | None = None, heading: bool = True) -> np.ndarray:
+    """R (or R~) for many joint-angle vectors at once, vectorised (sweeps and searches).
+
+    ``phi`` is (B, n - 1); theta_1 = 0 without loss of generality (R is invariant under a
+    rigid motion). Uses the closed form of H from eq. (19) for the task rows only. With
+    s = sin(theta), c = cos(theta), a = 1^T K and e_r the indicator of links r + 1..n
+    (e_0 = 1), the rows of H against [theta_1, phi] are
+
+        x_h: -m (a * s) L,   y_h: m (a * c) L,
+        theta_1 (r = 0) or phi_r:  e_r^T H-bar_22 L
+            = (m [((K (s * e_r))^T K) * s + ((K (c * e_r))^T K) * c] + J e_r) L,
+
+    restricted to the input columns. Checked against :func:`manipulability` in the tests.
+    """
+    phi = np.atleast_2d(np.asarray(phi, dtype=float))
+    n = params.n
+    if phi.ndim != 2 or phi.shape[1] != n - 1:
+        raise ConfigurationError(f"phi must have {n - 1} columns")
+    task, act = task_split(n, free_joint, heading)
+    m = params.mass
+    k = k_matrix(n, params.half_length)
+    lower = np.tril(np.ones((n, n)))
+    theta = np.concatenate([np.zeros((len(phi), 1)), np.cumsum(phi, axis=1)], axis=1)
+    s, c = np.sin(theta), np.cos(theta)
+    weights = k.sum(axis=0)  # 1^T K
+    rows = []
+    for index in task:
+        if index == 0:
+            row = -m * weights * s
+        elif index == 1:
+            row = m * weights * c
+        else:
+            ind = (np.arange(n) >= index - 2).astype(float)  # e_r, r = index - 2
+            row = m * ((((s * ind) @ k.T) @ k) * s + (((c * ind) @ k.T) @ k) * c) \
+                + params.inertia * ind
+        rows.append(row @ lower)
+    coupling = np.stack(rows, axis=1)[:, :, act - 2]  # columns theta_1, phi -> indices 2..
+    if coupling.shape[2] < len(task):  # fewer inputs than task directions
+        return np.zeros(len(phi))
+    return np.linalg.svd(coupling, compute_uv=False)[:, -1]

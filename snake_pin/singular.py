@@ -1,0 +1,198 @@
+"""Numerical search for singular postures (R = 0) over the whole joint space.
+
+The paper tests families (arcs, serpenoids) and finds only the straight posture
+singular. Here R is minimised over phi in the box |phi_i| <= bound from many random
+starts: L-BFGS-B on R^2 (smooth where the smallest singular value is simple, unlike R,
+which has a kink at zero) with gradients by batched central differences (one call of
+the vectorised :func:`~snake_pin.manipulability.manipulability_R_batch` per gradient),
+then a polish with tighter tolerances, then clustering of the minima into families up
+to the mirror symmetry phi -> -phi (R is invariant under it).
+
+What to expect: R = 0 means the 3 x (n - 1) block H12 loses rank, and matrices of rank
+<= 2 have codimension (3 - 2)(n - 1 - 2) = n - 3 among 3 x (n - 1) matrices. So unless
+the structure of H12 forbids it, the singular postures form a 2-dimensional set in the
+(n - 1)-dimensional joint space, not isolated points. Minima on such a set are
+clustered by single linkage (samples along one connected sheet join up), and each family
+reports the span of every joint angle over its members.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from .exceptions import ParameterError
+from .manipulability import manipulability_R_batch, task_split
+from .params import SnakeParams
+
+__all__ = ["SingularFamily", "SingularSearch", "find_singular_postures"]
+
+
+@dataclass
+class SingularFamily:
+    """Connected set of minima with R = 0, up to the mirror phi -> -phi.
+
+    Attributes
+    ----------
+    phi
+        Representative posture (the member with the smallest R).
+    R
+        Its R.
+    members
+        How many starts ended in this family.
+    straight
+        Whether the representative is the straight posture.
+    low, high
+        Per-joint minimum and maximum of phi over the members (mirror-canonical sign).
+    """
+
+    phi: np.ndarray
+    R: float
+    members: int
+    straight: bool
+    low: np.ndarray
+    high: np.ndarray
+
+    @property
+    def span(self) -> np.ndarray:
+        """high - low per joint: joints that vary freely along the family stand out."""
+        return self.high - self.low
+
+
+@dataclass
+class SingularSearch:
+    """Result of :func:`find_singular_postures`.
+
+    Attributes
+    ----------
+    families
+        Distinct postures where R is numerically zero (R <= threshold).
+    minima_phi, minima_R
+        Every polished local minimum (one per start), for the record.
+    R_typical
+        Median R over random postures in the box: the scale "numerically zero" refers to.
+    threshold
+        R below this counts as zero (``relative * R_typical``).
+    """
+
+    params: SnakeParams
+    bound: float
+    starts: int
+    free_joint: int | None
+    R_typical: float
+    threshold: float
+    minima_phi: np.ndarray
+    minima_R: np.ndarray
+    families: list[SingularFamily] = field(default_factory=list)
+
+    @property
+    def non_straight(self) -> list[SingularFamily]:
+        """Families other than the straight posture."""
+        return [f for f in self.families if not f.straight]
+
+    def smallest_non_straight_R(self, straight_tol: float = 1e-3) -> float:
+        """The smallest R among minima that are not the straight posture."""
+        mask = np.max(np.abs(self.minima_phi), axis=1) > straight_tol
+        return float(self.minima_R[mask].min()) if np.any(mask) else float("nan")
+
+    def to_dict(self) -> dict[str, object]:
+        """``{"postures": [[phi...]], "R": [...]}`` plus the search settings."""
+        return {"postures": [f.phi.tolist() for f in self.families],
+                "R": [f.R for f in self.families],
+                "straight": [f.straight for f in self.families],
+                "members": [f.members for f in self.families],
+                "span": [f.span.tolist() for f in self.families],
+                "R_typical": self.R_typical, "threshold": self.threshold,
+                "starts": self.starts, "bound": self.bound, "free_joint": self.free_joint,
+                "smallest_non_straight_R": self.smallest_non_straight_R(),
+                "non_straight_singular_exists": bool(self.non_straight)}
+
+
+def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: float = np.pi / 2,
+                           free_joint: int | None = None, seed: int = 0,
+                           relative: float = 1e-6, progress: bool = False) -> SingularSearch:
+    """Search |phi_i| <= ``bound`` for postures with R = 0 from ``starts`` random starts.
+
+    Parameters
+    ----------
+    params
+        The robot (n >= 4, or >= 5 with a free joint).
+    starts
+        Number of random starting postures (uniform in the box; the first is straight-free
+        random too, nothing is seeded at a known answer).
+    bound
+        Joint limit of the box [rad].
+    free_joint
+        Search R~ with this joint free.
+    relative
+        R <= relative * (median R of random postures) counts as numerically zero.
+    """
+    if starts < 1:
+        raise ParameterError(f"starts must be at least 1, got {starts}")
+    if not 0 < bound <= np.pi:
+        raise ParameterError(f"bound must lie in (0, pi], got {bound}")
+    task_split(params.n, free_joint)  # validates n and the free joint
+    dim = params.n - 1
+    rng = np.random.default_rng(seed)
+    typical = manipulability_R_batch(params, rng.uniform(-bound, bound, (2000, dim)),
+                                     free_joint=free_joint)
+    scale = float(np.median(typical))
+    step = 1e-6
+    offsets = np.vstack([np.zeros(dim), step * np.eye(dim), -step * np.eye(dim)])
+
+    def objective(phi: np.ndarray) -> tuple[float, np.ndarray]:
+        r = manipulability_R_batch(params, phi[None, :] + offsets, free_joint=free_joint)
+        f = (r / scale) ** 2
+        return float(f[0]), (f[1:dim + 1] - f[dim + 1:]) / (2 * step)
+
+    box = [(-bound, bound)] * dim
+    phis, values = np.empty((starts, dim)), np.empty(starts)
+    iterator = range(starts)
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(iterator, desc="singular search", unit="start", leave=False)
+    for i in iterator:
+        start = rng.uniform(-bound, bound, dim)
+        first = minimize(objective, start, jac=True, method="L-BFGS-B", bounds=box,
+                         options={"maxiter": 400, "ftol": 1e-16, "gtol": 1e-12})
+        polish = minimize(objective, first.x, jac=True, method="L-BFGS-B", bounds=box,
+                          options={"maxiter": 400, "ftol": 0.0, "gtol": 1e-16})
+        best = polish if polish.fun <= first.fun else first
+        phis[i] = best.x
+        values[i] = np.sqrt(max(best.fun, 0.0)) * scale
+    threshold = relative * scale
+    result = SingularSearch(params, bound, starts, free_joint, scale, threshold, phis, values)
+    result.families = _cluster(phis[values <= threshold], values[values <= threshold])
+    return result
+
+
+def _canonical(phis: np.ndarray) -> np.ndarray:
+    """Pick the mirror image (phi or -phi) whose joints 2..n-1 sum is non-negative."""
+    signs = np.where(phis[:, 1:].sum(axis=1) < 0, -1.0, 1.0)
+    return phis * signs[:, None]
+
+
+def _cluster(phis: np.ndarray, values: np.ndarray, link: float = 0.3) -> list[SingularFamily]:
+    """Single-linkage clusters (max-norm distance ``link``) of mirror-canonical postures."""
+    if len(phis) == 0:
+        return []
+    canon = _canonical(phis)
+    if len(phis) == 1:
+        labels = np.zeros(1, dtype=int)
+    else:
+        from scipy.cluster.hierarchy import fcluster, linkage
+
+        labels = fcluster(linkage(canon, method="single", metric="chebyshev"), t=link,
+                          criterion="distance")
+    families = []
+    for label in np.unique(labels):
+        members = np.flatnonzero(labels == label)
+        best = members[np.argmin(values[members])]
+        families.append(SingularFamily(
+            phi=canon[best], R=float(values[best]), members=len(members),
+            straight=bool(np.max(np.abs(canon[best])) < 1e-3),
+            low=canon[members].min(axis=0), high=canon[members].max(axis=0)))
+    return sorted(families, key=lambda f: -f.members)

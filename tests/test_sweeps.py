@@ -1,0 +1,61 @@
+"""Posture sweeps (Figs. 2-9) and the (alpha, T_s) map."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from snake_pin import ParameterError, Snake
+from snake_pin.sweeps import r_map, sweep
+
+
+@pytest.mark.parametrize("family", ["arc", "alpha", "ts"])
+@pytest.mark.parametrize("free_joint", [None, 5])
+def test_zero_only_at_the_trivial_posture(table1: Snake, family: str,
+                                          free_joint: int | None) -> None:
+    """R (and D) vanish only at phi0 = 0, alpha = 0, T_s = 0 along each family (Figs. 2-9)."""
+    sw = sweep(table1, family, free_joint=free_joint, points=41)
+    trivial = 0.0
+    assert np.array_equal(sw.zeros(), [trivial])
+    assert np.all(sw.D[sw.values != trivial] > 0)
+
+
+def test_arc_sweep_is_symmetric(table1: Snake) -> None:
+    """Fig. 2 is symmetric in phi0 (mirror invariance)."""
+    sw = sweep(table1, "arc", points=41)
+    assert np.allclose(sw.R, sw.R[::-1], rtol=1e-8) and np.allclose(sw.D, sw.D[::-1], rtol=1e-6)
+
+
+def test_free_joint_lowers_manipulability(table1: Snake) -> None:
+    """Figs. 3 vs 2: with joint 5 free, R is smaller along the arcs (fewer inputs)."""
+    full = sweep(table1, "arc", points=21)
+    free = sweep(table1, "arc", free_joint=5, points=21)
+    mask = full.values != 0
+    assert np.all(free.R[mask] < full.R[mask])
+
+
+def test_sweep_files(table1: Snake, tmp_path: Path) -> None:
+    """write() produces CSV, JSON and PNG with the same numbers."""
+    sw = sweep(table1, "ts", points=11)
+    paths = sw.write(tmp_path)
+    data = json.loads(paths["json"].read_text())
+    assert np.allclose(data["R"], sw.R)
+    assert paths["csv"].read_text().count("\n") == 12
+    assert paths["png"].read_bytes()[:4] == b"\x89PNG"
+
+
+def test_r_map_matches_sweeps(table1: Snake) -> None:
+    """The batch map agrees with the per-posture sweep along alpha at T_s = 1.5."""
+    rmap = r_map(table1, alpha_points=11, ts_points=5, ts_max=2.0)  # T_s = 0, .5, 1, 1.5, 2
+    sw = sweep(table1, "alpha", points=11)
+    assert np.allclose(rmap.R[3], sw.R, rtol=1e-9, atol=1e-15)
+    assert np.all(rmap.R[0] == 0.0) or np.allclose(rmap.R[0], 0.0, atol=1e-15)
+
+
+def test_unknown_family(table1: Snake) -> None:
+    """An unknown family is a ParameterError naming the choices."""
+    with pytest.raises(ParameterError, match="arc"):
+        sweep(table1, "zigzag")
