@@ -81,7 +81,46 @@ def bench_dynamics(budget: float) -> None:
                                            "closed form [us]", "ratio"], rows)
 
 
-BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics}
+def closed_form_manipulability(params: SnakeParams, q: np.ndarray) -> tuple[float, float]:
+    """D and R by the closed form: paper.inertia_matrix, Schur complement, numpy SVD."""
+    h = paper.inertia_matrix(params, q)
+    h11, h12, h22 = h[:3, :3], h[:3, 3:], h[3:, 3:]
+    h22_inv = np.linalg.inv(h22)
+    a = np.linalg.solve(h11 - h12 @ h22_inv @ h12.T, h12 @ h22_inv)
+    return (np.linalg.svd(a, compute_uv=False)[-1], np.linalg.svd(h12, compute_uv=False)[-1])
+
+
+def bench_manipulability(budget: float) -> None:
+    """One D+R evaluation (Pinocchio route vs closed form) and the batch R path."""
+    from snake_pin.manipulability import manipulability, manipulability_R_batch
+
+    rows = []
+    for n in (10, 30):
+        params = SnakeParams.table1(n=n)
+        snake = Snake(params)
+        rng = np.random.default_rng(n)
+        q = np.r_[0.0, 0.0, 0.0, rng.uniform(-1, 1, n - 1)]
+        fast = median_us(lambda s=snake, q=q: manipulability(s, q), budget=budget)
+        fast5 = median_us(lambda s=snake, q=q: manipulability(s, q, free_joint=5), budget=budget)
+        slow = median_us(lambda p=params, q=q: closed_form_manipulability(p, q), budget=budget)
+        rows.append([str(n), "D and R, one posture", f"{fast:.1f} us", f"{slow:.1f} us",
+                     f"{slow / fast:.1f}x"])
+        rows.append([str(n), "D~ and R~ (joint 5 free)", f"{fast5:.1f} us", "-", "-"])
+        phis = rng.uniform(-1.5, 1.5, (100_000, n - 1))
+        times = []
+        for _ in range(5):
+            start = time.perf_counter()
+            manipulability_R_batch(params, phis)
+            times.append(time.perf_counter() - start)
+        rate = len(phis) / statistics.median(times)
+        single_rate = 1e6 / slow
+        rows.append([str(n), "R batch (100k postures)", f"{rate:,.0f} /s",
+                     f"{single_rate:,.0f} /s", f"{rate / single_rate:.0f}x"])
+    table("Manipulability", ["n", "quantity", "snake_pin", "closed form", "ratio"], rows)
+
+
+BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
+                                               "manipulability": bench_manipulability}
 
 
 def main() -> int:

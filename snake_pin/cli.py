@@ -230,6 +230,32 @@ def _cmd_singular(args: argparse.Namespace) -> None:
     _emit(args, search.to_dict(), "\n".join(lines))
 
 
+def _cmd_simulate(args: argparse.Namespace) -> None:
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    params = _params(args)
+    if args.controller == "pfl":
+        from .experiments.pfl import plot_pfl, run_pfl
+
+        if params.passive:
+            raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
+        run = run_pfl(params, t_final=args.t_final, climb_R=args.climb_r,
+                      progress=not args.json)
+        stem = "pfl"
+        traj = run.trajectory
+        figures = plot_pfl(run, out, stem)
+    else:
+        from .experiments.tracking import plot_tracking, run_tracking
+
+        traj = run_tracking(params, t_final=args.t_final, progress=not args.json)
+        stem = "lyapunov"
+        figures = plot_tracking(traj, out, stem)
+    npz, summary_path = traj.save(out / stem)
+    payload = traj.summary_dict()
+    payload["files"] = [str(npz), str(summary_path), *(str(p) for p in figures.values())]
+    _emit(args, payload, json.dumps(payload, indent=2, default=_json_default))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line, built in one place."""
     parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0])
@@ -276,6 +302,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="folder for a drawing of the families")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_singular)
+
+    p = sub.add_parser("simulate", help="closed-loop head tracking run (VI.1 / VI.2)")
+    p.add_argument("--controller", choices=("pfl",), required=True)
+    _robot_options(p, friction=True)
+    p.add_argument("--t-final", type=_positive_float, default=10.0, help="duration [s]")
+    p.add_argument("--climb-r", type=_non_negative_float, default=0.0,
+                   help="PFL: gain of the singularity-aware redundancy term")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser("reproduce", help="run every experiment and write the HTML report")
     _robot_options(p, friction=True)

@@ -84,6 +84,14 @@ class Serpenoid:
         """phi''(t)."""
         return -self.spatial_frequency * self.alpha * self.v**2 * np.sin(self._phase(t))
 
+    def derivatives(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(phi, phi', phi'') at time t with one sine and one cosine (controllers' hot path)."""
+        phase = self._phase(t)
+        amplitude = self.spatial_frequency * self.alpha
+        sine = np.sin(phase)
+        return (amplitude * sine, (amplitude * self.v) * np.cos(phase),
+                (-amplitude * self.v**2) * sine)
+
     def configuration(self, t: float = 0.0, **head: float) -> np.ndarray:
         """q with the serpenoid joint angles at time t."""
         return configuration(self.angles(t), **head)

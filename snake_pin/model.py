@@ -57,6 +57,8 @@ class Snake:
         self.nq = self.model.nq
         self.nv = self.model.nv
         self.friction = FrictionModel(self.params)
+        self._cache_x = np.full(2 * self.nv, np.nan)  # last state whose friction is cached
+        self._cache_q = np.zeros(self.nv)
         self._strict_lower = np.tril(np.ones((self.nv, self.nv), dtype=bool), -1)
         self._actuated = np.array([k - 1 for k in self.params.actuated], dtype=int)
         # 1 on actuated joints, 0 on passive ones (None: all actuated, skip the product)
@@ -123,10 +125,29 @@ class Snake:
         generalized[3:] += tau if self._mask is None else tau * self._mask
         return pin.aba(self.model, self.data, q, dq, generalized).copy()
 
+    def friction_of_state(self, x: np.ndarray) -> np.ndarray:
+        """Friction force at the stacked state x = [q, dq], remembering the last state.
+
+        A controller evaluates h at the sampled state and the integrator's first stage
+        evaluates q'' at the same state: the second call is served from the cache.
+        """
+        if (x == self._cache_x).all():
+            return self._cache_q.copy()
+        out = self.friction.of_state(x)
+        self._cache_x[:] = x
+        self._cache_q[:] = out
+        return out
+
+    def bias_of_state(self, x: np.ndarray) -> np.ndarray:
+        """h at the stacked state x = [q, dq] (same as ``bias(q, dq)``)."""
+        nq = self.nq
+        return pin.nonLinearEffects(self.model, self.data, x[:nq], x[nq:]) \
+            - self.friction_of_state(x)
+
     def state_derivative(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """q'' for the stacked state x = [q, dq] (the simulator's hot path)."""
         nq = self.nq
-        generalized = self.friction.of_state(x)
+        generalized = self.friction_of_state(x)
         generalized[3:] += tau if self._mask is None else tau * self._mask
         return pin.aba(self.model, self.data, x[:nq], x[nq:], generalized).copy()
 

@@ -244,15 +244,15 @@ def _pad(values: list[float], length: int) -> np.ndarray:
 
 
 def _divergence(x: np.ndarray, nq: int, max_speed: float, max_distance: float) -> str:
+    speed = np.abs(x[nq:]).max()  # NaN propagates and fails both comparisons below
+    distance = np.abs(x[:2]).max()
+    if speed <= max_speed and distance <= max_distance:
+        return ""
     if not np.all(np.isfinite(x)):
         return "state is not finite"
-    speed = np.max(np.abs(x[nq:]))
     if speed > max_speed:
         return f"speed {speed:.3g} exceeds {max_speed:g}"
-    distance = np.max(np.abs(x[:2]))
-    if distance > max_distance:
-        return f"head is {distance:.3g} m away, beyond {max_distance:g} m"
-    return ""
+    return f"head is {distance:.3g} m away, beyond {max_distance:g} m"
 
 
 def _solve_ivp_step(rhs, x: np.ndarray, tau: np.ndarray, t: float,

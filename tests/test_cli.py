@@ -111,3 +111,26 @@ def test_sweep_and_singular_json(capsys: pytest.CaptureFixture[str], tmp_path: P
     code, out, _ = _run(capsys, "singular", "--starts", "3", "--json")
     data = json.loads(out)
     assert code == 0 and len(data["postures"]) == len(data["R"])
+
+
+def test_simulate_pfl_json(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """simulate --controller pfl --json prints the VI.1 summary and writes the run."""
+    code, out, _ = _run(capsys, "simulate", "--controller", "pfl", "--t-final", "1",
+                        "-o", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 0
+    for key in ("t_end", "diverged", "breakdown_time", "t_R_min", "R_min", "g_drift_max",
+                "head_error_max"):
+        assert key in data
+    assert data["t_end"] == pytest.approx(1.0) and data["g_drift_max"] < 1e-8
+    assert (tmp_path / "pfl.npz").exists() and (tmp_path / "pfl_torque.png").exists()
+
+
+@pytest.mark.parametrize("argv", [["simulate", "--controller", "pfl", "--passive", "5", "-o"],
+                                  ["simulate", "--controller", "pid", "-o"],
+                                  ["simulate", "--controller", "pfl", "--t-final", "-2", "-o"]])
+def test_simulate_bad_input(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                            argv: list[str]) -> None:
+    """Bad simulate arguments: one line, status 2."""
+    code, _, err = _run(capsys, *argv, str(tmp_path))
+    assert code == 2 and len(err.strip().splitlines()) == 1

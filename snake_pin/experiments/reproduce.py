@@ -27,10 +27,13 @@ class Context:
 
 def stages() -> list[tuple[str, Callable[[Context], None]]]:
     """The report stages in order (imported lazily: each pulls in its own tools)."""
+    from .integrability import integrability_stage
     from .manipulability import manipulability_stage
+    from .pfl import pfl_stage
     from .robot import robot_stage
 
-    return [("robot", robot_stage), ("manipulability", manipulability_stage)]
+    return [("robot", robot_stage), ("manipulability", manipulability_stage),
+            ("integrability", integrability_stage), ("pfl", pfl_stage)]
 
 
 def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: bool = False,

@@ -1,0 +1,37 @@
+"""Validation of gain matrices: scalars, vectors (diagonals) or square matrices."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..exceptions import ParameterError
+
+__all__ = ["gain_matrix"]
+
+
+def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -> np.ndarray:
+    """A symmetric size x size gain, positive definite (or semi-definite if not ``definite``).
+
+    ``value`` may be a scalar (times identity), a vector (the diagonal) or a matrix.
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{name} must be numeric") from exc
+    if arr.ndim == 0:
+        arr = float(arr) * np.eye(size)
+    elif arr.ndim == 1:
+        if arr.size != size:
+            raise ParameterError(f"{name} needs {size} diagonal entries, got {arr.size}")
+        arr = np.diag(arr)
+    if arr.shape != (size, size):
+        raise ParameterError(f"{name} must be {size} x {size}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} has non-finite entries")
+    if not np.allclose(arr, arr.T, atol=1e-12 * max(1.0, np.abs(arr).max())):
+        raise ParameterError(f"{name} must be symmetric")
+    low = np.linalg.eigvalsh(arr).min()
+    if (definite and low <= 0) or (not definite and low < -1e-12 * max(1.0, np.abs(arr).max())):
+        kind = "positive definite" if definite else "positive semi-definite"
+        raise ParameterError(f"{name} must be {kind} (smallest eigenvalue {low:.3g})")
+    return arr

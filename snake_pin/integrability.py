@@ -1,0 +1,223 @@
+"""Integrability of the unactuated rows (Section V, Theorems 2-3, eqs. 44-67).
+
+* :func:`partial_integrability` checks the two conditions of Theorem 2 for the split
+  q1 = q[:k], k = 1, 2, 3, at random states: (1) q1 cyclic, d/dq1 (dq^T H dq) = 0; (2)
+  C1 (the first k rows of C) is a gradient, i.e. the Jacobian of each row is symmetric.
+  Derivatives are central differences of Pinocchio's H and of the friction map (step
+  1e-6; truncation ~1e-12, round-off ~1e-10 relative), so a defect below 1e-6 of the
+  quantities' scale counts as zero.
+* :func:`implied_g2` integrates C1 along a straight path (Gauss-Legendre): if C1 is a
+  gradient, this is the g2 of Theorem 2, compared in the tests with eq. (67).
+* :func:`conserved_quantity` is g = H1 dq + g2 (eq. 67): for c_x = c_y it is m * sum(x_i')
+  + c * sum(x_i), i.e. n (m X' + c X) for the centre of mass X.
+* :func:`involutivity` tests Theorem 3 (beyond the paper): the distribution
+  ker [H1(q) g2(q)] on (q, t)-space is involutive iff every Lie bracket of fields in it
+  stays in it. It returns the bracket components outside the distribution, with the
+  same computation on an exact (hence involutive) system as the numerical noise floor.
+
+Analytically the answer is yes: each form is omega = n (m dX + c X dt), so
+d omega = n c dX ^ dt and d omega_a ^ omega_1 ^ omega_2 = 0 (every term repeats dX or
+dt). With the integrating factor exp(c t / m), d(exp(c t / m) X) = 0 on the constraint:
+the centre of mass relaxes to the fixed point X_inf = X(0) + (m / c) X'(0) whatever the
+torques. The constraints are completely integrable and the CM is uncontrollable; the
+head can only move within reach of that point.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import paper
+from .exceptions import ParameterError
+from .model import Snake
+
+__all__ = [
+    "Involutivity",
+    "PartialIntegrability",
+    "conserved_quantity",
+    "implied_g2",
+    "involutivity",
+    "lie_bracket_defect",
+    "partial_integrability",
+]
+
+_STEP = 1e-6
+
+
+@dataclass
+class PartialIntegrability:
+    """Theorem 2 for the split q1 = q[:k].
+
+    ``cyclic_defect``: max |d/dq1 (dq^T H dq)| over samples, relative to |dq^T H dq|.
+    ``gradient_defect``: max |dC1[a,i]/dq_j - dC1[a,j]/dq_i|, relative to max |dC1/dq|.
+    """
+
+    k: int
+    cyclic_defect: float
+    gradient_defect: float
+    tolerance: float
+
+    @property
+    def cyclic(self) -> bool:
+        """Condition (1): the elements of q1 are cyclic."""
+        return self.cyclic_defect < self.tolerance
+
+    @property
+    def gradient(self) -> bool:
+        """Condition (2): C1 = d g2 / dq for some g2."""
+        return self.gradient_defect < self.tolerance
+
+    @property
+    def integrable(self) -> bool:
+        """Both conditions: (44) is partially integrable without integrating factor."""
+        return self.cyclic and self.gradient
+
+
+def _friction_matrix(snake: Snake, q: np.ndarray) -> np.ndarray:
+    """C(q) from the friction map: Q(q, dq) = -C(q) dq, column by column."""
+    eye = np.eye(snake.nv)
+    return -np.column_stack([snake.friction(q, eye[j]) for j in range(snake.nv)])
+
+
+def _random_state(snake: Snake, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    q = np.r_[rng.uniform(-1, 1, 2), rng.uniform(-np.pi, np.pi),
+              rng.uniform(-1.5, 1.5, snake.n - 1)]
+    return q, rng.normal(size=snake.nv)
+
+
+def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int = 0,
+                          tolerance: float = 1e-6) -> PartialIntegrability:
+    """Check Theorem 2's conditions for q1 = q[:k] at ``samples`` random states."""
+    if k not in (1, 2, 3):
+        raise ParameterError(f"k must be 1, 2 or 3, got {k}")
+    rng = np.random.default_rng(seed)
+    nv = snake.nv
+    cyclic, gradient = 0.0, 0.0
+    for _ in range(samples):
+        q, dq = _random_state(snake, rng)
+        energy = dq @ snake.inertia_matrix(q) @ dq
+        for j in range(k):
+            e = np.zeros(nv)
+            e[j] = _STEP
+            d = (dq @ snake.inertia_matrix(q + e) @ dq
+                 - dq @ snake.inertia_matrix(q - e) @ dq) / (2 * _STEP)
+            cyclic = max(cyclic, abs(d) / energy)
+        # dC1[a, i] / dq_j for all a < k, i, j
+        jac = np.empty((k, nv, nv))
+        for j in range(nv):
+            e = np.zeros(nv)
+            e[j] = _STEP
+            jac[:, :, j] = (_friction_matrix(snake, q + e)[:k]
+                            - _friction_matrix(snake, q - e)[:k]) / (2 * _STEP)
+        scale = max(np.abs(jac).max(), 1e-300)
+        gradient = max(gradient, np.abs(jac - jac.transpose(0, 2, 1)).max() / scale)
+    return PartialIntegrability(k, cyclic, gradient, tolerance)
+
+
+def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
+               nodes: int = 32) -> np.ndarray:
+    """g2(q) - g2(q0) = integral of C1 dq along the segment q0 -> q (k = 2, Gauss-Legendre)."""
+    q = snake.check_q(q)
+    q0 = np.zeros(snake.nq) if q0 is None else snake.check_q(q0, "q0")
+    s, w = np.polynomial.legendre.leggauss(nodes)
+    s, w = 0.5 * (s + 1.0), 0.5 * w
+    delta = q - q0
+    return sum(wi * _friction_matrix(snake, q0 + si * delta)[:2] @ delta
+               for si, wi in zip(s, w, strict=True))
+
+
+def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """g = H1 dq + g2 (eq. 67), H1 the first two rows of H; constant when c_x = c_y."""
+    return snake.inertia_matrix(q)[:2] @ dq + paper.g2(snake.params, q)
+
+
+def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """g at every sample of a run, (N, 2), vectorised: H1 dq = m sum x_i', g2 = c sum x_i."""
+    params = snake.params
+    n, m, c, half = params.n, params.mass, params.c_x, params.half_length
+    theta = q[:, 2:3] + np.concatenate([np.zeros((len(q), 1)), np.cumsum(q[:, 3:], axis=1)],
+                                       axis=1)
+    theta_dot = dq[:, 2:3] + np.concatenate([np.zeros((len(q), 1)),
+                                             np.cumsum(dq[:, 3:], axis=1)], axis=1)
+    weights = paper.k_matrix(n, half).sum(axis=0)  # 1^T K
+    sum_x = n * q[:, 0] + np.cos(theta) @ weights
+    sum_y = n * q[:, 1] + np.sin(theta) @ weights
+    sum_dx = n * dq[:, 0] - (np.sin(theta) * theta_dot) @ weights
+    sum_dy = n * dq[:, 1] + (np.cos(theta) * theta_dot) @ weights
+    return np.column_stack([m * sum_dx + c * sum_x, m * sum_dy + c * sum_y])
+
+
+def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
+                       step: float = 1e-5) -> float:
+    """Largest component of [X_i, X_j] outside ker A(z), relative to |A| |X|^2 / step scale.
+
+    ``forms(z)`` returns A (r x d). The fields X_i = (I - A^+ A) e_i span ker A; their
+    brackets [X_i, X_j] = DX_j X_i - DX_i X_j (central differences) lie in ker A for all
+    i, j iff the distribution is involutive at z. Returns max |A [X_i, X_j]| / |A|.
+    """
+    d = z.size
+
+    def fields(point: np.ndarray) -> np.ndarray:
+        a = forms(point)
+        return np.eye(d) - np.linalg.pinv(a) @ a  # column i is X_i
+
+    x0 = fields(z)
+    deriv = np.empty((d, d, d))  # deriv[:, i, l] = d X_i / d z_l
+    for l_idx in range(d):
+        e = np.zeros(d)
+        e[l_idx] = step
+        deriv[:, :, l_idx] = (fields(z + e) - fields(z - e)) / (2 * step)
+    a = forms(z)
+    worst = 0.0
+    for i in range(d):
+        for j in range(i + 1, d):
+            bracket = deriv[:, j, :] @ x0[:, i] - deriv[:, i, :] @ x0[:, j]
+            worst = max(worst, float(np.abs(a @ bracket).max()))
+    return worst / np.abs(a).max()
+
+
+@dataclass
+class Involutivity:
+    """Theorem 3 tested numerically at random points of (q, t)-space."""
+
+    n: int
+    samples: int
+    defect: float  # max bracket component outside Delta for ker [H1 g2]
+    noise: float  # same for an exact system (involutive by construction)
+
+    @property
+    def involutive(self) -> bool:
+        """Defect at the noise level (within a factor 100)."""
+        return self.defect <= 100 * max(self.noise, 1e-14)
+
+
+def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutivity:
+    """Lie-bracket test of Delta = ker [H1(q) g2(q)] (eq. 60) on (q, t), isotropic friction."""
+    if not snake.params.isotropic:
+        raise ParameterError("Theorem 3 applies to the partial integral, which needs c_x = c_y")
+    rng = np.random.default_rng(seed)
+    params = snake.params
+
+    def forms(z: np.ndarray) -> np.ndarray:
+        q = z[:-1]
+        return np.column_stack([snake.inertia_matrix(q)[:2], paper.g2(params, q)])
+
+    weights = rng.uniform(0.5, 2.0, (2, snake.nq + 1))
+    magnitude = np.abs(forms(np.zeros(snake.nq + 1))).max()
+
+    def exact(z: np.ndarray) -> np.ndarray:
+        # analytic gradients of f_1 = sum sin(w_1 z), f_2 = sum cos(w_2 z): an exact,
+        # hence involutive, system of the same size and scale (the noise floor)
+        return magnitude * np.vstack([weights[0] * np.cos(weights[0] * z),
+                                      -weights[1] * np.sin(weights[1] * z)])
+
+    defect, noise = 0.0, 0.0
+    for _ in range(samples):
+        q, _ = _random_state(snake, rng)
+        z = np.r_[q, rng.uniform(0, 5)]
+        defect = max(defect, lie_bracket_defect(forms, z))
+        noise = max(noise, lie_bracket_defect(exact, z))
+    return Involutivity(snake.n, samples, defect, noise)

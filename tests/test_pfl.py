@@ -1,0 +1,72 @@
+"""PFL head controller (eqs. 68-78, sign corrected) and the Section VI.1 run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snake_pin import ParameterError, SingularPostureError, Snake, SnakeParams, straight
+from snake_pin.control import PFLController
+from snake_pin.experiments.pfl import run_pfl
+
+
+@pytest.mark.parametrize("c_y", [0.5, 5.0])
+def test_closed_loop_gives_w_ddot_equal_a(c_y: float, rng: np.random.Generator) -> None:
+    """Eq. (71): with the derived law, the plant's w'' equals the command a at random states."""
+    snake = Snake(SnakeParams.table1(c_y=c_y))
+    controller = PFLController(snake)
+    for _ in range(20):
+        q = np.r_[rng.normal(size=3), rng.uniform(-1.2, 1.2, 9)]
+        dq = rng.normal(scale=0.5, size=12)
+        x, t = np.r_[q, dq], rng.uniform(0, 10)
+        tau = controller(x, t)
+        ddq = snake.forward_dynamics(q, dq, tau)
+        a = controller.command(x, t)
+        assert np.allclose(ddq[:3], a, atol=1e-9 * max(1.0, np.abs(a).max()))
+
+
+def test_printed_sign_would_fail(rng: np.random.Generator) -> None:
+    """Erratum 2: with +Hs a (as printed) w'' != a, so the test above can fail."""
+    snake = Snake(SnakeParams.table1())
+    q = np.r_[0, 0, 0, rng.uniform(-1, 1, 9)]
+    dq = np.zeros(12)
+    h = snake.inertia_matrix(q)
+    b = snake.bias(q, dq)
+    h12, h22 = h[:3, 3:], h[3:, 3:]
+    schur = h[:3, :3] - h12 @ np.linalg.solve(h22, h12.T)
+    a = np.array([1.0, 0.0, 0.0])
+    y_printed = schur @ a - b[:3] + h12 @ np.linalg.solve(h22, b[3:])
+    tau = h22 @ np.linalg.pinv(h12) @ y_printed
+    assert not np.allclose(snake.forward_dynamics(q, dq, tau)[:3], a, atol=1e-3)
+
+
+def test_section_vi1_run_breaks_down_and_conserves_g() -> None:
+    """VI.1: head tracks, g conserved before the breakdown, which comes with an R dip."""
+    run = run_pfl(t_final=6.0)
+    s = run.trajectory.summary
+    assert s["breakdown_time"] is not None and 3.0 < s["breakdown_time"] < 5.0
+    assert s["g_drift_max"] < 1e-8
+    assert s["head_error_max"] < 0.02  # 2 cm of a 1.2 m body, before the breakdown
+    assert s["R_dip"] < 0.6 * s["R_peak"]  # R falls as the torque blows up
+
+
+def test_singular_posture_is_refused() -> None:
+    """At the straight posture (R = 0) the law is undefined: SingularPostureError."""
+    controller = PFLController(Snake())
+    with pytest.raises(SingularPostureError):
+        controller(np.r_[straight(10), np.zeros(12)], 0.0)
+
+
+@pytest.mark.parametrize("kwargs", [{"k_v": -1.0}, {"k_p": [1.0, 2.0]}, {"r_v": -0.1},
+                                    {"k_p": [[1, 2, 0], [0, 1, 0], [0, 0, 1]]},
+                                    {"climb_R": -1.0}])
+def test_bad_gains(kwargs: dict) -> None:
+    """Non-definite, wrong-size or asymmetric gains are ParameterErrors."""
+    with pytest.raises(ParameterError):
+        PFLController(Snake(), **kwargs)
+
+
+def test_passive_joint_refused() -> None:
+    """PFL needs every input: a snake with a passive joint is refused."""
+    with pytest.raises(ParameterError):
+        PFLController(Snake(SnakeParams.table1(passive=(5,))))
