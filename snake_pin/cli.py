@@ -239,15 +239,17 @@ def _cmd_simulate(args: argparse.Namespace) -> None:
 
         if params.passive:
             raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
-        run = run_pfl(params, t_final=args.t_final, climb_R=args.climb_r,
+        run = run_pfl(params, t_final=args.t_final or 10.0, climb_R=args.climb_r,
                       progress=not args.json)
         stem = "pfl"
         traj = run.trajectory
         figures = plot_pfl(run, out, stem)
     else:
-        from .experiments.tracking import plot_tracking, run_tracking
+        from .experiments.tracking import TRACKING_FRICTION, plot_tracking, run_tracking
 
-        traj = run_tracking(params, t_final=args.t_final, progress=not args.json)
+        if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
+            params = params.replace(**TRACKING_FRICTION)
+        traj = run_tracking(params, t_final=args.t_final or 60.0, progress=not args.json)
         stem = "lyapunov"
         figures = plot_tracking(traj, out, stem)
     npz, summary_path = traj.save(out / stem)
@@ -304,9 +306,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_singular)
 
     p = sub.add_parser("simulate", help="closed-loop head tracking run (VI.1 / VI.2)")
-    p.add_argument("--controller", choices=("pfl",), required=True)
+    p.add_argument("--controller", choices=("pfl", "lyapunov"), required=True)
     _robot_options(p, friction=True)
-    p.add_argument("--t-final", type=_positive_float, default=10.0, help="duration [s]")
+    p.add_argument("--t-final", type=_positive_float, help="duration [s] (pfl 10, lyapunov 60)")
     p.add_argument("--climb-r", type=_non_negative_float, default=0.0,
                    help="PFL: gain of the singularity-aware redundancy term")
     p.add_argument("-o", "--output", required=True, help="output folder")

@@ -39,6 +39,7 @@ from .params import SnakeParams
 __all__ = [
     "Manipulability",
     "dynamic_manipulability",
+    "lateral_constraint_manipulability",
     "manipulability",
     "manipulability_R_batch",
     "task_split",
@@ -270,3 +271,37 @@ def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
     if coupling.shape[2] < len(task):  # fewer inputs than task directions
         return np.zeros(len(phi))
     return np.linalg.svd(coupling, compute_uv=False)[:, -1]
+
+
+def lateral_constraint_manipulability(snake: Snake, q: np.ndarray,
+                                      constrained: Sequence[int] | None = None
+                                      ) -> Manipulability:
+    """Head manipulability of the same robot *with* lateral constraints (after Date et al.).
+
+    Date et al.'s formula is not available; this is a criterion in their spirit (Fig. 15):
+    links ``constrained`` (1-based, default 2..n) may not slip sideways at their CM,
+    A_c(q) q' = 0. The constrained dynamics H q'' + h = E tau + A_c^T f, A_c q'' + A_c' q' = 0
+    give q'' = P E tau + (terms without tau) with P = N - N A_c^T (A_c N A_c^T)^-1 A_c N,
+    N = H^-1. D is the smallest singular value of the w rows of P E (the head's reachable
+    accelerations per unit torque); R is NaN. Arcs make it vanish (the classical singular
+    posture of wheeled snakes) while the unconstrained R stays positive.
+    """
+    q = snake.check_q(q)
+    n = snake.n
+    links = list(range(2, n + 1)) if constrained is None else sorted({int(k) for k in constrained})
+    if not links or links[0] < 1 or links[-1] > n:
+        raise ParameterError(f"constrained links must lie in 1..{n}")
+    model, data = snake.model, snake.data
+    pin.computeJointJacobians(model, data, q)
+    half = snake.params.half_length
+    rows = []
+    for link in links:  # lateral CM velocity: v_y + omega * l in the link frame
+        jac = pin.getJointJacobian(model, data, link, pin.LOCAL)
+        rows.append(jac[1] + half * jac[5])
+    a_c = np.array(rows)
+    n_inv = snake.inverse_inertia_matrix(q)
+    n_at = n_inv @ a_c.T
+    projected = n_inv - n_at @ np.linalg.solve(a_c @ n_at, n_at.T)
+    head = projected[:3] @ snake.actuation_matrix
+    sigma = _singular_values(head, 3)
+    return Manipulability(float(sigma[-1]), float("nan"), sigma, np.full(3, np.nan))

@@ -134,3 +134,24 @@ def test_simulate_bad_input(capsys: pytest.CaptureFixture[str], tmp_path: Path,
     """Bad simulate arguments: one line, status 2."""
     code, _, err = _run(capsys, *argv, str(tmp_path))
     assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+def test_simulate_lyapunov_json(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """simulate --controller lyapunov --passive 5 --json prints the VI.2 summary keys."""
+    code, out, _ = _run(capsys, "simulate", "--controller", "lyapunov", "--passive", "5",
+                        "--t-final", "11", "-o", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 0 and data["passive"] == [5] and data["c_y"] == 25.0
+    for key in ("t_end", "diverged", "rms_head_error", "max_head_error", "R_min", "D_min",
+                "body_length"):
+        assert key in data
+    assert data["R_min"] > 0 and data["body_length"] == pytest.approx(1.2)
+
+
+@pytest.mark.parametrize("passive", ["0", "10"])
+def test_simulate_passive_out_of_range(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                       passive: str) -> None:
+    """A passive joint index out of range is one line, status 2."""
+    code, _, err = _run(capsys, "simulate", "--controller", "lyapunov", "--passive", passive,
+                        "-o", str(tmp_path))
+    assert code == 2 and len(err.strip().splitlines()) == 1

@@ -185,3 +185,18 @@ def test_batch_path_equals_single(table1: Snake, rng: np.random.Generator,
     single = [manipulability(table1, np.r_[0, 0, 0, p], free_joint=free_joint,
                              heading=heading).R for p in phis]
     assert np.allclose(batch, single, rtol=1e-9, atol=1e-15)
+
+
+def test_lateral_constraint_criterion_vanishes_at_arcs(table1: Snake) -> None:
+    """Fig. 15: with no side slip on links 2..n, arcs are singular (criterion ~ 0), R is not."""
+    from snake_pin.manipulability import lateral_constraint_manipulability
+
+    for phi0 in (-np.pi / 5, -0.2, 0.3, np.pi / 6):
+        q = arc(10, phi0, theta_1=0.4)
+        lateral = lateral_constraint_manipulability(table1, q)
+        assert lateral.D < 1e-9 * lateral.sigma[0]
+        assert manipulability(table1, q).R > 1e-3
+    for alpha, ts in ((np.pi / 4, 1.5), (np.pi / 6, 1.0)):
+        q = Serpenoid(10, alpha, ts).configuration()
+        lateral = lateral_constraint_manipulability(table1, q)
+        assert lateral.D > 1e-4 * lateral.sigma[0]

@@ -1,7 +1,9 @@
 """Head-trajectory controllers sharing the interface of :class:`Controller`."""
 
 from .base import Controller, OpenLoop
+from .lyapunov import LyapunovController, head_first_reference
 from .pfl import PFLController
 from .reference import LinearReference
 
-__all__ = ["Controller", "LinearReference", "OpenLoop", "PFLController"]
+__all__ = ["Controller", "LinearReference", "LyapunovController", "OpenLoop", "PFLController",
+           "head_first_reference"]

@@ -31,9 +31,11 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
     from .manipulability import manipulability_stage
     from .pfl import pfl_stage
     from .robot import robot_stage
+    from .tracking import tracking_stage
 
     return [("robot", robot_stage), ("manipulability", manipulability_stage),
-            ("integrability", integrability_stage), ("pfl", pfl_stage)]
+            ("integrability", integrability_stage), ("pfl", pfl_stage),
+            ("tracking", tracking_stage)]
 
 
 def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: bool = False,

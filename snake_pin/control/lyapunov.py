@@ -1,0 +1,146 @@
+"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (DESIGN §3, 5).
+
+Reference [27] is not available; only V and the gains are. This module's law:
+
+    V = ||s||^2_{K_w2} + ||e||^2_{K_phi},  s = e_w' + K_w1 e_w,  e = phi_r' - phi'   (83)
+
+with e_w = w_r - w. Along the dynamics
+
+    V' = 2 s^T K_w2 (w_r'' + K_w1 e_w' - w'') + 2 e^T K_phi (phi_r'' - phi'').
+
+The accelerations are affine in the actuated torques: q'' = H^-1 (E_a tau_a - h) =
+A tau_a + b, A = H^-1 E_a (E_a: the columns of E of the actuated joints; a passive joint
+is a dropped column). Take the targets
+
+    w''*   = w_r'' + K_w1 e_w' + lam s          (then s' = -lam s)
+    phi''* = phi_r'' + lam e + k_s (phi_r - phi)
+
+and tau_a = argmin ||A tau_a + b - q''*||^2_W, W = blockdiag(K_w2, K_phi): a weighted least
+squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible). With the
+residual rho = A tau_a + b - q''* (rho = [rho_w; rho_phi]),
+
+    V' = -2 lam V - 2 [s; e]^T W rho - 2 k_s e^T K_phi (phi_r - phi).
+
+If every coordinate had an input, rho = 0 and V decays as exp(-2 lam t). The snake has
+n - 1 (or fewer) inputs for n + 2 rows, so rho cannot vanish in general: the law gives up
+exactly the W-smallest part of the target that no torque can reach (normal equations
+A^T W rho = 0), trading head against shape by the weights of (84) - that is what V
+"reduced where the underactuation allows" means here. The tests check this identity for
+V' on random states. k_s = 0 is the pure V of (83); a weak shape spring (k_s > 0) keeps
+the body from drifting when a joint has failed and one shape input is gone.
+
+Convention: in the paper's coordinates (3) theta_1 points from the head towards the
+tail, so a head-first run along +x has theta_1 = pi; see :func:`head_first_reference`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg import lapack
+
+from .._validation import finite_number
+from ..exceptions import ParameterError, SingularPostureError
+from ..gaits import Serpenoid
+from ..model import Snake
+from .base import Controller
+from .gains import gain_matrix
+from .reference import LinearReference
+
+__all__ = ["LyapunovController", "head_first_reference"]
+
+
+def head_first_reference(speed: float = 0.1) -> LinearReference:
+    """w_r = [speed t, 0, pi]: the head leads along +x with the body behind it (eq. 80)."""
+    return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, np.pi))
+
+
+class LyapunovController(Controller):
+    """Head tracking that reduces V of (83) by weighted least squares on q''.
+
+    Parameters
+    ----------
+    snake
+        The plant; its passive joints get no torque (their columns of E are dropped).
+    reference
+        Head reference; default :func:`head_first_reference`.
+    gait
+        Serpenoid for phi_r; default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
+    k_w1, k_w2, k_phi
+        Gains of (84): diag(2, 2, 3), diag(400, 400, 45), diag(10, 20, ..., 20).
+    lam
+        Decay rate lambda of s and e [1/s].
+    k_shape
+        Shape spring k_s [1/s^2]; default 0 with every joint actuated, 0.3 with a
+        passive joint.
+    """
+
+    name = "lyapunov"
+
+    def __init__(self, snake: Snake, reference: LinearReference | None = None,
+                 gait: Serpenoid | None = None, *, k_w1: object = (2.0, 2.0, 3.0),
+                 k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
+                 lam: float = 1.0, k_shape: float | None = None) -> None:
+        n = snake.n
+        if not snake.params.actuated:
+            raise ParameterError("every joint is passive: there is nothing to control")
+        self.snake = snake
+        self.reference = reference or head_first_reference()
+        self.gait = gait or Serpenoid(n, np.pi / 6, 1.5, 2.0)
+        if self.gait.n != n:
+            raise ParameterError(f"gait is for {self.gait.n} links, the robot has {n}")
+        self.k_w1 = gain_matrix(k_w1, 3, "K_w1")
+        k_w2_m = gain_matrix(k_w2, 3, "K_w2")
+        default_phi = np.r_[10.0, np.full(n - 2, 20.0)]
+        k_phi_m = gain_matrix(default_phi if k_phi is None else k_phi, n - 1, "K_phi")
+        if not (np.allclose(k_w2_m, np.diag(np.diag(k_w2_m)))
+                and np.allclose(k_phi_m, np.diag(np.diag(k_phi_m)))):
+            raise ParameterError("K_w2 and K_phi must be diagonal (they weight rows)")
+        self.k_w2, self.k_phi = k_w2_m, k_phi_m
+        self._weights = np.r_[np.diag(k_w2_m), np.diag(k_phi_m)]
+        self.lam = finite_number(lam, "lam", positive=True)
+        default_shape = 0.3 if snake.params.passive else 0.0
+        self.k_shape = finite_number(default_shape if k_shape is None else k_shape, "k_shape",
+                                     non_negative=True)
+        self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
+        self._tau = np.zeros(n - 1)
+        self._last: dict[str, float] = {}
+
+    # ------------------------------------------------------------ the law
+    def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q''*, s, e): the target accelerations and the errors of V at (x, t)."""
+        nq = self.snake.nq
+        w_r, dw_r, ddw_r = self.reference(t)
+        de_w = dw_r - x[nq:nq + 3]
+        s = de_w + self.k_w1 @ (w_r - x[:3])
+        phi_r, dphi_r, ddphi_r = self.gait.derivatives(t)
+        e = dphi_r - x[nq + 3:]
+        target = np.r_[ddw_r + self.k_w1 @ de_w + self.lam * s,
+                       ddphi_r + self.lam * e + self.k_shape * (phi_r - x[3:nq])]
+        return target, s, e
+
+    def affine_map(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(A, b) with q'' = A tau_a + b at state x (A = H^-1 E_a, b = -H^-1 h)."""
+        snake, nq = self.snake, self.snake.nq
+        upper = pin.computeMinverse(snake.model, snake.data, x[:nq])
+        h_inv = np.triu(upper) + np.triu(upper, 1).T
+        return h_inv[:, self._act], -h_inv @ snake.bias_of_state(x)
+
+    def lyapunov(self, x: np.ndarray, t: float) -> float:
+        """V of eq. (83) at (x, t)."""
+        _, s, e = self.targets(x, t)
+        return float(s @ self.k_w2 @ s + e @ self.k_phi @ e)
+
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        a, b = self.affine_map(x)
+        target, s, e = self.targets(x, t)
+        weighted = a.T * self._weights
+        tau_a, info = lapack.dposv(weighted @ a, weighted @ (target - b))[1:]
+        if info != 0:
+            raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
+        self._tau[self._act - 3] = tau_a
+        self._last = {"V": float(s @ self.k_w2 @ s + e @ self.k_phi @ e)}
+        return self._tau.copy()
+
+    def signals(self) -> dict[str, float]:
+        return self._last

@@ -1,0 +1,82 @@
+"""Lyapunov-like head tracking: the V' identity of the derivation, passive joints, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snake_pin import ParameterError, Snake, SnakeParams, simulate
+from snake_pin.control import LyapunovController
+from snake_pin.experiments.tracking import initial_state, tracking_params
+
+
+def _random_state(rng: np.random.Generator, n: int) -> np.ndarray:
+    q = np.r_[rng.normal(scale=0.3, size=2), np.pi + rng.normal(scale=0.3),
+              rng.uniform(-1.2, 1.2, n - 1)]
+    return np.r_[q, rng.normal(scale=0.3, size=n + 2)]
+
+
+@pytest.mark.parametrize("passive", [(), (5,)])
+def test_v_dot_matches_derivation(passive: tuple, rng: np.random.Generator) -> None:
+    """dV/dt along the closed loop equals -2 lam V - 2 [s; e]^T W rho - 2 k_s e^T K_phi e_phi."""
+    snake = Snake(tracking_params(passive=passive))
+    ctrl = LyapunovController(snake)
+    nq = snake.nq
+    for _ in range(10):
+        x, t = _random_state(rng, snake.n), rng.uniform(0, 30)
+        tau = ctrl(x, t)
+        ddq = snake.forward_dynamics(x[:nq], x[nq:], tau)
+        xdot = np.r_[x[nq:], ddq]
+        h = 1e-6
+        v_dot = (ctrl.lyapunov(x + h * xdot, t + h) - ctrl.lyapunov(x - h * xdot, t - h)) / (2 * h)
+        target, s, e = ctrl.targets(x, t)
+        rho = ddq - target
+        weights = np.r_[np.diag(ctrl.k_w2), np.diag(ctrl.k_phi)]
+        phi_r = ctrl.gait.derivatives(t)[0]
+        predicted = (-2 * ctrl.lam * ctrl.lyapunov(x, t) - 2 * np.r_[s, e] @ (weights * rho)
+                     - 2 * ctrl.k_shape * e @ ctrl.k_phi @ (phi_r - x[3:nq]))
+        assert v_dot == pytest.approx(predicted, rel=1e-5, abs=1e-6 * abs(ctrl.lyapunov(x, t)))
+
+
+def test_least_squares_normal_equations(rng: np.random.Generator) -> None:
+    """The residual is W-orthogonal to the reachable accelerations: A^T W rho = 0."""
+    snake = Snake(tracking_params())
+    ctrl = LyapunovController(snake)
+    x, t = _random_state(rng, snake.n), 3.0
+    tau = ctrl(x, t)
+    a, b = ctrl.affine_map(x)
+    target, _, _ = ctrl.targets(x, t)
+    weights = np.r_[np.diag(ctrl.k_w2), np.diag(ctrl.k_phi)]
+    rho = a @ tau + b - target
+    normal = a.T @ (weights * rho)
+    assert np.abs(normal).max() < 1e-8 * np.abs(a.T * weights).max() * np.abs(rho).max()
+    assert np.allclose(a @ tau + b, snake.forward_dynamics(x[:12], x[12:], tau))
+
+
+def test_passive_joint_gets_no_torque(rng: np.random.Generator) -> None:
+    """With joint 5 passive the controller outputs zero there and still acts elsewhere."""
+    snake = Snake(tracking_params(passive=(5,)))
+    tau = LyapunovController(snake)(_random_state(rng, snake.n), 1.0)
+    assert tau[4] == 0.0 and np.abs(tau).max() > 0
+
+
+def test_short_run_moves_head_forward() -> None:
+    """5 s of tracking with anisotropic friction moves the head along +x without diverging."""
+    params = tracking_params()
+    snake = Snake(params)
+    traj = simulate(snake, LyapunovController(snake), initial_state(params), 5.0)
+    assert not traj.diverged and traj.q[-1, 0] > 0.25
+
+
+def test_every_joint_passive_refused() -> None:
+    """A robot with every joint passive cannot be controlled: ParameterError."""
+    with pytest.raises(ParameterError):
+        LyapunovController(Snake(SnakeParams.table1(n=4, passive=(1, 2, 3))))
+
+
+@pytest.mark.parametrize("kwargs", [{"lam": 0.0}, {"k_w2": [1.0, 1.0]}, {"k_phi": -1.0},
+                                    {"k_shape": -0.1}])
+def test_bad_gains(kwargs: dict) -> None:
+    """Non-positive or wrong-size gains are ParameterErrors."""
+    with pytest.raises(ParameterError):
+        LyapunovController(Snake(), **kwargs)
