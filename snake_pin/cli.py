@@ -258,6 +258,21 @@ def _cmd_simulate(args: argparse.Namespace) -> None:
     _emit(args, payload, json.dumps(payload, indent=2, default=_json_default))
 
 
+def _cmd_view(args: argparse.Namespace) -> None:
+    from .sim import Trajectory
+    from .viz.meshcat_view import view, write_html
+
+    traj = Trajectory.load(args.trajectory)
+    if args.robot is not None and (traj.params.name != args.robot):
+        raise UsageError(f"view: {args.trajectory} is a run of the '{traj.params.name}' robot, "
+                         f"not '{args.robot}'")
+    if args.html:
+        out = write_html(traj, args.html, fps=args.fps)
+        _emit(args, {"html": str(out), "t_end": traj.t_end}, f"wrote {out}")
+        return
+    view(traj, port=args.port, fps=args.fps)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line, built in one place."""
     parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0])
@@ -314,6 +329,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("view", help="meshcat viewer of a saved trajectory (127.0.0.1 only)")
+    p.add_argument("trajectory", help="a .npz written by simulate/reproduce")
+    p.add_argument("--html", metavar="FILE", help="write a self-contained animation page instead")
+    p.add_argument("--port", type=_int_at_least(1), help="web port of the live viewer")
+    p.add_argument("--fps", type=_positive_float, default=20.0, help="animation frame rate")
+    p.add_argument("--robot", choices=ROBOTS, help="refuse a run of another robot")
+    p.add_argument("--json", action="store_true", help="print one JSON object (with --html)")
+    p.set_defaults(func=_cmd_view)
 
     p = sub.add_parser("reproduce", help="run every experiment and write the HTML report")
     _robot_options(p, friction=True)

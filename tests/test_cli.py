@@ -155,3 +155,37 @@ def test_simulate_passive_out_of_range(capsys: pytest.CaptureFixture[str], tmp_p
     code, _, err = _run(capsys, "simulate", "--controller", "lyapunov", "--passive", passive,
                         "-o", str(tmp_path))
     assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+def test_view_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """view: a missing file, another robot's run and a busy port are one line, status 2."""
+    import socket
+
+    import numpy as np
+
+    from snake_pin import SnakeParams, Trajectory
+
+    code, _, err = _run(capsys, "view", str(tmp_path / "nothing.npz"))
+    assert code == 2 and "no trajectory" in err and len(err.strip().splitlines()) == 1
+    traj = Trajectory(t=np.zeros(1), q=np.zeros((1, 10)), dq=np.zeros((1, 10)),
+                      tau=np.zeros((1, 7)), params=SnakeParams.engine())
+    npz, _ = traj.save(tmp_path / "engine_run")
+    code, _, err = _run(capsys, "view", str(npz), "--robot", "table1", "--html",
+                        str(tmp_path / "x.html"))
+    assert code == 2 and "engine" in err and len(err.strip().splitlines()) == 1
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        code, _, err = _run(capsys, "view", str(npz), "--port", str(busy.getsockname()[1]))
+    assert code == 2 and "already in use" in err
+
+
+def test_view_html(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """view --html writes the self-contained page."""
+    code, out, _ = _run(capsys, "simulate", "--controller", "pfl", "--t-final", "0.5",
+                        "-o", str(tmp_path), "--json")
+    assert code == 0
+    code, out, _ = _run(capsys, "view", str(tmp_path / "pfl.npz"), "--html",
+                        str(tmp_path / "pfl.html"), "--json")
+    assert code == 0 and json.loads(out)["html"].endswith("pfl.html")
+    assert (tmp_path / "pfl.html").stat().st_size > 100_000

@@ -184,6 +184,11 @@ def tracking_stage(ctx) -> None:
         stem = {"no passive joint": "tracking", "joint 5 passive": "tracking_passive5"}.get(
             label, "tracking_isotropic")
         traj.save(ctx.folder / stem)
+        if label != "isotropic (c_x = c_y = 0.5)":
+            from ..viz.meshcat_view import write_html
+
+            page = write_html(traj, ctx.folder / f"{stem}.html")
+            sec.link(page.name, f"{label}: 3-D animation (meshcat, self-contained page)")
         figures = plot_tracking(traj, ctx.folder, stem)
         for key, path in figures.items():
             sec.figure(path, f"{label}: " + {"motion": "motion (Figs. 13/16)",

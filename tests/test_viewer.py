@@ -1,0 +1,83 @@
+"""Browser viewer: the static meshcat page renders the snake in headless Chromium."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+from pathlib import Path
+
+import matplotlib.image as mpimg
+import numpy as np
+import pytest
+
+from snake_pin import ParameterError, Snake, SnakeParams, simulate
+from snake_pin.control import LyapunovController
+from snake_pin.experiments.tracking import initial_state, tracking_params
+from snake_pin.viz.meshcat_view import BODY_COLOR, start_server, write_html
+
+
+def _browser() -> str:
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    if os.environ.get("CI"):
+        pytest.fail("no Chromium on the CI machine: .ci/run must install Debian's chromium")
+    pytest.skip("Chromium is not installed (CI installs it)")
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    params = tracking_params(passive=(5,))
+    snake = Snake(params)
+    traj = simulate(snake, LyapunovController(snake), initial_state(params), 2.0)
+    return write_html(traj, tmp_path_factory.mktemp("view") / "run.html", fps=10)
+
+
+def test_page_is_self_contained(page: Path) -> None:
+    """The page needs no server or network: no http(s) resource is referenced."""
+    text = page.read_text()
+    assert "MeshCat.Viewer" in text
+    for marker in ('src="http', "src='http", 'href="http', "import('http"):
+        assert marker not in text
+
+
+def test_snake_is_drawn_in_headless_chromium(page: Path, tmp_path: Path) -> None:
+    """A screenshot of the page is not blank and shows the snake's body colour."""
+    shot = tmp_path / "shot.png"
+    cmd = [_browser(), "--headless", "--no-sandbox", "--disable-gpu-sandbox", "--disable-quic",
+           "--no-first-run", "--disable-background-networking", "--disable-component-update",
+           "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}", "--use-angle=swiftshader",
+           "--enable-unsafe-swiftshader", "--window-size=900,600", "--virtual-time-budget=6000",
+           f"--screenshot={shot}", page.resolve().as_uri()]
+    subprocess.run(cmd, check=False, capture_output=True, timeout=120)
+    assert shot.exists(), "Chromium wrote no screenshot"
+    image = mpimg.imread(shot)[..., :3]
+    assert image.std() > 0.05  # not a blank page
+    body = np.array([(BODY_COLOR >> 16) & 255, (BODY_COLOR >> 8) & 255, BODY_COLOR & 255]) / 255
+    close = np.linalg.norm(image - body, axis=2) < 0.15
+    green = (image[..., 1] > image[..., 0] + 0.15) & (image[..., 1] > image[..., 2] + 0.15)
+    assert (close | green).sum() > 30, "no pixel of the snake's colour in the screenshot"
+
+
+def test_html_refuses_bad_paths(page: Path, tmp_path: Path) -> None:
+    """Wrong suffix or a missing folder: ParameterError, nothing written."""
+    from snake_pin import Trajectory
+
+    traj = Trajectory(t=np.zeros(1), q=np.zeros((1, 12)), dq=np.zeros((1, 12)),
+                      tau=np.zeros((1, 9)), params=SnakeParams.table1())
+    with pytest.raises(ParameterError):
+        write_html(traj, tmp_path / "page.txt")
+    with pytest.raises(ParameterError):
+        write_html(traj, tmp_path / "missing" / "page.html")
+
+
+def test_port_in_use_is_refused() -> None:
+    """Asking the viewer for a busy port on 127.0.0.1 is a clear ParameterError."""
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        with pytest.raises(ParameterError, match="already in use"):
+            start_server(busy.getsockname()[1])
