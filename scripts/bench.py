@@ -119,8 +119,47 @@ def bench_manipulability(budget: float) -> None:
     table("Manipulability", ["n", "quantity", "snake_pin", "closed form", "ratio"], rows)
 
 
+def _timed_run(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
+    times, result = [], None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), result
+
+
+def bench_runs(budget: float) -> None:
+    """Closed-loop runs at 1 kHz control (RK4, dt = 1 ms): wall time and real-time factor."""
+    from snake_pin.control import LyapunovController, PFLController
+    from snake_pin.experiments import pfl, tracking
+    from snake_pin.sim import simulate
+
+    repeat = 1 if budget < 0.1 else 3
+    rows = []
+    cases = [
+        ("PFL, VI.1 to breakdown (isotropic)", SnakeParams.table1(), 10.0, "pfl"),
+        ("PFL, 20 s, c_y = 10 c_x", SnakeParams.table1(c_y=5.0), 20.0, "pfl"),
+        ("Lyapunov-like, 60 s", tracking.tracking_params(), 60.0, "lyapunov"),
+        ("Lyapunov-like, 60 s, joint 5 passive", tracking.tracking_params(passive=(5,)), 60.0,
+         "lyapunov"),
+    ]
+    for label, params, t_final, kind in cases:
+        snake = Snake(params)
+        if kind == "pfl":
+            ctrl, x0 = PFLController(snake), pfl.initial_state(params)
+        else:
+            ctrl, x0 = LyapunovController(snake), tracking.initial_state(params)
+        wall, traj = _timed_run(lambda s=snake, c=ctrl, x=x0, t=t_final: simulate(s, c, x, t),
+                                repeat)
+        rows.append([label, f"{traj.t_end:.2f}", f"{wall:.2f}", f"{traj.t_end / wall:.1f}x",
+                     f"{wall / max(len(traj) - 1, 1) * 1e6:.0f}"])
+    table("Closed-loop runs (simulate only, no post-processing)",
+          ["run", "simulated [s]", "wall [s]", "real-time factor", "us per 1 ms step"], rows)
+
+
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
-                                               "manipulability": bench_manipulability}
+                                               "manipulability": bench_manipulability,
+                                               "runs": bench_runs}
 
 
 def main() -> int:

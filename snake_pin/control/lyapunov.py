@@ -36,7 +36,6 @@ tail, so a head-first run along +x has theta_1 = pi; see :func:`head_first_refer
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 from scipy.linalg import lapack
 
 from .._validation import finite_number
@@ -98,6 +97,7 @@ class LyapunovController(Controller):
             raise ParameterError("K_w2 and K_phi must be diagonal (they weight rows)")
         self.k_w2, self.k_phi = k_w2_m, k_phi_m
         self._weights = np.r_[np.diag(k_w2_m), np.diag(k_phi_m)]
+        self._k_w2_diag, self._k_phi_diag = np.diag(k_w2_m).copy(), np.diag(k_phi_m).copy()
         self.lam = finite_number(lam, "lam", positive=True)
         default_shape = 0.3 if snake.params.passive else 0.0
         self.k_shape = finite_number(default_shape if k_shape is None else k_shape, "k_shape",
@@ -121,9 +121,8 @@ class LyapunovController(Controller):
 
     def affine_map(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(A, b) with q'' = A tau_a + b at state x (A = H^-1 E_a, b = -H^-1 h)."""
-        snake, nq = self.snake, self.snake.nq
-        upper = pin.computeMinverse(snake.model, snake.data, x[:nq])
-        h_inv = np.triu(upper) + np.triu(upper, 1).T
+        snake = self.snake
+        h_inv = snake.inverse_inertia_matrix(x[:snake.nq])
         return h_inv[:, self._act], -h_inv @ snake.bias_of_state(x)
 
     def lyapunov(self, x: np.ndarray, t: float) -> float:
@@ -139,7 +138,7 @@ class LyapunovController(Controller):
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
         self._tau[self._act - 3] = tau_a
-        self._last = {"V": float(s @ self.k_w2 @ s + e @ self.k_phi @ e)}
+        self._last = {"V": float(s @ (self._k_w2_diag * s) + e @ (self._k_phi_diag * e))}
         return self._tau.copy()
 
     def signals(self) -> dict[str, float]:
