@@ -273,6 +273,26 @@ def _cmd_view(args: argparse.Namespace) -> None:
     view(traj, port=args.port, fps=args.fps)
 
 
+def _cmd_engine(args: argparse.Namespace) -> None:
+    from .engine.model import WheelSpec
+    from .engine.run import identify_friction, run_engine
+    from .experiments.engine import plot_engine, summarize
+
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    params = SnakeParams.engine(passive=tuple(args.passive))
+    wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu)
+    friction = identify_friction(params.replace(passive=()), wheels)
+    run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
+                     progress=not args.json)
+    summarize(run.trajectory)
+    npz, summary_path = run.trajectory.save(out / "engine")
+    figures = plot_engine(run, None, out, "engine")
+    payload = {**run.trajectory.summary_dict(), "friction": friction,
+               "files": [str(npz), str(summary_path), *(str(p) for p in figures.values())]}
+    _emit(args, payload, json.dumps(payload, indent=2, default=_json_default))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line, built in one place."""
     parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0])
@@ -329,6 +349,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)")
+    p.add_argument("--passive", type=_int_at_least(1), action="append", default=[],
+                   metavar="K", help="make joint K passive (repeatable)")
+    p.add_argument("--t-final", type=_positive_float, default=60.0, help="duration [s]")
+    p.add_argument("--wheel-radius", type=_positive_float, default=0.03, help="[m]")
+    p.add_argument("--mu", type=_positive_float, default=1.0, help="wheel-floor friction")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_engine)
 
     p = sub.add_parser("view", help="meshcat viewer of a saved trajectory (127.0.0.1 only)")
     p.add_argument("trajectory", help="a .npz written by simulate/reproduce")

@@ -27,6 +27,7 @@ class Context:
 
 def stages() -> list[tuple[str, Callable[[Context], None]]]:
     """The report stages in order (imported lazily: each pulls in its own tools)."""
+    from .engine import engine_stage
     from .integrability import integrability_stage
     from .manipulability import manipulability_stage
     from .pfl import pfl_stage
@@ -35,7 +36,7 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
 
     return [("robot", robot_stage), ("manipulability", manipulability_stage),
             ("integrability", integrability_stage), ("pfl", pfl_stage),
-            ("tracking", tracking_stage)]
+            ("tracking", tracking_stage), ("engine", engine_stage)]
 
 
 def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: bool = False,

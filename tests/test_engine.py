@@ -1,0 +1,94 @@
+"""MuJoCo engine model (Section VI.3): mass matrix, actuators, identification, filter."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from snake_pin import ParameterError, Serpenoid, Snake, SnakeParams
+from snake_pin.engine import WheelSpec, build_engine_model
+from snake_pin.engine.run import DirtyDerivative, identify_friction
+
+
+@pytest.fixture(scope="module")
+def engine():
+    return build_engine_model()
+
+
+def test_chain_mass_matrix_equals_pinocchio(engine, rng: np.random.Generator) -> None:
+    """MuJoCo's mass matrix on (x, y, yaw, phi), wheels included, equals Pinocchio's H."""
+    snake = Snake(SnakeParams.engine())
+    for _ in range(5):
+        q = np.r_[rng.normal(size=2), rng.uniform(-3, 3), rng.uniform(-1.0, 1.0, 7)]
+        engine.set_paper_configuration(q)
+        assert np.allclose(engine.paper_configuration(), q, atol=1e-12)
+        h = snake.inertia_matrix(q)
+        assert np.abs(engine.chain_mass_matrix() - h).max() < 1e-10 * np.abs(h).max()
+
+
+def test_link_plus_wheels_keep_the_preset(engine) -> None:
+    """Body and wheel masses add up to m per link, and the whole robot to n m."""
+    assert engine.body_mass + 2 * engine.wheels.mass == pytest.approx(0.417)
+    assert engine.model.body_mass.sum() == pytest.approx(8 * 0.417)
+
+
+def test_passive_joint_has_no_actuator() -> None:
+    """A model with joint 5 passive has one actuator fewer, none on joint 5."""
+    full = build_engine_model()
+    passive = build_engine_model(SnakeParams.engine(passive=(5,)))
+    assert passive.model.nu == full.model.nu - 1 == 6
+    names = [passive.model.actuator(i).name for i in range(passive.model.nu)]
+    assert "motor_5" not in names
+
+
+def test_resting_snake_stays_put(engine) -> None:
+    """Without torque the snake settles on its wheels and does not creep (< 1 um in 1 s)."""
+    engine.set_paper_configuration(np.zeros(10))
+    for _ in range(2000):
+        mujoco.mj_step(engine.model, engine.data)
+    assert np.abs(engine.paper_configuration()[:3]).max() < 1e-6
+    assert engine.data.ncon == 16  # every wheel on the floor
+
+
+def test_identified_friction_matches_contact_models() -> None:
+    """c_x from coasting equals the axle damping 2b/r^2; c_y the Coulomb equivalent (5 %)."""
+    friction = identify_friction()
+    assert friction["c_x"] == pytest.approx(friction["c_x_rolling_model"], rel=0.1)
+    assert friction["c_y"] == pytest.approx(friction["c_y_coulomb_model"], rel=0.05)
+    assert friction["c_y"] > 100 * friction["c_x"]  # wheels: strongly anisotropic
+
+
+def test_gait_servo_propels_the_engine_robot() -> None:
+    """A serpenoid joint servo moves the wheeled robot head-first (> 0.5 m in 5 s)."""
+    engine = build_engine_model()
+    gait = Serpenoid(8, math.pi / 6, 1.5, 2.0)
+    engine.set_paper_configuration(np.r_[0.0, 0.0, math.pi, gait.angles(0.0)])
+    for _ in range(5000):
+        q = engine.paper_configuration()
+        dq = engine.data.qvel[engine.chain_dofs]
+        phi, dphi, _ = gait.derivatives(engine.data.time)
+        engine.apply_torque(5.0 * (phi - q[3:]) + 0.5 * (dphi - dq[3:]))
+        for _ in range(engine.wheels.substeps):
+            mujoco.mj_step(engine.model, engine.data)
+    assert np.hypot(*engine.paper_configuration()[:2]) > 0.5
+
+
+def test_dirty_derivative_of_a_ramp() -> None:
+    """2 pi f_c s / (s + 2 pi f_c) of a ramp of slope 3 tends to 3 after a few time constants."""
+    filt = DirtyDerivative(1, 10.0, 1e-3)
+    out = [filt(np.array([3.0 * k * 1e-3]))[0] for k in range(500)]
+    assert out[0] == 0.0 and out[-1] == pytest.approx(3.0, rel=1e-6)
+    tau = 1 / (2 * math.pi * 10.0)  # first-order lag: y = 3 (1 - exp(-t / tau))
+    k = int(tau / 1e-3)
+    assert out[k] == pytest.approx(3.0 * (1 - math.exp(-k * 1e-3 / tau)), rel=0.05)
+
+
+@pytest.mark.parametrize("kwargs", [{"radius": 0.09}, {"radius": math.nan}, {"friction": -1.0},
+                                    {"mass": math.inf}, {"substeps": 0}, {"mass": 0.25}])
+def test_bad_wheels_refused(kwargs: dict) -> None:
+    """Overlapping or non-finite wheel/contact parameters are clear ParameterErrors."""
+    with pytest.raises(ParameterError):
+        build_engine_model(wheels=WheelSpec(**kwargs))
