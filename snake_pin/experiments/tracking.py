@@ -180,7 +180,8 @@ def tracking_stage(ctx) -> None:
             "isotropic (c_x = c_y = 0.5)": base.replace(c_x=0.5, c_y=0.5)}
     rows = []
     for label, params in runs.items():
-        traj = run_tracking(params, t_final=t_final)
+        contrast = label.startswith("isotropic")  # shows failure and constant g: 30 s do
+        traj = run_tracking(params, t_final=min(t_final, 30.0) if contrast else t_final)
         stem = {"no passive joint": "tracking", "joint 5 passive": "tracking_passive5"}.get(
             label, "tracking_isotropic")
         traj.save(ctx.folder / stem)
