@@ -157,9 +157,25 @@ def bench_runs(budget: float) -> None:
           ["run", "simulated [s]", "wall [s]", "real-time factor", "us per 1 ms step"], rows)
 
 
+def bench_engine(budget: float) -> None:
+    """The 60 s MuJoCo run (control at 1 kHz, two 0.5 ms engine steps per period)."""
+    from snake_pin.engine.run import identify_friction, run_engine
+
+    repeat = 1 if budget < 0.1 else 3
+    friction = identify_friction()
+    rows = []
+    for label, params in (("engine, 60 s", SnakeParams.engine()),
+                          ("engine, 60 s, joint 5 passive", SnakeParams.engine(passive=(5,)))):
+        wall, run = _timed_run(lambda p=params: run_engine(p, t_final=60.0, friction=friction),
+                               repeat)
+        t_end = run.trajectory.t_end
+        rows.append([label, f"{t_end:.1f}", f"{wall:.2f}", f"{t_end / wall:.1f}x"])
+    table("MuJoCo closed loop", ["run", "simulated [s]", "wall [s]", "real-time factor"], rows)
+
+
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
                                                "manipulability": bench_manipulability,
-                                               "runs": bench_runs}
+                                               "runs": bench_runs, "engine": bench_engine}
 
 
 def main() -> int:
