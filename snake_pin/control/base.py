@@ -13,7 +13,18 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["Controller", "OpenLoop"]
+from ..exceptions import ParameterError
+from ..gaits import Serpenoid
+
+__all__ = ["Controller", "OpenLoop", "gait_for"]
+
+
+def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
+    """``gait`` (or ``default``) after checking it is a serpenoid for n links."""
+    chosen = default if gait is None else gait
+    if chosen.n != n:
+        raise ParameterError(f"gait is for {chosen.n} links, the robot has {n}")
+    return chosen
 
 
 class Controller(abc.ABC):

@@ -42,7 +42,7 @@ from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
-from .base import Controller
+from .base import Controller, gait_for
 from .gains import gain_matrix
 from .reference import LinearReference
 
@@ -85,9 +85,7 @@ class LyapunovController(Controller):
             raise ParameterError("every joint is passive: there is nothing to control")
         self.snake = snake
         self.reference = reference or head_first_reference()
-        self.gait = gait or Serpenoid(n, np.pi / 6, 1.5, 2.0)
-        if self.gait.n != n:
-            raise ParameterError(f"gait is for {self.gait.n} links, the robot has {n}")
+        self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
         self.k_w1 = gain_matrix(k_w1, 3, "K_w1")
         k_w2_m = gain_matrix(k_w2, 3, "K_w2")
         default_phi = np.r_[10.0, np.full(n - 2, 20.0)]

@@ -30,7 +30,7 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import manipulability_R_batch
 from ..model import Snake
-from .base import Controller
+from .base import Controller, gait_for
 from .gains import gain_matrix
 from .reference import LinearReference
 
@@ -72,9 +72,7 @@ class PFLController(Controller):
             raise ParameterError(f"PFL of the head needs n >= 4 links, got {n}")
         self.snake = snake
         self.reference = reference or LinearReference()
-        self.gait = gait or Serpenoid(n, np.pi / 3, 1.0, 0.18)
-        if self.gait.n != n:
-            raise ParameterError(f"gait is for {self.gait.n} links, the robot has {n}")
+        self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 3, 1.0, 0.18))
         self.k_v = gain_matrix(k_v, 3, "K_v")
         self.k_p = gain_matrix(k_p, 3, "K_p")
         self.r_v = gain_matrix(r_v, n - 1, "R_v", definite=False)
