@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snake_pin import ParameterError, Snake, SnakeParams, simulate
+from snake_pin import ParameterError, Serpenoid, Snake, SnakeParams, simulate
 from snake_pin.control import LyapunovController
 from snake_pin.experiments.tracking import initial_state, tracking_params
 
@@ -75,8 +75,8 @@ def test_every_joint_passive_refused() -> None:
 
 
 @pytest.mark.parametrize("kwargs", [{"lam": 0.0}, {"k_w2": [1.0, 1.0]}, {"k_phi": -1.0},
-                                    {"k_shape": -0.1}])
+                                    {"k_shape": -0.1}, {"gait": Serpenoid(8, 0.5, 1.5, 2.0)}])
 def test_bad_gains(kwargs: dict) -> None:
-    """Non-positive or wrong-size gains are ParameterErrors."""
+    """Non-positive or wrong-size gains, or a gait for another robot, are ParameterErrors."""
     with pytest.raises(ParameterError):
         LyapunovController(Snake(), **kwargs)
