@@ -13,7 +13,9 @@ with singular values sigma and D = min sigma (30, 42). R = min lambda, lambda th
 values of H_ua = H12 (31, 42). For a task other than u with Jacobian J, A = J H^-1 B
 (B selects the actuated columns), which for a fully actuated arm is Yoshikawa's J M^-1.
 Singular values are padded with zeros up to the task dimension, so a wide task with too
-few inputs reports D = R = 0, as the ellipsoid is flat.
+few inputs reports D = R = 0, as the ellipsoid is flat. (With a free joint, H12~ is
+4 x (n - 2): it can have rank 4 only for n >= 6, not n >= 5 as Section III.2 states; at
+n = 5, D~ = R~ = 0 at every posture.)
 
 Free joint k (Section III.2): the selection S of (33) only reorders coordinates, so
 w~ = [x_h, y_h, theta_1, phi_k] is the unactuated set and the same formula gives D~, R~.

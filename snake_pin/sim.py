@@ -114,7 +114,8 @@ class Trajectory:
                            if k.startswith("signal__")}
             params = SnakeParams.from_dict(header["params"])
         except (OSError, KeyError, ValueError, json.JSONDecodeError) as exc:
-            raise TrajectoryFileError(f"{path} is not a snake_pin trajectory ({exc})") from exc
+            detail = str(exc).split(". ")[0][:120]
+            raise TrajectoryFileError(f"{path} is not a snake_pin trajectory ({detail})") from exc
         traj = cls(params=params, signals=signals, diverged=header["diverged"],
                    reason=header["reason"], meta=header["meta"], summary=header["summary"],
                    **arrays)

@@ -139,6 +139,11 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     typical = manipulability_R_batch(params, rng.uniform(-bound, bound, (2000, dim)),
                                      free_joint=free_joint)
     scale = float(np.median(typical))
+    if not scale > 0:
+        raise ParameterError(
+            f"R is zero at every posture of this robot (n = {params.n}"
+            + (f", joint {free_joint} free" if free_joint else "")
+            + "): the coupling block has fewer columns than rows, nothing to search")
     step = 1e-6
     offsets = np.vstack([np.zeros(dim), step * np.eye(dim), -step * np.eye(dim)])
 

@@ -18,7 +18,7 @@ import numpy as np
 from ._io import atomic_write_bytes
 from .exceptions import ParameterError
 from .gaits import Serpenoid, arc
-from .manipulability import manipulability, manipulability_R_batch
+from .manipulability import manipulability, manipulability_R_batch, task_split
 from .model import Snake
 
 __all__ = ["FAMILIES", "RMap", "Sweep", "r_map", "sweep"]
@@ -91,6 +91,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | None = None, points: i
         raise ParameterError(f"unknown family {family!r}; choose one of {', '.join(FAMILIES)}")
     if points < 2:
         raise ParameterError(f"points must be at least 2, got {points}")
+    task_split(snake.n, free_joint)  # validate before any output (progress bar)
     label, default, _ = FAMILIES[family]
     low, high = bounds or default
     values = np.linspace(low, high, points)

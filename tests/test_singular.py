@@ -45,3 +45,14 @@ def test_bad_settings(kwargs: dict) -> None:
     """Bad search settings are ParameterErrors."""
     with pytest.raises(ParameterError):
         find_singular_postures(SnakeParams.table1(), **kwargs)
+
+
+def test_five_links_with_free_joint_is_always_singular() -> None:
+    """n = 5 with a free joint: H12~ is 4 x 3, R~ = 0 everywhere; the search says so."""
+    params = SnakeParams.table1(n=5)
+    snake = Snake(params)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        assert manipulability(snake, np.r_[0, 0, 0, rng.uniform(-1, 1, 4)], free_joint=3).R == 0
+    with pytest.raises(ParameterError, match="zero at every posture"):
+        find_singular_postures(params, free_joint=3, starts=2)
