@@ -174,3 +174,12 @@ def engine_stage(ctx) -> None:
              " which the viscous-model strategy uses. R stays positive throughout, so the "
              "failure is not a singular posture. A plain serpenoid joint servo does propel this"
              " engine robot (about 0.23 m/s), so the engine itself can move.")
+    sec.text("Checked while looking for the cause (scripts not kept, results only): the engine "
+             "loop itself is right (on a frictionless floor it matches the Pinocchio closed "
+             "loop to 1e-4 over 1 s); exact engine velocities instead of the 10 Hz filter, wheel"
+             " friction mu = 0.05..1, model c_y from 0.01x to 3x the identified value, a shape "
+             "spring k_s up to 200, a heading weight down to 1 % of (84), a joint servo "
+             "executing the model's joint accelerations, and a regularised-Coulomb friction "
+             "model in the controller all leave the head within about 0.4 m of its start over "
+             "25 s. The acceleration-level law needs slip that wheels do not give; on wheels "
+             "a kinematic (no-slip) design in the spirit of Date et al. is the likely fix.")
