@@ -213,8 +213,10 @@ def simulate(snake: Snake, controller: Controller, x0: np.ndarray, t_final: floa
         k = steps
     if bar is not None:
         bar.close()
-    last = k + 1  # samples 0..k are good; tau after the last sample was never applied
-    taus[last - 1] = 0.0
+    # Samples 0..k are good. tau[k] is the torque held after sample k: on divergence it is
+    # the one that was applied when the state blew up (kept as evidence); at the end of a
+    # completed run, or when the controller failed, none was applied and it stays zero.
+    last = k + 1
     recorded = {name: _pad(values, last) for name, values in signals.items()}
     return Trajectory(t=ts[:last].copy(), q=xs[:last, :nq].copy(), dq=xs[:last, nq:].copy(),
                       tau=taus[:last].copy(), params=snake.params, signals=recorded,

@@ -54,6 +54,7 @@ def test_divergence_stops_and_keeps_the_run(table1: Snake, tmp_path: Path) -> No
     traj = simulate(table1, OpenLoop(blow_up), _x0(10), 1.0)
     assert traj.diverged and "t = 0.1" in traj.reason
     assert 0.1 <= traj.t_end < 0.2 and np.all(np.isfinite(traj.q))
+    assert traj.tau[-1, 0] == 1e6  # the torque that blew the state up is kept
     npz, js = traj.save(tmp_path / "run")
     summary = json.loads(js.read_text())
     assert summary["diverged"] is True and summary["t_end"] == pytest.approx(traj.t_end)
