@@ -179,7 +179,9 @@ def engine_stage(ctx) -> None:
              "loop to 1e-4 over 1 s); exact engine velocities instead of the 10 Hz filter, wheel"
              " friction mu = 0.05..1, model c_y from 0.01x to 3x the identified value, a shape "
              "spring k_s up to 200, a heading weight down to 1 % of (84), a joint servo "
-             "executing the model's joint accelerations, and a regularised-Coulomb friction "
-             "model in the controller all leave the head within about 0.4 m of its start over "
-             "25 s. The acceleration-level law needs slip that wheels do not give; on wheels "
-             "a kinematic (no-slip) design in the spirit of Date et al. is the likely fix.")
+             "executing the model's joint accelerations, a regularised-Coulomb friction model "
+             "in the controller, and the no-slip limit c_y -> infinity (lateral constraints on "
+             "links 2..n or on all links) as the controller's model all leave the head within "
+             "about 0.6 m of its start over 20-25 s. The acceleration-level law does not "
+             "survive stick-slip wheels; a gait-level design (serpentine propulsion with "
+             "steering, as the working joint servo suggests) is the likely way forward.")
