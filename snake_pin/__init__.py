@@ -3,10 +3,16 @@
 Implements Ariizumi & Tanaka, "Manipulability analysis of a snake robot without a
 lateral constraint for head position control": the model in paper coordinates, its
 closed form, dynamic manipulability, integrability, head controllers and experiments.
+
+Heavy modules (Pinocchio, MuJoCo, meshcat, matplotlib) load on first use of a name, so
+``import snake_pin`` and the command line start quickly.
 """
 
-from . import paper
-from .control import Controller, OpenLoop
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
 from .exceptions import (
     ConfigurationError,
     ParameterError,
@@ -14,16 +20,29 @@ from .exceptions import (
     SnakePinError,
     TrajectoryFileError,
 )
-from .gaits import Serpenoid, arc, straight
-from .model import Snake
 from .params import SnakeParams
-from .sim import Trajectory, simulate
-from .urdf import build_urdf, write_urdf
+
+#: Public name -> module that defines it (imported lazily).
+_LAZY = {
+    "paper": ".paper",
+    "Controller": ".control", "LinearReference": ".control", "LyapunovController": ".control",
+    "OpenLoop": ".control", "PFLController": ".control", "head_first_reference": ".control",
+    "Serpenoid": ".gaits", "arc": ".gaits", "straight": ".gaits",
+    "Manipulability": ".manipulability", "dynamic_manipulability": ".manipulability",
+    "manipulability": ".manipulability",
+    "Snake": ".model",
+    "Trajectory": ".sim", "simulate": ".sim",
+    "build_urdf": ".urdf", "write_urdf": ".urdf",
+}
 
 __all__ = [
     "ConfigurationError",
     "Controller",
+    "LinearReference",
+    "LyapunovController",
+    "Manipulability",
     "OpenLoop",
+    "PFLController",
     "ParameterError",
     "Serpenoid",
     "SingularPostureError",
@@ -34,9 +53,26 @@ __all__ = [
     "TrajectoryFileError",
     "arc",
     "build_urdf",
+    "dynamic_manipulability",
+    "head_first_reference",
+    "manipulability",
     "paper",
     "simulate",
     "straight",
     "write_urdf",
 ]
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'snake_pin' has no attribute {name!r}")
+    loaded = importlib.import_module(module, __name__)
+    value = loaded if name == "paper" else getattr(loaded, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
