@@ -123,7 +123,7 @@ def engine_stage(ctx) -> None:
     """Identification, the two engine runs, the viscous twin, figures and animation."""
     from ..viz.meshcat_view import write_html
 
-    t_final = 20.0 if ctx.quick else 60.0
+    t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
     base = SnakeParams.engine()
     wheels = WheelSpec()
     friction = identify_friction(base, wheels)
