@@ -284,7 +284,7 @@ def _cmd_engine(args: argparse.Namespace) -> None:
     wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu)
     friction = identify_friction(params.replace(passive=()), wheels)
     run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
-                     progress=not args.json)
+                     law=args.law, progress=not args.json)
     summarize(run.trajectory)
     npz, summary_path = run.trajectory.save(out / "engine")
     figures = plot_engine(run, None, out, "engine")
@@ -356,6 +356,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--t-final", type=_positive_float, default=60.0, help="duration [s]")
     p.add_argument("--wheel-radius", type=_positive_float, default=0.03, help="[m]")
     p.add_argument("--mu", type=_positive_float, default=1.0, help="wheel-floor friction")
+    p.add_argument("--law", choices=("velocity", "acceleration"), default="velocity",
+                   help="form of the Lyapunov-like law (velocity level with servos by default)")
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_engine)

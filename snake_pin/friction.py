@@ -58,6 +58,30 @@ class FrictionModel:
         both = x.reshape(2, n2)[:, 2:] @ self._angles_t
         return self._force(both[0], both[1], complex(x[n2], x[n2 + 1]))
 
+    def matrix(self, q: np.ndarray) -> np.ndarray:
+        """C(q) of eq. (11) such that the friction force is -C(q) dq (all columns at once).
+
+        The force is linear in dq, so the columns are the responses to the unit velocities,
+        computed together: theta' of the unit vectors is [0 | L] and the base velocity is 1
+        (x_h') or j (y_h').
+        """
+        n = self._n
+        theta = self._angles_t.T @ q[2:]
+        theta_dot = np.zeros((n, n + 2))
+        theta_dot[:, 2:] = self._angles_t.T
+        base = np.zeros(n + 2, dtype=complex)
+        base[0], base[1] = 1.0, 1.0j
+        e = np.exp(1j * theta)
+        z = self._jk @ (e[:, None] * theta_dot) + base[None, :]
+        if self._ratio:
+            z += self._ratio * (e * e)[:, None] * z.conjugate()
+        g = self._reduce @ z
+        out = np.empty((n + 2, n + 2))
+        out[0], out[1] = g[-1].real, g[-1].imag
+        out[2:] = self._upper @ ((e.conjugate()[:, None] * g[:-1]).imag
+                                 - self._c_theta * theta_dot)
+        return -out
+
     def _force(self, theta: np.ndarray, theta_dot: np.ndarray, base: complex) -> np.ndarray:
         e = np.exp(1j * theta)
         z = self._jk @ (e * theta_dot)

@@ -92,3 +92,13 @@ def test_bad_wheels_refused(kwargs: dict) -> None:
     """Overlapping or non-finite wheel/contact parameters are clear ParameterErrors."""
     with pytest.raises(ParameterError):
         build_engine_model(wheels=WheelSpec(**kwargs))
+
+
+def test_short_closed_loop_run_moves_head_forward() -> None:
+    """5 s of the Lyapunov-like law (velocity level) on the engine: head forward, tracking."""
+    from snake_pin.engine.run import run_engine
+
+    run = run_engine(t_final=5.0)
+    traj = run.trajectory
+    assert not traj.diverged and traj.q[-1, 0] > 0.3
+    assert abs(traj.q[-1, 0] - 0.1 * traj.t_end) < 0.3

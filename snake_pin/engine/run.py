@@ -22,15 +22,15 @@ import mujoco
 import numpy as np
 
 from .._validation import finite_number
-from ..control import LyapunovController, head_first_reference
-from ..exceptions import SnakePinError
+from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
+from ..exceptions import ParameterError, SnakePinError
 from ..gaits import arc
 from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory
 from .model import GRAVITY, EngineModel, WheelSpec, build_engine_model
 
-__all__ = ["DirtyDerivative", "EngineRun", "identify_friction", "run_engine"]
+__all__ = ["LAWS", "DirtyDerivative", "EngineRun", "identify_friction", "run_engine"]
 
 
 class DirtyDerivative:
@@ -114,14 +114,22 @@ class EngineRun:
     friction: dict[str, float]
 
 
+LAWS = ("velocity", "acceleration")
+
+
 def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = None,
                t_final: float = 60.0, friction: dict[str, float] | None = None,
-               cutoff: float = 10.0, progress: bool = False) -> EngineRun:
+               cutoff: float = 10.0, law: str = "velocity", progress: bool = False) -> EngineRun:
     """Lyapunov-like head tracking on MuJoCo, control at 1 kHz, velocities from the filter.
 
     The controller's internal model is ``params`` with the identified viscous friction.
-    Stops early (``diverged``) if the engine state becomes non-finite or the robot flips.
+    ``law="velocity"`` uses the quasi-static, velocity-level form of V's minimisation with
+    joint servos (:class:`QuasiStaticLyapunovController`); ``law="acceleration"`` the
+    torque-level form of VI.2 (:class:`LyapunovController`). Stops early (``diverged``) if
+    the engine state becomes non-finite or the robot leaves the floor.
     """
+    if law not in LAWS:
+        raise ParameterError(f"law must be one of {', '.join(LAWS)}, got {law!r}")
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
     friction = friction or identify_friction(params.replace(passive=()), wheels)
@@ -129,7 +137,11 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                                   c_theta=friction["c_theta"])
     engine = build_engine_model(params, wheels)
     snake = Snake(model_params)
-    controller = LyapunovController(snake, head_first_reference())
+    if law == "velocity":
+        controller = QuasiStaticLyapunovController(snake, head_first_reference(),
+                                                   control_dt=wheels.control_dt)
+    else:
+        controller = LyapunovController(snake, head_first_reference())
     q0 = arc(params.n, math.pi / 6, theta_1=math.pi)
     engine.set_paper_configuration(q0)
     dt = wheels.control_dt
@@ -180,7 +192,8 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     last = k + 1
     traj = Trajectory(t=ts[:last], q=qs[:last], dq=dqs[:last], tau=taus[:last],
                       params=model_params, diverged=diverged, reason=reason,
-                      meta={"controller": "lyapunov", "engine": "mujoco", "cutoff_hz": cutoff,
+                      meta={"controller": controller.name, "law": law, "engine": "mujoco",
+                            "cutoff_hz": cutoff,
                             "control_dt": dt, "engine_timestep": wheels.timestep,
                             "wheel_radius": wheels.radius, "wheel_friction": wheels.friction})
     return EngineRun(traj, true_dq[:last], friction)

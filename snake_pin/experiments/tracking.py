@@ -15,6 +15,7 @@ from ..metrics import criteria_along, head_position_error, window
 from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory, simulate
+from .parallel import run_jobs
 
 __all__ = ["TRACKING_FRICTION", "plot_tracking", "run_tracking", "tracking_params",
            "tracking_stage"]
@@ -179,9 +180,12 @@ def tracking_stage(ctx) -> None:
             "joint 5 passive": tracking_params(base, passive=(5,)),
             "isotropic (c_x = c_y = 0.5)": base.replace(c_x=0.5, c_y=0.5)}
     rows = []
-    for label, params in runs.items():
-        contrast = label.startswith("isotropic")  # shows failure and constant g: 30 s do
-        traj = run_tracking(params, t_final=min(t_final, 30.0) if contrast else t_final)
+    # the isotropic contrast shows failure and a constant g: 30 s are enough
+    durations = [min(t_final, 30.0) if label.startswith("isotropic") else t_final
+                 for label in runs]
+    trajectories = run_jobs([(run_tracking, (params,), {"t_final": duration})
+                             for params, duration in zip(runs.values(), durations, strict=True)])
+    for label, traj in zip(runs, trajectories, strict=True):
         stem = {"no passive joint": "tracking", "joint 5 passive": "tracking_passive5"}.get(
             label, "tracking_isotropic")
         traj.save(ctx.folder / stem)
