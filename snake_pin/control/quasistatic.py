@@ -117,7 +117,7 @@ class QuasiStaticLyapunovController(Controller):
         jac = self.connection(q)
         w_r, dw_r, _ = self.reference(t)
         _, dphi_r, _ = self.gait.derivatives(t)
-        target_u = np.r_[dw_r + self.k_w1 @ (w_r - q[:3]), dphi_r[self._u[3:] - 3]]
+        target_u = np.concatenate((dw_r + self.k_w1 @ (w_r - q[:3]), dphi_r[self._u[3:] - 3]))
         target_a = dphi_r[self._a - 3]
         weighted = jac.T * self._w_u
         normal = weighted @ jac + np.diag(self._w_a)

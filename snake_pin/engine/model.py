@@ -103,17 +103,23 @@ class EngineModel:
     wheel_offset: float
     meta: dict[str, float] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        self._chain_dofs = np.concatenate(([0, 1, 5], self.hinge_dof)).astype(int)
+
     @property
     def chain_dofs(self) -> np.ndarray:
         """DOF addresses of (x, y, yaw) of the free joint and the hinges: paper's q order."""
-        return np.r_[0, 1, 5, self.hinge_dof]
+        return self._chain_dofs
 
     def paper_configuration(self) -> np.ndarray:
         """q = [x_h, y_h, theta_1, phi] read from the engine (yaw in (-pi, pi])."""
         head = self.data.xmat[self.link_bodies[0]].reshape(3, 3)
         pos = self.data.xpos[self.link_bodies[0]]
         yaw = math.atan2(head[1, 0], head[0, 0])
-        return np.r_[pos[0], pos[1], yaw, self.data.qpos[self.hinge_qpos]]
+        out = np.empty(len(self.hinge_qpos) + 3)
+        out[0], out[1], out[2] = pos[0], pos[1], yaw
+        out[3:] = self.data.qpos[self.hinge_qpos]
+        return out
 
     def set_paper_configuration(self, q: np.ndarray) -> None:
         """Place the snake flat on its wheels at q (at rest) and run forward kinematics."""

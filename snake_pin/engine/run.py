@@ -177,7 +177,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         if k == steps:
             break
         try:
-            tau = controller(np.r_[q, dq], engine.data.time)
+            tau = controller(np.concatenate((q, dq)), engine.data.time)
         except SnakePinError as exc:
             diverged, reason = True, f"controller failed at t = {engine.data.time:.3f} s: {exc}"
             break
