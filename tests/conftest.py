@@ -22,3 +22,11 @@ def random_state(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarr
     """A random configuration (joint angles within +-pi/2) and velocity."""
     q = np.r_[rng.uniform(-1, 1, 2), rng.uniform(-np.pi, np.pi), rng.uniform(-1.5, 1.5, n - 1)]
     return q, rng.normal(size=n + 2)
+
+
+def head_first_state(rng: np.random.Generator, n: int, *, spread: float = 0.3,
+                     joints: float = 1.2, speed: float = 0.3) -> np.ndarray:
+    """A random state near the head-first tracking runs (theta_1 about pi): x = [q, dq]."""
+    q = np.r_[rng.normal(scale=spread, size=2), np.pi + rng.normal(scale=spread),
+              rng.uniform(-joints, joints, n - 1)]
+    return np.r_[q, rng.normal(scale=speed, size=n + 2)]

@@ -9,11 +9,7 @@ from snake_pin import ParameterError, Serpenoid, Snake, SnakeParams, simulate
 from snake_pin.control import LyapunovController
 from snake_pin.experiments.tracking import initial_state, tracking_params
 
-
-def _random_state(rng: np.random.Generator, n: int) -> np.ndarray:
-    q = np.r_[rng.normal(scale=0.3, size=2), np.pi + rng.normal(scale=0.3),
-              rng.uniform(-1.2, 1.2, n - 1)]
-    return np.r_[q, rng.normal(scale=0.3, size=n + 2)]
+from .conftest import head_first_state
 
 
 @pytest.mark.parametrize("passive", [(), (5,)])
@@ -23,7 +19,7 @@ def test_v_dot_matches_derivation(passive: tuple, rng: np.random.Generator) -> N
     ctrl = LyapunovController(snake)
     nq = snake.nq
     for _ in range(10):
-        x, t = _random_state(rng, snake.n), rng.uniform(0, 30)
+        x, t = head_first_state(rng, snake.n), rng.uniform(0, 30)
         tau = ctrl(x, t)
         ddq = snake.forward_dynamics(x[:nq], x[nq:], tau)
         xdot = np.r_[x[nq:], ddq]
@@ -42,7 +38,7 @@ def test_least_squares_normal_equations(rng: np.random.Generator) -> None:
     """The residual is W-orthogonal to the reachable accelerations: A^T W rho = 0."""
     snake = Snake(tracking_params())
     ctrl = LyapunovController(snake)
-    x, t = _random_state(rng, snake.n), 3.0
+    x, t = head_first_state(rng, snake.n), 3.0
     tau = ctrl(x, t)
     a, b = ctrl.affine_map(x)
     target, _, _ = ctrl.targets(x, t)
@@ -56,7 +52,7 @@ def test_least_squares_normal_equations(rng: np.random.Generator) -> None:
 def test_passive_joint_gets_no_torque(rng: np.random.Generator) -> None:
     """With joint 5 passive the controller outputs zero there and still acts elsewhere."""
     snake = Snake(tracking_params(passive=(5,)))
-    tau = LyapunovController(snake)(_random_state(rng, snake.n), 1.0)
+    tau = LyapunovController(snake)(head_first_state(rng, snake.n), 1.0)
     assert tau[4] == 0.0 and np.abs(tau).max() > 0
 
 

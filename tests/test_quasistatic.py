@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -11,11 +9,7 @@ from snake_pin import ParameterError, Snake, SnakeParams, simulate
 from snake_pin.control import Controller, QuasiStaticLyapunovController
 from snake_pin.gaits import arc
 
-
-def _state(rng: np.random.Generator, n: int) -> np.ndarray:
-    q = np.r_[rng.normal(scale=0.2, size=2), math.pi + rng.normal(scale=0.2),
-              rng.uniform(-1.0, 1.0, n - 1)]
-    return np.r_[q, rng.normal(scale=0.1, size=n + 2)]
+from .conftest import head_first_state
 
 
 @pytest.mark.parametrize("passive", [(), (5,)])
@@ -23,7 +17,7 @@ def test_command_minimises_v(passive: tuple, rng: np.random.Generator) -> None:
     """V at the commanded joint velocity is below V at any perturbed joint velocity."""
     snake = Snake(SnakeParams.engine(c_x=0.04, c_y=60.0, passive=passive))
     ctrl = QuasiStaticLyapunovController(snake)
-    x, t = _state(rng, snake.n), 2.0
+    x, t = head_first_state(rng, snake.n, spread=0.2, joints=1.0, speed=0.1), 2.0
     rate, value = ctrl.velocity_command(x, t)
     jac = ctrl.connection(x[:snake.nq])
     w_r, dw_r, _ = ctrl.reference(t)
@@ -64,7 +58,7 @@ def test_passive_joint_gets_no_torque(rng: np.random.Generator) -> None:
     """Joint 5 passive: zero torque there, the connection has the phi_5 row."""
     snake = Snake(SnakeParams.engine(c_x=0.04, c_y=60.0, passive=(5,)))
     ctrl = QuasiStaticLyapunovController(snake)
-    tau = ctrl(_state(rng, snake.n), 1.0)
+    tau = ctrl(head_first_state(rng, snake.n, spread=0.2, joints=1.0, speed=0.1), 1.0)
     assert tau[4] == 0.0 and np.abs(tau).max() > 0
     assert ctrl.connection(np.r_[0, 0, 0, np.full(7, 0.3)]).shape == (4, 6)
 
