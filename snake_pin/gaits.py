@@ -10,7 +10,7 @@ import numpy as np
 from ._validation import finite_number
 from .exceptions import ParameterError
 
-__all__ = ["Serpenoid", "arc", "configuration", "straight"]
+__all__ = ["Serpenoid", "arc", "configuration", "initial_state", "straight"]
 
 
 def _check_n(n: int) -> int:
@@ -95,3 +95,11 @@ class Serpenoid:
     def configuration(self, t: float = 0.0, **head: float) -> np.ndarray:
         """q with the serpenoid joint angles at time t."""
         return configuration(self.angles(t), **head)
+
+
+def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
+    """Eq. (82): head at the origin, every joint at pi/6, at rest; x = [q, dq].
+
+    ``theta_1 = pi`` gives the head-first orientation used for tracking along +x.
+    """
+    return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(_check_n(n) + 2)]

@@ -24,7 +24,7 @@ import numpy as np
 from .._validation import finite_number
 from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
 from ..exceptions import ParameterError, SnakePinError
-from ..gaits import arc
+from ..gaits import initial_state
 from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory
@@ -142,7 +142,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                                                    control_dt=wheels.control_dt)
     else:
         controller = LyapunovController(snake, head_first_reference())
-    q0 = arc(params.n, math.pi / 6, theta_1=math.pi)
+    q0 = initial_state(params.n, theta_1=math.pi)[: params.n + 2]
     engine.set_paper_configuration(q0)
     dt = wheels.control_dt
     steps = round(t_final / dt)

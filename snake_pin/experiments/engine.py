@@ -10,7 +10,7 @@ import numpy as np
 from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
 from ..engine.model import WheelSpec
 from ..engine.run import EngineRun, identify_friction, run_engine
-from ..gaits import arc
+from ..gaits import initial_state
 from ..metrics import criteria_along, head_position_error, window
 from ..model import Snake
 from ..params import SnakeParams
@@ -46,8 +46,7 @@ def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity") -> 
     snake = Snake(params)
     controller = (QuasiStaticLyapunovController(snake, head_first_reference())
                   if law == "velocity" else LyapunovController(snake, head_first_reference()))
-    x0 = np.r_[arc(params.n, np.pi / 6, theta_1=np.pi), np.zeros(params.n + 2)]
-    traj = simulate(snake, controller, x0, t_final)
+    traj = simulate(snake, controller, initial_state(params.n, theta_1=np.pi), t_final)
     summarize(traj)
     return traj
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import gaits
 from ..control import LinearReference, PFLController
-from ..gaits import arc
 from ..integrability import conserved_quantity_along
 from ..metrics import criteria_along, head_position_error
 from ..model import Snake
@@ -25,7 +25,7 @@ TAU_BREAKDOWN = 1.0
 
 def initial_state(params: SnakeParams) -> np.ndarray:
     """Eq. (82): w0 = 0, phi0 = pi/6 for every joint, at rest."""
-    return np.r_[arc(params.n, np.pi / 6), np.zeros(params.n + 2)]
+    return gaits.initial_state(params.n)
 
 
 @dataclass

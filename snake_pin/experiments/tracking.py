@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import gaits
 from ..control import LyapunovController, head_first_reference
-from ..gaits import arc
 from ..integrability import conserved_quantity_along
 from ..manipulability import lateral_constraint_manipulability
 from ..metrics import criteria_along, head_position_error, window
@@ -38,7 +38,7 @@ def tracking_params(params: SnakeParams | None = None, **changes: object) -> Sna
 
 def initial_state(params: SnakeParams) -> np.ndarray:
     """Eq. (82)'s arc (phi = pi/6), head-first along +x: theta_1 = pi, at rest."""
-    return np.r_[arc(params.n, np.pi / 6, theta_1=np.pi), np.zeros(params.n + 2)]
+    return gaits.initial_state(params.n, theta_1=np.pi)
 
 
 def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
