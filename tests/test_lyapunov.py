@@ -14,7 +14,7 @@ from .conftest import head_first_state
 
 @pytest.mark.parametrize("passive", [(), (5,)])
 def test_v_dot_matches_derivation(passive: tuple, rng: np.random.Generator) -> None:
-    """dV/dt along the closed loop equals -2 lam V - 2 [s; e]^T W rho - 2 k_s e^T K_phi e_phi."""
+    """dV/dt equals -2 lam |s|^2 - 2 mu |e|^2 - 2 [s; e]^T W rho - 2 k_s e^T K_phi e_phi."""
     snake = Snake(tracking_params(passive=passive))
     ctrl = LyapunovController(snake)
     nq = snake.nq
@@ -29,7 +29,8 @@ def test_v_dot_matches_derivation(passive: tuple, rng: np.random.Generator) -> N
         rho = ddq - target
         weights = np.r_[np.diag(ctrl.k_w2), np.diag(ctrl.k_phi)]
         phi_r = ctrl.gait.derivatives(t)[0]
-        predicted = (-2 * ctrl.lam * ctrl.lyapunov(x, t) - 2 * np.r_[s, e] @ (weights * rho)
+        predicted = (-2 * ctrl.lam * s @ ctrl.k_w2 @ s - 2 * ctrl.lam_shape * e @ ctrl.k_phi @ e
+                     - 2 * np.r_[s, e] @ (weights * rho)
                      - 2 * ctrl.k_shape * e @ ctrl.k_phi @ (phi_r - x[3:nq]))
         assert v_dot == pytest.approx(predicted, rel=1e-5, abs=1e-6 * abs(ctrl.lyapunov(x, t)))
 
@@ -70,8 +71,9 @@ def test_every_joint_passive_refused() -> None:
         LyapunovController(Snake(SnakeParams.table1(n=4, passive=(1, 2, 3))))
 
 
-@pytest.mark.parametrize("kwargs", [{"lam": 0.0}, {"k_w2": [1.0, 1.0]}, {"k_phi": -1.0},
-                                    {"k_shape": -0.1}, {"gait": Serpenoid(8, 0.5, 1.5, 2.0)}])
+@pytest.mark.parametrize("kwargs", [{"lam": 0.0}, {"lam_shape": -1.0}, {"k_w2": [1.0, 1.0]},
+                                    {"k_phi": -1.0}, {"k_shape": -0.1},
+                                    {"gait": Serpenoid(8, 0.5, 1.5, 2.0)}])
 def test_bad_gains(kwargs: dict) -> None:
     """Non-positive or wrong-size gains, or a gait for another robot, are ParameterErrors."""
     with pytest.raises(ParameterError):

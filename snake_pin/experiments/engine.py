@@ -162,7 +162,7 @@ def engine_stage(ctx) -> None:
                                      "friction": friction, "law": law})
             for _, params, law, duration, _ in runs]
     *results, twin = run_jobs([*jobs, (viscous_twin, (model_params, t_final), {})])
-    for (label, _, _, duration, stem), run in zip(runs, results, strict=True):
+    for (label, _, _, _, stem), run in zip(runs, results, strict=True):
         summarize(run.trajectory)
         run.trajectory.save(ctx.folder / stem)
         figures = plot_engine(run, twin if stem == "engine" else None, ctx.folder, stem)
@@ -172,7 +172,9 @@ def engine_stage(ctx) -> None:
             page = write_html(run.trajectory, ctx.folder / f"{stem}.html")
             sec.link(page.name, "engine run: 3-D animation (meshcat, self-contained page)")
         s = run.trajectory.summary
-        rows.append([f"MuJoCo, {label}", duration, s["rms_head_error"],
+        if run.trajectory.diverged:
+            sec.text(f"{label}: stopped early, {run.trajectory.reason}.")
+        rows.append([f"MuJoCo, {label}", run.trajectory.t_end, s["rms_head_error"],
                      100 * s["rms_head_error"] / base.body_length, s["max_head_error"],
                      s["R_min"]])
         sec.numbers[stem] = run.trajectory.summary_dict()
@@ -180,7 +182,7 @@ def engine_stage(ctx) -> None:
     rows.append(["Pinocchio viscous model, velocity law", t_final, t["rms_head_error"],
                  100 * t["rms_head_error"] / base.body_length, t["max_head_error"], t["R_min"]])
     sec.numbers["viscous_twin"] = twin.summary_dict()
-    sec.table(["run", "duration [s]", "RMS head error [m]", "% of body", "max error [m]",
+    sec.table(["run", "simulated [s]", "RMS head error [m]", "% of body", "max error [m]",
                "R min"], rows)
     sec.text("Target: RMS <= 10 % of the 1.408 m body over t >= 10 s, R never zero. The "
              "torque-level law does not track on the engine: it chooses torques from the "

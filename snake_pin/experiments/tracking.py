@@ -55,7 +55,7 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     controller = LyapunovController(snake, reference)
     traj = simulate(snake, controller, initial_state(params), t_final, progress=progress,
                     meta={"reference": "w_r = [0.1 t, 0, pi]", "k_shape": controller.k_shape,
-                          "lam": controller.lam})
+                          "lam": controller.lam, "lam_shape": controller.lam_shape})
     error = head_position_error(traj, reference)
     t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
     g = conserved_quantity_along(snake, traj.q, traj.dq)
@@ -170,9 +170,10 @@ def tracking_stage(ctx) -> None:
     base = ctx.params.replace(passive=())
     sec = ctx.report.section("tracking", "Lyapunov-like head tracking (VI.2)")
     sec.text("Law: weighted least squares on q'' = A tau + b towards s' = -lambda s (head, "
-             "weight K_w2) and phi'' = phi_r'' + lambda e (joints, weight K_phi), gains (84), "
-             "lambda = 1; V' = -2 lambda V - 2 [s; e]^T W rho with the unreachable residual rho "
-             "(derivation in snake_pin/control/lyapunov.py). In the paper's coordinates theta_1 "
+             "weight K_w2) and phi'' = phi_r'' + mu e (joints, weight K_phi), gains (84), "
+             "lambda = 10/s, mu = lambda / 2; V' = -2 lambda |s|^2 - 2 mu |e|^2 - 2 [s; e]^T W "
+             "rho with the unreachable residual rho (derivation and the choice of the two rates "
+             "in snake_pin/control/lyapunov.py). In the paper's coordinates theta_1 "
              "points from the head to the tail, so the head-first run along +x has theta_1 = pi:"
              " w_r = [0.1 t, 0, pi], the arc of (82) turned by pi. Friction c_x = "
              f"{TRACKING_FRICTION['c_x']}, c_y = {TRACKING_FRICTION['c_y']} N s/m (erratum 3).")
