@@ -158,19 +158,43 @@ def bench_runs(budget: float) -> None:
 
 
 def bench_engine(budget: float) -> None:
-    """The 60 s MuJoCo run (control at 1 kHz, two 0.5 ms engine steps per period)."""
+    """The 60 s MuJoCo run (control at 1 kHz, two 0.5 ms engine steps per period).
+
+    Also times MuJoCo alone: the recorded torques replayed open loop (no controller, no
+    filter), the ceiling any controller code leaves.
+    """
+    import mujoco
+
+    from snake_pin.engine.model import WheelSpec, build_engine_model
     from snake_pin.engine.run import identify_friction, run_engine
+    from snake_pin.experiments.engine import summarize
 
     repeat = 1 if budget < 0.1 else 3
-    friction = identify_friction()
     rows = []
-    for label, params in (("engine, 60 s", SnakeParams.engine()),
-                          ("engine, 60 s, joint 5 passive", SnakeParams.engine(passive=(5,)))):
-        wall, run = _timed_run(lambda p=params: run_engine(p, t_final=60.0, friction=friction),
-                               repeat)
-        t_end = run.trajectory.t_end
-        rows.append([label, f"{t_end:.1f}", f"{wall:.2f}", f"{t_end / wall:.1f}x"])
-    table("MuJoCo closed loop", ["run", "simulated [s]", "wall [s]", "real-time factor"], rows)
+    for cone in ("elliptic", "pyramidal"):
+        wheels = WheelSpec(cone=cone)
+        friction = identify_friction(wheels=wheels)
+        for label, params in (("60 s", SnakeParams.engine()),
+                              ("60 s, joint 5 passive", SnakeParams.engine(passive=(5,)))):
+            wall, run = _timed_run(lambda p=params, w=wheels, f=friction: run_engine(
+                p, wheels=w, t_final=60.0, friction=f), repeat)
+            traj = run.trajectory
+            engine = build_engine_model(params, wheels)
+
+            def replay(engine=engine, traj=traj) -> None:
+                engine.set_paper_configuration(traj.q[0])
+                for tau in traj.tau[:-1]:
+                    engine.apply_torque(tau)
+                    for _ in range(engine.wheels.substeps):
+                        mujoco.mj_step(engine.model, engine.data)
+
+            alone, _ = _timed_run(replay, 1)
+            rms = summarize(traj)["rms_head_error"]
+            rows.append([f"{cone}, {label}", f"{traj.t_end:.1f}", f"{wall:.2f}",
+                         f"{traj.t_end / wall:.1f}x", f"{traj.t_end / alone:.1f}x",
+                         f"{100 * rms / params.body_length:.1f}"])
+    table("MuJoCo closed loop", ["run", "simulated [s]", "wall [s]", "real-time factor",
+                                 "MuJoCo alone", "RMS % of body"], rows)
 
 
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,

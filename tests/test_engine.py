@@ -61,6 +61,15 @@ def test_identified_friction_matches_contact_models() -> None:
     assert friction["c_y"] > 100 * friction["c_x"]  # wheels: strongly anisotropic
 
 
+def test_pyramidal_cones_identify_a_looser_coulomb_equivalent() -> None:
+    """The faster pyramidal cone still gives c_y within 15 % of the Coulomb equivalent."""
+    wheels = WheelSpec(cone="pyramidal")
+    assert build_engine_model(wheels=wheels).model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    friction = identify_friction(wheels=wheels)
+    assert friction["c_y"] == pytest.approx(friction["c_y_coulomb_model"], rel=0.15)
+    assert friction["c_x"] == pytest.approx(friction["c_x_rolling_model"], rel=0.1)
+
+
 def test_gait_servo_propels_the_engine_robot() -> None:
     """A serpenoid joint servo moves the wheeled robot head-first (> 0.5 m in 5 s)."""
     engine = build_engine_model()
@@ -87,7 +96,8 @@ def test_dirty_derivative_of_a_ramp() -> None:
 
 
 @pytest.mark.parametrize("kwargs", [{"radius": 0.09}, {"radius": math.nan}, {"friction": -1.0},
-                                    {"mass": math.inf}, {"substeps": 0}, {"mass": 0.25}])
+                                    {"mass": math.inf}, {"substeps": 0}, {"mass": 0.25},
+                                    {"cone": "round"}])
 def test_bad_wheels_refused(kwargs: dict) -> None:
     """Overlapping or non-finite wheel/contact parameters are clear ParameterErrors."""
     with pytest.raises(ParameterError):

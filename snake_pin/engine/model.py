@@ -18,9 +18,15 @@ top (a floor, gravity, a wheel pair per link, contacts, motors). Layout:
 
 Solver settings: 1 ms control period split into ``substeps`` engine steps (default 2,
 0.5 ms), implicit-fast integration, elliptic friction cones with impratio 10 (stiffer,
-less creeping tangential constraints than the pyramidal default), condim 3 wheel
+less creeping tangential constraints than the pyramidal default; coasting then gives the
+Coulomb-equivalent c_y to 0.1 %), condim 3 wheel
 contacts (sliding friction only; rolling about the axle is the hinge), soft contacts
 with solref (0.005, 1): critically damped at 5 ms, well above the step.
+
+``WheelSpec(cone="pyramidal")`` trades fidelity for speed: MuJoCo's step is about three
+times cheaper, but the pyramid's sideways friction is weaker (coasting gives c_y 8 % above
+the Coulomb equivalent) and the tracking with a passive joint is worse (see the closing
+notes of the engine issue and ``scripts/bench.py --only engine``).
 """
 
 from __future__ import annotations
@@ -39,6 +45,8 @@ from ..urdf import EFFORT_LIMIT, RADIUS_RATIO
 __all__ = ["EngineModel", "WheelSpec", "build_engine_model"]
 
 GRAVITY = 9.81
+#: MuJoCo friction cones by name.
+CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
 
 
 @dataclass(frozen=True)
@@ -59,6 +67,8 @@ class WheelSpec:
         Engine steps per 1 ms control period.
     max_bend
         Joint angle [rad] up to which wheels of neighbouring links must not overlap.
+    cone
+        MuJoCo friction cone, ``"elliptic"`` (default) or ``"pyramidal"`` (faster).
     """
 
     radius: float = 0.03
@@ -68,8 +78,11 @@ class WheelSpec:
     timestep: float = 5e-4
     substeps: int = 2
     max_bend: float = math.pi / 3
+    cone: str = "elliptic"
 
     def __post_init__(self) -> None:
+        if self.cone not in CONES:
+            raise ParameterError(f"cone must be one of {', '.join(CONES)}, got {self.cone!r}")
         for name in ("radius", "mass", "friction", "timestep", "max_bend"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name,
                                                          positive=True))
@@ -180,7 +193,7 @@ def build_engine_model(params: SnakeParams | None = None,
     spec.option.timestep = wheels.timestep
     spec.option.gravity = [0.0, 0.0, -GRAVITY]
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.cone = CONES[wheels.cone]
     spec.option.impratio = 10.0
     floor = spec.worldbody.add_geom()
     floor.name = "floor"
