@@ -34,6 +34,8 @@ def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]
     ["sweep", "arc", "--points", "1", "-o", "out"],
     ["singular", "--starts", "0"],
     ["singular", "--bound", "7"],
+    ["engine", "--cone", "square", "-o", "out"],
+    ["engine", "--mu", "-1", "-o", "out"],
     ["no-such-command"],
     [],
 ])
@@ -189,3 +191,24 @@ def test_view_html(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
                         str(tmp_path / "pfl.html"), "--json")
     assert code == 0 and json.loads(out)["html"].endswith("pfl.html")
     assert (tmp_path / "pfl.html").stat().st_size > 100_000
+
+
+def test_engine_json_with_pyramidal_cones(capsys: pytest.CaptureFixture[str],
+                                          tmp_path: Path) -> None:
+    """engine --cone pyramidal --json: one object, the short run and its identified friction."""
+    code, out, _ = _run(capsys, "engine", "--cone", "pyramidal", "--t-final", "0.3",
+                        "-o", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 0 and data["t_end"] == pytest.approx(0.3) and not data["diverged"]
+    assert data["friction"]["c_y"] > 100 * data["friction"]["c_x"]
+    assert (tmp_path / "engine.npz").is_file()
+
+
+def test_simulate_shorter_than_the_error_window(capsys: pytest.CaptureFixture[str],
+                                                tmp_path: Path) -> None:
+    """A 2 s tracking run (before the 10 s window) reports no RMS instead of failing."""
+    code, out, _ = _run(capsys, "simulate", "--controller", "lyapunov", "--t-final", "2",
+                        "-o", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 0 and data["t_end"] == pytest.approx(2.0)
+    assert data["rms_head_error"] is None and data["rms_relative"] is None

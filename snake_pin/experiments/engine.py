@@ -11,7 +11,7 @@ from ..control import LyapunovController, QuasiStaticLyapunovController, head_fi
 from ..engine.model import WheelSpec
 from ..engine.run import EngineRun, identify_friction, run_engine
 from ..gaits import initial_state
-from ..metrics import criteria_along, head_position_error, window
+from ..metrics import criteria_along, error_caption, head_error_summary, head_position_error
 from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory, simulate
@@ -19,26 +19,27 @@ from .parallel import run_jobs
 
 __all__ = ["engine_stage", "plot_engine", "summarize", "viscous_twin"]
 
-ERROR_WINDOW = 10.0
 
 
 def summarize(traj: Trajectory, *, every: int = 10) -> dict[str, object]:
     """Head errors over t >= 10 s and D, R from the (estimated) state; stored in the summary."""
     reference = head_first_reference()
     error = head_position_error(traj, reference)
-    late = window(traj, ERROR_WINDOW)
     t_c, d, r = criteria_along(traj, every=every)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
     traj.summary.update({
-        "rms_head_error": float(np.sqrt(np.mean(error[late] ** 2))) if late.any() else None,
-        "max_head_error": float(error[late].max()) if late.any() else None,
+        **head_error_summary(traj, error),
         "R_min": float(r.min()), "D_min": float(d.min()),
         "body_length": traj.params.body_length,
         "passive": list(traj.params.passive),
         "final_head": traj.q[-1, :3].tolist(),
     })
     return traj.summary
+
+
+def _percent(fraction: float | None) -> float | None:
+    return None if fraction is None else 100 * fraction
 
 
 def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity") -> Trajectory:
@@ -69,9 +70,7 @@ def plot_engine(run: EngineRun, twin: Trajectory | None, folder: Path,
     ax.set_ylabel("[m]")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    s = traj.summary
-    ax.set_title(f"Head on the engine (Fig. 19): RMS error {s['rms_head_error']:.2f} m over "
-                 f"t >= 10 s", fontsize=10)
+    ax.set_title(f"Head on the engine (Fig. 19): {error_caption(traj.summary)}", fontsize=10)
     save_figure(fig, paths["head"])
 
     crit = traj.meta["criteria"]
@@ -175,12 +174,11 @@ def engine_stage(ctx) -> None:
         if run.trajectory.diverged:
             sec.text(f"{label}: stopped early, {run.trajectory.reason}.")
         rows.append([f"MuJoCo, {label}", run.trajectory.t_end, s["rms_head_error"],
-                     100 * s["rms_head_error"] / base.body_length, s["max_head_error"],
-                     s["R_min"]])
+                     _percent(s["rms_relative"]), s["max_head_error"], s["R_min"]])
         sec.numbers[stem] = run.trajectory.summary_dict()
     t = twin.summary
-    rows.append(["Pinocchio viscous model, velocity law", t_final, t["rms_head_error"],
-                 100 * t["rms_head_error"] / base.body_length, t["max_head_error"], t["R_min"]])
+    rows.append(["Pinocchio viscous model, velocity law", twin.t_end, t["rms_head_error"],
+                 _percent(t["rms_relative"]), t["max_head_error"], t["R_min"]])
     sec.numbers["viscous_twin"] = twin.summary_dict()
     sec.table(["run", "simulated [s]", "RMS head error [m]", "% of body", "max error [m]",
                "R min"], rows)

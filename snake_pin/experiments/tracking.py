@@ -11,7 +11,13 @@ from .. import gaits
 from ..control import LyapunovController, head_first_reference
 from ..integrability import conserved_quantity_along
 from ..manipulability import lateral_constraint_manipulability
-from ..metrics import criteria_along, head_position_error, window
+from ..metrics import (
+    ERROR_WINDOW,
+    criteria_along,
+    error_caption,
+    head_error_summary,
+    head_position_error,
+)
 from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory, simulate
@@ -24,8 +30,6 @@ __all__ = ["TRACKING_FRICTION", "plot_tracking", "run_tracking", "tracking_param
 #: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
 #: 0.10 m/s at c_y = 10 c_x and 0.16 m/s at 50 c_x, and 50 tracked best of 10..100.
 TRACKING_FRICTION = {"c_x": 0.5, "c_y": 25.0}
-#: RMS and max head errors are taken over t >= this [s] (the issue's window).
-ERROR_WINDOW = 10.0
 #: Manipulability is evaluated every this many samples (10 ms at 1 kHz).
 CRITERIA_EVERY = 10
 
@@ -59,18 +63,13 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     error = head_position_error(traj, reference)
     t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
     g = conserved_quantity_along(snake, traj.q, traj.dq)
-    late = window(traj, ERROR_WINDOW)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
     traj.summary.update({
         "controller": "lyapunov", "c_x": params.c_x, "c_y": params.c_y,
-        "passive": list(params.passive),
-        "rms_head_error": float(np.sqrt(np.mean(error[late] ** 2))) if late.any() else None,
-        "max_head_error": float(error[late].max()) if late.any() else None,
+        "passive": list(params.passive), **head_error_summary(traj, error),
         "R_min": float(r.min()), "D_min": float(d.min()),
         "body_length": params.body_length,
-        "rms_relative": (float(np.sqrt(np.mean(error[late] ** 2))) / params.body_length
-                         if late.any() else None),
         "g_drift": float(np.abs(g - g[0]).max()),
         "final_head": traj.q[-1, :3].tolist(),
     })
@@ -129,9 +128,7 @@ def plot_tracking(traj: Trajectory, folder: Path, stem: str) -> dict[str, Path]:
     axes[1].set_xlabel("t [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
-    s = traj.summary
-    fig.suptitle(f"RMS error over t >= {ERROR_WINDOW:.0f} s: {s['rms_head_error']:.3f} m "
-                 f"({100 * s['rms_relative']:.1f} % of the body)", fontsize=10)
+    fig.suptitle(error_caption(traj.summary), fontsize=10)
     save_figure(fig, paths["head"])
     return paths
 
