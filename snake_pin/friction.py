@@ -3,17 +3,25 @@
 Each link i feels, at its centre of mass and in its own frame, the force
 ``-diag(c_x, c_y) v_cm`` and the torque ``-c_theta * omega`` (DESIGN §2).
 
-Two routes compute the same thing:
+Three routes compute the same thing:
 
 * :func:`friction_forces` -- the reference: one ``pin.Force`` per joint, expressed in the
   joint frame as Pinocchio's RNEA/ABA expect, built from Pinocchio's own link velocities.
   It is clear but builds Python objects per link (about 50 us at n = 10).
-* :class:`FrictionModel` -- the hot path: the generalised force Q = -C(q) q' (eq. 11)
-  summed in O(n) with vectorised numpy. With planar vectors written as complex numbers,
-  e_i = exp(j theta_i) and the CM velocity z_i = x_i' + j y_i', the world force on link i is
-  ``F_i = -cbar z_i - delta e_i^2 conj(z_i)``, cbar = (c_x + c_y)/2, delta = (c_x - c_y)/2,
-  because rotating into the link frame, scaling by diag(c_x, c_y) and rotating back is
-  exactly that. Tests check both routes against each other and against eq. (11).
+* :class:`FrictionModel` -- the hot path: the generalised force Q = -C(q) q' (eq. 11).
+  With isotropic friction (c_x = c_y = c, the Table 1 robot) a link's friction wrench
+  is its spatial velocity times a rigid-body inertia: force -c v_cm at the CM and torque
+  -c_theta omega are the momentum of a body of "mass" c with its centre at the link's CM
+  and rotational "inertia" c_theta. So C(q) is the mass matrix of a *damping twin* of the
+  model (same tree, those inertias), and Q = -RNEA_twin(q, 0, q') and C = CRBA_twin(q),
+  all in Pinocchio's C++. A rigid-body inertia is isotropic in translation, so with
+  c_x != c_y the force is summed in O(n) with vectorised numpy instead: with planar
+  vectors written as complex numbers, e_i = exp(j theta_i) and the CM velocity
+  z_i = x_i' + j y_i', the world force on link i is ``F_i = -cbar z_i - delta e_i^2
+  conj(z_i)``, cbar = (c_x + c_y)/2, delta = (c_x - c_y)/2, because rotating into the link
+  frame, scaling by diag(c_x, c_y) and rotating back is exactly that.
+
+Tests check the routes against each other and against eq. (11).
 """
 
 from __future__ import annotations
@@ -23,14 +31,44 @@ import pinocchio as pin
 
 from .params import SnakeParams
 
-__all__ = ["FrictionModel", "friction_forces"]
+__all__ = ["FrictionModel", "damping_twin", "friction_forces"]
+
+
+def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
+    """The snake's tree with each link's inertia replaced by its isotropic damping.
+
+    Link j (joint j >= 1) gets "mass" c_x at its own centre of mass and rotational
+    "inertia" c_theta, so the twin's mass matrix is C(q) when c_x = c_y.
+    """
+    twin = pin.Model(model)
+    rotational = np.eye(3) * params.c_theta
+    for joint in range(1, twin.njoints):
+        twin.inertias[joint] = pin.Inertia(params.c_x, model.inertias[joint].lever.copy(),
+                                           rotational)
+    twin.gravity = pin.Motion.Zero()
+    return twin
 
 
 class FrictionModel:
-    """Vectorised generalised friction force Q(q, q') = -C(q) q' in paper coordinates."""
+    """Generalised friction force Q(q, q') = -C(q) q' in paper coordinates.
 
-    def __init__(self, params: SnakeParams) -> None:
+    Parameters
+    ----------
+    params
+        The robot and its friction coefficients.
+    model
+        The snake's Pinocchio model (paper coordinates). With it and c_x = c_y, Q and C
+        come from the damping twin's RNEA and CRBA; otherwise from vectorised numpy.
+    """
+
+    def __init__(self, params: SnakeParams, model: pin.Model | None = None) -> None:
         n, half = params.n, params.half_length
+        self._twin: pin.Model | None = None
+        if model is not None and params.c_x == params.c_y:
+            self._twin = damping_twin(model, params)
+            self._twin_data = self._twin.createData()
+            self._zero = np.zeros(model.nv)
+            self._strict_lower = np.tril(np.ones((model.nv, model.nv), dtype=bool), -1)
         lower = np.tril(np.ones((n, n)))
         # theta = L [theta_1, phi] (eq. 17), applied to q and q' at once by one matmul
         self._angles_t = lower.T.copy()
@@ -47,14 +85,23 @@ class FrictionModel:
         self._n = n
         self.params = params
 
+    @property
+    def uses_twin(self) -> bool:
+        """Whether Q and C come from the damping twin (isotropic friction)."""
+        return self._twin is not None
+
     def __call__(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Generalised friction force (length n + 2) at state (q, dq)."""
+        if self._twin is not None:
+            return -pin.rnea(self._twin, self._twin_data, q, self._zero, dq)
         both = np.array((q[2:], dq[2:])) @ self._angles_t  # rows: theta, theta'
         return self._force(both[0], both[1], complex(dq[0], dq[1]))
 
     def of_state(self, x: np.ndarray) -> np.ndarray:
         """Same as ``self(q, dq)`` for the stacked state x = [q, dq] (hot path)."""
         n2 = self._n + 2
+        if self._twin is not None:
+            return -pin.rnea(self._twin, self._twin_data, x[:n2], self._zero, x[n2:])
         both = x.reshape(2, n2)[:, 2:] @ self._angles_t
         return self._force(both[0], both[1], complex(x[n2], x[n2 + 1]))
 
@@ -65,6 +112,11 @@ class FrictionModel:
         computed together: theta' of the unit vectors is [0 | L] and the base velocity is 1
         (x_h') or j (y_h').
         """
+        if self._twin is not None:  # the twin's mass matrix (CRBA fills the upper triangle)
+            upper = pin.crba(self._twin, self._twin_data, q)
+            out = upper.copy()
+            np.copyto(out, upper.T, where=self._strict_lower)
+            return out
         n = self._n
         theta = self._angles_t.T @ q[2:]
         theta_dot = np.zeros((n, n + 2))

@@ -56,7 +56,7 @@ class Snake:
         self.data: pin.Data = self.model.createData()
         self.nq = self.model.nq
         self.nv = self.model.nv
-        self.friction = FrictionModel(self.params)
+        self.friction = FrictionModel(self.params, self.model)
         self._cache_x = np.full(2 * self.nv, np.nan)  # last state whose friction is cached
         self._cache_q = np.zeros(self.nv)
         self._strict_lower = np.tril(np.ones((self.nv, self.nv), dtype=bool), -1)

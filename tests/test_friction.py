@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 from snake_pin import Snake, SnakeParams
-from snake_pin.friction import friction_forces
+from snake_pin.friction import FrictionModel, friction_forces
 
 from .conftest import random_state
 
@@ -27,9 +27,11 @@ def test_vectorised_friction_equals_external_forces(c: tuple, rng: np.random.Gen
         assert np.allclose(snake.friction.of_state(np.r_[q, dq]), reference, atol=1e-13)
 
 
-def test_aba_with_external_forces_equals_fast_route(rng: np.random.Generator) -> None:
+@pytest.mark.parametrize("c_y", [0.5, 5.0])
+def test_aba_with_external_forces_equals_fast_route(c_y: float,
+                                                    rng: np.random.Generator) -> None:
     """ABA with the pin.Force list gives the same q'' as Snake.forward_dynamics."""
-    params = SnakeParams.table1(c_y=5.0)
+    params = SnakeParams.table1(c_y=c_y)
     snake = Snake(params)
     for _ in range(10):
         q, dq = random_state(rng, params.n)
@@ -45,3 +47,26 @@ def test_friction_opposes_motion(rng: np.random.Generator) -> None:
     for _ in range(20):
         q, dq = random_state(rng, snake.n)
         assert dq @ snake.friction(q, dq) < 0.0
+
+
+@pytest.mark.parametrize("c", [(0.5, 0.5, 7.2e-5), (2.0, 2.0, 0.0), (0.0, 0.0, 1e-3)])
+def test_damping_twin_equals_numpy_route(c: tuple, rng: np.random.Generator) -> None:
+    """Isotropic friction: the damping twin's RNEA and CRBA equal the complex-number route."""
+    params = SnakeParams.table1(c_x=c[0], c_y=c[1], c_theta=c[2])
+    snake = Snake(params)
+    assert snake.friction.uses_twin
+    numpy_route = FrictionModel(params)
+    assert not numpy_route.uses_twin
+    for _ in range(20):
+        q, dq = random_state(rng, params.n)
+        assert np.allclose(snake.friction(q, dq), numpy_route(q, dq), rtol=1e-12, atol=1e-13)
+        assert np.allclose(snake.friction.of_state(np.r_[q, dq]), numpy_route(q, dq),
+                           rtol=1e-12, atol=1e-13)
+        c_twin = snake.friction.matrix(q)
+        assert np.allclose(c_twin, numpy_route.matrix(q), rtol=1e-12, atol=1e-13)
+        assert np.allclose(c_twin, c_twin.T, atol=0.0)
+
+
+def test_anisotropic_friction_does_not_use_the_twin() -> None:
+    """A rigid-body inertia is isotropic: with c_x != c_y the numpy route is used."""
+    assert not Snake(SnakeParams.table1(c_y=5.0)).friction.uses_twin
