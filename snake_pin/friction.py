@@ -113,7 +113,7 @@ class FrictionModel:
         (x_h') or j (y_h').
         """
         if self._twin is not None:  # the twin's mass matrix (CRBA fills the upper triangle)
-            upper = pin.crba(self._twin, self._twin_data, q)
+            upper = pin.crba(self._twin, self._twin_data, q, pin.Convention.WORLD)
             out = upper.copy()
             np.copyto(out, upper.T, where=self._strict_lower)
             return out

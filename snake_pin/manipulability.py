@@ -159,7 +159,7 @@ def manipulability(snake: Snake, q: np.ndarray, free_joint: int | Sequence[int] 
     free = snake.params.passive if free_joint is None else free_joint
     task, act, flat = _split(snake.n, _free_tuple(snake.n, free), bool(heading))
     # Upper triangles straight from Pinocchio (``flat`` only reads that triangle).
-    h = pin.crba(snake.model, snake.data, q)
+    h = pin.crba(snake.model, snake.data, q, pin.Convention.WORLD)
     h_inv = pin.computeMinverse(snake.model, snake.data, q)
     return _evaluate(h, h_inv, task, act, flat, blocks=blocks)
 
@@ -208,7 +208,7 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
     act = np.array([i for i in range(nv) if i not in set(unact.tolist())], dtype=int)
     if act.size == 0:
         raise ParameterError("at least one coordinate must be actuated")
-    h = _symmetric(pin.crba(model, data, q))
+    h = _symmetric(pin.crba(model, data, q, pin.Convention.WORLD))
     h_inv = _symmetric(pin.computeMinverse(model, data, q))
     if task is None:
         if unact.size == 0:
