@@ -78,3 +78,14 @@ def test_bad_gains(kwargs: dict) -> None:
     """Non-positive or wrong-size gains, or a gait for another robot, are ParameterErrors."""
     with pytest.raises(ParameterError):
         LyapunovController(Snake(), **kwargs)
+
+
+@pytest.mark.parametrize(("passive", "limit"), [((), 0.05), ((5,), 0.10)])
+def test_sixty_second_run_meets_the_tracking_targets(passive: tuple, limit: float) -> None:
+    """VI.2 targets: RMS head error over [10, 60] s within 5 % (10 % with joint 5 passive)."""
+    from snake_pin.experiments.tracking import run_tracking
+
+    traj = run_tracking(tracking_params(passive=passive), t_final=60.0)
+    assert not traj.diverged
+    assert traj.summary["rms_relative"] <= limit
+    assert traj.summary["R_min"] > 0.0
