@@ -8,18 +8,24 @@ Three routes compute the same thing:
 * :func:`friction_forces` -- the reference: one ``pin.Force`` per joint, expressed in the
   joint frame as Pinocchio's RNEA/ABA expect, built from Pinocchio's own link velocities.
   It is clear but builds Python objects per link (about 50 us at n = 10).
-* :class:`FrictionModel` -- the hot path: the generalised force Q = -C(q) q' (eq. 11).
-  With isotropic friction (c_x = c_y = c, the Table 1 robot) a link's friction wrench
-  is its spatial velocity times a rigid-body inertia: force -c v_cm at the CM and torque
-  -c_theta omega are the momentum of a body of "mass" c with its centre at the link's CM
-  and rotational "inertia" c_theta. So C(q) is the mass matrix of a *damping twin* of the
-  model (same tree, those inertias), and Q = -RNEA_twin(q, 0, q') and C = CRBA_twin(q),
-  all in Pinocchio's C++. A rigid-body inertia is isotropic in translation, so with
-  c_x != c_y the force is summed in O(n) with vectorised numpy instead: with planar
-  vectors written as complex numbers, e_i = exp(j theta_i) and the CM velocity
-  z_i = x_i' + j y_i', the world force on link i is ``F_i = -cbar z_i - delta e_i^2
-  conj(z_i)``, cbar = (c_x + c_y)/2, delta = (c_x - c_y)/2, because rotating into the link
-  frame, scaling by diag(c_x, c_y) and rotating back is exactly that.
+* :class:`FrictionModel` with the snake's model -- the hot path, in Pinocchio's C++: the
+  *damping twin*. With isotropic friction (c_x = c_y = c, the Table 1 robot) a link's
+  friction wrench is its spatial velocity times a rigid-body inertia: force -c v_cm at
+  the CM and torque -c_theta omega are the momentum of a body of "mass" c centred at the
+  link's CM with rotational "inertia" c_theta. So C(q) is the mass matrix of a twin of
+  the model with those inertias: Q = -C(q) q' = -RNEA_twin(q, 0, q') and C = CRBA_twin(q).
+  A rigid-body inertia is isotropic in translation, so with c_x != c_y each link of the
+  twin also carries a *wheel*: a body of "mass" c_y - c_x at the CM on a prismatic joint
+  along the link. A wheel that rolls with the link's longitudinal speed -u takes none of
+  the longitudinal motion and adds damping c_y - c_x sideways only: exactly the
+  anisotropy. One RNEA with the wheels locked gives (c_y - c_x) u in the wheels' rows; a
+  second with the wheels rolling at -u gives Q in the chain's rows.
+* :class:`FrictionModel` without a model -- vectorised numpy, O(n): with planar vectors
+  written as complex numbers, e_i = exp(j theta_i) and the CM velocity z_i = x_i' + j y_i',
+  the world force on link i is ``F_i = -cbar z_i - delta e_i^2 conj(z_i)``,
+  cbar = (c_x + c_y)/2, delta = (c_x - c_y)/2, because rotating into the link frame,
+  scaling by diag(c_x, c_y) and rotating back is exactly that. It also gives C(q) in one
+  pass for anisotropic friction (the wheeled twin's C is a Schur complement).
 
 Tests check the routes against each other and against eq. (11).
 """
@@ -35,16 +41,26 @@ __all__ = ["FrictionModel", "damping_twin", "friction_forces"]
 
 
 def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
-    """The snake's tree with each link's inertia replaced by its isotropic damping.
+    """The snake's tree with each link's inertia replaced by its damping (module docstring).
 
     Link j (joint j >= 1) gets "mass" c_x at its own centre of mass and rotational
-    "inertia" c_theta, so the twin's mass matrix is C(q) when c_x = c_y.
+    "inertia" c_theta; with c_y != c_x, a wheel joint ``wheel_j`` (prismatic along the
+    link, at the CM) carrying "mass" c_y - c_x is appended for every link, after the
+    chain: velocity rows nv .. nv + n - 1. The wheels' subtrees are then not contiguous in
+    the velocity vector, which RNEA does not need (CRBA would).
     """
     twin = pin.Model(model)
     rotational = np.eye(3) * params.c_theta
-    for joint in range(1, twin.njoints):
-        twin.inertias[joint] = pin.Inertia(params.c_x, model.inertias[joint].lever.copy(),
-                                           rotational)
+    levers = [model.inertias[joint].lever.copy() for joint in range(1, model.njoints)]
+    for joint, lever in enumerate(levers, start=1):
+        twin.inertias[joint] = pin.Inertia(params.c_x, lever, rotational)
+    extra = params.c_y - params.c_x
+    if extra != 0.0:
+        for joint, lever in enumerate(levers, start=1):
+            wheel = twin.addJoint(joint, pin.JointModelPX(), pin.SE3(np.eye(3), lever),
+                                  f"wheel_{joint}")
+            twin.appendBodyToJoint(wheel, pin.Inertia(extra, np.zeros(3), np.zeros((3, 3))),
+                                   pin.SE3.Identity())
     twin.gravity = pin.Motion.Zero()
     return twin
 
@@ -57,17 +73,23 @@ class FrictionModel:
     params
         The robot and its friction coefficients.
     model
-        The snake's Pinocchio model (paper coordinates). With it and c_x = c_y, Q and C
-        come from the damping twin's RNEA and CRBA; otherwise from vectorised numpy.
+        The snake's Pinocchio model (paper coordinates). With it, Q comes from the damping
+        twin's RNEA (and C from its CRBA when c_x = c_y); without it, from vectorised numpy.
     """
 
     def __init__(self, params: SnakeParams, model: pin.Model | None = None) -> None:
         n, half = params.n, params.half_length
         self._twin: pin.Model | None = None
-        if model is not None and params.c_x == params.c_y:
+        self._wheels = False
+        if model is not None:
             self._twin = damping_twin(model, params)
             self._twin_data = self._twin.createData()
-            self._zero = np.zeros(model.nv)
+            self._nv = model.nv
+            self._wheels = self._twin.nv > model.nv
+            self._zero = np.zeros(self._twin.nv)
+            self._q_ext = np.zeros(self._twin.nq)  # wheels at the CM (their q stays 0)
+            self._a_ext = np.zeros(self._twin.nv)
+            self._roll = -1.0 / (params.c_y - params.c_x) if self._wheels else 0.0
             self._strict_lower = np.tril(np.ones((model.nv, model.nv), dtype=bool), -1)
         lower = np.tril(np.ones((n, n)))
         # theta = L [theta_1, phi] (eq. 17), applied to q and q' at once by one matmul
@@ -87,13 +109,18 @@ class FrictionModel:
 
     @property
     def uses_twin(self) -> bool:
-        """Whether Q and C come from the damping twin (isotropic friction)."""
+        """Whether Q comes from the damping twin (in Pinocchio) rather than numpy."""
         return self._twin is not None
+
+    @property
+    def has_wheels(self) -> bool:
+        """Whether the twin carries the wheels of anisotropic friction."""
+        return self._wheels
 
     def __call__(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Generalised friction force (length n + 2) at state (q, dq)."""
         if self._twin is not None:
-            return -pin.rnea(self._twin, self._twin_data, q, self._zero, dq)
+            return self._twin_force(q, dq)
         both = np.array((q[2:], dq[2:])) @ self._angles_t  # rows: theta, theta'
         return self._force(both[0], both[1], complex(dq[0], dq[1]))
 
@@ -101,7 +128,7 @@ class FrictionModel:
         """Same as ``self(q, dq)`` for the stacked state x = [q, dq] (hot path)."""
         n2 = self._n + 2
         if self._twin is not None:
-            return -pin.rnea(self._twin, self._twin_data, x[:n2], self._zero, x[n2:])
+            return self._twin_force(x[:n2], x[n2:])
         both = x.reshape(2, n2)[:, 2:] @ self._angles_t
         return self._force(both[0], both[1], complex(x[n2], x[n2 + 1]))
 
@@ -112,7 +139,8 @@ class FrictionModel:
         computed together: theta' of the unit vectors is [0 | L] and the base velocity is 1
         (x_h') or j (y_h').
         """
-        if self._twin is not None:  # the twin's mass matrix (CRBA fills the upper triangle)
+        if self._twin is not None and not self._wheels:
+            # the twin's mass matrix (CRBA fills the upper triangle)
             upper = pin.crba(self._twin, self._twin_data, q, pin.Convention.WORLD)
             out = upper.copy()
             np.copyto(out, upper.T, where=self._strict_lower)
@@ -133,6 +161,18 @@ class FrictionModel:
         out[2:] = self._upper @ ((e.conjugate()[:, None] * g[:-1]).imag
                                  - self._c_theta * theta_dot)
         return -out
+
+    def _twin_force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        twin, data, zero = self._twin, self._twin_data, self._zero
+        if not self._wheels:
+            return -pin.rnea(twin, data, q, zero, dq)
+        nv, q_ext, a_ext = self._nv, self._q_ext, self._a_ext
+        q_ext[:nv] = q
+        a_ext[:nv] = dq
+        a_ext[nv:] = 0.0
+        locked = pin.rnea(twin, data, q_ext, zero, a_ext)  # wheel rows: (c_y - c_x) u
+        a_ext[nv:] = locked[nv:] * self._roll  # each wheel rolls at -u
+        return -pin.rnea(twin, data, q_ext, zero, a_ext)[:nv]
 
     def _force(self, theta: np.ndarray, theta_dot: np.ndarray, base: complex) -> np.ndarray:
         e = np.exp(1j * theta)

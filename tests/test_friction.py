@@ -14,9 +14,10 @@ from .conftest import random_state
 
 @pytest.mark.parametrize("c", [(0.5, 0.5, 7.2e-5), (0.2, 8.0, 1e-3), (3.0, 0.1, 0.0)])
 def test_vectorised_friction_equals_external_forces(c: tuple, rng: np.random.Generator) -> None:
-    """Q from FrictionModel equals RNEA(no fext) - RNEA(fext) with per-link pin.Force."""
+    """Q of the twin and numpy routes equals RNEA(no fext) - RNEA(fext) with pin.Force."""
     params = SnakeParams.table1(c_x=c[0], c_y=c[1], c_theta=c[2])
     snake = Snake(params)
+    numpy_route = FrictionModel(params)
     zero = np.zeros(snake.nv)
     for _ in range(20):
         q, dq = random_state(rng, params.n)
@@ -25,6 +26,7 @@ def test_vectorised_friction_equals_external_forces(c: tuple, rng: np.random.Gen
                      - pin.rnea(snake.model, snake.data, q, dq, zero, fext))
         assert np.allclose(snake.friction(q, dq), reference, rtol=1e-12, atol=1e-13)
         assert np.allclose(snake.friction.of_state(np.r_[q, dq]), reference, atol=1e-13)
+        assert np.allclose(numpy_route(q, dq), reference, rtol=1e-12, atol=1e-13)
 
 
 @pytest.mark.parametrize("c_y", [0.5, 5.0])
@@ -54,7 +56,7 @@ def test_damping_twin_equals_numpy_route(c: tuple, rng: np.random.Generator) -> 
     """Isotropic friction: the damping twin's RNEA and CRBA equal the complex-number route."""
     params = SnakeParams.table1(c_x=c[0], c_y=c[1], c_theta=c[2])
     snake = Snake(params)
-    assert snake.friction.uses_twin
+    assert snake.friction.uses_twin and not snake.friction.has_wheels
     numpy_route = FrictionModel(params)
     assert not numpy_route.uses_twin
     for _ in range(20):
@@ -67,6 +69,18 @@ def test_damping_twin_equals_numpy_route(c: tuple, rng: np.random.Generator) -> 
         assert np.allclose(c_twin, c_twin.T, atol=0.0)
 
 
-def test_anisotropic_friction_does_not_use_the_twin() -> None:
-    """A rigid-body inertia is isotropic: with c_x != c_y the numpy route is used."""
-    assert not Snake(SnakeParams.table1(c_y=5.0)).friction.uses_twin
+@pytest.mark.parametrize("c", [(0.5, 25.0, 7.2e-5), (0.04, 61.4, 1.6e-4), (3.0, 0.1, 0.0)])
+def test_twin_with_wheels_equals_numpy_route(c: tuple, rng: np.random.Generator) -> None:
+    """Anisotropic friction: the twin whose wheels roll along the links gives the same Q."""
+    params = SnakeParams.table1(c_x=c[0], c_y=c[1], c_theta=c[2])
+    snake = Snake(params)
+    assert snake.friction.uses_twin and snake.friction.has_wheels
+    numpy_route = FrictionModel(params)
+    for _ in range(20):
+        q, dq = random_state(rng, params.n)
+        expected = numpy_route(q, dq)
+        scale = np.abs(expected).max()
+        assert np.allclose(snake.friction(q, dq), expected, rtol=1e-12, atol=1e-13 * scale)
+        assert np.allclose(snake.friction.of_state(np.r_[q, dq]), expected, rtol=1e-12,
+                           atol=1e-13 * scale)
+    assert np.allclose(snake.friction.matrix(q), numpy_route.matrix(q), rtol=1e-14)
