@@ -122,3 +122,15 @@ def test_head_pose_and_bad_sizes(table1: Snake) -> None:
         table1.check_q(np.zeros(11))
     with pytest.raises(ConfigurationError):
         table1.check_tau([0.0] * 8)
+
+
+def test_friction_cache_follows_in_place_changes(rng: np.random.Generator) -> None:
+    """The last-state friction cache never serves a state changed in place since."""
+    snake = Snake(SnakeParams.table1(c_y=5.0))
+    q, dq = random_state(rng, snake.n)
+    x = np.r_[q, dq]
+    first = snake.friction_of_state(x)
+    assert np.array_equal(snake.friction_of_state(x), first)  # served from the cache
+    x[snake.nq + 4] += 0.5  # same array object, new state
+    assert np.allclose(snake.friction_of_state(x), snake.friction(x[:snake.nq], x[snake.nq:]))
+    assert not np.allclose(snake.friction_of_state(x), first)
