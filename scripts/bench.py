@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from snake_pin import Snake, SnakeParams, paper
-from snake_pin.friction import friction_forces
+from snake_pin.friction import FrictionModel, friction_forces
 
 
 def median_us(fn: Callable[[], object], *, budget: float = 0.2, repeat: int = 7) -> float:
@@ -71,12 +71,20 @@ def bench_dynamics(budget: float) -> None:
                 if name == "H" and label != "iso":
                     continue  # H does not depend on friction
                 t_fast, t_slow = median_us(fast, budget=budget), median_us(slow, budget=budget)
-                rows.append([str(n), name, label if name != "H" else "-", f"{t_fast:.1f}",
+                route = ("twin" if not snake.friction.has_wheels else "wheeled twin") \
+                    if snake.friction.uses_twin else "numpy"
+                rows.append([str(n), name, f"{label} ({route})" if name != "H" else "-",
+                             f"{t_fast:.1f}",
                              f"{t_slow:.1f}", f"{t_slow / t_fast:.1f}x"])
             if n == 10:
                 t_ref = median_us(fext_fd, budget=budget)
                 rows.append([str(n), "fwd dyn via pin.Force list (reference)", label,
                              f"{t_ref:.1f}", "-", "-"])
+                numpy_route = FrictionModel(params)
+                for route_label, route in (("twin", snake.friction), ("numpy", numpy_route)):
+                    t_route = median_us(lambda f=route, q=q, dq=dq: f(q, dq), budget=budget)
+                    rows.append([str(n), f"friction Q alone, {route_label} route", label,
+                                 f"{t_route:.1f}", "-", "-"])
     table("Dynamics, median us per call", ["n", "quantity", "friction", "pinocchio [us]",
                                            "closed form [us]", "ratio"], rows)
 

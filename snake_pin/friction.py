@@ -19,7 +19,9 @@ Three routes compute the same thing:
   along the link. A wheel that rolls with the link's longitudinal speed -u takes none of
   the longitudinal motion and adds damping c_y - c_x sideways only: exactly the
   anisotropy. One RNEA with the wheels locked gives (c_y - c_x) u in the wheels' rows; a
-  second with the wheels rolling at -u gives Q in the chain's rows.
+  second with the wheels rolling at -u gives Q in the chain's rows. These two passes over
+  2n joints beat numpy only for short robots (n <= 14; ``scripts/bench.py`` measures the
+  routes), so longer anisotropic robots use numpy.
 * :class:`FrictionModel` without a model -- vectorised numpy, O(n): with planar vectors
   written as complex numbers, e_i = exp(j theta_i) and the CM velocity z_i = x_i' + j y_i',
   the world force on link i is ``F_i = -cbar z_i - delta e_i^2 conj(z_i)``,
@@ -37,7 +39,12 @@ import pinocchio as pin
 
 from .params import SnakeParams
 
-__all__ = ["FrictionModel", "damping_twin", "friction_forces"]
+__all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionModel", "damping_twin", "friction_forces"]
+
+#: Longest robot whose anisotropic friction goes through the wheeled twin (two RNEAs over
+#: 2n joints); numpy's cost grows more slowly with n (about 13 us at n = 10 and 16 against
+#: 9.5 and 12.5 us for the twin, 17 against 31 us at n = 50).
+WHEELED_TWIN_MAX_LINKS = 14
 
 
 def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
@@ -74,14 +81,16 @@ class FrictionModel:
         The robot and its friction coefficients.
     model
         The snake's Pinocchio model (paper coordinates). With it, Q comes from the damping
-        twin's RNEA (and C from its CRBA when c_x = c_y); without it, from vectorised numpy.
+        twin's RNEA (and C from its CRBA) when c_x = c_y, and from the wheeled twin when
+        c_x != c_y and n <= :data:`WHEELED_TWIN_MAX_LINKS`; otherwise from vectorised numpy.
     """
 
     def __init__(self, params: SnakeParams, model: pin.Model | None = None) -> None:
         n, half = params.n, params.half_length
         self._twin: pin.Model | None = None
         self._wheels = False
-        if model is not None:
+        isotropic = params.c_x == params.c_y
+        if model is not None and (isotropic or n <= WHEELED_TWIN_MAX_LINKS):
             self._twin = damping_twin(model, params)
             self._twin_data = self._twin.createData()
             self._nv = model.nv

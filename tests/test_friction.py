@@ -84,3 +84,12 @@ def test_twin_with_wheels_equals_numpy_route(c: tuple, rng: np.random.Generator)
         assert np.allclose(snake.friction.of_state(np.r_[q, dq]), expected, rtol=1e-12,
                            atol=1e-13 * scale)
     assert np.allclose(snake.friction.matrix(q), numpy_route.matrix(q), rtol=1e-14)
+
+
+def test_long_anisotropic_robots_use_numpy() -> None:
+    """Beyond WHEELED_TWIN_MAX_LINKS links anisotropic friction goes through numpy."""
+    from snake_pin.friction import WHEELED_TWIN_MAX_LINKS
+
+    n = WHEELED_TWIN_MAX_LINKS + 1
+    assert not Snake(SnakeParams.table1(n=n, c_y=5.0)).friction.uses_twin
+    assert Snake(SnakeParams.table1(n=n)).friction.uses_twin  # isotropic: always the twin
