@@ -63,6 +63,13 @@ class Serpenoid:
         _check_n(self.n)
         for name in ("alpha", "ts", "v"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name))
+        # constant parts of the phase and amplitudes, computed once (controllers' hot path)
+        offsets = self.spatial_frequency * np.arange(1, self.n)
+        offsets.flags.writeable = False
+        object.__setattr__(self, "_offsets", offsets)
+        amplitude = self.spatial_frequency * self.alpha
+        object.__setattr__(self, "_amplitudes",
+                           (amplitude, amplitude * self.v, -amplitude * self.v**2))
 
     @property
     def spatial_frequency(self) -> float:
@@ -70,7 +77,7 @@ class Serpenoid:
         return 2.0 * math.pi * self.ts / self.n
 
     def _phase(self, t: float) -> np.ndarray:
-        return self.v * t - self.spatial_frequency * np.arange(1, self.n)
+        return (self.v * t) - self._offsets
 
     def angles(self, t: float = 0.0) -> np.ndarray:
         """phi(t) of eq. (43)."""
@@ -86,11 +93,10 @@ class Serpenoid:
 
     def derivatives(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(phi, phi', phi'') at time t with one sine and one cosine (controllers' hot path)."""
-        phase = self._phase(t)
-        amplitude = self.spatial_frequency * self.alpha
+        phase = (self.v * t) - self._offsets
+        amplitude, velocity, acceleration = self._amplitudes
         sine = np.sin(phase)
-        return (amplitude * sine, (amplitude * self.v) * np.cos(phase),
-                (-amplitude * self.v**2) * sine)
+        return amplitude * sine, velocity * np.cos(phase), acceleration * sine
 
     def configuration(self, t: float = 0.0, **head: float) -> np.ndarray:
         """q with the serpenoid joint angles at time t."""

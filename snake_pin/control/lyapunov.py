@@ -128,8 +128,10 @@ class LyapunovController(Controller):
         s = de_w + self.k_w1 @ (w_r - x[:3])
         phi_r, dphi_r, ddphi_r = self.gait.derivatives(t)
         e = dphi_r - x[nq + 3:]
-        target = np.concatenate((ddw_r + self.k_w1 @ de_w + self.lam * s,
-                                 ddphi_r + self.lam_shape * e + self.k_shape * (phi_r - x[3:nq])))
+        shape = ddphi_r + self.lam_shape * e
+        if self.k_shape:
+            shape += self.k_shape * (phi_r - x[3:nq])
+        target = np.concatenate((ddw_r + self.k_w1 @ de_w + self.lam * s, shape))
         return target, s, e
 
     def affine_map(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -19,10 +19,12 @@ class LinearReference:
     start: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "velocity", tuple(as_vector(self.velocity, 3, "velocity")))
-        object.__setattr__(self, "start", tuple(as_vector(self.start, 3, "start")))
+        velocity, start = as_vector(self.velocity, 3, "velocity"), as_vector(self.start, 3, "start")
+        object.__setattr__(self, "velocity", tuple(velocity))
+        object.__setattr__(self, "start", tuple(start))
+        object.__setattr__(self, "_arrays", (start.copy(), velocity.copy()))
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(w_r, w_r', w_r'') at time t."""
-        v = np.asarray(self.velocity)
-        return np.asarray(self.start) + v * t, v, np.zeros(3)
+        """(w_r, w_r', w_r'') at time t (fresh arrays: callers may modify them)."""
+        start, velocity = self._arrays
+        return start + velocity * t, velocity.copy(), np.zeros(3)
