@@ -228,16 +228,15 @@ def simulate(snake: Snake, controller: Controller, x0: np.ndarray, t_final: floa
 
 def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,
               nq: int) -> np.ndarray:
-    """One classical RK4 step of x' = [dq, accel(x, tau)], written on the halves of x."""
-    k1 = accel(x, tau)
-    x2 = x + 0.5 * h * np.concatenate((x[nq:], k1))
-    k2 = accel(x2, tau)
-    x3 = x + 0.5 * h * np.concatenate((x2[nq:], k2))
-    k3 = accel(x3, tau)
-    x4 = x + h * np.concatenate((x3[nq:], k3))
-    k4 = accel(x4, tau)
-    dq_sum = x[nq:] + 2.0 * x2[nq:] + 2.0 * x3[nq:] + x4[nq:]
-    return x + (h / 6.0) * np.concatenate((dq_sum, k1 + 2.0 * k2 + 2.0 * k3 + k4))
+    """One classical RK4 step of x' = [dq, accel(x, tau)] (the stage slopes d1..d4)."""
+    d1 = np.concatenate((x[nq:], accel(x, tau)))
+    x2 = x + (0.5 * h) * d1
+    d2 = np.concatenate((x2[nq:], accel(x2, tau)))
+    x3 = x + (0.5 * h) * d2
+    d3 = np.concatenate((x3[nq:], accel(x3, tau)))
+    x4 = x + h * d3
+    d4 = np.concatenate((x4[nq:], accel(x4, tau)))
+    return x + (h / 6.0) * (d1 + d4 + 2.0 * (d2 + d3))
 
 
 def _pad(values: list[float], length: int) -> np.ndarray:
