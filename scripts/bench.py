@@ -143,7 +143,7 @@ def bench_runs(budget: float) -> None:
     from snake_pin.sim import simulate
 
     repeat = 1 if budget < 0.1 else 3
-    rows = []
+    rows, floor_rows = [], []
     cases = [
         ("PFL, VI.1 to breakdown (isotropic)", SnakeParams.table1(), 10.0, "pfl"),
         ("PFL, 20 s, c_y = 10 c_x", SnakeParams.table1(c_y=5.0), 20.0, "pfl"),
@@ -161,8 +161,34 @@ def bench_runs(budget: float) -> None:
                                 repeat)
         rows.append([label, f"{traj.t_end:.2f}", f"{wall:.2f}", f"{traj.t_end / wall:.1f}x",
                      f"{wall / max(len(traj) - 1, 1) * 1e6:.0f}"])
+        controller_us, dynamics_us = _step_pieces(snake, ctrl, traj, budget)
+        floor = controller_us + 3 * dynamics_us
+        floor_rows.append([label, f"{controller_us:.1f}", f"{dynamics_us:.1f}", f"{floor:.0f}",
+                           f"{1e3 / floor:.1f}x"])
     table("Closed-loop runs (simulate only, no post-processing)",
           ["run", "simulated [s]", "wall [s]", "real-time factor", "us per 1 ms step"], rows)
+    table("Per-step floor of RK4 at 1 kHz: the controller plus three new dynamics evaluations",
+          ["run", "controller [us]", "dynamics eval [us]", "floor [us/step]",
+           "best real-time factor"], floor_rows)
+
+
+def _step_pieces(snake: Snake, ctrl: object, traj: object, budget: float) -> tuple[float, float]:
+    """Median us of one controller call and one dynamics evaluation on states of ``traj``
+    (a new state each call, so no cache is hit)."""
+    states = np.hstack((traj.q, traj.dq))[:: max(1, len(traj) // 64)]
+    taus = traj.tau[:: max(1, len(traj) // 64)]
+    count = len(states)
+    k = iter(range(1 << 62))
+
+    def control() -> object:
+        i = next(k) % count
+        return ctrl(states[i], 0.5)
+
+    def dynamics() -> object:
+        i = next(k) % count
+        return snake.state_derivative(states[i], taus[i])
+
+    return median_us(control, budget=budget), median_us(dynamics, budget=budget)
 
 
 def bench_engine(budget: float) -> None:
