@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from .sim import Trajectory
 
 __all__ = ["ERROR_WINDOW", "criteria_along", "error_caption", "head_error_summary",
-           "head_position_error", "window"]
+           "head_position_error", "percent", "window"]
 
 #: Head errors are judged over t >= this [s], after the start-up (the issues' window).
 ERROR_WINDOW = 10.0
@@ -38,6 +38,11 @@ def head_error_summary(traj: Trajectory, error: np.ndarray,
     rms = float(np.sqrt(np.mean(error[late] ** 2)))
     return {"rms_head_error": rms, "max_head_error": float(error[late].max()),
             "rms_relative": rms / traj.params.body_length}
+
+
+def percent(fraction: float | None) -> float | None:
+    """100 * fraction, passing None (no error window) through, for report tables."""
+    return None if fraction is None else 100.0 * fraction
 
 
 def error_caption(summary: dict[str, object]) -> str:

@@ -11,7 +11,13 @@ from ..control import LyapunovController, QuasiStaticLyapunovController, head_fi
 from ..engine.model import WheelSpec
 from ..engine.run import EngineRun, identify_friction, run_engine
 from ..gaits import initial_state
-from ..metrics import criteria_along, error_caption, head_error_summary, head_position_error
+from ..metrics import (
+    criteria_along,
+    error_caption,
+    head_error_summary,
+    head_position_error,
+    percent,
+)
 from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory, simulate
@@ -36,10 +42,6 @@ def summarize(traj: Trajectory, *, every: int = 10) -> dict[str, object]:
         "final_head": traj.q[-1, :3].tolist(),
     })
     return traj.summary
-
-
-def _percent(fraction: float | None) -> float | None:
-    return None if fraction is None else 100 * fraction
 
 
 def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity") -> Trajectory:
@@ -174,11 +176,11 @@ def engine_stage(ctx) -> None:
         if run.trajectory.diverged:
             sec.text(f"{label}: stopped early, {run.trajectory.reason}.")
         rows.append([f"MuJoCo, {label}", run.trajectory.t_end, s["rms_head_error"],
-                     _percent(s["rms_relative"]), s["max_head_error"], s["R_min"]])
+                     percent(s["rms_relative"]), s["max_head_error"], s["R_min"]])
         sec.numbers[stem] = run.trajectory.summary_dict()
     t = twin.summary
     rows.append(["Pinocchio viscous model, velocity law", twin.t_end, t["rms_head_error"],
-                 _percent(t["rms_relative"]), t["max_head_error"], t["R_min"]])
+                 percent(t["rms_relative"]), t["max_head_error"], t["R_min"]])
     sec.numbers["viscous_twin"] = twin.summary_dict()
     sec.table(["run", "simulated [s]", "RMS head error [m]", "% of body", "max error [m]",
                "R min"], rows)

@@ -17,6 +17,7 @@ from ..metrics import (
     error_caption,
     head_error_summary,
     head_position_error,
+    percent,
 )
 from ..model import Snake
 from ..params import SnakeParams
@@ -184,9 +185,17 @@ def tracking_stage(ctx) -> None:
              base.replace(c_x=0.5, c_y=0.5), min(t_final, 30.0), {}, False),
             ("one rate for head and gait (lambda = mu = 1/s)", "tracking_one_rate",
              tracking_params(base), t_final, {"lam": 1.0, "lam_shape": 1.0}, False)]
+    # the design's tuning, table rows only: rates along mu = lambda / 2, and other c_y
+    sweep = [(f"lambda = {lam:g}/s, mu = {lam / 2:g}/s", tracking_params(base),
+              {"lam": lam, "lam_shape": lam / 2}) for lam in (3.0, 7.0)]
+    sweep += [(f"c_y = {c_y:g} N s/m (lambda = 10/s)", tracking_params(base, c_y=c_y), {})
+              for c_y in (10.0, 50.0)]
     rows = []
-    trajectories = run_jobs([(run_tracking, (params,), {"t_final": duration, **options})
-                             for _, _, params, duration, options, _ in runs])
+    results = run_jobs([(run_tracking, (params,), {"t_final": duration, **options})
+                        for _, _, params, duration, options, _ in runs]
+                       + [(run_tracking, (params,), {"t_final": t_final, **options})
+                          for _, params, options in sweep])
+    trajectories, swept = results[:len(runs)], results[len(runs):]
     for (label, stem, _, _, _, animate), traj in zip(runs, trajectories, strict=True):
         traj.save(ctx.folder / stem)
         if animate:
@@ -200,8 +209,7 @@ def tracking_stage(ctx) -> None:
                                               "criteria": "D and R (Figs. 14/17)",
                                               "head": "head position and error"}[key])
         s = traj.summary
-        rows.append([label, s["rms_head_error"],
-                     None if s["rms_relative"] is None else 100 * s["rms_relative"],
+        rows.append([label, s["rms_head_error"], percent(s["rms_relative"]),
                      s["max_head_error"], s["R_min"], s["g_drift"]])
         sec.numbers[stem] = traj.summary_dict()
         ctx.options.setdefault("trajectories", {})[label] = ctx.folder / f"{stem}.npz"
@@ -215,6 +223,16 @@ def tracking_stage(ctx) -> None:
              "and g of eq. (67) stays constant (Section V). The last row is the same law with "
              "one decay rate for head and gait: the head's x error then swings slowly (20-50 s) "
              "about the reference, which is why the head's rate is the faster one.")
+    sweep_rows = []
+    for (label, _, _), traj in zip(sweep, swept, strict=True):
+        s = traj.summary
+        sweep_rows.append([label, s["rms_head_error"], percent(s["rms_relative"]), s["R_min"]])
+        sec.numbers.setdefault("sweep", {})[label] = traj.summary_dict()
+    sec.table(["no passive joint, varied", "RMS head error [m]", "% of body", "R min"],
+              sweep_rows)
+    sec.text("The decay rates along mu = lambda / 2 (the default is lambda = 10/s) and the "
+             "sideways friction (the default is c_y = 25 = 50 c_x): the error falls as the "
+             "head's rate rises, and stiffer sideways friction tracks better.")
     sec.figure(ctx.folder / "lateral_criterion.png",
                "Fig. 15: R against the lateral-constraint criterion over [0, 10] s")
     sec.text(f"At the initial arc the lateral-constraint criterion is "
