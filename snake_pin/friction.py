@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from ._symmetric import symmetric_from_upper
 from .params import SnakeParams
 
 __all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionModel", "damping_twin", "friction_forces"]
@@ -99,7 +100,6 @@ class FrictionModel:
             self._q_ext = np.zeros(self._twin.nq)  # wheels at the CM (their q stays 0)
             self._a_ext = np.zeros(self._twin.nv)
             self._roll = -1.0 / (params.c_y - params.c_x) if self._wheels else 0.0
-            self._strict_lower = np.tril(np.ones((model.nv, model.nv), dtype=bool), -1)
         lower = np.tril(np.ones((n, n)))
         # theta = L [theta_1, phi] (eq. 17), applied to q and q' at once by one matmul
         self._angles_t = lower.T.copy()
@@ -150,10 +150,8 @@ class FrictionModel:
         """
         if self._twin is not None and not self._wheels:
             # the twin's mass matrix (CRBA fills the upper triangle)
-            upper = pin.crba(self._twin, self._twin_data, q, pin.Convention.WORLD)
-            out = upper.copy()
-            np.copyto(out, upper.T, where=self._strict_lower)
-            return out
+            return symmetric_from_upper(pin.crba(self._twin, self._twin_data, q,
+                                                 pin.Convention.WORLD))
         n = self._n
         theta = self._angles_t.T @ q[2:]
         theta_dot = np.zeros((n, n + 2))

@@ -77,7 +77,7 @@ class Serpenoid:
         return 2.0 * math.pi * self.ts / self.n
 
     def _phase(self, t: float) -> np.ndarray:
-        return (self.v * t) - self._offsets
+        return self.v * t - self._offsets
 
     def angles(self, t: float = 0.0) -> np.ndarray:
         """phi(t) of eq. (43)."""
@@ -93,7 +93,7 @@ class Serpenoid:
 
     def derivatives(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(phi, phi', phi'') at time t with one sine and one cosine (controllers' hot path)."""
-        phase = (self.v * t) - self._offsets
+        phase = self._phase(t)
         amplitude, velocity, acceleration = self._amplitudes
         sine = np.sin(phase)
         return amplitude * sine, velocity * np.cos(phase), acceleration * sine

@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
+from ._symmetric import symmetric_from_upper
 from .exceptions import ConfigurationError, ParameterError
 from .model import Snake
 from .paper import k_matrix
@@ -174,7 +175,7 @@ def _evaluate(h: np.ndarray, h_inv: np.ndarray, task: np.ndarray, act: np.ndarra
     lam = _singular_values(h12, len(task))
     extra = None
     if blocks:
-        full = _symmetric(h)
+        full = symmetric_from_upper(h)
         extra = {"H11": full[np.ix_(task, task)], "H12": h12, "H22": full[np.ix_(act, act)],
                  "A": a}
     return Manipulability(float(sigma[-1]), float(lam[-1]), sigma, lam, extra)
@@ -208,8 +209,8 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
     act = np.array([i for i in range(nv) if i not in set(unact.tolist())], dtype=int)
     if act.size == 0:
         raise ParameterError("at least one coordinate must be actuated")
-    h = _symmetric(pin.crba(model, data, q, pin.Convention.WORLD))
-    h_inv = _symmetric(pin.computeMinverse(model, data, q))
+    h = symmetric_from_upper(pin.crba(model, data, q, pin.Convention.WORLD))
+    h_inv = symmetric_from_upper(pin.computeMinverse(model, data, q))
     if task is None:
         if unact.size == 0:
             raise ParameterError("a fully actuated model needs a task (Jacobian or frame)")
@@ -225,11 +226,6 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
             raise ConfigurationError(f"task Jacobian must be m x {nv}")
     sigma = _singular_values(jac @ h_inv[:, act], jac.shape[0])
     return Manipulability(float(sigma[-1]), float("nan"), sigma, np.full(jac.shape[0], np.nan))
-
-
-def _symmetric(upper: np.ndarray) -> np.ndarray:
-    """Full symmetric matrix from Pinocchio's upper-triangular CRBA / Minverse output."""
-    return np.triu(upper) + np.triu(upper, 1).T
 
 
 def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,

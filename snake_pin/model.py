@@ -14,6 +14,7 @@ from functools import cached_property
 import numpy as np
 import pinocchio as pin
 
+from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
 from .friction import FrictionModel
 from .params import SnakeParams
@@ -59,7 +60,6 @@ class Snake:
         self.friction = FrictionModel(self.params, self.model)
         self._cache_key = b""  # bytes of the last state whose friction is cached
         self._cache_q = np.zeros(self.nv)
-        self._strict_lower = np.tril(np.ones((self.nv, self.nv), dtype=bool), -1)
         self._actuated = np.array([k - 1 for k in self.params.actuated], dtype=int)
         # 1 on actuated joints, 0 on passive ones (None: all actuated, skip the product)
         self._mask = None
@@ -90,17 +90,11 @@ class Snake:
     def inertia_matrix(self, q: np.ndarray) -> np.ndarray:
         """H(q) of eq. (19) by CRBA, symmetric (n + 2) x (n + 2)."""
         # CRBA fills the upper triangle; the WORLD convention is 2x faster at n = 100
-        upper = pin.crba(self.model, self.data, q, pin.Convention.WORLD)
-        out = upper.copy()
-        np.copyto(out, upper.T, where=self._strict_lower)
-        return out
+        return symmetric_from_upper(pin.crba(self.model, self.data, q, pin.Convention.WORLD))
 
     def inverse_inertia_matrix(self, q: np.ndarray) -> np.ndarray:
         """H(q)^-1 by Pinocchio's computeMinverse (symmetric)."""
-        upper = pin.computeMinverse(self.model, self.data, q)  # upper triangle is valid
-        out = upper.copy()
-        np.copyto(out, upper.T, where=self._strict_lower)
-        return out
+        return symmetric_from_upper(pin.computeMinverse(self.model, self.data, q))
 
     def coriolis(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Coriolis/centrifugal term W diag(J dq) J dq of eq. (18) by RNEA."""
