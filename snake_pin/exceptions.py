@@ -1,10 +1,19 @@
-"""The package's error hierarchy: every error snake_pin raises on purpose is a SnakePinError."""
+"""The package's error hierarchy: every error snake_pin raises on purpose is a SnakePinError.
+
+One more class sits beside it: :class:`RunInterrupted`, a ``KeyboardInterrupt`` (so a
+bare ``except Exception`` never swallows Ctrl-C) that carries what an interrupted run
+had computed.
+"""
 
 from __future__ import annotations
+
+from typing import Any
 
 __all__ = [
     "ConfigurationError",
     "ParameterError",
+    "RobotFileError",
+    "RunInterrupted",
     "SingularPostureError",
     "SnakePinError",
     "TrajectoryFileError",
@@ -20,7 +29,7 @@ class ParameterError(SnakePinError, ValueError):
 
 
 class ConfigurationError(SnakePinError, ValueError):
-    """A configuration or state vector has the wrong size or non-finite entries."""
+    """A configuration or state vector has the wrong size, type or non-finite entries."""
 
 
 class SingularPostureError(SnakePinError):
@@ -28,4 +37,30 @@ class SingularPostureError(SnakePinError):
 
 
 class TrajectoryFileError(SnakePinError):
-    """A saved trajectory is missing, unreadable or belongs to another robot."""
+    """A saved trajectory is missing, unreadable, hostile or belongs to another robot."""
+
+
+class RobotFileError(SnakePinError):
+    """A robot description (TOML robot file or URDF) is missing, malformed or unsupported."""
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """A run stopped by SIGINT/SIGTERM/SIGHUP; ``partial`` holds what it had computed.
+
+    It derives from ``KeyboardInterrupt`` so that code catching ``Exception`` lets it
+    through, as it would let Ctrl-C through.
+
+    Parameters
+    ----------
+    message
+        One line saying what was interrupted and when (e.g. ``"interrupted at t = 3.2 s"``).
+    partial
+        The partial result (a :class:`~snake_pin.sim.Trajectory`, a sweep, ...), or None.
+    """
+
+    def __init__(self, message: str, partial: Any = None) -> None:
+        super().__init__(message)
+        self.partial = partial
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else "interrupted"
