@@ -1,15 +1,299 @@
-"""File output that is whole or absent: write to a temporary sibling, then rename."""
+"""File output that is whole or absent: stage a temporary sibling, fsync, rename, fsync the folder.
+
+Every file snake_pin writes goes through this module. What it promises:
+
+- **Whole or absent.** A file is written to a temporary sibling in the same folder, flushed
+  and ``fsync``-ed, then renamed onto its name (``os.replace``, atomic on POSIX), and the
+  folder is ``fsync``-ed so the rename itself is durable. A reader sees the old file or
+  the new one, never a part.
+- **Permissions from the umask.** ``tempfile.mkstemp`` creates 0600 files and a rename
+  keeps the mode, so the temporary file is set to ``0o666 & ~umask`` before the rename
+  (0644 under umask 022, 0600 under 077), as ``open(path, "w")`` would create it. The umask
+  is read at each write from ``/proc/self/status`` (Linux >= 4.7), which changes nothing;
+  elsewhere it is read by setting it to 077 and back under a lock, so another thread
+  creating a file in between gets a private file, never a world-writable one.
+- **No temporary survives a kill.** Temporary names are
+  ``.NAME.snake_pin-PID-XXXXXXXX.tmp``: a hidden file carrying the writer's pid. They are
+  removed on any exception (KeyboardInterrupt included); after a ``kill -9`` they stay
+  until the next write in the same folder, which calls :func:`clean_stale_temporaries`
+  and removes those whose writer is no longer alive.
+- **Sets of files.** :func:`atomic_group` stages several files and renames them into place
+  only when its block succeeds: data files first, then figures, each kind in the order
+  written. See :func:`atomic_group` for exactly what a reader can see meanwhile.
+
+Errors are ``OSError`` naming the file the caller asked for, never a temporary name.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import re
 import tempfile
+import threading
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, NoReturn
 
-__all__ = ["atomic_save", "atomic_write_bytes", "atomic_writer"]
+from .exceptions import ParameterError
+
+__all__ = [
+    "TEMP_MARKER",
+    "AtomicGroup",
+    "atomic_group",
+    "atomic_save",
+    "atomic_write_bytes",
+    "atomic_writer",
+    "clean_stale_temporaries",
+    "current_umask",
+]
+
+#: The marker every temporary name carries: ``.NAME.snake_pin-PID-XXXXXXXX.tmp``.
+TEMP_MARKER = ".snake_pin-"
+_TEMP_NAME = re.compile(r"\..*\.snake_pin-(\d+)-\w+\.tmp", re.DOTALL)
+#: Characters of the target's name kept in a temporary name (NAME_MAX is 255 bytes).
+_NAME_KEPT = 64
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """The process's umask, read without a window in which files get a wider mode.
+
+    Linux reports it in ``/proc/self/status``; elsewhere it is swapped with 077 and back
+    under a lock (a file another thread creates in that instant is private, not wider).
+    """
+    try:
+        with open("/proc/self/status", "rb") as status:
+            for line in status:
+                if line.startswith(b"Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    with _UMASK_LOCK:
+        mask = os.umask(0o077)
+        os.umask(mask)
+    return mask
+
+
+def _pid_alive(pid: int) -> bool:
+    """Whether ``pid`` is a live (not zombie) process of this machine."""
+    if pid <= 0:
+        return True  # never ours to judge: 0 and negative pids address process groups
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # exists, owned by someone else
+    except (OverflowError, OSError):
+        return False  # beyond any pid the kernel hands out
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as proc:
+            state = proc.read().rsplit(b")", 1)[1].split()[0]
+        return state not in (b"Z", b"X")
+    except (OSError, IndexError):
+        return True
+
+
+def clean_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
+    """Remove this module's temporary files in ``folder`` whose writer is no longer alive.
+
+    Only names of the form ``.NAME.snake_pin-PID-XXXXXXXX.tmp`` that are regular files are
+    considered, and only when process PID is gone (or a zombie). A pid the kernel has
+    since reused keeps its file until that process ends. Errors (a folder that cannot be
+    listed, a file already removed) are ignored: cleaning is best effort and cheap.
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+    """
+    removed: list[Path] = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = _TEMP_NAME.fullmatch(entry.name)
+        if match is None:
+            continue
+        try:
+            if not entry.is_file(follow_symlinks=False) or _pid_alive(int(match.group(1))):
+                continue
+            os.unlink(entry.path)
+            removed.append(Path(entry.path))
+        except OSError:
+            continue
+    return removed
+
+
+def _fsync_directory(folder: Path) -> None:
+    """Make a rename in ``folder`` durable (filesystems that cannot sync folders are skipped)."""
+    fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    try:
+        os.fsync(fd)
+    except OSError as exc:
+        if exc.errno not in (errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EBADF):
+            raise
+    finally:
+        os.close(fd)
+
+
+def _reraise(exc: OSError, target: Path) -> NoReturn:
+    """Raise ``exc`` again naming ``target`` (what the caller asked for), not a temporary."""
+    if exc.errno is None:
+        raise OSError(f"{target}: {exc}") from exc
+    raise OSError(exc.errno, exc.strerror, str(target)) from exc
+
+
+@dataclass
+class _Staged:
+    target: Path
+    temp: Path
+    figure: bool
+
+
+class AtomicGroup:
+    """Files staged by :func:`atomic_group`; use its methods inside the ``with`` block.
+
+    Parameters
+    ----------
+    folder
+        Where the files go; names given to the methods are relative to it.
+    """
+
+    def __init__(self, folder: str | os.PathLike[str]) -> None:
+        self.folder = Path(folder)
+        self._staged: list[_Staged] = []
+        self._cleaned: set[Path] = set()
+        self._umask = current_umask()
+
+    # ----------------------------------------------------------------- staging
+    @property
+    def targets(self) -> list[Path]:
+        """The files staged so far, in the order they will be renamed into place."""
+        return [s.target for s in self._order()]
+
+    @contextlib.contextmanager
+    def open(self, name: str | os.PathLike[str], *, figure: bool = False) -> Iterator[IO[bytes]]:
+        """Stage ``name``: a binary handle on its temporary file.
+
+        If the body raises, that temporary is removed at once (the group can go on).
+        ``figure=True`` puts the file among the figures, renamed after every data file.
+        """
+        target = self.folder / name
+        if any(s.target == target for s in self._staged):
+            raise ParameterError(f"{target} is written twice in one group")
+        parent = target.parent
+        if parent not in self._cleaned:
+            clean_stale_temporaries(parent)
+            self._cleaned.add(parent)
+        try:
+            fd, temp = tempfile.mkstemp(
+                dir=parent, prefix=f".{target.name[:_NAME_KEPT]}{TEMP_MARKER}{os.getpid()}-",
+                suffix=".tmp")
+        except OSError as exc:
+            _reraise(exc, target)
+        staged = _Staged(target, Path(temp), bool(figure))
+        self._staged.append(staged)
+        try:
+            with os.fdopen(fd, "wb") as handle:
+                yield handle
+                try:
+                    handle.flush()
+                    os.fchmod(handle.fileno(), 0o666 & ~self._umask)
+                    os.fsync(handle.fileno())
+                except OSError as exc:
+                    _reraise(exc, target)
+        except BaseException as exc:
+            self._staged.remove(staged)
+            _unlink_quietly(staged.temp)
+            if isinstance(exc, OSError) and exc.filename in (temp, staged.temp):
+                _reraise(exc, target)
+            raise
+
+    def write_bytes(self, name: str | os.PathLike[str], data: bytes, *,
+                    figure: bool = False) -> Path:
+        """Stage ``data`` as ``name``; returns the final path."""
+        with self.open(name, figure=figure) as handle:
+            handle.write(data)
+        return self.folder / name
+
+    def save(self, name: str | os.PathLike[str], save: Callable[[IO[bytes]], object], *,
+             figure: bool = False) -> Path:
+        """Stage ``name`` written by ``save(handle)``; returns the final path."""
+        with self.open(name, figure=figure) as handle:
+            save(handle)
+        return self.folder / name
+
+    # ------------------------------------------------------------ commit/abort
+    def _order(self) -> list[_Staged]:
+        return ([s for s in self._staged if not s.figure]
+                + [s for s in self._staged if s.figure])
+
+    def _commit(self) -> None:
+        """Rename every staged file into place (data, then figures), then sync the folders."""
+        folders: list[Path] = []
+        for staged in self._order():
+            try:
+                os.replace(staged.temp, staged.target)
+            except OSError as exc:
+                _reraise(exc, staged.target)
+            self._staged.remove(staged)
+            if staged.target.parent not in folders:
+                folders.append(staged.target.parent)
+        for folder in folders:
+            try:
+                _fsync_directory(folder)
+            except OSError as exc:
+                _reraise(exc, folder)
+
+    def _discard(self) -> None:
+        """Remove every temporary still staged."""
+        while self._staged:
+            _unlink_quietly(self._staged.pop().temp)
+
+
+def _unlink_quietly(path: Path) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(path)
+
+
+@contextlib.contextmanager
+def atomic_group(folder: str | os.PathLike[str]) -> Iterator[AtomicGroup]:
+    """Write a set of files that appear together, data before figures.
+
+    Inside the block, stage files with :meth:`AtomicGroup.open`, :meth:`~AtomicGroup.save`
+    or :meth:`~AtomicGroup.write_bytes` (``figure=True`` for figures). Each is written to
+    a temporary sibling and fsync-ed; nothing is renamed while the block runs. When the
+    block succeeds, the data files are renamed into place in the order they were staged,
+    then the figures in theirs, then each folder is fsync-ed. If the block raises
+    anything (KeyboardInterrupt included), every temporary is removed and no file of the
+    set changes.
+
+    What a reader can see: POSIX renames are atomic one by one, not as a set. While the
+    block runs, and if it fails, the old files only. During the renames (microseconds,
+    or forever if the process is killed in the middle), the new files form a prefix of
+    that order: every file listed before a new one is new, so a new figure implies new
+    data, while later files may still be old. After the block, all are new, and durable
+    (on a power loss before that, which renames reached the disk is up to the
+    filesystem). A rename that fails (OSError naming the file) stops there: the files
+    before it are in place, the remaining temporaries are removed.
+
+    Examples
+    --------
+    >>> with atomic_group(folder) as group:                    # doctest: +SKIP
+    ...     group.save("run.npz", lambda f: np.savez(f, t=t))
+    ...     group.write_bytes("run.png", png, figure=True)
+    """
+    group = AtomicGroup(folder)
+    try:
+        yield group
+        group._commit()
+    finally:
+        group._discard()
 
 
 @contextlib.contextmanager
@@ -19,14 +303,8 @@ def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
     If the body raises, the temporary file is removed and ``path`` is untouched.
     """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            yield handle
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    with atomic_group(path.parent) as group, group.open(path.name) as handle:
+        yield handle
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
@@ -35,7 +313,7 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         handle.write(data)
 
 
-def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], None]) -> None:
+def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object]) -> None:
     """Call ``save(handle)`` on a temporary file and move it onto ``path`` when it succeeds."""
     with atomic_writer(path) as handle:
         save(handle)
