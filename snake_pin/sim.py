@@ -1,36 +1,91 @@
 """Closed-loop simulation: fixed-step RK4 on ABA with zero-order-hold control, and the
-``Trajectory`` it returns (save to .npz + .json summary, load, plot).
+``Trajectory`` it returns (save to .npz + .json summary, bounded load, plot).
 
-A run that diverges (non-finite state, speed or distance beyond a bound, or a controller
-that raises a :class:`~snake_pin.exceptions.SnakePinError`) stops there: the trajectory
-up to the last good step is kept, with ``diverged=True`` and a ``reason`` that says when
-and why.
+Every run ends with a :attr:`Trajectory.status`:
+
+- ``"completed"``: it reached ``t_final``;
+- ``"diverged"``: the state left its bounds (non-finite, speed or distance beyond a bound);
+- ``"failed"``: the controller raised (any exception) or returned a torque of the wrong
+  size, type or a non-finite one;
+- ``"interrupted"``: a KeyboardInterrupt (Ctrl-C, or SIGTERM/SIGHUP converted by the
+  command line) arrived; :func:`simulate` then raises
+  :class:`~snake_pin.exceptions.RunInterrupted` carrying the partial trajectory.
+
+In each case the samples up to the last good one are kept, and ``reason`` says when and
+why. ``diverged`` is True for the two faults ("diverged", "failed"), as before.
+
+Trajectory files are read defensively: :meth:`Trajectory.load` reads only the arrays it
+needs, checks each array's .npy header (dtype, shape, declared size against
+:data:`MAX_ARRAY_BYTES` and :data:`MAX_TOTAL_BYTES`) before decompressing any of its
+data, never unpickles, and refuses anything malformed with one
+:class:`~snake_pin.exceptions.TrajectoryFileError` line.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import math
+import numbers
 import os
+import re
+import reprlib
+import zipfile
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ._io import atomic_save, atomic_write_bytes
-from ._validation import as_vector
+from ._io import atomic_group
 from .control.base import Controller
-from .exceptions import ParameterError, SnakePinError, TrajectoryFileError
+from .exceptions import (
+    ConfigurationError,
+    ParameterError,
+    RunInterrupted,
+    SnakePinError,
+    TrajectoryFileError,
+)
 from .model import Snake
 from .params import SnakeParams
 
-__all__ = ["Trajectory", "simulate"]
+__all__ = [
+    "MAX_ARRAY_BYTES",
+    "MAX_DISTANCE",
+    "MAX_SPEED",
+    "MAX_STEPS",
+    "MAX_SUBSTEPS",
+    "MAX_TOTAL_BYTES",
+    "STATUSES",
+    "Trajectory",
+    "simulate",
+]
 
 #: Default divergence bounds: joint/base speed [m/s or rad/s] and distance [m].
 MAX_SPEED = 1.0e3
 MAX_DISTANCE = 1.0e3
+#: Most control steps one run may take (t_final <= 1000 s at the default 1 kHz).
+MAX_STEPS = 1_000_000
+#: Most integration steps per control step (control_dt / dt).
+MAX_SUBSTEPS = 1_000
+#: Largest array a trajectory may hold, decompressed [bytes]; a file declaring more is
+#: refused before any of its data is decompressed, and simulate refuses runs beyond it.
+MAX_ARRAY_BYTES = 512 * 2**20
+#: Largest total of the arrays one load reads (or one run records) [bytes].
+MAX_TOTAL_BYTES = 1024 * 2**20
+#: The run statuses, see the module docstring.
+STATUSES = ("completed", "diverged", "failed", "interrupted")
+
+_FAULTS = ("diverged", "failed")
+_CORE = ("t", "q", "dq", "tau")
+_SIGNAL_PREFIX = "signal__"
+_SIGNAL_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
+_MAX_HEADER_CHARS = 1 << 20
+_MAX_MEMBERS = 1024
+_CHUNK = 1 << 20
+_HEADER_KEYS = {"params": dict, "reason": str, "meta": dict, "summary": dict, "signals": list}
 
 
 @dataclass
@@ -45,13 +100,18 @@ class Trajectory:
     params
         The robot.
     signals
-        Extra per-sample series (controller diagnostics, manipulability, ...).
+        Extra per-sample series (controller diagnostics, manipulability, ...), each with N
+        rows; NaN where a value is missing.
     diverged, reason
-        Whether the run stopped early, and why.
+        Whether the run stopped on a fault (status "diverged" or "failed"), and why it
+        stopped (empty for a completed run).
     meta
         Run settings (controller name, time steps, reference ...).
     summary
         Scalar results written to the JSON summary.
+    status
+        One of :data:`STATUSES`. Left empty, it follows ``diverged`` ("diverged" or
+        "completed"); given, it sets ``diverged``.
     """
 
     t: np.ndarray
@@ -64,6 +124,17 @@ class Trajectory:
     reason: str = ""
     meta: dict[str, Any] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
+    status: str = ""
+
+    def __post_init__(self) -> None:
+        if self.status == "":
+            self.status = "diverged" if self.diverged else "completed"
+        elif self.status not in STATUSES:
+            raise ParameterError(f"status must be one of {', '.join(STATUSES)}, "
+                                 f"got {reprlib.repr(self.status)}")
+        elif self.diverged and self.status not in _FAULTS:
+            raise ParameterError(f"a run with status {self.status!r} cannot be diverged=True")
+        self.diverged = self.status in _FAULTS
 
     @property
     def t_end(self) -> float:
@@ -75,59 +146,401 @@ class Trajectory:
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike[str]) -> tuple[Path, Path]:
-        """Write ``PATH.npz`` (arrays) and ``PATH.json`` (summary), each whole or not at all."""
-        base = Path(path)
-        if base.suffix in (".npz", ".json"):
-            base = base.with_suffix("")
-        if not base.parent.exists():
-            raise ParameterError(f"output directory does not exist: {base.parent}")
-        header = {"params": self.params.to_dict(), "diverged": self.diverged,
-                  "reason": self.reason, "meta": self.meta, "summary": self.summary,
-                  "signals": sorted(self.signals)}
-        arrays = {"t": self.t, "q": self.q, "dq": self.dq, "tau": self.tau,
-                  "header": np.array(json.dumps(header, default=_json_default))}
-        arrays.update({f"signal__{k}": v for k, v in self.signals.items()})
-        npz, js = base.with_suffix(".npz"), base.with_suffix(".json")
-        atomic_save(npz, lambda handle: np.savez_compressed(handle, **arrays))
-        atomic_write_bytes(js, (json.dumps(self.summary_dict(), indent=2,
-                                           default=_json_default) + "\n").encode())
+        """Write ``PATH.npz`` (arrays) and ``PATH.json`` (summary) as one set.
+
+        The name keeps its whole stem: only a trailing ``.npz`` or ``.json`` is dropped
+        (``run.v2`` -> ``run.v2.npz`` + ``run.v2.json``). Both files are staged and
+        renamed into place together, the .npz first (see :func:`snake_pin._io.atomic_group`).
+        The JSON summary is RFC 8259 JSON: non-finite numbers are written as null.
+
+        Raises
+        ------
+        ParameterError
+            The folder does not exist, the name is empty, or meta/summary are not JSON.
+        ConfigurationError
+            The arrays are not a trajectory that :meth:`load` would accept.
+        """
+        npz, js = _file_pair(path)
+        if not npz.parent.is_dir():
+            raise ParameterError(f"output directory does not exist: {npz.parent}")
+        arrays = self._file_arrays()
+        header = {"params": self.params.to_dict(), "status": self.status,
+                  "diverged": self.diverged, "reason": self.reason, "meta": self.meta,
+                  "summary": self.summary, "signals": sorted(self.signals)}
+        header_text = _to_json(header, "the trajectory's meta/summary", strict=False)
+        summary_text = _to_json(self.summary_dict(), "the trajectory's summary", strict=True)
+        arrays["header"] = np.array(header_text)
+        with atomic_group(npz.parent) as group:
+            group.save(npz.name, lambda handle: np.savez_compressed(handle, **arrays))
+            group.write_bytes(js.name, (summary_text + "\n").encode())
         return npz, js
+
+    def _file_arrays(self) -> dict[str, np.ndarray]:
+        """The arrays to save, checked as :meth:`load` checks them."""
+        core = {name: np.asarray(getattr(self, name)) for name in _CORE}
+        signals = {}
+        for name, value in self.signals.items():
+            if not isinstance(name, str) or not _SIGNAL_NAME.fullmatch(name):
+                raise ConfigurationError(f"signal name {reprlib.repr(name)} is not a plain "
+                                         "name (letters, digits, _ . + -, at most 64)")
+            signals[name] = np.asarray(value)
+        problem = _array_problem(core, signals, self.params.n)
+        if problem:
+            raise ConfigurationError(f"cannot save this trajectory: {problem}")
+        arrays = {name: arr.astype(float, copy=False) for name, arr in core.items()}
+        arrays.update({_SIGNAL_PREFIX + k: v for k, v in signals.items()})
+        return arrays
 
     def summary_dict(self) -> dict[str, Any]:
         """The JSON summary: run status plus :attr:`summary`."""
         return {"robot": self.params.name, "n": self.params.n, "t_end": self.t_end,
-                "diverged": self.diverged, "reason": self.reason, **self.summary}
+                "status": self.status, "diverged": self.diverged, "reason": self.reason,
+                **self.summary}
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Trajectory:
-        """Read a trajectory written by :meth:`save` (TrajectoryFileError if unreadable)."""
-        path = Path(path)
-        if path.suffix != ".npz":
-            path = path.with_suffix(".npz")
-        if not path.is_file():
-            raise TrajectoryFileError(f"no trajectory file at {path}")
+    def load(cls, path: str | os.PathLike[str], *,
+             signals: bool | Iterable[str] = True) -> Trajectory:
+        """Read a trajectory written by :meth:`save`, refusing anything else.
+
+        Parameters
+        ----------
+        path
+            The .npz file. If no file has this name and it does not end in ``.npz``,
+            ``PATH.npz`` is tried (the file ``save(PATH)`` writes); no other name is.
+        signals
+            Which signal arrays to read: True (all), False (none; the viewer's choice), or
+            an iterable of names. Arrays not asked for are never decompressed.
+
+        Raises
+        ------
+        TrajectoryFileError
+            One line naming the file: missing, not a trajectory, truncated, corrupt,
+            inconsistent, non-finite, or declaring arrays beyond :data:`MAX_ARRAY_BYTES`
+            (each) or :data:`MAX_TOTAL_BYTES` (together).
+        ParameterError
+            ``signals`` is not True, False or names.
+        """
+        wanted = _wanted_signals(signals)
+        file = _resolve(path)
         try:
-            with np.load(path, allow_pickle=False) as z:
-                header = json.loads(str(z["header"]))
-                arrays = {k: z[k] for k in ("t", "q", "dq", "tau")}
-                signals = {k.removeprefix("signal__"): z[k] for k in z.files
-                           if k.startswith("signal__")}
-            params = SnakeParams.from_dict(header["params"])
-        except (OSError, KeyError, ValueError, json.JSONDecodeError) as exc:
-            detail = str(exc).split(". ")[0][:120]
-            raise TrajectoryFileError(f"{path} is not a snake_pin trajectory ({detail})") from exc
-        traj = cls(params=params, signals=signals, diverged=header["diverged"],
-                   reason=header["reason"], meta=header["meta"], summary=header["summary"],
-                   **arrays)
-        if traj.q.shape[1:] != (params.n + 2,) or traj.tau.shape[1:] != (params.n - 1,):
-            raise TrajectoryFileError(f"{path}: array sizes do not match its {params.n}-link robot")
-        return traj
+            with open(file, "rb") as raw:
+                if os.fstat(raw.fileno()).st_size == 0:
+                    raise _Refused("the file is empty")
+                return _read(cls, raw, wanted)
+        except _Refused as exc:
+            raise TrajectoryFileError(f"{_shown(file)} is not a usable snake_pin trajectory: "
+                                      f"{_one_line(str(exc))}") from None
+        except Exception as exc:  # hostile input: whatever breaks while parsing is a refusal
+            raise TrajectoryFileError(f"{_shown(file)} is not a readable snake_pin trajectory "
+                                      f"({type(exc).__name__}: {_one_line(str(exc))})") from None
 
     def plot(self, path: str | os.PathLike[str] | None = None):
         """Head position, joint angles and torques over time; saved as PNG if ``path``."""
         from .viz.plots import plot_trajectory
 
         return plot_trajectory(self, path)
+
+
+# ---------------------------------------------------------------------- file names
+def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
+    """``(PATH.npz, PATH.json)`` for save: only a trailing .npz/.json is dropped."""
+    try:
+        given = Path(path)
+    except TypeError as exc:
+        raise ParameterError(f"not a file path: {reprlib.repr(path)}") from exc
+    name = given.name
+    for suffix in (".npz", ".json"):
+        if name.endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    if name in ("", ".", ".."):
+        raise ParameterError(f"trajectory file name is empty: {_shown(path)}")
+    return given.with_name(name + ".npz"), given.with_name(name + ".json")
+
+
+def _resolve(path: str | os.PathLike[str]) -> Path:
+    """The file :meth:`Trajectory.load` opens for ``path`` (see there)."""
+    try:
+        given = Path(path)
+    except TypeError as exc:
+        raise TrajectoryFileError(f"not a file path: {reprlib.repr(path)}") from exc
+    try:
+        if given.is_file():
+            return given
+        if given.exists():
+            raise TrajectoryFileError(f"{_shown(given)} is not a regular file")
+        if given.name and not given.name.endswith(".npz"):
+            alternative = given.with_name(given.name + ".npz")
+            if alternative.is_file():
+                return alternative
+    except (OSError, ValueError) as exc:
+        raise TrajectoryFileError(f"cannot open {_shown(given)}: "
+                                  f"{_one_line(exc.strerror or str(exc))}") from None
+    raise TrajectoryFileError(f"no trajectory file at {_shown(given)}")
+
+
+def _shown(path: object) -> str:
+    """A path as one printable line (names with control characters are quoted)."""
+    text = os.fspath(path) if isinstance(path, os.PathLike) else str(path)
+    text = os.fsdecode(text) if isinstance(text, bytes) else text
+    return text if text.isprintable() else repr(text)
+
+
+def _one_line(text: str, limit: int = 200) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _wanted_signals(signals: object) -> frozenset[str] | None:
+    """None for every signal, else the names asked for."""
+    if signals is True or (isinstance(signals, np.bool_) and signals):
+        return None
+    if signals is False or (isinstance(signals, np.bool_) and not signals):
+        return frozenset()
+    if isinstance(signals, (str, bytes)) or not isinstance(signals, Iterable):
+        raise ParameterError(f"signals must be True, False or a list of names, "
+                             f"got {reprlib.repr(signals)}")
+    names = list(signals)
+    if not all(isinstance(name, str) for name in names):
+        raise ParameterError(f"signal names must be strings, got {reprlib.repr(names)}")
+    return frozenset(names)
+
+
+# ------------------------------------------------------------------- reading files
+class _Refused(Exception):
+    """A specific reason to refuse a file (turned into TrajectoryFileError by load)."""
+
+
+@dataclass
+class _Member:
+    info: zipfile.ZipInfo
+    shape: tuple[int, ...] = ()
+    dtype: np.dtype | None = None
+    fortran: bool = False
+
+    @property
+    def nbytes(self) -> int:
+        return math.prod(self.shape) * (self.dtype.itemsize if self.dtype is not None else 0)
+
+
+def _read(cls: type[Trajectory], raw: io.BufferedReader,
+          wanted: frozenset[str] | None) -> Trajectory:
+    with zipfile.ZipFile(raw) as archive:
+        infos = archive.infolist()
+        if len(infos) > _MAX_MEMBERS:
+            raise _Refused(f"{len(infos)} members (at most {_MAX_MEMBERS})")
+        members = {info.filename: info for info in infos}
+        if len(members) != len(infos):
+            raise _Refused("two members share a name")
+        for name in members:
+            stem = name.removesuffix(".npy")
+            if not name.endswith(".npy") or not (
+                    stem in (*_CORE, "header") or (stem.startswith(_SIGNAL_PREFIX) and
+                                                   _SIGNAL_NAME.fullmatch(
+                                                       stem.removeprefix(_SIGNAL_PREFIX)))):
+                raise _Refused(f"unexpected member {_one_line(repr(name), 80)}")
+        if "header.npy" not in members:
+            raise _Refused("no header")
+        header_member = _inspect(archive, members["header.npy"], "header", kinds="U")
+        if header_member.shape != () or header_member.nbytes > 4 * _MAX_HEADER_CHARS:
+            raise _Refused(f"the header is not one string of at most {_MAX_HEADER_CHARS} "
+                           "characters")
+        header = _parse_header(str(_data(archive, header_member, "header")[()]))
+        params = header["params"]
+        listed = header["signals"]
+        expected = {f"{name}.npy" for name in _CORE} | {"header.npy"}
+        expected |= {f"{_SIGNAL_PREFIX}{name}.npy" for name in listed}
+        missing, extra = sorted(expected - set(members)), sorted(set(members) - expected)
+        if missing:
+            raise _Refused(f"array {missing[0].removesuffix('.npy')!r} is missing")
+        if extra:
+            raise _Refused(f"member {extra[0]!r} is not listed in its header")
+        unknown = sorted(set() if wanted is None else wanted - set(listed))
+        if unknown:
+            raise _Refused(f"it has no signal {unknown[0]!r} "
+                           f"(it has: {', '.join(listed) or 'none'})")
+        chosen = [name for name in listed if wanted is None or name in wanted]
+
+        # 1. every needed array's .npy header, checked before any data is decompressed
+        n = params.n
+        plan: dict[str, _Member] = {}
+        for name in _CORE:
+            plan[name] = _inspect(archive, members[f"{name}.npy"], name, kinds="f8")
+        samples = plan["t"].shape[0] if len(plan["t"].shape) == 1 else -1
+        _check_shape(plan["t"].shape, (samples,), "t")
+        if samples < 1:
+            raise _Refused("it has no samples")
+        _check_shape(plan["q"].shape, (samples, n + 2), "q")
+        _check_shape(plan["dq"].shape, (samples, n + 2), "dq")
+        _check_shape(plan["tau"].shape, (samples, n - 1), "tau")
+        for name in chosen:
+            member = _inspect(archive, members[f"{_SIGNAL_PREFIX}{name}.npy"],
+                              f"signal {name!r}", kinds="biuf")
+            if len(member.shape) not in (1, 2) or member.shape[0] != samples:
+                raise _Refused(f"signal {name!r} has shape {member.shape}, expected "
+                               f"({samples},) or ({samples}, k)")
+            plan[_SIGNAL_PREFIX + name] = member
+        total = sum(member.nbytes for member in plan.values())
+        if total > MAX_TOTAL_BYTES:
+            raise _Refused(f"its arrays declare {_mib(total)} together, beyond the "
+                           f"{_mib(MAX_TOTAL_BYTES)} bound")
+
+        # 2. the data, each array read to exactly its declared size
+        data = {key: _data(archive, member, key) for key, member in plan.items()}
+    core = {name: data[name].astype(float) for name in _CORE}
+    signals = {name: data[_SIGNAL_PREFIX + name] for name in chosen}
+    problem = _array_problem(core, signals, n)
+    if problem:
+        raise _Refused(problem)
+    return cls(params=params, signals=signals, reason=header["reason"], meta=header["meta"],
+               summary=header["summary"], status=header["status"], **core)
+
+
+def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
+             kinds: str) -> _Member:
+    """Read one member's .npy header only, and refuse what the loader would not accept.
+
+    ``kinds`` is "f8" (float64), "U" (a string) or "biuf" (any real numbers).
+    """
+    fmt = np.lib.format
+    with archive.open(info) as stream:
+        version = fmt.read_magic(stream)
+        if version == (1, 0):
+            shape, fortran, dtype = fmt.read_array_header_1_0(stream)
+        elif version == (2, 0):
+            shape, fortran, dtype = fmt.read_array_header_2_0(stream)
+        else:
+            raise _Refused(f"array {label} has .npy format {version} (1.0 or 2.0 expected)")
+    dtype = np.dtype(dtype)
+    if dtype.hasobject:
+        raise _Refused(f"array {label} holds Python objects (pickles are refused)")
+    right = (dtype.kind == "f" and dtype.itemsize == 8) if kinds == "f8" else dtype.kind in kinds
+    if dtype.names is not None or dtype.subdtype is not None or not right:
+        raise _Refused(f"array {label} has dtype {dtype}, expected "
+                       + {"f8": "float64", "U": "a string", "biuf": "numbers"}[kinds])
+    if not all(isinstance(d, int) and d >= 0 for d in shape):
+        raise _Refused(f"array {label} declares the shape {shape}")
+    member = _Member(info, tuple(shape), dtype, bool(fortran))
+    if member.nbytes > MAX_ARRAY_BYTES:
+        raise _Refused(f"array {label} declares {member.shape} ({_mib(member.nbytes)}), "
+                       f"beyond the {_mib(MAX_ARRAY_BYTES)} bound")
+    return member
+
+
+def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
+    """Read a checked member's data: exactly its declared size, and nothing after it."""
+    assert member.dtype is not None
+    buffer = bytearray(member.nbytes)
+    view = memoryview(buffer)
+    with archive.open(member.info) as stream:
+        version = np.lib.format.read_magic(stream)
+        reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                  else np.lib.format.read_array_header_2_0)
+        reader(stream)
+        got = 0
+        while got < member.nbytes:
+            count = stream.readinto(view[got: got + _CHUNK])
+            if not count:
+                raise _Refused(f"array {label} is truncated ({got} of {member.nbytes} bytes)")
+            got += count
+        if stream.read(1):
+            raise _Refused(f"array {label} has data beyond its declared shape")
+    array = np.frombuffer(buffer, dtype=member.dtype)
+    return array.reshape(member.shape, order="F" if member.fortran else "C")
+
+
+def _check_shape(shape: tuple[int, ...], expected: tuple[int, ...], name: str) -> None:
+    if shape != expected:
+        raise _Refused(f"array {name} has shape {shape}, expected {expected}")
+
+
+def _mib(nbytes: int) -> str:
+    return f"{nbytes / 2**20:.4g} MiB"
+
+
+def _parse_header(text: str) -> dict[str, Any]:
+    """The JSON header, checked key by key; ``params`` becomes SnakeParams."""
+    try:
+        header = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise _Refused(f"its header is not JSON ({_one_line(str(exc), 80)})") from None
+    if not isinstance(header, dict):
+        raise _Refused("its header is not a JSON object")
+    for key, kind in _HEADER_KEYS.items():
+        if key not in header:
+            raise _Refused(f"its header has no {key!r}")
+        if not isinstance(header[key], kind):
+            raise _Refused(f"its header's {key!r} is not a{'n' if kind is dict else ''} "
+                           f"{ {dict: 'object', str: 'string', list: 'list'}[kind] }")
+    listed = header["signals"]
+    if not all(isinstance(s, str) and _SIGNAL_NAME.fullmatch(s) for s in listed) or \
+            len(set(listed)) != len(listed):
+        raise _Refused("its header's 'signals' is not a list of distinct signal names")
+    status, diverged = header.get("status"), header.get("diverged")
+    if diverged is not None and not isinstance(diverged, bool):
+        raise _Refused("its header's 'diverged' is not true or false")
+    if status is None:  # files written before statuses existed
+        if diverged is None:
+            raise _Refused("its header has no 'status'")
+        status = "diverged" if diverged else "completed"
+    if not isinstance(status, str) or status not in STATUSES:
+        raise _Refused(f"its header's status is not one of {', '.join(STATUSES)}")
+    if diverged is not None and diverged != (status in _FAULTS):
+        raise _Refused(f"its header says status {status!r} but diverged = {diverged}")
+    header["status"] = status
+    try:
+        header["params"] = SnakeParams.from_dict(header["params"])
+    except Exception as exc:  # any rejection by SnakeParams
+        raise _Refused(f"its robot parameters are invalid ({_one_line(str(exc), 120)})") from None
+    return header
+
+
+def _array_problem(core: Mapping[str, np.ndarray], signals: Mapping[str, np.ndarray],
+                   n: int) -> str:
+    """What is wrong with a trajectory's arrays for an n-link robot ("" if nothing)."""
+    t = core["t"]
+    for name in _CORE:
+        arr = core[name]
+        if arr.dtype.kind not in "fiu" or arr.dtype.names is not None:
+            return f"array {name} has dtype {arr.dtype}, expected floats"
+    if t.ndim != 1 or len(t) == 0:
+        return f"array t has shape {t.shape}, expected at least one sample"
+    samples = len(t)
+    for name, width in (("q", n + 2), ("dq", n + 2), ("tau", n - 1)):
+        if core[name].shape != (samples, width):
+            return f"array {name} has shape {core[name].shape}, expected {(samples, width)}"
+    for name in _CORE:
+        if not np.all(np.isfinite(core[name])):
+            return f"array {name} has non-finite entries"
+    if samples > 1 and not np.all(np.diff(t) > 0):
+        return "its times t are not strictly increasing"
+    for name, arr in signals.items():
+        if arr.dtype.kind not in "biuf" or arr.dtype.names is not None:
+            return f"signal {name!r} has dtype {arr.dtype}, expected numbers"
+        if arr.ndim not in (1, 2) or arr.shape[0] != samples:
+            return f"signal {name!r} has shape {arr.shape}, expected {samples} rows"
+    return ""
+
+
+def _to_json(value: object, what: str, *, strict: bool) -> str:
+    """``value`` as JSON text; ``strict`` writes non-finite numbers as null (RFC 8259)."""
+    try:
+        text = json.dumps(value, default=_json_default)
+        if strict:
+            text = json.dumps(_finite(json.loads(text)), indent=2, allow_nan=False)
+    except (TypeError, ValueError, RecursionError) as exc:
+        raise ParameterError(f"{what} is not JSON: {_one_line(str(exc), 120)}") from None
+    return text
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    return value
 
 
 def _json_default(value: object) -> object:
@@ -140,20 +553,123 @@ def _json_default(value: object) -> object:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+# ----------------------------------------------------------------------- simulate
+class _FunctionController(Controller):
+    """A plain callable ``f(x, t) -> tau`` used as a controller (named after it)."""
+
+    def __init__(self, function: Callable[[np.ndarray, float], Any]) -> None:
+        self.function = function
+        label = getattr(function, "__name__", None) or type(function).__name__
+        self.name = re.sub(r"\W+", "", str(label)) or "function"
+
+    def reset(self) -> None:
+        reset = getattr(self.function, "reset", None)
+        if callable(reset):
+            reset()
+
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        return self.function(x, t)
+
+    def signals(self) -> dict[str, float]:
+        signals = getattr(self.function, "signals", None)
+        return signals() if callable(signals) else {}
+
+
+def _as_controller(controller: object) -> Controller:
+    if isinstance(controller, Controller):
+        return controller
+    if callable(controller):
+        return _FunctionController(controller)
+    raise ParameterError("controller must be a Controller or a function f(x, t) -> tau, "
+                         f"got {reprlib.repr(controller)}")
+
+
+def _number(value: object, name: str, *, allow_inf: bool = False) -> float:
+    """``value`` as a positive float (finite unless ``allow_inf``) or ParameterError."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} must be a number, got {reprlib.repr(value)}")
+    x = float(value)
+    if math.isnan(x) or x <= 0 or (math.isinf(x) and not allow_inf):
+        kind = "positive number" if allow_inf else "positive finite number"
+        raise ParameterError(f"{name} must be a {kind}, got {x}")
+    return x
+
+
+def _state(x0: object, size: int) -> np.ndarray:
+    """``x0`` as a finite float vector of ``size`` entries or ConfigurationError."""
+    try:
+        x = np.asarray(x0)
+    except Exception as exc:
+        raise ConfigurationError(f"x0 must be a vector of {size} numbers") from exc
+    if x.dtype.kind not in "fiu" or x.dtype.names is not None:
+        raise ConfigurationError(f"x0 must be a vector of {size} numbers, got dtype {x.dtype}")
+    if x.shape != (size,):
+        raise ConfigurationError(f"x0 must have shape ({size},) = [q, dq], got {x.shape}")
+    x = x.astype(float)
+    if not np.all(np.isfinite(x)):
+        raise ConfigurationError("x0 has non-finite entries")
+    return x
+
+
 def _check_steps(t_final: float, dt: float, control_dt: float) -> tuple[int, int]:
-    for name, value in (("t_final", t_final), ("dt", dt), ("control_dt", control_dt)):
-        if not (math.isfinite(value) and value > 0):
-            raise ParameterError(f"{name} must be a positive finite number, got {value}")
-    substeps = round(control_dt / dt)
+    """(integration steps per control step, control steps), within the bounds."""
+    ratio = control_dt / dt
+    if ratio > MAX_SUBSTEPS + 0.5:
+        raise ParameterError(f"control_dt / dt = {ratio:.4g} exceeds MAX_SUBSTEPS = "
+                             f"{MAX_SUBSTEPS}")
+    substeps = round(ratio)
     if substeps < 1 or abs(substeps * dt - control_dt) > 1e-9 * control_dt:
         raise ParameterError(f"control_dt ({control_dt}) must be a multiple of dt ({dt})")
-    return substeps, math.ceil(t_final / control_dt - 1e-9)
+    span = t_final / control_dt
+    if span > MAX_STEPS + 1e-6:
+        raise ParameterError(f"t_final = {t_final:g} s needs more than MAX_STEPS = {MAX_STEPS} "
+                             f"control steps of {control_dt:g} s (t_final <= "
+                             f"{MAX_STEPS * control_dt:g} s)")
+    return substeps, max(1, math.ceil(span - 1e-9))
 
 
-def simulate(snake: Snake, controller: Controller, x0: np.ndarray, t_final: float, *,
-             dt: float = 1e-3, control_dt: float = 1e-3, method: str = "rk4",
-             max_speed: float = MAX_SPEED, max_distance: float = MAX_DISTANCE,
-             progress: bool = False, meta: dict[str, Any] | None = None) -> Trajectory:
+def _check_size(samples: int, nq: int, n_tau: int, t_final: float) -> None:
+    """Refuse a run whose arrays would exceed what a trajectory file may hold."""
+    largest = samples * nq * 8
+    total = samples * (2 * nq + n_tau + 1) * 8
+    if largest > MAX_ARRAY_BYTES or total > MAX_TOTAL_BYTES:
+        raise ParameterError(f"t_final = {t_final:g} s needs {samples} samples of a "
+                             f"{nq - 2}-link robot ({_mib(total)}), beyond the "
+                             f"{_mib(MAX_ARRAY_BYTES)} per array / {_mib(MAX_TOTAL_BYTES)} "
+                             "a trajectory may hold")
+
+
+def _torque(raw: object, size: int) -> tuple[np.ndarray | None, str]:
+    """The controller's output as ``size`` finite floats, or None and what is wrong."""
+    tau = raw if type(raw) is np.ndarray else np.asarray(raw)
+    if tau.dtype.kind not in "fiu" or tau.dtype.names is not None:
+        return None, f"controller returned a torque of dtype {tau.dtype}, not numbers"
+    if tau.shape != (size,):
+        if tau.ndim == 0 and size == 1:
+            tau = tau.reshape(1)
+        elif tau.ndim <= 1:
+            return None, (f"controller returned {tau.size} torque{'' if tau.size == 1 else 's'}"
+                          f", expected {size}")
+        else:
+            return None, f"controller returned torques of shape {tau.shape}, expected {size}"
+    if tau.dtype != np.float64:
+        tau = tau.astype(float)
+    if not np.isfinite(tau).all():
+        return None, "controller returned a non-finite torque"
+    return tau, ""
+
+
+def _failure(t: float, exc: BaseException) -> str:
+    detail = _one_line(str(exc))
+    return f"controller failed at t = {t:.4f} s: {type(exc).__name__}" + \
+        (f": {detail}" if detail else "")
+
+
+def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float], Any],
+             x0: np.ndarray, t_final: float, *, dt: float = 1e-3, control_dt: float = 1e-3,
+             method: str = "rk4", max_speed: float = MAX_SPEED,
+             max_distance: float = MAX_DISTANCE, progress: bool = False,
+             meta: Mapping[str, Any] | None = None) -> Trajectory:
     """Simulate the closed loop from state ``x0 = [q0, dq0]`` up to ``t_final``.
 
     The controller is sampled every ``control_dt`` and its torque held in between (zero-
@@ -161,69 +677,131 @@ def simulate(snake: Snake, controller: Controller, x0: np.ndarray, t_final: floa
     ``dt``; ``method="solve_ivp"`` uses scipy's adaptive RK45 over each control period
     (tight tolerances; slower, for cross-checks).
 
+    Parameters
+    ----------
+    controller
+        A :class:`~snake_pin.control.Controller`, or any function ``f(x, t) -> tau``
+        (wrapped in an adapter named after the function). It must return exactly
+        n - 1 finite torques; any exception it raises ends the run as "failed".
+    t_final, dt, control_dt
+        Positive, finite; ``control_dt`` a multiple of ``dt`` (at most
+        :data:`MAX_SUBSTEPS` times), at most :data:`MAX_STEPS` control steps, and arrays
+        within :data:`MAX_ARRAY_BYTES`/:data:`MAX_TOTAL_BYTES`.
+    max_speed, max_distance
+        Divergence bounds (positive; ``math.inf`` for none).
+    progress
+        Show a tqdm bar, on a terminal only (never drawn into a non-TTY stderr).
+
     Returns
     -------
     Trajectory
-        Samples at t = 0, control_dt, 2 control_dt, ... up to t_final or divergence.
+        Samples at t = 0, control_dt, 2 control_dt, ... up to t_final, or up to the last
+        good sample of a diverged or failed run (see the module docstring).
+
+    Raises
+    ------
+    RunInterrupted
+        On KeyboardInterrupt during the run; ``.partial`` is the trajectory of every
+        completed sample, with status "interrupted".
+    ParameterError, ConfigurationError
+        Bad arguments (before anything runs).
     """
-    nq = snake.nq
-    x = as_vector(x0, 2 * nq, "x0")
-    if method not in ("rk4", "solve_ivp"):
-        raise ParameterError(f"method must be 'rk4' or 'solve_ivp', got {method!r}")
+    nq, n_tau = snake.nq, snake.n - 1
+    ctrl = _as_controller(controller)
+    x = _state(x0, 2 * nq)
+    t_final = _number(t_final, "t_final")
+    dt = _number(dt, "dt")
+    control_dt = _number(control_dt, "control_dt")
+    max_speed = _number(max_speed, "max_speed", allow_inf=True)
+    max_distance = _number(max_distance, "max_distance", allow_inf=True)
+    if not isinstance(method, str) or method not in ("rk4", "solve_ivp"):
+        raise ParameterError(f"method must be 'rk4' or 'solve_ivp', got {reprlib.repr(method)}")
+    if not isinstance(progress, (bool, np.bool_)):
+        raise ParameterError(f"progress must be True or False, got {reprlib.repr(progress)}")
+    if meta is not None and not isinstance(meta, Mapping):
+        raise ParameterError(f"meta must be a mapping, got {reprlib.repr(meta)}")
     substeps, steps = _check_steps(t_final, dt, control_dt)
+    _check_size(steps + 1, nq, n_tau, t_final)
+    try:
+        ts = np.zeros(steps + 1)
+        xs = np.zeros((steps + 1, 2 * nq))
+        taus = np.zeros((steps + 1, n_tau))
+    except MemoryError:
+        raise ParameterError(f"not enough memory for {steps + 1} samples "
+                             f"(t_final = {t_final:g} s)") from None
     accel = snake.state_derivative
 
     def rhs(state: np.ndarray, tau: np.ndarray) -> np.ndarray:
         return np.concatenate([state[nq:], accel(state, tau)])
 
-    controller.reset()
-    ts = np.empty(steps + 1)
-    xs = np.empty((steps + 1, 2 * nq))
-    taus = np.zeros((steps + 1, snake.n - 1))
-    signals: dict[str, list[float]] = {}
-    diverged, reason, k = False, "", 0
-    ts[0], xs[0] = 0.0, x
-    bar = _progress(steps, progress, getattr(controller, "name", "run"))
-    for k in range(steps):
-        t = k * control_dt
+    xs[0] = x
+    signals: dict[str, np.ndarray] = {}
+    status, reason = "completed", ""
+    good = 1  # samples 0 .. good - 1 are recorded whole; updated last, after each sample
+    bar = None
+
+    def collect(run_status: str, run_reason: str) -> Trajectory:
+        return Trajectory(t=ts[:good].copy(), q=xs[:good, :nq].copy(),
+                          dq=xs[:good, nq:].copy(), tau=taus[:good].copy(),
+                          params=snake.params,
+                          signals={k: v[:good].copy() for k, v in signals.items()},
+                          status=run_status, reason=run_reason,
+                          meta={"controller": ctrl.name, "dt": dt, "control_dt": control_dt,
+                                "method": method, **(meta or {})})
+
+    try:
+        bar = _progress(steps, bool(progress), ctrl.name)
         try:
-            tau = np.asarray(controller(x, t), dtype=float)
-        except SnakePinError as exc:
-            diverged, reason = True, f"controller failed at t = {t:.4f} s: {exc}"
-            break
-        if tau.shape != (snake.n - 1,) or not np.all(np.isfinite(tau)):
-            diverged, reason = True, f"controller returned a non-finite torque at t = {t:.4f} s"
-            break
-        taus[k] = tau
-        for name, value in controller.signals().items():
-            signals.setdefault(name, []).append(value)
-        if method == "rk4":
-            for _ in range(substeps):
-                x = _rk4_step(accel, x, tau, dt, nq)
-        else:
-            x = _solve_ivp_step(rhs, x, tau, t, control_dt)
-        problem = _divergence(x, nq, max_speed, max_distance)
-        if problem:
-            diverged, reason = True, f"diverged at t = {t + control_dt:.4f} s: {problem}"
-            break
-        ts[k + 1], xs[k + 1] = t + control_dt, x
-        if bar is not None and k % 100 == 0:
-            bar.update(min(100, steps - bar.n))
-    else:
-        k = steps
-    if bar is not None:
-        bar.close()
-    # Samples 0..k are good. tau[k] is the torque held after sample k: on divergence it is
-    # the one that was applied when the state blew up (kept as evidence); at the end of a
-    # completed run, or when the controller failed, none was applied and it stays zero.
-    last = k + 1
-    recorded = {name: _pad(values, last) for name, values in signals.items()}
-    return Trajectory(t=ts[:last].copy(), q=xs[:last, :nq].copy(), dq=xs[:last, nq:].copy(),
-                      tau=taus[:last].copy(), params=snake.params, signals=recorded,
-                      diverged=diverged, reason=reason,
-                      meta={"controller": getattr(controller, "name", "controller"),
-                            "dt": dt, "control_dt": control_dt, "method": method,
-                            **(meta or {})})
+            ctrl.reset()
+        except Exception as exc:
+            status, reason = "failed", _failure(0.0, exc)
+        for k in range(steps if status == "completed" else 0):
+            t = k * control_dt
+            try:
+                tau, problem = _torque(ctrl(x, t), n_tau)
+                if tau is None:
+                    status, reason = "failed", f"{problem} at t = {t:.4f} s"
+                    break
+                for name, value in ctrl.signals().items():
+                    series = signals.get(name)
+                    if series is None:
+                        series = signals[name] = np.full(steps + 1, np.nan)
+                    series[k] = value
+            except Exception as exc:
+                status, reason = "failed", _failure(t, exc)
+                break
+            taus[k] = tau
+            try:
+                if method == "rk4":
+                    for _ in range(substeps):
+                        x = _rk4_step(accel, x, tau, dt, nq)
+                else:
+                    x = _solve_ivp_step(rhs, x, tau, t, control_dt)
+                problem = _divergence(x, nq, max_speed, max_distance)
+            except (SnakePinError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                problem = f"the dynamics failed ({type(exc).__name__}: {_one_line(str(exc))})"
+            if problem:
+                status, reason = "diverged", f"diverged at t = {t + control_dt:.4f} s: {problem}"
+                break
+            ts[k + 1] = t + control_dt
+            xs[k + 1] = x
+            good = k + 2
+            if bar is not None and k % 100 == 0:
+                bar.update(min(100, steps - bar.n))
+        if bar is not None:
+            bar.close()
+        # Samples 0..good-1 are good. tau[good-1] is the torque held after the last one:
+        # on divergence the one applied when the state blew up (kept as evidence); at the
+        # end of a completed run, or when the controller failed, none was applied: zero.
+        return collect(status, reason)
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.close()
+        # Samples 0 .. good - 1 are whole; the torque after the last one was not (fully)
+        # applied, so it is recorded as zero, as at the end of a completed run.
+        taus[good - 1] = 0.0
+        partial = collect("interrupted", f"interrupted at t = {ts[good - 1]:.4f} s")
+        raise RunInterrupted(partial.reason, partial=partial) from None
 
 
 def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,
@@ -237,12 +815,6 @@ def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,
     x4 = x + h * d3
     d4 = np.concatenate((x4[nq:], accel(x4, tau)))
     return x + (h / 6.0) * (d1 + d4 + 2.0 * (d2 + d3))
-
-
-def _pad(values: list[float], length: int) -> np.ndarray:
-    arr = np.full(length, np.nan)
-    arr[: min(length, len(values))] = values[:length]
-    return arr
 
 
 def _divergence(x: np.ndarray, nq: int, max_speed: float, max_distance: float) -> str:
@@ -267,8 +839,10 @@ def _solve_ivp_step(rhs, x: np.ndarray, tau: np.ndarray, t: float,
 
 
 def _progress(total: int, enabled: bool, label: str):
+    """A tqdm bar when ``enabled`` and stderr is a terminal (``disable=None``), else None."""
     if not enabled:
         return None
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=f"simulate {label}", unit="step", leave=False)
+    bar = tqdm(total=total, desc=f"simulate {label}", unit="step", leave=False, disable=None)
+    return None if bar.disable else bar
