@@ -135,19 +135,24 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
 
 
 def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """g at every sample of a run, (N, 2), vectorised: H1 dq = m sum x_i', g2 = c sum x_i."""
+    """g at every sample of a run, (N, 2), vectorised: H1 dq = sum m_i p_i', g2 = sum c_i p_i."""
     params = snake.params
-    n, m, c, half = params.n, params.mass, params.c_x, params.half_length
+    m, c = params.masses, params.per_link("c_x")
+    k = paper.k_matrix(params)
     theta = q[:, 2:3] + np.concatenate([np.zeros((len(q), 1)), np.cumsum(q[:, 3:], axis=1)],
                                        axis=1)
     theta_dot = dq[:, 2:3] + np.concatenate([np.zeros((len(q), 1)),
                                              np.cumsum(dq[:, 3:], axis=1)], axis=1)
-    weights = paper.k_matrix(n, half).sum(axis=0)  # 1^T K
-    sum_x = n * q[:, 0] + np.cos(theta) @ weights
-    sum_y = n * q[:, 1] + np.sin(theta) @ weights
-    sum_dx = n * dq[:, 0] - (np.sin(theta) * theta_dot) @ weights
-    sum_dy = n * dq[:, 1] + (np.cos(theta) * theta_dot) @ weights
-    return np.column_stack([m * sum_dx + c * sum_x, m * sum_dy + c * sum_y])
+    # weighted sums over links of the CM coordinates p_i = p_h + sum_j K_ij e_j
+    def weighted(w: np.ndarray) -> tuple[np.ndarray, ...]:
+        a = w @ k  # w^T K
+        return (w.sum() * q[:, 0] + np.cos(theta) @ a, w.sum() * q[:, 1] + np.sin(theta) @ a,
+                w.sum() * dq[:, 0] - (np.sin(theta) * theta_dot) @ a,
+                w.sum() * dq[:, 1] + (np.cos(theta) * theta_dot) @ a)
+
+    _, _, mdx, mdy = weighted(m)
+    cx, cy, _, _ = weighted(c)
+    return np.column_stack([mdx + cx, mdy + cy])
 
 
 def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,

@@ -1,8 +1,35 @@
 """The paper's closed-form model (Section II, eqs. 3-20), independent of Pinocchio.
 
-Everything here is written from the printed equations with plain numpy and serves as the
-cross-check of :class:`snake_pin.model.Snake`. Coordinates: q = [x_h, y_h, theta_1, phi]
-and q-bar = [x_h, y_h, theta] (link orientations).
+Everything here is plain numpy and serves as the cross-check of
+:class:`snake_pin.model.Snake`. Coordinates: q = [x_h, y_h, theta_1, phi] and
+q-bar = [x_h, y_h, theta] (link orientations, theta = L [theta_1, phi], eq. 17).
+
+The printed equations assume identical links with the centre of mass in the middle.
+They generalise to link i of length 2l_i, mass m_i, inertia J_i about its CM, CM at a
+distance d_i from its front end, and friction c_x,i, c_y,i, c_theta,i, as follows.
+
+* Positions (eqs. 3-4). With e_j = (cos theta_j, sin theta_j), link i's CM is
+  p_i = p_h + sum_{j<i} 2l_j e_j + d_i e_i = p_h + sum_j K_ij e_j, so
+  K_ij = 2l_j (j < i), K_ii = d_i, 0 above the diagonal (the printed K has d_i = l,
+  2l_j = 2l).
+* Velocities (eqs. 5-7). p_i' = p_h' + sum_j K_ij theta_j' (-sin theta_j, cos theta_j), so
+  J_{q-bar x} = [1, 0, -K diag(sin theta)] and J_{q-bar y} = [0, 1, K diag(cos theta)]:
+  the printed forms with the per-link K.
+* Kinetic energy (eqs. 8-9). T = 1/2 sum_i (m_i |p_i'|^2 + J_i theta_i'^2) gives
+  H-bar = J_x^T M J_x + J_y^T M J_y + diag(0, 0, J_1 .. J_n) with M = diag(m_1 .. m_n)
+  (the printed m I and J I become diagonal matrices).
+* Coriolis (eqs. 15-16). p_i'' = J_{q-bar} q-bar'' - sum_j K_ij theta_j'^2 e_j, so the
+  centripetal Jacobians are J_x = -K diag(cos theta), J_y = -K diag(sin theta) and
+  W-bar = J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y; the term is W-bar (q-bar')^2.
+* Friction (eqs. 10-14). In the world frame link i's force is -R_i diag(c_x,i, c_y,i)
+  R_i^T p_i', so C-bar = J_xy^T [[C_xx, C_xy], [C_xy, C_yy]] J_xy + diag(0, 0, c_theta)
+  with the diagonal blocks C_xx = diag(c_x cos^2 + c_y sin^2), C_xy =
+  diag((c_x - c_y) sin cos), C_yy = diag(c_x sin^2 + c_y cos^2), per link.
+* Paper coordinates (eq. 19). H = J_q^T H-bar J_q, W = J_q^T W-bar, C = J_q^T C-bar J_q
+  with J_q = blockdiag(I_2, L); h = W (J_q q')^2 + C q' (eq. 20) and E = [0; I].
+
+``tests/test_paper.py`` checks every one of these against Pinocchio, which knows nothing
+of this derivation, on random states of random heterogeneous robots.
 """
 
 from __future__ import annotations
@@ -10,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._validation import as_vector
+from .exceptions import ParameterError
 from .params import SnakeParams
 
 __all__ = [
@@ -30,9 +58,17 @@ __all__ = [
 ]
 
 
-def k_matrix(n: int, half_length: float) -> np.ndarray:
-    """K of eq. (4): l on the diagonal, 2l below it."""
-    return half_length * (np.eye(n) + 2.0 * np.tril(np.ones((n, n)), -1))
+def k_matrix(params: SnakeParams) -> np.ndarray:
+    """K of eq. (4), per link: K_ij = 2l_j for j < i, d_i (CM offset) for j = i, else 0.
+
+    Link i's centre of mass is p_i = p_h + sum_j K_ij e_j with e_j = (cos theta_j,
+    sin theta_j). For equal links with the CM in the middle, d_i = l and 2l_j = 2l: the
+    printed K (l on the diagonal, 2l below it).
+    """
+    lengths = params.link_lengths
+    k = np.tril(np.broadcast_to(lengths, (params.n, params.n)), -1)
+    k[np.diag_indices(params.n)] = params.com_offsets
+    return k
 
 
 def l_matrix(n: int) -> np.ndarray:
@@ -56,17 +92,18 @@ def link_angles(q: np.ndarray) -> np.ndarray:
 def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """J_{q-bar x} and J_{q-bar y} of eq. (7), each n x (n + 2)."""
     n = params.n
-    k = k_matrix(n, params.half_length)
+    k = k_matrix(params)
     jx = np.hstack([np.ones((n, 1)), np.zeros((n, 1)), -k @ np.diag(np.sin(theta))])
     jy = np.hstack([np.zeros((n, 1)), np.ones((n, 1)), k @ np.diag(np.cos(theta))])
     return jx, jy
 
 
 def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """H-bar of eq. (9): m Jx^T Jx + m Jy^T Jy + diag(0, 0, J, ..., J)."""
+    """H-bar of eq. (9): Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_1, ..., J_n), M = diag(m_i)."""
     jx, jy = jacobian_xy(params, theta)
-    j_bar = np.diag(np.r_[0.0, 0.0, np.full(params.n, params.inertia)])
-    return params.mass * (jx.T @ jx + jy.T @ jy) + j_bar
+    m = params.masses[:, None]
+    j_bar = np.diag(np.r_[0.0, 0.0, params.inertias])
+    return jx.T @ (m * jx) + jy.T @ (m * jy) + j_bar
 
 
 def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
@@ -77,13 +114,18 @@ def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
 
 
 def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """W-bar of eq. (16): J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y with M = m I."""
+    """W-bar of eq. (16): J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y with M = diag(m_i).
+
+    J_x = -K diag(cos theta) and J_y = -K diag(sin theta) (padded with two zero columns)
+    map theta'^2 to the centripetal part of the CM accelerations.
+    """
     n = params.n
-    k = k_matrix(n, params.half_length)
+    k = k_matrix(params)
+    m = params.masses[:, None]
     jx, jy = jacobian_xy(params, theta)
     j_x = np.hstack([np.zeros((n, 2)), -k @ np.diag(np.cos(theta))])
     j_y = np.hstack([np.zeros((n, 2)), -k @ np.diag(np.sin(theta))])
-    return params.mass * (jx.T @ j_x + jy.T @ j_y)
+    return jx.T @ (m * j_x) + jy.T @ (m * j_y)
 
 
 def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -97,14 +139,13 @@ def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
 
 def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
     """C-bar = C_tr + C_rot of eqs. (11)-(14)."""
-    n = params.n
     c, s = np.cos(theta), np.sin(theta)
-    cx, cy = params.c_x, params.c_y
+    cx, cy = params.per_link("c_x"), params.per_link("c_y")
     middle = np.block([[np.diag(cx * c**2 + cy * s**2), np.diag((cx - cy) * s * c)],
                        [np.diag((cx - cy) * s * c), np.diag(cx * s**2 + cy * c**2)]])
     jx, jy = jacobian_xy(params, theta)
     j_xy = np.vstack([jx, jy])  # eq. (14)
-    c_rot = np.diag(np.r_[0.0, 0.0, np.full(n, params.c_theta)])
+    c_rot = np.diag(np.r_[0.0, 0.0, params.per_link("c_theta")])
     return j_xy.T @ middle @ j_xy + c_rot
 
 
@@ -126,14 +167,19 @@ def bias(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
 
 
 def g2(params: SnakeParams, q: np.ndarray) -> np.ndarray:
-    """g_2 of eq. (67) for isotropic friction c = c_x (= c_y).
+    """g_2 of eq. (67) for isotropic friction (c_x,i = c_y,i = c_i on every link).
 
-    g21 = n c x_h + c l sum_j (2n - 2j + 1) cos(theta_j), g22 likewise with y_h and sin:
-    c times the sum of the links' CM coordinates.
+    g_2 = sum_i c_i p_i, the friction-weighted sum of the links' CM positions: total
+    momentum plus g_2 is conserved, since d/dt sum_i m_i p_i' = -sum_i c_i p_i'. For equal
+    links this is the printed g21 = n c x_h + c l sum_j (2n - 2j + 1) cos(theta_j) (and g22
+    with y_h and sin).
     """
     q = as_vector(q, params.n + 2, "q")
-    n, c, half = params.n, params.c_x, params.half_length
+    if not params.isotropic:
+        raise ParameterError("g_2 of eq. (67) needs isotropic friction (c_x = c_y on every link)")
+    c = params.per_link("c_x")
     theta = link_angles(q)
-    weights = 2 * n - 2 * np.arange(1, n + 1) + 1
-    return np.array([n * c * q[0] + c * half * weights @ np.cos(theta),
-                     n * c * q[1] + c * half * weights @ np.sin(theta)])
+    k = k_matrix(params)
+    x = q[0] + k @ np.cos(theta)
+    y = q[1] + k @ np.sin(theta)
+    return np.array([c @ x, c @ y])

@@ -1,89 +1,222 @@
-"""Robot parameters: the frozen, validated ``SnakeParams`` and its named presets (DESIGN §2)."""
+"""Robot parameters: the frozen, validated ``SnakeParams`` and its named presets (DESIGN §2).
+
+Every physical field may be one number (all links alike, the paper's robots) or one value
+per link, head first (a real robot: a heavier camera head, a battery tail). A per-link
+field whose values are all equal collapses to the number, so two descriptions of the
+same robot compare equal. Code that works for any robot reads the per-link arrays
+(:meth:`SnakeParams.per_link`, :attr:`~SnakeParams.link_lengths`, ...); the scalar fields
+stay scalars only on uniform robots (:attr:`~SnakeParams.uniform`).
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import numbers
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ._validation import finite_number
+import numpy as np
+
 from .exceptions import ParameterError
 
-__all__ = ["ROBOTS", "SnakeParams"]
+__all__ = ["LINK_FIELDS", "MAX_LINKS", "ROBOTS", "PerLink", "SnakeParams"]
+
+#: Largest number of links a robot may have (model, closed form and batch paths are
+#: O(n^2) to O(n^3) in memory; 200 links keep every path well under 1 GiB).
+MAX_LINKS = 200
+
+#: A per-link value: one number for every link, or one number per link (head first).
+PerLink = float | tuple[float, ...]
+
+#: Per-link fields and whether 0 is allowed (friction may vanish, geometry and mass not).
+LINK_FIELDS: dict[str, bool] = {
+    "link_length": False, "mass": False, "inertia": False, "com_offset": True,
+    "c_x": True, "c_y": True, "c_theta": True,
+}
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _per_link(value: object, key: str, n: int, *, zero_ok: bool) -> PerLink:
+    """Validate a per-link field: a finite number or ``n`` finite numbers (collapsed if equal)."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if _is_number(value):
+        values: list[float] = [float(value)]  # type: ignore[arg-type]
+        scalar = True
+    elif isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
+        if len(value) != n:
+            raise ParameterError(
+                f"{key} must be one number or {n} numbers (one per link), got {len(value)}")
+        for i, item in enumerate(value, start=1):
+            if not _is_number(item):
+                raise ParameterError(f"link {i}: {key} must be a number, got {item!r}")
+        values = [float(item) for item in value]
+        scalar = False
+    else:
+        raise ParameterError(f"{key} must be a number or a list of {n} numbers, got {value!r}")
+    for i, x in enumerate(values, start=1):
+        where = f"{key}" if scalar else f"link {i}: {key}"
+        if not math.isfinite(x):
+            raise ParameterError(f"{where} must be finite, got {x}")
+        if x < 0.0 or (x == 0.0 and not zero_ok):
+            bound = "non-negative" if zero_ok else "positive"
+            raise ParameterError(f"{where} must be {bound}, got {x:g}")
+    if scalar or all(x == values[0] for x in values):
+        return values[0]
+    return tuple(values)
 
 
 @dataclass(frozen=True)
 class SnakeParams:
-    """Parameters of an n-link planar snake robot with identical links.
+    """Parameters of an n-link planar snake robot (links numbered from the head).
+
+    Each physical field is one number for all links or a sequence of ``n`` numbers (one
+    per link, head first); equal per-link values collapse to one number.
 
     Parameters
     ----------
     n
-        Number of links (>= 2).
+        Number of links, 2 <= n <= :data:`MAX_LINKS`.
     link_length
-        Full link length 2l [m]; the paper's l is :attr:`half_length`.
+        Full link length 2l_i [m] (joint i sits at x = 2l_i of link i); > 0.
     mass
-        Link mass m [kg].
+        Link mass m_i [kg]; > 0.
     inertia
-        Link moment of inertia about its centre of mass, J [kg m^2].
+        Link moment of inertia about its centre of mass, J_i [kg m^2]; > 0.
+    com_offset
+        Distance of link i's centre of mass from its front end, along the link [m];
+        ``None`` puts it in the middle (l_i, the paper's robot). 0 <= offset <= 2l_i.
     c_x, c_y
-        Viscous friction along / across the link [N s/m] (eqs. 10-12).
+        Viscous friction along / across link i [N s/m] (eqs. 10-12); >= 0.
     c_theta
-        Rotational viscous friction [N m s] (eq. 13).
+        Rotational viscous friction of link i [N m s] (eq. 13); >= 0.
     passive
         1-based indices of joints without an actuator (free joints, Section III.2).
     name
-        A label carried into file names and reports.
+        A label carried into file names and reports (letters, digits, underscores).
+
+    Raises
+    ------
+    ParameterError
+        Naming the field (and the link) that is out of its domain.
     """
 
     n: int = 10
-    link_length: float = 0.12
-    mass: float = 0.182
-    inertia: float = 2.2e-4  # DESIGN §3 erratum 1: Table 1 prints 0.22 (g m^2)
-    c_x: float = 0.5
-    c_y: float = 0.5
-    c_theta: float = 7.2e-5
+    link_length: PerLink = 0.12
+    mass: PerLink = 0.182
+    inertia: PerLink = 2.2e-4  # DESIGN §3 erratum 1: Table 1 prints 0.22 (g m^2)
+    c_x: PerLink = 0.5
+    c_y: PerLink = 0.5
+    c_theta: PerLink = 7.2e-5
     passive: tuple[int, ...] = field(default_factory=tuple)
     name: str = "table1"
+    com_offset: PerLink | None = None
 
     def __post_init__(self) -> None:
-        if isinstance(self.n, bool) or not isinstance(self.n, numbers.Integral):
+        if not isinstance(self.n, numbers.Integral) or isinstance(self.n, bool):
             raise ParameterError(f"n must be an integer, got {self.n!r}")
-        if self.n < 2:
-            raise ParameterError(f"n must be at least 2 links, got {self.n}")
-        object.__setattr__(self, "n", int(self.n))
-        for key in ("link_length", "mass", "inertia"):
-            object.__setattr__(self, key, finite_number(getattr(self, key), key, positive=True))
-        for key in ("c_x", "c_y", "c_theta"):
-            object.__setattr__(self, key, finite_number(getattr(self, key), key, non_negative=True))
-        try:
-            passive = tuple(sorted({int(k) for k in self.passive}))
-        except (TypeError, ValueError) as exc:
-            raise ParameterError(f"passive must be joint indices, got {self.passive!r}") from exc
-        for k in passive:
-            if not 1 <= k <= self.n - 1:
-                raise ParameterError(
-                    f"passive joint {k} is outside 1..{self.n - 1} for a {self.n}-link snake")
-        object.__setattr__(self, "passive", passive)
+        if not 2 <= self.n <= MAX_LINKS:
+            raise ParameterError(f"n must lie in 2..{MAX_LINKS} links, got {self.n}")
+        n = int(self.n)
+        object.__setattr__(self, "n", n)
+        for key, zero_ok in LINK_FIELDS.items():
+            value = getattr(self, key)
+            if key == "com_offset" and value is None:
+                continue
+            object.__setattr__(self, key, _per_link(value, key, n, zero_ok=zero_ok))
+        if self.com_offset is not None:
+            offsets, lengths = self.per_link("com_offset"), self.link_lengths
+            for i in np.flatnonzero(offsets > lengths):
+                raise ParameterError(f"link {i + 1}: com_offset {offsets[i]:g} m lies beyond "
+                                     f"the link's length {lengths[i]:g} m")
+            if np.array_equal(offsets, 0.5 * lengths):
+                object.__setattr__(self, "com_offset", None)
+        object.__setattr__(self, "passive", self._check_passive(self.passive, n))
         if not isinstance(self.name, str) or not self.name.replace("_", "").isalnum():
             raise ParameterError(f"name must be alphanumeric (underscores allowed): {self.name!r}")
+        if self.name in ROBOTS and not self.uniform:
+            # per-link values make another robot: never call it by a preset's name
+            object.__setattr__(self, "name", f"{self.name}_custom")
+
+    @staticmethod
+    def _check_passive(passive: object, n: int) -> tuple[int, ...]:
+        if isinstance(passive, (str, bytes)) or _is_number(passive):
+            raise ParameterError(f"passive must be a list of joint indices, got {passive!r}")
+        try:
+            items = list(passive)  # type: ignore[call-overload]
+        except TypeError as exc:
+            raise ParameterError(f"passive must be a list of joint indices, "
+                                 f"got {passive!r}") from exc
+        for k in items:
+            if not isinstance(k, numbers.Integral) or isinstance(k, bool):
+                raise ParameterError(f"passive joint indices must be integers, got {k!r}")
+            if not 1 <= k <= n - 1:
+                raise ParameterError(
+                    f"passive joint {k} is outside 1..{n - 1} for a {n}-link snake")
+        return tuple(sorted({int(k) for k in items}))
 
     # ----------------------------------------------------------------- derived
+    def per_link(self, key: str) -> np.ndarray:
+        """The field ``key`` (one of :data:`LINK_FIELDS`) as an array of n values, head first."""
+        if key not in LINK_FIELDS:
+            raise ParameterError(f"{key!r} is not a per-link field ({', '.join(LINK_FIELDS)})")
+        value = getattr(self, key)
+        if key == "com_offset" and value is None:
+            return 0.5 * self.link_lengths
+        return np.broadcast_to(np.asarray(value, dtype=float), (self.n,)).copy()
+
+    @property
+    def uniform(self) -> bool:
+        """True when every link is alike (the paper's robots)."""
+        return self.com_offset is None and all(
+            not isinstance(getattr(self, key), tuple) for key in LINK_FIELDS)
+
+    @property
+    def link_lengths(self) -> np.ndarray:
+        """2l_i of every link [m], head first."""
+        return self.per_link("link_length")
+
+    @property
+    def masses(self) -> np.ndarray:
+        """m_i of every link [kg]."""
+        return self.per_link("mass")
+
+    @property
+    def inertias(self) -> np.ndarray:
+        """J_i of every link about its centre of mass [kg m^2]."""
+        return self.per_link("inertia")
+
+    @property
+    def com_offsets(self) -> np.ndarray:
+        """Distance of every link's centre of mass from its front end [m]."""
+        return self.per_link("com_offset")
+
     @property
     def half_length(self) -> float:
-        """The paper's l: half the link length [m]."""
-        return 0.5 * self.link_length
+        """The paper's l (half the link length) [m]; uniform robots only."""
+        if isinstance(self.link_length, tuple):
+            raise ParameterError("half_length is defined for equal links only; "
+                                 "use link_lengths / com_offsets")
+        return 0.5 * float(self.link_length)
 
     @property
     def body_length(self) -> float:
-        """Total length n * 2l [m]."""
-        return self.n * self.link_length
+        """Total length sum of 2l_i [m]."""
+        if not isinstance(self.link_length, tuple):
+            return self.n * float(self.link_length)
+        return float(self.link_lengths.sum())
 
     @property
     def total_mass(self) -> float:
-        """Total mass n * m [kg]."""
-        return self.n * self.mass
+        """Total mass sum of m_i [kg]."""
+        if not isinstance(self.mass, tuple):
+            return self.n * float(self.mass)
+        return float(self.masses.sum())
 
     @property
     def actuated(self) -> tuple[int, ...]:
@@ -92,14 +225,14 @@ class SnakeParams:
 
     @property
     def isotropic(self) -> bool:
-        """True when c_x == c_y (Section V: then g of eq. 67 is conserved)."""
-        return self.c_x == self.c_y
+        """True when c_x = c_y on every link (Section V: then g of eq. 67 is conserved)."""
+        return bool(np.array_equal(self.per_link("c_x"), self.per_link("c_y")))
 
     # ----------------------------------------------------------------- presets
     @classmethod
     def table1(cls, **changes: Any) -> SnakeParams:
         """The robot of Table 1 (Sections IV and VI.1), J in kg m^2 (erratum 1)."""
-        return cls(**{"name": "table1", **changes})
+        return cls._named("table1", {}, changes)
 
     @classmethod
     def engine(cls, **changes: Any) -> SnakeParams:
@@ -108,9 +241,13 @@ class SnakeParams:
         Its viscous coefficients are the controller's model of the wheels; the engine
         experiment identifies them from the MuJoCo model.
         """
-        base = {"name": "engine", "n": 8, "link_length": 0.176, "mass": 0.417,
-                "inertia": 1.20e-3, "c_x": 0.5, "c_y": 5.0, "c_theta": 1.0e-4}
-        return cls(**{**base, **changes})
+        base = {"n": 8, "link_length": 0.176, "mass": 0.417, "inertia": 1.20e-3,
+                "c_x": 0.5, "c_y": 5.0, "c_theta": 1.0e-4}
+        return cls._named("engine", base, changes)
+
+    @classmethod
+    def _named(cls, name: str, base: dict[str, Any], changes: dict[str, Any]) -> SnakeParams:
+        return cls(**{"name": name, **base, **changes})
 
     @classmethod
     def preset(cls, name: str, **changes: Any) -> SnakeParams:
@@ -121,22 +258,29 @@ class SnakeParams:
 
     def replace(self, **changes: Any) -> SnakeParams:
         """A validated copy with some fields changed."""
+        unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
+        if unknown:
+            raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-friendly dict of the fields."""
-        d = dataclasses.asdict(self)
-        d["passive"] = list(self.passive)
-        return d
+        """Plain JSON-friendly dict of the fields (per-link fields as lists)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> SnakeParams:
-        """Inverse of :meth:`to_dict` (validated)."""
+        """Inverse of :meth:`to_dict` (validated; unknown keys refused)."""
+        if not isinstance(data, dict):
+            raise ParameterError(f"robot parameters must be a table, got {type(data).__name__}")
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = set(data) - known
         if unknown:
             raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
-        return cls(**{**data, "passive": tuple(data.get("passive", ()))})
+        return cls(**data)
 
 
 ROBOTS: tuple[str, ...] = ("table1", "engine")

@@ -30,3 +30,22 @@ def head_first_state(rng: np.random.Generator, n: int, *, spread: float = 0.3,
     q = np.r_[rng.normal(scale=spread, size=2), np.pi + rng.normal(scale=spread),
               rng.uniform(-joints, joints, n - 1)]
     return np.r_[q, rng.normal(scale=speed, size=n + 2)]
+
+
+def heterogeneous_params(rng: np.random.Generator, n: int, friction: str = "anisotropic",
+                         passive: tuple[int, ...] = ()) -> SnakeParams:
+    """A robot whose every per-link value is drawn within x0.2..x5 of Table 1's.
+
+    ``friction`` is "none", "isotropic" (c_x,i = c_y,i, per link) or "anisotropic"
+    (c_y,i drawn around 50 c_x,i); CM offsets anywhere within 10-90 % of each link.
+    """
+    def draw(value: float) -> list[float]:
+        return (value * rng.uniform(0.2, 5.0, n)).tolist()
+
+    lengths = draw(0.12)
+    c_x = draw(0.5) if friction != "none" else 0.0
+    c_y = {"none": 0.0, "isotropic": c_x, "anisotropic": draw(25.0)}[friction]
+    return SnakeParams(n=n, link_length=lengths, mass=draw(0.182), inertia=draw(2.2e-4),
+                       com_offset=(np.array(lengths) * rng.uniform(0.1, 0.9, n)).tolist(),
+                       c_x=c_x, c_y=c_y, c_theta=draw(7.2e-5) if friction != "none" else 0.0,
+                       passive=passive, name="heterogeneous")
