@@ -16,18 +16,24 @@ Three routes compute the same thing:
   the model with those inertias: Q = -C(q) q' = -RNEA_twin(q, 0, q') and C = CRBA_twin(q).
   A rigid-body inertia is isotropic in translation, so with c_x != c_y each link of the
   twin also carries a *wheel*: a body of "mass" c_y - c_x at the CM on a prismatic joint
-  along the link. A wheel that rolls with the link's longitudinal speed -u takes none of
-  the longitudinal motion and adds damping c_y - c_x sideways only: exactly the
-  anisotropy. One RNEA with the wheels locked gives (c_y - c_x) u in the wheels' rows; a
-  second with the wheels rolling at -u gives Q in the chain's rows. These two passes over
-  2n joints beat numpy only for short robots (n <= 14; ``scripts/bench.py`` measures the
-  routes), so longer anisotropic robots use numpy.
+  along the link, inserted right after its link in the tree (so every subtree stays
+  contiguous in the velocity vector, as CRBA and the RNEA derivatives need). A wheel
+  that rolls with the link's longitudinal speed -u takes none of the longitudinal motion
+  and adds damping c_y - c_x sideways only: exactly the anisotropy. One RNEA with the
+  wheels locked gives (c_y - c_x) u in the wheels' rows; a second with the wheels rolling
+  at -u gives Q in the chain's rows. In matrix form, with the twin's mass matrix M split
+  into chain (c) and wheel (w) blocks, C = M_cc - M_cw M_ww^-1 M_wc (a Schur complement),
+  and the same two passes through ``pin.computeRNEADerivatives`` give dQ/dq exactly.
+  These passes over 2n joints beat numpy only for short robots (n <= 14;
+  ``scripts/bench.py`` measures the routes), so longer anisotropic robots use numpy for Q
+  (the derivatives always use the twin).
+  Every coefficient may differ from link to link: the twin's link i carries c_x,i,
+  c_theta,i and a wheel of c_y,i - c_x,i.
 * :class:`FrictionModel` without a model -- vectorised numpy, O(n): with planar vectors
   written as complex numbers, e_i = exp(j theta_i) and the CM velocity z_i = x_i' + j y_i',
-  the world force on link i is ``F_i = -cbar z_i - delta e_i^2 conj(z_i)``,
-  cbar = (c_x + c_y)/2, delta = (c_x - c_y)/2, because rotating into the link frame,
-  scaling by diag(c_x, c_y) and rotating back is exactly that. It also gives C(q) in one
-  pass for anisotropic friction (the wheeled twin's C is a Schur complement).
+  the world force on link i is ``F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i)``,
+  cbar_i = (c_x,i + c_y,i)/2, delta_i = (c_x,i - c_y,i)/2, because rotating into the link
+  frame, scaling by diag(c_x,i, c_y,i) and rotating back is exactly that.
 
 Tests check the routes against each other and against eq. (11).
 """
@@ -42,35 +48,61 @@ from .params import SnakeParams
 
 __all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionModel", "damping_twin", "friction_forces"]
 
-#: Longest robot whose anisotropic friction goes through the wheeled twin (two RNEAs over
-#: 2n joints); numpy's cost grows more slowly with n (about 13 us at n = 10 and 16 against
-#: 9.5 and 12.5 us for the twin, 17 against 31 us at n = 50).
+#: Longest robot whose anisotropic friction force goes through the wheeled twin (two RNEAs
+#: over 2n joints); numpy's cost grows more slowly with n (about 13 us at n = 10 and 16
+#: against 9.5 and 12.5 us for the twin, 17 against 31 us at n = 50).
 WHEELED_TWIN_MAX_LINKS = 14
 
+#: Pinocchio joint index of the head link in the paper model (after base_x, base_y).
+_HEAD_JOINT = 3
 
-def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
+
+def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.ndarray,
+                                                                  np.ndarray]:
     """The snake's tree with each link's inertia replaced by its damping (module docstring).
 
-    Link j (joint j >= 1) gets "mass" c_x at its own centre of mass and rotational
-    "inertia" c_theta; with c_y != c_x, a wheel joint ``wheel_j`` (prismatic along the
-    link, at the CM) carrying "mass" c_y - c_x is appended for every link, after the
-    chain: velocity rows nv .. nv + n - 1. The wheels' subtrees are then not contiguous in
-    the velocity vector, which RNEA does not need (CRBA would).
+    Link i (Pinocchio joint i + 2 of :func:`snake_pin.model.paper_model`) gets "mass"
+    c_x,i at its own centre of mass and rotational "inertia" c_theta,i. When some
+    c_y,i != c_x,i, a wheel joint ``wheel_i`` (prismatic along the link, at the CM)
+    carrying "mass" c_y,i - c_x,i follows each link joint in the tree.
+
+    Returns
+    -------
+    twin, chain, wheels
+        The twin model, the twin's velocity indices of the snake's n + 2 coordinates, and
+        those of the n wheels (empty without wheels). Every joint here has nq = nv = 1.
     """
-    twin = pin.Model(model)
-    rotational = np.eye(3) * params.c_theta
-    levers = [model.inertias[joint].lever.copy() for joint in range(1, model.njoints)]
-    for joint, lever in enumerate(levers, start=1):
-        twin.inertias[joint] = pin.Inertia(params.c_x, lever, rotational)
-    extra = params.c_y - params.c_x
-    if extra != 0.0:
-        for joint, lever in enumerate(levers, start=1):
-            wheel = twin.addJoint(joint, pin.JointModelPX(), pin.SE3(np.eye(3), lever),
-                                  f"wheel_{joint}")
-            twin.appendBodyToJoint(wheel, pin.Inertia(extra, np.zeros(3), np.zeros((3, 3))),
-                                   pin.SE3.Identity())
+    n = params.n
+    if model.njoints != n + _HEAD_JOINT:
+        raise ValueError(f"expected the paper model of a {n}-link snake, got {model.njoints} "
+                         "joints")
+    c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
+    extra = c_y - c_x
+    with_wheels = bool(np.any(extra != 0.0))
+    twin = pin.Model()
+    twin.name = f"{model.name}_damping_twin"
+    mapping = {0: 0}
+    chain, wheels = [], []
+    for joint in range(1, model.njoints):
+        index = twin.addJoint(mapping[model.parents[joint]], model.joints[joint],
+                              model.jointPlacements[joint], model.names[joint])
+        mapping[joint] = index
+        chain.append(twin.joints[index].idx_v)
+        link = joint - _HEAD_JOINT
+        if link < 0:
+            continue  # base_x, base_y: no body
+        lever = model.inertias[joint].lever.copy()
+        twin.appendBodyToJoint(index, pin.Inertia(float(c_x[link]), lever,
+                                                  np.eye(3) * float(c_theta[link])),
+                               pin.SE3.Identity())
+        if with_wheels:
+            wheel = twin.addJoint(index, pin.JointModelPX(), pin.SE3(np.eye(3), lever),
+                                  f"wheel_{link + 1}")
+            twin.appendBodyToJoint(wheel, pin.Inertia(float(extra[link]), np.zeros(3),
+                                                      np.zeros((3, 3))), pin.SE3.Identity())
+            wheels.append(twin.joints[wheel].idx_v)
     twin.gravity = pin.Motion.Zero()
-    return twin
+    return twin, np.array(chain, dtype=int), np.array(wheels, dtype=int)
 
 
 class FrictionModel:
@@ -79,47 +111,57 @@ class FrictionModel:
     Parameters
     ----------
     params
-        The robot and its friction coefficients.
+        The robot and its (per-link) friction coefficients.
     model
-        The snake's Pinocchio model (paper coordinates). With it, Q comes from the damping
-        twin's RNEA (and C from its CRBA) when c_x = c_y, and from the wheeled twin when
-        c_x != c_y and n <= :data:`WHEELED_TWIN_MAX_LINKS`; otherwise from vectorised numpy.
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`). With it, Q
+        comes from the damping twin's RNEA (and C from its CRBA) when friction is
+        isotropic, and from the wheeled twin when it is not and n <=
+        :data:`WHEELED_TWIN_MAX_LINKS`; otherwise from vectorised numpy. Derivatives
+        (:meth:`derivatives`) need the model.
     """
 
     def __init__(self, params: SnakeParams, model: pin.Model | None = None) -> None:
-        n, half = params.n, params.half_length
+        n = params.n
         self._twin: pin.Model | None = None
         self._wheels = False
-        isotropic = params.c_x == params.c_y
-        if model is not None and (isotropic or n <= WHEELED_TWIN_MAX_LINKS):
-            self._twin = damping_twin(model, params)
+        self._force_on_twin = False
+        if model is not None:
+            self._twin, self._chain, self._wheel_v = damping_twin(model, params)
             self._twin_data = self._twin.createData()
             self._nv = model.nv
-            self._wheels = self._twin.nv > model.nv
+            self._wheels = len(self._wheel_v) > 0
             self._zero = np.zeros(self._twin.nv)
             self._q_ext = np.zeros(self._twin.nq)  # wheels at the CM (their q stays 0)
             self._a_ext = np.zeros(self._twin.nv)
-            self._roll = -1.0 / (params.c_y - params.c_x) if self._wheels else 0.0
+            extra = params.per_link("c_y") - params.per_link("c_x")
+            with np.errstate(divide="ignore"):
+                self._roll = np.where(extra != 0.0, -1.0 / extra, 0.0)
+            self._force_on_twin = not self._wheels or n <= WHEELED_TWIN_MAX_LINKS
         lower = np.tril(np.ones((n, n)))
         # theta = L [theta_1, phi] (eq. 17), applied to q and q' at once by one matmul
         self._angles_t = lower.T.copy()
-        # CM velocities: x' + j y' = (x_h' + j y_h') + K (j e theta') (eqs. 3-6)
-        k_matrix = half * (2.0 * np.tril(np.ones((n, n)), -1) + np.eye(n))
-        cbar = 0.5 * (params.c_x + params.c_y)
+        # CM velocities: x' + j y' = (x_h' + j y_h') + K (j e theta') (eqs. 3-6), with
+        # K_ij = 2l_j below the diagonal and the CM offset d_i on it
+        k_matrix = np.tril(np.broadcast_to(params.link_lengths, (n, n)), -1)
+        k_matrix[np.diag_indices(n)] = params.com_offsets
+        c_x, c_y = params.per_link("c_x"), params.per_link("c_y")
+        cbar = 0.5 * (c_x + c_y)
         self._jk = 1j * k_matrix
-        self._ratio = (params.c_x - params.c_y) / (params.c_x + params.c_y) if cbar > 0 else 0.0
-        # F = -cbar w; rows 0..n-1 give -cbar K^T w (torques about theta), row n gives
-        # -cbar sum(w) (total force), so one matmul yields both.
-        self._reduce = -cbar * np.vstack([k_matrix.T, np.ones((1, n))])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.where(cbar > 0, (c_x - c_y) / (c_x + c_y), 0.0)
+        self._ratio = ratio if np.any(ratio) else None
+        # F_i = -cbar_i w_i; rows 0..n-1 give K^T F (torques about theta), row n gives
+        # sum F (total force), so one matmul yields both.
+        self._reduce = np.vstack([k_matrix.T, np.ones((1, n))]) * (-cbar)[None, :]
         self._upper = lower.T.copy()
-        self._c_theta = params.c_theta
+        self._c_theta = params.per_link("c_theta")
         self._n = n
         self.params = params
 
     @property
     def uses_twin(self) -> bool:
         """Whether Q comes from the damping twin (in Pinocchio) rather than numpy."""
-        return self._twin is not None
+        return self._force_on_twin
 
     @property
     def has_wheels(self) -> bool:
@@ -128,7 +170,7 @@ class FrictionModel:
 
     def __call__(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Generalised friction force (length n + 2) at state (q, dq)."""
-        if self._twin is not None:
+        if self._force_on_twin:
             return self._twin_force(q, dq)
         both = np.array((q[2:], dq[2:])) @ self._angles_t  # rows: theta, theta'
         return self._force(both[0], both[1], complex(dq[0], dq[1]))
@@ -136,22 +178,29 @@ class FrictionModel:
     def of_state(self, x: np.ndarray) -> np.ndarray:
         """Same as ``self(q, dq)`` for the stacked state x = [q, dq] (hot path)."""
         n2 = self._n + 2
-        if self._twin is not None:
+        if self._force_on_twin:
             return self._twin_force(x[:n2], x[n2:])
         both = x.reshape(2, n2)[:, 2:] @ self._angles_t
         return self._force(both[0], both[1], complex(x[n2], x[n2 + 1]))
 
     def matrix(self, q: np.ndarray) -> np.ndarray:
-        """C(q) of eq. (11) such that the friction force is -C(q) dq (all columns at once).
+        """C(q) of eq. (11) such that the friction force is -C(q) dq.
 
-        The force is linear in dq, so the columns are the responses to the unit velocities,
-        computed together: theta' of the unit vectors is [0 | L] and the base velocity is 1
-        (x_h') or j (y_h').
+        With the twin: its mass matrix by CRBA, and for anisotropic friction the Schur
+        complement M_cc - M_cw M_ww^-1 M_wc over the wheels. Without a model: the force
+        is linear in dq, so the columns are the responses to the unit velocities,
+        computed together: theta' of the unit vectors is [0 | L] and the base velocity
+        is 1 (x_h') or j (y_h').
         """
-        if self._twin is not None and not self._wheels:
-            # the twin's mass matrix (CRBA fills the upper triangle)
-            return symmetric_from_upper(pin.crba(self._twin, self._twin_data, q,
-                                                 pin.Convention.WORLD))
+        if self._twin is not None:
+            mass = symmetric_from_upper(pin.crba(self._twin, self._twin_data,
+                                                 self._extend(q), pin.Convention.WORLD))
+            chain = self._chain
+            out = mass[np.ix_(chain, chain)]
+            if self._wheels:
+                cross = mass[np.ix_(chain, self._wheel_v)]
+                out = out + (cross * self._roll) @ cross.T
+            return out
         n = self._n
         theta = self._angles_t.T @ q[2:]
         theta_dot = np.zeros((n, n + 2))
@@ -160,38 +209,80 @@ class FrictionModel:
         base[0], base[1] = 1.0, 1.0j
         e = np.exp(1j * theta)
         z = self._jk @ (e[:, None] * theta_dot) + base[None, :]
-        if self._ratio:
-            z += self._ratio * (e * e)[:, None] * z.conjugate()
+        if self._ratio is not None:
+            z += (self._ratio * e * e)[:, None] * z.conjugate()
         g = self._reduce @ z
         out = np.empty((n + 2, n + 2))
         out[0], out[1] = g[-1].real, g[-1].imag
         out[2:] = self._upper @ ((e.conjugate()[:, None] * g[:-1]).imag
-                                 - self._c_theta * theta_dot)
+                                 - self._c_theta[:, None] * theta_dot)
         return -out
+
+    def derivatives(self, q: np.ndarray,
+                    dq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Q(q, dq) and its Jacobians dQ/dq and dQ/ddq, from the twin's RNEA derivatives.
+
+        Isotropic: Q = -RNEA_twin(q, 0, dq), so dQ/dq = -dRNEA/dq and dQ/ddq = -M_twin.
+        Anisotropic (module docstring): with w = roll * RNEA_w(q, 0, [dq; 0]) the wheels'
+        rolling speed and Q = -RNEA_c(q, 0, [dq; w]), the chain rule over the two passes
+        gives dQ/dq = -(R2_q + M_cw dw/dq) and dQ/ddq = -(M_cc + M_cw dw/ddq), with
+        dw/dq = roll * R1_q (wheel rows) and dw/ddq = roll * M_wc.
+        """
+        if self._twin is None:
+            raise ValueError("friction derivatives need the snake's Pinocchio model")
+        twin, data, zero, chain = self._twin, self._twin_data, self._zero, self._chain
+        q_ext, a_ext = self._extend(q), np.zeros(twin.nv)
+        a_ext[chain] = dq
+        if not self._wheels:
+            dtau_dq, _, mass = pin.computeRNEADerivatives(twin, data, q_ext, zero, a_ext)
+            mass = symmetric_from_upper(mass)
+            force = -pin.rnea(twin, data, q_ext, zero, a_ext)
+            return force, -dtau_dq.copy(), -mass
+        wheels, roll = self._wheel_v, self._roll
+        dtau_dq, _, mass = pin.computeRNEADerivatives(twin, data, q_ext, zero, a_ext)
+        mass = symmetric_from_upper(mass)
+        locked = pin.rnea(twin, data, q_ext, zero, a_ext)
+        dw_dq = roll[:, None] * dtau_dq[np.ix_(wheels, chain)]
+        cross = mass[np.ix_(chain, wheels)]
+        dw_dv = roll[:, None] * cross.T
+        a_ext[wheels] = roll * locked[wheels]
+        dtau_dq2, _, _ = pin.computeRNEADerivatives(twin, data, q_ext, zero, a_ext)
+        force = -pin.rnea(twin, data, q_ext, zero, a_ext)[chain]
+        dforce_dq = -(dtau_dq2[np.ix_(chain, chain)] + cross @ dw_dq)
+        dforce_dv = -(mass[np.ix_(chain, chain)] + cross @ dw_dv)
+        return force, dforce_dq, dforce_dv
+
+    def _extend(self, q: np.ndarray) -> np.ndarray:
+        """The twin's configuration: q on the chain, wheels at their link's CM (0)."""
+        if not self._wheels:
+            return q
+        q_ext = np.zeros(self._twin.nq)  # type: ignore[union-attr]
+        q_ext[self._chain] = q
+        return q_ext
 
     def _twin_force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         twin, data, zero = self._twin, self._twin_data, self._zero
         if not self._wheels:
             return -pin.rnea(twin, data, q, zero, dq)
-        nv, q_ext, a_ext = self._nv, self._q_ext, self._a_ext
-        q_ext[:nv] = q
-        a_ext[:nv] = dq
-        a_ext[nv:] = 0.0
+        chain, wheels, q_ext, a_ext = self._chain, self._wheel_v, self._q_ext, self._a_ext
+        q_ext[chain] = q
+        a_ext[chain] = dq
+        a_ext[wheels] = 0.0
         locked = pin.rnea(twin, data, q_ext, zero, a_ext)  # wheel rows: (c_y - c_x) u
-        a_ext[nv:] = locked[nv:] * self._roll  # each wheel rolls at -u
-        return -pin.rnea(twin, data, q_ext, zero, a_ext)[:nv]
+        a_ext[wheels] = locked[wheels] * self._roll  # each wheel rolls at -u
+        return -pin.rnea(twin, data, q_ext, zero, a_ext)[chain]
 
     def _force(self, theta: np.ndarray, theta_dot: np.ndarray, base: complex) -> np.ndarray:
         e = np.exp(1j * theta)
         z = self._jk @ (e * theta_dot)
         z += base
-        if self._ratio:  # world force F_i = -cbar w_i
+        if self._ratio is not None:  # world force F_i = -cbar_i w_i
             z += self._ratio * (e * e) * z.conjugate()
         g = self._reduce @ z
         out = np.empty(self._n + 2)
         out[0] = g[-1].real
         out[1] = g[-1].imag
-        # torque on theta_i: Im(conj(e_i) (K^T F)_i), minus c_theta theta_i'; then L^T
+        # torque on theta_i: Im(conj(e_i) (K^T F)_i), minus c_theta_i theta_i'; then L^T
         out[2:] = self._upper @ ((e.conjugate() * g[:-1]).imag - self._c_theta * theta_dot)
         return out
 
@@ -200,20 +291,22 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
                     q: np.ndarray, dq: np.ndarray) -> pin.StdVec_Force:
     """Per-joint friction forces in the joint frames, for ``pin.rnea``/``pin.aba`` (reference).
 
-    Runs ``pin.forwardKinematics`` on ``data``. Joint j >= 1 carries link j, whose frame
-    is at its front end; the CM sits at x = l on the link axis.
+    Runs ``pin.forwardKinematics`` on ``data``. Joint i + 2 of the paper model carries
+    link i, whose frame is at its front end; the CM sits at x = d_i on the link axis.
     """
-    half = params.half_length
+    c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
+    offsets = params.com_offsets
     pin.forwardKinematics(model, data, q, dq)
     forces = pin.StdVec_Force()
-    forces.append(pin.Force.Zero())
-    for joint in range(1, model.njoints):
-        velocity = data.v[joint]
+    for _ in range(_HEAD_JOINT):
+        forces.append(pin.Force.Zero())
+    for link in range(params.n):
+        velocity = data.v[_HEAD_JOINT + link]
         omega = velocity.angular[2]
         v_along = velocity.linear[0]
-        v_across = velocity.linear[1] + omega * half  # v_cm = v + omega x (l, 0, 0)
-        f_along, f_across = -params.c_x * v_along, -params.c_y * v_across
-        torque = half * f_across - params.c_theta * omega  # moment about the joint origin
+        v_across = velocity.linear[1] + omega * offsets[link]  # v_cm = v + omega x (d, 0, 0)
+        f_along, f_across = -c_x[link] * v_along, -c_y[link] * v_across
+        torque = offsets[link] * f_across - c_theta[link] * omega  # about the joint origin
         forces.append(pin.Force(np.array([f_along, f_across, 0.0]),
                                 np.array([0.0, 0.0, torque])))
     return forces

@@ -40,6 +40,7 @@ from .paper import k_matrix
 from .params import SnakeParams
 
 __all__ = [
+    "TASK_ROWS",
     "Manipulability",
     "dynamic_manipulability",
     "lateral_constraint_manipulability",
@@ -145,20 +146,23 @@ def manipulability(snake: Snake, q: np.ndarray, free_joint: int | Sequence[int] 
     Parameters
     ----------
     snake
-        The robot. Its passive joints (``params.passive``) are free joints unless
-        ``free_joint`` is given.
+        The robot. Its passive joints (``params.passive``) are always free joints.
     q
-        Configuration [x_h, y_h, theta_1, phi] (D and R do not depend on x_h, y_h, theta_1).
+        Configuration [x_h, y_h, theta_1, phi]. D and R do not depend on x_h, y_h,
+        theta_1 (a rigid motion of the whole snake), so they are evaluated at
+        x_h = y_h = theta_1 = 0: exactly invariant, however far the snake has gone.
     free_joint
-        1-based index (or indices) of free joints, applying the selection S of (33).
+        1-based index (or indices) of further free joints, applying the selection S of
+        (33); they join the robot's passive joints.
     heading
         Include theta_1 in the task (default); False gives the 2-D variant of III.1.
     blocks
         Also return H11, H12, H22 and the acceleration map A.
     """
-    q = snake.check_q(q)
-    free = snake.params.passive if free_joint is None else free_joint
-    task, act, flat = _split(snake.n, _free_tuple(snake.n, free), bool(heading))
+    q = snake.check_q(q).copy()
+    q[:3] = 0.0  # D, R are invariant under rigid motions: remove them exactly
+    free = tuple(snake.params.passive) + _free_tuple(snake.n, free_joint)
+    task, act, flat = _split(snake.n, tuple(sorted(set(free))), bool(heading))
     # Upper triangles straight from Pinocchio (``flat`` only reads that triangle).
     h = pin.crba(snake.model, snake.data, q, pin.Convention.WORLD)
     h_inv = pin.computeMinverse(snake.model, snake.data, q)
@@ -181,9 +185,16 @@ def _evaluate(h: np.ndarray, h_inv: np.ndarray, task: np.ndarray, act: np.ndarra
     return Manipulability(float(sigma[-1]), float(lam[-1]), sigma, lam, extra)
 
 
+#: Task rows of a frame's 6-D Jacobian (linear x, y, z, angular x, y, z) by name.
+TASK_ROWS: dict[str, tuple[int, ...]] = {
+    "full": (0, 1, 2, 3, 4, 5), "planar": (0, 1, 5), "position": (0, 1, 2),
+    "planar_position": (0, 1),
+}
+
+
 def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
-                           unactuated: Sequence[int], task: np.ndarray | str | None = None
-                           ) -> Manipulability:
+                           unactuated: Sequence[int], task: np.ndarray | str | None = None,
+                           rows: Sequence[int] | str | None = None) -> Manipulability:
     """Dynamic manipulability of any Pinocchio model with unactuated velocity indices.
 
     Parameters
@@ -198,6 +209,11 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
         None: the task is the unactuated coordinates themselves (the snake's w); then
         R is defined. A (m x nv) Jacobian, or a frame name (its 6-D Jacobian in
         LOCAL_WORLD_ALIGNED), for any other task: A = J H^-1 B, and R is NaN.
+    rows
+        Which rows of the task Jacobian to keep: indices, or a name of :data:`TASK_ROWS`
+        (``"planar"`` keeps x, y and yaw). A planar robot's frame task must keep only its
+        planar rows, or the rows it cannot move pad the singular values with zeros and D
+        is always 0. Default: all rows.
     """
     q = np.asarray(q, dtype=float).reshape(-1)
     if q.size != model.nq or not np.all(np.isfinite(q)):
@@ -222,8 +238,9 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
                                        pin.LOCAL_WORLD_ALIGNED)
     else:
         jac = np.asarray(task, dtype=float)
-        if jac.ndim != 2 or jac.shape[1] != nv:
-            raise ConfigurationError(f"task Jacobian must be m x {nv}")
+        if jac.ndim != 2 or jac.shape[1] != nv or not np.all(np.isfinite(jac)):
+            raise ConfigurationError(f"task Jacobian must be a finite m x {nv} matrix")
+    jac = jac[_task_rows(rows, jac.shape[0])]
     sigma = _singular_values(jac @ h_inv[:, act], jac.shape[0])
     return Manipulability(float(sigma[-1]), float("nan"), sigma, np.full(jac.shape[0], np.nan))
 
@@ -237,9 +254,9 @@ def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
     s = sin(theta), c = cos(theta), a = 1^T K and e_r the indicator of links r + 1..n
     (e_0 = 1), the rows of H against [theta_1, phi] are
 
-        x_h: -m (a * s) L,   y_h: m (a * c) L,
+        x_h: -(a * s) L,   y_h: (a * c) L,   with a = m^T K (m the link masses),
         theta_1 (r = 0) or phi_r:  e_r^T H-bar_22 L
-            = (m [((K (s * e_r))^T K) * s + ((K (c * e_r))^T K) * c] + J e_r) L,
+            = ([((m * K (s * e_r))^T K) * s + ((m * K (c * e_r))^T K) * c] + J * e_r) L,
 
     restricted to the input columns. Checked against :func:`manipulability` in the tests.
     """
@@ -248,27 +265,47 @@ def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
     if phi.ndim != 2 or phi.shape[1] != n - 1:
         raise ConfigurationError(f"phi must have {n - 1} columns")
     task, act = task_split(n, free_joint, heading)
-    m = params.mass
-    k = k_matrix(n, params.half_length)
+    m = params.masses
+    k = k_matrix(params)
+    mk = m[:, None] * k
+    inertia = params.inertias
     lower = np.tril(np.ones((n, n)))
     theta = np.concatenate([np.zeros((len(phi), 1)), np.cumsum(phi, axis=1)], axis=1)
     s, c = np.sin(theta), np.cos(theta)
-    weights = k.sum(axis=0)  # 1^T K
+    weights = m @ k  # m^T K
     rows = []
     for index in task:
         if index == 0:
-            row = -m * weights * s
+            row = -weights * s
         elif index == 1:
-            row = m * weights * c
+            row = weights * c
         else:
             ind = (np.arange(n) >= index - 2).astype(float)  # e_r, r = index - 2
-            row = m * ((((s * ind) @ k.T) @ k) * s + (((c * ind) @ k.T) @ k) * c) \
-                + params.inertia * ind
+            row = ((((s * ind) @ mk.T) @ k) * s + (((c * ind) @ mk.T) @ k) * c) \
+                + inertia * ind
         rows.append(row @ lower)
     coupling = np.stack(rows, axis=1)[:, :, act - 2]  # columns theta_1, phi -> indices 2..
     if coupling.shape[2] < len(task):  # fewer inputs than task directions
         return np.zeros(len(phi))
     return np.linalg.svd(coupling, compute_uv=False)[:, -1]
+
+
+def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
+    if rows is None:
+        return list(range(size))
+    if isinstance(rows, str):
+        if rows not in TASK_ROWS:
+            raise ParameterError(f"unknown task rows {rows!r}; choose one of "
+                                 f"{', '.join(TASK_ROWS)} or give indices")
+        chosen = list(TASK_ROWS[rows])
+    else:
+        chosen = list(rows)
+    if not chosen or len(set(chosen)) != len(chosen) or any(
+            isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 0 <= r < size
+            for r in chosen):
+        raise ParameterError(f"task rows must be distinct indices in 0..{size - 1}, "
+                             f"got {rows!r}")
+    return chosen
 
 
 def lateral_constraint_manipulability(snake: Snake, q: np.ndarray,
@@ -291,11 +328,12 @@ def lateral_constraint_manipulability(snake: Snake, q: np.ndarray,
         raise ParameterError(f"constrained links must lie in 1..{n}")
     model, data = snake.model, snake.data
     pin.computeJointJacobians(model, data, q)
-    half = snake.params.half_length
+    offsets = snake.params.com_offsets
     rows = []
-    for link in links:  # lateral CM velocity: v_y + omega * l in the link frame
-        jac = pin.getJointJacobian(model, data, link, pin.LOCAL)
-        rows.append(jac[1] + half * jac[5])
+    for link in links:  # lateral CM velocity: v_y + omega * d_i in the link frame
+        joint = int(snake.link_joints[link - 1])
+        jac = pin.getJointJacobian(model, data, joint, pin.LOCAL)
+        rows.append(jac[1] + offsets[link - 1] * jac[5])
     a_c = np.array(rows)
     n_inv = snake.inverse_inertia_matrix(q)
     n_at = n_inv @ a_c.T

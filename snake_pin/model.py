@@ -1,14 +1,24 @@
 """The Pinocchio model of a snake in the paper's coordinates q = [x_h, y_h, theta_1, phi].
 
 ``Snake`` owns the ``pin.Model``/``pin.Data`` built from the generated URDF (see
-:mod:`snake_pin.urdf`) with the planar base replaced by a composite PX·PY·RZ root joint:
-its configuration is exactly (x_h, y_h, theta_1) and its velocity their plain time
-derivatives, so nq = nv = n + 2 and no conversion is needed at the boundary.
-The equation of motion is eq. (20): H(q) q'' + h(q, q') = E tau.
+:mod:`snake_pin.urdf`) under a root made of three single-DoF joints in a chain: ``base_x``
+(prismatic x, no body), ``base_y`` (prismatic y, no body) and ``base_yaw`` (revolute z,
+carrying the head link). Its configuration is exactly (x_h, y_h, theta_1) and its velocity
+their plain time derivatives, so nq = nv = n + 2 and no conversion is needed at the
+boundary. (A composite PX·PY·RZ joint gives the same H but wrong analytical derivatives in
+Pinocchio; the chain gives correct ones: DESIGN §6, ``tests/test_model.py``.)
+
+The equation of motion is eq. (20): H(q) q'' + h(q, q') = E tau, with h the Coriolis and
+centrifugal terms plus viscous friction (:mod:`snake_pin.friction`).
+
+Public methods validate their inputs (shape, finiteness) and raise
+:class:`~snake_pin.exceptions.ConfigurationError`; the ``*_of_state`` methods and
+``state_derivative`` are the simulator's unchecked hot path.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -16,19 +26,72 @@ import pinocchio as pin
 
 from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
+from .exceptions import ConfigurationError
 from .friction import FrictionModel
 from .params import SnakeParams
 from .urdf import urdf_string
 
-__all__ = ["Snake"]
+__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "Snake", "paper_model"]
+
+#: Names of the three root joints, in order: they carry x_h, y_h and theta_1.
+BASE_JOINTS = ("base_x", "base_y", "base_yaw")
 
 
-def _root_joint() -> pin.JointModelComposite:
-    root = pin.JointModelComposite(3)
-    root.addJoint(pin.JointModelPX())
-    root.addJoint(pin.JointModelPY())
-    root.addJoint(pin.JointModelRZ())
-    return root
+def paper_model(params: SnakeParams) -> pin.Model:
+    """The robot's Pinocchio model in paper coordinates (PX -> PY -> RZ root chain).
+
+    The fixed-base URDF of ``params`` is parsed by Pinocchio (so the URDF stays the one
+    description of the robot); its tree is then re-rooted on the three single-DoF joints.
+    Joint ``base_yaw`` (index 3) carries link 1; joint i + 3 carries link i + 1 and is the
+    paper's joint i. Each link also gets a body frame named ``link_i``. Passive joints get
+    a zero effort limit, as in the URDF.
+    """
+    fixed = pin.buildModelFromXML(urdf_string(params, floating_base=False))
+    model = pin.Model()
+    model.name = fixed.name
+    parent = 0
+    joint_frames = {}
+    for name, joint in zip(BASE_JOINTS, (pin.JointModelPX(), pin.JointModelPY(),
+                                         pin.JointModelRZ()), strict=True):
+        parent = model.addJoint(parent, joint, pin.SE3.Identity(), name)
+        joint_frames[parent] = model.addJointFrame(parent)
+    # Pinocchio puts the fixed root link's inertia on the universe joint
+    model.appendBodyToJoint(parent, fixed.inertias[0], pin.SE3.Identity())
+    mapping = {0: parent}
+    for j in range(1, fixed.njoints):
+        mapping[j] = model.addJoint(mapping[fixed.parents[j]], fixed.joints[j],
+                                    fixed.jointPlacements[j], fixed.names[j])
+        joint_frames[mapping[j]] = model.addJointFrame(mapping[j])
+        model.appendBodyToJoint(mapping[j], fixed.inertias[j], pin.SE3.Identity())
+    for frame in fixed.frames:
+        if frame.type == pin.FrameType.BODY:
+            joint = mapping[frame.parentJoint]
+            model.addBodyFrame(frame.name, joint, frame.placement, joint_frames[joint])
+    effort = np.full(model.nv, np.inf)
+    effort[3:] = [0.0 if k in params.passive else 10.0 for k in range(1, params.n)]
+    model.effortLimit = effort
+    model.gravity = pin.Motion.Zero()  # planar: gravity is normal to the plane
+    return model
+
+
+@dataclass(frozen=True)
+class DynamicsDerivatives:
+    """Partial derivatives of q'' = H^-1 (E tau - h(q, q')) (friction included).
+
+    Attributes
+    ----------
+    ddq_dq, ddq_dv
+        (n + 2, n + 2): d q'' / d q and d q'' / d q'.
+    ddq_dtau
+        (n + 2, n - 1): d q'' / d tau = H^-1 E (zero columns for passive joints).
+    ddq
+        (n + 2,): q'' itself at the point.
+    """
+
+    ddq_dq: np.ndarray
+    ddq_dv: np.ndarray
+    ddq_dtau: np.ndarray
+    ddq: np.ndarray
 
 
 class Snake:
@@ -42,27 +105,33 @@ class Snake:
     Attributes
     ----------
     model, data
-        Pinocchio model and its workspace; joint 1 is the root (head link), joint i + 1
-        is the paper's joint i.
+        Pinocchio model and its workspace (see :func:`paper_model` for the joint layout).
     nq, nv
         Both n + 2.
+    link_joints
+        Pinocchio joint index carrying each link (length n, head first).
     """
 
     def __init__(self, params: SnakeParams | None = None) -> None:
-        self.params = params if params is not None else SnakeParams.table1()
-        self.n = self.params.n
-        xml = urdf_string(self.params, floating_base=False)
-        self.model: pin.Model = pin.buildModelFromXML(xml, _root_joint(), "root")
-        self.model.gravity = pin.Motion.Zero()  # planar: gravity is normal to the plane
+        if params is None:
+            params = SnakeParams.table1()
+        if not isinstance(params, SnakeParams):
+            raise ConfigurationError(
+                f"Snake needs SnakeParams (or use Snake.from_urdf for a URDF), "
+                f"got {type(params).__name__}")
+        self.params = params
+        self.n = params.n
+        self.model: pin.Model = paper_model(params)
         self.data: pin.Data = self.model.createData()
         self.nq = self.model.nq
         self.nv = self.model.nv
+        self.link_joints = np.arange(3, 3 + self.n)
         self.friction = FrictionModel(self.params, self.model)
         self._cache_key = b""  # bytes of the last state whose friction is cached
         self._cache_q = np.zeros(self.nv)
         self._actuated = np.array([k - 1 for k in self.params.actuated], dtype=int)
         # 1 on actuated joints, 0 on passive ones (None: all actuated, skip the product)
-        self._mask = None
+        self._mask: np.ndarray | None = None
         if self.params.passive:
             self._mask = np.zeros(self.n - 1)
             self._mask[self._actuated] = 1.0
@@ -73,11 +142,19 @@ class Snake:
     # ------------------------------------------------------------ validation
     def check_q(self, q: object, name: str = "q") -> np.ndarray:
         """``q`` as a finite vector of length n + 2, or ConfigurationError."""
-        return as_vector(q, self.nq, name)
+        return _vector(q, self.nq, name)
 
-    def check_tau(self, tau: object) -> np.ndarray:
-        """``tau`` as a finite vector of length n - 1, or ConfigurationError."""
-        return as_vector(tau, self.n - 1, "tau")
+    def check_dq(self, dq: object, name: str = "dq") -> np.ndarray:
+        """``dq`` as a finite vector of length n + 2, or ConfigurationError."""
+        return _vector(dq, self.nv, name)
+
+    def check_tau(self, tau: object, name: str = "tau") -> np.ndarray:
+        """``tau`` as a finite vector of length n - 1 (never broadcast), or ConfigurationError."""
+        return _vector(tau, self.n - 1, name)
+
+    def check_state(self, x: object, name: str = "x") -> np.ndarray:
+        """The stacked state ``x = [q, dq]`` (length 2(n + 2)), or ConfigurationError."""
+        return _vector(x, self.nq + self.nv, name)
 
     # -------------------------------------------------------------- dynamics
     @cached_property
@@ -89,42 +166,75 @@ class Snake:
 
     def inertia_matrix(self, q: np.ndarray) -> np.ndarray:
         """H(q) of eq. (19) by CRBA, symmetric (n + 2) x (n + 2)."""
+        q = self.check_q(q)
         # CRBA fills the upper triangle; the WORLD convention is 2x faster at n = 100
         return symmetric_from_upper(pin.crba(self.model, self.data, q, pin.Convention.WORLD))
 
     def inverse_inertia_matrix(self, q: np.ndarray) -> np.ndarray:
         """H(q)^-1 by Pinocchio's computeMinverse (symmetric)."""
+        q = self.check_q(q)
         return symmetric_from_upper(pin.computeMinverse(self.model, self.data, q))
 
     def coriolis(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Coriolis/centrifugal term W diag(J dq) J dq of eq. (18) by RNEA."""
+        q, dq = self.check_q(q), self.check_dq(dq)
         return pin.nonLinearEffects(self.model, self.data, q, dq).copy()
 
     def friction_force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Generalised viscous friction force -C(q) dq (eqs. 11-13)."""
+        q, dq = self.check_q(q), self.check_dq(dq)
         return self.friction(q, dq)
 
     def bias(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """h(q, dq) of eq. (20): Coriolis/centrifugal plus friction, so H q'' + h = E tau."""
+        q, dq = self.check_q(q), self.check_dq(dq)
         return pin.nonLinearEffects(self.model, self.data, q, dq) - self.friction(q, dq)
 
     def generalized_torque(self, tau: np.ndarray) -> np.ndarray:
         """E tau with passive joints' entries dropped (their torque is zero)."""
+        tau = self.check_tau(tau)
         out = np.zeros(self.nv)
-        out[3 + self._actuated] = np.asarray(tau)[self._actuated]
+        out[3 + self._actuated] = tau[self._actuated]
         return out
 
     def forward_dynamics(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """q'' = H^-1 (E tau - h) by ABA; torques on passive joints are ignored."""
+        q, dq, tau = self.check_q(q), self.check_dq(dq), self.check_tau(tau)
         generalized = self.friction(q, dq)
         generalized[3:] += tau if self._mask is None else tau * self._mask
         return pin.aba(self.model, self.data, q, dq, generalized).copy()
+
+    def dynamics_derivatives(self, q: np.ndarray, dq: np.ndarray,
+                             tau: np.ndarray) -> DynamicsDerivatives:
+        """Analytical derivatives of q'' = H^-1 (E tau - h), friction included.
+
+        With Q(q, q') the friction force, q'' = ABA(q, q', E tau + Q), so
+
+            d q''/d q  = ABA_q + H^-1 dQ/dq,   d q''/d q' = ABA_v + H^-1 dQ/dq',
+            d q''/d tau = H^-1 E,
+
+        where ABA_q, ABA_v and H^-1 come from ``pin.computeABADerivatives`` and the
+        friction's Jacobians from the damping twin's RNEA derivatives
+        (:meth:`snake_pin.friction.FrictionModel.derivatives`), all in Pinocchio's C++.
+        """
+        q, dq, tau = self.check_q(q), self.check_dq(dq), self.check_tau(tau)
+        force, dforce_dq, dforce_dv = self.friction.derivatives(q, dq)
+        generalized = force
+        generalized[3:] += tau if self._mask is None else tau * self._mask
+        model, data = self.model, self.data
+        ddq_dq, ddq_dv, minv = pin.computeABADerivatives(model, data, q, dq, generalized)
+        minv = symmetric_from_upper(minv)
+        return DynamicsDerivatives(ddq_dq=ddq_dq + minv @ dforce_dq,
+                                   ddq_dv=ddq_dv + minv @ dforce_dv,
+                                   ddq_dtau=minv @ self.actuation_matrix,
+                                   ddq=data.ddq.copy())
 
     def friction_of_state(self, x: np.ndarray) -> np.ndarray:
         """Friction force at the stacked state x = [q, dq], remembering the last state.
 
         A controller evaluates h at the sampled state and the integrator's first stage
         evaluates q'' at the same state: the second call is served from the cache.
+        Unchecked (hot path).
         """
         key = x.tobytes()  # bitwise equality: 15x cheaper than comparing arrays
         if key == self._cache_key:
@@ -135,13 +245,13 @@ class Snake:
         return out
 
     def bias_of_state(self, x: np.ndarray) -> np.ndarray:
-        """h at the stacked state x = [q, dq] (same as ``bias(q, dq)``)."""
+        """h at the stacked state x = [q, dq] (same as ``bias(q, dq)``; unchecked)."""
         nq = self.nq
         return pin.nonLinearEffects(self.model, self.data, x[:nq], x[nq:]) \
             - self.friction_of_state(x)
 
     def state_derivative(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """q'' for the stacked state x = [q, dq] (the simulator's hot path)."""
+        """q'' for the stacked state x = [q, dq] (the simulator's hot path; unchecked)."""
         nq = self.nq
         generalized = self.friction_of_state(x)
         generalized[3:] += tau if self._mask is None else tau * self._mask
@@ -149,29 +259,47 @@ class Snake:
 
     def kinetic_energy(self, q: np.ndarray, dq: np.ndarray) -> float:
         """T of eq. (8)."""
+        q, dq = self.check_q(q), self.check_dq(dq)
         return float(pin.computeKineticEnergy(self.model, self.data, q, dq))
 
     # ------------------------------------------------------------- geometry
     def head_pose(self, q: np.ndarray) -> np.ndarray:
         """w = [x_h, y_h, theta_1]: the head point and the head link's orientation."""
-        return np.asarray(q, dtype=float)[:3].copy()
+        return self.check_q(q)[:3].copy()
 
     def link_poses(self, q: np.ndarray) -> np.ndarray:
         """(n, 3) array of [x_i, y_i, theta_i]: CM position and orientation of each link."""
-        pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        theta, ends = self._chain(self.check_q(q))
+        offsets = self.params.com_offsets
         out = np.empty((self.n, 3))
-        half = self.params.half_length
-        for i in range(self.n):
-            placement = self.data.oMi[i + 1]
-            rotation = placement.rotation
-            out[i, :2] = placement.translation[:2] + half * rotation[:2, 0]
-            out[i, 2] = np.arctan2(rotation[1, 0], rotation[0, 0])
+        out[:, 0] = ends[:-1, 0] + offsets * np.cos(theta)
+        out[:, 1] = ends[:-1, 1] + offsets * np.sin(theta)
+        out[:, 2] = theta
         return out
 
     def joint_points(self, q: np.ndarray) -> np.ndarray:
         """(n + 1, 2) array: head point, the n - 1 joints, then the tail end, for drawing."""
-        poses = self.link_poses(q)
-        half = self.params.half_length
-        ends = poses[:, :2] - half * np.c_[np.cos(poses[:, 2]), np.sin(poses[:, 2])]
-        tail = poses[-1, :2] + half * np.array([np.cos(poses[-1, 2]), np.sin(poses[-1, 2])])
-        return np.vstack([ends, tail])
+        return self._chain(self.check_q(q))[1]
+
+    def _chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Link angles (n,) and the n + 1 link end points, from Pinocchio's kinematics."""
+        pin.forwardKinematics(self.model, self.data, q)
+        ends = np.empty((self.n + 1, 2))
+        theta = np.empty(self.n)
+        for i, joint in enumerate(self.link_joints):
+            placement = self.data.oMi[int(joint)]
+            rotation = placement.rotation
+            ends[i] = placement.translation[:2]
+            theta[i] = np.arctan2(rotation[1, 0], rotation[0, 0])
+        last = self.params.link_lengths[-1]
+        ends[-1] = ends[-2] + last * np.array([np.cos(theta[-1]), np.sin(theta[-1])])
+        return theta, ends
+
+
+def _vector(value: object, size: int, name: str) -> np.ndarray:
+    """Fast path of :func:`as_vector` for float64 arrays of the right shape."""
+    if value.__class__ is np.ndarray and value.shape == (size,) and value.dtype == np.float64:
+        if not np.isfinite(value).all():
+            raise ConfigurationError(f"{name} has non-finite entries")
+        return value
+    return as_vector(value, size, name)

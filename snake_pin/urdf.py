@@ -31,6 +31,8 @@ from .params import SnakeParams
 
 __all__ = [
     "EFFORT_LIMIT",
+    "EXTENSION_TAG",
+    "EXTENSION_VERSION",
     "JOINT_LIMIT",
     "build_urdf",
     "passive_joints",
@@ -38,6 +40,9 @@ __all__ = [
     "write_urdf",
 ]
 
+#: Tag and version of the element that carries snake_pin's own data (friction) in a URDF.
+EXTENSION_TAG = "snake_pin"
+EXTENSION_VERSION = 1
 #: Rated joint torque written into the URDF [N m] (not enforced by the dynamics).
 EFFORT_LIMIT = 10.0
 #: Joint range written into the URDF [rad] (|phi_i| <= pi/2, the singular search's box).
@@ -58,20 +63,21 @@ def _translation(x: float) -> np.ndarray:
 
 
 def _link(params: SnakeParams, index: int) -> yourdfpy.Link:
-    half = params.half_length
-    radius = RADIUS_RATIO * params.link_length
-    # A cylinder's axis is z in URDF: turn it onto the link's x axis, centred at x = l.
-    pose = np.array([[0.0, 0.0, 1.0, half], [0.0, 1.0, 0.0, 0.0],
+    length = float(params.link_lengths[index - 1])
+    mass = float(params.masses[index - 1])
+    yaw_inertia = float(params.inertias[index - 1])
+    com = float(params.com_offsets[index - 1])
+    radius = RADIUS_RATIO * length
+    # A cylinder's axis is z in URDF: turn it onto the link's x axis, centred at x = l_i.
+    pose = np.array([[0.0, 0.0, 1.0, 0.5 * length], [0.0, 1.0, 0.0, 0.0],
                      [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
-    geometry = yourdfpy.Geometry(cylinder=yourdfpy.Cylinder(radius=radius,
-                                                            length=params.link_length))
+    geometry = yourdfpy.Geometry(cylinder=yourdfpy.Cylinder(radius=radius, length=length))
     material = yourdfpy.Material(name="head" if index == 1 else "body")
     # Thin rod in the plane: I_yy = I_zz = J about the CM; I_xx of the cylinder's section.
-    inertia = np.diag([0.5 * params.mass * radius**2, params.inertia, params.inertia])
+    inertia = np.diag([0.5 * mass * radius**2, yaw_inertia, yaw_inertia])
     return yourdfpy.Link(
         name=f"link_{index}",
-        inertial=yourdfpy.Inertial(origin=_translation(half), mass=params.mass,
-                                   inertia=inertia),
+        inertial=yourdfpy.Inertial(origin=_translation(com), mass=mass, inertia=inertia),
         visuals=[yourdfpy.Visual(name=f"link_{index}_visual", origin=pose,
                                  geometry=geometry, material=material)],
         collisions=[yourdfpy.Collision(name=f"link_{index}_collision", origin=pose,
@@ -96,7 +102,7 @@ def build_urdf(params: SnakeParams, *, floating_base: bool = True) -> yourdfpy.U
         effort = 0.0 if i in params.passive else EFFORT_LIMIT
         joints.append(yourdfpy.Joint(
             name=f"joint_{i}", type="revolute", parent=f"link_{i}", child=f"link_{i + 1}",
-            origin=_translation(params.link_length), axis=np.array([0.0, 0.0, 1.0]),
+            origin=_translation(float(params.link_lengths[i - 1])), axis=np.array([0.0, 0.0, 1.0]),
             limit=yourdfpy.Limit(effort=effort, velocity=VELOCITY_LIMIT,
                                  lower=-JOINT_LIMIT, upper=JOINT_LIMIT),
             dynamics=yourdfpy.Dynamics(damping=0.0, friction=0.0),
@@ -118,8 +124,25 @@ def urdf_string(params: SnakeParams, *, floating_base: bool = True) -> str:
     # yourdfpy's own write_xml_string drops its keyword arguments (``*kwargs``), so
     # serialise its element tree the way its write_xml_file does.
     tree = build_urdf(params, floating_base=floating_base).write_xml()
+    _add_extension(tree.getroot(), params)
     return etree.tostring(tree, xml_declaration=True, pretty_print=True,
                           encoding="UTF-8").decode()
+
+
+def _add_extension(robot: etree._Element, params: SnakeParams) -> None:
+    """Append the ``<snake_pin>`` element: what a URDF cannot say, read back by us only.
+
+    URDF has no viscous ground friction; Pinocchio, yourdfpy and MuJoCo ignore unknown
+    top-level elements, so the friction of every link (and the robot's name) travel in
+    ``<snake_pin version="1" name=...><link_friction link="link_i" c_x=... c_y=...
+    c_theta=.../>...</snake_pin>``. :func:`snake_pin.robot_file.read_urdf` restores them.
+    """
+    ext = etree.SubElement(robot, EXTENSION_TAG, version=str(EXTENSION_VERSION),
+                           name=params.name)
+    friction = {key: params.per_link(key) for key in ("c_x", "c_y", "c_theta")}
+    for i in range(params.n):
+        etree.SubElement(ext, "link_friction", link=f"link_{i + 1}",
+                         **{key: repr(float(values[i])) for key, values in friction.items()})
 
 
 def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:

@@ -134,3 +134,75 @@ def test_friction_cache_follows_in_place_changes(rng: np.random.Generator) -> No
     x[snake.nq + 4] += 0.5  # same array object, new state
     assert np.allclose(snake.friction_of_state(x), snake.friction(x[:snake.nq], x[snake.nq:]))
     assert not np.allclose(snake.friction_of_state(x), first)
+
+
+def _central(fn, x: np.ndarray, step: float) -> np.ndarray:
+    """Central-difference Jacobian of ``fn`` at ``x`` (columns: coordinates of x)."""
+    cols = [(fn(x + step * e) - fn(x - step * e)) / (2 * step) for e in np.eye(x.size)]
+    return np.array(cols).T
+
+
+def _rel_to_largest(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.abs(a - b).max() / np.abs(b).max())
+
+
+def test_root_is_a_chain_of_three_single_dof_joints(table1: Snake) -> None:
+    """base_x, base_y, base_yaw carry x_h, y_h, theta_1; link i hangs on joint i + 2."""
+    model = table1.model
+    assert [model.names[j] for j in (1, 2, 3)] == ["base_x", "base_y", "base_yaw"]
+    assert [model.joints[j].shortname() for j in (1, 2, 3)] == [
+        "JointModelPX", "JointModelPY", "JointModelRZ"]
+    assert model.inertias[1].mass == 0.0 and model.inertias[2].mass == 0.0
+    assert [model.inertias[int(j)].mass for j in table1.link_joints] == [0.182] * 10
+    assert model.existFrame("link_1") and model.existFrame("link_10")
+    assert (model.nq, model.nv) == (12, 12)
+
+
+@pytest.mark.parametrize("n", [4, 10, 30])
+def test_pinocchio_derivatives_match_central_differences(n: int,
+                                                         rng: np.random.Generator) -> None:
+    """computeABADerivatives / computeRNEADerivatives on the root chain: 1e-6, 20 states."""
+    import pinocchio as pin
+
+    snake = Snake(SnakeParams.table1(n=n))
+    model, data = snake.model, snake.data
+    for _ in range(20):
+        q, v = random_state(rng, n)
+        tau, a = rng.normal(size=n + 2), rng.normal(size=n + 2)
+        ddq_dq, ddq_dv, _ = pin.computeABADerivatives(model, data, q, v, tau)
+        ddq_dq, ddq_dv = ddq_dq.copy(), ddq_dv.copy()
+        assert _rel_to_largest(ddq_dq, _central(
+            lambda x, v=v, tau=tau: pin.aba(model, data, x, v, tau).copy(), q, 1e-5)) < 1e-6
+        assert _rel_to_largest(ddq_dv, _central(
+            lambda x, q=q, tau=tau: pin.aba(model, data, q, x, tau).copy(), v, 1e-5)) < 1e-6
+        dtau_dq, dtau_dv, _ = pin.computeRNEADerivatives(model, data, q, v, a)
+        dtau_dq, dtau_dv = dtau_dq.copy(), dtau_dv.copy()
+        assert _rel_to_largest(dtau_dq, _central(
+            lambda x, v=v, a=a: pin.rnea(model, data, x, v, a).copy(), q, 1e-5)) < 1e-6
+        assert _rel_to_largest(dtau_dv, _central(
+            lambda x, q=q, a=a: pin.rnea(model, data, q, x, a).copy(), v, 1e-5)) < 1e-6
+
+
+@pytest.mark.parametrize("n", [4, 10, 30])
+@pytest.mark.parametrize("friction", ["isotropic", "anisotropic", "heterogeneous"])
+def test_dynamics_derivatives_with_friction(n: int, friction: str,
+                                            rng: np.random.Generator) -> None:
+    """d q''/d(q, dq, tau) with friction equal central differences of forward_dynamics."""
+    from .conftest import heterogeneous_params
+
+    params = {"isotropic": lambda: SnakeParams.table1(n=n),
+              "anisotropic": lambda: SnakeParams.table1(n=n, c_y=25.0, passive=(n // 2,)),
+              "heterogeneous": lambda: heterogeneous_params(rng, n)}[friction]()
+    snake = Snake(params)
+    for _ in range(5):
+        q, dq = random_state(rng, n)
+        tau = rng.normal(size=n - 1)
+        d = snake.dynamics_derivatives(q, dq, tau)
+        assert _rel_to_largest(d.ddq, snake.forward_dynamics(q, dq, tau)) < 1e-10
+        assert _rel_to_largest(d.ddq_dq, _central(
+            lambda x, dq=dq, tau=tau: snake.forward_dynamics(x, dq, tau), q, 1e-5)) < 1e-6
+        assert _rel_to_largest(d.ddq_dv, _central(
+            lambda x, q=q, tau=tau: snake.forward_dynamics(q, x, tau), dq, 1e-5)) < 1e-6
+        assert _rel_to_largest(d.ddq_dtau, _central(
+            lambda x, q=q, dq=dq: snake.forward_dynamics(q, dq, x), tau, 1e-5)) < 1e-6
+        assert np.all(d.ddq_dtau[:, [k - 1 for k in params.passive]] == 0.0)
