@@ -26,6 +26,23 @@ def median_us(fn: Callable[[], object], *, budget: float = 0.2, repeat: int = 7)
     return statistics.median(timeit.repeat(fn, number=number, repeat=repeat)) / number * 1e6
 
 
+def interleaved_us(fns: dict[str, Callable[[], object]], *, budget: float = 0.2,
+                   rounds: int = 9) -> dict[str, tuple[float, float, float]]:
+    """Median, 10th and 90th percentile us per call of each function, timed in interleaved
+    rounds (A B C A B C ...) so that a neighbour's load hits every route alike."""
+    numbers = {name: max(1, int(budget / rounds / max(timeit.timeit(fn, number=3) / 3, 1e-7)))
+               for name, fn in fns.items()}
+    samples: dict[str, list[float]] = {name: [] for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            samples[name].append(timeit.timeit(fn, number=numbers[name]) / numbers[name] * 1e6)
+    out = {}
+    for name, values in samples.items():
+        deciles = statistics.quantiles(values, n=10)
+        out[name] = (statistics.median(values), deciles[0], deciles[-1])
+    return out
+
+
 def table(title: str, header: list[str], rows: list[list[str]]) -> None:
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
     print(f"\n## {title}\n")
@@ -87,6 +104,63 @@ def bench_dynamics(budget: float) -> None:
                                  f"{t_route:.1f}", "-", "-"])
     table("Dynamics, median us per call", ["n", "quantity", "friction", "pinocchio [us]",
                                            "closed form [us]", "ratio"], rows)
+
+
+def bench_derivatives(budget: float) -> None:
+    """Analytical derivatives of q'' (friction included) against central differences of
+    ``forward_dynamics`` (2 (2 nv + n - 1) evaluations), and per-link robots against
+    uniform ones (the same code path must cost the same)."""
+    import pinocchio as pin
+
+    rows = []
+    for n in (10, 30):
+        rng = np.random.default_rng(n)
+        for label, params in (("iso", SnakeParams.table1(n=n)),
+                              ("aniso", SnakeParams.table1(n=n, c_y=25.0))):
+            snake = Snake(params)
+            q = np.r_[0.1, -0.2, 0.3, rng.uniform(-1, 1, n - 1)]
+            dq, tau = rng.normal(size=n + 2), rng.normal(size=n - 1)
+            eye_v, eye_t, step = np.eye(n + 2), np.eye(n - 1), 1e-6
+
+            def central(s=snake, q=q, dq=dq, tau=tau, eye_v=eye_v, eye_t=eye_t,
+                        step=step) -> object:
+                fd = s.forward_dynamics
+                return ([fd(q + step * e, dq, tau) - fd(q - step * e, dq, tau) for e in eye_v],
+                        [fd(q, dq + step * e, tau) - fd(q, dq - step * e, tau) for e in eye_v],
+                        [fd(q, dq, tau + step * e) - fd(q, dq, tau - step * e) for e in eye_t])
+
+            def floor(s=snake, q=q, dq=dq) -> object:  # the ABA derivatives alone
+                return pin.computeABADerivatives(s.model, s.data, q, dq, np.zeros(s.nv))
+
+            times = interleaved_us({
+                "analytical": lambda s=snake, q=q, dq=dq, t=tau: s.dynamics_derivatives(q, dq, t),
+                "central": central, "floor": floor}, budget=budget)
+            (fast, f10, f90), (slow, s10, s90) = times["analytical"], times["central"]
+            rows.append([str(n), label, f"{fast:.1f} ({f10:.1f}-{f90:.1f})",
+                         f"{slow:.0f} ({s10:.0f}-{s90:.0f})", f"{slow / fast:.1f}x",
+                         f"{times['floor'][0]:.1f}", f"{fast / times['floor'][0]:.1f}x"])
+    table("Derivatives of q'' with friction, median us (10-90 %), interleaved rounds",
+          ["n", "friction", "analytical", "central differences", "speed-up",
+           "computeABADerivatives alone", "analytical / floor"], rows)
+
+    per_link = []
+    rng = np.random.default_rng(7)
+    for label, cy in (("iso", 0.5), ("aniso", 25.0)):
+        uniform = SnakeParams.table1(c_y=cy)
+        scale = rng.uniform(0.5, 2.0, 10)
+        hetero = uniform.replace(mass=(0.182 * scale).tolist(),
+                                 link_length=(0.12 * scale).tolist(),
+                                 c_y=(cy * scale).tolist())
+        q = np.r_[0.1, -0.2, 0.3, rng.uniform(-1, 1, 9)]
+        dq, tau = rng.normal(size=12), rng.normal(size=9)
+        snakes = {"uniform": Snake(uniform), "per-link": Snake(hetero)}
+        calls = {name: (lambda s=s, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t))
+                 for name, s in snakes.items()}
+        times = interleaved_us(calls, budget=budget)
+        per_link.append([label, f"{times['uniform'][0]:.1f}", f"{times['per-link'][0]:.1f}",
+                         f"{times['per-link'][0] / times['uniform'][0]:.2f}"])
+    table("Forward dynamics with friction at n = 10: per-link robot against uniform, median us",
+          ["friction", "uniform (Table 1)", "per-link", "ratio"], per_link)
 
 
 def closed_form_manipulability(params: SnakeParams, q: np.ndarray) -> tuple[float, float]:
@@ -232,6 +306,7 @@ def bench_engine(budget: float) -> None:
 
 
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
+                                               "derivatives": bench_derivatives,
                                                "manipulability": bench_manipulability,
                                                "runs": bench_runs, "engine": bench_engine}
 
