@@ -230,6 +230,9 @@ class Trajectory:
         except _Refused as exc:
             raise TrajectoryFileError(f"{_shown(file)} is not a usable snake_pin trajectory: "
                                       f"{_one_line(str(exc))}") from None
+        except zipfile.BadZipFile as exc:
+            raise TrajectoryFileError(f"{_shown(file)} is not a readable snake_pin trajectory: "
+                                      f"broken zip archive ({_one_line(str(exc))})") from None
         except Exception as exc:  # hostile input: whatever breaks while parsing is a refusal
             raise TrajectoryFileError(f"{_shown(file)} is not a readable snake_pin trajectory "
                                       f"({type(exc).__name__}: {_one_line(str(exc))})") from None
