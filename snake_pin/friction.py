@@ -1,7 +1,7 @@
 """Anisotropic viscous friction of eqs. (10)-(13) as generalised forces on the Pinocchio model.
 
 Each link i feels, at its centre of mass and in its own frame, the force
-``-diag(c_x, c_y) v_cm`` and the torque ``-c_theta * omega`` (DESIGN §2).
+``-diag(c_x, c_y) v_cm`` and the torque ``-c_theta * omega`` (README, conventions).
 
 Three routes compute the same thing:
 

@@ -6,7 +6,7 @@
 carrying the head link). Its configuration is exactly (x_h, y_h, theta_1) and its velocity
 their plain time derivatives, so nq = nv = n + 2 and no conversion is needed at the
 boundary. (A composite PX·PY·RZ joint gives the same H but wrong analytical derivatives in
-Pinocchio; the chain gives correct ones: DESIGN §6, ``tests/test_model.py``.)
+Pinocchio; the chain gives correct ones: ``tests/test_model.py``.)
 
 The equation of motion is eq. (20): H(q) q'' + h(q, q') = E tau, with h the Coriolis and
 centrifugal terms plus viscous friction (:mod:`snake_pin.friction`).

@@ -1,4 +1,4 @@
-"""Robot parameters: the frozen, validated ``SnakeParams`` and its named presets (DESIGN §2).
+"""Robot parameters: the frozen, validated ``SnakeParams`` and its named presets.
 
 Every physical field may be one number (all links alike, the paper's robots) or one value
 per link, head first (a real robot: a heavier camera head, a battery tail). A per-link
@@ -109,7 +109,7 @@ class SnakeParams:
     n: int = 10
     link_length: PerLink = 0.12
     mass: PerLink = 0.182
-    inertia: PerLink = 2.2e-4  # DESIGN §3 erratum 1: Table 1 prints 0.22 (g m^2)
+    inertia: PerLink = 2.2e-4  # erratum 1 (docs/errata.md): Table 1 prints 0.22 (g m^2)
     c_x: PerLink = 0.5
     c_y: PerLink = 0.5
     c_theta: PerLink = 7.2e-5

@@ -4,7 +4,7 @@ The generated description is the single source of truth for the robot's geometry
 inertia: :class:`snake_pin.model.Snake` builds its Pinocchio model from it, and the
 engine model reads the same parameters.
 
-Layout (DESIGN §2): link ``link_i``'s frame sits at the link's front end with x pointing
+Layout (README, conventions): link ``link_i``'s frame sits at the link's front end with x pointing
 towards the tail; its centre of mass is at x = l. ``joint_i`` (revolute about z) joins
 ``link_i`` to ``link_{i+1}`` at x = 2l of ``link_i``. A ``world`` link and a ``planar``
 joint ``base`` carry the head, so that generic tools see the floating planar base.

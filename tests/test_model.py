@@ -1,4 +1,4 @@
-"""Snake model: dynamics consistency and the physics invariants of DESIGN §5."""
+"""Snake model: dynamics consistency and the physics invariants (H SPD, power balance, momentum, g of eq. 67)."""
 
 from __future__ import annotations
 
