@@ -2,13 +2,25 @@
 
 from __future__ import annotations
 
+import fcntl
 import json
+import math
+import os
+import pty
+import select
+import signal
+import struct
+import sys
+import termios
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from snake_pin import (
+    ConfigurationError,
     OpenLoop,
     ParameterError,
     Snake,
@@ -19,6 +31,7 @@ from snake_pin import (
     simulate,
 )
 from snake_pin.control import Controller
+from snake_pin.exceptions import RunInterrupted
 
 
 def _x0(n: int) -> np.ndarray:
@@ -110,3 +123,210 @@ def test_passive_snake_runs(rng: np.random.Generator) -> None:
     snake = Snake(SnakeParams.table1(passive=(5,)))
     traj = simulate(snake, _wave(10), _x0(10), 0.05)
     assert not traj.diverged
+
+
+# ------------------------------------------------------------------ controller boundary
+def _reference(table1: Snake, t_final: float = 0.1) -> Trajectory:
+    return simulate(table1, _wave(10), _x0(10), t_final)
+
+
+def _is_prefix(part: Trajectory, whole: Trajectory) -> bool:
+    """``part`` holds exactly the first samples of ``whole`` (torque after the last: zero)."""
+    k = len(part)
+    return (np.array_equal(part.t, whole.t[:k]) and np.array_equal(part.q, whole.q[:k])
+            and np.array_equal(part.dq, whole.dq[:k])
+            and np.array_equal(part.tau[:-1], whole.tau[: k - 1]) and not part.tau[-1].any())
+
+
+def test_plain_function_is_a_controller(table1: Snake) -> None:
+    """A plain f(x, t) runs exactly like the same torques through OpenLoop, named after it."""
+    def wiggle(x: np.ndarray, t: float) -> np.ndarray:
+        return 0.01 * np.sin(2 * t + np.arange(9))
+
+    traj = simulate(table1, wiggle, _x0(10), 0.05)
+    assert np.array_equal(traj.q, simulate(table1, _wave(10), _x0(10), 0.05).q)
+    assert traj.meta["controller"] == "wiggle" and traj.status == "completed"
+    assert simulate(table1, lambda x, t: np.zeros(9), _x0(10), 0.01).meta["controller"] == "lambda"
+    with pytest.raises(ParameterError, match="controller"):
+        simulate(table1, 3, _x0(10), 0.01)
+
+
+def test_any_controller_exception_keeps_the_run(table1: Snake) -> None:
+    """A ValueError at t = 0.05 ends the run as 'failed' with samples 0..50 kept."""
+    def fragile(x: np.ndarray, t: float) -> np.ndarray:
+        if t >= 0.05 - 1e-12:
+            raise ValueError("gain matrix\nis singular")
+        return 0.01 * np.sin(2 * t + np.arange(9))
+
+    traj = simulate(table1, fragile, _x0(10), 0.1)
+    assert traj.status == "failed" and traj.diverged and len(traj) == 51
+    assert traj.reason == "controller failed at t = 0.0500 s: ValueError: gain matrix is singular"
+    assert _is_prefix(traj, _reference(table1))
+
+
+@pytest.mark.parametrize(("output", "expected"), [
+    (np.zeros(8), "controller returned 8 torques, expected 9"),
+    (np.zeros(1), "controller returned 1 torque, expected 9"),
+    (0.5, "controller returned 1 torque, expected 9"),
+    (np.zeros((9, 1)), "controller returned torques of shape (9, 1), expected 9"),
+    (np.full(9, np.inf), "controller returned a non-finite torque"),
+    (np.zeros(9, dtype=complex), "controller returned a torque of dtype complex128, not numbers"),
+    (["a"] * 9, "controller returned a torque of dtype <U1, not numbers"),
+])
+def test_wrong_torques_are_named(table1: Snake, output: object, expected: str) -> None:
+    """Wrong sizes (one element included: never broadcast), types and non-finite torques."""
+    def controller(x: np.ndarray, t: float) -> object:
+        return output if t >= 0.02 - 1e-12 else np.zeros(9)
+
+    traj = simulate(table1, controller, _x0(10), 0.1)
+    assert traj.status == "failed" and len(traj) == 21
+    assert traj.reason == f"{expected} at t = 0.0200 s"
+
+
+def test_keyboard_interrupt_in_the_controller(table1: Snake) -> None:
+    """Ctrl-C inside the controller at t = 0.05: RunInterrupted with samples 0..50."""
+    def controller(x: np.ndarray, t: float) -> np.ndarray:
+        if t >= 0.05 - 1e-12:
+            raise KeyboardInterrupt
+        return 0.01 * np.sin(2 * t + np.arange(9))
+
+    with pytest.raises(RunInterrupted) as info:
+        simulate(table1, controller, _x0(10), 0.1)
+    partial = info.value.partial
+    assert str(info.value) == "interrupted at t = 0.0500 s" and not isinstance(info.value,
+                                                                                Exception)
+    assert partial.status == "interrupted" and not partial.diverged and len(partial) == 51
+    assert partial.reason == str(info.value) and _is_prefix(partial, _reference(table1))
+
+
+def test_sigint_during_a_run(table1: Snake) -> None:
+    """A real SIGINT raised at t = 0.03 gives a consistent partial run ending there."""
+    def controller(x: np.ndarray, t: float) -> np.ndarray:
+        if abs(t - 0.03) < 1e-9:
+            signal.raise_signal(signal.SIGINT)
+        return 0.01 * np.sin(2 * t + np.arange(9))
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(RunInterrupted) as info:
+            simulate(table1, controller, _x0(10), 0.1)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    partial = info.value.partial
+    assert 0.03 - 1e-9 <= partial.t_end <= 0.031 + 1e-9
+    assert _is_prefix(partial, _reference(table1))
+
+
+class _Plant:
+    """A Snake whose dynamics raise ``error`` at call number ``at`` (4 calls per RK4 step)."""
+
+    def __init__(self, snake: Snake, at: int, error: BaseException) -> None:
+        self._snake, self._at, self._error, self.calls = snake, at, error, 0
+
+    def __getattr__(self, name: str):
+        return getattr(self._snake, name)
+
+    def state_derivative(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        self.calls += 1
+        if self.calls == self._at:
+            raise self._error
+        return self._snake.state_derivative(x, tau)
+
+
+@settings(max_examples=25, deadline=None)
+@given(at=st.integers(1, 80))
+def test_interrupt_anywhere_in_the_dynamics(table1: Snake, at: int) -> None:
+    """Ctrl-C inside any RK4 stage keeps exactly the samples completed before it."""
+    with pytest.raises(RunInterrupted) as info:
+        simulate(_Plant(table1, at, KeyboardInterrupt()), _wave(10), _x0(10), 0.02)
+    partial = info.value.partial
+    assert len(partial) == (at - 1) // 4 + 1 and partial.status == "interrupted"
+    assert _is_prefix(partial, _reference(table1, 0.02))
+
+
+def test_dynamics_errors_end_as_divergence(table1: Snake) -> None:
+    """A SnakePinError from the dynamics (e.g. a non-finite stage) is a divergence, not a crash."""
+    plant = _Plant(table1, 42, ConfigurationError("x has non-finite entries"))
+    traj = simulate(plant, _wave(10), _x0(10), 0.1)
+    assert traj.status == "diverged" and len(traj) == 11 and "dynamics failed" in traj.reason
+    assert traj.reason.startswith("diverged at t = 0.0110 s")
+
+
+def test_signals_stay_aligned(table1: Snake) -> None:
+    """A signal that first appears at t = 0.01 is NaN before, aligned with t after."""
+    class Late(Controller):
+        name = "late"
+
+        def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+            self._t = t
+            return np.zeros(9)
+
+        def signals(self) -> dict[str, float]:
+            return {"t": self._t} if self._t >= 0.01 - 1e-12 else {}
+
+    traj = simulate(table1, Late(), _x0(10), 0.02)
+    late = traj.signals["t"]
+    assert np.all(np.isnan(late[:10])) and np.allclose(late[10:-1], traj.t[10:-1])
+    assert np.isnan(late[-1])  # no controller call at the last sample
+
+
+def test_max_steps(table1: Snake) -> None:
+    """More than MAX_STEPS samples is a ParameterError naming t_final and the limit."""
+    for t_final in (1000.5, 1e12, 1e300):
+        with pytest.raises(ParameterError, match=r"t_final = .*MAX_STEPS = 1000000"):
+            simulate(table1, _wave(10), _x0(10), t_final)
+    with pytest.raises(ParameterError, match="MAX_SUBSTEPS"):
+        simulate(table1, _wave(10), _x0(10), 1.0, dt=1e-9)
+
+
+def test_runs_beyond_a_file_are_refused() -> None:
+    """A run whose arrays a trajectory file could not hold is refused before allocating."""
+    snake = Snake(SnakeParams.table1(n=50))
+    x0 = np.zeros(2 * snake.nq)
+    with pytest.raises(ParameterError, match="t_final = 1000 s needs 1000001 samples"):
+        simulate(snake, lambda x, t: np.zeros(49), x0, 1000.0)
+
+
+_BAD = [("x0", np.zeros((2, 12)), ConfigurationError), ("x0", np.zeros(23), ConfigurationError),
+        ("x0", np.r_[np.nan, np.zeros(23)], ConfigurationError),
+        ("x0", ["a"] * 24, ConfigurationError), ("t_final", True, ParameterError),
+        ("t_final", "1", ParameterError), ("t_final", math.inf, ParameterError),
+        ("t_final", 0.0, ParameterError), ("dt", -1e-3, ParameterError),
+        ("control_dt", math.nan, ParameterError), ("max_speed", math.nan, ParameterError),
+        ("max_speed", -1.0, ParameterError), ("max_distance", "far", ParameterError),
+        ("method", 3, ParameterError), ("progress", "yes", ParameterError),
+        ("meta", [1], ParameterError)]
+
+
+@pytest.mark.parametrize(("name", "value", "error"), _BAD)
+def test_arguments_are_checked(table1: Snake, name: str, value: object,
+                               error: type[Exception]) -> None:
+    """Every argument of simulate is checked: shapes, finiteness, types, signs."""
+    kwargs = {"x0": _x0(10), "t_final": 0.01, name: value}
+    with pytest.raises(error, match=name if name != "x0" else "x0"):
+        simulate(table1, _wave(10), **kwargs)
+
+
+def test_unbounded_divergence_limits(table1: Snake) -> None:
+    """math.inf switches a divergence bound off."""
+    traj = simulate(table1, _wave(10), _x0(10), 0.01, max_speed=math.inf, max_distance=math.inf)
+    assert traj.status == "completed"
+
+
+def test_progress_only_on_a_terminal(table1: Snake, capfd: pytest.CaptureFixture[str],
+                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """progress=True draws nothing into a non-TTY stderr, and a bar on a terminal."""
+    simulate(table1, _wave(10), _x0(10), 0.05, progress=True)
+    assert capfd.readouterr().err == ""
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("4H", 24, 80, 0, 0))  # a 24x80 terminal
+    try:
+        with os.fdopen(slave, "w") as tty:
+            monkeypatch.setattr(sys, "stderr", tty)
+            simulate(table1, _wave(10), _x0(10), 0.05, progress=True)
+            tty.flush()
+            ready, _, _ = select.select([master], [], [], 5.0)
+            drawn = os.read(master, 1 << 16).decode(errors="replace") if ready else ""
+    finally:
+        os.close(master)
+    assert "simulate open_loop" in drawn
