@@ -5,28 +5,35 @@ One source of truth: the link frames, lengths, masses and inertias are those of
 top (a floor, gravity, a wheel pair per link, contacts, motors). Layout:
 
 * the head link is a free body whose frame is the head point (as in Pinocchio);
-  link i + 1 hangs from link i by a hinge about z at x = 2l (``joint_i``);
+  link i + 1 hangs from link i by a hinge about z at x = 2l_i (``joint_i``);
 * each link carries two free-spinning wheels at its CM, one on each side, on axles along
   the link's y: they roll along the link and must slide sideways, so the floor's Coulomb
   friction is anisotropic as in the paper's V-REP robot;
-* the link's mass m and yaw inertia J are shared between the link body and its wheels
-  (``m = m_body + 2 m_w``, ``J = J_body + 2 (m_w d^2 + I_w)``), so the chain's mass matrix
-  equals Pinocchio's H of the same ``SnakeParams``;
+* every link has its own pair, sized to that link (per-link robots: a long heavy head, a
+  short tail): the wheels sit at that link's centre of mass c_i (``com_offsets``), at a
+  lateral distance d_i = 0.15 (2l_i) + 1.1 r (clear of that link's capsule), and that
+  link's mass m_i and yaw inertia J_i are shared between its body and its wheels
+  (``m_i = m_body,i + 2 m_w``, ``J_i = J_body,i + 2 (m_w d_i^2 + I_w)``), so the chain's
+  mass matrix equals Pinocchio's H of the same ``SnakeParams`` (the wheels' spin DOFs
+  are left out: a sphere's spin about its axle couples to no planar DOF). All wheels are
+  the same part (radius r, mass m_w): the links then ride at one height, as the planar
+  model needs;
 * every active joint has a motor (``motor_i``); passive joints have none;
 * only wheels touch the floor; link bodies do not collide, wheels of neighbouring links
   do (beyond about 80 degrees of bend with the default wheels), as on a real robot.
 
 Solver settings: 1 ms control period split into ``substeps`` engine steps (default 2,
-0.5 ms), implicit-fast integration, elliptic friction cones with impratio 10 (stiffer,
-less creeping tangential constraints than the pyramidal default; coasting then gives the
-Coulomb-equivalent c_y to 0.1 %), condim 3 wheel
-contacts (sliding friction only; rolling about the axle is the hinge), soft contacts
-with solref (0.005, 1): critically damped at 5 ms, well above the step.
+0.5 ms), implicit-fast integration, the sparse constraint Jacobian (set explicitly, see
+:data:`JACOBIAN`), elliptic friction cones with impratio 10 (stiffer, less creeping
+tangential constraints than the pyramidal default; coasting then gives the
+Coulomb-equivalent c_y to 0.1 %), condim 3 wheel contacts (sliding friction only; rolling
+about the axle is the hinge), soft contacts with solref (0.005, 1): critically damped at
+5 ms, well above the step.
 
-``WheelSpec(cone="pyramidal")`` trades fidelity for speed: MuJoCo's step is about three
-times cheaper, but the pyramid's sideways friction is weaker (coasting gives c_y 8 % above
-the Coulomb equivalent) and the tracking with a passive joint is worse (see the closing
-notes of the engine issue and ``scripts/bench.py --only engine``).
+``WheelSpec(cone="pyramidal")`` trades fidelity for speed: MuJoCo's step is cheaper
+still, and on MuJoCo 4.0 coasting identifies c_y 0.8 % above the Coulomb equivalent
+(elliptic: 0.04 %; c_x is 5 % under the rolling model with either cone). Its effect on
+the tracking is measured by ``scripts/bench.py --only engine``.
 """
 
 from __future__ import annotations
@@ -42,11 +49,19 @@ from ..exceptions import ParameterError
 from ..params import SnakeParams
 from ..urdf import EFFORT_LIMIT, RADIUS_RATIO
 
-__all__ = ["EngineModel", "WheelSpec", "build_engine_model"]
+__all__ = ["JACOBIAN", "EngineModel", "WheelSpec", "build_engine_model"]
 
 GRAVITY = 9.81
 #: MuJoCo friction cones by name.
 CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
+#: Constraint Jacobian of the solver, set explicitly. MuJoCo's automatic choice
+#: (``mjJAC_AUTO``) is dense below nv = 60, so the wheeled snake (nv = 3n + 5: 29 at
+#: n = 8) got dense, and the constraint solver (its dense Newton Hessian) was ~84 % of
+#: ``mj_step``. A wheel contact touches only the DOFs of the chain from the head to its
+#: link and of its own axle, so the Jacobian is mostly zeros: on states of the 60 s engine
+#: run, sparse made ``mj_step`` 2.1x faster (the whole closed loop 1.6x), with the same
+#: physics (one step agrees to 1e-13, 10 s of closed loop to 1e-12; DESIGN §6, issue 13).
+JACOBIAN = mujoco.mjtJacobian.mjJAC_SPARSE
 
 
 @dataclass(frozen=True)
@@ -111,13 +126,34 @@ class EngineModel:
     hinge_dof: np.ndarray  # dof addresses of the same
     link_bodies: np.ndarray  # body ids of link_1..link_n
     actuated: tuple[int, ...]  # 1-based joints with a motor, in actuator order
-    body_mass: float
-    body_inertia: float
-    wheel_offset: float
+    body_masses: np.ndarray  # m_i - 2 m_w: each link's mass without its wheels [kg]
+    body_inertias: np.ndarray  # J_i - 2 (m_w d_i^2 + I_w): yaw inertia without wheels
+    wheel_offsets: np.ndarray  # d_i: lateral distance of link i's wheel centres [m]
     meta: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._chain_dofs = np.concatenate(([0, 1, 5], self.hinge_dof)).astype(int)
+
+    @property
+    def body_mass(self) -> float:
+        """Mass of a link body without its wheels [kg]; equal links only."""
+        return self._same("body_masses")
+
+    @property
+    def body_inertia(self) -> float:
+        """Yaw inertia of a link body without its wheels [kg m^2]; equal links only."""
+        return self._same("body_inertias")
+
+    @property
+    def wheel_offset(self) -> float:
+        """Lateral distance of the wheel centres from the link axis [m]; equal links only."""
+        return self._same("wheel_offsets")
+
+    def _same(self, key: str) -> float:
+        values = getattr(self, key)
+        if not np.all(values == values[0]):
+            raise ParameterError(f"the links differ: read {key} (one value per link)")
+        return float(values[0])
 
     @property
     def chain_dofs(self) -> np.ndarray:
@@ -154,38 +190,73 @@ class EngineModel:
         self.data.ctrl[:] = [tau[k - 1] for k in self.actuated]
 
 
-def _wheel_geometry(params: SnakeParams, wheels: WheelSpec) -> float:
-    """Lateral offset of the wheel centres, after checking wheels cannot overlap."""
-    half = params.half_length
-    link_radius = RADIUS_RATIO * params.link_length
-    offset = link_radius + wheels.radius + 0.1 * wheels.radius
-    # Neighbouring links bent by max_bend: the inner wheels come closest.
-    wheels_i = np.array([[half, -offset], [half, offset]])  # wheels of link i, its frame
-    joint = np.array([2 * half, 0.0])
+def _wheel_geometry(params: SnakeParams, wheels: WheelSpec) -> np.ndarray:
+    """Lateral offsets d_i of every link's wheel centres, after checking wheels cannot overlap.
+
+    Each wheel pair must be shorter than its link (2 r < 2l_i) and, with two neighbouring
+    links bent by ``max_bend``, the closest wheels of the two links must stay 2 r apart.
+    """
+    lengths, centres = params.link_lengths, params.com_offsets
+    offsets = RADIUS_RATIO * lengths + wheels.radius + 0.1 * wheels.radius
+    for i in np.flatnonzero(2 * wheels.radius >= lengths):
+        raise ParameterError(f"link {i + 1}: wheels of radius {wheels.radius} m are longer "
+                             f"than the {lengths[i]:g} m link")
     c, s = math.cos(wheels.max_bend), math.sin(wheels.max_bend)
-    neighbours = joint + wheels_i @ np.array([[c, -s], [s, c]]).T
-    gap = min(np.linalg.norm(a - b) for a in wheels_i for b in neighbours)
-    if gap < 2 * wheels.radius or wheels.radius >= half:
+    bend = np.array([[c, -s], [s, c]])
+    for i in range(params.n - 1):
+        # link i's wheels in its frame, and link i + 1's bent by max_bend about joint i
+        ours = np.array([[centres[i], -offsets[i]], [centres[i], offsets[i]]])
+        theirs = np.array([[centres[i + 1], -offsets[i + 1]], [centres[i + 1], offsets[i + 1]]])
+        neighbours = np.array([lengths[i], 0.0]) + theirs @ bend.T
+        gap = min(np.linalg.norm(a - b) for a in ours for b in neighbours)
+        if gap < 2 * wheels.radius:
+            where = "" if params.uniform else f"links {i + 1} and {i + 2}: "
+            raise ParameterError(
+                f"{where}wheels of radius {wheels.radius} m overlap on "
+                f"{_lengths_text(params, i)} m links (closest wheel centres {gap:.3f} m "
+                f"apart at a {math.degrees(wheels.max_bend):.0f} degree bend)")
+    return offsets
+
+
+def _lengths_text(params: SnakeParams, i: int) -> str:
+    if params.uniform:
+        return f"{params.link_length}"
+    return f"{params.link_lengths[i]:g} and {params.link_lengths[i + 1]:g}"
+
+
+def _split(params: SnakeParams, wheels: WheelSpec,
+           offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(m_body,i, J_body,i): what each link keeps once its wheels have their share."""
+    body_masses = params.masses - 2 * wheels.mass
+    wheel_inertia = 0.4 * wheels.mass * wheels.radius**2  # solid sphere
+    body_inertias = params.inertias - 2 * (wheels.mass * offsets**2 + wheel_inertia)
+    for i in np.flatnonzero((body_masses <= 0) | (body_inertias <= 0)):
+        where = "" if params.uniform else f"link {i + 1}: "
         raise ParameterError(
-            f"wheels of radius {wheels.radius} m overlap on {params.link_length} m links "
-            f"(closest wheel centres {gap:.3f} m apart at a {math.degrees(wheels.max_bend):.0f}"
-            " degree bend)")
-    return offset
+            f"{where}wheels of {wheels.mass} kg leave no mass or inertia for the link "
+            f"(m_body = {body_masses[i]:.3g} kg, J_body = {body_inertias[i]:.3g} kg m^2)")
+    return body_masses, body_inertias
 
 
 def build_engine_model(params: SnakeParams | None = None,
                        wheels: WheelSpec | None = None) -> EngineModel:
-    """Compile the MuJoCo model of ``params`` (default: the ``engine`` preset) on wheels."""
+    """Compile the MuJoCo model of ``params`` (default: the ``engine`` preset) on wheels.
+
+    Every link gets its own wheel pair, sized to it (see the module docstring); per-link
+    robots are built link by link from ``params.link_lengths``, ``masses``, ``inertias``
+    and ``com_offsets``.
+
+    Raises
+    ------
+    ParameterError
+        If the wheels overlap (naming the two links), are longer than a link, or leave a
+        link no mass or yaw inertia of its own (naming the link).
+    """
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
-    offset = _wheel_geometry(params, wheels)
-    body_mass = params.mass - 2 * wheels.mass
+    offsets = _wheel_geometry(params, wheels)
+    body_masses, body_inertias = _split(params, wheels, offsets)
     wheel_inertia = 0.4 * wheels.mass * wheels.radius**2  # solid sphere
-    body_inertia = params.inertia - 2 * (wheels.mass * offset**2 + wheel_inertia)
-    if body_mass <= 0 or body_inertia <= 0:
-        raise ParameterError(
-            f"wheels of {wheels.mass} kg leave no mass or inertia for the link "
-            f"(m_body = {body_mass:.3g} kg, J_body = {body_inertia:.3g} kg m^2)")
 
     spec = mujoco.MjSpec()
     spec.modelname = f"snake_{params.name}_wheels"
@@ -195,6 +266,7 @@ def build_engine_model(params: SnakeParams | None = None,
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.cone = CONES[wheels.cone]
     spec.option.impratio = 10.0
+    spec.option.jacobian = JACOBIAN  # not AUTO: it picks dense here (see JACOBIAN)
     floor = spec.worldbody.add_geom()
     floor.name = "floor"
     floor.type = mujoco.mjtGeom.mjGEOM_PLANE
@@ -202,17 +274,22 @@ def build_engine_model(params: SnakeParams | None = None,
     floor.friction = [wheels.friction, 0.005, 1e-4]
     floor.rgba = [0.8, 0.8, 0.8, 1.0]
 
-    half = params.half_length
-    radius = RADIUS_RATIO * params.link_length
+    lengths, centres = params.link_lengths, params.com_offsets
     parent = spec.worldbody
     for i in range(1, params.n + 1):
+        length, centre, offset = float(lengths[i - 1]), float(centres[i - 1]), offsets[i - 1]
+        body_mass, body_inertia = float(body_masses[i - 1]), float(body_inertias[i - 1])
+        radius = RADIUS_RATIO * length
         body = parent.add_body()
         body.name = f"link_{i}"
-        body.pos = [0.0, 0.0, wheels.radius] if i == 1 else [params.link_length, 0.0, 0.0]
+        body.pos = [0.0, 0.0, wheels.radius] if i == 1 else [float(lengths[i - 2]), 0.0, 0.0]
         body.mass = body_mass
-        body.ipos = [half, 0.0, 0.0]
+        body.ipos = [centre, 0.0, 0.0]
         body.iquat = [1.0, 0.0, 0.0, 0.0]
-        body.inertia = [0.5 * body_mass * radius**2, body_inertia, body_inertia]
+        # roll inertia of a rod of the capsule's radius, capped so that MuJoCo's triangle
+        # inequality holds for slender links with a small yaw inertia (it is not planar)
+        roll = min(0.5 * body_mass * radius**2, body_inertia)
+        body.inertia = [roll, body_inertia, body_inertia]
         body.explicitinertial = True
         if i == 1:
             free = body.add_freejoint()
@@ -225,7 +302,7 @@ def build_engine_model(params: SnakeParams | None = None,
         shape = body.add_geom()
         shape.name = f"link_{i}_body"
         shape.type = mujoco.mjtGeom.mjGEOM_CAPSULE
-        shape.fromto = [0.0, 0.0, 0.0, params.link_length, 0.0, 0.0]
+        shape.fromto = [0.0, 0.0, 0.0, length, 0.0, 0.0]
         shape.size = [radius, 0.0, 0.0]
         shape.contype = 0
         shape.conaffinity = 0
@@ -234,7 +311,7 @@ def build_engine_model(params: SnakeParams | None = None,
         for side, sign in (("left", 1.0), ("right", -1.0)):
             wheel = body.add_body()
             wheel.name = f"link_{i}_wheel_{side}"
-            wheel.pos = [half, sign * offset, 0.0]
+            wheel.pos = [centre, sign * float(offset), 0.0]
             wheel.mass = wheels.mass
             wheel.ipos = [0.0, 0.0, 0.0]  # MjSpec does not default these with explicit inertia
             wheel.iquat = [1.0, 0.0, 0.0, 0.0]
@@ -270,7 +347,7 @@ def build_engine_model(params: SnakeParams | None = None,
         hinge_qpos=np.array([model.jnt_qposadr[j] for j in joint_ids], dtype=int),
         hinge_dof=np.array([model.jnt_dofadr[j] for j in joint_ids], dtype=int),
         link_bodies=np.array([model.body(f"link_{i}").id for i in range(1, params.n + 1)]),
-        actuated=params.actuated, body_mass=body_mass, body_inertia=body_inertia,
-        wheel_offset=offset)
+        actuated=params.actuated, body_masses=body_masses, body_inertias=body_inertias,
+        wheel_offsets=offsets)
     engine.set_paper_configuration(np.zeros(params.n + 2))
     return engine
