@@ -1,27 +1,151 @@
-"""Run meshcat's ZMQ/WebSocket bridge bound to 127.0.0.1 (``python -m`` entry).
+"""Run meshcat's ZMQ/WebSocket bridge on 127.0.0.1 only (``python -m`` entry).
 
-meshcat's own server script offers no port option; this one does, and never listens
-on anything but the loopback address. It prints ``zmq_url=...`` and ``web_url=...``
-like meshcat's script, so :func:`snake_pin.viz.meshcat_view.start_server` can read them.
+What this module promises:
+
+- **Loopback only.** Both of the bridge's listeners, the HTTP/WebSocket port and the ZMQ
+  port, are bound to 127.0.0.1 (IPv4 loopback) and to nothing else. meshcat 0.3.2's
+  ``ZMQWebSocketBridge`` calls ``app.listen(port)`` with no address, which listens on
+  every interface (``0.0.0.0`` and ``[::]``); :class:`LoopbackApplication` supplies the
+  address, so the bridge's own port search and its ``--port`` both stay on loopback.
+- **Only for local pages.** It answers only requests whose ``Host`` header is
+  ``127.0.0.1`` or ``localhost`` (any port); others get 404 (no DNS rebinding).
+- **It dies with its parent.** With ``--parent PID`` the server asks Linux to send it
+  SIGTERM when the thread that started it exits (``prctl(PR_SET_PDEATHSIG)``), and exits
+  at once if ``PID`` is already gone. With ``--stdin-eof`` it stops when its standard
+  input reaches end of file, i.e. when the parent's end of the pipe is closed, which the
+  kernel does however the parent ends (SIGKILL included). Neither relies on the parent's
+  own cleanup.
+- **It never blocks on an unread pipe.** It prints ``zmq_url=...`` and ``web_url=...``
+  (like meshcat's script) and, with ``--quiet``, then points its stdout and stderr at
+  ``/dev/null``: meshcat prints a line on stderr for every WebSocket opened and closed,
+  and a pipe nobody reads fills after a few hundred connections and freezes the server.
+
+:func:`snake_pin.viz.meshcat_view.start_server` starts it with all three options.
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
+import os
+import signal
 import sys
+from typing import Any
 
-from meshcat.servers.zmqserver import ZMQWebSocketBridge
+import tornado.httpserver
+import tornado.ioloop
+import tornado.web
+from meshcat.servers.zmqserver import (
+    VIEWER_HTML,
+    VIEWER_ROOT,
+    StaticFileHandlerNoCache,
+    WebSocketHandler,
+    ZMQWebSocketBridge,
+)
+from tornado.routing import HostMatches, Rule
+
+__all__ = ["BACKLOG", "HOST", "LOCAL_HOSTS", "LoopbackApplication", "LoopbackBridge", "main"]
 
 HOST = "127.0.0.1"
+BACKLOG = 1024
+LOCAL_HOSTS = r"(127\.0\.0\.1|localhost)$"
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+class LoopbackApplication(tornado.web.Application):
+    """A tornado application whose ``listen`` binds 127.0.0.1 whatever address it is given."""
+
+    def listen(self, port: int, address: str | None = None,
+               **kwargs: Any) -> tornado.httpserver.HTTPServer:
+        """Listen on ``127.0.0.1:port`` (``address`` is ignored: meshcat passes none).
+
+        The accept queue holds :data:`BACKLOG` connections (tornado's default, 128, is
+        overrun by a burst of short connections: the kernel then drops SYNs and every
+        client waits a second for the retransmission).
+        """
+        kwargs.setdefault("backlog", BACKLOG)
+        return super().listen(port, HOST, **kwargs)
+
+
+class LoopbackBridge(ZMQWebSocketBridge):
+    """meshcat's bridge with its web app on :class:`LoopbackApplication` and ZMQ on 127.0.0.1."""
+
+    def __init__(self, port: int | None = None) -> None:
+        super().__init__(host=HOST, port=port)
+
+    def make_app(self) -> LoopbackApplication:
+        """meshcat's two routes (static viewer files, the WebSocket) on a loopback app.
+
+        They answer only requests whose ``Host`` names the loopback address
+        (:data:`LOCAL_HOSTS`); any other host gets 404, so a page from elsewhere that
+        re-points its own domain at 127.0.0.1 (DNS rebinding) reaches nothing.
+        """
+        return LoopbackApplication([Rule(HostMatches(LOCAL_HOSTS), [
+            (r"/static/(.*)", StaticFileHandlerNoCache,
+             {"path": VIEWER_ROOT, "default_filename": VIEWER_HTML}),
+            (r"/", WebSocketHandler, {"bridge": self}),
+        ])])
+
+
+def _die_with_parent(parent: int) -> None:
+    """SIGTERM this process when its parent exits; exit now if the parent is already gone."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0) != 0:
+            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+    if os.getppid() != parent:  # the parent died before the request took effect
+        sys.exit(0)
+
+
+def _stop_on_stdin_eof(loop: tornado.ioloop.IOLoop) -> None:
+    """Stop ``loop`` when standard input reaches end of file (the parent closed the pipe)."""
+    fd = sys.stdin.fileno()
+
+    def readable(_fd: int, _events: int) -> None:
+        try:
+            data = os.read(fd, 4096)
+        except OSError:
+            data = b""
+        if not data:
+            loop.remove_handler(fd)
+            loop.stop()
+
+    loop.add_handler(fd, readable, tornado.ioloop.IOLoop.READ)
+
+
+def _silence() -> None:
+    """Point stdout and stderr at /dev/null, so no later print can block on a full pipe."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
+    os.close(devnull)
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Start the bridge, print its URLs, serve until interrupted, the parent dies or stdin ends."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--port", type=int, default=None, help="web port (default: from 7000)")
+    parser.add_argument("--port", type=int, default=None,
+                        help="web port on 127.0.0.1 (default: the first free one from 7000)")
+    parser.add_argument("--parent", type=int, default=None, metavar="PID",
+                        help="exit when this process (our parent) exits")
+    parser.add_argument("--stdin-eof", action="store_true",
+                        help="exit when standard input reaches end of file")
+    parser.add_argument("--quiet", action="store_true",
+                        help="send stdout and stderr to /dev/null once the URLs are printed")
     args = parser.parse_args(argv)
-    bridge = ZMQWebSocketBridge(host=HOST, port=args.port)
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)
+    if args.parent is not None:
+        _die_with_parent(args.parent)
+    bridge = LoopbackBridge(port=args.port)
+    if args.stdin_eof:
+        _stop_on_stdin_eof(bridge.ioloop)
     print(f"zmq_url={bridge.zmq_url}", flush=True)
     print(f"web_url={bridge.web_url}", flush=True)
+    if args.quiet:
+        _silence()
     try:
         bridge.run()
     except KeyboardInterrupt:
