@@ -12,10 +12,11 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from snake_pin import ParameterError, Snake, SnakeParams, simulate
+from snake_pin import OpenLoop, ParameterError, Snake, SnakeParams, simulate
 from snake_pin.control import LyapunovController
 from snake_pin.experiments.tracking import initial_state, tracking_params
-from snake_pin.viz.meshcat_view import BODY_COLOR, start_server, write_html
+from snake_pin.viz import meshcat_view
+from snake_pin.viz.meshcat_view import BODY_COLOR, start_server, stop_server, write_html
 
 
 def _browser() -> str:
@@ -81,3 +82,44 @@ def test_port_in_use_is_refused() -> None:
         busy.listen(1)
         with pytest.raises(ParameterError, match="already in use"):
             start_server(busy.getsockname()[1])
+
+
+def test_offline_page_is_what_a_live_server_returns(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same commands give, byte for byte, the page meshcat's live bridge returns
+    (objects replaced, subtrees deleted, properties, transforms, the animation)."""
+    import itertools
+    import uuid
+
+    import meshcat.geometry as g
+
+    snake = Snake(SnakeParams.table1())
+    x0 = np.r_[0.0, 0.0, 0.0, np.full(9, np.pi / 6), np.zeros(12)]
+    traj = simulate(snake, OpenLoop(lambda t: 0.01 * np.sin(t + np.arange(9))), x0, 0.3)
+    shift = np.eye(4)
+    shift[:3, 3] = (0.5, -0.25, 0.1)
+
+    def page(vis: object) -> str:
+        counter = itertools.count()  # meshcat names objects by uuid1: make them repeatable
+        monkeypatch.setattr(uuid, "uuid1", lambda: uuid.UUID(int=next(counter)))
+        meshcat_view._scene(vis, traj, 10.0, reference=True)
+        vis["extra/a"].set_object(g.Box([0.1, 0.2, 0.3]))
+        vis["extra/a"].set_property("visible", False)
+        vis["extra/a"].set_object(g.Sphere(0.05))  # replaces the box and drops its property
+        vis["extra/b"].set_object(g.Box([0.1, 0.1, 0.1]))
+        vis["extra/b/c"].set_transform(shift)
+        vis["extra/b"].delete()  # the whole subtree goes
+        vis["extra"].set_transform(shift)
+        vis["extra"].set_transform(shift.T @ shift)  # the later transform wins
+        return vis.static_html()
+
+    meshcat_view._scene(meshcat_view.offline_visualizer(), traj, 10.0, True)  # import-time uuids
+    offline = page(meshcat_view.offline_visualizer())
+    proc, zmq_url, _ = start_server()
+    try:
+        vis = meshcat_view._connect(zmq_url)
+        live = page(vis)
+        meshcat_view._disconnect(vis)
+    finally:
+        stop_server(proc)
+    assert offline.count("handle_command_bytearray") > 40
+    assert offline == live

@@ -2,21 +2,39 @@
 
 Links are capsules (a cylinder with two spheres) in the body colour, the head link's
 front sphere is orange, passive joints are blue spheres, and the reference path of the
-head is a black line. :func:`write_html` uses meshcat's static export: the page embeds
-meshcat's JavaScript, the scene and the animation, and opens with no server or network.
-Servers bind to 127.0.0.1 only.
+head is a black line.
+
+What this module promises:
+
+- :func:`write_html` opens **no network listener and starts no process**. The scene is
+  built on a :class:`meshcat.Visualizer` whose window hands each command straight to
+  meshcat's own bridge code (:meth:`ZMQWebSocketBridge.handle_zmq`) in this process, with
+  no socket behind it; the page is that code's answer to ``get_scene``: meshcat's static
+  export, byte for byte what a live server would return for the same commands (later
+  commands at a path replace earlier ones, as in meshcat's scene tree). The page embeds
+  meshcat's JavaScript, the scene and the animation, and opens with no server or network.
+- :func:`view` serves the scene live from :mod:`.meshcat_server` in a child process that
+  listens on 127.0.0.1 only (its web and ZMQ ports), never blocks on an unread pipe, and
+  dies with this process however it ends (SIGINT, SIGTERM, SIGHUP, SIGKILL): it watches
+  its stdin pipe for end of file and, when started from the main thread, holds a
+  ``PR_SET_PDEATHSIG``. :func:`view` also stops it itself on the way out, including on
+  ``KeyboardInterrupt`` and ``SystemExit``.
 """
 
 from __future__ import annotations
 
+import atexit
 import os
 import re
+import selectors
 import socket
 import subprocess
 import sys
+import tempfile
+import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,7 +46,8 @@ if TYPE_CHECKING:
 
     from ..sim import Trajectory
 
-__all__ = ["BODY_COLOR", "start_server", "view", "write_html"]
+__all__ = ["BODY_COLOR", "offline_visualizer", "start_server", "stop_server", "view",
+           "write_html"]
 
 BODY_COLOR = 0x228B22
 HEAD_COLOR = 0xD9541A
@@ -47,32 +66,98 @@ def port_is_free(port: int) -> bool:
     return True
 
 
+def _read_urls(proc: subprocess.Popen[bytes], timeout: float) -> dict[str, str] | None:
+    """The server's ``zmq_url`` and ``web_url`` lines, or None if it ends or stays silent."""
+    assert proc.stdout is not None
+    fd = proc.stdout.fileno()
+    urls: dict[str, str] = {}
+    pending = b""
+    deadline = time.monotonic() + timeout
+    with selectors.DefaultSelector() as selector:
+        selector.register(fd, selectors.EVENT_READ)
+        while len(urls) < 2:
+            left = deadline - time.monotonic()
+            if left <= 0 or not selector.select(left):
+                return None
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                return None
+            *lines, pending = (pending + chunk).split(b"\n")
+            for line in lines:
+                match = re.fullmatch(r"(zmq_url|web_url)=(\S+)", line.decode(errors="replace")
+                                     .strip())
+                if match:
+                    urls[match.group(1)] = match.group(2)
+    return urls
+
+
 def start_server(port: int | None = None, timeout: float = 20.0
                  ) -> tuple[subprocess.Popen[bytes], str, str]:
-    """Start meshcat's bridge on 127.0.0.1 in a subprocess; return (process, zmq, web URL)."""
+    """Start meshcat's bridge on 127.0.0.1 in a child process.
+
+    Parameters
+    ----------
+    port
+        The web port on 127.0.0.1; None takes the first free one from 7000.
+    timeout
+        Seconds to wait for the server to announce its URLs.
+
+    Returns
+    -------
+    tuple
+        ``(process, zmq_url, web_url)``. Stop the process with :func:`stop_server`; it
+        also stops by itself when this process ends, however it ends.
+
+    Raises
+    ------
+    ParameterError
+        If ``port`` is outside 1..65535 or already in use on 127.0.0.1.
+    SnakePinError
+        If the server does not start.
+    """
     if port is not None:
         if not 1 <= port <= 65535:
             raise ParameterError(f"port must lie in 1..65535, got {port}")
         if not port_is_free(port):
             raise ParameterError(f"port {port} on {HOST} is already in use")
-    cmd = [sys.executable, "-u", "-m", "snake_pin.viz.meshcat_server"]
+    cmd = [sys.executable, "-u", "-m", "snake_pin.viz.meshcat_server", "--stdin-eof", "--quiet"]
+    if threading.current_thread() is threading.main_thread():
+        # PR_SET_PDEATHSIG follows the thread that started the child: only from the main one
+        cmd += ["--parent", str(os.getpid())]
     if port is not None:
         cmd += ["--port", str(port)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True)
-    urls: dict[str, str] = {}
-    deadline = time.monotonic() + timeout
-    while len(urls) < 2:
-        line = proc.stdout.readline().decode() if proc.stdout else ""
-        match = re.match(r"(zmq_url|web_url)=(\S+)", line.strip())
-        if match:
-            urls[match.group(1)] = match.group(2)
-        elif proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            err = proc.stderr.read().decode().strip().splitlines() if proc.stderr else []
+    # stderr goes to a file, never to a pipe: only the start-up messages land there.
+    with tempfile.TemporaryFile() as errors:
+        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=errors, start_new_session=True)
+        try:
+            urls = _read_urls(proc, timeout)
+        except BaseException:
+            stop_server(proc)
+            raise
+        finally:
+            assert proc.stdout is not None
+            proc.stdout.close()  # the server sends its stdout to /dev/null after the URLs
+        if urls is None:
+            stop_server(proc)
+            errors.seek(0)
+            lines = errors.read().decode(errors="replace").strip().splitlines()
             raise SnakePinError("meshcat server did not start"
-                                + (f": {err[-1]}" if err else ""))
+                                + (f": {lines[-1]}" if lines else f" within {timeout:g} s"))
     return proc, urls["zmq_url"], urls["web_url"]
+
+
+def stop_server(proc: subprocess.Popen[bytes]) -> None:
+    """Stop a server from :func:`start_server` and reap it (harmless if it already ended)."""
+    if proc.stdin is not None and not proc.stdin.closed:
+        proc.stdin.close()  # end of file: the server leaves its loop
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    proc.wait()
 
 
 def _connect(zmq_url: str) -> meshcat.Visualizer:
@@ -89,6 +174,68 @@ def _connect(zmq_url: str) -> meshcat.Visualizer:
 def _disconnect(vis: meshcat.Visualizer) -> None:
     # Visualizer.close() fails in meshcat 0.3.2 (its window has no close()); close the socket.
     vis.window.zmq_socket.close(linger=0)
+
+
+class _Replies:
+    """The bridge's side of the in-process channel: keeps the reply it sends."""
+
+    def __init__(self) -> None:
+        self.last: bytes | None = None
+
+    def send(self, data: bytes) -> None:
+        self.last = data
+
+
+class _Requests:
+    """The window's side of the in-process channel: a request goes straight to the bridge."""
+
+    def __init__(self, bridge: Any) -> None:
+        self.bridge = bridge
+
+    def send_multipart(self, frames: list[bytes]) -> None:
+        self.bridge.handle_zmq(frames)
+
+    def send(self, data: bytes) -> None:
+        self.bridge.handle_zmq([data])
+
+    def recv(self) -> bytes:
+        reply, self.bridge.zmq_socket.last = self.bridge.zmq_socket.last, None
+        if reply is None:
+            raise SnakePinError("meshcat's bridge sent no reply")
+        return reply
+
+
+def offline_visualizer() -> meshcat.Visualizer:
+    """A :class:`meshcat.Visualizer` with no server, socket or process behind it.
+
+    Its window passes every command to meshcat's own bridge code, run in this process on
+    an in-memory scene tree; ``static_html()`` then returns meshcat's static export of
+    the scene, as a live server would.
+    """
+    import meshcat
+    from meshcat.servers.tree import SceneTree
+    from meshcat.servers.zmqserver import ZMQWebSocketBridge
+    from meshcat.visualizer import ViewerWindow
+
+    class OfflineBridge(ZMQWebSocketBridge):
+        # ZMQWebSocketBridge.__init__ binds the web and ZMQ ports; handle_zmq needs none
+        # of that, only the scene tree, the (empty) WebSocket pool and a reply channel.
+        def __init__(self) -> None:
+            self.host = HOST
+            self.web_url = ""
+            self.websocket_pool: set[object] = set()
+            self.tree = SceneTree()
+            self.zmq_socket = _Replies()
+
+    class OfflineWindow(ViewerWindow):
+        # ViewerWindow.__init__ connects (or starts) a server; send/get_scene need a socket.
+        def __init__(self) -> None:
+            self.server_proc = None
+            self.zmq_url = ""
+            self.web_url = ""
+            self.zmq_socket = _Requests(OfflineBridge())
+
+    return meshcat.Visualizer(window=OfflineWindow())
 
 
 def _link_geometry(vis: meshcat.Visualizer, traj: Trajectory) -> None:
@@ -178,45 +325,96 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, fps: float, reference: boo
 
 def write_html(traj: Trajectory, path: str | os.PathLike[str], *, fps: float = 20.0,
                reference: bool = True) -> Path:
-    """Write one self-contained HTML page animating ``traj`` (meshcat's static export)."""
+    """Write one self-contained HTML page animating ``traj`` (meshcat's static export).
+
+    No server is started and no socket is opened (see :func:`offline_visualizer`).
+
+    Parameters
+    ----------
+    traj
+        The trajectory to animate.
+    path
+        The page to write (``.html`` or ``.htm``, in an existing folder); written whole
+        or not at all.
+    fps
+        Animation frames per second of simulated time, 1..120.
+    reference
+        Draw the reference line of the head (the x axis).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):
         raise ParameterError(f"HTML output must end in .html: {path}")
     if not path.parent.exists():
         raise ParameterError(f"output directory does not exist: {path.parent}")
+    _check_fps(fps)
+    vis = offline_visualizer()
+    _scene(vis, traj, fps, reference)
+    atomic_write_bytes(path, vis.static_html().encode())
+    return path
+
+
+def _check_fps(fps: float) -> None:
     if not 1 <= fps <= 120:
         raise ParameterError(f"fps must lie in 1..120, got {fps}")
-    proc, zmq_url, _ = start_server()
-    try:
-        vis = _connect(zmq_url)
-        _scene(vis, traj, fps, reference)
-        html = vis.static_html()
-        _disconnect(vis)
-    finally:
-        proc.kill()
-        proc.wait()
-    atomic_write_bytes(path, html.encode())
-    return path
 
 
 def view(traj: Trajectory, *, port: int | None = None, fps: float = 30.0,
          block: bool = True) -> str:
     """Serve a live meshcat scene on 127.0.0.1 playing ``traj``; return its URL.
 
-    With ``block`` the call waits until interrupted (Ctrl-C) and then stops the server.
+    Parameters
+    ----------
+    traj
+        The trajectory to play.
+    port
+        The web port on 127.0.0.1 (None: the first free one from 7000).
+    fps
+        Animation frames per second of simulated time, 1..120.
+    block
+        Wait until interrupted (Ctrl-C ends the wait and the call returns), then stop the
+        server. Without it the call returns at once and the server lives until this
+        process ends.
+
+    Returns
+    -------
+    str
+        The viewer's URL, ``http://127.0.0.1:PORT/static/``.
+
+    Raises
+    ------
+    SnakePinError
+        If the server does not start or stops on its own while ``block`` waits.
     """
+    _check_fps(fps)
     proc, zmq_url, web_url = start_server(port)
+    keep = False
     try:
         vis = _connect(zmq_url)
-        _scene(vis, traj, fps, reference=True)
-        print(f"meshcat viewer: {web_url} (Ctrl-C to stop)", flush=True)
-        if block:
-            while proc.poll() is None:
-                time.sleep(0.5)
-    except KeyboardInterrupt:
-        pass
+        try:
+            _scene(vis, traj, fps, reference=True)
+        finally:
+            _disconnect(vis)
+        announce = f"meshcat viewer: {web_url} (Ctrl-C to stop)"
+        if not block:
+            print(announce, flush=True)
+            keep = True
+            atexit.register(stop_server, proc)
+            return web_url
+        try:  # from the announcement on, Ctrl-C is the normal way to stop
+            print(announce, flush=True)
+            # Block until the server exits without reaping it: unlike Popen.poll/wait,
+            # waitid holds no lock that a KeyboardInterrupt could leave taken (which
+            # would make stop_server below wait forever).
+            os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
+        except KeyboardInterrupt:
+            return web_url
+        proc.wait()
+        raise SnakePinError(f"meshcat server stopped on its own (exit status {proc.returncode})")
     finally:
-        if block:
-            proc.kill()
-            proc.wait()
-    return web_url
+        if not keep:
+            stop_server(proc)
