@@ -1,23 +1,63 @@
-"""The self-contained HTML report written by ``snake-pin reproduce``.
+"""The self-contained HTML report written by ``snake-pin reproduce``, and its JSON.
 
 A :class:`Report` collects sections (text, tables, figures); :meth:`Report.write`
 produces ``index.html`` with every PNG embedded as a data URI (it opens offline and
-alone) and ``summary.json`` with the numbers.
+alone) and ``summary.json`` with the numbers. A report knows whether its run completed
+or was interrupted (:attr:`Report.status`, :attr:`Report.note`): an interrupted one says
+so at the top of the page and under ``"run"`` in the summary.
+
+:func:`json_text` is the one way snake_pin turns results into JSON text (the report's
+summary, sweep files, the command line's ``--json``): RFC 8259 only, so NaN and
+infinities become ``null``.
 """
 
 from __future__ import annotations
 
 import base64
+import dataclasses
 import html
 import json
+import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ._io import atomic_write_bytes
 
-__all__ = ["Report", "Section"]
+__all__ = ["Report", "Section", "json_safe", "json_text"]
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` as plain JSON data: NaN and infinities become None, NumPy values and
+    arrays become numbers and lists, paths become strings, dataclasses become dicts.
+
+    Raises
+    ------
+    TypeError
+        For anything else that JSON cannot hold.
+    """
+    if value is None or isinstance(value, (bool, str, int)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, Mapping):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, set, frozenset)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if hasattr(value, "tolist"):  # NumPy arrays and scalars
+        return json_safe(value.tolist())
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return json_safe(dataclasses.asdict(value))
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def json_text(value: Any, *, indent: int | None = None) -> str:
+    """RFC 8259 JSON text of ``value`` after :func:`json_safe` (never NaN or Infinity)."""
+    return json.dumps(json_safe(value), indent=indent, allow_nan=False)
 
 
 @dataclass
@@ -55,10 +95,24 @@ class Section:
 
 @dataclass
 class Report:
-    """Sections in order, written as one HTML page and one JSON summary."""
+    """Sections in order, written as one HTML page and one JSON summary.
+
+    Attributes
+    ----------
+    title
+        The page's title.
+    sections
+        The sections, in order.
+    status
+        ``"complete"``, or ``"interrupted"`` for the report of a run stopped early.
+    note
+        One line about the run (for an interrupted one: when, and during which stage).
+    """
 
     title: str
     sections: list[Section] = field(default_factory=list)
+    status: str = "complete"
+    note: str = ""
 
     def section(self, key: str, title: str) -> Section:
         """Append and return a new section."""
@@ -67,8 +121,10 @@ class Report:
         return sec
 
     def summary(self) -> dict[str, Any]:
-        """The numbers of every section, keyed by section."""
-        return {sec.key: sec.numbers for sec in self.sections}
+        """The numbers of every section, keyed by section, and ``"run"``: status and note."""
+        return {"run": {"status": self.status, "note": self.note,
+                        "sections": [sec.key for sec in self.sections]},
+                **{sec.key: sec.numbers for sec in self.sections}}
 
     def write(self, folder: str | os.PathLike[str]) -> Path:
         """Write ``index.html`` and ``summary.json`` into ``folder``; return the HTML path."""
@@ -79,7 +135,13 @@ class Report:
                  "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;"
                  "padding:3px 8px;text-align:right}figure{margin:1em 0}"
                  "figcaption{color:#444;font-size:.9em}</style></head><body>",
-                 f"<h1>{_e(self.title)}</h1><ul>"]
+                 f"<h1>{_e(self.title)}</h1>"]
+        if self.status != "complete":
+            parts.append(f"<p id='status' style='background:#fde2e1;padding:.5em'><b>"
+                         f"{_e(self.status.capitalize())} run:</b> {_e(self.note)}</p>")
+        elif self.note:
+            parts.append(f"<p id='status'>{_e(self.note)}</p>")
+        parts.append("<ul>")
         parts += [f"<li><a href='#{_e(s.key)}'>{_e(s.title)}</a></li>" for s in self.sections]
         parts.append("</ul>")
         for sec in self.sections:
@@ -100,10 +162,10 @@ class Report:
                 parts.append("<ul>" + "".join(f"<li><a href='{_e(h)}'>{_e(t)}</a></li>"
                                               for h, t in sec.links) + "</ul>")
         parts.append("</body></html>\n")
+        atomic_write_bytes(folder / "summary.json",
+                           (json_text(self.summary(), indent=2) + "\n").encode())
         index = folder / "index.html"
         atomic_write_bytes(index, "".join(parts).encode())
-        atomic_write_bytes(folder / "summary.json",
-                           (json.dumps(self.summary(), indent=2, default=_json) + "\n").encode())
         return index
 
 
@@ -117,9 +179,3 @@ def _fmt(value: object) -> str:
     if isinstance(value, float):
         return f"{value:.4g}"
     return str(value)
-
-
-def _json(value: object) -> object:
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

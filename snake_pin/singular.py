@@ -14,20 +14,34 @@ the structure of H12 forbids it, the singular postures form a 2-dimensional set 
 (n - 1)-dimensional joint space, not isolated points. Minima on such a set are
 clustered by single linkage (samples along one connected sheet join up), and each family
 reports the span of every joint angle over its members.
+
+Stopped by Ctrl-C (or SIGTERM turned into KeyboardInterrupt), the search raises
+:class:`~snake_pin.exceptions.RunInterrupted` whose ``partial`` is the search over the
+starts finished so far (``status == "interrupted"``), clustered like a whole one.
 """
 
 from __future__ import annotations
 
+import numbers
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
 
-from .exceptions import ParameterError
+from .exceptions import ParameterError, RunInterrupted
 from .manipulability import manipulability_R_batch, task_split
 from .params import SnakeParams
 
-__all__ = ["SingularFamily", "SingularSearch", "find_singular_postures"]
+__all__ = ["MAX_SEED", "MAX_STARTS", "SingularFamily", "SingularSearch",
+           "find_singular_postures"]
+
+#: Most random starts of one search. Each takes about 12 ms at n = 10 (10,000: two
+#: minutes) and 10 s at n = 200; the single-linkage clustering of the minima holds
+#: starts^2 / 2 distances (10,000 minima at R = 0: 400 MB), so more would not fit.
+MAX_STARTS = 10_000
+#: Seeds are 32-bit unsigned integers (0 .. 2**32 - 1), as NumPy's legacy seeding takes.
+MAX_SEED = 2**32 - 1
 
 
 @dataclass
@@ -75,17 +89,22 @@ class SingularSearch:
         Median R over random postures in the box: the scale "numerically zero" refers to.
     threshold
         R below this counts as zero (``relative * R_typical``).
+    status
+        ``"completed"``, or ``"interrupted"`` when only the first ``starts`` of
+        ``starts_requested`` starts ran.
     """
 
     params: SnakeParams
     bound: float
     starts: int
-    free_joint: int | None
+    free_joint: int | tuple[int, ...] | None
     R_typical: float
     threshold: float
     minima_phi: np.ndarray
     minima_R: np.ndarray
     families: list[SingularFamily] = field(default_factory=list)
+    status: str = "completed"
+    starts_requested: int | None = None
 
     @property
     def non_straight(self) -> list[SingularFamily]:
@@ -105,13 +124,17 @@ class SingularSearch:
                 "members": [f.members for f in self.families],
                 "span": [f.span.tolist() for f in self.families],
                 "R_typical": self.R_typical, "threshold": self.threshold,
-                "starts": self.starts, "bound": self.bound, "free_joint": self.free_joint,
+                "starts": self.starts, "bound": self.bound,
+                "free_joint": (list(self.free_joint) if isinstance(self.free_joint, tuple)
+                               else self.free_joint),
+                "status": self.status,
+                "starts_requested": self.starts_requested or self.starts,
                 "smallest_non_straight_R": self.smallest_non_straight_R(),
                 "non_straight_singular_exists": bool(self.non_straight)}
 
 
 def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: float = np.pi / 2,
-                           free_joint: int | None = None, seed: int = 0,
+                           free_joint: int | Sequence[int] | None = None, seed: int = 0,
                            relative: float = 1e-6, progress: bool = False) -> SingularSearch:
     """Search |phi_i| <= ``bound`` for postures with R = 0 from ``starts`` random starts.
 
@@ -120,20 +143,40 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     params
         The robot (n >= 4, or >= 5 with a free joint).
     starts
-        Number of random starting postures (uniform in the box; the first is straight-free
-        random too, nothing is seeded at a known answer).
+        Number of random starting postures, 1 .. :data:`MAX_STARTS` (uniform in the box;
+        nothing is seeded at a known answer).
     bound
         Joint limit of the box [rad].
     free_joint
-        Search R~ with this joint free.
+        Search R~ with this joint (or these joints) free, beside the robot's passive
+        joints (which are always free, as in :func:`~snake_pin.manipulability.manipulability`).
+    seed
+        Seed of the random starts, 0 .. :data:`MAX_SEED`.
     relative
         R <= relative * (median R of random postures) counts as numerically zero.
+    progress
+        Show a progress bar on stderr when it is a terminal.
+
+    Raises
+    ------
+    RunInterrupted
+        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt) after at least one start:
+        ``partial`` is the search over the starts finished so far.
     """
-    if starts < 1:
-        raise ParameterError(f"starts must be at least 1, got {starts}")
-    if not 0 < bound <= np.pi:
+    for name, value in (("starts", starts), ("seed", seed)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            raise ParameterError(f"{name} must be an integer, got {value!r}")
+    if not 1 <= starts <= MAX_STARTS:
+        raise ParameterError(f"starts must lie in 1..{MAX_STARTS}, got {starts}")
+    if not 0 <= seed <= MAX_SEED:
+        raise ParameterError(f"seed must lie in 0..{MAX_SEED}, got {seed}")
+    if not 0 < bound <= np.pi:  # also refuses NaN
         raise ParameterError(f"bound must lie in (0, pi], got {bound}")
-    task_split(params.n, free_joint)  # validates n and the free joint
+    task_split(params.n, free_joint)  # validates the free joints
+    given = [] if free_joint is None else np.atleast_1d(free_joint).astype(int).tolist()
+    free = sorted(set(params.passive) | set(given))
+    free_joint = (free[0] if len(free) == 1 else tuple(free)) if free else None
+    task_split(params.n, free_joint)  # n large enough for all of them
     dim = params.n - 1
     rng = np.random.default_rng(seed)
     typical = manipulability_R_batch(params, rng.uniform(-bound, bound, (2000, dim)),
@@ -158,19 +201,39 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     if progress:
         from tqdm import tqdm
 
-        iterator = tqdm(iterator, desc="singular search", unit="start", leave=False)
-    for i in iterator:
-        start = rng.uniform(-bound, bound, dim)
-        first = minimize(objective, start, jac=True, method="L-BFGS-B", bounds=box,
-                         options={"maxiter": 400, "ftol": 1e-16, "gtol": 1e-12})
-        polish = minimize(objective, first.x, jac=True, method="L-BFGS-B", bounds=box,
-                          options={"maxiter": 400, "ftol": 0.0, "gtol": 1e-16})
-        best = polish if polish.fun <= first.fun else first
-        phis[i] = best.x
-        values[i] = np.sqrt(max(best.fun, 0.0)) * scale
-    threshold = relative * scale
-    result = SingularSearch(params, bound, starts, free_joint, scale, threshold, phis, values)
-    result.families = _cluster(phis[values <= threshold], values[values <= threshold])
+        iterator = tqdm(iterator, desc="singular search", unit="start", leave=False,
+                        disable=None)
+    done = 0
+    try:
+        for i in iterator:
+            start = rng.uniform(-bound, bound, dim)
+            first = minimize(objective, start, jac=True, method="L-BFGS-B", bounds=box,
+                             options={"maxiter": 400, "ftol": 1e-16, "gtol": 1e-12})
+            polish = minimize(objective, first.x, jac=True, method="L-BFGS-B", bounds=box,
+                              options={"maxiter": 400, "ftol": 0.0, "gtol": 1e-16})
+            best = polish if polish.fun <= first.fun else first
+            phis[i] = best.x
+            values[i] = np.sqrt(max(best.fun, 0.0)) * scale
+            done = i + 1
+    except KeyboardInterrupt as exc:
+        if done == 0:
+            raise
+        partial = _result(params, bound, free_joint, scale, relative * scale, phis[:done],
+                          values[:done])
+        partial.status, partial.starts_requested = "interrupted", int(starts)
+        raise RunInterrupted(f"singular search interrupted after {done} of {starts} starts",
+                             partial=partial) from exc
+    return _result(params, bound, free_joint, scale, relative * scale, phis, values)
+
+
+def _result(params: SnakeParams, bound: float, free_joint: int | Sequence[int] | None,
+            scale: float, threshold: float, phis: np.ndarray,
+            values: np.ndarray) -> SingularSearch:
+    """The search over the minima ``phis`` (R ``values``), clustered into families."""
+    free = tuple(free_joint) if isinstance(free_joint, Sequence) else free_joint
+    result = SingularSearch(params, bound, len(values), free, scale, threshold, phis, values)
+    zero = values <= threshold
+    result.families = _cluster(phis[zero], values[zero])
     return result
 
 

@@ -1,27 +1,32 @@
 """Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map.
 
 A :class:`Sweep` holds one family: the swept parameter, D and R at each value, and the
-free joint if any. It writes itself as CSV, JSON and a PNG like the paper's figures.
+free joints if any. It writes itself as CSV, JSON and a PNG like the paper's figures, as
+one set of files. A sweep stopped by Ctrl-C/SIGTERM raises
+:class:`~snake_pin.exceptions.RunInterrupted` whose ``partial`` is the sweep of the
+postures computed so far (``status == "interrupted"``).
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import json
+import numbers
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ._io import atomic_write_bytes
-from .exceptions import ParameterError
+from ._io import atomic_group
+from .exceptions import ParameterError, RunInterrupted
 from .gaits import Serpenoid, arc
 from .manipulability import manipulability, manipulability_R_batch, task_split
 from .model import Snake
+from .report import json_text
 
-__all__ = ["FAMILIES", "RMap", "Sweep", "r_map", "sweep"]
+__all__ = ["FAMILIES", "MAX_POINTS", "RMap", "Sweep", "r_map", "sweep"]
 
 #: Family name -> (parameter label, default range, description).
 FAMILIES: dict[str, tuple[str, tuple[float, float], str]] = {
@@ -29,6 +34,12 @@ FAMILIES: dict[str, tuple[str, tuple[float, float], str]] = {
     "alpha": ("alpha [rad]", (0.0, np.pi / 2), "serpenoid, T_s = 1.5 (Figs. 4, 8)"),
     "ts": ("T_s", (0.0, 2.0), "serpenoid, alpha = pi/4 (Figs. 5, 9)"),
 }
+
+#: Most postures one sweep evaluates: about 2 s at n = 10 and 30 s at n = 200, three
+#: arrays of 0.8 MB; the figure's resolution gains nothing beyond it.
+MAX_POINTS = 100_000
+
+FreeJoints = int | tuple[int, ...] | None
 
 
 @dataclass
@@ -40,27 +51,36 @@ class Sweep:
     values: np.ndarray
     D: np.ndarray
     R: np.ndarray
-    free_joint: int | None
+    free_joint: FreeJoints
     robot: str
     meta: dict[str, float] = field(default_factory=dict)
+    status: str = "completed"
 
     @property
     def stem(self) -> str:
-        """File stem, e.g. ``sweep_arc`` or ``sweep_arc_free5``."""
-        return f"sweep_{self.family}" + (f"_free{self.free_joint}" if self.free_joint else "")
+        """File stem, e.g. ``sweep_arc``, ``sweep_arc_free5`` or ``sweep_arc_free3_5``."""
+        free = _free_tuple(self.free_joint)
+        return f"sweep_{self.family}" + (f"_free{'_'.join(map(str, free))}" if free else "")
 
     def zeros(self, relative: float = 1e-9) -> np.ndarray:
         """Parameter values where R is numerically zero (relative to the largest R)."""
+        if self.R.size == 0:
+            return self.values[:0]
         return self.values[self.R <= relative * self.R.max()]
 
     def to_dict(self) -> dict[str, object]:
-        """JSON-friendly dict."""
+        """JSON-friendly dict (``status`` is ``"interrupted"`` for a partial sweep)."""
+        free = self.free_joint
         return {"family": self.family, "parameter": self.label, "robot": self.robot,
-                "free_joint": self.free_joint, "values": self.values.tolist(),
+                "free_joint": list(free) if isinstance(free, tuple) else free,
+                "status": self.status, "values": self.values.tolist(),
                 "D": self.D.tolist(), "R": self.R.tolist(), **self.meta}
 
     def write(self, folder: str | os.PathLike[str]) -> dict[str, Path]:
-        """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` into ``folder``."""
+        """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` into ``folder``.
+
+        The three files appear together (data first, then the figure) or not at all.
+        """
         from .viz.plots import plot_sweep
 
         folder = Path(folder)
@@ -69,11 +89,21 @@ class Sweep:
         writer.writerow([self.label, "D", "R"])
         writer.writerows(zip(self.values.tolist(), self.D.tolist(), self.R.tolist(),
                              strict=True))
-        paths = {ext: folder / f"{self.stem}.{ext}" for ext in ("csv", "json", "png")}
-        atomic_write_bytes(paths["csv"], buf.getvalue().encode())
-        atomic_write_bytes(paths["json"], (json.dumps(self.to_dict()) + "\n").encode())
-        plot_sweep(self, paths["png"])
-        return paths
+        names = {ext: f"{self.stem}.{ext}" for ext in ("csv", "json", "png")}
+        png = io.BytesIO()
+        if self.values.size:
+            import matplotlib.pyplot as plt
+
+            fig = plot_sweep(self)
+            fig.savefig(png, format="png", dpi=110, bbox_inches="tight")
+            plt.close(fig)
+        with atomic_group(folder) as group:
+            group.write_bytes(names["csv"], buf.getvalue().encode())
+            group.write_bytes(names["json"], (json_text(self.to_dict()) + "\n").encode())
+            if self.values.size:
+                group.write_bytes(names["png"], png.getvalue(), figure=True)
+        return {ext: folder / name for ext, name in names.items()
+                if ext != "png" or self.values.size}
 
 
 def _family_configuration(family: str, n: int, value: float) -> np.ndarray:
@@ -84,28 +114,74 @@ def _family_configuration(family: str, n: int, value: float) -> np.ndarray:
     return Serpenoid(n, np.pi / 4, value).configuration()
 
 
-def sweep(snake: Snake, family: str, *, free_joint: int | None = None, points: int = 201,
-          bounds: tuple[float, float] | None = None, progress: bool = False) -> Sweep:
-    """D and R along a posture family ("arc", "alpha" or "ts"), ``points`` values."""
+def _free_tuple(free_joint: FreeJoints) -> tuple[int, ...]:
+    if free_joint is None:
+        return ()
+    if isinstance(free_joint, numbers.Integral):
+        return (int(free_joint),)
+    return tuple(free_joint)
+
+
+def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None = None,
+          points: int = 201, bounds: tuple[float, float] | None = None,
+          progress: bool = False) -> Sweep:
+    """D and R along a posture family ("arc", "alpha" or "ts") at ``points`` values.
+
+    Parameters
+    ----------
+    snake
+        The robot. Its passive joints are free joints, beside ``free_joint`` (as in
+        :func:`~snake_pin.manipulability.manipulability`).
+    family
+        One of :data:`FAMILIES`.
+    free_joint
+        Joint(s) without an actuator (D~ and R~ of eq. 42).
+    points
+        Number of parameter values, 2 .. :data:`MAX_POINTS`.
+    bounds
+        The parameter range (default: the family's range in :data:`FAMILIES`).
+    progress
+        Show a progress bar on stderr when it is a terminal.
+
+    Raises
+    ------
+    RunInterrupted
+        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the sweep
+        of the values computed so far, with ``status == "interrupted"``.
+    """
     if family not in FAMILIES:
         raise ParameterError(f"unknown family {family!r}; choose one of {', '.join(FAMILIES)}")
-    if points < 2:
-        raise ParameterError(f"points must be at least 2, got {points}")
+    if isinstance(points, bool) or not isinstance(points, numbers.Integral):
+        raise ParameterError(f"points must be an integer, got {points!r}")
+    if not 2 <= points <= MAX_POINTS:
+        raise ParameterError(f"points must lie in 2..{MAX_POINTS}, got {points}")
     task_split(snake.n, free_joint)  # validate before any output (progress bar)
+    free = tuple(sorted(set(snake.params.passive) | set(_free_tuple(free_joint))))
     label, default, _ = FAMILIES[family]
     low, high = bounds or default
-    values = np.linspace(low, high, points)
+    values = np.linspace(low, high, int(points))
     d, r = np.empty(points), np.empty(points)
+    kept = free[0] if len(free) == 1 else (free or None)
     iterator = range(points)
     if progress:
         from tqdm import tqdm
 
-        iterator = tqdm(iterator, desc=f"sweep {family}", unit="posture", leave=False)
-    for i in iterator:
-        res = manipulability(snake, _family_configuration(family, snake.n, values[i]),
-                             free_joint=free_joint)
-        d[i], r[i] = res.D, res.R
-    return Sweep(family, label, values, d, r, free_joint, snake.params.name)
+        iterator = tqdm(iterator, desc=f"sweep {family}", unit="posture", leave=False,
+                        disable=None)
+    done = 0
+    try:
+        for i in iterator:
+            res = manipulability(snake, _family_configuration(family, snake.n, values[i]),
+                                 free_joint=free)
+            d[i], r[i] = res.D, res.R
+            done = i + 1
+    except KeyboardInterrupt as exc:
+        partial = Sweep(family, label, values[:done], d[:done], r[:done], kept,
+                        snake.params.name, meta={"points_requested": int(points)},
+                        status="interrupted")
+        raise RunInterrupted(f"sweep {family} interrupted after {done} of {points} postures",
+                             partial=partial) from exc
+    return Sweep(family, label, values, d, r, kept, snake.params.name)
 
 
 @dataclass

@@ -56,3 +56,66 @@ def test_five_links_with_free_joint_is_always_singular() -> None:
         assert manipulability(snake, np.r_[0, 0, 0, rng.uniform(-1, 1, 4)], free_joint=3).R == 0
     with pytest.raises(ParameterError, match="zero at every posture"):
         find_singular_postures(params, free_joint=3, starts=2)
+
+
+def test_interrupted_search_keeps_the_starts_done(table1: Snake,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C during the third start: RunInterrupted whose partial search holds the two
+    finished starts (the same minima as an uninterrupted search), marked interrupted."""
+    import snake_pin.singular as singular
+    from snake_pin.exceptions import RunInterrupted
+
+    original, calls = singular.minimize, []
+
+    def interrupted(*args: object, **kwargs: object) -> object:
+        calls.append(1)
+        if len(calls) == 5:  # two calls per start
+            raise KeyboardInterrupt
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(singular, "minimize", interrupted)
+    with pytest.raises(RunInterrupted, match="after 2 of 6 starts") as info:
+        find_singular_postures(table1.params, starts=6, seed=4)
+    partial = info.value.partial
+    assert partial.status == "interrupted" and partial.starts == 2
+    data = partial.to_dict()
+    assert data["status"] == "interrupted" and data["starts_requested"] == 6
+    monkeypatch.undo()
+    whole = find_singular_postures(table1.params, starts=6, seed=4)
+    assert np.allclose(partial.minima_phi, whole.minima_phi[:2])
+    assert whole.status == "completed" and whole.to_dict()["starts_requested"] == 6
+
+
+def test_interrupt_before_any_start_is_a_plain_interrupt(
+        table1: Snake, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Nothing computed yet: the KeyboardInterrupt goes on as it is (no empty partial)."""
+    import snake_pin.singular as singular
+    from snake_pin.exceptions import RunInterrupted
+
+    def interrupted(*args: object, **kwargs: object) -> object:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(singular, "minimize", interrupted)
+    with pytest.raises(KeyboardInterrupt) as info:
+        find_singular_postures(table1.params, starts=3)
+    assert not isinstance(info.value, RunInterrupted)
+
+
+@pytest.mark.parametrize("kwargs", [{"starts": 10_001}, {"starts": 10**12}, {"starts": True},
+                                    {"starts": 2.0}, {"seed": -1}, {"seed": 2**32},
+                                    {"seed": 1.5}, {"bound": float("nan")}])
+def test_limits(kwargs: dict) -> None:
+    """starts in 1..MAX_STARTS, seed in 0..2**32-1, integers only, bound not NaN."""
+    from snake_pin.singular import MAX_SEED, MAX_STARTS
+
+    assert (MAX_STARTS, MAX_SEED) == (10_000, 2**32 - 1)
+    with pytest.raises(ParameterError):
+        find_singular_postures(SnakeParams.table1(), **kwargs)
+
+
+def test_passive_joints_are_free_in_the_search() -> None:
+    """A robot's passive joint is searched as a free joint (same minima as free_joint)."""
+    passive = find_singular_postures(SnakeParams.table1(passive=(5,)), starts=2, seed=5)
+    free = find_singular_postures(SnakeParams.table1(), starts=2, seed=5, free_joint=5)
+    assert passive.free_joint == free.free_joint == 5
+    assert np.allclose(passive.minima_R, free.minima_R)

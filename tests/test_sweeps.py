@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from snake_pin import ParameterError, Snake
-from snake_pin.sweeps import r_map, sweep
+from snake_pin.sweeps import MAX_POINTS, r_map, sweep
 
 
 @pytest.mark.parametrize("family", ["arc", "alpha", "ts"])
@@ -59,3 +59,64 @@ def test_unknown_family(table1: Snake) -> None:
     """An unknown family is a ParameterError naming the choices."""
     with pytest.raises(ParameterError, match="arc"):
         sweep(table1, "zigzag")
+
+
+def test_interrupted_sweep_keeps_the_postures_done(table1: Snake, tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C in a sweep raises RunInterrupted whose partial sweep holds exactly the values
+    computed before it, marked interrupted in its files."""
+    import snake_pin.sweeps as sweeps
+    from snake_pin.exceptions import RunInterrupted
+
+    original, calls = sweeps.manipulability, []
+
+    def interrupted(*args: object, **kwargs: object) -> object:
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(sweeps, "manipulability", interrupted)
+    with pytest.raises(RunInterrupted, match="after 3 of 11") as info:
+        sweep(table1, "ts", points=11)
+    partial = info.value.partial
+    assert partial.status == "interrupted" and len(partial.values) == len(partial.R) == 3
+    monkeypatch.undo()
+    assert np.allclose(partial.R, sweep(table1, "ts", points=11).R[:3], rtol=1e-12)
+    data = json.loads(partial.write(tmp_path)["json"].read_text())
+    assert data["status"] == "interrupted" and data["points_requested"] == 11
+
+
+@pytest.mark.parametrize("points", [1, 0, MAX_POINTS + 1, 10**12, True, 2.5])
+def test_points_outside_the_limit_are_refused(table1: Snake, points: object) -> None:
+    """points must be an integer in 2..MAX_POINTS (no bool, no float, nothing allocated)."""
+    with pytest.raises(ParameterError, match="points"):
+        sweep(table1, "arc", points=points)  # type: ignore[arg-type]
+
+
+def test_files_appear_together_or_not_at_all(table1: Snake, tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """If drawing the figure fails, neither the CSV nor the JSON is left behind."""
+    import snake_pin.viz.plots as plots
+
+    sw = sweep(table1, "arc", points=5)
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise RuntimeError("no figure")
+
+    monkeypatch.setattr(plots, "plot_sweep", broken)
+    with pytest.raises(RuntimeError):
+        sw.write(tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_passive_joints_are_free_beside_the_free_joint(table1: Snake) -> None:
+    """A passive joint and a free joint together give R~ with both joints free."""
+    from snake_pin.manipulability import manipulability
+
+    robot = Snake(table1.params.replace(passive=(5,)))
+    sw = sweep(robot, "arc", free_joint=3, points=5)
+    assert sw.stem == "sweep_arc_free3_5" and sw.to_dict()["free_joint"] == [3, 5]
+    expected = [manipulability(table1, np.r_[0, 0, 0, np.full(9, v)], free_joint=(3, 5)).R
+                for v in sw.values]
+    assert np.allclose(sw.R, expected, rtol=1e-12)

@@ -4,6 +4,7 @@ Figs. 6-7, and the singular-posture search over the whole joint box."""
 from __future__ import annotations
 
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,21 +15,28 @@ from ..sweeps import FAMILIES, r_map, sweep
 from ..viz.plots import plot_postures, plot_r_maps
 from .reproduce import Context
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 __all__ = ["draw_singular", "manipulability_stage"]
 
 FREE_JOINT = 5  # the paper's example of a free joint
 
 
-def draw_singular(search: SingularSearch, path: str | os.PathLike[str], limit: int = 5) -> None:
-    """Draw the representative of up to ``limit`` families (plus the straight posture)."""
+def draw_singular(search: SingularSearch, path: str | os.PathLike[str] | None,
+                  limit: int = 5) -> Figure:
+    """Draw the representative of up to ``limit`` families (plus the straight posture).
+
+    Saved as PNG at ``path`` (and closed); with ``path=None`` the open figure is returned.
+    """
     snake = Snake(search.params)
     free = f", joint {search.free_joint} free" if search.free_joint else ""
     postures = [(f"straight: R = 0 exactly{free}", straight(search.params.n))]
     for fam in search.families[:limit]:
         postures.append((f"{'straight' if fam.straight else 'non-straight'}, R = {fam.R:.1e}"
                          f" ({fam.members} starts)", np.r_[0.0, 0.0, 0.0, fam.phi]))
-    plot_postures(snake, postures, path, frames=False,
-                  title=f"Singular postures found (|phi_i| <= {search.bound:.2f}){free}")
+    return plot_postures(snake, postures, path, frames=False,
+                         title=f"Singular postures found (|phi_i| <= {search.bound:.2f}){free}")
 
 
 def manipulability_stage(ctx: Context) -> None:
