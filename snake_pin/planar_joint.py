@@ -1,0 +1,257 @@
+"""Conversion between Pinocchio's planar-joint model of a snake URDF and paper coordinates.
+
+Plain Pinocchio users load our URDFs with ``pin.buildModelFromUrdf("urdf/snake_table1.urdf")``
+and get the ``world -> base`` joint as a ``JointModelPlanar``. That model's coordinates are
+not the paper's:
+
+=====================  =========================================  ==========================
+                       planar model (Pinocchio)                   paper (:class:`~snake_pin.Snake`)
+=====================  =========================================  ==========================
+configuration          [x, y, cos theta, sin theta, q_1..q_{n-1}]  [x_h, y_h, theta_1, phi]
+                       (nq = n + 3)                                (nq = n + 2)
+velocity               [v_x, v_y, omega, q_1'..q_{n-1}']           [x_h', y_h', theta_1', phi']
+                       v_x, v_y in the *head's* frame              all plain time derivatives
+acceleration           d/dt of the velocity's components           q''
+=====================  =========================================  ==========================
+
+(x, y) is the head link frame's origin (x_h, y_h) and theta = theta_1. With R(theta) the
+head's rotation in the plane, the velocity map is
+
+    v_planar = T(theta) q',   T = blockdiag(R(theta)^T, 1, S),
+
+with S = diag(s_i), s_i = +1 for a joint about +z and -1 for one about -z (q_i = s_i phi_i).
+Differentiating, a_planar = T q'' + T' q', where T' q' = theta' [v_y, -v_x, 0, ..., 0]
+(the velocity-product term: the head frame turns under the base velocity). Hence
+
+    q'' = T^-1 (a_planar - T' q'),    H = T^T M T,    h = T^T (b + M T' q'),
+
+with M and b Pinocchio's mass matrix and nonlinear effects of the planar model, and
+generalised forces map as f_paper = T^T f_planar (equal power); joint torques are the same
+up to the sign s_i. Gravity (along -z) does no work in the plane and drops out. Friction
+is not part of a URDF: ``pin.aba`` on the planar model is the friction-free dynamics.
+
+Also accepted: ``continuous`` joints (Pinocchio's unbounded revolute joints: two
+coordinates cos q_i, sin q_i) and revolute joints about -z. Angles read back from
+(cos, sin) pairs lie in (-pi, pi]. Models of other shapes (another root joint, a rotated
+joint placement, a branch) are refused with :class:`~snake_pin.exceptions.ParameterError`
+naming the joint; vectors of the wrong size or with non-finite entries with
+:class:`~snake_pin.exceptions.ConfigurationError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from ._symmetric import symmetric_from_upper
+from ._validation import as_vector
+from .exceptions import ParameterError
+
+__all__ = [
+    "PlanarLayout",
+    "paper_dynamics",
+    "paper_to_planar",
+    "paper_to_planar_acceleration",
+    "paper_to_planar_force",
+    "planar_layout",
+    "planar_to_paper",
+    "planar_to_paper_acceleration",
+    "velocity_map",
+]
+
+_BOUNDED = {"JointModelRZ": 1.0}
+_UNBOUNDED = {"JointModelRUBZ": 1.0}
+_TOLERANCE = 1e-12
+
+
+@dataclass(frozen=True)
+class PlanarLayout:
+    """Where a planar-joint snake model keeps each coordinate.
+
+    Attributes
+    ----------
+    n
+        Number of links.
+    nq, nv
+        The planar model's sizes (nq = n + 3 + number of continuous joints, nv = n + 2).
+    idx_q
+        Index in the planar configuration of each joint's first coordinate (n - 1).
+    unbounded
+        True for joints stored as (cos, sin) (``continuous`` in the URDF).
+    signs
+        s_i: +1 for a joint about +z, -1 about -z (q_i = s_i phi_i).
+    """
+
+    n: int
+    nq: int
+    nv: int
+    idx_q: np.ndarray
+    unbounded: np.ndarray
+    signs: np.ndarray
+
+
+def _axis_sign(joint: pin.JointModel, name: str) -> tuple[float, bool]:
+    """(s_i, unbounded) of a revolute joint about +-z, or ParameterError."""
+    kind = joint.shortname()
+    if kind in _BOUNDED:
+        return _BOUNDED[kind], False
+    if kind in _UNBOUNDED:
+        return _UNBOUNDED[kind], True
+    if kind in ("JointModelRevoluteUnaligned", "JointModelRevoluteUnboundedUnaligned"):
+        axis = np.asarray(joint.extract().axis, dtype=float)
+        if np.allclose(axis[:2], 0.0, atol=_TOLERANCE) and abs(abs(axis[2]) - 1.0) < 1e-9:
+            return float(np.sign(axis[2])), kind.endswith("UnboundedUnaligned")
+        raise ParameterError(f"joint {name!r} turns about {axis.tolist()}, not z")
+    raise ParameterError(f"joint {name!r} is a {kind}, not a revolute joint about z")
+
+
+def planar_layout(model: pin.Model) -> PlanarLayout:
+    """Check that ``model`` is a planar-root serial snake and say where its coordinates are.
+
+    Raises
+    ------
+    ParameterError
+        Naming the joint that is not as expected: the first joint must be
+        ``JointModelPlanar`` at the origin, each other a revolute joint about +-z whose
+        parent is the previous joint and whose placement does not rotate.
+    """
+    if model.njoints < 3:
+        raise ParameterError(f"a snake model needs a planar joint and at least one "
+                             f"revolute joint, got {model.njoints - 1} joint(s)")
+    if model.joints[1].shortname() != "JointModelPlanar":
+        raise ParameterError(f"joint {model.names[1]!r} is a {model.joints[1].shortname()}, "
+                             f"not the planar base joint (JointModelPlanar)")
+    if not model.jointPlacements[1].isIdentity(1e-12):
+        raise ParameterError(f"joint {model.names[1]!r} is not placed at the world origin")
+    idx_q, unbounded, signs = [], [], []
+    for j in range(2, model.njoints):
+        name = model.names[j]
+        if model.parents[j] != j - 1:
+            raise ParameterError(f"joint {name!r} hangs from joint "
+                                 f"{model.names[model.parents[j]]!r}: not a serial chain")
+        rotation = np.asarray(model.jointPlacements[j].rotation)
+        if np.max(np.abs(rotation - np.eye(3))) > 1e-9:
+            raise ParameterError(f"joint {name!r}: its placement rotates the next link")
+        sign, free = _axis_sign(model.joints[j], name)
+        idx_q.append(model.idx_qs[j])
+        unbounded.append(free)
+        signs.append(sign)
+    return PlanarLayout(n=model.njoints - 1, nq=model.nq, nv=model.nv,
+                        idx_q=np.asarray(idx_q, dtype=int),
+                        unbounded=np.asarray(unbounded, dtype=bool),
+                        signs=np.asarray(signs, dtype=float))
+
+
+def _layout(model: pin.Model | PlanarLayout) -> PlanarLayout:
+    return model if isinstance(model, PlanarLayout) else planar_layout(model)
+
+
+def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
+    """T(theta_1) with v_planar = T q' ((n + 2) x (n + 2)), from the paper configuration ``q``."""
+    layout = _layout(model)
+    q = as_vector(q, layout.n + 2, "q")
+    c, s = np.cos(q[2]), np.sin(q[2])
+    t_map = np.diag(np.r_[1.0, 1.0, 1.0, layout.signs])
+    t_map[:2, :2] = [[c, s], [-s, c]]
+    return t_map
+
+
+def _rate_term(dq: np.ndarray, v_planar: np.ndarray) -> np.ndarray:
+    """T' q' = theta' [v_y, -v_x, 0, ...]: the head frame turning under the base velocity."""
+    out = np.zeros_like(dq)
+    out[0], out[1] = dq[2] * v_planar[1], -dq[2] * v_planar[0]
+    return out
+
+
+def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(q_planar, v_planar) of the paper state (q, q').
+
+    Parameters
+    ----------
+    model
+        The planar model (``pin.buildModelFromUrdf`` of our URDF) or its :func:`planar_layout`.
+    q, dq
+        Paper configuration [x_h, y_h, theta_1, phi] and its time derivative (n + 2 each).
+    """
+    layout = _layout(model)
+    q = as_vector(q, layout.n + 2, "q")
+    dq = as_vector(dq, layout.n + 2, "dq")
+    q_planar = np.empty(layout.nq)
+    q_planar[:4] = q[0], q[1], np.cos(q[2]), np.sin(q[2])
+    angles = layout.signs * q[3:]
+    bounded = ~layout.unbounded
+    q_planar[layout.idx_q[bounded]] = angles[bounded]
+    q_planar[layout.idx_q[layout.unbounded]] = np.cos(angles[layout.unbounded])
+    q_planar[layout.idx_q[layout.unbounded] + 1] = np.sin(angles[layout.unbounded])
+    return q_planar, velocity_map(layout, q) @ dq
+
+
+def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
+                    v_planar: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(q, q') in paper coordinates of the planar model's state (q_planar, v_planar).
+
+    theta_1 (and the angle of a continuous joint) comes back in (-pi, pi].
+    """
+    layout = _layout(model)
+    q_planar = as_vector(q_planar, layout.nq, "q_planar")
+    v_planar = as_vector(v_planar, layout.nv, "v_planar")
+    angles = np.empty(layout.n - 1)
+    bounded = ~layout.unbounded
+    angles[bounded] = q_planar[layout.idx_q[bounded]]
+    free = layout.idx_q[layout.unbounded]
+    angles[layout.unbounded] = np.arctan2(q_planar[free + 1], q_planar[free])
+    q = np.r_[q_planar[:2], np.arctan2(q_planar[3], q_planar[2]), layout.signs * angles]
+    # T is orthogonal on the base block and a sign flip on the joints: T^-1 = T^T
+    return q, velocity_map(layout, q).T @ v_planar
+
+
+def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
+                                 dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+    """a_planar = T q'' + T' q' (what ``pin.aba`` on the planar model returns)."""
+    layout = _layout(model)
+    _, v_planar = paper_to_planar(layout, q, dq)
+    ddq = as_vector(ddq, layout.n + 2, "ddq")
+    dq = np.asarray(dq, dtype=float).reshape(-1)
+    return velocity_map(layout, q) @ ddq + _rate_term(dq, v_planar)
+
+
+def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
+                                 v_planar: np.ndarray, a_planar: np.ndarray) -> np.ndarray:
+    """q'' = T^-1 (a_planar - T' q') of the planar model's acceleration ``a_planar``."""
+    layout = _layout(model)
+    q, dq = planar_to_paper(layout, q_planar, v_planar)
+    a_planar = as_vector(a_planar, layout.nv, "a_planar")
+    v_planar = np.asarray(v_planar, dtype=float).reshape(-1)
+    return velocity_map(layout, q).T @ (a_planar - _rate_term(dq, v_planar))
+
+
+def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
+                          force: np.ndarray) -> np.ndarray:
+    """The planar model's generalised force of a paper one: f_planar = T^-T f = T f.
+
+    For joint torques, ``force = E tau`` (zeros on x_h, y_h, theta_1) gives
+    ``[0, 0, 0, s_i tau_i]``, the ``tau`` to pass to ``pin.aba`` on the planar model.
+    """
+    layout = _layout(model)
+    force = as_vector(force, layout.n + 2, "force")
+    return velocity_map(layout, q) @ force
+
+
+def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """H(q) and the friction-free h(q, q') of eq. (20), computed on the planar model.
+
+    H = T^T M T and h = T^T (b + M T' q'), with M by CRBA and b = ``nonLinearEffects``
+    of the planar model at the converted state; equal to :class:`~snake_pin.Snake`'s
+    ``inertia_matrix`` and ``coriolis`` (friction is not in a URDF).
+    """
+    layout = planar_layout(model)
+    q_planar, v_planar = paper_to_planar(layout, q, dq)
+    mass = symmetric_from_upper(pin.crba(model, data, q_planar))
+    bias = pin.nonLinearEffects(model, data, q_planar, v_planar)
+    t_map = velocity_map(layout, q)
+    dq = np.asarray(dq, dtype=float).reshape(-1)
+    return t_map.T @ mass @ t_map, t_map.T @ (bias + mass @ _rate_term(dq, v_planar))

@@ -1,0 +1,915 @@
+"""Robot descriptions on disk: TOML robot files, URDF import, and the ``--robot`` lookup.
+
+This module owns turning a file (or a preset name) into a validated
+:class:`~snake_pin.params.SnakeParams`, and writing a robot file back. Every problem with
+a file is one :class:`~snake_pin.exceptions.RobotFileError` whose message is one line
+naming the file, then the field or element (and the link where it applies).
+
+TOML robot files
+----------------
+A robot file describes one planar snake, links numbered from the head::
+
+    # my_snake.toml
+    name = "my_snake"        # required: letters, digits, underscores
+    n = 4                    # optional when a per-link array gives it
+    passive = [2]            # optional: 1-based joints without an actuator
+
+    [links]                  # each field: one number for all links, or n numbers (head first)
+    link_length = [0.20, 0.15, 0.15, 0.15]  # full length 2l_i [m]; joint i at x = 2l_i
+    mass = [0.70, 0.40, 0.40, 0.50]         # [kg]
+    inertia = [3.4e-3, 1.2e-3, 1.2e-3, 9e-4]  # yaw inertia about the link's CM [kg m^2]
+    com_offset = [0.08, 0.075, 0.075, 0.075]  # optional: CM distance from the front [m];
+                                            # default: the middle of each link
+
+    [friction]               # optional; each key one number or n numbers; default 0
+    c_x = 0.5                # along the link [N s/m]
+    c_y = 5.0                # across the link [N s/m]
+    c_theta = 1e-4           # rotation [N m s]
+
+Instead of ``[links]``, one ``[[link]]`` table per link (head first) with the same keys
+as numbers (``link_length``, ``mass``, ``inertia`` required; ``com_offset`` optional, the
+middle of that link when left out)::
+
+    [[link]]
+    link_length = 0.20
+    mass = 0.70
+    inertia = 3.4e-3
+    com_offset = 0.08
+
+    [[link]]
+    link_length = 0.15
+    mass = 0.40
+    inertia = 1.2e-3
+
+Or ``urdf = "relative/path.urdf"`` (relative to the robot file's folder) takes the
+geometry and inertia from a URDF (:func:`read_urdf`); ``[links]``/``[[link]]`` are then
+not allowed, ``n`` (if given) must match the URDF, ``passive`` (if given) replaces the
+URDF's zero-effort marks, and each friction coefficient comes from the robot file's
+``[friction]``, else the URDF's own ``<snake_pin>`` element, else zero, in that order.
+
+No other keys are accepted (a misspelt key is an error, not a silent default). Values are
+checked before the robot is built: types (a string mass), signs, finiteness, per-link
+arrays of different lengths, ``n`` against the arrays. Robot files are at most
+:data:`MAX_ROBOT_FILE_BYTES` long and UTF-8.
+
+URDF import
+-----------
+:func:`read_urdf` accepts any URDF of a planar serial chain of revolute z joints, written
+by :mod:`snake_pin.urdf` or not. What is accepted, and how it maps onto ``SnakeParams``:
+
+- **One chain.** The links form one tree with one root; after merging ``fixed`` joints,
+  every body has at most one movable child joint (a body with two is a branched tree,
+  refused naming the link). ``fixed`` joints (a camera on the head, a tail cap) are merged
+  into their parent body by Pinocchio: mass, centre of mass and yaw inertia combined.
+- **A leading base is stripped.** A root link without mass (``world``, ``base_footprint``)
+  whose one child joint is ``planar``, ``floating`` or ``fixed`` is dropped; its child is
+  the head. Any other ``planar``, ``floating`` or ``prismatic`` joint is refused by name,
+  as are ``mimic`` joints and unknown joint types.
+- **Revolute z joints in line.** Every movable joint is ``revolute`` or ``continuous``
+  with axis (0, 0, +1) or (0, 0, -1) (a -z joint's URDF angle is -phi_i; the dynamics in
+  phi are the same). Its origin, seen from the parent body, must not rotate (rpy 0 0 0,
+  so every link lies along its x axis at zero joint angles) and must lie on the parent
+  link's +x axis: y = 0 and x > 0; a height z is accepted and ignored (heights do not
+  enter planar dynamics). The tolerance is :data:`GEOMETRY_TOLERANCE` times the link
+  length.
+- **Inertia.** Every link of the chain (the head and each movable joint's child) has an
+  ``<inertial>`` with ``<mass>`` and ``<inertia>``; links fixed onto them may have none.
+  Per body: m_i is the merged mass, J_i the merged inertia about the merged CM about z
+  (tilted inertial frames are rotated), the CM offset its x in the link frame. The CM
+  must lie on the link's x axis (|y| within the tolerance) and 0 <= x <= 2l_i; its
+  height z is ignored.
+- **Lengths.** Link i's length 2l_i is the x of joint i's origin in link i's frame. The
+  last link has no next joint: its length is the largest x that its own collision
+  geometry reaches in its frame (box, cylinder or sphere; meshes are not loaded), else
+  its visual geometry, else twice its CM offset (also when the geometry ends before the
+  CM). Its length enters no dynamics (friction and inertia act at the CM).
+- **Head position.** x_h, y_h of the resulting model is the origin of the head link's
+  frame (our URDFs put it at the head's front end).
+- **Friction.** URDF has no viscous ground friction. Each of c_x, c_y, c_theta comes from
+  the ``friction`` argument if it names it, else from our ``<snake_pin version="1">``
+  element (written by :func:`snake_pin.urdf.urdf_string`, ignored by other loaders),
+  else it is **zero**.
+- **Passive joints** are those with ``<limit effort="0">``.
+- **Name**: the ``<snake_pin>`` element's name if present, else the ``<robot>`` name with
+  every run of other characters than letters, digits and underscores turned into ``_``
+  (a preset's name gets ``_urdf`` appended, never passing for the preset).
+
+Joint damping and Coulomb friction (``<dynamics>``), joint limits and geometry other than
+the last link's are ignored. URDF files are at most :data:`MAX_URDF_BYTES` long; a
+document type declaration (DTD, entities) is refused.
+
+Shipped robots
+--------------
+:func:`robot_paths` lists the URDFs and example robot files shipped with the package, and
+:func:`load_robot` turns a ``--robot`` value (a preset name, a ``.toml`` or ``.urdf``
+path, or the bare file name of a shipped robot) into parameters.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import io
+import math
+import numbers
+import os
+import re
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._io import atomic_write_bytes
+from .exceptions import ParameterError, RobotFileError
+from .params import MAX_LINKS, ROBOTS, SnakeParams
+
+__all__ = [
+    "FRICTION_KEYS",
+    "GEOMETRY_TOLERANCE",
+    "MAX_ROBOT_FILE_BYTES",
+    "MAX_URDF_BYTES",
+    "load_robot",
+    "read_robot_file",
+    "read_urdf",
+    "robot_file_string",
+    "robot_paths",
+    "write_robot_file",
+]
+
+#: Largest robot file read [bytes] (a 200-link robot with every field per link is ~30 kB).
+MAX_ROBOT_FILE_BYTES = 1 << 20
+#: Largest URDF read [bytes].
+MAX_URDF_BYTES = 16 << 20
+#: Relative tolerance (times the link length) on URDF geometry that must be exactly planar.
+GEOMETRY_TOLERANCE = 1e-6
+#: The friction coefficients, in the order they are written.
+FRICTION_KEYS = ("c_x", "c_y", "c_theta")
+
+_GEOMETRY_KEYS = ("link_length", "mass", "inertia", "com_offset")
+_REQUIRED_GEOMETRY = ("link_length", "mass", "inertia")
+_TOP_KEYS = ("name", "n", "passive", "links", "link", "friction", "urdf")
+_MOVABLE = ("revolute", "continuous")
+_BASE_JOINTS = ("planar", "floating", "fixed")
+_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+_REPR_CHARS = 60
+
+
+# --------------------------------------------------------------------------- helpers
+def _short(value: object) -> str:
+    """``repr(value)`` on one line, cut to a readable length."""
+    text = repr(value).replace("\n", " ")
+    return text if len(text) <= _REPR_CHARS else text[:_REPR_CHARS - 3] + "..."
+
+
+def _error(path: str | os.PathLike[str], message: str) -> RobotFileError:
+    """A RobotFileError ``"FILE: message"`` on one line."""
+    return RobotFileError(" ".join(f"{os.fspath(path)}: {message}".split()))
+
+
+def _read_limited(path: str | os.PathLike[str], limit: int, kind: str) -> bytes:
+    """The bytes of ``path`` (at most ``limit``), or RobotFileError naming the file."""
+    target = Path(path)
+    try:
+        if not target.exists():
+            raise _error(path, f"no such {kind}")
+        if target.is_dir():
+            raise _error(path, f"is a folder, not a {kind}")
+        with open(target, "rb") as handle:
+            data = handle.read(limit + 1)
+    except OSError as exc:
+        raise _error(path, f"cannot read it ({exc.strerror or exc})") from exc
+    if len(data) > limit:
+        raise _error(path, f"is larger than {limit} bytes: not a {kind}")
+    return data
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _float_or_raise(value: object, path: str | os.PathLike[str], where: str) -> object:
+    """TOML integers too large for a float become an error here (not an OverflowError)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        try:
+            float(value)
+        except OverflowError:
+            raise _error(path, f"{where} must be a finite number, "
+                               f"got an integer of {len(str(value))} digits") from None
+    return value
+
+
+def _numbers(value: object, path: str | os.PathLike[str], where: str) -> object:
+    """``value`` with every over-large integer refused (types are checked by SnakeParams)."""
+    if isinstance(value, list):
+        return [_float_or_raise(item, path, f"{where}, link {i}")
+                for i, item in enumerate(value, start=1)]
+    return _float_or_raise(value, path, where)
+
+
+def _sanitise_name(name: str, fallback: str) -> str:
+    """Letters, digits and underscores only (runs of anything else become one ``_``)."""
+    for candidate in (name, fallback):
+        clean = re.sub(r"[^A-Za-z0-9_]+", "_", candidate or "").strip("_")
+        if clean:
+            return clean
+    return "robot"
+
+
+# ----------------------------------------------------------------------- TOML reading
+def _parse_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
+    data = _read_limited(path, MAX_ROBOT_FILE_BYTES, "robot file")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise _error(path, f"not a TOML robot file (not UTF-8 text at byte {exc.start})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise _error(path, f"not valid TOML: {exc}") from None
+
+
+def _check_keys(path: str | os.PathLike[str], table: Mapping[str, Any], allowed: tuple[str, ...],
+                where: str) -> None:
+    for key in table:
+        if key not in allowed:
+            raise _error(path, f"{where}unknown key {_short(key)} "
+                               f"(expected one of {', '.join(allowed)})")
+
+
+def _table(path: str | os.PathLike[str], doc: Mapping[str, Any], key: str,
+           header: str) -> dict[str, Any] | None:
+    value = doc.get(key)
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        raise _error(path, f"{key} must be a table ({header}), got {_short(value)}")
+    return value
+
+
+def _link_tables(path: str | os.PathLike[str], entries: object) -> dict[str, Any]:
+    """The ``[[link]]`` array of tables as per-link lists (com_offset filled with the middle)."""
+    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+        raise _error(path, f"link must be an array of tables ([[link]], one per link), "
+                           f"got {_short(entries)}")
+    columns: dict[str, list[Any]] = {key: [] for key in _GEOMETRY_KEYS}
+    any_offset = any("com_offset" in entry for entry in entries)
+    for i, entry in enumerate(entries, start=1):
+        where = f"[[link]] {i}: "
+        _check_keys(path, entry, _GEOMETRY_KEYS, where)
+        for key in _GEOMETRY_KEYS:
+            if key not in entry:
+                if key == "com_offset":
+                    continue
+                raise _error(path, f"{where}{key} is missing")
+            value = _float_or_raise(entry[key], path, f"{where}{key}")
+            if not _is_number(value):
+                raise _error(path, f"{where}{key} must be a number, got {_short(value)}")
+        if any_offset:
+            offset = entry.get("com_offset", 0.5 * float(entry["link_length"]))
+            columns["com_offset"].append(offset)
+        for key in _REQUIRED_GEOMETRY:
+            columns[key].append(entry[key])
+    if not any_offset:
+        del columns["com_offset"]
+    return columns
+
+
+def _fields_from_doc(path: str | os.PathLike[str], doc: dict[str, Any]
+                     ) -> tuple[dict[str, Any], dict[str, str]]:
+    """Per-link fields of the document and where each came from (for messages)."""
+    fields: dict[str, Any] = {}
+    where: dict[str, str] = {}
+    links = _table(path, doc, "links", "[links]")
+    if links is not None and "link" in doc:
+        raise _error(path, "give the links either as [links] or as [[link]] tables, not both")
+    if "urdf" in doc and (links is not None or "link" in doc):
+        raise _error(path, "urdf takes the links from the URDF: remove [links]/[[link]]")
+    if links is not None:
+        _check_keys(path, links, _GEOMETRY_KEYS, "[links] ")
+        for key in _REQUIRED_GEOMETRY:
+            if key not in links:
+                raise _error(path, f"[links] {key} is missing")
+        for key, value in links.items():
+            fields[key] = _numbers(value, path, f"[links] {key}")
+            where[key] = f"[links] {key}"
+    elif "link" in doc:
+        for key, value in _link_tables(path, doc["link"]).items():
+            fields[key] = value
+            where[key] = f"[[link]] {key}"
+    elif "urdf" not in doc:
+        raise _error(path, "the links are missing: give a [links] table, [[link]] tables "
+                           "or urdf = \"FILE.urdf\"")
+    friction = _table(path, doc, "friction", "[friction]")
+    if friction is not None:
+        _check_keys(path, friction, FRICTION_KEYS, "[friction] ")
+        for key, value in friction.items():
+            fields[key] = _numbers(value, path, f"[friction] {key}")
+            where[key] = f"[friction] {key}"
+    return fields, where
+
+
+def _link_count(path: str | os.PathLike[str], doc: dict[str, Any], fields: dict[str, Any],
+                where: dict[str, str]) -> int | None:
+    """n from the ``n`` key and the per-link arrays, which must agree."""
+    lengths = {key: len(value) for key, value in fields.items() if isinstance(value, list)}
+    if "n" in doc:
+        n = doc["n"]
+        if not isinstance(n, int) or isinstance(n, bool):
+            raise _error(path, f"n must be an integer, got {_short(n)}")
+        for key, size in lengths.items():
+            if size != n:
+                raise _error(path, f"n = {n} but {where[key]} has {size} value(s)")
+        return n
+    sizes = sorted(set(lengths.values()))
+    if len(sizes) > 1:
+        detail = ", ".join(f"{where[key]} has {size}" for key, size in lengths.items())
+        raise _error(path, f"per-link arrays have different lengths: {detail}")
+    return sizes[0] if sizes else None
+
+
+def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
+    """Read a TOML robot file (format in the module docstring) into validated parameters.
+
+    Parameters
+    ----------
+    path
+        The ``.toml`` file.
+
+    Returns
+    -------
+    SnakeParams
+        The robot, named by the file's ``name``.
+
+    Raises
+    ------
+    RobotFileError
+        One line naming the file and the field (and link) at fault: a missing file, not
+        TOML, an unknown key, a missing field, a wrong type, a negative or non-finite
+        value, per-link arrays of different lengths, ``n`` against the arrays, or (with
+        ``urdf =``) anything :func:`read_urdf` refuses.
+    """
+    doc = _parse_toml(path)
+    _check_keys(path, doc, _TOP_KEYS, "")
+    if "name" not in doc:
+        raise _error(path, "name is missing")
+    name = doc["name"]
+    if not isinstance(name, str):
+        raise _error(path, f"name must be a string, got {_short(name)}")
+    fields, where = _fields_from_doc(path, doc)
+    n = _link_count(path, doc, fields, where)
+    passive = doc.get("passive")
+    if "urdf" in doc:
+        return _robot_from_urdf(path, doc, n, fields)
+    if n is None:
+        raise _error(path, "n is missing and no per-link array gives it")
+    try:
+        return SnakeParams(n=n, name=name, passive=() if passive is None else passive,
+                           **fields)
+    except ParameterError as exc:
+        raise _error(path, str(exc)) from None
+
+
+def _robot_from_urdf(path: str | os.PathLike[str], doc: dict[str, Any], n: int | None,
+                     friction: dict[str, Any]) -> SnakeParams:
+    """A robot file's ``urdf = ...``: geometry from the URDF, the rest from the file."""
+    ref = doc["urdf"]
+    if not isinstance(ref, str) or not ref:
+        raise _error(path, f"urdf must be a file name (a string), got {_short(ref)}")
+    urdf_path = Path(path).parent / ref
+    try:
+        params = read_urdf(urdf_path)
+    except RobotFileError as exc:
+        raise _error(path, f"urdf = {ref!r}: {exc}") from None
+    if n is not None and n != params.n:
+        raise _error(path, f"n = {n} but the URDF {ref!r} has {params.n} links")
+    changes: dict[str, Any] = {"name": doc["name"], **friction}
+    if "passive" in doc:
+        changes["passive"] = doc["passive"]
+    try:
+        return params.replace(**changes)
+    except ParameterError as exc:
+        raise _error(path, str(exc)) from None
+
+
+# ----------------------------------------------------------------------- TOML writing
+def _toml_float(value: float) -> str:
+    """A finite float in TOML syntax: Python's shortest round-trip repr is valid TOML."""
+    return repr(float(value))
+
+
+def _toml_per_link(key: str, value: float | tuple[float, ...]) -> str:
+    if not isinstance(value, tuple):
+        return f"{key} = {_toml_float(value)}"
+    items = [_toml_float(v) for v in value]
+    lines, line = [], ""
+    for item in items:
+        if line and len(line) + len(item) > 80:
+            lines.append(line)
+            line = ""
+        line = f"{line} {item}," if line else f"{item},"
+    lines.append(line)
+    body = "\n".join(f"    {chunk}" for chunk in lines)
+    return f"{key} = [\n{body}\n]"
+
+
+def robot_file_string(params: SnakeParams) -> str:
+    """The TOML robot file of ``params`` (read back by :func:`read_robot_file` as equal).
+
+    The format is fixed and small, so it is written here rather than by a TOML library
+    (none is a dependency): numbers as Python's shortest round-trip ``repr`` (valid TOML
+    floats: parameters are validated finite), per-link fields as one number or an array
+    (wrapped at about 80 characters), the name as a basic string (it is alphanumeric).
+    """
+    lines = ["# snake_pin robot file (snake_pin.robot_file.read_robot_file reads it)",
+             f'name = "{params.name}"', f"n = {params.n}"]
+    if params.passive:
+        lines.append(f"passive = [{', '.join(str(k) for k in params.passive)}]")
+    lines += ["", "[links]"]
+    for key in _GEOMETRY_KEYS:
+        value = getattr(params, key)
+        if value is not None:
+            lines.append(_toml_per_link(key, value))
+    lines += ["", "[friction]"]
+    lines += [_toml_per_link(key, getattr(params, key)) for key in FRICTION_KEYS]
+    return "\n".join(lines) + "\n"
+
+
+def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
+    """Write ``params`` as a TOML robot file, whole or not at all; return the path.
+
+    Raises
+    ------
+    ParameterError
+        The name does not end in ``.toml`` or its folder does not exist (nothing written).
+    """
+    if not isinstance(params, SnakeParams):
+        raise ParameterError(f"write_robot_file needs SnakeParams, got {type(params).__name__}")
+    path = Path(path)
+    if path.suffix != ".toml":
+        raise ParameterError(f"robot file must end in .toml: {path}")
+    if not path.parent.is_dir():
+        raise ParameterError(f"output directory does not exist: {path.parent}")
+    atomic_write_bytes(path, robot_file_string(params).encode())
+    return path
+
+
+# ------------------------------------------------------------------------ URDF reading
+def _parse_xml(path: str | os.PathLike[str], data: bytes) -> Any:
+    """The ``<robot>`` element of ``data`` (no DTD, no entities, no network)."""
+    from lxml import etree
+
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
+                             huge_tree=False, remove_comments=True)
+    try:
+        tree = etree.parse(io.BytesIO(data), parser)
+    except etree.XMLSyntaxError as exc:
+        raise _error(path, f"not a URDF (not XML: {exc})") from None
+    if tree.docinfo.doctype or tree.docinfo.internalDTD is not None:
+        raise _error(path, "has a document type declaration (DTD); URDF needs none")
+    root = tree.getroot()
+    if root.tag != "robot":
+        raise _error(path, f"not a URDF: the root element is <{root.tag}>, not <robot>")
+    if not root.get("name"):
+        raise _error(path, "<robot> has no name attribute")
+    return root
+
+
+def _yourdfpy_robot(path: str | os.PathLike[str], root: Any) -> Any:
+    import yourdfpy
+    from lxml import etree
+
+    try:
+        urdf = yourdfpy.URDF.load(io.BytesIO(etree.tostring(root)), build_scene_graph=False,
+                                  load_meshes=False)
+    except Exception as exc:  # yourdfpy raises whatever float()/int()/lookups raise
+        raise _error(path, f"yourdfpy cannot parse it ({type(exc).__name__}: {exc})") from None
+    return urdf.robot
+
+
+def _finite(array: object) -> bool:
+    return array is None or bool(np.all(np.isfinite(np.asarray(array, dtype=float))))
+
+
+def _check_links(path: str | os.PathLike[str], robot: Any) -> dict[str, Any]:
+    links: dict[str, Any] = {}
+    for link in robot.links:
+        if not link.name:
+            raise _error(path, "a <link> has no name")
+        if link.name in links:
+            raise _error(path, f"link {link.name!r} is defined twice")
+        links[link.name] = link
+        inertial = link.inertial
+        if inertial is None:
+            continue
+        if inertial.mass is None:
+            raise _error(path, f"link {link.name!r}: <inertial> has no <mass value=...>")
+        if inertial.inertia is None:
+            raise _error(path, f"link {link.name!r}: <inertial> has no <inertia>")
+        if not (_finite(inertial.mass) and _finite(inertial.inertia)
+                and _finite(inertial.origin)):
+            raise _error(path, f"link {link.name!r}: <inertial> has a non-finite value")
+        if inertial.mass < 0.0:
+            raise _error(path, f"link {link.name!r}: mass must be non-negative, "
+                               f"got {inertial.mass:g}")
+    return links
+
+
+def _check_joints(path: str | os.PathLike[str], robot: Any, links: dict[str, Any]
+                  ) -> dict[str, Any]:
+    joints: dict[str, Any] = {}
+    parent_of: dict[str, str] = {}
+    for joint in robot.joints:
+        if not joint.name:
+            raise _error(path, "a <joint> has no name")
+        if joint.name in joints:
+            raise _error(path, f"joint {joint.name!r} is defined twice")
+        joints[joint.name] = joint
+        if joint.type not in _JOINT_TYPES:
+            raise _error(path, f"joint {joint.name!r} has unknown type {_short(joint.type)}")
+        for role in ("parent", "child"):
+            link = getattr(joint, role)
+            if link not in links:
+                raise _error(path, f"joint {joint.name!r}: {role} link {_short(link)} "
+                                   f"is not a <link> of this robot")
+        if joint.child in parent_of:
+            raise _error(path, f"link {joint.child!r} is the child of two joints "
+                               f"({parent_of[joint.child]!r}, {joint.name!r}): not a tree")
+        parent_of[joint.child] = joint.name
+        if not _finite(joint.origin):
+            raise _error(path, f"joint {joint.name!r}: <origin> has a non-finite value")
+    return joints
+
+
+def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[str], list[str], str | None,
+                                                               dict[str, Any], dict[str, Any]]:
+    """The chain's link names (head first), its movable joints, and the stripped base joint."""
+    links = _check_links(path, robot)
+    joints = _check_joints(path, robot, links)
+    children: dict[str, list[Any]] = {name: [] for name in links}
+    for joint in joints.values():
+        children[joint.parent].append(joint)
+    child_links = {joint.child for joint in joints.values()}
+    roots = [name for name in links if name not in child_links]
+    if not roots:
+        raise _error(path, "its joints form a loop: no root link")
+    if len(roots) > 1:
+        raise _error(path, f"links {', '.join(repr(r) for r in roots[:4])} are all roots: "
+                           f"a snake is one connected chain")
+    head, base_joint = roots[0], None
+    root = links[head]
+    if ((root.inertial is None or root.inertial.mass == 0.0) and len(children[head]) == 1
+            and children[head][0].type in _BASE_JOINTS):
+        base_joint = children[head][0].name
+        head = children[head][0].child
+    chain, movable, body = [head], [], head
+    visited = {head}
+    while True:
+        # the rigid body of ``body``: every link reached through fixed joints
+        stack, next_joints = [body], []
+        while stack:
+            name = stack.pop()
+            for joint in children[name]:
+                if joint.type == "fixed":
+                    stack.append(joint.child)
+                    visited.add(joint.child)
+                else:
+                    next_joints.append((name, joint))
+        if not next_joints:
+            break
+        if len(next_joints) > 1:
+            owner = next_joints[1][0]
+            names = ", ".join(repr(j.name) for _, j in next_joints)
+            raise _error(path, f"link {owner!r} has two child joints ({names}): a branched "
+                               f"tree, not a serial chain")
+        joint = next_joints[0][1]
+        _check_movable(path, joint)
+        movable.append(joint.name)
+        body = joint.child
+        chain.append(body)
+        visited.add(body)
+        if len(chain) > MAX_LINKS:
+            raise _error(path, f"has more than {MAX_LINKS} links in its chain")
+    stray = [name for name in links if name not in visited
+             and (base_joint is None or name != joints[base_joint].parent)]
+    if stray:
+        raise _error(path, f"link {stray[0]!r} is not reachable from the head {head!r} "
+                           f"(a loop of joints?)")
+    for name in chain:
+        if links[name].inertial is None:
+            raise _error(path, f"link {name!r} has no <inertial>: every link of the chain "
+                               f"needs its mass and inertia")
+    if len(chain) < 2:
+        raise _error(path, f"has no revolute joint after link {head!r}: a snake needs "
+                           f"at least 2 links")
+    return chain, movable, base_joint, links, joints
+
+
+def _check_movable(path: str | os.PathLike[str], joint: Any) -> None:
+    """A chain joint must be revolute/continuous about +-z and not mimic another."""
+    if joint.type not in _MOVABLE:
+        raise _error(path, f"joint {joint.name!r} is {joint.type}: a snake's joints are "
+                           f"revolute or continuous about z")
+    if joint.mimic is not None:
+        raise _error(path, f"joint {joint.name!r} mimics another joint: not supported")
+    axis = np.asarray(joint.axis if joint.axis is not None else [1.0, 0.0, 0.0], dtype=float)
+    norm = float(np.linalg.norm(axis)) if axis.shape == (3,) else 0.0
+    if not (math.isfinite(norm) and norm > 0.0):
+        raise _error(path, f"joint {joint.name!r}: axis {_short(axis.tolist())} is not "
+                           f"a 3-vector")
+    unit = axis / norm
+    if abs(unit[0]) > GEOMETRY_TOLERANCE or abs(unit[1]) > GEOMETRY_TOLERANCE:
+        raise _error(path, f"joint {joint.name!r} turns about axis "
+                           f"({' '.join(f'{a:g}' for a in axis)}), not z: not a planar snake")
+
+
+def _pinocchio_model(path: str | os.PathLike[str], root: Any, base_joint: str | None,
+                     joints: dict[str, Any]) -> Any:
+    """Pinocchio's fixed-base model of the chain (fixed joints merged), base stripped."""
+    import copy
+
+    import pinocchio as pin
+
+    tree = copy.deepcopy(root)
+    if base_joint is not None:
+        base_link = joints[base_joint].parent
+        for element in list(tree):
+            if ((element.tag == "joint" and element.get("name") == base_joint)
+                    or (element.tag == "link" and element.get("name") == base_link)):
+                tree.remove(element)
+    for element in tree.findall("snake_pin"):
+        tree.remove(element)
+    from lxml import etree
+
+    try:
+        return pin.buildModelFromXML(etree.tostring(tree, encoding="unicode"))
+    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError on malformed XML
+        raise _error(path, f"Pinocchio cannot build a model from it ({exc})") from None
+
+
+def _last_length(link: Any, com: float) -> float:
+    """The largest x the link's collision (else visual) geometry reaches; else 2 x CM offset."""
+    for shapes in (link.collisions, link.visuals):
+        ends = [end for shape in shapes if (end := _geometry_end(shape)) is not None]
+        if ends:
+            end = max(ends)
+            return end if end >= com and end > 0.0 else 2.0 * com
+    return 2.0 * com
+
+
+def _geometry_end(shape: Any) -> float | None:
+    """Largest x of a box, cylinder or sphere in its link's frame (None for meshes)."""
+    pose = np.eye(4) if shape.origin is None else np.asarray(shape.origin, dtype=float)
+    geometry = shape.geometry
+    if geometry is None or not np.all(np.isfinite(pose)):
+        return None
+    rotation, centre = pose[:3, :3], pose[0, 3]
+    if geometry.box is not None and geometry.box.size is not None:
+        reach = 0.5 * float(np.abs(rotation[0]) @ np.asarray(geometry.box.size, dtype=float))
+    elif geometry.cylinder is not None:
+        axis_x = abs(float(rotation[0, 2]))
+        reach = (0.5 * geometry.cylinder.length * axis_x
+                 + geometry.cylinder.radius * math.sqrt(max(0.0, 1.0 - axis_x * axis_x)))
+    elif geometry.sphere is not None:
+        reach = float(geometry.sphere.radius)
+    else:
+        return None
+    end = centre + reach
+    return end if math.isfinite(end) else None
+
+
+def _our_extension(path: str | os.PathLike[str], root: Any, chain: list[str]
+                   ) -> tuple[str | None, dict[str, list[float]]]:
+    """Name and per-link friction from our ``<snake_pin>`` element ({} when absent)."""
+    from .urdf import EXTENSION_TAG, EXTENSION_VERSION
+
+    elements = root.findall(EXTENSION_TAG)
+    if not elements:
+        return None, {}
+    if len(elements) > 1:
+        raise _error(path, f"has {len(elements)} <{EXTENSION_TAG}> elements; one at most")
+    ext = elements[0]
+    version = ext.get("version")
+    if version != str(EXTENSION_VERSION):
+        raise _error(path, f"<{EXTENSION_TAG}> version {_short(version)} is not supported "
+                           f"(this snake_pin reads version {EXTENSION_VERSION})")
+    index = {name: i for i, name in enumerate(chain)}
+    friction = {key: [0.0] * len(chain) for key in FRICTION_KEYS}
+    seen: set[str] = set()
+    for item in ext:
+        if item.tag != "link_friction":
+            raise _error(path, f"<{EXTENSION_TAG}> has an unknown element <{item.tag}>")
+        link = item.get("link")
+        if link not in index:
+            raise _error(path, f"<link_friction link={_short(link)}> names no link of "
+                               f"the chain")
+        if link in seen:
+            raise _error(path, f"<link_friction link={link!r}> appears twice")
+        seen.add(link)
+        for attribute in item.attrib:
+            if attribute not in ("link", *FRICTION_KEYS):
+                raise _error(path, f"<link_friction link={link!r}> has an unknown attribute "
+                                   f"{attribute!r}")
+        for key in FRICTION_KEYS:
+            text = item.get(key)
+            try:
+                value = float(text)  # type: ignore[arg-type]
+            except (TypeError, ValueError):
+                raise _error(path, f"<link_friction link={link!r}> {key} must be a number, "
+                                   f"got {_short(text)}") from None
+            friction[key][index[link]] = value
+    for name in chain:
+        if name not in seen:
+            raise _error(path, f"<{EXTENSION_TAG}> has no <link_friction> for link {name!r}")
+    return ext.get("name"), friction
+
+
+def _friction_argument(friction: Mapping[str, Any] | None, n: int) -> dict[str, Any]:
+    """The caller's friction, checked on its own (ParameterError names the argument)."""
+    if friction is None:
+        return {}
+    if not isinstance(friction, Mapping):
+        raise ParameterError(f"friction must be a dict of {', '.join(FRICTION_KEYS)}, "
+                             f"got {type(friction).__name__}")
+    unknown = [key for key in friction if key not in FRICTION_KEYS]
+    if unknown:
+        raise ParameterError(f"friction: unknown key(s) {', '.join(map(repr, unknown))} "
+                             f"(expected {', '.join(FRICTION_KEYS)})")
+    try:
+        SnakeParams(n=n, **friction)
+    except ParameterError as exc:
+        raise ParameterError(f"friction: {exc}") from None
+    return dict(friction)
+
+
+def read_urdf(path: str | os.PathLike[str],
+              friction: Mapping[str, Any] | None = None) -> SnakeParams:
+    """Parameters of the planar snake described by a URDF (ours or anyone's).
+
+    What is accepted and how lengths, masses, inertias, CM offsets, passive joints and
+    the name are read is listed in the module docstring ("URDF import").
+
+    Parameters
+    ----------
+    path
+        The ``.urdf`` file.
+    friction
+        ``{"c_x": .., "c_y": .., "c_theta": ..}`` (any subset; each one number or n
+        numbers). Each coefficient given here wins; the others come from the file's
+        ``<snake_pin>`` element if it has one, else they are **zero** (URDF itself has no
+        viscous ground friction).
+
+    Raises
+    ------
+    RobotFileError
+        One line naming the file and the element (link or joint) at fault.
+    ParameterError
+        ``friction`` itself is malformed (an unknown key, a negative value).
+    """
+    data = _read_limited(path, MAX_URDF_BYTES, "URDF")
+    root = _parse_xml(path, data)
+    robot = _yourdfpy_robot(path, root)
+    chain, movable, base_joint, links, joints = _chain(path, robot)
+    n = len(chain)
+    caller = _friction_argument(friction, n)
+    model = _pinocchio_model(path, root, base_joint, joints)
+    if model.njoints != n or list(model.names)[1:] != movable:
+        raise _error(path, f"Pinocchio reads joints {list(model.names)[1:]}, expected "
+                           f"{movable}")  # pragma: no cover - a yourdfpy/Pinocchio mismatch
+    lengths, masses, inertias, offsets = [], [], [], []
+    for i, name in enumerate(chain):
+        inertia = model.inertias[i]
+        mass, lever = float(inertia.mass), np.asarray(inertia.lever, dtype=float)
+        yaw = float(inertia.inertia[2, 2])
+        if i + 1 < n:
+            placement = model.jointPlacements[i + 1]
+            length = _joint_offset(path, movable[i], name, placement)
+        else:
+            length = _last_length(links[name], float(lever[0]))
+        scale = GEOMETRY_TOLERANCE * max(length, 1e-12)
+        if mass <= 0.0:
+            raise _error(path, f"link {name!r}: mass must be positive, got {mass:g}")
+        if yaw <= 0.0:
+            raise _error(path, f"link {name!r}: yaw inertia izz about the centre of mass "
+                               f"must be positive, got {yaw:g}")
+        if abs(lever[1]) > scale:
+            raise _error(path, f"link {name!r}: the centre of mass lies {lever[1]:g} m off "
+                               f"the link's x axis (y must be 0)")
+        if not -scale <= lever[0] <= length + scale:
+            raise _error(path, f"link {name!r}: the centre of mass x = {lever[0]:g} m lies "
+                               f"outside the link (0..{length:g} m)")
+        lengths.append(length)
+        masses.append(mass)
+        inertias.append(yaw)
+        offsets.append(min(max(float(lever[0]), 0.0), length))
+    ext_name, ext_friction = _our_extension(path, root, chain)
+    passive = [k for k, name in enumerate(movable, start=1)
+               if joints[name].limit is not None and joints[name].limit.effort == 0.0]
+    if ext_name is not None:
+        name = ext_name
+    else:
+        name = _sanitise_name(root.get("name"), Path(path).stem)
+        if name in ROBOTS:
+            name = f"{name}_urdf"
+    values: dict[str, Any] = {key: 0.0 for key in FRICTION_KEYS}
+    values.update(ext_friction)
+    values.update(caller)
+    try:
+        return SnakeParams(n=n, link_length=lengths, mass=masses, inertia=inertias,
+                           com_offset=offsets, passive=passive, name=name, **values)
+    except ParameterError as exc:
+        raise _error(path, _link_names(str(exc), chain)) from None
+
+
+def _joint_offset(path: str | os.PathLike[str], joint: str, link: str, placement: Any) -> float:
+    """2l of ``link``: the x of its next joint, which must lie on +x without rotation."""
+    rotation = np.asarray(placement.rotation, dtype=float)
+    x, y, _ = (float(v) for v in placement.translation)
+    if np.max(np.abs(rotation - np.eye(3))) > GEOMETRY_TOLERANCE:
+        import pinocchio as pin
+
+        rpy = pin.rpy.matrixToRpy(rotation)
+        raise _error(path, f"joint {joint!r}: its origin turns the next link by rpy "
+                           f"({' '.join(f'{a:.6g}' for a in rpy)}) from {link!r}; links must "
+                           f"be in line at zero joint angle (rpy 0 0 0)")
+    if x <= 0.0 or abs(y) > GEOMETRY_TOLERANCE * abs(x):
+        raise _error(path, f"joint {joint!r}: origin ({x:g}, {y:g}) seen from link {link!r} "
+                           f"is not on the link's +x axis")
+    return x
+
+
+def _link_names(message: str, chain: list[str]) -> str:
+    """SnakeParams' ``link i:`` prefix with the URDF link's name added."""
+    match = re.match(r"link (\d+):", message)
+    if match and 1 <= int(match.group(1)) <= len(chain):
+        i = int(match.group(1))
+        return f"link {i} ({chain[i - 1]!r}):{message[match.end():]}"
+    return message
+
+
+# ----------------------------------------------------------------------- shipped robots
+def robot_paths() -> dict[str, Path]:
+    """The shipped URDFs and example robot files, by file name (``snake_table1.urdf``, ...).
+
+    Installed from a wheel, they are package data: ``snake_pin/robots/urdf/*.urdf`` (the
+    repository's ``urdf/``) and ``snake_pin/robots/examples/*.toml`` (the repository's
+    ``examples/robots/``), found through :mod:`importlib.resources`. From a source
+    checkout (an editable install) where those folders are absent, the repository's own
+    ``urdf/`` and ``examples/robots/`` are used.
+    """
+    packaged = importlib.resources.files("snake_pin") / "robots"
+    checkout = Path(__file__).resolve().parent.parent
+    found: dict[str, Path] = {}
+    for sub, source in (("urdf", checkout / "urdf"),
+                        ("examples", checkout / "examples" / "robots")):
+        folder = packaged / sub
+        path = Path(str(folder)) if isinstance(folder, Path) and folder.is_dir() else source
+        if not path.is_dir():
+            continue
+        for file in sorted(path.iterdir()):
+            if file.suffix in (".urdf", ".toml") and file.is_file():
+                found.setdefault(file.name, file)
+    return found
+
+
+def load_robot(spec: str | os.PathLike[str], **overrides: Any) -> SnakeParams:
+    """The robot a ``--robot`` value names, with ``overrides`` applied (e.g. ``passive``).
+
+    Parameters
+    ----------
+    spec
+        A preset name (``table1``, ``engine``), a ``.toml`` robot file, a ``.urdf`` file,
+        or the bare file name of a shipped robot (:func:`robot_paths`) when no such file
+        exists in the working directory.
+    overrides
+        Field changes: keyword arguments of the preset, or :meth:`SnakeParams.replace`
+        applied to a file's robot.
+
+    Raises
+    ------
+    RobotFileError
+        The file is missing, malformed, or ``spec`` is none of the above.
+    ParameterError
+        An override is out of its domain (the message starts with ``spec``).
+    """
+    text = os.fspath(spec) if isinstance(spec, (str, os.PathLike)) else None
+    if not isinstance(text, str):
+        raise RobotFileError(f"robot must be a name or a path, got {_short(spec)}")
+    if text in ROBOTS:
+        return SnakeParams.preset(text, **overrides)
+    suffix = Path(text).suffix.lower()
+    if suffix not in (".toml", ".urdf"):
+        raise RobotFileError(
+            " ".join(f"unknown robot {_short(text)}: give a preset "
+                     f"({', '.join(ROBOTS)}), a .toml robot file or a .urdf file".split()))
+    path = Path(text)
+    if not path.exists() and path.name == text:
+        path = robot_paths().get(text, path)
+    params = read_robot_file(path) if suffix == ".toml" else read_urdf(path)
+    if not overrides:
+        return params
+    try:
+        return params.replace(**overrides)
+    except ParameterError as exc:
+        raise ParameterError(f"{text}: {exc}") from None
+
