@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from snake_pin import ParameterError, Snake, SnakeParams, simulate
-from snake_pin.control import Controller, QuasiStaticLyapunovController
+from snake_pin.control import QuasiStaticLyapunovController
+from snake_pin.control.quasistatic import servo_gains
 from snake_pin.gaits import arc
 
 from .conftest import head_first_state
@@ -33,25 +34,58 @@ def test_command_minimises_v(passive: tuple, rng: np.random.Generator) -> None:
         assert v_of(rate + 1e-3 * rng.normal(size=rate.size)) > value
 
 
-def test_connection_predicts_the_head_when_friction_dominates(rng: np.random.Generator) -> None:
-    """With friction 100x Table 1's, the simulated w' equals J a' for imposed joint motion."""
-    params = SnakeParams.table1(c_x=50.0, c_y=500.0, c_theta=1e-2)
+def _heavy_head(**changes: object) -> SnakeParams:
+    """Table 1 links behind a head twice as long and three times as heavy, friction 100x."""
+    c_x = [150.0] + [50.0] * 9
+    return SnakeParams(n=10, link_length=[0.24] + [0.12] * 9, mass=[0.546] + [0.182] * 9,
+                       inertia=[0.546 * 0.24**2 / 12] + [2.2e-4] * 9, c_x=c_x,
+                       c_y=[10 * c for c in c_x], c_theta=[3e-2] + [1e-2] * 9,
+                       name="heavy_head").replace(**changes)
+
+
+@pytest.mark.parametrize("params", [SnakeParams.table1(c_x=50.0, c_y=500.0, c_theta=1e-2),
+                                    _heavy_head(), _heavy_head(passive=(5,))],
+                         ids=["table1", "heavy_head", "heavy_head_passive"])
+def test_connection_predicts_the_head_when_friction_dominates(params: SnakeParams) -> None:
+    """With friction 100x Table 1's, the simulated u' (w', passive phi') equals J a'."""
     snake = Snake(params)
     ctrl = QuasiStaticLyapunovController(snake)
-    rate = np.sin(np.arange(9))  # joint velocities imposed by a stiff servo
+    act, passive = np.array(params.actuated) - 1, np.array(params.passive, dtype=int) - 1
+    rate = np.sin(np.arange(9))
+    k_p, k_d = servo_gains(params, 100.0)  # joint servos stable at the 0.1 ms step
 
-    class Servo(Controller):
-        def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-            phi_ref = 0.3 + rate * t
-            return 200.0 * (phi_ref - x[3:12]) + 20.0 * (rate - x[15:])
+    def servo(x: np.ndarray, t: float) -> np.ndarray:
+        tau = k_p * (0.3 + rate * t - x[3:12]) + k_d * (rate - x[15:])
+        tau[passive] = 0.0
+        return tau
 
-    x0 = np.r_[arc(10, 0.3), np.zeros(12)]
-    x0[15:] = rate
-    traj = simulate(snake, Servo(), x0, 0.2, dt=1e-4, control_dt=1e-4)
+    traj = simulate(snake, servo, np.r_[arc(10, 0.3), np.zeros(12)], 0.2, dt=1e-4,
+                    control_dt=1e-4)
+    assert traj.status == "completed"
     k = len(traj) - 1
-    predicted = ctrl.connection(traj.q[k])[:3] @ traj.dq[k, 3:]
-    measured = traj.dq[k, :3]
+    predicted = ctrl.connection(traj.q[k]) @ traj.dq[k, 3 + act]
+    measured = np.r_[traj.dq[k, :3], traj.dq[k, 3 + passive]]
+    assert np.abs(measured[:3]).max() > 0.05  # the head does move
     assert np.allclose(measured, predicted, atol=0.02 * np.abs(predicted).max())
+    if not params.uniform:  # the same joint motion through equal links' friction: > 10 % off
+        uniform = SnakeParams.table1(c_x=50.0, c_y=500.0, c_theta=1e-2, passive=params.passive)
+        wrong = QuasiStaticLyapunovController(Snake(uniform)).connection(traj.q[k])
+        assert np.abs(wrong @ traj.dq[k, 3 + act] - measured).max() \
+            > 0.1 * np.abs(predicted).max()
+
+
+def test_servo_gains_scale_with_each_link() -> None:
+    """K_p, K_d per joint scale as m (2l)^2 of the links it joins (x12 for m x3, 2l x2)."""
+    base = SnakeParams.table1()
+    k_p, k_d = servo_gains(base, 20.0)
+    assert np.allclose(k_p, 400.0 * 0.182 * 0.12**2) and np.allclose(k_d, 40.0 * 0.182 * 0.12**2)
+    big = base.replace(mass=3 * 0.182, link_length=0.24)
+    assert np.allclose(servo_gains(big, 20.0)[0], 12 * k_p)
+    head = servo_gains(_heavy_head(), 20.0)[0]
+    assert head[0] == pytest.approx(6.5 * k_p[0])  # (12 + 1) / 2: the head joint's mean
+    assert np.allclose(head[1:], k_p[1:])
+    ctrl = QuasiStaticLyapunovController(Snake(_heavy_head()))
+    assert np.allclose(ctrl.k_p, head)
 
 
 def test_passive_joint_gets_no_torque(rng: np.random.Generator) -> None:
@@ -69,3 +103,10 @@ def test_bad_settings(changes: dict, kwargs: dict) -> None:
     """No friction (no connection) or non-positive servo settings are ParameterErrors."""
     with pytest.raises(ParameterError):
         QuasiStaticLyapunovController(Snake(SnakeParams.engine(**changes)), **kwargs)
+
+
+def test_link_without_friction_is_named() -> None:
+    """One frictionless link breaks the quasi-static balance: the error names that link."""
+    params = SnakeParams.engine(c_y=[5.0] * 6 + [0.0, 5.0])
+    with pytest.raises(ParameterError, match=r"link 7: .*c_y = 0"):
+        QuasiStaticLyapunovController(Snake(params))

@@ -21,6 +21,11 @@ paper's V-REP robot do). Passive joints get no torque. V is not driven to zero -
 underactuation leaves a positive minimum - but each control step commands the joint
 velocity of least V, and the head follows through J.
 
+Per-link robots need nothing special in the law: C is built link by link (each link's own
+c_x, c_y, c_theta at its own centre of mass), and the only gains with physical units, the
+servos', scale per joint with the links it joins (:func:`servo_gains`). Every link must
+have c_x, c_y > 0: a link without friction is one whose inertia is not negligible.
+
 :class:`~snake_pin.control.lyapunov.LyapunovController` is the acceleration-level form of
 the same V and gains; it needs a model that predicts accelerations, which sticking wheels
 do not honour (see the engine section of the report).
@@ -35,12 +40,26 @@ from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
+from ..params import SnakeParams
 from .base import Controller, gait_for
 from .gains import gain_matrix
 from .lyapunov import head_first_reference
 from .reference import LinearReference
 
-__all__ = ["QuasiStaticLyapunovController"]
+__all__ = ["QuasiStaticLyapunovController", "servo_gains"]
+
+
+def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
+    """(K_p, K_d) per joint (n - 1 each) of critically damped servos of ``bandwidth`` [rad/s].
+
+    K_p,k = omega^2 I_k, K_d,k = 2 omega I_k with I_k = (m_k (2l_k)^2 + m_k+1 (2l_k+1)^2) / 2,
+    the mean inertia scale of the two links joint k joins (each about its own end, as a
+    point mass at the far end would be). It scales with each link's mass times its length
+    squared; on equal links every I_k is m (2l)^2.
+    """
+    link = params.masses * params.link_lengths**2
+    inertia = 0.5 * (link[:-1] + link[1:])
+    return bandwidth**2 * inertia, 2.0 * bandwidth * inertia
 
 
 class QuasiStaticLyapunovController(Controller):
@@ -55,8 +74,11 @@ class QuasiStaticLyapunovController(Controller):
     k_w1, k_w2, k_phi
         Gains of (84).
     servo_bandwidth
-        omega_s [rad/s] of the joint servos: K_p = omega_s^2 I, K_d = 2 omega_s I with
-        I = m (2l)^2, a link's inertia about its joint (critically damped).
+        omega_s [rad/s] of the joint servos: joint k gets K_p,k = omega_s^2 I_k and
+        K_d,k = 2 omega_s I_k (critically damped on I_k), with I_k the mean of
+        m_i (2l_i)^2 over the two links it joins (i = k, k + 1): the inertia scale of a
+        link about its joint, per link, so a heavy, long head gets stiffer servos next to
+        it. On equal links I_k = m (2l)^2 for every joint (the paper's robots).
     max_lead
         Largest distance [rad] the integrated joint reference may run ahead of the joint.
     """
@@ -72,8 +94,12 @@ class QuasiStaticLyapunovController(Controller):
         n = params.n
         if not params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
-        if params.c_x <= 0 or params.c_y <= 0:
-            raise ParameterError("the quasi-static connection needs c_x > 0 and c_y > 0")
+        for key in ("c_x", "c_y"):
+            # friction must dominate inertia on every link for the force balance to hold
+            for i in np.flatnonzero(params.per_link(key) <= 0):
+                where = "" if not isinstance(getattr(params, key), tuple) else f"link {i + 1}: "
+                raise ParameterError(f"{where}the quasi-static connection needs c_x > 0 and "
+                                     f"c_y > 0 on every link, got {key} = 0")
         self.snake = snake
         self.reference = reference or head_first_reference()
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
@@ -89,8 +115,8 @@ class QuasiStaticLyapunovController(Controller):
         self._w_u = np.r_[k_w2_d, k_phi_d[self._u[3:] - 3]]
         self._w_a = k_phi_d[self._a - 3]
         omega = finite_number(servo_bandwidth, "servo_bandwidth", positive=True)
-        inertia = params.mass * params.link_length**2
-        self.k_p, self.k_d = omega**2 * inertia, 2.0 * omega * inertia
+        self.k_p, self.k_d = servo_gains(params, omega)
+        self._k_p_a, self._k_d_a = self.k_p[self._a - 3], self.k_d[self._a - 3]
         self.max_lead = finite_number(max_lead, "max_lead", positive=True)
         self.dt = finite_number(control_dt, "control_dt", positive=True)
         self._reference_a: np.ndarray | None = None
@@ -137,7 +163,7 @@ class QuasiStaticLyapunovController(Controller):
         lead = np.clip(self._reference_a + rate * self.dt - joints, -self.max_lead, self.max_lead)
         self._reference_a = joints + lead
         tau = np.zeros(self.snake.n - 1)
-        tau[self._a - 3] = self.k_p * lead + self.k_d * (rate - x[nq + self._a])
+        tau[self._a - 3] = self._k_p_a * lead + self._k_d_a * (rate - x[nq + self._a])
         self._last = {"V": value}
         return tau
 
