@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 from pathlib import Path
 
@@ -44,3 +45,18 @@ def test_key_results_are_reported(report: Path) -> None:
     assert summary["tracking"]["tracking"]["R_min"] > 0
     assert summary["integrability"]["involutivity"][0][3] == "involutive"
     assert summary["engine"]["friction"]["c_y"] > summary["engine"]["friction"]["c_x"]
+
+
+def test_report_is_complete_strict_json_and_in_place(report: Path) -> None:
+    """The run is marked complete, summary.json is RFC 8259 (no NaN/Infinity), every file
+    has the umask's mode and no staging folder is left in the output folder."""
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"{constant} in summary.json")
+
+    summary = json.loads((report / "summary.json").read_text(), parse_constant=refuse)
+    assert summary["run"]["status"] == "complete"
+    assert summary["run"]["sections"][:len(SECTIONS)] == list(SECTIONS)
+    assert not [p for p in report.iterdir() if p.name.startswith(".")]
+    umask = os.umask(0)
+    os.umask(umask)
+    assert {p.stat().st_mode & 0o777 for p in report.iterdir()} == {0o666 & ~umask}

@@ -23,11 +23,11 @@ import numpy as np
 
 from .._validation import finite_number
 from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
-from ..exceptions import ParameterError, SnakePinError
+from ..exceptions import ParameterError, RunInterrupted, SnakePinError
 from ..gaits import initial_state
 from ..model import Snake
 from ..params import SnakeParams
-from ..sim import Trajectory
+from ..sim import MAX_STEPS, Trajectory
 from .model import GRAVITY, EngineModel, WheelSpec, build_engine_model
 
 __all__ = ["LAWS", "DirtyDerivative", "EngineRun", "identify_friction", "run_engine"]
@@ -125,13 +125,30 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     The controller's internal model is ``params`` with the identified viscous friction.
     ``law="velocity"`` uses the quasi-static, velocity-level form of V's minimisation with
     joint servos (:class:`QuasiStaticLyapunovController`); ``law="acceleration"`` the
-    torque-level form of VI.2 (:class:`LyapunovController`). Stops early (``diverged``) if
-    the engine state becomes non-finite or the robot leaves the floor.
+    torque-level form of VI.2 (:class:`LyapunovController`).
+
+    The run ends like :func:`snake_pin.sim.simulate`'s, with a trajectory status:
+    "diverged" if the engine state becomes non-finite or the robot leaves the floor,
+    "failed" if the controller raises (any exception), "completed" otherwise. At most
+    :data:`snake_pin.sim.MAX_STEPS` control steps (``t_final / wheels.control_dt``).
+
+    Raises
+    ------
+    RunInterrupted
+        On KeyboardInterrupt during the run (Ctrl-C, or SIGTERM/SIGHUP turned into it by
+        the command line): ``partial`` is the trajectory of every completed sample, with
+        status "interrupted" and the time in its reason.
     """
     if law not in LAWS:
         raise ParameterError(f"law must be one of {', '.join(LAWS)}, got {law!r}")
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
+    t_final = finite_number(t_final, "t_final", positive=True)
+    dt = wheels.control_dt
+    steps = round(t_final / dt)
+    if steps > MAX_STEPS:
+        raise ParameterError(f"t_final = {t_final:g} s is {steps} control steps of {dt:g} s; "
+                             f"at most {MAX_STEPS} ({MAX_STEPS * dt:g} s)")
     friction = friction or identify_friction(params.replace(passive=()), wheels)
     model_params = params.replace(c_x=friction["c_x"], c_y=friction["c_y"],
                                   c_theta=friction["c_theta"])
@@ -144,8 +161,6 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         controller = LyapunovController(snake, head_first_reference())
     q0 = initial_state(params.n, theta_1=math.pi)[: params.n + 2]
     engine.set_paper_configuration(q0)
-    dt = wheels.control_dt
-    steps = round(t_final / dt)
     nq = snake.nq
     filt = DirtyDerivative(nq, cutoff, dt)
     ts = np.empty(steps + 1)
@@ -154,46 +169,66 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     true_dq = np.empty((steps + 1, nq))
     taus = np.zeros((steps + 1, params.n - 1))
     yaw_prev, yaw_turns = q0[2], 0.0
-    diverged, reason, k = False, "", 0
+    status, reason = "completed", ""
+    good = 0  # samples 0 .. good - 1 are recorded whole (updated after each sample)
     bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=steps, desc="engine", unit="step", leave=False)
     chain = engine.chain_dofs
-    for k in range(steps + 1):
-        q = engine.paper_configuration()
-        # unwrap the heading so the filter and the reference see a continuous angle
-        jump = q[2] - yaw_prev
-        yaw_turns -= 2 * math.pi * round(jump / (2 * math.pi))
-        yaw_prev = q[2]
-        q[2] += yaw_turns
-        dq = filt(q)
-        ts[k], qs[k], dqs[k] = engine.data.time, q, dq
-        true_dq[k] = engine.data.qvel[chain]
-        if not (np.all(np.isfinite(q)) and engine.data.qpos[2] < 5 * wheels.radius):
-            diverged, reason = True, f"engine state left the floor at t = {engine.data.time:.3f} s"
-            break
-        if k == steps:
-            break
-        try:
-            tau = controller(np.concatenate((q, dq)), engine.data.time)
-        except SnakePinError as exc:
-            diverged, reason = True, f"controller failed at t = {engine.data.time:.3f} s: {exc}"
-            break
-        taus[k] = tau
-        engine.apply_torque(tau)
-        for _ in range(wheels.substeps):
-            mujoco.mj_step(engine.model, engine.data)
-        if bar is not None and k % 500 == 0:
-            bar.update(min(500, steps - bar.n))
-    if bar is not None:
-        bar.close()
-    last = k + 1
-    traj = Trajectory(t=ts[:last], q=qs[:last], dq=dqs[:last], tau=taus[:last],
-                      params=model_params, diverged=diverged, reason=reason,
-                      meta={"controller": controller.name, "law": law, "engine": "mujoco",
-                            "cutoff_hz": cutoff,
-                            "control_dt": dt, "engine_timestep": wheels.timestep,
-                            "wheel_radius": wheels.radius, "wheel_friction": wheels.friction})
-    return EngineRun(traj, true_dq[:last], friction)
+
+    def collect(run_status: str, run_reason: str) -> EngineRun:
+        traj = Trajectory(t=ts[:good].copy(), q=qs[:good].copy(), dq=dqs[:good].copy(),
+                          tau=taus[:good].copy(), params=model_params, status=run_status,
+                          reason=run_reason,
+                          meta={"controller": controller.name, "law": law, "engine": "mujoco",
+                                "cutoff_hz": cutoff, "control_dt": dt,
+                                "engine_timestep": wheels.timestep,
+                                "wheel_radius": wheels.radius,
+                                "wheel_friction": wheels.friction})
+        return EngineRun(traj, true_dq[:good].copy(), friction)
+
+    try:
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=steps, desc="engine", unit="step", leave=False, disable=None)
+        for k in range(steps + 1):
+            q = engine.paper_configuration()
+            # unwrap the heading so the filter and the reference see a continuous angle
+            jump = q[2] - yaw_prev
+            yaw_turns -= 2 * math.pi * round(jump / (2 * math.pi)) if np.isfinite(jump) else 0
+            yaw_prev = q[2]
+            q[2] += yaw_turns
+            if not (np.all(np.isfinite(q)) and engine.data.qpos[2] < 5 * wheels.radius):
+                status = "diverged"
+                reason = f"engine state left the floor at t = {engine.data.time:.3f} s"
+                break
+            dq = filt(q)
+            ts[k], qs[k], dqs[k] = engine.data.time, q, dq
+            true_dq[k] = engine.data.qvel[chain]
+            good = k + 1
+            if k == steps:
+                break
+            try:
+                tau = np.asarray(controller(np.concatenate((q, dq)), engine.data.time),
+                                 dtype=float)
+                if tau.shape != (params.n - 1,) or not np.all(np.isfinite(tau)):
+                    raise SnakePinError(f"torque of shape {tau.shape} or not finite")
+            except Exception as exc:
+                status = "failed"
+                reason = f"controller failed at t = {engine.data.time:.3f} s: {exc}"
+                break
+            taus[k] = tau
+            engine.apply_torque(tau)
+            for _ in range(wheels.substeps):
+                mujoco.mj_step(engine.model, engine.data)
+            if bar is not None and k % 500 == 0:
+                bar.update(min(500, steps - bar.n))
+    except KeyboardInterrupt:
+        if good == 0:
+            raise
+        taus[good - 1] = 0.0  # the torque after the last sample was not (fully) applied
+        partial = collect("interrupted", f"interrupted at t = {ts[good - 1]:.3f} s")
+        raise RunInterrupted(partial.trajectory.reason, partial=partial.trajectory) from None
+    finally:
+        if bar is not None:
+            bar.close()
+    return collect(status, reason)

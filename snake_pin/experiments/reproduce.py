@@ -1,17 +1,69 @@
-"""``snake-pin reproduce``: run every report stage in order and write the report."""
+"""``snake-pin reproduce``: run the report stages in order and put the report in place.
+
+What the output folder holds, whatever happens to the run:
+
+- Stages write into a staging folder inside the output folder
+  (``.reproduce-PID-XXXXXXXX``, hidden). When every stage is done, the report is moved into
+  place: the data files first, then figures and pages, then ``summary.json`` and
+  ``index.html`` last, with signals deferred meanwhile (a SIGINT/SIGTERM/SIGHUP that arrives
+  then takes effect once the report is whole).
+- Interrupted (KeyboardInterrupt: Ctrl-C, or SIGTERM/SIGHUP turned into it by the command
+  line), the files of the stage that was running are dropped and an ``index.html`` and
+  ``summary.json`` marked interrupted (when, during which stage, which stages were done)
+  describe the stages done so far. If the output folder already held a complete report,
+  it is left untouched and the partial report goes to its ``interrupted/`` subfolder;
+  otherwise the partial report takes the output folder itself.
+- Any other failure removes the staging folder and leaves the output folder as it was.
+  A staging folder left behind by a killed run (its pid gone) is removed by the next run.
+
+Which robot options each stage honours is declared in :data:`HONOURED`: a stage uses the
+robot it is given for those fields and sets the others itself (e.g. the tracking runs'
+anisotropic friction, PFL's all-actuated joints, the engine's own 8-link robot), so a
+caller must refuse the others rather than let a stage override them silently.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import datetime
+import json
+import os
+import re
+import shutil
+import signal
+import tempfile
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .._io import current_umask
+from ..exceptions import ParameterError, RunInterrupted
 from ..params import SnakeParams
 from ..report import Report
 
-__all__ = ["Context", "reproduce", "stages"]
+__all__ = ["HONOURED", "MIN_LINKS", "Context", "reproduce", "stages", "unhonoured"]
+
+#: Stage -> the robot fields (``SnakeParams`` names, plus "robot" for the preset) it takes
+#: from the robot it is given. Friction does not enter D and R, so the manipulability
+#: stage honours it trivially; the engine stage always runs the engine robot of VI.3.
+HONOURED: dict[str, frozenset[str]] = {
+    "robot": frozenset({"robot", "n", "passive", "c_x", "c_y", "c_theta"}),
+    "manipulability": frozenset({"robot", "n", "c_x", "c_y", "c_theta"}),
+    "integrability": frozenset({"robot", "n", "c_x", "c_theta"}),
+    "pfl": frozenset({"robot", "n", "c_x", "c_y", "c_theta"}),
+    "tracking": frozenset({"robot", "n", "c_theta"}),
+    "engine": frozenset(),
+}
+
+#: Stage -> the fewest links it can run with (joint 5 free or passive needs n >= 6).
+MIN_LINKS: dict[str, int] = {"robot": 2, "manipulability": 6, "integrability": 4, "pfl": 4,
+                             "tracking": 6, "engine": 2}
+
+_STAGING = re.compile(r"\.reproduce-(\d+)-\w+")
+_PARTIAL = "interrupted"
 
 
 @dataclass
@@ -39,23 +91,216 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
             ("tracking", tracking_stage), ("engine", engine_stage)]
 
 
+def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams) -> list[str]:
+    """The fields of ``given`` that ``stage`` would not honour (sorted).
+
+    ``given`` holds the fields a user set (names of :data:`HONOURED`). The engine stage
+    honours "robot" when it is the engine robot, which it always runs.
+    """
+    honoured = set(HONOURED[stage])
+    if stage == "engine" and params.name == "engine":
+        honoured.add("robot")
+    return sorted(set(given) - honoured)
+
+
 def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: bool = False,
               only: list[str] | None = None, log: Callable[[str], None] = print) -> Path:
-    """Run the stages (all, or those named in ``only``) and write ``folder/index.html``."""
+    """Run the stages (all, or those named in ``only``) and put the report in ``folder``.
+
+    Returns
+    -------
+    Path
+        ``folder/index.html``.
+
+    Raises
+    ------
+    ParameterError
+        A stage named in ``only`` does not exist, or the robot has fewer links than a
+        chosen stage needs (:data:`MIN_LINKS`); nothing is written.
+    RunInterrupted
+        On KeyboardInterrupt; ``partial`` is the index of the partial report (see the
+        module docstring for where it is), the message says where and which stage.
+    """
+    params = params or SnakeParams.table1()
+    known = stages()
+    names = [name for name, _ in known]
+    for name in only or []:
+        if name not in names:
+            raise ParameterError(f"unknown stage {name!r}; stages: {', '.join(names)}")
+    chosen = [(name, fn) for name, fn in known if only is None or name in only]
+    for name, _ in chosen:
+        if params.n < MIN_LINKS[name]:
+            raise ParameterError(f"stage {name!r} needs n >= {MIN_LINKS[name]} links, "
+                                 f"got n = {params.n}")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    params = params or SnakeParams.table1()
-    report = Report(f"snake_pin report: {params.name} robot "
-                    "(Ariizumi & Tanaka, manipulability without a lateral constraint)")
-    ctx = Context(folder=folder, params=params, report=report, quick=quick)
-    chosen = [(name, fn) for name, fn in stages() if only is None or name in only]
-    timings = {}
-    for index, (name, fn) in enumerate(chosen, start=1):
-        log(f"[{index}/{len(chosen)}] {name} ...")
-        start = time.perf_counter()
-        fn(ctx)
-        timings[name] = time.perf_counter() - start
-        log(f"[{index}/{len(chosen)}] {name} done in {timings[name]:.1f} s")
+    _remove_stale_staging(folder)
+    staging = Path(tempfile.mkdtemp(dir=folder, prefix=f".reproduce-{os.getpid()}-"))
+    try:
+        os.chmod(staging, 0o777 & ~current_umask())
+        report = Report(f"snake_pin report: {params.name} robot "
+                        "(Ariizumi & Tanaka, manipulability without a lateral constraint)")
+        ctx = Context(folder=staging, params=params, report=report, quick=quick)
+        timings: dict[str, float] = {}
+        current, sections, files = "", 0, set()
+        try:
+            for index, (name, fn) in enumerate(chosen, start=1):
+                current, sections, files = name, len(report.sections), _names(staging)
+                log(f"[{index}/{len(chosen)}] {name} ...")
+                start = time.perf_counter()
+                fn(ctx)
+                timings[name] = time.perf_counter() - start
+                log(f"[{index}/{len(chosen)}] {name} done in {timings[name]:.1f} s")
+            current = ""
+            _timing(report, timings)
+            report.write(staging)
+        except KeyboardInterrupt as exc:
+            with _signals_deferred():
+                index = _keep_partial(folder, staging, report, timings, current, sections,
+                                      files, exc)
+            done = ", ".join(timings) or "none"
+            where = (f"the previous report in {folder} is untouched; the stages done so far "
+                     f"are in {index}" if index.parent != folder
+                     else f"the stages done so far are in {index}, marked interrupted")
+            raise RunInterrupted(f"reproduce interrupted during stage '{current or 'report'}'"
+                                 f" (done: {done}); {where}", partial=index) from None
+        with _signals_deferred():
+            _move_into(staging, folder)
+        return folder / "index.html"
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def _timing(report: Report, timings: dict[str, float]) -> None:
     report.section("timing", "Timing").table(
         ["stage", "wall time [s]"], [[k, v] for k, v in timings.items()]).numbers.update(timings)
-    return report.write(folder)
+
+
+def _names(folder: Path) -> set[str]:
+    return {entry.name for entry in os.scandir(folder)}
+
+
+def _keep_partial(folder: Path, staging: Path, report: Report, timings: dict[str, float],
+                  current: str, sections: int, files: set[str],
+                  exc: BaseException) -> Path:
+    """Write the interrupted report of the stages done and put it in place; its index."""
+    if current:  # drop what the unfinished stage wrote
+        del report.sections[sections:]
+        for name in _names(staging) - files:
+            with contextlib.suppress(OSError):
+                (staging / name).unlink()
+    when = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+    report.status = "interrupted"
+    report.note = (f"interrupted ({_cause(exc)}) at {when} during stage "
+                   f"'{current or 'report'}'; stages done: {', '.join(timings) or 'none'}")
+    _timing(report, timings)
+    report.write(staging)
+    if _complete_report(folder):
+        target = _free_partial_folder(folder)
+        os.replace(staging, target)  # one rename: the whole partial report appears at once
+        return target / "index.html"
+    _move_into(staging, folder)
+    return folder / "index.html"
+
+
+def _cause(exc: BaseException | None) -> str:
+    """The signal behind an interrupt ("SIGTERM", ...) if the command line named it."""
+    seen = 0
+    while exc is not None and seen < 10:
+        text = str(exc.args[0]) if isinstance(exc, KeyboardInterrupt) and exc.args else ""
+        if text.startswith("SIG"):
+            return text
+        exc, seen = exc.__context__, seen + 1
+    return "KeyboardInterrupt"
+
+
+def _complete_report(folder: Path) -> bool:
+    """Whether ``folder`` holds a report that was not marked interrupted."""
+    if not (folder / "index.html").is_file():
+        return False
+    try:
+        run = json.loads((folder / "summary.json").read_text()).get("run", {})
+        return run.get("status", "complete") != "interrupted"
+    except (OSError, ValueError, AttributeError):
+        return True  # a report we cannot read is kept, not replaced
+
+
+def _free_partial_folder(folder: Path) -> Path:
+    """``folder/interrupted``, emptied if it holds an earlier partial report of ours."""
+    target = folder / _PARTIAL
+    if target.exists() and not target.is_symlink() and target.is_dir() \
+            and not _complete_report(target) and (target / "index.html").is_file():
+        shutil.rmtree(target)
+    suffix = 2
+    while target.exists() or target.is_symlink():
+        target = folder / f"{_PARTIAL}-{suffix}"
+        suffix += 1
+    return target
+
+
+def _move_into(staging: Path, folder: Path) -> None:
+    """Rename every staged file into ``folder``: data, figures and pages, summary, index."""
+    def rank(name: str) -> int:
+        if name == "index.html":
+            return 3
+        if name == "summary.json":
+            return 2
+        return 1 if name.endswith((".png", ".html", ".svg")) else 0
+
+    for name in sorted(_names(staging), key=lambda name: (rank(name), name)):
+        os.replace(staging / name, folder / name)
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)  # make the renames durable
+    except OSError:
+        pass  # filesystems that cannot sync a folder
+    finally:
+        os.close(fd)
+
+
+def _remove_stale_staging(folder: Path) -> None:
+    """Remove staging folders of runs whose process is gone (killed with -9)."""
+    for entry in os.scandir(folder):
+        match = _STAGING.fullmatch(entry.name)
+        if match is None or not entry.is_dir(follow_symlinks=False):
+            continue
+        pid = int(match.group(1))
+        try:
+            os.kill(pid, 0)
+            continue  # alive (possibly another run writing into this folder)
+        except ProcessLookupError:
+            shutil.rmtree(entry.path, ignore_errors=True)
+        except (PermissionError, OverflowError):
+            continue
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP while files are moved; deliver the first one after.
+
+    Only the main thread can change handlers; elsewhere this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+
+    def note(signum: int, _frame: object) -> None:
+        received.append(signum)
+
+    previous = {}
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is None:
+            continue
+        handler = signal.getsignal(sig)
+        if handler is None or handler == signal.SIG_IGN:
+            continue  # ignored, or set outside Python: leave it
+        previous[sig] = signal.signal(sig, note)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if received:
+            signal.raise_signal(received[0])
