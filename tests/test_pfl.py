@@ -9,6 +9,8 @@ from snake_pin import ParameterError, SingularPostureError, Snake, SnakeParams, 
 from snake_pin.control import PFLController
 from snake_pin.experiments.pfl import run_pfl
 
+from .conftest import heterogeneous_params
+
 
 @pytest.mark.parametrize("c_y", [0.5, 5.0])
 def test_closed_loop_gives_w_ddot_equal_a(c_y: float, rng: np.random.Generator) -> None:
@@ -23,6 +25,26 @@ def test_closed_loop_gives_w_ddot_equal_a(c_y: float, rng: np.random.Generator) 
         ddq = snake.forward_dynamics(q, dq, tau)
         a = controller.command(x, t)
         assert np.allclose(ddq[:3], a, atol=1e-9 * max(1.0, np.abs(a).max()))
+
+
+@pytest.mark.parametrize(("friction", "climb_R"), [("none", 0.0), ("isotropic", 0.0),
+                                                   ("anisotropic", 0.0), ("anisotropic", 0.5)])
+def test_heterogeneous_robot_gives_w_ddot_equal_a(friction: str, climb_R: float,
+                                                  rng: np.random.Generator) -> None:
+    """Eq. (71) on per-link robots: w'' = a at random states (the equal-link model misses)."""
+    params = heterogeneous_params(rng, 10, friction)
+    snake = Snake(params)
+    controller = PFLController(snake, climb_R=climb_R)
+    uniform = PFLController(Snake(SnakeParams.table1(c_x=0.5, c_y=0.5)), climb_R=climb_R)
+    for _ in range(20):
+        q = np.r_[rng.normal(size=3), rng.uniform(-1.2, 1.2, 9)]
+        dq = rng.normal(scale=0.5, size=12)
+        x, t = np.r_[q, dq], rng.uniform(0, 10)
+        a = controller.command(x, t)
+        ddq = snake.forward_dynamics(q, dq, controller(x, t))
+        assert np.allclose(ddq[:3], a, atol=1e-8 * max(1.0, np.abs(a).max()))
+        wrong = snake.forward_dynamics(q, dq, uniform(x, t))
+        assert np.abs(wrong[:3] - a).max() > 1e-3 * max(1.0, np.abs(a).max())
 
 
 def test_printed_sign_would_fail(rng: np.random.Generator) -> None:

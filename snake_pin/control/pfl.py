@@ -18,6 +18,12 @@ Beyond the paper, ``climb_R = gamma > 0`` uses the redundancy to climb log R: u 
 -k_d (gamma grad_phi log R - phi'), so that in the null space of H12 the joints accelerate
 towards the velocity gamma grad log R (a damped gradient flow; it does not disturb
 w'' = a). The report shows what it does to the breakdown.
+
+Per-link robots: the law reads only the robot's own H and h (per-link lengths, masses,
+inertias, CM offsets and friction) and the climb term the per-link closed form of R, so
+w'' = a holds for any robot (tested at random states of heterogeneous robots). Its gains
+are rates on accelerations (K_v, R_v [1/s], K_p, R_p [1/s^2]) with no mass or length in
+them; the torque scales with the robot through H, so the gains of (79) serve every robot.
 """
 
 from __future__ import annotations
