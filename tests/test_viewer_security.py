@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from snake_pin import OpenLoop, Snake, SnakeParams, simulate
+from snake_pin import OpenLoop, Snake, SnakeParams, SnakePinError, simulate
 from snake_pin.viz import meshcat_view
 from snake_pin.viz.meshcat_view import start_server, stop_server, write_html
 
@@ -141,7 +141,8 @@ def _readline(stream: object, timeout: float) -> str:
     return data.decode()
 
 
-def _start_view(run_file: Path, cli: bool = False) -> tuple[subprocess.Popen[bytes], int, int]:
+def _start_view(run_file: Path, cli: bool = False, stderr: object = subprocess.DEVNULL
+                ) -> tuple[subprocess.Popen[bytes], int, int]:
     """A process running a blocking live ``view``; return it, its server's pid and web port."""
     if cli:
         cmd = [sys.executable, "-m", "snake_pin.cli", "view", str(run_file)]
@@ -154,7 +155,7 @@ def _start_view(run_file: Path, cli: bool = False) -> tuple[subprocess.Popen[byt
                 "view(Trajectory.load(sys.argv[1]), port=int(sys.argv[2]), fps=10)")
         cmd = [sys.executable, "-c", code, str(run_file), str(_free_port())]
     parent = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                              stderr=subprocess.DEVNULL)
+                              stderr=stderr)
     try:
         line = _readline(parent.stdout, 60.0)
         assert line.startswith("meshcat viewer: http://127.0.0.1:"), line
@@ -238,6 +239,34 @@ def test_server_dies_with_its_parent(run_file: Path, sig: int) -> None:
             assert parent.returncode == 0
     finally:
         _kill_tree(parent, server)
+
+
+def test_view_reports_a_server_that_dies_on_its_own(run_file: Path, tmp_path: Path) -> None:
+    """If the server dies while `view` waits, `view` raises SnakePinError saying so."""
+    errors = tmp_path / "stderr.txt"
+    with errors.open("wb") as sink:
+        parent, server, _ = _start_view(run_file, stderr=sink)
+    try:
+        os.kill(server, signal.SIGKILL)
+        assert parent.wait(timeout=10) == 1
+        last = errors.read_text().strip().splitlines()[-1]
+        assert last.startswith("snake_pin.exceptions.SnakePinError: meshcat server stopped"), last
+    finally:
+        _kill_tree(parent, server)
+
+
+def test_failed_start_is_reported_and_reaped(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A server that cannot bind (port taken after the check) is a SnakePinError naming
+    the cause, and leaves no process behind."""
+    monkeypatch.setattr(meshcat_view, "port_is_free", lambda port: True)
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        with pytest.raises(SnakePinError, match=r"did not start: .*Address already in use"):
+            start_server(busy.getsockname()[1])
+    leftovers = [p for p in _tree(os.getpid())[1:]
+                 if SERVER in Path(f"/proc/{p}/cmdline").read_bytes().decode()]
+    assert not leftovers
 
 
 def test_server_stops_at_end_of_stdin() -> None:

@@ -6,7 +6,9 @@ head is a black line.
 
 What this module promises:
 
-- :func:`write_html` opens **no network listener and starts no process**. The scene is
+- :func:`write_html` opens **no network listener or connection and starts no process**
+  (meshcat's object ids come from ``uuid.uuid1``, whose libuuid may knock on the local
+  ``uuidd`` daemon's Unix socket; nothing else touches a socket). The scene is
   built on a :class:`meshcat.Visualizer` whose window hands each command straight to
   meshcat's own bridge code (:meth:`ZMQWebSocketBridge.handle_zmq`) in this process, with
   no socket behind it; the page is that code's answer to ``get_scene``: meshcat's static
@@ -14,11 +16,13 @@ What this module promises:
   commands at a path replace earlier ones, as in meshcat's scene tree). The page embeds
   meshcat's JavaScript, the scene and the animation, and opens with no server or network.
 - :func:`view` serves the scene live from :mod:`.meshcat_server` in a child process that
-  listens on 127.0.0.1 only (its web and ZMQ ports), never blocks on an unread pipe, and
-  dies with this process however it ends (SIGINT, SIGTERM, SIGHUP, SIGKILL): it watches
-  its stdin pipe for end of file and, when started from the main thread, holds a
-  ``PR_SET_PDEATHSIG``. :func:`view` also stops it itself on the way out, including on
-  ``KeyboardInterrupt`` and ``SystemExit``.
+  listens on 127.0.0.1 only (its web and ZMQ ports), answers only requests addressed to
+  ``127.0.0.1`` or ``localhost``, keeps serving under bursts of connections (its output
+  goes to /dev/null, never to a pipe nobody reads), and dies with this process however
+  it ends (SIGINT, SIGTERM, SIGHUP, SIGKILL): it watches its stdin pipe for end of file
+  and, when started from the main thread, holds a ``PR_SET_PDEATHSIG``. :func:`view`
+  also stops it itself on the way out, including on ``KeyboardInterrupt`` and
+  ``SystemExit``.
 """
 
 from __future__ import annotations
@@ -376,9 +380,11 @@ def view(traj: Trajectory, *, port: int | None = None, fps: float = 30.0,
     fps
         Animation frames per second of simulated time, 1..120.
     block
-        Wait until interrupted (Ctrl-C ends the wait and the call returns), then stop the
-        server. Without it the call returns at once and the server lives until this
-        process ends.
+        Wait until interrupted, then stop the server: once the URL is printed, a
+        ``KeyboardInterrupt`` (Ctrl-C) ends the wait and the call returns normally; one
+        that comes earlier, or a ``SystemExit``, propagates after the server is stopped.
+        Without ``block`` the call returns at once and the server lives until this
+        process ends (stopped at exit, and by itself if the process is killed).
 
     Returns
     -------
