@@ -30,6 +30,9 @@ def head_error_summary(traj: Trajectory, error: np.ndarray,
                        start: float = ERROR_WINDOW) -> dict[str, float | None]:
     """RMS and max head error over t >= ``start`` and the RMS relative to the body length.
 
+    The body length is the sum of the link lengths (``params.body_length``: per-link
+    robots are judged against their own length, a long head included).
+
     All three are None when the run ends before ``start``.
     """
     late = window(traj, start)

@@ -40,7 +40,9 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
                color: str = BODY_COLOR, alpha: float = 1.0, label: str | None = None) -> None:
     """Draw the snake at ``q`` on ``ax``: links, head dot, passive joints as crosses.
 
-    With ``frames`` each link frame O_i - x_i y_i is drawn at the link's CM (as in Fig. 1).
+    Each link is drawn at its own length (per-link robots too). With ``frames`` each link
+    frame O_i - x_i y_i is drawn at that link's CM (as in Fig. 1), its arrows 0.3 of that
+    link's length.
     """
     points = snake.joint_points(q)
     width = 4.0 if alpha == 1.0 else 2.0
@@ -53,8 +55,8 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
                 alpha=alpha)
     if frames:
         poses = snake.link_poses(q)
-        size = 0.6 * snake.params.half_length
-        for x, y, th in poses:
+        sizes = 0.6 * (0.5 * snake.params.link_lengths)  # each frame 0.3 of its own link
+        for (x, y, th), size in zip(poses, sizes, strict=True):
             ax.arrow(x, y, size * np.cos(th), size * np.sin(th), color="#c0392b",
                      width=size * 0.06, length_includes_head=True, zorder=4)
             ax.arrow(x, y, -size * np.sin(th), size * np.cos(th), color="#2874a6",
