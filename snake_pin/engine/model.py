@@ -59,7 +59,7 @@ CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone
 #: n = 8) got dense, and the constraint solver (its dense Newton Hessian) was ~84 % of
 #: ``mj_step``. A wheel contact touches only the DOFs of the chain from the head to its
 #: link and of its own axle, so the Jacobian is mostly zeros: on states of the 60 s engine
-#: run, sparse made ``mj_step`` 2.1x faster (the whole closed loop 1.6x), with the same
+#: run, sparse made ``mj_step`` 2.1x faster (the whole closed loop 1.6-1.9x), with the same
 #: physics (one step agrees to 1e-13, 10 s of closed loop to 1e-12; DESIGN §6, issue 13).
 JACOBIAN = mujoco.mjtJacobian.mjJAC_SPARSE
 
