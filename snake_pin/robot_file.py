@@ -60,7 +60,11 @@ by :mod:`snake_pin.urdf` or not. What is accepted, and how it maps onto ``SnakeP
 - **One chain.** The links form one tree with one root; after merging ``fixed`` joints,
   every body has at most one movable child joint (a body with two is a branched tree,
   refused naming the link). ``fixed`` joints (a camera on the head, a tail cap) are merged
-  into their parent body by Pinocchio: mass, centre of mass and yaw inertia combined.
+  into their parent body: masses added, centres of mass averaged, yaw inertias combined
+  by the parallel-axis theorem in the plane. (Done here on yourdfpy's numbers rather than
+  by Pinocchio's URDF parser, whose centres of mass come out up to 1 ulp off the file's:
+  a body of one link keeps the file's numbers exactly, so our URDFs round-trip to equal
+  parameters.)
 - **A leading base is stripped.** A root link without mass (``world``, ``base_footprint``)
   whose one child joint is ``planar``, ``floating`` or ``fixed`` is dropped; its child is
   the head. Any other ``planar``, ``floating`` or ``prismatic`` joint is refused by name,
@@ -115,6 +119,7 @@ import os
 import re
 import tomllib
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -541,9 +546,27 @@ def _check_joints(path: str | os.PathLike[str], robot: Any, links: dict[str, Any
     return joints
 
 
-def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[str], list[str], str | None,
-                                                               dict[str, Any], dict[str, Any]]:
-    """The chain's link names (head first), its movable joints, and the stripped base joint."""
+@dataclass
+class _Body:
+    """One rigid body of the chain: its main link and the links fixed onto it.
+
+    ``members`` pairs each link with its pose in the main link's frame; ``joint`` is the
+    movable joint to the next body (None for the tail) and ``joint_pose`` that joint's
+    origin in the main link's frame.
+    """
+
+    link: str
+    members: list[tuple[Any, np.ndarray]] = field(default_factory=list)
+    joint: Any = None
+    joint_pose: np.ndarray | None = None
+
+
+def _pose(origin: object) -> np.ndarray:
+    return np.eye(4) if origin is None else np.asarray(origin, dtype=float)
+
+
+def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[_Body], str | None]:
+    """The chain's bodies (head first) and the name of the stripped base joint, if any."""
     links = _check_links(path, robot)
     joints = _check_joints(path, robot, links)
     children: dict[str, list[Any]] = {name: [] for name in links}
@@ -558,51 +581,81 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[str], list[st
                            f"a snake is one connected chain")
     head, base_joint = roots[0], None
     root = links[head]
+    visited = {head}
     if ((root.inertial is None or root.inertial.mass == 0.0) and len(children[head]) == 1
             and children[head][0].type in _BASE_JOINTS):
         base_joint = children[head][0].name
         head = children[head][0].child
-    chain, movable, body = [head], [], head
-    visited = {head}
+        visited.add(head)
+    bodies: list[_Body] = []
+    main = head
     while True:
-        # the rigid body of ``body``: every link reached through fixed joints
-        stack, next_joints = [body], []
+        # the rigid body of ``main``: every link reached through fixed joints
+        body = _Body(main)
+        stack: list[tuple[str, np.ndarray]] = [(main, np.eye(4))]
+        next_joints = []
         while stack:
-            name = stack.pop()
+            name, pose = stack.pop()
+            body.members.append((links[name], pose))
             for joint in children[name]:
                 if joint.type == "fixed":
-                    stack.append(joint.child)
+                    stack.append((joint.child, pose @ _pose(joint.origin)))
                     visited.add(joint.child)
                 else:
-                    next_joints.append((name, joint))
+                    next_joints.append((name, joint, pose @ _pose(joint.origin)))
+        bodies.append(body)
         if not next_joints:
             break
         if len(next_joints) > 1:
             owner = next_joints[1][0]
-            names = ", ".join(repr(j.name) for _, j in next_joints)
+            names = ", ".join(repr(j.name) for _, j, _ in next_joints)
             raise _error(path, f"link {owner!r} has two child joints ({names}): a branched "
                                f"tree, not a serial chain")
-        joint = next_joints[0][1]
-        _check_movable(path, joint)
-        movable.append(joint.name)
-        body = joint.child
-        chain.append(body)
-        visited.add(body)
-        if len(chain) > MAX_LINKS:
+        _, body.joint, body.joint_pose = next_joints[0]
+        _check_movable(path, body.joint)
+        main = body.joint.child
+        visited.add(main)
+        if len(bodies) >= MAX_LINKS:
             raise _error(path, f"has more than {MAX_LINKS} links in its chain")
     stray = [name for name in links if name not in visited
              and (base_joint is None or name != joints[base_joint].parent)]
     if stray:
         raise _error(path, f"link {stray[0]!r} is not reachable from the head {head!r} "
                            f"(a loop of joints?)")
-    for name in chain:
-        if links[name].inertial is None:
-            raise _error(path, f"link {name!r} has no <inertial>: every link of the chain "
-                               f"needs its mass and inertia")
-    if len(chain) < 2:
+    for body in bodies:
+        if links[body.link].inertial is None:
+            raise _error(path, f"link {body.link!r} has no <inertial>: every link of the "
+                               f"chain needs its mass and inertia")
+    if len(bodies) < 2:
         raise _error(path, f"has no revolute joint after link {head!r}: a snake needs "
                            f"at least 2 links")
-    return chain, movable, base_joint, links, joints
+    return bodies, base_joint
+
+
+def _planar_inertia(body: _Body) -> tuple[float, np.ndarray, float]:
+    """Mass, CM (in the main link's frame) and yaw inertia about the CM of a rigid body.
+
+    Fixed links are merged by the parallel-axis theorem in the plane (heights and the
+    tensor's off-diagonal terms do not enter planar dynamics). A body of one link gets
+    its URDF numbers unchanged (no arithmetic on them, so they round-trip exactly).
+    """
+    parts = []
+    for link, pose in body.members:
+        inertial = link.inertial
+        if inertial is None or inertial.mass == 0.0:
+            continue
+        frame = pose @ _pose(inertial.origin)
+        rotation = frame[:3, :3]
+        tensor = rotation @ np.asarray(inertial.inertia, dtype=float) @ rotation.T
+        parts.append((float(inertial.mass), frame[:3, 3], float(tensor[2, 2])))
+    if len(parts) == 1:
+        return parts[0]
+    mass = sum(m for m, _, _ in parts)
+    if mass <= 0.0:
+        return 0.0, np.zeros(3), 0.0
+    centre = sum(m * c for m, c, _ in parts) / mass
+    yaw = sum(j + m * float(np.sum((c[:2] - centre[:2]) ** 2)) for m, c, j in parts)
+    return mass, centre, yaw
 
 
 def _check_movable(path: str | os.PathLike[str], joint: Any) -> None:
@@ -621,30 +674,6 @@ def _check_movable(path: str | os.PathLike[str], joint: Any) -> None:
     if abs(unit[0]) > GEOMETRY_TOLERANCE or abs(unit[1]) > GEOMETRY_TOLERANCE:
         raise _error(path, f"joint {joint.name!r} turns about axis "
                            f"({' '.join(f'{a:g}' for a in axis)}), not z: not a planar snake")
-
-
-def _pinocchio_model(path: str | os.PathLike[str], root: Any, base_joint: str | None,
-                     joints: dict[str, Any]) -> Any:
-    """Pinocchio's fixed-base model of the chain (fixed joints merged), base stripped."""
-    import copy
-
-    import pinocchio as pin
-
-    tree = copy.deepcopy(root)
-    if base_joint is not None:
-        base_link = joints[base_joint].parent
-        for element in list(tree):
-            if ((element.tag == "joint" and element.get("name") == base_joint)
-                    or (element.tag == "link" and element.get("name") == base_link)):
-                tree.remove(element)
-    for element in tree.findall("snake_pin"):
-        tree.remove(element)
-    from lxml import etree
-
-    try:
-        return pin.buildModelFromXML(etree.tostring(tree, encoding="unicode"))
-    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError on malformed XML
-        raise _error(path, f"Pinocchio cannot build a model from it ({exc})") from None
 
 
 def _last_length(link: Any, com: float) -> float:
@@ -768,43 +797,37 @@ def read_urdf(path: str | os.PathLike[str],
     """
     data = _read_limited(path, MAX_URDF_BYTES, "URDF")
     root = _parse_xml(path, data)
-    robot = _yourdfpy_robot(path, root)
-    chain, movable, base_joint, links, joints = _chain(path, robot)
-    n = len(chain)
+    bodies, _ = _chain(path, _yourdfpy_robot(path, root))
+    chain = [body.link for body in bodies]
+    n = len(bodies)
     caller = _friction_argument(friction, n)
-    model = _pinocchio_model(path, root, base_joint, joints)
-    if model.njoints != n or list(model.names)[1:] != movable:
-        raise _error(path, f"Pinocchio reads joints {list(model.names)[1:]}, expected "
-                           f"{movable}")  # pragma: no cover - a yourdfpy/Pinocchio mismatch
     lengths, masses, inertias, offsets = [], [], [], []
-    for i, name in enumerate(chain):
-        inertia = model.inertias[i]
-        mass, lever = float(inertia.mass), np.asarray(inertia.lever, dtype=float)
-        yaw = float(inertia.inertia[2, 2])
-        if i + 1 < n:
-            placement = model.jointPlacements[i + 1]
-            length = _joint_offset(path, movable[i], name, placement)
+    for body in bodies:
+        name = body.link
+        mass, centre, yaw = _planar_inertia(body)
+        if body.joint is not None:
+            length = _joint_offset(path, body.joint.name, name, body.joint_pose)
         else:
-            length = _last_length(links[name], float(lever[0]))
+            length = _last_length(body.members[0][0], float(centre[0]))
         scale = GEOMETRY_TOLERANCE * max(length, 1e-12)
         if mass <= 0.0:
             raise _error(path, f"link {name!r}: mass must be positive, got {mass:g}")
-        if yaw <= 0.0:
+        if not yaw > 0.0:
             raise _error(path, f"link {name!r}: yaw inertia izz about the centre of mass "
                                f"must be positive, got {yaw:g}")
-        if abs(lever[1]) > scale:
-            raise _error(path, f"link {name!r}: the centre of mass lies {lever[1]:g} m off "
+        if abs(centre[1]) > scale:
+            raise _error(path, f"link {name!r}: the centre of mass lies {centre[1]:g} m off "
                                f"the link's x axis (y must be 0)")
-        if not -scale <= lever[0] <= length + scale:
-            raise _error(path, f"link {name!r}: the centre of mass x = {lever[0]:g} m lies "
+        if not -scale <= centre[0] <= length + scale:
+            raise _error(path, f"link {name!r}: the centre of mass x = {centre[0]:g} m lies "
                                f"outside the link (0..{length:g} m)")
         lengths.append(length)
         masses.append(mass)
         inertias.append(yaw)
-        offsets.append(min(max(float(lever[0]), 0.0), length))
+        offsets.append(min(max(float(centre[0]), 0.0), length))
     ext_name, ext_friction = _our_extension(path, root, chain)
-    passive = [k for k, name in enumerate(movable, start=1)
-               if joints[name].limit is not None and joints[name].limit.effort == 0.0]
+    passive = [k for k, body in enumerate(bodies[:-1], start=1)
+               if body.joint.limit is not None and body.joint.limit.effort == 0.0]
     if ext_name is not None:
         name = ext_name
     else:
@@ -821,16 +844,17 @@ def read_urdf(path: str | os.PathLike[str],
         raise _error(path, _link_names(str(exc), chain)) from None
 
 
-def _joint_offset(path: str | os.PathLike[str], joint: str, link: str, placement: Any) -> float:
+def _joint_offset(path: str | os.PathLike[str], joint: str, link: str,
+                  pose: np.ndarray) -> float:
     """2l of ``link``: the x of its next joint, which must lie on +x without rotation."""
-    rotation = np.asarray(placement.rotation, dtype=float)
-    x, y, _ = (float(v) for v in placement.translation)
+    rotation = pose[:3, :3]
+    x, y = float(pose[0, 3]), float(pose[1, 3])
     if np.max(np.abs(rotation - np.eye(3))) > GEOMETRY_TOLERANCE:
-        import pinocchio as pin
-
-        rpy = pin.rpy.matrixToRpy(rotation)
+        rpy = (math.atan2(rotation[2, 1], rotation[2, 2]),
+               -math.asin(max(-1.0, min(1.0, rotation[2, 0]))),
+               math.atan2(rotation[1, 0], rotation[0, 0]))
         raise _error(path, f"joint {joint!r}: its origin turns the next link by rpy "
-                           f"({' '.join(f'{a:.6g}' for a in rpy)}) from {link!r}; links must "
+                           f"({' '.join(f'{a + 0.0:.6g}' for a in rpy)}) from {link!r}; links must "
                            f"be in line at zero joint angle (rpy 0 0 0)")
     if x <= 0.0 or abs(y) > GEOMETRY_TOLERANCE * abs(x):
         raise _error(path, f"joint {joint!r}: origin ({x:g}, {y:g}) seen from link {link!r} "
