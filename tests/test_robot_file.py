@@ -600,6 +600,22 @@ def test_robot_paths() -> None:
             assert isinstance(read_robot_file(path), SnakeParams)
 
 
+def test_robot_paths_prefers_package_data(tmp_path: Path,
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Installed as a wheel: snake_pin/robots/urdf and snake_pin/robots/examples are used."""
+    import importlib.resources
+
+    package = tmp_path / "snake_pin"
+    (package / "robots" / "urdf").mkdir(parents=True)
+    (package / "robots" / "examples").mkdir()
+    (package / "robots" / "urdf" / "snake_table1.urdf").write_text("<robot/>")
+    (package / "robots" / "examples" / "wheel.toml").write_text('name = "w"')
+    (package / "robots" / "examples" / "notes.txt").write_text("not a robot")
+    monkeypatch.setattr(importlib.resources, "files", lambda name: package)
+    assert robot_paths() == {"snake_table1.urdf": package / "robots" / "urdf" / "snake_table1.urdf",
+                             "wheel.toml": package / "robots" / "examples" / "wheel.toml"}
+
+
 def test_load_robot(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Presets, .toml and .urdf paths, shipped file names; anything else one clear line."""
     assert load_robot("engine") == SnakeParams.engine()
