@@ -1,6 +1,7 @@
-"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (DESIGN §3, 5).
+"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here.
 
-Reference [27] is not available; only V and the gains are. This module's law:
+The paper's reference [27] for this law is not available; only V (83) and the gains (84)
+are. This module's law:
 
     V = ||s||^2_{K_w2} + ||e||^2_{K_phi},  s = e_w' + K_w1 e_w,  e = phi_r' - phi'   (83)
 

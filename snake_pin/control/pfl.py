@@ -1,6 +1,7 @@
 """Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected.
 
-Derivation (DESIGN §3 erratum 2). Solving (25) for phi'' and substituting into (24):
+Derivation (eq. 70 is misprinted; the law is derived again from (27)). Solving (25) for
+phi'' and substituting into (24):
 
     Hs w'' = -h1 + H12 H22^-1 (h2 - tau),      Hs = H11 - H12 H22^-1 H21   (27, 68)
 

@@ -60,7 +60,7 @@ CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone
 #: ``mj_step``. A wheel contact touches only the DOFs of the chain from the head to its
 #: link and of its own axle, so the Jacobian is mostly zeros: on states of the 60 s engine
 #: run, sparse made ``mj_step`` 2.1x faster (the whole closed loop 1.6-1.9x), with the same
-#: physics (one step agrees to 1e-13, 10 s of closed loop to 1e-12; DESIGN §6, issue 13).
+#: physics (one step agrees to 1e-13, 10 s of closed loop to 1e-12).
 JACOBIAN = mujoco.mjtJacobian.mjJAC_SPARSE
 
 
