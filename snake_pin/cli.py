@@ -1,27 +1,79 @@
-"""The ``snake-pin`` console script: one parser, one subcommand per job.
+"""The ``snake-pin`` console script: one parser, one subcommand per job, one contract.
 
-Heavy imports happen inside the subcommand that needs them. Every error a user can cause
-ends as one line on stderr and exit status 2; ``--json`` prints exactly one JSON object.
+Heavy imports happen inside the subcommand that needs them. The contract every
+subcommand keeps (README, "Security and robustness"):
+
+- every argument is checked before anything is computed or any folder is created; a
+  wrong one ends as one line on stderr naming it, exit status 2;
+- every option a command accepts is honoured or refused, never silently ignored;
+- ``--json`` prints exactly one RFC 8259 object on stdout (NaN and infinities as null)
+  and nothing else goes to stdout meanwhile;
+- SIGTERM and SIGHUP act like Ctrl-C for the duration of a command: a run stops, writes
+  what it computed (marked interrupted), says so in one line and exits with status 130.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import contextlib
+import ctypes
 import math
+import os
 import re
+import signal
+import socket
 import sys
-from collections.abc import Callable, Sequence
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
+from urllib.parse import urlparse
 
-from .exceptions import SnakePinError
-from .params import ROBOTS, SnakeParams
+from .exceptions import RunInterrupted, SnakePinError
+from .params import MAX_LINKS, ROBOTS, SnakeParams
 
-__all__ = ["build_parser", "main", "parse_angle"]
+__all__ = ["EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "build_parser", "main",
+           "parse_angle"]
 
-_ANGLE = re.compile(r"^\s*([+-]?)\s*(\d+(?:\.\d*)?(?:e[+-]?\d+)?)?\s*(\*?\s*pi)?\s*"
-                    r"(?:/\s*(\d+(?:\.\d*)?))?\s*$", re.IGNORECASE)
+#: Exit statuses (also in ``snake-pin --help``).
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_FAILED = 3
+EXIT_INTERRUPTED = 130
+
+#: Largest |value| of a configuration entry given with ``--q`` (positions in m, angles in
+#: rad): manipulability is translation invariant up to |x_h| = 1e9 m.
+MAX_COORDINATE = 1e9
+#: Control period of ``simulate`` [s]; with sim.MAX_STEPS it bounds --t-final.
+SIMULATE_DT = 1e-3
+MAX_PORT = 65535
+MIN_FPS, MAX_FPS = 1.0, 120.0
+#: Engine options' ranges: a wheel bigger than the link collides with its neighbours.
+MAX_WHEEL_RADIUS = 0.1
+MAX_MU = 10.0
+
+_EPILOG = """\
+exit status:
+  0    done
+  2    a wrong argument, input file or option combination (one line on stderr,
+       nothing computed, no folder created)
+  3    the run diverged or failed (results written, status in the summary)
+  130  interrupted by SIGINT (Ctrl-C), SIGTERM or SIGHUP (what was computed is
+       written, marked interrupted; one line on stderr)
+
+limits: --n <= {links}, --t-final <= {t_max:g} s ({steps} control steps),
+--points <= {points}, --starts <= {starts}, 0 <= --seed <= 2**32 - 1, --port <= 65535,
+--fps in [1, 120], |--q entries| <= 1e9.
+"""
+
+_ANGLE = re.compile(r"^\s*([+-]?)\s*(\d+(?:\.\d*)?(?:e[+-]?\d+)?|\.\d+(?:e[+-]?\d+)?)?"
+                    r"\s*(\*?\s*pi)?\s*(?:/\s*(\d+(?:\.\d*)?))?\s*$", re.IGNORECASE)
+#: Values that start with '-' but are not options: numbers, angles and lists of them
+#: ("-0.8,0,...", "-pi/10", "-.5", "-inf"). argparse reads everything else that starts with
+#: '-' as an option; its own matcher only knows plain negative numbers.
+_NEGATIVE_VALUE = re.compile(r"^-(?:\.?\d|\s*pi\b|inf|nan)", re.IGNORECASE)
 
 
 class UsageError(SnakePinError):
@@ -29,12 +81,31 @@ class UsageError(SnakePinError):
 
 
 class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose errors are one line and exit status 2."""
+    """ArgumentParser whose errors are one line and exit status 2, and which takes values
+    that start with '-' when they are numbers, angles or lists (``--q -0.8,0``)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # argparse consults this (since 2.7, unchanged through 3.13) in _parse_optional to
+        # decide that an argument starting with '-' is a value, not an option.
+        self._negative_number_matcher = _NEGATIVE_VALUE
 
     def error(self, message: str) -> NoReturn:
         raise UsageError(f"{self.prog}: {message}")
 
 
+@dataclass
+class _Outcome:
+    """What a subcommand produced: the JSON payload, its text form, status and a note."""
+
+    payload: dict[str, Any] = field(default_factory=dict)
+    text: str = ""
+    status: int = EXIT_OK
+    note: str = ""  # one line for stderr (diverged or interrupted runs)
+    after: Callable[[], None] | None = None  # runs once the output is printed (live viewer)
+
+
+# ------------------------------------------------------------------- argument types
 def parse_angle(text: str) -> float:
     """An angle in radians from ``0.3``, ``pi/5``, ``-pi/3``, ``2*pi/3`` or ``pi``."""
     match = _ANGLE.match(text)
@@ -48,254 +119,474 @@ def parse_angle(text: str) -> float:
         if float(divisor) == 0.0:
             raise argparse.ArgumentTypeError(f"division by zero in {text!r}")
         value /= float(divisor)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"not a finite angle: {text!r}")
     return -value if sign == "-" else value
 
 
-def _positive_float(text: str) -> float:
+def _number(text: str) -> float:
     try:
         value = float(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from exc
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
     return value
 
 
-def _non_negative_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from exc
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"must be a non-negative number, got {text!r}")
-    return value
+def _float_in(low: float, high: float = math.inf, *, open_low: bool = False
+              ) -> Callable[[str], float]:
+    """A finite float in [low, high] ((low, high] with ``open_low``)."""
+    def parse(text: str) -> float:
+        value = _number(text)
+        if value < low or (open_low and value == low) or value > high:
+            left = "(" if open_low else "["
+            right = f"{high:g}]" if math.isfinite(high) else "inf)"
+            raise argparse.ArgumentTypeError(f"must lie in {left}{low:g}, {right}, got {text}")
+        return value
+    return parse
 
 
-def _int_at_least(low: int) -> Callable[[str], int]:
+def _int_in(low: int, high: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError as exc:
             raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from exc
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must lie in {low}..{high}, got {value}")
         return value
     return parse
 
 
+def _parse_q(text: str) -> list[float]:
+    values = [parse_angle(part) for part in text.replace(" ", "").split(",") if part]
+    if not values:
+        raise argparse.ArgumentTypeError(f"no numbers in {text!r}")
+    if any(abs(v) > MAX_COORDINATE for v in values):
+        raise argparse.ArgumentTypeError(f"entries must lie within +-{MAX_COORDINATE:g}")
+    return values
+
+
+def _max_steps() -> int:
+    from .sim import MAX_STEPS
+
+    return MAX_STEPS
+
+
+# ---------------------------------------------------------------- shared options
+_FRICTION_FLAGS = {"cx": "c_x", "cy": "c_y", "ctheta": "c_theta"}
+
+
 def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = False) -> None:
-    parser.add_argument("--robot", choices=ROBOTS, default="table1", help="preset robot")
-    parser.add_argument("--n", type=_int_at_least(2), help="number of links (overrides preset)")
-    parser.add_argument("--passive", type=_int_at_least(1), action="append", default=[],
+    parser.add_argument("--robot", choices=ROBOTS, help="preset robot (default table1)")
+    parser.add_argument("--n", type=_int_in(2, MAX_LINKS),
+                        help=f"number of links, 2..{MAX_LINKS} (overrides the preset)")
+    parser.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
                         metavar="K", help="make joint K passive (repeatable)")
     if friction:
-        parser.add_argument("--cx", type=_non_negative_float, help="c_x [N s/m]")
-        parser.add_argument("--cy", type=_non_negative_float, help="c_y [N s/m]")
-        parser.add_argument("--ctheta", type=_non_negative_float, help="c_theta [N m s]")
+        parser.add_argument("--cx", type=_float_in(0.0), help="c_x [N s/m]")
+        parser.add_argument("--cy", type=_float_in(0.0), help="c_y [N s/m]")
+        parser.add_argument("--ctheta", type=_float_in(0.0), help="c_theta [N m s]")
 
 
 def _params(args: argparse.Namespace) -> SnakeParams:
+    """The robot the options describe; a joint index out of range names its option."""
+    base = SnakeParams.preset(args.robot or "table1")
+    n = args.n if getattr(args, "n", None) is not None else base.n
+    for k in getattr(args, "passive", None) or []:
+        if not 1 <= k <= n - 1:
+            raise UsageError(f"argument --passive: joint {k} is outside 1..{n - 1} "
+                             f"for a {n}-link robot")
     changes: dict[str, Any] = {}
     if getattr(args, "n", None) is not None:
         changes["n"] = args.n
     if getattr(args, "passive", None):
         changes["passive"] = tuple(args.passive)
-    for flag, key in (("cx", "c_x"), ("cy", "c_y"), ("ctheta", "c_theta")):
+    for flag, key in _FRICTION_FLAGS.items():
         if getattr(args, flag, None) is not None:
             changes[key] = getattr(args, flag)
-    return SnakeParams.preset(args.robot, **changes)
+    return SnakeParams.preset(args.robot or "table1", **changes)
 
 
-def _emit(args: argparse.Namespace, payload: dict[str, Any], text: str) -> None:
-    if getattr(args, "json", False):
-        print(json.dumps(payload, default=_json_default))
-    else:
-        print(text)
+def _free_joints(args: argparse.Namespace, params: SnakeParams) -> int | tuple[int, ...] | None:
+    """The joints without an actuator for manipulability: --passive ones and --free-joint."""
+    free = set(params.passive)
+    if args.free_joint is not None:
+        if not 1 <= args.free_joint <= params.n - 1:
+            raise UsageError(f"argument --free-joint: joint {args.free_joint} is outside "
+                             f"1..{params.n - 1} for a {params.n}-link robot")
+        free.add(args.free_joint)
+    if not free:
+        return None
+    return min(free) if len(free) == 1 else tuple(sorted(free))
 
 
-def _json_default(value: object) -> object:
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if hasattr(value, "item"):
-        return value.item()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+def _output_folder(text: str, option: str = "-o/--output") -> Path:
+    """The output folder (not created): an existing file there is refused."""
+    out = Path(text)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"argument {option}: {text} exists and is not a folder")
+    return out
+
+
+def _progress(args: argparse.Namespace) -> bool:
+    """Progress bars: never with --json, and only on a terminal (tqdm checks that too)."""
+    return not getattr(args, "json", False) and sys.stderr.isatty()
+
+
+def _t_final_limit(dt: float) -> float:
+    return _max_steps() * dt
+
+
+def _check_t_final(value: float | None, dt: float) -> None:
+    if value is not None and value > _t_final_limit(dt) * (1 + 1e-12):
+        raise UsageError(f"argument --t-final: at most {_t_final_limit(dt):g} s "
+                         f"({_max_steps()} control steps of {dt:g} s), got {value:g}")
+
+
+def _run_note(traj: Any, where: Path) -> tuple[int, str]:
+    """Exit status and stderr note for a finished run (diverged/failed: status 3)."""
+    if getattr(traj, "status", "completed") in ("diverged", "failed") or traj.diverged:
+        return EXIT_FAILED, f"run {traj.status}: {traj.reason} (results in {where})"
+    return EXIT_OK, ""
+
+
+def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
+    """Save the partial trajectory of an interrupted run; the outcome that says so."""
+    traj = exc.partial
+    if traj is None or not len(traj):
+        return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
+    npz, summary = traj.save(out / stem)
+    payload = {**traj.summary_dict(), "files": [str(npz), str(summary)]}
+    return _Outcome(payload, _json_text(payload, indent=2), EXIT_INTERRUPTED,
+                    f"{exc}; partial run saved to {npz} (status interrupted)")
+
+
+def _json_text(value: Any, indent: int | None = None) -> str:
+    from .report import json_text
+
+    return json_text(value, indent=indent)
 
 
 # ----------------------------------------------------------------- subcommands
-def _cmd_generate(args: argparse.Namespace) -> None:
-    from .urdf import write_urdf
-
+def _cmd_generate(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
     out = Path(args.output)
     if out.suffix != ".urdf":
-        raise UsageError(f"generate: output must end in .urdf, got {out}")
+        raise UsageError(f"argument -o/--output: must end in .urdf, got {out}")
+    if out.is_dir():
+        raise UsageError(f"argument -o/--output: {out} is a folder")
+    from .urdf import write_urdf
+
     out.parent.mkdir(parents=True, exist_ok=True)
     write_urdf(params, out)
-    _emit(args, {"urdf": str(out), "n": params.n, "passive": list(params.passive)},
-          f"wrote {out} ({params.n} links, passive joints: {list(params.passive) or 'none'})")
+    return _Outcome({"urdf": str(out), "n": params.n, "passive": list(params.passive)},
+                    f"wrote {out} ({params.n} links, passive joints: "
+                    f"{list(params.passive) or 'none'})")
 
 
-def _cmd_info(args: argparse.Namespace) -> None:
+def _cmd_info(args: argparse.Namespace) -> _Outcome:
     from .experiments.robot import info
 
     data = info(_params(args))
-    _emit(args, data, "\n".join(f"{k:>13}: {v}" for k, v in data.items()))
+    return _Outcome(data, "\n".join(f"{k:>13}: {v}" for k, v in data.items()))
 
 
-def _cmd_reproduce(args: argparse.Namespace) -> None:
-    from .experiments import reproduce, stages
-
-    known = [name for name, _ in stages()]
-    for name in args.only or []:
-        if name not in known:
-            raise UsageError(f"reproduce: unknown stage {name!r}; stages: {', '.join(known)}")
-    index = reproduce(args.output, _params(args), quick=args.quick, only=args.only,
-                      log=lambda line: print(line, file=sys.stderr, flush=True))
-    print(f"report: {index}")
+_SHAPE_OPTIONS = {"phi0": "arc", "alpha": "serpenoid", "ts": "serpenoid", "q": "q"}
 
 
-def _parse_q(text: str) -> list[float]:
-    try:
-        return [parse_angle(part) for part in text.replace(" ", "").split(",") if part]
-    except argparse.ArgumentTypeError as exc:
-        raise argparse.ArgumentTypeError(f"--q: {exc}") from exc
+def _shape(args: argparse.Namespace) -> str:
+    """--shape, or the shape the shape-specific options imply; conflicts are refused."""
+    given = {flag: shape for flag, shape in _SHAPE_OPTIONS.items()
+             if getattr(args, flag) is not None}
+    implied = set(given.values())
+    if args.shape is None:
+        if len(implied) > 1:
+            flags = ", ".join(f"--{flag}" for flag in given)
+            raise UsageError(f"manip: {flags} describe different shapes; give one shape")
+        return implied.pop() if implied else "straight"
+    for flag, shape in given.items():
+        if shape != args.shape:
+            raise UsageError(f"manip: --{flag} applies to --shape {shape}, not --shape "
+                             f"{args.shape}")
+    return args.shape
 
 
-def _posture(args: argparse.Namespace, n: int) -> list[float]:
+def _posture(args: argparse.Namespace, shape: str, n: int) -> list[float]:
     from . import gaits
 
-    if args.shape == "straight":
+    if shape == "straight":
         return gaits.straight(n).tolist()
-    if args.shape == "arc":
+    if shape == "arc":
         if args.phi0 is None:
             raise UsageError("manip: --shape arc needs --phi0")
         return gaits.arc(n, args.phi0).tolist()
-    if args.shape == "serpenoid":
-        return gaits.Serpenoid(n, args.alpha, args.ts).configuration().tolist()
+    if shape == "serpenoid":
+        alpha = math.pi / 4 if args.alpha is None else args.alpha
+        ts = 1.5 if args.ts is None else args.ts
+        return gaits.Serpenoid(n, alpha, ts).configuration().tolist()
     if args.q is None:
         raise UsageError("manip: --shape q needs --q x,y,theta1,phi1,...")
     if len(args.q) != n + 2:
-        raise UsageError(f"manip: --q needs {n + 2} values for n = {n}, got {len(args.q)}")
+        raise UsageError(f"argument --q: needs {n + 2} values for n = {n}, got {len(args.q)}")
     return args.q
 
 
-def _cmd_manip(args: argparse.Namespace) -> None:
-    from .manipulability import manipulability
+def _cmd_manip(args: argparse.Namespace) -> _Outcome:
+    params = _params(args)
+    free = _free_joints(args, params)
+    shape = _shape(args)
+    from .manipulability import manipulability, task_split
     from .model import Snake
 
-    params = _params(args)
-    snake = Snake(params)
-    res = manipulability(snake, _posture(args, params.n), free_joint=args.free_joint,
+    task_split(params.n, free, not args.no_heading)  # n large enough for the task
+    posture = _posture(args, shape, params.n)
+    res = manipulability(Snake(params.replace(passive=())), posture, free_joint=free,
                          heading=not args.no_heading)
-    tilde = "~" if (args.free_joint or params.passive) else ""
-    _emit(args, res.to_dict(),
-          f"D{tilde} = {res.D:.6g}\nR{tilde} = {res.R:.6g}\nsigma = {res.sigma}\n"
-          f"lambda = {res.lambda_}")
+    tilde = "~" if free else ""
+    return _Outcome(res.to_dict(),
+                    f"D{tilde} = {res.D:.6g}\nR{tilde} = {res.R:.6g}\nsigma = {res.sigma}\n"
+                    f"lambda = {res.lambda_}")
 
 
-def _cmd_sweep(args: argparse.Namespace) -> None:
+def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
+    params = _params(args)
+    free = _free_joints(args, params)
+    out = _output_folder(args.output)
+    from .manipulability import task_split
     from .model import Snake
     from .sweeps import sweep
 
-    out = Path(args.output)
+    task_split(params.n, free)
+    snake = Snake(params.replace(passive=()))
     out.mkdir(parents=True, exist_ok=True)
-    result = sweep(Snake(_params(args)), args.family, free_joint=args.free_joint,
-                   points=args.points, progress=not args.json)
+    try:
+        result = sweep(snake, args.family, free_joint=free, points=args.points,
+                       progress=_progress(args))
+    except RunInterrupted as exc:
+        partial = exc.partial
+        if partial is None or not len(partial.values):
+            return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
+        paths = partial.write(out)
+        payload = {**partial.to_dict(), "files": {k: str(v) for k, v in paths.items()}}
+        return _Outcome(payload, f"wrote {', '.join(map(str, paths.values()))}",
+                        EXIT_INTERRUPTED, f"{exc}; partial sweep saved to {paths['json']} "
+                                          "(status interrupted)")
     paths = result.write(out)
-    payload = {"family": args.family, "free_joint": args.free_joint,
-               "zeros": result.zeros().tolist(), "R_min": float(result.R.min()),
-               "D_min": float(result.D.min()), "files": {k: str(v) for k, v in paths.items()}}
-    _emit(args, payload, f"wrote {', '.join(str(p) for p in paths.values())}; "
-                         f"R = 0 at {result.label} = {result.zeros().tolist()}")
+    zeros = result.zeros().tolist()
+    payload = {"family": args.family, "free_joint": result.to_dict()["free_joint"],
+               "status": result.status, "zeros": zeros, "R_min": float(result.R.min()),
+               "D_min": float(result.D.min()),
+               "files": {k: str(v) for k, v in paths.items()}}
+    return _Outcome(payload, f"wrote {', '.join(str(p) for p in paths.values())}; "
+                             f"R = 0 at {result.label} = {zeros}")
 
 
-def _cmd_singular(args: argparse.Namespace) -> None:
-    from .singular import find_singular_postures
-
-    params = _params(args)
-    search = find_singular_postures(params, starts=args.starts, bound=args.bound,
-                                    free_joint=args.free_joint, seed=args.seed,
-                                    progress=not args.json)
-    if args.output:
-        from .experiments.manipulability import draw_singular
-
-        out = Path(args.output)
-        out.mkdir(parents=True, exist_ok=True)
-        draw_singular(search, out / "singular_postures.png")
+def _singular_text(search: Any) -> str:
     lines = [f"{len(search.families)} famil{'y' if len(search.families) == 1 else 'ies'} "
              f"with R <= {search.threshold:.3g} (typical R {search.R_typical:.3g}), "
              f"from {search.starts} starts:"]
     lines += [f"  {'straight' if f.straight else 'non-straight'} x{f.members}: "
               f"R = {f.R:.3g}, phi = {[round(x, 3) for x in f.phi]}" for f in search.families]
-    _emit(args, search.to_dict(), "\n".join(lines))
+    return "\n".join(lines)
 
 
-def _cmd_simulate(args: argparse.Namespace) -> None:
-    out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
+def _write_singular(search: Any, out: Path) -> list[Path]:
+    """The drawing and the JSON of a search, as one set of files."""
+    import io
+
+    import matplotlib.pyplot as plt
+
+    from ._io import atomic_group
+    from .experiments.manipulability import draw_singular
+
+    png = io.BytesIO()
+    drawing = draw_singular(search, None)
+    drawing.savefig(png, format="png", dpi=110, bbox_inches="tight")
+    plt.close(drawing)
+    with atomic_group(out) as group:
+        data = group.write_bytes("singular_postures.json",
+                                 (_json_text(search.to_dict(), indent=2) + "\n").encode())
+        figure = group.write_bytes("singular_postures.png", png.getvalue(), figure=True)
+    return [data, figure]
+
+
+def _cmd_singular(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
-    if args.controller == "pfl":
-        from .experiments.pfl import plot_pfl, run_pfl
+    free = _free_joints(args, params)
+    if not 0 < args.bound <= math.pi:
+        raise UsageError(f"argument --bound: must lie in (0, pi], got {args.bound:g}")
+    out = _output_folder(args.output) if args.output else None
+    from .manipulability import task_split
+    from .singular import find_singular_postures
 
-        if params.passive:
-            raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
-        run = run_pfl(params, t_final=args.t_final or 10.0, climb_R=args.climb_r,
-                      progress=not args.json)
-        stem = "pfl"
-        traj = run.trajectory
-        figures = plot_pfl(run, out, stem)
-    else:
-        from .experiments.tracking import TRACKING_FRICTION, plot_tracking, run_tracking
+    task_split(params.n, free)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    status, note = EXIT_OK, ""
+    try:
+        search = find_singular_postures(params.replace(passive=()), starts=args.starts,
+                                        bound=args.bound, free_joint=free, seed=args.seed,
+                                        progress=_progress(args))
+    except RunInterrupted as exc:
+        search, status = exc.partial, EXIT_INTERRUPTED
+        note = str(exc)
+    payload = search.to_dict()
+    if out is not None:
+        files = _write_singular(search, out)
+        payload["files"] = [str(p) for p in files]
+        if status == EXIT_INTERRUPTED:
+            note += f"; partial search saved to {files[0]} (status interrupted)"
+    return _Outcome(payload, _singular_text(search), status, note)
 
-        if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
-            params = params.replace(**TRACKING_FRICTION)
-        traj = run_tracking(params, t_final=args.t_final or 60.0, progress=not args.json)
-        stem = "lyapunov"
-        figures = plot_tracking(traj, out, stem)
-    npz, summary_path = traj.save(out / stem)
+
+def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
+    params = _params(args)
+    if args.controller == "pfl" and params.passive:
+        raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
+    if args.controller != "pfl" and args.climb_r is not None:
+        raise UsageError("argument --climb-r: applies to --controller pfl only")
+    _check_t_final(args.t_final, SIMULATE_DT)
+    out = _output_folder(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = "pfl" if args.controller == "pfl" else "lyapunov"
+    try:
+        if args.controller == "pfl":
+            from .experiments.pfl import plot_pfl, run_pfl
+
+            run = run_pfl(params, t_final=args.t_final or 10.0, climb_R=args.climb_r or 0.0,
+                          control_dt=SIMULATE_DT, progress=_progress(args))
+            traj = run.trajectory
+        else:
+            from .experiments.tracking import TRACKING_FRICTION, plot_tracking, run_tracking
+
+            if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
+                params = params.replace(**TRACKING_FRICTION)
+            traj = run_tracking(params, t_final=args.t_final or 60.0, progress=_progress(args))
+    except RunInterrupted as exc:
+        return _interrupted_run(exc, out, stem)
+    npz, summary_path = traj.save(out / stem)  # data first, then the figures
+    figures = plot_pfl(run, out, stem) if args.controller == "pfl" \
+        else plot_tracking(traj, out, stem)
     payload = traj.summary_dict()
     payload["files"] = [str(npz), str(summary_path), *(str(p) for p in figures.values())]
-    _emit(args, payload, json.dumps(payload, indent=2, default=_json_default))
+    status, note = _run_note(traj, out)
+    return _Outcome(payload, _json_text(payload, indent=2), status, note)
 
 
-def _cmd_view(args: argparse.Namespace) -> None:
-    from .sim import Trajectory
-    from .viz.meshcat_view import view, write_html
-
-    traj = Trajectory.load(args.trajectory)
-    if args.robot is not None and (traj.params.name != args.robot):
-        raise UsageError(f"view: {args.trajectory} is a run of the '{traj.params.name}' robot, "
-                         f"not '{args.robot}'")
-    if args.html:
-        out = write_html(traj, args.html, fps=args.fps)
-        _emit(args, {"html": str(out), "t_end": traj.t_end}, f"wrote {out}")
-        return
-    view(traj, port=args.port, fps=args.fps)
-
-
-def _cmd_engine(args: argparse.Namespace) -> None:
+def _cmd_engine(args: argparse.Namespace) -> _Outcome:
     from .engine.model import WheelSpec
+
+    params = SnakeParams.engine()
+    for k in args.passive:
+        if not 1 <= k <= params.n - 1:
+            raise UsageError(f"argument --passive: joint {k} is outside 1..{params.n - 1} "
+                             f"for the {params.n}-link engine robot")
+    params = params.replace(passive=tuple(args.passive))
+    wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu, cone=args.cone)
+    _check_t_final(args.t_final, wheels.control_dt)
+    out = _output_folder(args.output)
     from .engine.run import identify_friction, run_engine
     from .experiments.engine import plot_engine, summarize
 
-    out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    params = SnakeParams.engine(passive=tuple(args.passive))
-    wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu, cone=args.cone)
     friction = identify_friction(params.replace(passive=()), wheels)
-    run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
-                     law=args.law, progress=not args.json)
+    try:
+        run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
+                         law=args.law, progress=_progress(args))
+    except RunInterrupted as exc:
+        return _interrupted_run(exc, out, "engine")
     summarize(run.trajectory)
     npz, summary_path = run.trajectory.save(out / "engine")
     figures = plot_engine(run, None, out, "engine")
     payload = {**run.trajectory.summary_dict(), "friction": friction,
                "files": [str(npz), str(summary_path), *(str(p) for p in figures.values())]}
-    _emit(args, payload, json.dumps(payload, indent=2, default=_json_default))
+    status, note = _run_note(run.trajectory, out)
+    return _Outcome(payload, _json_text(payload, indent=2), status, note)
 
 
+def _cmd_view(args: argparse.Namespace) -> _Outcome:
+    if args.html is not None:
+        if args.port is not None:
+            raise UsageError("argument --port: the live viewer's port; --html starts no "
+                             "server")
+        html = Path(args.html)
+        if html.suffix.lower() not in (".html", ".htm"):
+            raise UsageError(f"argument --html: must end in .html, got {args.html}")
+        if not html.parent.is_dir():
+            raise UsageError(f"argument --html: no folder {html.parent}")
+    from .sim import Trajectory
+    from .viz.meshcat_view import view, write_html
+
+    traj = Trajectory.load(args.trajectory, signals=False)
+    if args.robot is not None and traj.params.name != args.robot:
+        raise UsageError(f"view: {args.trajectory} is a run of the '{traj.params.name}' robot, "
+                         f"not '{args.robot}'")
+    if args.html is not None:
+        out = write_html(traj, args.html, fps=args.fps)
+        return _Outcome({"html": str(out), "t_end": traj.t_end}, f"wrote {out}")
+    if not args.json:
+        view(traj, port=args.port, fps=args.fps)  # prints its URL, serves until Ctrl-C
+        return _Outcome(text="")
+    url = view(traj, port=args.port, fps=args.fps, block=False)
+    return _Outcome({"url": url, "t_end": traj.t_end},
+                    after=lambda: _serve_until_interrupted(url))
+
+
+def _serve_until_interrupted(url: str) -> None:
+    """Wait while the viewer's server answers on its port (Ctrl-C/SIGTERM ends the wait)."""
+    port = urlparse(url).port
+    try:
+        while True:
+            time.sleep(1.0)
+            try:
+                with socket.create_connection(("127.0.0.1", port or 80), timeout=2.0):
+                    pass
+            except OSError as exc:
+                raise SnakePinError(f"meshcat server at {url} stopped on its own") from exc
+    except KeyboardInterrupt:
+        return
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
+    from .experiments import reproduce, stages
+    from .experiments.reproduce import unhonoured
+
+    known = [name for name, _ in stages()]
+    for name in args.only or []:
+        if name not in known:
+            raise UsageError(f"argument --only: unknown stage {name!r}; "
+                             f"stages: {', '.join(known)}")
+    params = _params(args)
+    flags = {"robot": "--robot", "n": "--n", "passive": "--passive",
+             **{key: f"--{flag}" for flag, key in _FRICTION_FLAGS.items()}}
+    given = {key for key, flag in flags.items()
+             if getattr(args, flag.lstrip("-"), None) not in (None, [])}
+    for name in args.only or known:
+        refused = unhonoured(name, given, params)
+        if refused:
+            raise UsageError(f"reproduce: stage '{name}' sets {', '.join(refused)} itself and "
+                             f"cannot honour {', '.join(flags[k] for k in refused)}; leave "
+                             "them out or choose stages with --only")
+    out = _output_folder(args.output)
+    log = (lambda line: print(line, file=sys.stderr, flush=True)) \
+        if (args.verbose or sys.stderr.isatty()) else (lambda line: None)
+    index = reproduce(out, params, quick=args.quick, only=args.only, log=log)
+    return _Outcome({"index": str(index)}, f"report: {index}")
+
+
+# --------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line, built in one place."""
-    parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0])
+    from .singular import MAX_SEED, MAX_STARTS
+    from .sweeps import MAX_POINTS
+
+    steps = _max_steps()
+    parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0],
+                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                     epilog=_EPILOG.format(links=MAX_LINKS, t_max=steps * SIMULATE_DT,
+                                           steps=steps, points=MAX_POINTS, starts=MAX_STARTS))
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     p = sub.add_parser("generate", help="write the URDF of a snake robot")
@@ -309,14 +600,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_info)
 
-    p = sub.add_parser("manip", help="manipulability D, R of one posture (eqs. 30, 31, 42)")
+    p = sub.add_parser("manip", help="manipulability D, R of one posture (eqs. 30, 31, 42)",
+                       description="D and R of one posture. The shape is --shape, or the one "
+                       "its options imply (--phi0: arc, --alpha/--ts: serpenoid, --q: q); "
+                       "options of another shape are refused. --passive joints and --free-joint "
+                       "are free joints (D~, R~ of eq. 42).")
     _robot_options(p)
-    p.add_argument("--shape", choices=("straight", "arc", "serpenoid", "q"), default="straight")
+    p.add_argument("--shape", choices=("straight", "arc", "serpenoid", "q"),
+                   help="posture family (default straight, or implied by the options below)")
     p.add_argument("--phi0", type=parse_angle, help="arc: common joint angle (e.g. pi/10)")
-    p.add_argument("--alpha", type=parse_angle, default=math.pi / 4, help="serpenoid alpha")
-    p.add_argument("--ts", type=float, default=1.5, help="serpenoid T_s")
-    p.add_argument("--q", type=_parse_q, help="full configuration x,y,theta1,phi1,...")
-    p.add_argument("--free-joint", type=_int_at_least(0), metavar="K", help="joint K is free")
+    p.add_argument("--alpha", type=parse_angle, help="serpenoid alpha (default pi/4)")
+    p.add_argument("--ts", type=_number, help="serpenoid T_s (default 1.5)")
+    p.add_argument("--q", type=_parse_q, help="full configuration x,y,theta1,phi1,... "
+                   "(angles may be written pi/5; |entries| <= 1e9)")
+    p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
+                   help="joint K is free (beside any --passive joints)")
     p.add_argument("--no-heading", action="store_true", help="leave theta_1 out of the task")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_manip)
@@ -324,38 +622,47 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("sweep", help="D and R along a posture family (Figs. 2-9)")
     p.add_argument("family", choices=("arc", "alpha", "ts"))
     _robot_options(p)
-    p.add_argument("--free-joint", type=_int_at_least(0), metavar="K", help="joint K is free")
-    p.add_argument("--points", type=_int_at_least(2), default=201)
+    p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
+                   help="joint K is free (beside any --passive joints)")
+    p.add_argument("--points", type=_int_in(2, MAX_POINTS), default=201,
+                   help=f"postures along the family, 2..{MAX_POINTS}")
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_sweep)
 
     p = sub.add_parser("singular", help="search the joint box for singular postures (R = 0)")
     _robot_options(p)
-    p.add_argument("--starts", type=_int_at_least(1), default=200)
-    p.add_argument("--bound", type=parse_angle, default=math.pi / 2, help="|phi_i| <= bound")
-    p.add_argument("--free-joint", type=_int_at_least(0), metavar="K")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("-o", "--output", help="folder for a drawing of the families")
+    p.add_argument("--starts", type=_int_in(1, MAX_STARTS), default=200,
+                   help=f"random starts, 1..{MAX_STARTS}")
+    p.add_argument("--bound", type=parse_angle, default=math.pi / 2,
+                   help="|phi_i| <= bound, in (0, pi]")
+    p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
+                   help="joint K is free (beside any --passive joints)")
+    p.add_argument("--seed", type=_int_in(0, MAX_SEED), default=0, help="0..2**32-1")
+    p.add_argument("-o", "--output", help="folder for the families (drawing and JSON)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_singular)
 
     p = sub.add_parser("simulate", help="closed-loop head tracking run (VI.1 / VI.2)")
     p.add_argument("--controller", choices=("pfl", "lyapunov"), required=True)
     _robot_options(p, friction=True)
-    p.add_argument("--t-final", type=_positive_float, help="duration [s] (pfl 10, lyapunov 60)")
-    p.add_argument("--climb-r", type=_non_negative_float, default=0.0,
-                   help="PFL: gain of the singularity-aware redundancy term")
+    p.add_argument("--t-final", type=_float_in(0.0, open_low=True),
+                   help=f"duration [s], at most {steps * SIMULATE_DT:g} (pfl 10, lyapunov 60)")
+    p.add_argument("--climb-r", type=_float_in(0.0),
+                   help="PFL only: gain of the singularity-aware redundancy term (default 0)")
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)")
-    p.add_argument("--passive", type=_int_at_least(1), action="append", default=[],
+    p.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
                    metavar="K", help="make joint K passive (repeatable)")
-    p.add_argument("--t-final", type=_positive_float, default=60.0, help="duration [s]")
-    p.add_argument("--wheel-radius", type=_positive_float, default=0.03, help="[m]")
-    p.add_argument("--mu", type=_positive_float, default=1.0, help="wheel-floor friction")
+    p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
+                   help=f"duration [s], at most {steps * SIMULATE_DT:g}")
+    p.add_argument("--wheel-radius", type=_float_in(0.0, MAX_WHEEL_RADIUS, open_low=True),
+                   default=0.03, help=f"[m], at most {MAX_WHEEL_RADIUS:g}")
+    p.add_argument("--mu", type=_float_in(0.0, MAX_MU, open_low=True), default=1.0,
+                   help=f"wheel-floor friction, at most {MAX_MU:g}")
     p.add_argument("--law", choices=("velocity", "acceleration"), default="velocity",
                    help="form of the Lyapunov-like law (velocity level with servos by default)")
     p.add_argument("--cone", choices=("elliptic", "pyramidal"), default="elliptic",
@@ -367,36 +674,137 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("view", help="meshcat viewer of a saved trajectory (127.0.0.1 only)")
     p.add_argument("trajectory", help="a .npz written by simulate/reproduce")
     p.add_argument("--html", metavar="FILE", help="write a self-contained animation page instead")
-    p.add_argument("--port", type=_int_at_least(1), help="web port of the live viewer")
-    p.add_argument("--fps", type=_positive_float, default=20.0, help="animation frame rate")
+    p.add_argument("--port", type=_int_in(1, MAX_PORT), help="web port of the live viewer")
+    p.add_argument("--fps", type=_float_in(MIN_FPS, MAX_FPS), default=20.0,
+                   help="animation frame rate, 1..120")
     p.add_argument("--robot", choices=ROBOTS, help="refuse a run of another robot")
-    p.add_argument("--json", action="store_true", help="print one JSON object (with --html)")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object (with --html: the page; live: the URL, then "
+                   "serve until Ctrl-C)")
     p.set_defaults(func=_cmd_view)
 
-    p = sub.add_parser("reproduce", help="run every experiment and write the HTML report")
+    p = sub.add_parser("reproduce", help="run every experiment and write the HTML report",
+                       description="Run the report stages into a staging folder and move the "
+                       "report into place when all are done. Interrupted, the stages done so "
+                       "far are written with an index marked interrupted: in the output folder,"
+                       " or in its interrupted/ subfolder when it already holds a complete "
+                       "report (left untouched). Robot options apply to the stages that use "
+                       "them; a stage that sets one itself refuses it.")
     _robot_options(p, friction=True)
     p.add_argument("-o", "--output", default="results", help="output folder")
     p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")
     p.add_argument("--only", action="append", metavar="STAGE", help="run only this stage")
+    p.add_argument("--verbose", action="store_true",
+                   help="log the stages on stderr even when it is not a terminal")
     p.set_defaults(func=_cmd_reproduce)
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``snake-pin``; returns the exit status."""
+# ------------------------------------------------------------------ running
+_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+
+@contextlib.contextmanager
+def _signals_as_interrupts() -> Iterator[list[str]]:
+    """SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (named after the signal) while
+    the block runs; after the first, further ones are ignored so that the partial results
+    get written. Yields the names of the signals received. The previous handlers come
+    back at the end (main thread only)."""
+    received: list[str] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+    previous: dict[int, Any] = {}
+
+    def interrupt(signum: int, _frame: object) -> None:
+        for sig in previous:
+            signal.signal(sig, signal.SIG_IGN)
+        received.append(signal.Signals(signum).name)
+        raise KeyboardInterrupt(received[-1])
+
+    for name in _SIGNALS:
+        sig = getattr(signal, name, None)
+        if sig is None or signal.getsignal(sig) == signal.SIG_IGN:
+            continue  # e.g. started with nohup: stay deaf to it
+        previous[sig] = signal.getsignal(sig)
+    for sig in previous:
+        signal.signal(sig, interrupt)
     try:
-        args = build_parser().parse_args(argv)
-        args.func(args)
-    except SnakePinError as exc:
-        message = str(exc)
-        print(message if message.startswith("snake-pin") else f"snake-pin: {message}",
-              file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"snake-pin: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "),
-              file=sys.stderr)
-        return 2
-    return 0
+        yield received
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr(active: bool) -> Iterator[None]:
+    """With ``active``, everything written to stdout (Python or C, e.g. LAPACK's messages)
+    goes to stderr while the block runs, so --json's stdout holds the JSON only."""
+    if not active:
+        yield
+        return
+    _flush_c_stdio()
+    with contextlib.suppress(OSError, ValueError):
+        sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+        os.dup2(2, 1)
+    except OSError:
+        saved = -1
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        _flush_c_stdio()
+        if saved >= 0:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def _flush_c_stdio() -> None:
+    with contextlib.suppress(OSError, AttributeError, TypeError):
+        ctypes.CDLL(None).fflush(None)
+
+
+def _say(message: str) -> None:
+    print(message if message.startswith("snake-pin") else f"snake-pin: {message}",
+          file=sys.stderr, flush=True)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``snake-pin``; returns the exit status (see ``snake-pin --help``)."""
+    with _signals_as_interrupts() as received:
+        try:
+            try:
+                args = build_parser().parse_args(argv)
+            except SystemExit as exc:  # --help
+                return int(exc.code or 0)
+            json_mode = bool(getattr(args, "json", False))
+            with _stdout_to_stderr(json_mode):
+                outcome = args.func(args)
+            if json_mode and outcome.payload:
+                print(_json_text(outcome.payload), flush=True)
+            elif not json_mode and outcome.text:
+                print(outcome.text, flush=True)
+            if outcome.note:
+                cause = f"{received[0]}: " if received and outcome.status == \
+                    EXIT_INTERRUPTED else ""
+                _say(cause + outcome.note)
+            if outcome.after is not None:
+                outcome.after()
+            return outcome.status
+        except SnakePinError as exc:
+            _say(" ".join(str(exc).split()) or type(exc).__name__)
+            return EXIT_USAGE
+        except OSError as exc:
+            where = f": {exc.filename}" if exc.filename else ""
+            _say(f"{exc.strerror or exc}{where}")
+            return EXIT_USAGE
+        except KeyboardInterrupt as exc:
+            text = " ".join(str(exc).split())
+            cause = received[0] if received else "KeyboardInterrupt"
+            _say(f"{cause}: {text}" if text and text != cause else f"interrupted by {cause}")
+            return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -69,9 +69,11 @@ def test_generate_writes_urdf(capsys: pytest.CaptureFixture[str], tmp_path: Path
 
 
 def test_reproduce_writes_report(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    """reproduce --only robot writes index.html (figures embedded) and summary.json."""
-    code, _, err = _run(capsys, "reproduce", "--only", "robot", "-o", str(tmp_path))
+    """reproduce --only robot --verbose logs the stage, writes index.html (figures embedded)
+    and summary.json, and leaves no staging folder."""
+    code, _, err = _run(capsys, "reproduce", "--only", "robot", "--verbose", "-o", str(tmp_path))
     assert code == 0 and "[1/1] robot" in err
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
     html = (tmp_path / "index.html").read_text()
     assert "data:image/png;base64," in html
     assert json.loads((tmp_path / "summary.json").read_text())["robot"]["nq"] == 12
