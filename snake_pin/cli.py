@@ -61,7 +61,8 @@ exit status:
        nothing computed, no folder created)
   3    the run diverged or failed (results written, status in the summary)
   130  interrupted by SIGINT (Ctrl-C), SIGTERM or SIGHUP (what was computed is
-       written, marked interrupted; one line on stderr)
+       written, marked interrupted; one line on stderr). The live viewer, which
+       serves until interrupted, exits 0 then.
 
 limits: --n <= {links}, --t-final <= {t_max:g} s ({steps} control steps),
 --points <= {points}, --starts <= {starts}, 0 <= --seed <= 2**32 - 1, --port <= 65535,
