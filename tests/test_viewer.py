@@ -123,3 +123,20 @@ def test_offline_page_is_what_a_live_server_returns(monkeypatch: pytest.MonkeyPa
         stop_server(proc)
     assert offline.count("handle_command_bytearray") > 40
     assert offline == live
+
+
+def test_links_are_placed_at_their_joints_for_a_per_link_robot() -> None:
+    """Each link's frame is drawn at its front joint (per-link lengths, root-chain model)."""
+    from snake_pin import Snake
+    from snake_pin.viz.meshcat_view import _link_transforms
+
+    from .conftest import heterogeneous_params
+
+    rng = np.random.default_rng(5)
+    snake = Snake(heterogeneous_params(rng, 6))
+    q = np.r_[0.3, -0.2, 0.7, rng.uniform(-1, 1, 5)]
+    poses = _link_transforms(snake, q, 0.02)
+    points = snake.joint_points(q)
+    assert np.allclose([p[:2, 3] for p in poses], points[:-1], atol=1e-12)
+    assert np.allclose([np.arctan2(p[1, 0], p[0, 0]) for p in poses],
+                       snake.link_poses(q)[:, 2], atol=1e-12)

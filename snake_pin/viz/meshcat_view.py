@@ -246,10 +246,11 @@ def _link_geometry(vis: meshcat.Visualizer, traj: Trajectory) -> None:
     import meshcat.geometry as g
 
     params = traj.params
-    radius = 0.15 * params.link_length
-    length = params.link_length
+    lengths = params.link_lengths
     body = g.MeshLambertMaterial(color=BODY_COLOR)
     for i in range(1, params.n + 1):
+        length = float(lengths[i - 1])  # each link drawn at its own length
+        radius = 0.15 * length
         node = vis["snake"][f"link_{i}"]
         # meshcat's cylinder axis is y: turn it onto the link's x axis, centred at x = l.
         turn = np.array([[0.0, -1.0, 0.0, 0.5 * length], [1.0, 0.0, 0.0, 0.0],
@@ -277,8 +278,8 @@ def _link_transforms(snake, q: np.ndarray, z: float) -> list[np.ndarray]:
 
     pin.forwardKinematics(snake.model, snake.data, q)
     out = []
-    for i in range(1, snake.n + 1):
-        pose = snake.data.oMi[i].homogeneous.copy()
+    for joint in snake.link_joints:
+        pose = snake.data.oMi[int(joint)].homogeneous.copy()
         pose[2, 3] = z
         out.append(pose)
     return out
@@ -291,7 +292,7 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, fps: float, reference: boo
     from ..model import Snake
 
     snake = Snake(traj.params)
-    z = 0.15 * traj.params.link_length
+    z = 0.15 * float(traj.params.link_lengths.max())
     vis.delete()
     vis["/Axes"].set_property("visible", False)
     _link_geometry(vis, traj)
