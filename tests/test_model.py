@@ -1,4 +1,4 @@
-"""Snake model: dynamics consistency and the physics invariants (H SPD, power balance, momentum, g of eq. 67)."""
+"""Snake model: dynamics consistency and the physics invariants (H SPD, power, momentum, g)."""
 
 from __future__ import annotations
 
@@ -206,3 +206,34 @@ def test_dynamics_derivatives_with_friction(n: int, friction: str,
         assert _rel_to_largest(d.ddq_dtau, _central(
             lambda x, q=q, dq=dq: snake.forward_dynamics(q, dq, x), tau, 1e-5)) < 1e-6
         assert np.all(d.ddq_dtau[:, [k - 1 for k in params.passive]] == 0.0)
+
+
+def test_snake_from_urdf_and_robot_file_round_trip(tmp_path, rng: np.random.Generator) -> None:
+    """params -> TOML -> URDF -> Snake gives the same H and h to 1e-12 (friction kept)."""
+    from snake_pin.robot_file import write_robot_file
+    from snake_pin.urdf import write_urdf
+
+    from .conftest import heterogeneous_params
+
+    params = heterogeneous_params(rng, 7, passive=(3,))
+    toml_path = write_robot_file(params, tmp_path / "robot.toml")
+    from_toml = Snake.from_file(toml_path)
+    urdf_path = write_urdf(from_toml.params, tmp_path / "robot.urdf")
+    from_urdf = Snake.from_urdf(urdf_path)
+    original = Snake(params)
+    assert from_urdf.params.passive == (3,)
+    for _ in range(10):
+        q, dq = random_state(rng, 7)
+        for other in (from_toml, from_urdf):
+            assert _rel_to_largest(other.inertia_matrix(q), original.inertia_matrix(q)) < 1e-12
+            assert _rel_to_largest(other.bias(q, dq), original.bias(q, dq)) < 1e-12
+
+
+def test_snake_refuses_what_is_not_a_robot() -> None:
+    """Snake('my.urdf') says to use from_urdf; a missing file is a one-line RobotFileError."""
+    from snake_pin.exceptions import RobotFileError
+
+    with pytest.raises(ConfigurationError, match="from_urdf"):
+        Snake("my.urdf")  # type: ignore[arg-type]
+    with pytest.raises(RobotFileError, match=r"missing\.urdf"):
+        Snake.from_urdf("missing.urdf")
