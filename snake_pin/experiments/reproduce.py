@@ -58,8 +58,9 @@ HONOURED: dict[str, frozenset[str]] = {
     "engine": frozenset(),
 }
 
-#: Stage -> the fewest links it can run with (joint 5 free or passive needs n >= 6).
-MIN_LINKS: dict[str, int] = {"robot": 2, "manipulability": 6, "integrability": 4, "pfl": 4,
+#: Stage -> the fewest links it can run with (joint 5 free or passive needs n >= 6, PFL
+#: needs three actuated joints).
+MIN_LINKS: dict[str, int] = {"robot": 2, "manipulability": 6, "integrability": 2, "pfl": 4,
                              "tracking": 6, "engine": 2}
 
 _STAGING = re.compile(r"\.reproduce-(\d+)-\w+")
