@@ -302,6 +302,8 @@ def _tiny() -> Trajectory:
 @pytest.fixture(scope="module")
 def trajectory_files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A valid trajectory and malformed ones: empty, garbage, truncated, NaN inside."""
+    import meshcat  # noqa: F401  (its IPython import raises the recursion limit: not mid-fuzz)
+
     folder = tmp_path_factory.mktemp("runs")
     valid, _ = _tiny().save(folder / "valid")
     data = valid.read_bytes()
