@@ -9,7 +9,7 @@
   0..v0 = 0.1 m/s, the speed of the task. c_theta is the axle damping seen by a link
   turning about its CM, 2 d^2 b / r^2.
 * :class:`DirtyDerivative` estimates velocities from positions with 2 pi f_c s / (s + 2 pi f_c)
-  (DESIGN §3 erratum 4), discretised by backward Euler.
+  (erratum 4 in docs/errata.md), discretised by backward Euler.
 * :func:`run_engine` runs the Lyapunov-like controller against MuJoCo at 1 kHz.
 """
 

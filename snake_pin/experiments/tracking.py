@@ -27,7 +27,7 @@ from .parallel import run_jobs
 __all__ = ["TRACKING_FRICTION", "plot_tracking", "run_tracking", "tracking_params",
            "tracking_stage"]
 
-#: Friction of the tracking runs (DESIGN §3, erratum 3): c_x as Table 1, c_y = 50 c_x.
+#: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
 #: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
 #: 0.10 m/s at c_y = 10 c_x and 0.16 m/s at 50 c_x, and 50 tracked best of 10..100.
 TRACKING_FRICTION = {"c_x": 0.5, "c_y": 25.0}
