@@ -11,6 +11,7 @@ Heavy modules (Pinocchio, MuJoCo, meshcat, matplotlib) load on first use of a na
 from __future__ import annotations
 
 import importlib
+from importlib import metadata as _metadata
 from typing import Any
 
 from .exceptions import (
@@ -73,7 +74,10 @@ __all__ = [
     "write_robot_file",
     "write_urdf",
 ]
-__version__ = "0.1.0"
+try:  # one version number: pyproject.toml's, read from the installed metadata
+    __version__: str = _metadata.version("snake_pin")
+except _metadata.PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0+unknown"
 
 
 def __getattr__(name: str) -> Any:
