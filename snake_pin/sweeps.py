@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import csv
 import io
+import json
+import math
 import numbers
 import os
 from collections.abc import Sequence
@@ -24,7 +26,6 @@ from .exceptions import ParameterError, RunInterrupted
 from .gaits import Serpenoid, arc
 from .manipulability import manipulability, manipulability_R_batch, task_split
 from .model import Snake
-from .report import json_text
 
 __all__ = ["FAMILIES", "MAX_POINTS", "RMap", "Sweep", "r_map", "sweep"]
 
@@ -69,12 +70,13 @@ class Sweep:
         return self.values[self.R <= relative * self.R.max()]
 
     def to_dict(self) -> dict[str, object]:
-        """JSON-friendly dict (``status`` is ``"interrupted"`` for a partial sweep)."""
+        """Plain JSON data (non-finite D or R as None; ``status`` is ``"interrupted"`` for a
+        partial sweep)."""
         free = self.free_joint
         return {"family": self.family, "parameter": self.label, "robot": self.robot,
                 "free_joint": list(free) if isinstance(free, tuple) else free,
                 "status": self.status, "values": self.values.tolist(),
-                "D": self.D.tolist(), "R": self.R.tolist(), **self.meta}
+                "D": _finite_or_none(self.D), "R": _finite_or_none(self.R), **self.meta}
 
     def write(self, folder: str | os.PathLike[str]) -> dict[str, Path]:
         """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` into ``folder``.
@@ -99,7 +101,8 @@ class Sweep:
             plt.close(fig)
         with atomic_group(folder) as group:
             group.write_bytes(names["csv"], buf.getvalue().encode())
-            group.write_bytes(names["json"], (json_text(self.to_dict()) + "\n").encode())
+            group.write_bytes(names["json"],
+                              (json.dumps(self.to_dict(), allow_nan=False) + "\n").encode())
             if self.values.size:
                 group.write_bytes(names["png"], png.getvalue(), figure=True)
         return {ext: folder / name for ext, name in names.items()
@@ -112,6 +115,10 @@ def _family_configuration(family: str, n: int, value: float) -> np.ndarray:
     if family == "alpha":
         return Serpenoid(n, value, 1.5).configuration()
     return Serpenoid(n, np.pi / 4, value).configuration()
+
+
+def _finite_or_none(values: np.ndarray) -> list[float | None]:
+    return [v if math.isfinite(v) else None for v in values.tolist()]
 
 
 def _free_tuple(free_joint: FreeJoints) -> tuple[int, ...]:
