@@ -250,7 +250,8 @@ def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
     """R (or R~) for many joint-angle vectors at once, vectorised (sweeps and searches).
 
     ``phi`` is (B, n - 1); theta_1 = 0 without loss of generality (R is invariant under a
-    rigid motion). Uses the closed form of H from eq. (19) for the task rows only. With
+    rigid motion). As in :func:`manipulability`, the robot's passive joints are free joints
+    beside ``free_joint``. Uses the closed form of H from eq. (19) for the task rows only. With
     s = sin(theta), c = cos(theta), a = 1^T K and e_r the indicator of links r + 1..n
     (e_0 = 1), the rows of H against [theta_1, phi] are
 
@@ -264,7 +265,8 @@ def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
     n = params.n
     if phi.ndim != 2 or phi.shape[1] != n - 1:
         raise ConfigurationError(f"phi must have {n - 1} columns")
-    task, act = task_split(n, free_joint, heading)
+    free = tuple(sorted(set(params.passive) | set(_free_tuple(n, free_joint))))
+    task, act = task_split(n, free, heading)
     m = params.masses
     k = k_matrix(params)
     mk = m[:, None] * k

@@ -200,3 +200,18 @@ def test_lateral_constraint_criterion_vanishes_at_arcs(table1: Snake) -> None:
         q = Serpenoid(10, alpha, ts).configuration()
         lateral = lateral_constraint_manipulability(table1, q)
         assert lateral.D > 1e-4 * lateral.sigma[0]
+
+
+def test_batch_r_keeps_passive_joints_free_like_the_single_route() -> None:
+    """R~ batch with a passive joint equals manipulability() (passive joints are free)."""
+    from snake_pin.manipulability import manipulability_R_batch
+
+    params = SnakeParams.table1(passive=(5,))
+    snake = Snake(params)
+    rng = np.random.default_rng(3)
+    phi = rng.uniform(-1.2, 1.2, (8, 9))
+    batch = manipulability_R_batch(params, phi, free_joint=3)
+    single = [manipulability(snake, np.r_[0.0, 0.0, 0.0, p], free_joint=3).R for p in phi]
+    assert np.allclose(batch, single, rtol=1e-9)
+    plain = manipulability_R_batch(SnakeParams.table1(), phi, free_joint=3)
+    assert not np.allclose(batch, plain)
