@@ -1,0 +1,97 @@
+"""The ``snake-pin study`` subcommand: its options and handler, for the CLI to mount.
+
+``snake_pin/cli.py`` wires it with one line in ``build_parser``::
+
+    add_study_parser(sub, outcome=_Outcome)
+
+``outcome`` is the CLI's result type (called with ``payload``, ``text``, ``status`` and
+``note``). The handler keeps the CLI's contract: a bad study file, output folder or
+scheduler address is a :class:`~snake_pin.study.errors.StudyError` (one line, exit 2,
+nothing run); an interrupted study returns ``interrupted_status`` with the partial
+summary; a study whose runs were lost with a worker returns ``failed_status``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import sys
+from typing import Any
+
+from ..exceptions import RunInterrupted
+from .errors import StudyError
+from .runner import MAX_WORKERS, run_study
+
+__all__ = ["add_study_parser"]
+
+_DESCRIPTION = """\
+Run every run a study file describes (a base scenario and axes: grids and seeded random
+samples over its settings) on Dask, one Parquet row per run in DIR/runs, the page in
+DIR/index.html and the summary in DIR/summary.json. Runs already recorded in DIR are not
+run again: after an interrupt, run the same command to finish. By default a local cluster
+of one worker process per core, on 127.0.0.1 only."""
+
+
+def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int = 130,
+                     failed_status: int = 3) -> argparse.ArgumentParser:
+    """Add the ``study`` subcommand to ``subparsers`` (an argparse subparsers action).
+
+    Parameters
+    ----------
+    outcome
+        Called as ``outcome(payload=..., text=..., status=..., note=...)`` to build the
+        handler's result (the CLI's ``_Outcome``).
+    interrupted_status, failed_status
+        Exit statuses of an interrupted study and of one with runs lost with a worker.
+    """
+    p = subparsers.add_parser("study", help="run a study (grids and random samples of runs) "
+                              "on Dask, resumable", description=_DESCRIPTION)
+    p.add_argument("study", metavar="STUDY.toml", help="the study file")
+    p.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help="output folder (re-run the same command to finish an interrupted study)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="tcp://HOST:PORT of an existing Dask scheduler (default: a local "
+                   "cluster on 127.0.0.1)")
+    p.add_argument("--workers", type=_workers, metavar="N",
+                   help=f"local worker processes, 1..{MAX_WORKERS} (default: one per core)")
+    p.add_argument("--verbose", action="store_true",
+                   help="log on stderr even when it is not a terminal")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(func=functools.partial(_cmd_study, outcome=outcome,
+                                          interrupted_status=interrupted_status,
+                                          failed_status=failed_status))
+    return p
+
+
+def _workers(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if not 1 <= value <= MAX_WORKERS:
+        raise argparse.ArgumentTypeError(f"must lie in 1..{MAX_WORKERS}, got {value}")
+    return value
+
+
+def _log(message: str) -> None:
+    print(f"snake-pin: {message}", file=sys.stderr, flush=True)
+
+
+def _cmd_study(args: argparse.Namespace, *, outcome: Any, interrupted_status: int,
+               failed_status: int) -> Any:
+    if args.scheduler is not None and args.workers is not None:
+        raise StudyError("argument --workers: applies to the local cluster, not with "
+                         "--scheduler")
+    verbose = bool(args.verbose) or sys.stderr.isatty()
+    try:
+        summary = run_study(args.study, args.output, scheduler=args.scheduler,
+                            workers=args.workers, progress=None,
+                            log=_log if verbose else None)
+    except RunInterrupted as exc:
+        partial = exc.partial
+        return outcome(payload=partial.to_dict(), text=partial.text(),
+                       status=interrupted_status, note=str(exc))
+    status = failed_status if summary.status == "incomplete" else 0
+    return outcome(payload=summary.to_dict(), text=summary.text(), status=status,
+                   note=summary.note if summary.status != "complete" else "")
+

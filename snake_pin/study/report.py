@@ -1,0 +1,272 @@
+"""A study's page: ``DIR/index.html`` (self-contained) and ``DIR/summary.json``.
+
+The figures follow the axes. *Replicate* axes - the random axes and a grid axis over
+``init_seed`` - are spread, not plotted: every figure aggregates over them. Over the
+other grid axes:
+
+- two or more: heatmaps over the first two (median over the rest and the replicates) of
+  the RMS head error in % of the body length and of R~_min, each cell annotated, cells
+  without a successful run marked "x";
+- one: the median of each metric against the axis with a 10-90 % band over the
+  replicates (and any other spread);
+- none: histograms of the metrics over all runs.
+
+Medians and bands use the runs with status ``ok`` only; the table lists every run
+(sortable: click a header) up to :data:`MAX_TABLE_ROWS`. The PNGs are embedded as data URIs
+(the page opens offline and alone); ``summary.json`` is
+:meth:`~snake_pin.study.summary.StudySummary.to_dict`, strict RFC 8259 JSON.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._io import atomic_group
+from .results import RUNS, StudyFolder
+from .spec import StudySpec
+from .summary import StudySummary
+
+__all__ = ["MAX_TABLE_ROWS", "METRICS", "figure_plan", "write_index"]
+
+#: Most rows in the page's table (all runs are in the Parquet dataset anyway).
+MAX_TABLE_ROWS = 2000
+#: Metrics plotted: column, label, log scale.
+METRICS = (("rms_head_error_pct", "RMS head error [% of body length]", False),
+           ("R_tilde_min", "R~ min along the run", True))
+_TABLE_METRICS = ("rms_head_error_pct", "max_head_error_pct", "R_min", "R_tilde_min", "D_min",
+                  "t_end", "torque_rms", "wall_time")
+_JS = """<script>
+document.querySelectorAll('table.sortable th').forEach(function (th, col) {
+  th.style.cursor = 'pointer';
+  th.addEventListener('click', function () {
+    var body = th.closest('table').tBodies[0], rows = Array.from(body.rows);
+    var up = th.dataset.dir !== 'up'; th.dataset.dir = up ? 'up' : 'down';
+    rows.sort(function (a, b) {
+      var x = a.cells[col].dataset.v, y = b.cells[col].dataset.v;
+      var nx = parseFloat(x), ny = parseFloat(y);
+      var c = (isNaN(nx) || isNaN(ny)) ? String(x).localeCompare(String(y)) : nx - ny;
+      return up ? c : -c;
+    });
+    rows.forEach(function (r) { body.appendChild(r); });
+  });
+});
+</script>"""
+
+
+def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
+    """(kind, plotted axes, replicate axes): ``heatmap``, ``lines`` or ``histogram``."""
+    replicate = [a.setting for a in spec.axes if a.random or a.setting == "init_seed"]
+    shown = [a.setting for a in spec.grid_axes if a.setting not in replicate]
+    if len(shown) >= 2:
+        return "heatmap", shown[:2], replicate
+    if len(shown) == 1:
+        return "lines", shown, replicate
+    return "histogram", [], replicate
+
+
+def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> Path:
+    """Write ``summary.json`` then ``index.html`` into the study folder; return the page."""
+    from ..report import json_text
+
+    table = folder.read_table()
+    keys = {s.key for s in spec.scenarios}
+    columns = {name: table.column(name).to_pylist() for name in table.column_names}
+    rows = [{name: columns[name][i] for name in columns} for i in range(table.num_rows)
+            if columns["key"][i] in keys]
+    rows.sort(key=lambda r: r["index"])
+    kind, plotted, replicate = figure_plan(spec)
+    figures = _figures(kind, plotted, spec, rows)
+    page = _page(spec, summary, rows, figures, replicate)
+    with atomic_group(folder.path) as group:
+        group.write_bytes("summary.json", (json_text(summary.to_dict(), indent=2) +
+                                           "\n").encode())
+        group.write_bytes("index.html", page.encode(), figure=True)
+    return folder.path / "index.html"
+
+
+# --------------------------------------------------------------------- figures
+def _ok_values(rows: Sequence[dict[str, Any]], metric: str) -> list[float]:
+    return [r[metric] for r in rows if r["status"] == "ok" and _finite(r[metric])]
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and math.isfinite(value)
+
+
+def _png(fig: Any) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _figures(kind: str, plotted: list[str], spec: StudySpec,
+             rows: Sequence[dict[str, Any]]) -> list[tuple[str, str]]:
+    """(caption, base64 PNG) of each figure."""
+    from matplotlib.figure import Figure
+
+    if not rows:
+        return []
+    out = []
+    values = {a.setting: list(a.values) for a in spec.axes}
+    for metric, label, log in METRICS:
+        fig = Figure(figsize=(7.5, 4.2))
+        ax = fig.add_subplot()
+        if kind == "heatmap":
+            caption = _heatmap(fig, ax, plotted, values, rows, metric, label, log)
+        elif kind == "lines":
+            caption = _lines(ax, plotted[0], values[plotted[0]], rows, metric, label, log)
+        else:
+            data = _ok_values(rows, metric)
+            if log:
+                data = [math.log10(v) for v in data if v > 0]
+            ax.hist(data, bins=min(30, max(5, len(data) // 3 or 1)), color="#4a7bd1")
+            ax.set_xlabel(("log10 " if log else "") + label)
+            ax.set_ylabel("runs")
+            caption = f"{label}: distribution over the {len(data)} successful runs"
+        ax.set_title(label, fontsize=10)
+        out.append((caption, _png(fig)))
+    return out
+
+
+def _heatmap(fig: Any, ax: Any, plotted: list[str], values: dict[str, list[Any]],
+             rows: Sequence[dict[str, Any]], metric: str, label: str, log: bool) -> str:
+    x_name, y_name = plotted
+    xs, ys = values[x_name], values[y_name]
+    grid = np.full((len(ys), len(xs)), np.nan)
+    counts = np.zeros((len(ys), len(xs)), dtype=int)
+    cells: dict[tuple[int, int], list[float]] = {}
+    for r in rows:
+        j, i = xs.index(r[x_name]), ys.index(r[y_name])
+        counts[i, j] += 1
+        if r["status"] == "ok" and _finite(r[metric]):
+            cells.setdefault((i, j), []).append(r[metric])
+    for (i, j), data in cells.items():
+        grid[i, j] = float(np.median(data))
+    shown = np.log10(np.where(grid > 0, grid, np.nan)) if log else grid
+    masked = np.ma.masked_invalid(shown)
+    image = ax.imshow(masked, origin="lower", aspect="auto", cmap="viridis")
+    fig.colorbar(image, ax=ax, label=("log10 " if log else "") + label)
+    ax.set_xticks(range(len(xs)), [_tick(v) for v in xs], fontsize=8)
+    ax.set_yticks(range(len(ys)), [_tick(v) for v in ys], fontsize=8)
+    ax.set_xlabel(x_name)
+    ax.set_ylabel(y_name)
+    if len(xs) * len(ys) <= 400:
+        for i in range(len(ys)):
+            for j in range(len(xs)):
+                text = "x" if np.isnan(grid[i, j]) and counts[i, j] else \
+                    ("" if np.isnan(grid[i, j]) else f"{grid[i, j]:.3g}")
+                light = bool(np.isfinite(shown[i, j]) and image.norm(shown[i, j]) > 0.6)
+                ax.text(j, i, text, ha="center", va="center", fontsize=7,
+                        color="k" if light else "w")
+    return (f"{label}: median over the successful runs of each ({x_name}, {y_name}) cell "
+            "(x: no successful run; blank: not run yet)")
+
+
+def _lines(ax: Any, name: str, xs: list[Any], rows: Sequence[dict[str, Any]], metric: str,
+           label: str, log: bool) -> str:
+    numeric = all(_finite(v) for v in xs)
+    positions = [float(v) for v in xs] if numeric else list(range(len(xs)))
+    med, low, high = [], [], []
+    for v in xs:
+        data = [r[metric] for r in rows
+                if r[name] == v and r["status"] == "ok" and _finite(r[metric])]
+        if data:
+            q10, q50, q90 = np.percentile(data, [10, 50, 90])
+        else:
+            q10 = q50 = q90 = np.nan
+        med.append(q50)
+        low.append(q10)
+        high.append(q90)
+    ax.fill_between(positions, low, high, color="#4a7bd1", alpha=0.25, label="10-90 %")
+    ax.plot(positions, med, "o-", color="#1f4fd1", label="median")
+    if not numeric:
+        ax.set_xticks(positions, [_tick(v) for v in xs])
+    if log:
+        ax.set_yscale("log")
+    ax.set_xlabel(name)
+    ax.set_ylabel(label)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    return (f"{label} against {name}: median and 10-90 % band over the successful runs at "
+            "each value")
+
+
+def _tick(value: Any) -> str:
+    return f"{value:.3g}" if isinstance(value, float) else str(value)
+
+
+# ------------------------------------------------------------------------- page
+def _e(text: object) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def _cell(value: Any) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "<td data-v=''>-</td>"
+    if isinstance(value, float):
+        return f"<td data-v='{value!r}'>{value:.4g}</td>"
+    return f"<td data-v='{_e(value)}'>{_e(value)}</td>"
+
+
+def _page(spec: StudySpec, summary: StudySummary, rows: Sequence[dict[str, Any]],
+          figures: list[tuple[str, str]], replicate: list[str]) -> str:
+    title = f"Study {spec.name}"
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{_e(title)}</title>"
+             "<style>body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em;"
+             "line-height:1.45}img{max-width:100%;border:1px solid #ddd}table{border-"
+             "collapse:collapse;margin:.5em 0;font-size:.85em}td,th{border:1px solid #bbb;"
+             "padding:2px 6px;text-align:right}th{background:#eee}figure{margin:1em 0}"
+             "figcaption{color:#444;font-size:.9em}</style></head><body>",
+             f"<h1>{_e(title)}</h1>"]
+    if spec.description:
+        parts.append(f"<p>{_e(spec.description)}</p>")
+    if summary.status != "complete":
+        parts.append(f"<p id='status' style='background:#fde2e1;padding:.5em'><b>"
+                     f"{_e(summary.status.capitalize())}:</b> {_e(summary.note)}</p>")
+    counts = ", ".join(f"{v} {k}" for k, v in summary.statuses.items())
+    parts.append(f"<p>{summary.recorded} of {summary.runs} runs recorded ({_e(counts)}); "
+                 f"this invocation ran {summary.ran} and skipped {summary.skipped} already "
+                 f"recorded, in {summary.wall_time:.1f} s on {_e(summary.scheduler)}. Study "
+                 f"hash <code>{_e(spec.study_hash[:16])}</code>. Results: "
+                 f"<code>pandas.read_parquet(\"{_e(RUNS)}\")</code> in this folder; "
+                 "<a href='summary.json'>summary.json</a>, <a href='study.json'>study.json"
+                 "</a>.</p>")
+    axes = "".join(f"<li><b>{_e(a.setting)}</b> ({_e(a.form)}"
+                   + (", replicate" if a.setting in replicate else "") + f"): "
+                   f"{_e(', '.join(_tick(v) for v in a.values[:12]))}"
+                   + (" ..." if len(a.values) > 12 else "") + "</li>" for a in spec.axes)
+    base = ", ".join(f"{k} = {_tick(v)}" for k, v in spec.base.items())
+    parts.append(f"<h2>Axes</h2><p>Base: {_e(base or 'defaults')}.</p><ul>{axes}</ul>")
+    parts.append("<h2>Figures</h2>")
+    if not figures:
+        parts.append("<p>No run recorded yet.</p>")
+    for caption, data in figures:
+        parts.append(f"<figure><img alt='{_e(caption)}' src='data:image/png;base64,{data}'>"
+                     f"<figcaption>{_e(caption)}</figcaption></figure>")
+    shown_axes = [a.setting for a in spec.axes]
+    header = ["index", "key", *shown_axes, "status", "reason", *_TABLE_METRICS]
+    parts.append(f"<h2>Runs</h2><p>Click a column header to sort.{_truncation(rows)}</p>"
+                 "<table class='sortable'><thead><tr>"
+                 + "".join(f"<th>{_e(h)}</th>" for h in header) + "</tr></thead><tbody>")
+    for r in rows[:MAX_TABLE_ROWS]:
+        cells = [r["index"], r["key"][:12], *(r[a] for a in shown_axes), r["status"],
+                 (r["reason"] or "")[:120], *(r[m] for m in _TABLE_METRICS)]
+        parts.append("<tr>" + "".join(_cell(c) for c in cells) + "</tr>")
+    parts.append("</tbody></table>")
+    parts.append(_JS + "</body></html>\n")
+    return "".join(parts)
+
+
+def _truncation(rows: Sequence[dict[str, Any]]) -> str:
+    if len(rows) <= MAX_TABLE_ROWS:
+        return ""
+    return (f" The first {MAX_TABLE_ROWS} of {len(rows)} runs are listed; all are in the "
+            "Parquet dataset.")

@@ -1,0 +1,894 @@
+"""The study file: a base scenario, axes over its settings, and the runs they expand to.
+
+A study file is TOML (read with :mod:`tomllib`) with three tables::
+
+    [study]                      # optional
+    name = "friction_and_gains"  # a label for the page
+    description = "..."
+    batch_size = 16              # runs per task on the viscous model (engine: always 1)
+
+    [base]                       # the scenario every run starts from (see SETTINGS)
+    robot = "table1"             # a preset, or a .toml/.urdf robot file (relative to this file)
+    controller = "lyapunov"      # lyapunov | velocity | pfl
+    model = "viscous"            # viscous | engine
+    t_final = 60.0
+    c_x = 0.5
+    c_y = 25.0
+
+    [axes.c_y]                   # a grid axis: values = [...] or linspace = [a, b, n]
+    values = [5.0, 25.0, 50.0]
+
+    [axes.failed_joint]          # 0 = no failed joint
+    values = [0, 1, 2]
+
+    [axes.init_noise]            # a random axis: uniform = [a, b] or normal = [mu, sigma]
+    uniform = [0.0, 0.05]
+    samples = 4
+    seed = 7
+
+**Combination.** The grid axes are crossed (full product, in the order the file declares
+them, the first varying slowest). The random axes are sampled *jointly*: they must all
+state the same ``samples`` S, each draws its S values from its own ``seed``
+(``numpy.random.default_rng(seed)``), and the k-th values of all random axes form the
+k-th random point. The study is the product of the grid with those S points:
+``runs = (product of grid sizes) * S``, at most :data:`MAX_RUNS`.
+
+**Settings** (:data:`SETTINGS`) are scalars: numbers (``float``/``int``) or names
+(``str``). Any scalar setting may be an axis: ``values`` for every kind, ``linspace`` and
+the random forms for real-valued ones only. ``passive`` (a list of joints, base only) is
+the exception; vary ``failed_joint`` (one joint whose actuator gives no torque, 0 = none,
+joined to the passive joints) instead. Settings belong to a model and to controllers
+(e.g. ``lam`` to the torque-level Lyapunov-like law, ``mu`` to the engine): giving one
+that does not apply to some run of the study is an error, as is giving the same setting
+in ``[base]`` and as an axis.
+
+**Validation.** :func:`load_study` checks the whole file before anything runs and raises
+:class:`~snake_pin.study.errors.StudyError` with one line naming the file and the key:
+unknown tables and keys (with the closest known name), wrong types, values out of their
+domain, empty axes, an axis over a setting that does not exist, settings that do not
+apply, a failed or passive joint out of range for the robot, a ``t_final`` beyond
+:data:`snake_pin.sim.MAX_STEPS` control steps or the trajectory size bounds, robot files
+that do not load, and more than :data:`MAX_RUNS` runs.
+
+**Keys.** Each run is keyed by :func:`run_key`: the SHA-256 of a canonical JSON text
+(sorted keys, no spaces, floats as Python's shortest round-trip ``repr``, -0.0 written as
+0.0) of its full normalised settings (defaults filled in, every setting that applies to
+its model and controller) and of its resolved robot (:meth:`SnakeParams.to_dict`: a robot
+file's content, not its name, counts). The study's identity, :attr:`StudySpec.study_hash`,
+hashes the sorted run keys: two study files that expand to the same runs are the same
+study, whatever their layout, name or batch size.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import itertools
+import json
+import math
+import os
+import reprlib
+import tomllib
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import SnakePinError
+from ..metrics import ERROR_WINDOW
+from ..params import SnakeParams
+from ..sim import MAX_ARRAY_BYTES, MAX_STEPS, MAX_SUBSTEPS, MAX_TOTAL_BYTES
+from .errors import StudyError
+
+__all__ = [
+    "CONTROLLERS",
+    "KEY_FORMAT",
+    "MAX_BATCH",
+    "MAX_RUNS",
+    "MAX_SEED",
+    "MAX_STUDY_BYTES",
+    "MODELS",
+    "SETTINGS",
+    "Axis",
+    "Scenario",
+    "Setting",
+    "StudySpec",
+    "canonical_json",
+    "load_study",
+    "parse_study",
+    "run_key",
+]
+
+#: Most runs one study may expand to.
+MAX_RUNS = 100_000
+#: Largest ``batch_size``.
+MAX_BATCH = 1024
+#: Largest study file [bytes].
+MAX_STUDY_BYTES = 1 << 20
+#: Seeds (of random axes and of the initial-posture noise) lie in 0..MAX_SEED.
+MAX_SEED = 2**32 - 1
+#: Version of the key's canonical form; part of every key.
+KEY_FORMAT = 1
+#: Engine control period [s] (``WheelSpec().control_dt``), for the t_final bound.
+ENGINE_CONTROL_DT = 1e-3
+MODELS = ("viscous", "engine")
+CONTROLLERS = ("lyapunov", "velocity", "pfl")
+_TRACKING = ("lyapunov", "velocity")
+_TABLES = ("study", "base", "axes")
+_STUDY_KEYS = ("name", "description", "batch_size")
+_GRID_FORMS = ("values", "linspace")
+_RANDOM_FORMS = ("uniform", "normal")
+_AXIS_KEYS = (*_GRID_FORMS, *_RANDOM_FORMS, "samples", "seed")
+#: Engine limits, as ``snake-pin engine`` (a wheel bigger than a link hits its neighbours).
+_MAX_WHEEL_RADIUS = 0.1
+_MAX_MU = 10.0
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One scalar setting of a scenario.
+
+    Attributes
+    ----------
+    name, kind, default
+        Key in the study file; ``"float"``, ``"int"``, ``"str"`` or ``"joints"`` (a list
+        of joint numbers, base only); the default (None: resolved per run, see
+        :func:`_resolve_defaults`, or "the robot's own" for friction).
+    help
+        One line for the documentation.
+    low, high, open_low, choices
+        The domain: ``low <= value <= high`` (``low < value`` if ``open_low``), or one of
+        ``choices`` for names.
+    models, controllers
+        Where it applies.
+    """
+
+    name: str
+    kind: str
+    default: Any
+    help: str
+    low: float | None = None
+    high: float | None = None
+    open_low: bool = False
+    choices: tuple[str, ...] = ()
+    models: tuple[str, ...] = MODELS
+    controllers: tuple[str, ...] = CONTROLLERS
+
+    def applies(self, model: str, controller: str) -> bool:
+        """Whether this setting means something for a run of ``model`` and ``controller``."""
+        return model in self.models and controller in self.controllers
+
+    def domain(self) -> str:
+        """The domain in words, e.g. ``"> 0"``, ``"in 0..10"``, ``"one of a, b"``."""
+        if self.choices:
+            return "one of " + ", ".join(self.choices)
+        if self.low is not None and self.high is not None:
+            return f"in {'(' if self.open_low else '['}{self.low:g}, {self.high:g}]"
+        if self.low is not None:
+            return f"{'>' if self.open_low else '>='} {self.low:g}"
+        return "finite"
+
+    def problem(self, value: Any) -> str:
+        """Why ``value`` (already of the right kind) is outside the domain, or ""."""
+        if self.kind == "str":
+            return "" if not self.choices or value in self.choices else \
+                f"must be {self.domain()}, got {_short(value)}"
+        if self.kind == "joints":
+            return "" if all(k >= 1 for k in value) else \
+                f"joints are numbered from 1, got {_short(value)}"
+        below = self.low is not None and (value < self.low or
+                                          (self.open_low and value == self.low))
+        above = self.high is not None and value > self.high
+        bad = below or above
+        return f"must be {self.domain()}, got {value!r}" if bad else ""
+
+
+def _settings(*items: Setting) -> dict[str, Setting]:
+    return {s.name: s for s in items}
+
+
+def _gain(name: str, default: float, what: str) -> Setting:
+    return Setting(name, "float", default, what, 0.0, open_low=True, models=("viscous",),
+                   controllers=_TRACKING)
+
+
+def _pfl(name: str, default: float, what: str, *, open_low: bool = True) -> Setting:
+    return Setting(name, "float", default, what, 0.0, open_low=open_low, models=("viscous",),
+                   controllers=("pfl",))
+
+
+#: Every setting a study can give in ``[base]`` or vary on an axis.
+SETTINGS: dict[str, Setting] = _settings(
+    # the run
+    Setting("robot", "str", "table1", "a preset (table1, engine) or a .toml/.urdf robot file"),
+    Setting("model", "str", "viscous", "viscous (Pinocchio, RK4) or engine (MuJoCo, wheels)",
+            choices=MODELS),
+    Setting("controller", "str", "lyapunov", "lyapunov (torque level), velocity (velocity "
+            "level with joint servos) or pfl", choices=CONTROLLERS),
+    Setting("t_final", "float", 60.0, "duration [s]", 0.0, open_low=True),
+    Setting("error_window", "float", ERROR_WINDOW, "head errors are judged over "
+            "t >= error_window [s]", 0.0),
+    Setting("passive", "joints", (), "joints without an actuator (a list, base only)"),
+    Setting("failed_joint", "int", 0, "one more joint whose actuator gives no torque "
+            "(0 = none)", 0.0),
+    # integration (viscous model)
+    Setting("dt", "float", 1e-3, "RK4 step [s]", 0.0, open_low=True, models=("viscous",)),
+    Setting("control_dt", "float", 1e-3, "control period [s], a multiple of dt", 0.0,
+            open_low=True, models=("viscous",)),
+    # friction (viscous model; None = the robot's own)
+    Setting("c_x", "float", None, "friction along each link [N s/m] (default: the robot's)",
+            0.0, models=("viscous",)),
+    Setting("c_y", "float", None, "friction across each link [N s/m] (default: the robot's)",
+            0.0, models=("viscous",)),
+    Setting("c_theta", "float", None, "rotational friction [N m s] (default: the robot's)",
+            0.0, models=("viscous",)),
+    # reference, gait and initial posture (viscous model)
+    Setting("ref_speed", "float", 0.1, "head reference speed along +x [m/s]",
+            models=("viscous",)),
+    Setting("gait_alpha", "float", None, "serpenoid winding angle [rad] (lyapunov/velocity "
+            "pi/6, pfl pi/3)", models=("viscous",)),
+    Setting("gait_ts", "float", None, "serpenoid periods along the body (1.5; pfl 1)",
+            0.0, open_low=True, models=("viscous",)),
+    Setting("gait_v", "float", None, "serpenoid temporal frequency [rad/s] (2; pfl 0.18)",
+            models=("viscous",)),
+    Setting("init_phi", "float", math.pi / 6, "joint angles of the initial arc [rad] "
+            "(eq. 82)", models=("viscous",)),
+    Setting("init_noise", "float", 0.0, "standard deviation of Gaussian noise added to each "
+            "initial joint angle [rad]", 0.0, models=("viscous",)),
+    Setting("init_seed", "int", 0, "seed of that noise", 0.0, MAX_SEED, models=("viscous",)),
+    # Lyapunov-like laws (gains of eq. 84)
+    _gain("k_w1_x", 2.0, "K_w1 entry of x_h"),
+    _gain("k_w1_y", 2.0, "K_w1 entry of y_h"),
+    _gain("k_w1_theta", 3.0, "K_w1 entry of theta_1"),
+    _gain("k_w2_x", 400.0, "K_w2 entry of x_h"),
+    _gain("k_w2_y", 400.0, "K_w2 entry of y_h"),
+    _gain("k_w2_theta", 45.0, "K_w2 entry of theta_1"),
+    _gain("k_phi_1", 10.0, "K_phi entry of joint 1"),
+    _gain("k_phi", 20.0, "K_phi entries of joints 2..n-1"),
+    Setting("lam", "float", 10.0, "decay rate of the head's error [1/s]", 0.0, open_low=True,
+            models=("viscous",), controllers=("lyapunov",)),
+    Setting("lam_shape", "float", None, "decay rate of the joints' error [1/s] (lam / 2)",
+            0.0, open_low=True, models=("viscous",), controllers=("lyapunov",)),
+    Setting("k_shape", "float", None, "shape spring [1/s^2] (0; 0.3 with a passive or "
+            "failed joint)", 0.0, models=("viscous",), controllers=("lyapunov",)),
+    Setting("servo_bandwidth", "float", 20.0, "joint servo bandwidth [rad/s]", 0.0,
+            open_low=True, models=("viscous",), controllers=("velocity",)),
+    Setting("max_lead", "float", 0.3, "largest lead of the servo reference [rad]", 0.0,
+            open_low=True, models=("viscous",), controllers=("velocity",)),
+    # PFL (eq. 79)
+    _pfl("k_v", 6.0, "K_v (times identity)"),
+    _pfl("k_p", 6.2, "K_p (times identity)"),
+    _pfl("r_v", 0.041, "R_v (times identity)", open_low=False),
+    _pfl("r_p", 0.079, "R_p (times identity)", open_low=False),
+    _pfl("climb_R", 0.0, "gain of the singularity-aware redundancy term", open_low=False),
+    # engine (MuJoCo)
+    Setting("mu", "float", 1.0, "wheel-floor Coulomb friction", 0.0, _MAX_MU, open_low=True,
+            models=("engine",), controllers=_TRACKING),
+    Setting("wheel_radius", "float", 0.03, "wheel radius [m]", 0.0, _MAX_WHEEL_RADIUS,
+            open_low=True, models=("engine",), controllers=_TRACKING),
+    Setting("cone", "str", "elliptic", "MuJoCo friction cone", choices=("elliptic", "pyramidal"),
+            models=("engine",), controllers=_TRACKING),
+    Setting("cutoff", "float", 10.0, "cut-off of the velocity filter [Hz]", 0.0, open_low=True,
+            models=("engine",), controllers=_TRACKING),
+)
+
+#: Gait defaults per controller: (alpha, T_s, v) of Sections VI.2 and VI.1.
+GAIT_DEFAULTS = {"lyapunov": (math.pi / 6, 1.5, 2.0), "velocity": (math.pi / 6, 1.5, 2.0),
+                 "pfl": (math.pi / 3, 1.0, 0.18)}
+
+
+# ------------------------------------------------------------------ the parsed study
+@dataclass(frozen=True)
+class Axis:
+    """One axis of a study.
+
+    Attributes
+    ----------
+    setting
+        The setting it varies.
+    form
+        ``values``, ``linspace``, ``uniform`` or ``normal``.
+    values
+        Its values, in order (drawn ones for the random forms).
+    source
+        The axis as written (normalised), for ``study.json``.
+    """
+
+    setting: str
+    form: str
+    values: tuple[Any, ...]
+    source: dict[str, Any]
+
+    @property
+    def random(self) -> bool:
+        """Whether the axis is sampled (uniform/normal), not a grid."""
+        return self.form in _RANDOM_FORMS
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """One run of a study, normalised.
+
+    Attributes
+    ----------
+    index
+        Position in the study (grid order, random point innermost).
+    key
+        :func:`run_key` of ``settings`` and ``params``.
+    settings
+        Every setting that applies to its model and controller, defaults filled in
+        (friction None = the robot's own; ``passive`` a sorted list).
+    params
+        The robot the run simulates: friction overrides applied, passive joints =
+        ``passive`` plus ``failed_joint``.
+    """
+
+    index: int
+    key: str
+    settings: dict[str, Any]
+    params: SnakeParams
+
+    @property
+    def model(self) -> str:
+        """``viscous`` or ``engine``."""
+        return self.settings["model"]
+
+    @property
+    def controller(self) -> str:
+        """``lyapunov``, ``velocity`` or ``pfl``."""
+        return self.settings["controller"]
+
+    def __getitem__(self, name: str) -> Any:
+        return self.settings[name]
+
+
+@dataclass(frozen=True, eq=False)
+class StudySpec:
+    """A validated study: its axes and the runs they expand to (see the module docstring).
+
+    Attributes
+    ----------
+    path
+        The study file.
+    name, description, batch_size
+        From ``[study]``.
+    base
+        The settings ``[base]`` gives explicitly (typed).
+    axes
+        Grid axes first (in file order), then random axes.
+    scenarios
+        Every run, in study order.
+    study_hash
+        SHA-256 (hex) of the sorted run keys.
+    """
+
+    path: Path
+    name: str
+    description: str
+    batch_size: int
+    base: dict[str, Any]
+    axes: tuple[Axis, ...]
+    scenarios: tuple[Scenario, ...] = field(repr=False)
+    study_hash: str
+
+    @property
+    def grid_axes(self) -> tuple[Axis, ...]:
+        """The crossed axes."""
+        return tuple(a for a in self.axes if not a.random)
+
+    @property
+    def random_axes(self) -> tuple[Axis, ...]:
+        """The jointly sampled axes."""
+        return tuple(a for a in self.axes if a.random)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The normalised study as plain JSON data (written to ``study.json``)."""
+        return {"name": self.name, "description": self.description,
+                "batch_size": self.batch_size, "base": _plain(self.base),
+                "axes": [{"setting": a.setting, **a.source} for a in self.axes],
+                "runs": len(self.scenarios), "study_hash": self.study_hash,
+                "key_format": KEY_FORMAT}
+
+
+# ------------------------------------------------------------------------- keys
+def canonical_json(value: Any) -> str:
+    """Canonical JSON text: sorted keys, no spaces, ASCII, floats by ``repr`` (-0.0 as 0.0).
+
+    Raises
+    ------
+    ValueError
+        For NaN or infinities (never part of a normalised run).
+    """
+    return json.dumps(_plain(value), sort_keys=True, separators=(",", ":"), ensure_ascii=True,
+                      allow_nan=False)
+
+
+def run_key(settings: Mapping[str, Any], params: SnakeParams) -> str:
+    """The key of a run: SHA-256 (hex, 64 characters) of its canonical settings and robot."""
+    text = canonical_json({"format": KEY_FORMAT, "settings": dict(settings),
+                           "robot": params.to_dict()})
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+def _plain(value: Any) -> Any:
+    """Plain JSON data with -0.0 normalised (tuples become lists)."""
+    if isinstance(value, bool) or value is None or isinstance(value, (str, int)):
+        return value
+    if isinstance(value, float):
+        return 0.0 if value == 0.0 else value
+    if isinstance(value, np.generic):
+        return _plain(value.item())
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    raise TypeError(f"not plain data: {type(value).__name__}")
+
+
+# ----------------------------------------------------------------------- reading
+def load_study(path: str | os.PathLike[str]) -> StudySpec:
+    """Read and validate a study file (see the module docstring).
+
+    Raises
+    ------
+    StudyError
+        One line naming the file and the key at fault.
+    """
+    try:
+        file = Path(path)
+    except TypeError:
+        raise StudyError(f"study file must be a path, got {_short(path)}") from None
+    shown = _shown(file)
+    try:
+        if not file.is_file():
+            raise StudyError(f"{shown}: no such study file" if not file.exists()
+                             else f"{shown}: not a regular file")
+        with open(file, "rb") as handle:
+            data = handle.read(MAX_STUDY_BYTES + 1)
+    except OSError as exc:
+        raise StudyError(f"{shown}: cannot read the study file: "
+                         f"{exc.strerror or exc}") from None
+    if len(data) > MAX_STUDY_BYTES:
+        raise StudyError(f"{shown}: larger than {MAX_STUDY_BYTES // 1024} KiB; not a study file")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise StudyError(f"{shown}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    return parse_study(text, file)
+
+
+def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpec:
+    """Validate study text; relative robot files are read beside ``path``.
+
+    Raises
+    ------
+    StudyError
+        One line naming ``path`` and the key at fault.
+    """
+    file = Path(path)
+    where = _Where(_shown(file))
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise where.error(f"not valid TOML: {_one_line(str(exc))}") from None
+    _check_keys(where, "", doc, _TABLES, "table")
+    study = _table(where, doc, "study")
+    _check_keys(where, "[study]", study, _STUDY_KEYS, "key")
+    name = study.get("name", file.stem)
+    description = study.get("description", "")
+    for key, value in (("name", name), ("description", description)):
+        if not isinstance(value, str) or not value.isprintable() or len(value) > 2000:
+            raise where.error(f"[study] {key} must be one line of printable text, "
+                              f"got {_short(value)}")
+    batch_size = study.get("batch_size", 16)
+    if not _is_int(batch_size) or not 1 <= batch_size <= MAX_BATCH:
+        raise where.error(f"[study] batch_size must be an integer in 1..{MAX_BATCH}, "
+                          f"got {_short(batch_size)}")
+    base_doc = _table(where, doc, "base")
+    base = {}
+    for key, value in base_doc.items():
+        setting = _known(where, "[base]", key)
+        base[key] = _typed(where, f"[base] {key}", setting, value)
+    axes_doc = _table(where, doc, "axes")
+    axes = [_axis(where, name_, spec, base) for name_, spec in axes_doc.items()]
+    axes = [a for a in axes if not a.random] + [a for a in axes if a.random]
+    sizes = _sizes(where, axes)
+    total = math.prod(sizes)
+    if total > MAX_RUNS:
+        raise where.error(f"[axes] the study expands to {total} runs, at most {MAX_RUNS}")
+    scenarios = _scenarios(where, file, base, axes)
+    keys = sorted(s.key for s in scenarios)
+    study_hash = hashlib.sha256(canonical_json(keys).encode("ascii")).hexdigest()
+    return StudySpec(path=file, name=name, description=description, batch_size=batch_size,
+                     base=base, axes=tuple(axes), scenarios=tuple(scenarios),
+                     study_hash=study_hash)
+
+
+class _Where:
+    """Builds the one-line errors of one study file."""
+
+    def __init__(self, shown: str) -> None:
+        self.shown = shown
+
+    def error(self, message: str) -> StudyError:
+        return StudyError(_one_line(f"{self.shown}: {message}", 400))
+
+
+def _check_keys(where: _Where, table: str, doc: Mapping[str, Any], allowed: Sequence[str],
+                kind: str) -> None:
+    for key in doc:
+        if key not in allowed:
+            close = difflib.get_close_matches(str(key), allowed, n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else \
+                f" (known: {', '.join(allowed)})"
+            place = f"{table} " if table else ""
+            raise where.error(f"{place}unknown {kind} {_short(key)}{hint}")
+
+
+def _table(where: _Where, doc: Mapping[str, Any], key: str) -> dict[str, Any]:
+    value = doc.get(key, {})
+    if not isinstance(value, dict):
+        raise where.error(f"[{key}] must be a table, got {_kind_name(value)}")
+    return value
+
+
+def _known(where: _Where, table: str, key: str) -> Setting:
+    setting = SETTINGS.get(key)
+    if setting is None:
+        close = difflib.get_close_matches(key, list(SETTINGS), n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        raise where.error(f"{table} unknown setting {_short(key)}{hint}")
+    return setting
+
+
+def _typed(where: _Where, label: str, setting: Setting, value: Any) -> Any:
+    """``value`` converted to the setting's kind and checked against its domain."""
+    if setting.kind == "float":
+        if not _is_number(value):
+            raise where.error(f"{label} must be a number, got {_kind_name(value)} "
+                              f"{_short(value)}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise where.error(f"{label} must be finite, got {value}")
+        value = 0.0 if value == 0.0 else value
+    elif setting.kind == "int":
+        if not _is_int(value):
+            raise where.error(f"{label} must be an integer, got {_kind_name(value)} "
+                              f"{_short(value)}")
+    elif setting.kind == "str":
+        if not isinstance(value, str):
+            raise where.error(f"{label} must be a string, got {_kind_name(value)} "
+                              f"{_short(value)}")
+    else:  # joints
+        if not isinstance(value, list) or not all(_is_int(k) for k in value):
+            raise where.error(f"{label} must be a list of joint numbers, got {_short(value)}")
+        if len(set(value)) != len(value):
+            raise where.error(f"{label} lists a joint twice: {_short(value)}")
+        value = tuple(sorted(value))
+    problem = setting.problem(value)
+    if problem:
+        raise where.error(f"{label} {problem}")
+    return value
+
+
+def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
+    label = f"[axes.{name}]"
+    setting = SETTINGS.get(name)
+    if setting is None:
+        close = difflib.get_close_matches(name, list(SETTINGS), n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        raise where.error(f"{label} there is no setting {_short(name)} to vary{hint}")
+    if not isinstance(spec, dict):
+        raise where.error(f"{label} must be a table such as {{ values = [...] }}, got "
+                          f"{_kind_name(spec)}")
+    if setting.kind == "joints":
+        raise where.error(f"{label} passive is a list (base only); vary failed_joint instead")
+    if name in base:
+        raise where.error(f"{label} {name} is also set in [base]; give it in one place")
+    _check_keys(where, label, spec, _AXIS_KEYS, "key")
+    forms = [f for f in (*_GRID_FORMS, *_RANDOM_FORMS) if f in spec]
+    if len(forms) != 1:
+        raise where.error(f"{label} needs exactly one of values, linspace, uniform, normal; "
+                          f"got {', '.join(forms) or 'none'}")
+    form = forms[0]
+    random = form in _RANDOM_FORMS
+    for key in ("samples", "seed"):
+        if key in spec and not random:
+            raise where.error(f"{label} {key} applies to uniform/normal axes, not {form}")
+    if form != "values" and setting.kind != "float":
+        raise where.error(f"{label} {name} takes {setting.kind} values: use values = [...]")
+    raw = spec[form]
+    if form == "values":
+        if not isinstance(raw, list):
+            raise where.error(f"{label} values must be a list, got {_kind_name(raw)}")
+        if not raw:
+            raise where.error(f"{label} values is empty")
+        values = [_typed(where, f"{label} values[{i}]", setting, v) for i, v in enumerate(raw)]
+        seen: dict[Any, int] = {}
+        for i, v in enumerate(values):
+            if v in seen:
+                raise where.error(f"{label} values[{i}] repeats values[{seen[v]}] = {v!r}")
+            seen[v] = i
+        return Axis(name, form, tuple(values), {"values": list(values)})
+    numbers = _numbers(where, f"{label} {form}", raw, 3 if form == "linspace" else 2)
+    if form == "linspace":
+        low, high, count = numbers
+        if not _is_int(raw[2]) or count < 1:
+            raise where.error(f"{label} linspace = [a, b, n] needs an integer n >= 1, "
+                              f"got {_short(raw[2])}")
+        if count > MAX_RUNS:
+            raise where.error(f"{label} linspace has {int(count)} points, at most {MAX_RUNS}")
+        if count > 1 and low == high:
+            raise where.error(f"{label} linspace from {low!r} to itself repeats one value")
+        drawn = np.linspace(low, high, int(count)).tolist()
+        source = {"linspace": [low, high, int(count)]}
+    else:
+        samples, seed = spec.get("samples"), spec.get("seed")
+        if not _is_int(samples) or samples < 1:
+            raise where.error(f"{label} needs samples = N (an integer >= 1), got "
+                              f"{_short(samples)}")
+        if samples > MAX_RUNS:
+            raise where.error(f"{label} samples = {samples}, at most {MAX_RUNS}")
+        if not _is_int(seed) or not 0 <= seed <= MAX_SEED:
+            raise where.error(f"{label} needs seed = S (an integer in 0..2**32 - 1), got "
+                              f"{_short(seed)}")
+        rng = np.random.default_rng(seed)
+        a, b = numbers
+        if form == "uniform":
+            if not a < b:
+                raise where.error(f"{label} uniform = [a, b] needs a < b, got [{a!r}, {b!r}]")
+            drawn = rng.uniform(a, b, samples).tolist()
+        else:
+            if not b > 0:
+                raise where.error(f"{label} normal = [mean, sigma] needs sigma > 0, got {b!r}")
+            drawn = rng.normal(a, b, samples).tolist()
+        source = {form: [a, b], "samples": samples, "seed": seed}
+    values = []
+    for i, v in enumerate(drawn):
+        v = 0.0 if v == 0.0 else float(v)
+        problem = setting.problem(v)
+        if problem:
+            raise where.error(f"{label} value {i} ({v!r}) of {form}: {name} {problem}")
+        values.append(v)
+    return Axis(name, form, tuple(values), {**source, "values": values})
+
+
+def _numbers(where: _Where, label: str, raw: Any, count: int) -> list[float]:
+    if not isinstance(raw, list) or len(raw) != count or not all(_is_number(v) for v in raw):
+        shape = "[a, b, n]" if count == 3 else "[a, b]"
+        raise where.error(f"{label} must be {shape} (numbers), got {_short(raw)}")
+    values = [float(v) for v in raw]
+    if not all(math.isfinite(v) for v in values):
+        raise where.error(f"{label} must be finite, got {_short(raw)}")
+    return values
+
+
+def _sizes(where: _Where, axes: Sequence[Axis]) -> list[int]:
+    """Sizes of the factors of the product: each grid axis, then the random block."""
+    grid = [len(a.values) for a in axes if not a.random]
+    random = {a.setting: len(a.values) for a in axes if a.random}
+    if len(set(random.values())) > 1:
+        listed = ", ".join(f"{k} {v}" for k, v in random.items())
+        raise where.error(f"[axes] random axes are sampled jointly and need the same samples; "
+                          f"got {listed}")
+    return grid + ([next(iter(random.values()))] if random else [])
+
+
+# -------------------------------------------------------------------- expansion
+def _scenarios(where: _Where, file: Path, base: Mapping[str, Any],
+               axes: Sequence[Axis]) -> list[Scenario]:
+    grid = [a for a in axes if not a.random]
+    random = [a for a in axes if a.random]
+    points = list(zip(*(a.values for a in random), strict=True)) if random else [()]
+    origin = {a.setting: f"[axes.{a.setting}]" for a in axes}
+    explicit = set(base) | set(origin)
+
+    def place(name: str) -> str:
+        return origin.get(name, "[base]")
+
+    _check_applicability(where, base, axes, explicit, place)
+    robots = _robots(where, file, base, axes, place)
+    scenarios: list[Scenario] = []
+    cache: dict[tuple[Any, ...], SnakeParams] = {}
+    names = [a.setting for a in grid] + [a.setting for a in random]
+    for values in itertools.product(*(a.values for a in grid)):
+        for point in points:
+            chosen = dict(base)
+            chosen.update(zip(names, (*values, *point), strict=True))
+            settings = _normalise(chosen)
+            params = _params(where, settings, robots[settings["robot"]], place, cache)
+            _check_run(where, settings, params, place)
+            key = run_key(settings, params)
+            scenarios.append(Scenario(len(scenarios), key, settings, params))
+    seen: dict[str, int] = {}
+    for s in scenarios:
+        if s.key in seen:
+            raise where.error(f"[axes] runs {seen[s.key]} and {s.index} are the same run "
+                              "(identical settings)")
+        seen[s.key] = s.index
+    return scenarios
+
+
+def _check_applicability(where: _Where, base: Mapping[str, Any], axes: Sequence[Axis],
+                         explicit: set[str], place: Any) -> None:
+    """Every explicit setting must apply to every (model, controller) the study has."""
+    def values(name: str) -> tuple[Any, ...]:
+        for axis in axes:
+            if axis.setting == name:
+                return axis.values
+        return (base.get(name, SETTINGS[name].default),)
+
+    pairs = list(itertools.product(values("model"), values("controller")))
+    for model, controller in pairs:
+        if model == "engine" and controller == "pfl":
+            raise where.error(f"{place('controller')} controller pfl runs on the viscous model "
+                              f"only, but {place('model')} has model engine")
+    for name in sorted(explicit, key=list(SETTINGS).index):
+        setting = SETTINGS[name]
+        for model, controller in pairs:
+            if not setting.applies(model, controller):
+                if model not in setting.models:
+                    scope = f"the {'/'.join(setting.models)} model"
+                    other = f"model {model}"
+                else:
+                    scope = f"controller {'/'.join(setting.controllers)}"
+                    other = f"controller {controller}"
+                raise where.error(f"{place(name)} {name} applies to {scope} only, and this "
+                                  f"study has runs with {other}")
+
+
+def _robots(where: _Where, file: Path, base: Mapping[str, Any], axes: Sequence[Axis],
+            place: Any) -> dict[str, SnakeParams]:
+    """Each robot the study names, loaded once (files relative to the study file)."""
+    from ..robot_file import load_robot
+
+    names: Iterable[str] = next((a.values for a in axes if a.setting == "robot"),
+                                (base.get("robot", SETTINGS["robot"].default),))
+    robots = {}
+    for name in names:
+        local = file.parent / name
+        spec = str(local) if not os.path.isabs(name) and local.exists() else name
+        try:
+            robots[name] = load_robot(spec)
+        except SnakePinError as exc:
+            raise where.error(f"{place('robot')} robot {_short(name)}: "
+                              f"{_one_line(str(exc))}") from None
+    return robots
+
+
+def _normalise(chosen: Mapping[str, Any]) -> dict[str, Any]:
+    """Every setting that applies to the run's model and controller, defaults resolved."""
+    model = chosen.get("model", SETTINGS["model"].default)
+    controller = chosen.get("controller", SETTINGS["controller"].default)
+    settings = {name: chosen.get(name, s.default) for name, s in SETTINGS.items()
+                if s.applies(model, controller)}
+    settings["passive"] = list(settings["passive"])
+    _resolve_defaults(settings)
+    return settings
+
+
+def _resolve_defaults(settings: dict[str, Any]) -> None:
+    """Fill the defaults that depend on other settings (None in :data:`SETTINGS`)."""
+    controller = settings["controller"]
+    if settings["model"] != "viscous":
+        return
+    for name, value in zip(("gait_alpha", "gait_ts", "gait_v"), GAIT_DEFAULTS[controller],
+                           strict=True):
+        if settings[name] is None:
+            settings[name] = value
+    if controller == "lyapunov":
+        if settings["lam_shape"] is None:
+            settings["lam_shape"] = settings["lam"] / 2
+        if settings["k_shape"] is None:
+            settings["k_shape"] = 0.3 if settings["passive"] or settings["failed_joint"] else 0.0
+
+
+def _params(where: _Where, settings: Mapping[str, Any], robot: SnakeParams, place: Any,
+            cache: dict[tuple[Any, ...], SnakeParams]) -> SnakeParams:
+    """The robot of one run: friction overrides, passive joints plus the failed joint."""
+    n = robot.n
+    for k in settings["passive"]:
+        if not 1 <= k <= n - 1:
+            raise where.error(f"[base] passive joint {k} is outside 1..{n - 1} for robot "
+                              f"{_short(settings['robot'])} (n = {n})")
+    failed = settings["failed_joint"]
+    if not 0 <= failed <= n - 1:
+        raise where.error(f"{place('failed_joint')} failed_joint {failed} is outside 0..{n - 1} "
+                          f"(0 = none) for robot {_short(settings['robot'])} (n = {n})")
+    if failed and failed in settings["passive"]:
+        raise where.error(f"{place('failed_joint')} failed_joint {failed} is already passive "
+                          "in [base]")
+    passive = tuple(sorted({*settings["passive"], *([failed] if failed else [])}))
+    friction = {k: settings[k] for k in ("c_x", "c_y", "c_theta")
+                if settings.get(k) is not None}
+    cache_key = (settings["robot"], passive, tuple(sorted(friction.items())))
+    params = cache.get(cache_key)
+    if params is None:
+        try:
+            params = robot.replace(passive=passive, **friction)
+        except SnakePinError as exc:
+            names = ", ".join(sorted({place(k) for k in friction}) or [place("robot")])
+            raise where.error(f"{names} robot {_short(settings['robot'])}: "
+                              f"{_one_line(str(exc))}") from None
+        cache[cache_key] = params
+    return params
+
+
+def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
+               place: Any) -> None:
+    """Cross-setting checks of one run (things that only fail when combined)."""
+    controller, model = settings["controller"], settings["model"]
+    n = params.n
+    if not params.actuated:
+        raise where.error(f"{place('failed_joint')} every joint of robot "
+                          f"{_short(settings['robot'])} would be passive: nothing to control")
+    if controller == "pfl":
+        if params.passive:
+            raise where.error(f"{place('controller')} controller pfl needs every joint "
+                              f"actuated; {place('failed_joint')} or [base] passive leaves "
+                              f"joint {params.passive[0]} without torque")
+        if n < 4:
+            raise where.error(f"{place('controller')} controller pfl needs n >= 4 links, robot "
+                              f"{_short(settings['robot'])} has {n}")
+    if controller == "velocity" and model == "viscous":
+        for key in ("c_x", "c_y"):
+            if np.any(params.per_link(key) <= 0):
+                given = place(key) if settings.get(key) is not None else place("robot")
+                raise where.error(f"{given} controller velocity needs {key} > 0 on every "
+                                  f"link of robot {_short(settings['robot'])}")
+    t_final = settings["t_final"]
+    if model == "engine":
+        control_dt = ENGINE_CONTROL_DT
+    else:
+        dt, control_dt = settings["dt"], settings["control_dt"]
+        ratio = control_dt / dt
+        substeps = round(ratio)
+        if ratio > MAX_SUBSTEPS + 0.5 or substeps < 1 or \
+                abs(substeps * dt - control_dt) > 1e-9 * control_dt:
+            raise where.error(f"{place('control_dt')} control_dt = {control_dt:g} s must be 1.."
+                              f"{MAX_SUBSTEPS} times {place('dt')} dt = {dt:g} s")
+    steps = t_final / control_dt
+    if steps > MAX_STEPS + 1e-6:
+        raise where.error(f"{place('t_final')} t_final = {t_final:g} s needs more than "
+                          f"MAX_STEPS = {MAX_STEPS} control steps of {control_dt:g} s "
+                          f"(t_final <= {MAX_STEPS * control_dt:g} s)")
+    samples = math.ceil(steps - 1e-9) + 1
+    nq = n + 2
+    if samples * nq * 8 > MAX_ARRAY_BYTES or samples * (2 * nq + n) * 8 > MAX_TOTAL_BYTES:
+        raise where.error(f"{place('t_final')} t_final = {t_final:g} s of a {n}-link robot "
+                          "needs more memory than a trajectory may hold (snake_pin.sim."
+                          "MAX_ARRAY_BYTES)")
+
+
+# ------------------------------------------------------------------------ helpers
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _kind_name(value: object) -> str:
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
+            list: "a list", dict: "a table"}.get(type(value), type(value).__name__)
+
+
+_REPR = reprlib.Repr()
+_REPR.maxstring, _REPR.maxother, _REPR.maxlist = 60, 60, 8
+
+
+def _short(value: object) -> str:
+    return _REPR.repr(value)
+
+
+def _shown(path: object) -> str:
+    text = os.fspath(path) if isinstance(path, os.PathLike) else str(path)
+    return text if text.isprintable() else repr(text)
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -1,0 +1,77 @@
+"""What one invocation of a study reports: :class:`StudySummary` (``summary.json``, ``--json``)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+__all__ = ["StudySummary"]
+
+
+@dataclass
+class StudySummary:
+    """The state of a study folder after one invocation.
+
+    Attributes
+    ----------
+    name, study_hash, folder
+        The study and where its results are.
+    status
+        ``complete`` (every run recorded), ``interrupted`` (SIGINT/SIGTERM; the batches
+        written so far are kept) or ``incomplete`` (some runs lost: a worker died; re-run
+        to retry them).
+    runs
+        Runs in the study.
+    recorded
+        Runs with a row in the dataset (all invocations).
+    ran
+        Runs executed and recorded by this invocation.
+    skipped
+        Runs already recorded when this invocation started.
+    lost
+        Runs submitted by this invocation and not recorded (in flight at an interrupt,
+        or on a worker that died); a re-run executes them.
+    statuses
+        Recorded rows per status (``ok``, ``diverged``, ``failed``).
+    wall_time
+        Seconds this invocation took, cluster start included.
+    scheduler
+        ``local (N workers)`` or the address given.
+    files
+        ``index.html``, ``summary.json``, the dataset folder and ``study.json``.
+    note
+        One line: why it stopped, if it did.
+    """
+
+    name: str
+    study_hash: str
+    folder: str
+    status: str = "complete"
+    runs: int = 0
+    recorded: int = 0
+    ran: int = 0
+    skipped: int = 0
+    lost: int = 0
+    statuses: dict[str, int] = field(default_factory=dict)
+    wall_time: float = 0.0
+    scheduler: str = ""
+    files: dict[str, str] = field(default_factory=dict)
+    note: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain RFC 8259 JSON data (no NaN: non-finite numbers become null)."""
+        from ..report import json_safe
+
+        return json_safe(asdict(self))
+
+    def text(self) -> str:
+        """A few lines for a terminal."""
+        counts = ", ".join(f"{v} {k}" for k, v in self.statuses.items() if v)
+        lines = [f"study {self.name}: {self.status}, {self.recorded}/{self.runs} runs recorded"
+                 f" ({counts or 'none'}); ran {self.ran}, skipped {self.skipped}"
+                 + (f", lost {self.lost}" if self.lost else "")
+                 + f" in {self.wall_time:.1f} s on {self.scheduler}"]
+        if self.note:
+            lines.append(self.note)
+        lines += [f"{k}: {v}" for k, v in self.files.items()]
+        return "\n".join(lines)

@@ -1,0 +1,270 @@
+"""The unit of work of a study: run a batch of scenarios, return one result row per scenario.
+
+:func:`run_batch` is the task the runner submits to Dask. It never lets a run's failure
+escape: a run that raises becomes a row with status ``failed`` and the error text, and
+the other runs of the batch go on. Inside it, BLAS and OpenMP pools are limited to one
+thread (:func:`threadpoolctl.threadpool_limits`; DESIGN §6: multi-threaded OpenBLAS on
+tiny matrices is ~100x slower when the other core is busy).
+
+**The hook for the batched simulator.** Viscous-model batches go through
+:func:`simulate_viscous_batch` and nothing else simulates them: today it runs each
+scenario through :func:`snake_pin.sim.simulate` one by one; the lockstep simulator of
+issue 14.1 replaces its body (one function) and everything around it (metrics, rows,
+files, resuming, the report) stays. Its contract: given scenarios of one robot layout
+(same n; friction, gains, gait, reference, initial state and passive joints may differ),
+return one :class:`RunOutcome` per scenario, in order, whose trajectory equals what
+:func:`simulate_scenario` gives for it (same status and reason), with the wall time of
+each run (for a lockstep batch: the batch's time divided by its size).
+
+Engine scenarios run one per task through :func:`snake_pin.engine.run.run_engine`.
+
+Rows (see :mod:`snake_pin.study.results` for the columns): every setting of the run, the
+key, ``status`` (``ok``, ``diverged``, ``failed``), ``reason``, and the metrics:
+
+- ``rms_head_error``, ``max_head_error`` [m] over ``t >= error_window``, and the same as a
+  percentage of the body length (``*_pct``); null when the run ends before the window;
+- ``R_min``: the smallest R (eq. 31, every joint counted as actuated) along the run;
+  ``R_tilde_min`` and ``D_min``: R~ and D~ (eq. 42) with the robot's passive joints and the
+  failed joint free - the criteria the controller actually faces; all three sampled every
+  :data:`CRITERIA_PERIOD` seconds of the run;
+- ``t_end`` [s]; ``torque_rms`` [N m]: the RMS of every joint torque over the run's
+  control steps; ``wall_time`` [s]: the run's simulation time.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..control import LinearReference
+from ..exceptions import RunInterrupted
+from ..metrics import head_error_summary, head_position_error
+from ..params import SnakeParams
+from ..sim import Trajectory
+from .spec import Scenario
+
+__all__ = ["CRITERIA_PERIOD", "RunOutcome", "build_controller", "failed_row", "initial_state",
+           "reference", "result_row", "run_batch", "simulate_scenario",
+           "simulate_viscous_batch"]
+
+#: Manipulability criteria are evaluated along a run every this many seconds.
+CRITERIA_PERIOD = 0.1
+
+
+@dataclass
+class RunOutcome:
+    """What simulating one scenario gave: a trajectory, or the error that stopped it."""
+
+    trajectory: Trajectory | None
+    error: str = ""
+    wall_time: float = math.nan
+
+
+# ------------------------------------------------------------------- the task
+def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
+    """Run a batch and return one result row per scenario, in order (the Dask task).
+
+    A run that raises is a ``failed`` row with the error; a KeyboardInterrupt is not
+    caught (an interrupted batch is lost whole, never half-written).
+    """
+    from threadpoolctl import threadpool_limits
+
+    scenarios = list(scenarios)
+    with threadpool_limits(limits=1):
+        if all(s.model == "viscous" for s in scenarios):
+            outcomes = simulate_viscous_batch(scenarios)
+        else:
+            outcomes = [_guarded(_simulate_engine, s) for s in scenarios]
+        rows = []
+        for scenario, outcome in zip(scenarios, outcomes, strict=True):
+            try:
+                rows.append(result_row(scenario, outcome))
+            except Exception as exc:
+                rows.append(failed_row(scenario, f"metrics failed: {_error_text(exc)}",
+                                       outcome.wall_time))
+    return rows
+
+
+def simulate_viscous_batch(scenarios: Sequence[Scenario]) -> list[RunOutcome]:
+    """Simulate viscous-model scenarios: THE place where the lockstep simulator plugs in.
+
+    Today: each scenario through :func:`simulate_scenario`, one by one. See the module
+    docstring for the contract a batched replacement keeps.
+    """
+    return [_guarded(simulate_scenario, s) for s in scenarios]
+
+
+def _guarded(simulate: Any, scenario: Scenario) -> RunOutcome:
+    start = time.perf_counter()
+    try:
+        return simulate(scenario)
+    except RunInterrupted:
+        raise
+    except Exception as exc:
+        return RunOutcome(None, _error_text(exc), time.perf_counter() - start)
+
+
+# ---------------------------------------------------------------- one scenario
+def reference(scenario: Scenario) -> LinearReference:
+    """The head reference: along +x at ``ref_speed``; head-first (theta_1 = pi) for the
+    Lyapunov-like laws, the VI.1 reference (theta_1 = 0) for PFL."""
+    speed = scenario.settings.get("ref_speed", 0.1)
+    heading = 0.0 if scenario.controller == "pfl" else math.pi
+    return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, heading))
+
+
+def initial_state(scenario: Scenario) -> np.ndarray:
+    """Eq. (82)'s arc with every joint at ``init_phi`` (plus seeded Gaussian noise of
+    ``init_noise`` rad), head at the origin facing the reference's heading, at rest."""
+    from ..gaits import arc
+
+    n = scenario.params.n
+    heading = reference(scenario).start[2]
+    q = arc(n, scenario["init_phi"], theta_1=heading)
+    if scenario["init_noise"] > 0:
+        rng = np.random.default_rng(scenario["init_seed"])
+        q[3:] += rng.normal(0.0, scenario["init_noise"], n - 1)
+    return np.r_[q, np.zeros(n + 2)]
+
+
+def build_controller(scenario: Scenario, snake: Any) -> Any:
+    """The scenario's controller on ``snake`` (its gains, gait and reference)."""
+    from ..control import LyapunovController, PFLController, QuasiStaticLyapunovController
+    from ..gaits import Serpenoid
+
+    s = scenario.settings
+    n = scenario.params.n
+    gait = Serpenoid(n, s["gait_alpha"], s["gait_ts"], s["gait_v"])
+    ref = reference(scenario)
+    if scenario.controller == "pfl":
+        return PFLController(snake, ref, gait, k_v=s["k_v"], k_p=s["k_p"], r_v=s["r_v"],
+                             r_p=s["r_p"], climb_R=s["climb_R"])
+    gains = {"k_w1": (s["k_w1_x"], s["k_w1_y"], s["k_w1_theta"]),
+             "k_w2": (s["k_w2_x"], s["k_w2_y"], s["k_w2_theta"]),
+             "k_phi": np.r_[s["k_phi_1"], np.full(n - 2, s["k_phi"])]}
+    if scenario.controller == "velocity":
+        return QuasiStaticLyapunovController(snake, ref, gait, **gains,
+                                             servo_bandwidth=s["servo_bandwidth"],
+                                             max_lead=s["max_lead"], control_dt=s["control_dt"])
+    return LyapunovController(snake, ref, gait, **gains, lam=s["lam"],
+                              lam_shape=s["lam_shape"], k_shape=s["k_shape"])
+
+
+def simulate_scenario(scenario: Scenario) -> RunOutcome:
+    """One viscous-model scenario through :func:`snake_pin.sim.simulate` (may raise)."""
+    from ..model import Snake
+    from ..sim import simulate
+
+    start = time.perf_counter()
+    snake = Snake(scenario.params)
+    controller = build_controller(scenario, snake)
+    traj = simulate(snake, controller, initial_state(scenario), scenario["t_final"],
+                    dt=scenario["dt"], control_dt=scenario["control_dt"])
+    return RunOutcome(traj, "", time.perf_counter() - start)
+
+
+@functools.lru_cache(maxsize=16)
+def _engine_friction(params: SnakeParams, wheels: Any) -> dict[str, float]:
+    """The identified viscous friction of a robot on its wheels (cached per worker)."""
+    from ..engine.run import identify_friction
+
+    return identify_friction(params.replace(passive=()), wheels)
+
+
+def _simulate_engine(scenario: Scenario) -> RunOutcome:
+    """One engine scenario through :func:`snake_pin.engine.run.run_engine` (may raise)."""
+    from ..engine.model import WheelSpec
+    from ..engine.run import run_engine
+
+    s = scenario.settings
+    wheels = WheelSpec(radius=s["wheel_radius"], friction=s["mu"], cone=s["cone"])
+    friction = _engine_friction(scenario.params, wheels)
+    start = time.perf_counter()
+    law = "velocity" if scenario.controller == "velocity" else "acceleration"
+    run = run_engine(scenario.params, wheels=wheels, t_final=s["t_final"], friction=friction,
+                     cutoff=s["cutoff"], law=law)
+    return RunOutcome(run.trajectory, "", time.perf_counter() - start)
+
+
+# -------------------------------------------------------------------- rows
+_STATUS = {"completed": "ok", "diverged": "diverged", "failed": "failed"}
+_METRICS = ("rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_error_pct",
+            "R_min", "R_tilde_min", "D_min", "t_end", "torque_rms")
+
+
+def _settings_columns(scenario: Scenario) -> dict[str, Any]:
+    from ..report import json_text
+
+    row: dict[str, Any] = dict(scenario.settings)
+    row["passive"] = ",".join(str(k) for k in scenario.settings["passive"])
+    params = scenario.params
+    for key in ("c_x", "c_y", "c_theta"):
+        if key in row and row[key] is None:  # the robot's own, when it is one number
+            value = getattr(params, key)
+            row[key] = float(value) if not isinstance(value, tuple) else None
+    row.update({"key": scenario.key, "index": scenario.index, "n": params.n,
+                "body_length": float(params.body_length),
+                "robot_params": json_text(params.to_dict())})
+    return row
+
+
+def failed_row(scenario: Scenario, reason: str, wall_time: float = math.nan) -> dict[str, Any]:
+    """The row of a run that raised: status ``failed``, ``reason``, no metrics."""
+    return {**_settings_columns(scenario), "status": "failed", "reason": reason,
+            **dict.fromkeys(_METRICS), "wall_time": _finite_or_none(wall_time)}
+
+
+def result_row(scenario: Scenario, outcome: RunOutcome) -> dict[str, Any]:
+    """The row of a simulated scenario: its settings, status and metrics."""
+    traj = outcome.trajectory
+    if traj is None:
+        return failed_row(scenario, outcome.error, outcome.wall_time)
+    body = float(scenario.params.body_length)
+    error = head_position_error(traj, reference(scenario))
+    window = head_error_summary(traj, error, start=scenario["error_window"])
+    rms, peak = window["rms_head_error"], window["max_head_error"]
+    r_min, r_tilde_min, d_min = _criteria(traj, scenario)
+    torque = traj.tau[:-1] if len(traj) > 1 else traj.tau[:0]
+    return {**_settings_columns(scenario),
+            "status": _STATUS.get(traj.status, traj.status), "reason": traj.reason,
+            "rms_head_error": rms, "max_head_error": peak,
+            "rms_head_error_pct": None if rms is None else 100.0 * rms / body,
+            "max_head_error_pct": None if peak is None else 100.0 * peak / body,
+            "R_min": r_min, "R_tilde_min": r_tilde_min, "D_min": d_min,
+            "t_end": traj.t_end,
+            "torque_rms": float(np.sqrt(np.mean(torque**2))) if torque.size else None,
+            "wall_time": _finite_or_none(outcome.wall_time)}
+
+
+def _criteria(traj: Trajectory, scenario: Scenario) -> tuple[float | None, ...]:
+    """(R_min, R~_min, D~_min) along the run, every CRITERIA_PERIOD seconds."""
+    from ..manipulability import manipulability
+    from ..model import Snake
+
+    if len(traj) == 0:
+        return None, None, None
+    period = float(np.median(np.diff(traj.t))) if len(traj) > 1 else CRITERIA_PERIOD
+    every = max(1, round(CRITERIA_PERIOD / period))
+    rows = range(0, len(traj), every)
+    free = Snake(traj.params)  # passive and failed joints free: R~, D~
+    actuated = Snake(traj.params.replace(passive=())) if traj.params.passive else free
+    plain = [manipulability(actuated, traj.q[k]) for k in rows]
+    tilde = plain if actuated is free else [manipulability(free, traj.q[k]) for k in rows]
+    return (float(min(m.R for m in plain)), float(min(m.R for m in tilde)),
+            float(min(m.D for m in tilde)))
+
+
+def _finite_or_none(value: float) -> float | None:
+    return float(value) if value is not None and math.isfinite(value) else None
+
+
+def _error_text(exc: BaseException) -> str:
+    detail = " ".join(str(exc).split())
+    text = f"{type(exc).__name__}: {detail}" if detail else type(exc).__name__
+    return text if len(text) <= 500 else text[:497] + "..."

@@ -1,0 +1,197 @@
+"""Tests of snake_pin.study.results, .summary and .report: the folder, Parquet, the page."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from snake_pin.study import StudyError, StudySummary
+from snake_pin.study.report import figure_plan, write_index
+from snake_pin.study.results import SCHEMA, StudyFolder, batch_name, rows_table
+from snake_pin.study.spec import SETTINGS, parse_study
+from snake_pin.study.work import failed_row
+
+STUDY = """
+[study]
+name = "unit"
+[base]
+t_final = 0.5
+error_window = 0.1
+c_x = 0.5
+[axes.c_y]
+values = [10.0, 25.0]
+[axes.failed_joint]
+values = [0, 5]
+[axes.init_noise]
+uniform = [0.0, 0.05]
+samples = 2
+seed = 3
+"""
+
+
+def _rows(spec, scenarios) -> list[dict]:
+    """Cheap stand-in rows: failed_row plus made-up metrics (no simulation)."""
+    rows = []
+    for s in scenarios:
+        row = failed_row(s, "")
+        row.update(status="ok", rms_head_error_pct=1.0 + s.index, R_tilde_min=0.01 / (1 + s.index),
+                   t_end=0.5, wall_time=0.1)
+        rows.append(row)
+    return rows
+
+
+def _reject_constant(name: str) -> None:
+    raise ValueError(f"non-RFC JSON constant {name}")
+
+
+def test_schema_has_every_setting_and_the_metrics() -> None:
+    """Each setting is a column of its kind; key, status and the metrics follow."""
+    for name, setting in SETTINGS.items():
+        kind = str(SCHEMA.field(name).type)
+        assert kind == {"float": "double", "int": "int64", "str": "string",
+                        "joints": "string"}[setting.kind], name
+    for name in ("key", "status", "reason", "rms_head_error_pct", "R_min", "R_tilde_min",
+                 "D_min", "t_end", "torque_rms", "wall_time", "robot_params"):
+        assert name in SCHEMA.names
+
+
+def test_rows_table_fills_missing_columns_with_null_and_refuses_unknown_ones() -> None:
+    """A row without engine settings has nulls there; an extra column is refused."""
+    spec = parse_study(STUDY)
+    table = rows_table(_rows(spec, spec.scenarios[:2]))
+    assert table.schema == SCHEMA
+    assert table.column("mu").to_pylist() == [None, None]
+    assert table.column("c_y").to_pylist() == [10.0, 10.0]
+    with pytest.raises(StudyError, match="unknown columns: bogus"):
+        rows_table([{**_rows(spec, spec.scenarios[:1])[0], "bogus": 1}])
+
+
+def test_batches_are_written_whole_and_pandas_reads_the_folder(tmp_path: Path) -> None:
+    """pandas.read_parquet(DIR/runs) sees every written row and skips hidden temporaries."""
+    spec = parse_study(STUDY)
+    folder = StudyFolder(tmp_path / "out")
+    folder.check(spec)
+    with folder.locked(spec):
+        first, second = spec.scenarios[:3], spec.scenarios[3:]
+        path = folder.write_batch([s.key for s in first], _rows(spec, first))
+        folder.write_batch([s.key for s in second], _rows(spec, second))
+        assert path.name == batch_name([s.key for s in first])
+        (folder.runs / ".batch-x.parquet.snake_pin-1-abc.tmp").write_bytes(b"half a file")
+        frame = pd.read_parquet(tmp_path / "out" / "runs")
+        assert sorted(frame["index"]) == list(range(len(spec.scenarios)))
+        assert set(frame["key"]) == folder.done_keys() == {s.key for s in spec.scenarios}
+        assert frame["c_y"].dtype == "float64" and frame["failed_joint"].dtype == "int64"
+        assert json.loads((tmp_path / "out" / "study.json").read_text())["study_hash"] == \
+            spec.study_hash
+
+
+def test_an_unreadable_batch_file_is_named(tmp_path: Path) -> None:
+    """A batch file that is not Parquet stops the resume with its name, in one line."""
+    spec = parse_study(STUDY)
+    folder = StudyFolder(tmp_path)
+    folder.prepare(spec)
+    folder.release()
+    bad = folder.runs / "batch-0000.parquet"
+    bad.write_bytes(b"PAR1 not really")
+    with pytest.raises(StudyError) as info:
+        folder.done_keys()
+    assert str(bad) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_folder_holds_one_study(tmp_path: Path) -> None:
+    """Another study's folder, a non-empty foreign folder and a file are refused."""
+    spec = parse_study(STUDY)
+    other = parse_study(STUDY.replace("25.0", "30.0"))
+    folder = StudyFolder(tmp_path / "out")
+    with folder.locked(spec):
+        pass
+    folder.check(spec)  # the same study: fine
+    with pytest.raises(StudyError, match="holds a different study"):
+        folder.check(other)
+    (tmp_path / "foreign").mkdir()
+    (tmp_path / "foreign" / "notes.txt").write_text("mine")
+    with pytest.raises(StudyError, match="not empty and holds no study"):
+        StudyFolder(tmp_path / "foreign").check(spec)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(StudyError, match="is not a folder"):
+        StudyFolder(tmp_path / "file").check(spec)
+
+
+def test_the_folder_lock_refuses_a_second_writer(tmp_path: Path) -> None:
+    """While one StudyFolder holds the lock, another prepare() is refused."""
+    spec = parse_study(STUDY)
+    with StudyFolder(tmp_path).locked(spec):
+        with pytest.raises(StudyError, match="another study run is writing"):
+            StudyFolder(tmp_path).prepare(spec)
+    with StudyFolder(tmp_path).locked(spec):
+        pass  # released: free again
+
+
+def test_figure_plan_follows_the_axes() -> None:
+    """Two grid axes: heatmap; one: lines with bands over seeds/random axes; none: histogram."""
+    assert figure_plan(parse_study(STUDY)) == ("heatmap", ["c_y", "failed_joint"],
+                                               ["init_noise"])
+    one = parse_study("[axes.lam]\nvalues = [5.0, 10.0]\n[axes.init_seed]\nvalues = [1, 2]\n")
+    assert figure_plan(one) == ("lines", ["lam"], ["init_seed"])
+    assert figure_plan(parse_study("[base]\nt_final = 1.0\n"))[0] == "histogram"
+
+
+@pytest.mark.parametrize("axes", [STUDY, "[base]\nt_final = 0.5\n[axes.lam]\n"
+                                  "values = [5.0, 10.0]\n[axes.init_seed]\nvalues = [1, 2]\n"])
+def test_index_is_self_contained_with_a_sortable_table_and_strict_json(tmp_path: Path,
+                                                                       axes: str) -> None:
+    """index.html embeds its PNGs, lists every run; summary.json has no NaN."""
+    spec = parse_study(axes)
+    folder = StudyFolder(tmp_path)
+    with folder.locked(spec):
+        done = spec.scenarios[:-1]  # one run missing, as after an interrupt
+        folder.write_batch([s.key for s in done], _rows(spec, done))
+        summary = StudySummary(name=spec.name, study_hash=spec.study_hash, folder=str(tmp_path),
+                               status="interrupted", runs=len(spec.scenarios),
+                               recorded=len(done), wall_time=float("nan"),
+                               note="study unit interrupted")
+        page = write_index(folder, spec, summary).read_text()
+    assert len(re.findall(r"<img [^>]*src='data:image/png;base64,", page)) == 2
+    assert not re.search(r"(src|href)=['\"]https?:", page)
+    assert page.count("<tr>") == 1 + len(done)
+    assert "class='sortable'" in page and "addEventListener('click'" in page
+    assert "Interrupted:" in page and "study unit interrupted" in page
+    data = json.loads((tmp_path / "summary.json").read_text(), parse_constant=_reject_constant)
+    assert data["status"] == "interrupted" and data["wall_time"] is None
+    assert data == summary.to_dict()
+
+
+def test_summary_dict_is_plain_and_text_names_the_counts() -> None:
+    """to_dict() holds only JSON types (NaN -> None); text() says status and counts."""
+    summary = StudySummary(name="s", study_hash="ab", folder="/x", runs=4, recorded=3, ran=3,
+                           statuses={"ok": 2, "diverged": 1, "failed": 0},
+                           wall_time=math.inf, scheduler="local (2 workers)")
+    data = summary.to_dict()
+    assert json.loads(json.dumps(data, allow_nan=False)) == data
+    assert data["wall_time"] is None
+    assert "3/4 runs recorded (2 ok, 1 diverged)" in summary.text()
+
+
+def test_written_batches_keep_the_parameters_of_each_run(tmp_path: Path) -> None:
+    """Each row carries its run's settings and resolved robot (robot_params JSON)."""
+    spec = parse_study(STUDY)
+    folder = StudyFolder(tmp_path)
+    with folder.locked(spec):
+        folder.write_batch([s.key for s in spec.scenarios], _rows(spec, spec.scenarios))
+    table = pq.read_table(folder.runs)
+    by_key = {s.key: s for s in spec.scenarios}
+    for row in table.to_pylist():
+        scenario = by_key[row["key"]]
+        for name, value in scenario.settings.items():
+            if name == "passive":
+                value = ",".join(map(str, value))
+            elif value is None:  # friction: the robot's own
+                value = getattr(scenario.params, name)
+            assert row[name] == value, name
+        assert json.loads(row["robot_params"]) == scenario.params.to_dict()
