@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import functools
 import json
 import logging
@@ -19,7 +20,16 @@ import dask
 import pandas as pd
 import pytest
 
-from snake_pin.study import StudyError, load_study, run_study, work
+from snake_pin.exceptions import RunInterrupted
+from snake_pin.study import (
+    StudyError,
+    StudySummary,
+    add_study_parser,
+    command,
+    load_study,
+    run_study,
+    work,
+)
 from snake_pin.study.runner import check_scheduler, plan_batches
 from snake_pin.study.spec import Scenario, parse_study
 from snake_pin.study.work import run_batch
@@ -364,3 +374,56 @@ def test_sigterm_keeps_written_batches_leaves_no_process_and_a_rerun_finishes(
     assert len(listeners) >= 3 and set(listeners) == {"0100007F"}  # 127.0.0.1 only
     summary = run_study(study, out, scheduler=scheduler)
     assert (summary.ran, summary.skipped, summary.status) == (5, 1, "complete")
+
+
+# ------------------------------------------------------------------ the subcommand
+class _Outcome:
+    """Stands for the CLI's result type."""
+
+    def __init__(self, payload: dict[str, Any] | None = None, text: str = "", status: int = 0,
+                 note: str = "") -> None:
+        self.payload, self.text, self.status, self.note = payload or {}, text, status, note
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="snake-pin")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_study_parser(sub, outcome=_Outcome)
+    return parser
+
+
+def test_study_subcommand_runs_the_study_and_returns_its_summary(tmp_path: Path,
+                                                                 scheduler: str) -> None:
+    """`study FILE -o DIR --scheduler A --json` returns status 0 and summary.json's data."""
+    out = tmp_path / "out"
+    args = _parser().parse_args(["study", str(_study(tmp_path)), "-o", str(out),
+                                 "--scheduler", scheduler, "--json"])
+    result = args.func(args)
+    assert result.status == 0 and result.note == ""
+    assert result.payload == json.loads((out / "summary.json").read_text())
+    assert result.payload["recorded"] == 6 and "6/6 runs recorded" in result.text
+
+
+def test_study_subcommand_options_and_interrupt(tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Bad --workers is an argparse error; with --scheduler a StudyError; an interrupt
+    returns the interrupted status with the partial summary."""
+    parser = _parser()
+    for bad in ("0", "x", "10000"):
+        with pytest.raises(SystemExit):
+            parser.parse_args(["study", "s.toml", "-o", "d", "--workers", bad])
+    args = parser.parse_args(["study", "s.toml", "-o", "d", "--workers", "2",
+                              "--scheduler", "tcp://127.0.0.1:1"])
+    with pytest.raises(StudyError, match="--workers"):
+        args.func(args)
+    partial = StudySummary(name="s", study_hash="ab", folder="d", status="interrupted",
+                           runs=4, recorded=1, note="study s interrupted: 1/4")
+
+    def interrupted(*_args: Any, **_kwargs: Any) -> StudySummary:
+        raise RunInterrupted(partial.note, partial=partial)
+
+    monkeypatch.setattr(command, "run_study", interrupted)
+    args = parser.parse_args(["study", "s.toml", "-o", "d"])
+    result = args.func(args)
+    assert (result.status, result.note) == (130, "study s interrupted: 1/4")
+    assert result.payload == partial.to_dict()

@@ -11,6 +11,9 @@ scheduler address), then runs the missing runs only:
   threadpoolctl (DESIGN §6). ``scheduler="tcp://HOST:PORT"`` uses an existing cluster
   instead; it is first reached with a plain TCP connection of at most
   :data:`CONNECT_TIMEOUT` seconds, so an unreachable address fails before anything runs.
+  Its workers need the same snake_pin installed, and should be started with
+  ``OMP_WAIT_POLICY=PASSIVE`` in their environment (OpenMP reads it when Pinocchio is
+  loaded, before any task runs; threadpoolctl still limits the thread counts per task).
 - **Tasks.** Viscous-model runs go in batches of up to ``batch_size`` runs of one robot
   layout (smaller when there are few runs, so every worker gets at least two tasks);
   engine runs go one per task. The task is :func:`snake_pin.study.work.run_batch`. At

@@ -171,10 +171,11 @@ def simulate_scenario(scenario: Scenario) -> RunOutcome:
 
 @functools.lru_cache(maxsize=16)
 def _engine_friction(params: SnakeParams, wheels: Any) -> dict[str, float]:
-    """The identified viscous friction of a robot on its wheels (cached per worker)."""
+    """The identified viscous friction of a robot (without passive joints: the
+    identification pushes the straight snake) on its wheels, cached per worker."""
     from ..engine.run import identify_friction
 
-    return identify_friction(params.replace(passive=()), wheels)
+    return identify_friction(params, wheels)
 
 
 def _simulate_engine(scenario: Scenario) -> RunOutcome:
@@ -184,7 +185,7 @@ def _simulate_engine(scenario: Scenario) -> RunOutcome:
 
     s = scenario.settings
     wheels = WheelSpec(radius=s["wheel_radius"], friction=s["mu"], cone=s["cone"])
-    friction = _engine_friction(scenario.params, wheels)
+    friction = _engine_friction(scenario.params.replace(passive=()), wheels)
     start = time.perf_counter()
     law = "velocity" if scenario.controller == "velocity" else "acceleration"
     run = run_engine(scenario.params, wheels=wheels, t_final=s["t_final"], friction=friction,
