@@ -22,6 +22,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -74,8 +75,6 @@ def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
 
 def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> Path:
     """Write ``summary.json`` then ``index.html`` into the study folder; return the page."""
-    from ..report import json_text
-
     table = folder.read_table()
     keys = {s.key for s in spec.scenarios}
     columns = {name: table.column(name).to_pylist() for name in table.column_names}
@@ -86,8 +85,8 @@ def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> 
     figures = _figures(kind, plotted, spec, rows)
     page = _page(spec, summary, rows, figures, replicate)
     with atomic_group(folder.path) as group:
-        group.write_bytes("summary.json", (json_text(summary.to_dict(), indent=2) +
-                                           "\n").encode())
+        group.write_bytes("summary.json", (json.dumps(summary.to_dict(), indent=2,
+                                                      allow_nan=False) + "\n").encode())
         group.write_bytes("index.html", page.encode(), figure=True)
     return folder.path / "index.html"
 

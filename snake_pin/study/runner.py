@@ -8,9 +8,11 @@ scheduler address), then runs the missing runs only:
   scheduler, the workers, their nannies, and the scheduler's HTTP endpoint on a random
   loopback port (no dashboard). Workers start with ``OMP_WAIT_POLICY=PASSIVE`` and Dask's
   one-thread BLAS/OpenMP environment, and each task limits thread pools again with
-  threadpoolctl (DESIGN §6). ``scheduler="tcp://HOST:PORT"`` uses an existing cluster
-  instead; it is first reached with a plain TCP connection of at most
-  :data:`CONNECT_TIMEOUT` seconds, so an unreachable address fails before anything runs.
+  threadpoolctl (OpenMP's spinning wait and multi-threaded BLAS on tiny matrices are many
+  times slower when another core is busy).
+  ``scheduler="tcp://HOST:PORT"`` uses an existing cluster instead; it is first reached
+  with a plain TCP connection of at most :data:`CONNECT_TIMEOUT` seconds, so an
+  unreachable address fails before anything runs.
   Its workers need the same snake_pin installed, and should be started with
   ``OMP_WAIT_POLICY=PASSIVE`` in their environment (OpenMP reads it when Pinocchio is
   loaded, before any task runs; threadpoolctl still limits the thread counts per task).
@@ -112,7 +114,9 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     address = check_scheduler(scheduler) if scheduler is not None else None
     say = log or (lambda _message: None)
     if batch_function is None:
-        from .work import run_batch as batch_function
+        from .work import run_batch
+
+        batch_function = run_batch
     summary = StudySummary(name=spec.name, study_hash=spec.study_hash,
                            folder=str(folder.path), runs=len(spec.scenarios),
                            scheduler=address or f"local ({workers} workers)")
@@ -236,7 +240,7 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
             bar.close()
 
 
-def _is_killed_worker(error: BaseException) -> bool:
+def _is_killed_worker(error: BaseException | None) -> bool:
     from distributed.scheduler import KilledWorker
 
     return isinstance(error, KilledWorker)

@@ -622,10 +622,11 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
             raise where.error(f"{label} linspace has {int(count)} points, at most {MAX_RUNS}")
         if count > 1 and low == high:
             raise where.error(f"{label} linspace from {low!r} to itself repeats one value")
-        drawn = np.linspace(low, high, int(count)).tolist()
-        source = {"linspace": [low, high, int(count)]}
+        drawn: list[float] = np.linspace(low, high, int(count)).tolist()
+        source: dict[str, Any] = {"linspace": [low, high, int(count)]}
     else:
-        samples, seed = spec.get("samples"), spec.get("seed")
+        samples: Any = spec.get("samples")
+        seed: Any = spec.get("seed")
         if not _is_int(samples) or samples < 1:
             raise where.error(f"{label} needs samples = N (an integer >= 1), got "
                               f"{_short(samples)}")
@@ -639,11 +640,11 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
         if form == "uniform":
             if not a < b:
                 raise where.error(f"{label} uniform = [a, b] needs a < b, got [{a!r}, {b!r}]")
-            drawn = rng.uniform(a, b, samples).tolist()
+            drawn = rng.uniform(a, b, size=(samples,)).tolist()
         else:
             if not b > 0:
                 raise where.error(f"{label} normal = [mean, sigma] needs sigma > 0, got {b!r}")
-            drawn = rng.normal(a, b, samples).tolist()
+            drawn = rng.normal(a, b, size=(samples,)).tolist()
         source = {form: [a, b], "samples": samples, "seed": seed}
     values = []
     for i, v in enumerate(drawn):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -60,9 +61,7 @@ class StudySummary:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain RFC 8259 JSON data (no NaN: non-finite numbers become null)."""
-        from ..report import json_safe
-
-        return json_safe(asdict(self))
+        return _finite(asdict(self))
 
     def text(self) -> str:
         """A few lines for a terminal."""
@@ -75,3 +74,14 @@ class StudySummary:
             lines.append(self.note)
         lines += [f"{k}: {v}" for k, v in self.files.items()]
         return "\n".join(lines)
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with non-finite floats as None (the fields are plain numbers and text)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {str(k): _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value

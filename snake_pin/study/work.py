@@ -3,8 +3,8 @@
 :func:`run_batch` is the task the runner submits to Dask. It never lets a run's failure
 escape: a run that raises becomes a row with status ``failed`` and the error text, and
 the other runs of the batch go on. Inside it, BLAS and OpenMP pools are limited to one
-thread (:func:`threadpoolctl.threadpool_limits`; DESIGN §6: multi-threaded OpenBLAS on
-tiny matrices is ~100x slower when the other core is busy).
+thread (:func:`threadpoolctl.threadpool_limits`): multi-threaded OpenBLAS on tiny matrices
+was measured ~100x slower when another core is busy.
 
 **The hook for the batched simulator.** Viscous-model batches go through
 :func:`simulate_viscous_batch` and nothing else simulates them: today it runs each
@@ -47,7 +47,7 @@ from ..exceptions import RunInterrupted
 from ..metrics import head_error_summary, head_position_error
 from ..params import SnakeParams
 from ..sim import Trajectory
-from .spec import Scenario
+from .spec import Scenario, canonical_json
 
 __all__ = ["CRITERIA_PERIOD", "RunOutcome", "build_controller", "failed_row", "initial_state",
            "reference", "result_row", "run_batch", "simulate_scenario",
@@ -200,8 +200,6 @@ _METRICS = ("rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_
 
 
 def _settings_columns(scenario: Scenario) -> dict[str, Any]:
-    from ..report import json_text
-
     row: dict[str, Any] = dict(scenario.settings)
     row["passive"] = ",".join(str(k) for k in scenario.settings["passive"])
     params = scenario.params
@@ -211,7 +209,7 @@ def _settings_columns(scenario: Scenario) -> dict[str, Any]:
             row[key] = float(value) if not isinstance(value, tuple) else None
     row.update({"key": scenario.key, "index": scenario.index, "n": params.n,
                 "body_length": float(params.body_length),
-                "robot_params": json_text(params.to_dict())})
+                "robot_params": canonical_json(params.to_dict())})
     return row
 
 
