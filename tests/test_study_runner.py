@@ -20,7 +20,9 @@ import dask
 import pandas as pd
 import pytest
 
+from snake_pin import SnakeParams
 from snake_pin.exceptions import RunInterrupted
+from snake_pin.robot_file import write_robot_file
 from snake_pin.study import (
     StudyError,
     StudySummary,
@@ -242,8 +244,8 @@ def test_bad_input_is_refused_before_anything_runs(tmp_path: Path) -> None:
     assert not (tmp_path / "c").exists()
 
 
-def test_batches_group_runs_of_one_layout_and_keep_engine_runs_alone() -> None:
-    """Engine runs are one per task; viscous runs fill batches of one n, in study order."""
+def test_batches_group_runs_of_one_layout_and_keep_engine_runs_alone(tmp_path: Path) -> None:
+    """Engine runs are one per task; viscous runs fill batches of one layout and dt."""
     spec = parse_study(STUDY.replace("batch_size = 2", "batch_size = 4"))
     runs = list(spec.scenarios)
     assert [[s.index for s in b] for b in plan_batches(runs, 4, 1)] == [[0, 1, 2], [3, 4, 5]]
@@ -252,6 +254,13 @@ def test_batches_group_runs_of_one_layout_and_keep_engine_runs_alone() -> None:
     engine = parse_study("[base]\nrobot = \"engine\"\nmodel = \"engine\"\ncontroller = "
                          "\"velocity\"\nt_final = 1.0\n[axes.failed_joint]\nvalues = [0, 1, 2]\n")
     assert [len(b) for b in plan_batches(list(engine.scenarios), 64, 1)] == [1, 1, 1]
+    write_robot_file(SnakeParams.table1(mass=0.3, name="heavy"), tmp_path / "heavy.toml")
+    mixed = parse_study("[base]\nt_final = 1.0\n[axes.robot]\nvalues = [\"table1\", "
+                        "\"heavy.toml\"]\n[axes.dt]\nvalues = [0.001, 0.0005]\n"
+                        "[axes.failed_joint]\nvalues = [0, 1]\n", tmp_path / "study.toml")
+    groups = [{(s["robot"], s["dt"]) for s in b} for b in plan_batches(list(mixed.scenarios),
+                                                                      64, 1)]
+    assert sorted(len(g) for g in groups) == [1, 1, 1, 1]  # layout and dt never mix
 
 
 # ------------------------------------------------------------- interrupts (a process)
@@ -312,7 +321,9 @@ def _listening(pids: Sequence[int]) -> list[str]:
 
 SCRIPT = """
 import json, signal, sys
+from snake_pin import SnakeParams
 from snake_pin.exceptions import RunInterrupted
+from snake_pin.robot_file import write_robot_file
 from snake_pin.study import run_study
 from tests.test_study_runner import _slow_after_first
 

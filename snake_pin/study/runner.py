@@ -17,7 +17,8 @@ scheduler address), then runs the missing runs only:
   ``OMP_WAIT_POLICY=PASSIVE`` in their environment (OpenMP reads it when Pinocchio is
   loaded, before any task runs; threadpoolctl still limits the thread counts per task).
 - **Tasks.** Viscous-model runs go in batches of up to ``batch_size`` runs of one robot
-  layout (smaller when there are few runs, so every worker gets at least two tasks);
+  layout and time step (smaller when there are few runs, so every worker gets at least
+  two tasks; :func:`plan_batches`);
   engine runs go one per task. The task is :func:`snake_pin.study.work.run_batch`. At
   most one task per worker thread is submitted at a time (the next when one finishes), so
   the runs in flight - what an interrupt or a dying worker can lose - are the running ones.
@@ -51,7 +52,8 @@ from .results import StudyFolder
 from .spec import Scenario, StudySpec, load_study
 from .summary import StudySummary
 
-__all__ = ["CONNECT_TIMEOUT", "MAX_WORKERS", "check_scheduler", "plan_batches", "run_study"]
+__all__ = ["CONNECT_TIMEOUT", "LAYOUT_FIELDS", "MAX_WORKERS", "check_scheduler", "plan_batches",
+           "run_study"]
 
 #: Longest wait for a scheduler address to accept a TCP connection [s].
 CONNECT_TIMEOUT = 3.0
@@ -246,15 +248,23 @@ def _is_killed_worker(error: BaseException | None) -> bool:
     return isinstance(error, KilledWorker)
 
 
+#: Robot fields one lockstep batch shares (its Pinocchio model); friction and passive
+#: joints may differ within a batch.
+LAYOUT_FIELDS = ("n", "link_length", "mass", "inertia", "com_offset")
+
+
 def plan_batches(scenarios: Sequence[Scenario], batch_size: int,
                  slots: int) -> list[list[Scenario]]:
-    """Group runs into tasks: engine runs alone; viscous runs of one robot layout (n) in
-    study order, ``min(batch_size, ceil(runs / (2 slots)))`` per batch (at least 1)."""
+    """Group runs into tasks: engine runs alone; viscous runs that share the robot's layout
+    (:data:`LAYOUT_FIELDS`) and the time steps ``dt``, ``control_dt`` (a lockstep batch
+    shares them) in study order, ``min(batch_size, ceil(runs / (2 slots)))`` per batch (at
+    least 1), so that every worker thread gets at least two tasks."""
     batches: list[list[Scenario]] = [[s] for s in scenarios if s.model == "engine"]
-    groups: dict[int, list[Scenario]] = {}
+    groups: dict[tuple[Any, ...], list[Scenario]] = {}
     for s in scenarios:
         if s.model != "engine":
-            groups.setdefault(s.params.n, []).append(s)
+            layout = tuple(getattr(s.params, name) for name in LAYOUT_FIELDS)
+            groups.setdefault((*layout, s["dt"], s["control_dt"]), []).append(s)
     viscous = sum(len(g) for g in groups.values())
     size = max(1, min(batch_size, math.ceil(viscous / (2 * max(1, slots))))) if viscous else 1
     for group in groups.values():
