@@ -27,6 +27,11 @@ Three routes compute the same thing:
   These passes over 2n joints beat numpy only for short robots (n <= 14;
   ``scripts/bench.py`` measures the routes), so longer anisotropic robots use numpy for Q
   (the derivatives always use the twin).
+  The force alone (:class:`ForcePasses`, the simulator's hot path) runs on copies of the
+  twin with the wheels appended after the whole chain (RNEA, unlike CRBA and the
+  derivatives, does not need contiguous subtrees), so the chain's coordinates are one
+  slice: the extended state is ``[q, 0_w]``, ``[q', 0_w]``. The locked pass runs on a copy
+  whose wheels weigh -1, so its wheel rows are the rolling speeds -u themselves.
   Every coefficient may differ from link to link: the twin's link i carries c_x,i,
   c_theta,i and a wheel of c_y,i - c_x,i.
 * :class:`FrictionModel` without a model -- vectorised numpy, O(n): with planar vectors
@@ -46,7 +51,8 @@ import pinocchio as pin
 from ._symmetric import symmetric_from_upper
 from .params import SnakeParams
 
-__all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionModel", "damping_twin", "friction_forces"]
+__all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_twin",
+           "friction_forces"]
 
 #: Longest robot whose anisotropic friction force goes through the wheeled twin (two RNEAs
 #: over 2n joints); numpy's cost grows more slowly with n (about 13 us at n = 10 and 16
@@ -105,6 +111,81 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.n
     return twin, np.array(chain, dtype=int), np.array(wheels, dtype=int)
 
 
+class ForcePasses:
+    """The damping twin's passes for the force alone, on preallocated buffers (hot path).
+
+    The twin's chain comes first and the n wheels (anisotropic friction only) after it, so
+    the extended configuration is ``[q, 0_w]`` (size :attr:`size`) and a state is read from
+    one slice. With wheels, the locked pass on :attr:`lock` (wheels of "mass" -1) at
+    velocity ``[q', 0_w]`` gives the wheels' rolling accelerations -u in its wheel rows; the
+    rolling pass on :attr:`roll` at ``[q', -u]`` gives C(q) q' = -Q in its first n + 2 rows.
+    Without wheels :attr:`lock` is None and one pass at ``[q']`` gives -Q.
+
+    Attributes
+    ----------
+    size
+        n + 2 plus the number of wheels.
+    lock, lock_data
+        The locked pass's model and workspace (None without wheels).
+    roll, roll_data
+        The rolling (or only) pass's model and workspace.
+    zero
+        A zero velocity of the twin (RNEA's v: the twin only ever sees accelerations).
+    """
+
+    def __init__(self, model: pin.Model, params: SnakeParams) -> None:
+        n = params.n
+        c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
+        extra = c_y - c_x
+        wheels = bool(np.any(extra != 0.0))
+        self.lock: pin.Model | None = _appended_twin(model, c_x, c_theta, -np.ones(n)) \
+            if wheels else None
+        self.lock_data = self.lock.createData() if self.lock is not None else None
+        self.roll = _appended_twin(model, c_x, c_theta, extra if wheels else None)
+        self.roll_data = self.roll.createData()
+        self.size = self.roll.nq
+        self.zero = np.zeros(self.size)
+        self._nq = model.nq
+        self._q = np.zeros(self.size)
+        self._v = np.zeros(self.size)
+
+    def force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """Q(q, dq) as a new array (copies the state into the extended buffers)."""
+        nq, q_ext, v_ext = self._nq, self._q, self._v
+        q_ext[:nq] = q
+        v_ext[:nq] = dq
+        if self.lock is not None:
+            v_ext[nq:] = 0.0
+            v_ext[nq:] = pin.rnea(self.lock, self.lock_data, q_ext, self.zero, v_ext)[nq:]
+        return -pin.rnea(self.roll, self.roll_data, q_ext, self.zero, v_ext)[:nq]
+
+
+def _appended_twin(model: pin.Model, c_x: np.ndarray, c_theta: np.ndarray,
+                   wheel_mass: np.ndarray | None) -> pin.Model:
+    """The damping twin with one wheel per link appended after the chain (or none)."""
+    twin = pin.Model()
+    twin.name = f"{model.name}_damping_passes"
+    for joint in range(1, model.njoints):
+        index = twin.addJoint(model.parents[joint], model.joints[joint],
+                              model.jointPlacements[joint], model.names[joint])
+        link = joint - _HEAD_JOINT
+        if link >= 0:
+            twin.appendBodyToJoint(index, pin.Inertia(float(c_x[link]),
+                                                      model.inertias[joint].lever.copy(),
+                                                      np.eye(3) * float(c_theta[link])),
+                                   pin.SE3.Identity())
+    if wheel_mass is not None:
+        for link, mass in enumerate(wheel_mass):
+            joint = link + _HEAD_JOINT
+            wheel = twin.addJoint(joint, pin.JointModelPX(),
+                                  pin.SE3(np.eye(3), model.inertias[joint].lever.copy()),
+                                  f"wheel_{link + 1}")
+            twin.appendBodyToJoint(wheel, pin.Inertia(float(mass), np.zeros(3),
+                                                      np.zeros((3, 3))), pin.SE3.Identity())
+    twin.gravity = pin.Motion.Zero()
+    return twin
+
+
 class FrictionModel:
     """Generalised friction force Q(q, q') = -C(q) q' in paper coordinates.
 
@@ -125,18 +206,20 @@ class FrictionModel:
         self._twin: pin.Model | None = None
         self._wheels = False
         self._force_on_twin = False
+        #: The force's passes (the hot path) when Q comes from the twin, else None.
+        self.passes: ForcePasses | None = None
         if model is not None:
             self._twin, self._chain, self._wheel_v = damping_twin(model, params)
             self._twin_data = self._twin.createData()
             self._nv = model.nv
             self._wheels = len(self._wheel_v) > 0
             self._zero = np.zeros(self._twin.nv)
-            self._q_ext = np.zeros(self._twin.nq)  # wheels at the CM (their q stays 0)
-            self._a_ext = np.zeros(self._twin.nv)
             extra = params.per_link("c_y") - params.per_link("c_x")
             with np.errstate(divide="ignore"):
                 self._roll = np.where(extra != 0.0, -1.0 / extra, 0.0)
             self._force_on_twin = not self._wheels or n <= WHEELED_TWIN_MAX_LINKS
+            if self._force_on_twin:
+                self.passes = ForcePasses(model, params)
         lower = np.tril(np.ones((n, n)))
         # theta = L [theta_1, phi] (eq. 17), applied to q and q' at once by one matmul
         self._angles_t = lower.T.copy()
@@ -261,16 +344,7 @@ class FrictionModel:
         return q_ext
 
     def _twin_force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        twin, data, zero = self._twin, self._twin_data, self._zero
-        if not self._wheels:
-            return -pin.rnea(twin, data, q, zero, dq)
-        chain, wheels, q_ext, a_ext = self._chain, self._wheel_v, self._q_ext, self._a_ext
-        q_ext[chain] = q
-        a_ext[chain] = dq
-        a_ext[wheels] = 0.0
-        locked = pin.rnea(twin, data, q_ext, zero, a_ext)  # wheel rows: (c_y - c_x) u
-        a_ext[wheels] = locked[wheels] * self._roll  # each wheel rolls at -u
-        return -pin.rnea(twin, data, q_ext, zero, a_ext)[chain]
+        return self.passes.force(q, dq)  # type: ignore[union-attr]
 
     def _force(self, theta: np.ndarray, theta_dot: np.ndarray, base: complex) -> np.ndarray:
         e = np.exp(1j * theta)

@@ -12,8 +12,9 @@ The equation of motion is eq. (20): H(q) q'' + h(q, q') = E tau, with h the Cori
 centrifugal terms plus viscous friction (:mod:`snake_pin.friction`).
 
 Public methods validate their inputs (shape, finiteness) and raise
-:class:`~snake_pin.exceptions.ConfigurationError`; the ``*_of_state`` methods and
-``state_derivative`` are the simulator's unchecked hot path.
+:class:`~snake_pin.exceptions.ConfigurationError`; the ``*_of_state`` methods,
+``state_derivative`` and :class:`FastDynamics` (``Snake.fast_dynamics``: the simulator's and
+the controllers' preallocated step) are the unchecked hot path.
 """
 
 from __future__ import annotations
@@ -34,10 +35,12 @@ from .friction import FrictionModel
 from .params import SnakeParams
 from .urdf import urdf_string
 
-__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "Snake", "paper_model"]
+__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "FastDynamics", "Snake", "paper_model"]
 
 #: Names of the three root joints, in order: they carry x_h, y_h and theta_1.
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
+
+_WORLD = pin.Convention.WORLD
 
 
 def paper_model(params: SnakeParams) -> pin.Model:
@@ -176,6 +179,11 @@ class Snake:
         from .robot_file import load_robot
 
         return cls(load_robot(spec, **overrides))
+
+    @cached_property
+    def fast_dynamics(self) -> FastDynamics:
+        """This robot's preallocated hot path (see :class:`FastDynamics`), made once."""
+        return FastDynamics(self)
 
     # ------------------------------------------------------------ validation
     def check_q(self, q: object, name: str = "q") -> np.ndarray:
@@ -332,6 +340,125 @@ class Snake:
         last = self.params.link_lengths[-1]
         ends[-1] = ends[-2] + last * np.array([np.cos(theta[-1]), np.sin(theta[-1])])
         return theta, ends
+
+
+class FastDynamics:
+    """The closed loop's hot path: q'' and the affine map of q'' in tau, unchecked.
+
+    States are the rows of :attr:`states`, laid out as the friction passes read them
+    (:class:`~snake_pin.friction.ForcePasses`): ``z = [q, 0_w, q', 0_w]``, 2 :attr:`size`
+    long, where the w slots are the wheels of anisotropic friction (none for isotropic
+    friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. Evaluating
+    a row uses its wheel-velocity slots as scratch, so write the whole row before the next
+    evaluation. Every ABA is in Pinocchio's WORLD convention: faster than LOCAL here, and
+    the one after which the two-argument ``pin.computeMinverse`` is right (after a LOCAL
+    ABA it silently returns a wrong matrix).
+
+    Attributes
+    ----------
+    states
+        (rows, 2 size) stage states, written by the caller.
+    torque
+        E tau (length n + 2; passive rows stay 0), written by the caller, used by
+        :attr:`evaluate`.
+    evaluate
+        ``evaluate(row) -> q''`` (a new array) at ``states[row]`` under :attr:`torque`.
+    affine
+        ``affine(x) -> (b, M)`` at the plain state ``x = [q, q']``: b = q'' at zero torque
+        (-H^-1 h) and M = H^-1, of which only the upper triangle is filled.
+    mass_and_bias
+        ``mass_and_bias(x) -> (H, h)`` at the plain state x: H by CRBA (upper triangle
+        only) and h = Coriolis/centrifugal minus friction, as :meth:`Snake.bias`.
+    """
+
+    def __init__(self, snake: Snake, rows: int = 4) -> None:
+        model, data, nq = snake.model, snake.data, snake.nq
+        passes = snake.friction.passes
+        size = passes.size if passes is not None else nq
+        self.size = size
+        self.states = np.zeros((rows, 2 * size))
+        self.torque = np.zeros(nq)
+        self.select = np.r_[np.arange(nq), size + np.arange(nq)]
+        views = [(row[:size], row[size:], row[:nq], row[size:size + nq], row[size + nq:])
+                 for row in self.states]
+        own = np.zeros(2 * size)  # affine's own state, so that it never clobbers a stage
+        own_q, own_v, own_w = own[:nq], own[size:size + nq], own[size + nq:]
+        own_zq, own_zv = own[:size], own[size:]
+        gen = np.zeros(nq)
+        torque = self.torque
+        rnea, aba, minverse = pin.rnea, pin.aba, pin.computeMinverse
+        crba, nle = pin.crba, pin.nonLinearEffects
+        negative, subtract, add = np.negative, np.subtract, np.add
+        world = _WORLD
+        if passes is None:  # long anisotropic robots: Q by numpy on [q, q'] (size == nq)
+            of_state = snake.friction.of_state
+            states = self.states
+
+            def evaluate(row: int) -> np.ndarray:
+                add(torque, of_state(states[row]), out=gen)
+                _, _, q, v, _ = views[row]
+                return aba(model, data, q, v, gen, world)
+
+            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                b = aba(model, data, x[:nq], x[nq:], of_state(x), world)
+                return b, minverse(model, data)
+
+            def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                q, v = x[:nq], x[nq:]
+                mass = crba(model, data, q, world)
+                return mass, subtract(nle(model, data, q, v), of_state(x), out=gen).copy()
+
+        else:
+            roll, roll_data, zero = passes.roll, passes.roll_data, passes.zero
+            lock, lock_data = passes.lock, passes.lock_data
+            if lock is None:
+                def evaluate(row: int) -> np.ndarray:
+                    zq, zv, q, v, _ = views[row]
+                    subtract(torque, rnea(roll, roll_data, zq, zero, zv)[:nq], out=gen)
+                    return aba(model, data, q, v, gen, world)
+
+                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    own_q[:] = x[:nq]
+                    own_v[:] = x[nq:]
+                    negative(rnea(roll, roll_data, own_zq, zero, own_zv)[:nq], out=gen)
+                    b = aba(model, data, own_q, own_v, gen, world)
+                    return b, minverse(model, data)
+
+                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    own_q[:] = x[:nq]
+                    own_v[:] = x[nq:]
+                    damping = rnea(roll, roll_data, own_zq, zero, own_zv)[:nq]  # -Q
+                    mass = crba(model, data, own_q, world)
+                    return mass, add(nle(model, data, own_q, own_v), damping, out=damping)
+
+            else:
+                def evaluate(row: int) -> np.ndarray:
+                    zq, zv, q, v, wheels = views[row]
+                    wheels[:] = rnea(lock, lock_data, zq, zero, zv)[nq:]  # -u: they roll
+                    subtract(torque, rnea(roll, roll_data, zq, zero, zv)[:nq], out=gen)
+                    return aba(model, data, q, v, gen, world)
+
+                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    own_q[:] = x[:nq]
+                    own_v[:] = x[nq:]
+                    own_w[:] = 0.0
+                    own_w[:] = rnea(lock, lock_data, own_zq, zero, own_zv)[nq:]
+                    negative(rnea(roll, roll_data, own_zq, zero, own_zv)[:nq], out=gen)
+                    b = aba(model, data, own_q, own_v, gen, world)
+                    return b, minverse(model, data)
+
+                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    own_q[:] = x[:nq]
+                    own_v[:] = x[nq:]
+                    own_w[:] = 0.0
+                    own_w[:] = rnea(lock, lock_data, own_zq, zero, own_zv)[nq:]
+                    damping = rnea(roll, roll_data, own_zq, zero, own_zv)[:nq]  # -Q
+                    mass = crba(model, data, own_q, world)
+                    return mass, add(nle(model, data, own_q, own_v), damping, out=damping)
+
+        self.evaluate = evaluate
+        self.affine = affine
+        self.mass_and_bias = mass_and_bias
 
 
 def _vector(value: object, size: int, name: str) -> np.ndarray:

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ._io import atomic_group
 from .control.base import Controller
@@ -644,6 +645,11 @@ def _check_size(samples: int, nq: int, n_tau: int, t_final: float) -> None:
 
 def _torque(raw: object, size: int) -> tuple[np.ndarray | None, str]:
     """The controller's output as ``size`` finite floats, or None and what is wrong."""
+    if type(raw) is np.ndarray and raw.shape == (size,) and raw.dtype == np.float64:
+        # the common case, checked cheaply: a sum of squares is finite only if every entry
+        # is (an overflow of finite entries falls through to the exact check below)
+        if math.isfinite(raw @ raw):
+            return raw, ""
     tau = raw if type(raw) is np.ndarray else np.asarray(raw)
     if tau.dtype.kind not in "fiu" or tau.dtype.names is not None:
         return None, f"controller returned a torque of dtype {tau.dtype}, not numbers"
@@ -737,6 +743,12 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     def rhs(state: np.ndarray, tau: np.ndarray) -> np.ndarray:
         return np.concatenate([state[nq:], accel(state, tau)])
 
+    # The fast RK4 (same stages and hold, preallocated; see _FastRK4) needs the robot's own
+    # dynamics: a plant that replaces state_derivative keeps the plain step.
+    fast = None
+    if method == "rk4" and isinstance(snake, Snake) and \
+            type(snake).state_derivative is Snake.state_derivative:
+        fast = _FastRK4(snake, x, dt, substeps, max_speed, max_distance)
     xs[0] = x
     signals: dict[str, np.ndarray] = {}
     status, reason = "completed", ""
@@ -756,41 +768,53 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         bar = _progress(steps, bool(progress), ctrl.name)
         try:
             ctrl.reset()
+            ctrl.prepare(np.arange(steps) * control_dt)  # the loop's t = k * control_dt
         except Exception as exc:
             status, reason = "failed", _failure(0.0, exc)
-        for k in range(steps if status == "completed" else 0):
-            t = k * control_dt
-            try:
-                tau, problem = _torque(ctrl(x, t), n_tau)
-                if tau is None:
-                    status, reason = "failed", f"{problem} at t = {t:.4f} s"
+        # one BLAS thread for the run's tiny matrices, entered once (not per step)
+        with threadpool_limits(limits=1):
+            for k in range(steps if status == "completed" else 0):
+                t = k * control_dt
+                try:
+                    tau, problem = _torque(ctrl(x, t), n_tau)
+                    if tau is None:
+                        status, reason = "failed", f"{problem} at t = {t:.4f} s"
+                        break
+                    for name, value in ctrl.signals().items():
+                        series = signals.get(name)
+                        if series is None:
+                            series = signals[name] = np.full(steps + 1, np.nan)
+                        series[k] = value
+                    first = ctrl.plant_acceleration(snake) if fast is not None else None
+                except Exception as exc:
+                    status, reason = "failed", _failure(t, exc)
                     break
-                for name, value in ctrl.signals().items():
-                    series = signals.get(name)
-                    if series is None:
-                        series = signals[name] = np.full(steps + 1, np.nan)
-                    series[k] = value
-            except Exception as exc:
-                status, reason = "failed", _failure(t, exc)
-                break
-            taus[k] = tau
-            try:
-                if method == "rk4":
-                    for _ in range(substeps):
-                        x = _rk4_step(accel, x, tau, dt, nq)
+                taus[k] = tau
+                try:
+                    if fast is not None:
+                        problem = fast.step(tau, first, xs[k + 1])
+                    else:
+                        if method == "rk4":
+                            for _ in range(substeps):
+                                x = _rk4_step(accel, x, tau, dt, nq)
+                        else:
+                            x = _solve_ivp_step(rhs, x, tau, t, control_dt)
+                        problem = _divergence(x, nq, max_speed, max_distance)
+                except (SnakePinError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                    problem = f"the dynamics failed ({type(exc).__name__}: " \
+                              f"{_one_line(str(exc))})"
+                if problem:
+                    status = "diverged"
+                    reason = f"diverged at t = {t + control_dt:.4f} s: {problem}"
+                    break
+                ts[k + 1] = t + control_dt
+                if fast is not None:
+                    x = xs[k + 1]
                 else:
-                    x = _solve_ivp_step(rhs, x, tau, t, control_dt)
-                problem = _divergence(x, nq, max_speed, max_distance)
-            except (SnakePinError, ArithmeticError, np.linalg.LinAlgError) as exc:
-                problem = f"the dynamics failed ({type(exc).__name__}: {_one_line(str(exc))})"
-            if problem:
-                status, reason = "diverged", f"diverged at t = {t + control_dt:.4f} s: {problem}"
-                break
-            ts[k + 1] = t + control_dt
-            xs[k + 1] = x
-            good = k + 2
-            if bar is not None and k % 100 == 0:
-                bar.update(min(100, steps - bar.n))
+                    xs[k + 1] = x
+                good = k + 2
+                if bar is not None and k % 100 == 0:
+                    bar.update(min(100, steps - bar.n))
         if bar is not None:
             bar.close()
         # Samples 0..good-1 are good. tau[good-1] is the torque held after the last one:
@@ -807,6 +831,81 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         raise RunInterrupted(partial.reason, partial=partial) from None
 
 
+class _FastRK4:
+    """RK4 with the torque held, as :func:`_rk4_step`, on preallocated buffers (hot path).
+
+    The same stages and weights: with the step's state Z and the stage slopes d1..d4 as
+    the rows of one array Y = [Z; d1; d2; d3; d4], each stage state is one product of a
+    coefficient row with Y (Z + h/2 d1, Z + h/2 d2, Z + h d3, and the new state
+    Z + h/6 (d1 + 2 d2 + 2 d3 + d4)), written straight into the rows of the robot's
+    :class:`~snake_pin.model.FastDynamics` (its layout [q, 0_w, q', 0_w]). The first stage
+    reuses the controller's q'' when it offers it (``Controller.plant_acceleration``), and
+    the divergence check is vectorised (the exact :func:`_divergence` words a fault).
+    """
+
+    def __init__(self, snake: Snake, x0: np.ndarray, h: float, substeps: int,
+                 max_speed: float, max_distance: float) -> None:
+        dynamics = snake.fast_dynamics
+        nq, size = snake.nq, dynamics.size
+        self._nq, self._substeps = nq, substeps
+        self._max_speed, self._max_distance = max_speed, max_distance
+        self._evaluate, self._torque, self._select = (dynamics.evaluate, dynamics.torque,
+                                                      dynamics.select)
+        self._slopes = np.zeros((5, 2 * size))  # [Z; d1; d2; d3; d4]
+        self._state = self._slopes[0]
+        self._state[self._select] = x0
+        self._next = np.zeros(2 * size)
+        # per stage: its coefficient row, its state (a row of the dynamics' buffer), and
+        # where its slope goes in Y: q' (the stage state's velocity) and q''
+        coefficients = [np.array(row) for row in (
+            (0.0, 0.0, 0.0, 0.0, 0.0), (1.0, 0.5 * h, 0.0, 0.0, 0.0),
+            (1.0, 0.0, 0.5 * h, 0.0, 0.0), (1.0, 0.0, 0.0, h, 0.0))]
+        self._stages = [(i, coefficients[i], dynamics.states[i], self._slopes[i + 1, :nq],
+                         self._slopes[i + 1, size:size + nq],
+                         dynamics.states[i, size:size + nq]) for i in range(4)]
+        self._final = np.array((1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))
+        self._velocity = self._state[size:size + nq]
+        self._limits = np.full(2 * size, np.inf)
+        self._limits[:2] = max_distance
+        self._limits[size:size + nq] = max_speed
+        self._margin = np.zeros(2 * size)
+        actuated = np.array([k - 1 for k in snake.params.actuated], dtype=int)
+        self._actuated = None if len(actuated) == snake.n - 1 else actuated
+
+    def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray) -> str:
+        """Advance one control period under ``tau``; write [q, q'] into ``out``.
+
+        ``first`` is q'' at the current state under ``tau`` if known. Returns what is wrong
+        with the new state ("" when it is within bounds, see :func:`_divergence`).
+        """
+        torque, actuated = self._torque, self._actuated
+        if actuated is None:
+            torque[3:] = tau
+        else:
+            torque[3 + actuated] = tau[actuated]
+        slopes, state, evaluate, dot = self._slopes, self._state, self._evaluate, np.dot
+        (_, _, row0, d0, a0, _), *later = self._stages
+        for sub in range(self._substeps):
+            if sub or first is None:
+                row0[:] = state
+                first = evaluate(0)
+            d0[:] = self._velocity
+            a0[:] = first
+            for index, coefficients, row, velocity, acceleration, stage_velocity in later:
+                dot(coefficients, slopes, out=row)
+                acceleration[:] = evaluate(index)
+                velocity[:] = stage_velocity
+            dot(self._final, slopes, out=self._next)
+            state[:] = self._next
+        state.take(self._select, out=out)
+        # |z| - limit <= 0 exactly when |z| <= limit (a difference of floats is 0 only if
+        # they are equal); NaN propagates through the maximum and fails the test
+        margin = np.subtract(np.abs(state, out=self._margin), self._limits, out=self._margin)
+        if _maximum(margin) <= 0.0:
+            return ""
+        return _divergence(out, self._nq, self._max_speed, self._max_distance)
+
+
 def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,
               nq: int) -> np.ndarray:
     """One classical RK4 step of x' = [dq, accel(x, tau)] (the stage slopes d1..d4)."""
@@ -818,6 +917,9 @@ def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,
     x4 = x + h * d3
     d4 = np.concatenate((x4[nq:], accel(x4, tau)))
     return x + (h / 6.0) * (d1 + d4 + 2.0 * (d2 + d3))
+
+
+_maximum = np.maximum.reduce
 
 
 def _divergence(x: np.ndarray, nq: int, max_speed: float, max_distance: float) -> str:

@@ -126,8 +126,8 @@ def test_passive_snake_runs(rng: np.random.Generator) -> None:
 
 
 # ------------------------------------------------------------------ controller boundary
-def _reference(table1: Snake, t_final: float = 0.1) -> Trajectory:
-    return simulate(table1, _wave(10), _x0(10), t_final)
+def _reference(plant: Snake, t_final: float = 0.1) -> Trajectory:
+    return simulate(plant, _wave(10), _x0(10), t_final)
 
 
 def _is_prefix(part: Trajectory, whole: Trajectory) -> bool:
@@ -241,7 +241,7 @@ def test_interrupt_anywhere_in_the_dynamics(table1: Snake, at: int) -> None:
         simulate(_Plant(table1, at, KeyboardInterrupt()), _wave(10), _x0(10), 0.02)
     partial = info.value.partial
     assert len(partial) == (at - 1) // 4 + 1 and partial.status == "interrupted"
-    assert _is_prefix(partial, _reference(table1, 0.02))
+    assert _is_prefix(partial, _reference(_Plant(table1, 0, KeyboardInterrupt()), 0.02))
 
 
 def test_dynamics_errors_end_as_divergence(table1: Snake) -> None:

@@ -15,8 +15,12 @@ import numpy as np
 
 from ..exceptions import ParameterError
 from ..gaits import Serpenoid
+from .reference import LinearReference
 
-__all__ = ["Controller", "OpenLoop", "gait_for"]
+__all__ = ["Controller", "OpenLoop", "TimeTerms", "gait_for", "reference_rows"]
+
+#: Time-only terms are computed for this many coming calls at once (see TimeTerms).
+_BLOCK = 1024
 
 
 def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
@@ -25,6 +29,56 @@ def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
     if chosen.n != n:
         raise ParameterError(f"gait is for {chosen.n} links, the robot has {n}")
     return chosen
+
+
+def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: Serpenoid,
+                   times: np.ndarray) -> np.ndarray:
+    """One row ``[w_r, phi_r, w_r', phi_r', w_r'', phi_r'']`` (3 (n + 2) values) per time.
+
+    A :class:`LinearReference` and the serpenoid are evaluated for all times at once (the
+    same arithmetic as one call each); any other reference is called once per time.
+    """
+    column = np.asarray(times, dtype=float)[:, None]
+    if isinstance(reference, LinearReference):
+        w_r, dw_r, ddw_r = (np.broadcast_to(part, (len(column), 3))
+                            for part in reference(column))  # type: ignore[arg-type]
+    else:
+        w_r, dw_r, ddw_r = (np.array(part, dtype=float).reshape(len(column), 3) for part in
+                            zip(*(reference(float(t)) for t in column[:, 0]), strict=True))
+    phi_r, dphi_r, ddphi_r = gait.derivatives(column)  # type: ignore[arg-type]
+    return np.hstack((w_r, phi_r, dw_r, dphi_r, ddw_r, ddphi_r))
+
+
+class TimeTerms:
+    """A controller's time-only terms ``rows(times)``, served one time at a time.
+
+    After :meth:`prepare` with the times of the coming calls, the rows are computed in
+    vectorised blocks of 1024 and a call at the next announced time reads its row; a call
+    at any other time computes its row alone. Either way the values are the same.
+    """
+
+    def __init__(self, rows: Callable[[np.ndarray], np.ndarray]) -> None:
+        self._rows = rows
+        self.prepare(np.zeros(0))
+
+    def prepare(self, times: np.ndarray) -> None:
+        """The times of the coming calls, in order."""
+        self._times = np.asarray(times, dtype=float)
+        self._cursor = 0
+        self._start = 0
+        self._block: np.ndarray = np.zeros((0, 0))
+
+    def __call__(self, t: float) -> np.ndarray:
+        """The row at time t (read only)."""
+        cursor = self._cursor
+        if cursor < len(self._times) and self._times[cursor] == t:
+            self._cursor = cursor + 1
+            index = cursor - self._start
+            if index >= len(self._block):
+                self._start, index = cursor, 0
+                self._block = self._rows(self._times[cursor:cursor + _BLOCK])
+            return self._block[index]
+        return self._rows(np.array([float(t)]))[0]
 
 
 class Controller(abc.ABC):
@@ -36,6 +90,14 @@ class Controller(abc.ABC):
     def reset(self) -> None:  # noqa: B027 - optional hook, empty by default
         """Forget internal state (filters, integrators) before a new run."""
 
+    def prepare(self, times: np.ndarray) -> None:  # noqa: B027 - optional hook
+        """Learn the times of the coming calls, in order (a run's sampling instants).
+
+        :func:`snake_pin.sim.simulate` calls it after :meth:`reset`. A controller may
+        precompute what depends on time only; its output must not depend on whether
+        this was called. Empty by default.
+        """
+
     @abc.abstractmethod
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques (length n - 1) at state ``x`` and time ``t``."""
@@ -43,6 +105,16 @@ class Controller(abc.ABC):
     def signals(self) -> dict[str, float]:
         """Diagnostics of the last call, recorded by the simulator (empty by default)."""
         return {}
+
+    def plant_acceleration(self, snake: object) -> np.ndarray | None:
+        """q'' of ``snake`` at the state of the last call under the torque it returned.
+
+        A controller that evaluated exactly that (with ``snake``'s own dynamics) returns
+        it, and :func:`snake_pin.sim.simulate` uses it as RK4's first stage instead of
+        evaluating the dynamics again; None (the default) when it did not. The array is
+        read before the next call and not modified.
+        """
+        return None
 
 
 class OpenLoop(Controller):

@@ -17,7 +17,14 @@ is a dropped column). Take the targets
     phi''* = phi_r'' + mu e + k_s (phi_r - phi)  (then e' = -mu e)
 
 and tau_a = argmin ||A tau_a + b - q''*||^2_W, W = blockdiag(K_w2, K_phi): a weighted least
-squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible). With the
+squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible).
+
+Evaluation (the closed loop's hot path, issue 13): b comes from one WORLD-convention ABA at
+zero torque and H^-1 from ``pin.computeMinverse`` right after it
+(:class:`~snake_pin.model.FastDynamics`); every target, s and e are one matrix product
+with the stacked references, state and b; BLAS forms W^(1/2) A and its Gram matrix from
+H^-1's upper triangle. The law also keeps q'' = A tau_a + b at its state, which the
+simulator uses as RK4's first stage (:meth:`plant_acceleration`). With the
 residual rho = A tau_a + b - q''* (rho = [rho_w; rho_phi]),
 
     V' = -2 lam ||s||^2_{K_w2} - 2 mu ||e||^2_{K_phi} - 2 [s; e]^T W rho
@@ -60,17 +67,18 @@ tail, so a head-first run along +x has theta_1 = pi; see :func:`head_first_refer
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import lapack
+from scipy.linalg import blas, lapack
 
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
-from .base import Controller, gait_for
+from .base import Controller, TimeTerms, gait_for, reference_rows
 from .gains import gain_matrix
 from .reference import LinearReference
 
 __all__ = ["LyapunovController", "head_first_reference"]
+
 
 
 def head_first_reference(speed: float = 0.1) -> LinearReference:
@@ -132,6 +140,53 @@ class LyapunovController(Controller):
         self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
         self._tau = np.zeros(n - 1)
         self._last: dict[str, float] = {}
+        self._build_law()
+        self._time_row = TimeTerms(
+            lambda times: reference_rows(self.reference, self.gait, times) @ self._law_time)
+
+    def _build_law(self) -> None:
+        """Constant matrices of the hot path (see the module docstring)."""
+        snake, nq, n = self.snake, self.snake.nq, self.snake.n
+        m, eye3 = n - 1, np.eye(3)
+        k_w1, lam, mu, k_s = self.k_w1, self.lam, self.lam_shape, self.k_shape
+        sqrt_w = np.sqrt(self._weights)
+        # rows: [W^(1/2) (q''* - b); s; e]; columns: [w_r, phi_r, w_r', phi_r', w_r'',
+        # phi_r'', q, q', b], each block nq wide (eqs. of the module docstring)
+        law = np.zeros((2 * nq, 6 * nq))
+        r, dr, ddr, q, v, b = (slice(k * nq, (k + 1) * nq) for k in range(6))
+        rows_w, rows_phi = slice(0, 3), slice(3, nq)
+        head, shape = (lambda block: slice(block.start, block.start + 3),
+                       lambda block: slice(block.start + 3, block.stop))
+        law[rows_w, head(r)] = lam * k_w1
+        law[rows_w, head(dr)] = k_w1 + lam * eye3
+        law[rows_w, head(ddr)] = eye3
+        law[rows_w, head(q)] = -lam * k_w1
+        law[rows_w, head(v)] = -(k_w1 + lam * eye3)
+        law[rows_phi, shape(r)] = k_s * np.eye(m)
+        law[rows_phi, shape(dr)] = mu * np.eye(m)
+        law[rows_phi, shape(ddr)] = np.eye(m)
+        law[rows_phi, shape(q)] = -k_s * np.eye(m)
+        law[rows_phi, shape(v)] = -mu * np.eye(m)
+        law[:nq, b] = -np.eye(nq)
+        law[:nq] *= sqrt_w[:, None]
+        s_rows, e_rows = slice(nq, nq + 3), slice(nq + 3, 2 * nq)
+        law[s_rows, head(dr)] = eye3
+        law[s_rows, head(r)] = k_w1
+        law[s_rows, head(v)] = -eye3
+        law[s_rows, head(q)] = -k_w1
+        law[e_rows, shape(dr)] = np.eye(m)
+        law[e_rows, shape(v)] = -np.eye(m)
+        weights = np.sqrt(np.r_[self._k_w2_diag, self._k_phi_diag])
+        law[nq:] *= weights[:, None]  # [s; e] weighted: V is their squared norm
+        self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
+        self._law_state = law[:, 3 * nq:].copy()  # applied to [q, q', b]
+        self._sqrt_w = np.diag(sqrt_w)
+        all_actuated = len(self._act) == n - 1
+        self._columns = slice(3, nq) if all_actuated else self._act
+        self._all_actuated = all_actuated
+        self._torque_full = np.zeros(nq)  # E_a tau_a
+        self._affine = snake.fast_dynamics.affine
+        self._ddq: np.ndarray | None = None
 
     # ------------------------------------------------------------ the law
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -159,16 +214,34 @@ class LyapunovController(Controller):
         _, s, e = self.targets(x, t)
         return float(s @ self.k_w2 @ s + e @ self.k_phi @ e)
 
+    def prepare(self, times: np.ndarray) -> None:
+        """Compute the references' terms for the coming calls in blocks (see TimeTerms)."""
+        self._time_row.prepare(times)
+
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        a, b = self.affine_map(x)
-        target, s, e = self.targets(x, t)
-        weighted = a.T * self._weights
-        tau_a, info = lapack.dposv(weighted @ a, weighted @ (target - b))[1:]
+        self._ddq = None
+        nq = self.snake.nq
+        b, minv = self._affine(x)  # minv: upper triangle of H^-1, so minv.T's lower one
+        errors = self._law_state @ np.concatenate((x, b))
+        errors += self._time_row(t)  # [W^(1/2) (q''* - b); W^(1/2) [s; e]]
+        weighted = blas.dsymm(1.0, minv.T, self._sqrt_w, side=1, lower=1)[:, self._columns]
+        tau_a, info = lapack.dposv(blas.dsyrk(1.0, weighted, trans=1),
+                                   blas.dgemv(1.0, weighted, errors[:nq], trans=1))[1:]
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
+        torque_full = self._torque_full
+        torque_full[self._act] = tau_a
+        self._ddq = blas.dsymv(1.0, minv.T, torque_full, beta=1.0, y=b, lower=1)
+        weighted_errors = errors[nq:]
+        self._last = {"V": float(weighted_errors @ weighted_errors)}
+        if self._all_actuated:
+            return tau_a
         self._tau[self._act - 3] = tau_a
-        self._last = {"V": float(s @ (self._k_w2_diag * s) + e @ (self._k_phi_diag * e))}
         return self._tau.copy()
+
+    def plant_acceleration(self, snake: Snake) -> np.ndarray | None:
+        """q'' = A tau_a + b of the last call, if ``snake`` is the robot this law models."""
+        return self._ddq if snake is self.snake else None
 
     def signals(self) -> dict[str, float]:
         return self._last

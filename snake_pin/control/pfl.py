@@ -20,6 +20,17 @@ Beyond the paper, ``climb_R = gamma > 0`` uses the redundancy to climb log R: u 
 towards the velocity gamma grad log R (a damped gradient flow; it does not disturb
 w'' = a). The report shows what it does to the breakdown.
 
+Evaluation (the closed loop's hot path, issue 13). Expanding the law,
+
+    tau = h2 + H22 w,   w = H12^+ z - u,   z = -H11 a - h1 + H12 (H22^-1 H21 a + u),
+
+the same torque with one Cholesky solve of a vector (p = H22^-1 H21 a) instead of a matrix,
+H12^+ applied through its SVD (which gives R as well), and H and h from one CRBA, one
+RNEA and the friction passes (:class:`~snake_pin.model.FastDynamics`). The time-only parts
+of a and u are computed in blocks for the coming calls. The closed loop's q'' at the state
+is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p, which the simulator
+uses as RK4's first stage (:meth:`PFLController.plant_acceleration`).
+
 Per-link robots: the law reads only the robot's own H and h (per-link lengths, masses,
 inertias, CM offsets and friction) and the climb term the per-link closed form of R, so
 w'' = a holds for any robot (tested at random states of heterogeneous robots). Its gains
@@ -32,12 +43,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import lapack
 
+from .._symmetric import symmetric_from_upper
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import manipulability_R_batch
 from ..model import Snake
-from .base import Controller, gait_for
+from .base import Controller, TimeTerms, gait_for, reference_rows
 from .gains import gain_matrix
 from .reference import LinearReference
 
@@ -88,7 +100,21 @@ class PFLController(Controller):
         self.climb_R = finite_number(climb_R, "climb_R", non_negative=True)
         self.climb_damping = finite_number(climb_damping, "climb_damping", positive=True)
         self._last: dict[str, float] = {}
-        self._nq = snake.nq
+        self._nq = nq = snake.nq
+        # [a; u] = (time terms) + gain @ x, from (71) and (78) without the climb term
+        m = n - 1
+        law = np.zeros((nq, 3 * nq))  # columns: [w_r, phi_r, w_r', phi_r', w_r'', phi_r'']
+        law[:3, :3], law[:3, nq:nq + 3], law[:3, 2 * nq:2 * nq + 3] = self.k_p, self.k_v, np.eye(3)
+        law[3:, 3:nq], law[3:, nq + 3:2 * nq] = -self.r_p, -self.r_v
+        law[3:, 2 * nq + 3:] = -np.eye(m)
+        self._gain = np.zeros((nq, 2 * nq))  # on x = [q, q']
+        self._gain[:3, :3], self._gain[:3, nq:nq + 3] = -self.k_p, -self.k_v
+        self._gain[3:, 3:nq], self._gain[3:, nq + 3:] = self.r_p, self.r_v
+        law_t = law.T.copy()
+        self._time_row = TimeTerms(
+            lambda times: reference_rows(self.reference, self.gait, times) @ law_t)
+        self._mass_and_bias = snake.fast_dynamics.mass_and_bias
+        self._ddq: np.ndarray | None = None
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t."""
@@ -96,36 +122,43 @@ class PFLController(Controller):
         nq = self._nq
         return ddw_r + self.k_v @ (dw_r - x[nq:nq + 3]) + self.k_p @ (w_r - x[:3])
 
+    def prepare(self, times: np.ndarray) -> None:
+        """Compute the references' terms for the coming calls in blocks (see TimeTerms)."""
+        self._time_row.prepare(times)
+
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        snake, nq = self.snake, self._nq
-        h_mat = snake.inertia_matrix(x[:nq])
-        h_vec = snake.bias_of_state(x)
+        self._ddq = None
+        nq = self._nq
+        upper, h_vec = self._mass_and_bias(x)
+        h_mat = symmetric_from_upper(upper)
         h12, h22 = h_mat[:3, 3:], h_mat[3:, 3:]
-        h1, h2 = h_vec[:3], h_vec[3:]
         # H12 = U S V^T (LAPACK directly: a third of numpy.linalg's per-call cost)
         u_svd, s_svd, vt_svd, info = lapack.dgesdd(h12, full_matrices=0)
         r = s_svd[-1]
         if info != 0 or not r > self.r_min:
             raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
-        h12_pinv = (vt_svd.T / s_svd) @ u_svd.T
-        # H22^-1 [H21, h2] in one Cholesky solve (H22 is positive definite, Prop. 1)
-        solved, info = lapack.dposv(h22, np.column_stack((h12.T, h2)))[1:]
+        commands = self._gain @ x
+        commands += self._time_row(t)
+        a, u = commands[:3], commands[3:]  # eqs. (71), (78)
+        if self.climb_R:
+            u = u - self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq]) - x[nq + 3:])
+        p, info = lapack.dposv(h22, h12.T @ a)[1:]  # H22^-1 H21 a (H22 > 0, Prop. 1)
         if info != 0:
             raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-        h22_inv_h21, h22_inv_h2 = solved[:, :3], solved[:, 3]
-        schur = h_mat[:3, :3] - h12 @ h22_inv_h21  # eq. (68)
-        a = self.command(x, t)
-        y = -schur @ a - h1 + h12 @ h22_inv_h2  # = H12 H22^-1 tau required by (27)
-        dphi = x[nq + 3:]
-        phi_r, dphi_r, ddphi_r = self.gait.derivatives(t)
-        u = -ddphi_r - self.r_v @ (dphi_r - dphi) - self.r_p @ (phi_r - x[3:nq])  # eq. (78)
-        if self.climb_R:
-            u = u - self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq]) - dphi)
-        kappa = h22_inv_h2 - u  # eq. (75)
-        null = kappa - h12_pinv @ (h12 @ kappa)  # (I - H12^+ H12) kappa
-        tau = h22 @ (h12_pinv @ y + null)
+        z = h_mat[:3] @ np.concatenate((-a, p + u))
+        z -= h_vec[:3]  # -Hs a - h1 + H12 u
+        w = vt_svd.T @ ((u_svd.T @ z) / s_svd)
+        w -= u
+        tau = h22 @ w
+        tau += h_vec[3:]
+        self._ddq = np.concatenate((a, w - p))
         self._last = {"R": float(r)}
         return tau
+
+    def plant_acceleration(self, snake: Snake) -> np.ndarray | None:
+        """q'' = [a; H22^-1 (tau - h2 - H21 a)] of the last call, if ``snake`` is the
+        robot this law models (w'' = a holds there: R > r_min was checked)."""
+        return self._ddq if snake is self.snake else None
 
     def _grad_log_r(self, phi: np.ndarray, step: float = 1e-6) -> np.ndarray:
         """Central-difference gradient of log R over phi (one batched evaluation)."""
