@@ -1,0 +1,1186 @@
+"""Planar paths and head references along them: a curve p(s) plus a timing law s(t).
+
+This module owns the geometry of head references beyond the paper's straight line: a
+:class:`Path` is a planar curve parametrised by arc length s, with its unit tangent (angle
+gamma(s), continuous: never wrapped to (-pi, pi]), curvature kappa(s) and its rate
+kappa'(s); a :class:`Timing` gives s(t) at a constant speed v, optionally after a smooth
+start; a :class:`PathReference` joins the two into the head reference the controllers
+consume, with the same interface as :class:`~snake_pin.control.reference.LinearReference`:
+``reference(t) -> (w_r, w_r', w_r'')``, three fresh arrays of length 3.
+
+Shapes
+------
+- :class:`Line`: any start point and direction.
+- :class:`Circle` and :class:`Arc`: centre, radius > 0, start angle (polar angle of the
+  start point about the centre), direction of travel (``clockwise``). By default the curve
+  passes through the origin heading along +x, like every default shape here.
+- :class:`LaneChange`: a lead-in along the line, then a smooth S to a parallel line at a
+  lateral ``offset`` (left positive) over a longitudinal ``length``. The S is the septic
+  smootherstep y = offset P(x / length), P = 35 u^4 - 84 u^5 + 70 u^6 - 20 u^7, whose
+  first three derivatives vanish at both ends: the curve is C3, so heading, curvature and
+  the curvature's rate are continuous at the joins and w_r'' is continuous in time.
+- :class:`Sinusoid`: y = amplitude sin(2 pi x / wavelength).
+- :class:`Waypoints`: a C2 curve through user points: ``scipy.interpolate.CubicSpline``
+  on the chord-length parameter with natural ends (zero curvature there), re-parametrised
+  by arc length. Its curvature is continuous; kappa' jumps at the knots (a cubic's third
+  derivative is piecewise constant), so the heading's w_r'' jumps there while the
+  position's stays continuous.
+
+Finite curves (:class:`Arc`, :class:`Waypoints`) continue beyond their ends along the end
+tangents (straight, zero curvature: C2 at the ends of a waypoint spline, whose ends have
+zero curvature; only C1 at the ends of an arc). Lane changes and sinusoids are unbounded;
+a circle's s runs on over any number of laps.
+
+Arc length. Curves with no closed-form arc length (lane change, sinusoid, waypoints) are
+written p(u) in a parameter u; s(u) = int |p'(u)| du is tabulated by 8-point
+Gauss-Legendre quadrature on a fine grid of u, and u(s) is found by Newton's method on
+s(u) - s = 0 (derivative |p'(u)|) from a linear interpolation of the table, to round-off.
+The tangent, curvature and its rate then follow from the derivatives of p(u) (all exact
+for the polynomial and trigonometric pieces):
+
+    t = p'/|p'|,   kappa = (p' x p'')/|p'|^3,
+    dkappa/ds = [(p' x p''') |p'|^2 - 3 (p' x p'')(p' . p'')] / |p'|^6.
+
+Head reference (head-first convention). In the paper's coordinates theta_1 points from
+the head towards the tail, so a head that leads along the tangent has
+theta_1 = gamma(s) + pi (the paper's straight run has gamma = 0, theta_1 = pi). With
+s = s(t), the chain rule gives exactly
+
+    w_r   = [p(s), gamma(s) + pi]
+    w_r'  = [t s',  kappa s']
+    w_r'' = [kappa n s'^2 + t s'',  kappa' s'^2 + kappa s'']
+
+with n the left normal (t rotated by +pi/2), since dt/ds = kappa n.
+
+Distance to a path. :meth:`Path.project` finds the arc length of the closest point: the
+nearest point of a fine grid over a span of s (by a k-d tree), then safeguarded Newton
+steps on (p(s) - x) . t(s) = 0. :func:`cross_track_error` is the signed distance (left of
+the direction of travel positive) and :func:`along_track` the arc length of the closest
+point, both vectorised.
+
+Path files
+----------
+:func:`load_path` takes a shape name with its parameters, or a file:
+
+- TOML: ``type = "waypoints"`` with ``points = [[x, y], ...]``, or ``type`` one of the
+  shape names with that shape's parameters; optionally ``speed`` [m/s] and ``ramp`` [s]
+  (the timing). Example::
+
+      type = "circle"
+      radius = 1.2
+      clockwise = true
+      speed = 0.1
+
+- CSV: waypoints, two columns x, y, one point a line, an optional header line.
+
+Every problem (fewer than two waypoints, coincident consecutive waypoints, a non-positive
+radius, length, wavelength or speed, a non-finite number, an unknown key or shape, a file
+that does not parse) is one :class:`PathFileError` line naming the file and the field,
+or a :class:`~snake_pin.exceptions.ParameterError` naming the parameter when no file is
+involved. ``PathFileError`` is a ``ParameterError``.
+"""
+
+from __future__ import annotations
+
+import abc
+import bisect
+import csv
+import io
+import math
+import numbers
+import os
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from pathlib import Path as FilePath
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.polynomial import Polynomial
+from scipy.interpolate import CubicSpline
+from scipy.spatial import cKDTree
+
+from ._validation import finite_number
+from .exceptions import ParameterError
+
+__all__ = [
+    "DEFAULT_EXTENT",
+    "MAX_PATH_FILE_BYTES",
+    "MAX_WAYPOINTS",
+    "PATH_NAMES",
+    "Arc",
+    "Circle",
+    "LaneChange",
+    "Line",
+    "Path",
+    "PathFileError",
+    "PathPoint",
+    "PathReference",
+    "Sinusoid",
+    "Timing",
+    "Waypoints",
+    "along_track",
+    "cross_track_error",
+    "load_path",
+    "make_path",
+]
+
+#: Arc length searched beyond the start of unbounded paths' projections, and the length
+#: searched along them by default [m] (pass ``span`` to search elsewhere).
+DEFAULT_EXTENT = 20.0
+#: Largest path file read [bytes].
+MAX_PATH_FILE_BYTES = 4 << 20
+#: Most waypoints one path may have.
+MAX_WAYPOINTS = 100_000
+#: Shape names understood by :func:`make_path` and :func:`load_path`.
+PATH_NAMES = ("line", "circle", "arc", "lane_change", "sinusoid", "waypoints")
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+_HALF_PI = 0.5 * math.pi
+
+
+class PathFileError(ParameterError):
+    """A path file (TOML or CSV) is missing, unreadable, malformed or describes a bad path."""
+
+
+class PathPoint(NamedTuple):
+    """Geometry at arc lengths s (arrays shaped like s; ``p`` and the frames get a last axis 2).
+
+    Attributes
+    ----------
+    p
+        Point on the curve.
+    gamma
+        Tangent angle (continuous in s, not wrapped).
+    kappa
+        Signed curvature (positive turning left), d gamma / ds.
+    dkappa
+        d kappa / ds.
+    """
+
+    p: np.ndarray
+    gamma: np.ndarray
+    kappa: np.ndarray
+    dkappa: np.ndarray
+
+    @property
+    def tangent(self) -> np.ndarray:
+        """Unit tangent [cos gamma, sin gamma]."""
+        return np.stack((np.cos(self.gamma), np.sin(self.gamma)), axis=-1)
+
+    @property
+    def normal(self) -> np.ndarray:
+        """Left unit normal [-sin gamma, cos gamma]."""
+        return np.stack((-np.sin(self.gamma), np.cos(self.gamma)), axis=-1)
+
+
+# --------------------------------------------------------------------------- checks
+def _number(value: object, name: str, *, positive: bool = False,
+            non_negative: bool = False) -> float:
+    """A finite float (optionally > 0 or >= 0) or one ParameterError line naming ``name``."""
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+        raise ParameterError(f"{name} must be a number, got {_short(value)}")
+    return finite_number(value, name, positive=positive, non_negative=non_negative)
+
+
+def _point(value: object, name: str) -> tuple[float, float]:
+    """A finite 2-vector [x, y] or one ParameterError line."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise ParameterError(f"{name} must be a point [x, y], got {_short(value)}")
+    return (_number(value[0], f"{name}[0]"), _number(value[1], f"{name}[1]"))
+
+
+def _flag(value: object, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(f"{name} must be true or false, got {_short(value)}")
+    return bool(value)
+
+
+def _short(value: object, limit: int = 60) -> str:
+    text = repr(value).replace("\n", " ")
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _rotate(vectors: np.ndarray, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.stack((c * vectors[..., 0] - s * vectors[..., 1],
+                     s * vectors[..., 0] + c * vectors[..., 1]), axis=-1)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+# ---------------------------------------------------------------------- arc length
+class _ArcLength:
+    """s(u) = int_{u_0}^u speed, tabulated at ``nodes`` (Gauss-Legendre), and its inverse."""
+
+    def __init__(self, speed: Callable[[np.ndarray], np.ndarray], nodes: np.ndarray) -> None:
+        self.speed = speed
+        self.u = np.asarray(nodes, dtype=float)
+        self.s = np.r_[0.0, np.cumsum(self._integral(self.u[:-1], self.u[1:]))]
+        self.total = float(self.s[-1])
+        self.du = 1.0 / speed(self.u)  # du/ds at the nodes: slopes of the Hermite start
+        self.scale = max(1.0, float(abs(self.u[-1] - self.u[0])))
+        # plain-float copies for the scalar path (bisect on lists beats numpy on one value)
+        self._s_list, self._u_list = self.s.tolist(), self.u.tolist()
+        self._du_list = self.du.tolist()
+        self._gl = np.r_[0.5 * (_GL_X + 1.0), 1.0]  # quadrature points on [0, 1], and 1
+
+    def _integral(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        half, mid = 0.5 * (b - a), 0.5 * (b + a)
+        points = mid[..., None] + half[..., None] * _GL_X
+        return half * (self.speed(points.reshape(-1)).reshape(points.shape) @ _GL_W)
+
+    def length(self, u: np.ndarray) -> np.ndarray:
+        """s(u) for u inside the table's range."""
+        k = np.clip(np.searchsorted(self.u, u, side="right") - 1, 0, len(self.u) - 2)
+        return self.s[k] + self._integral(self.u[k], u)
+
+    def _start(self, s: np.ndarray) -> np.ndarray:
+        """Cubic Hermite interpolation of u(s) between the nodes (slopes du/ds)."""
+        k = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.s) - 2)
+        h = self.s[k + 1] - self.s[k]
+        x = (s - self.s[k]) / h
+        return ((1.0 + 2.0 * x) * (1.0 - x) ** 2 * self.u[k] + x * (1.0 - x) ** 2 * h * self.du[k]
+                + x * x * (3.0 - 2.0 * x) * self.u[k + 1] + x * x * (x - 1.0) * h * self.du[k + 1])
+
+    def parameter(self, s: np.ndarray) -> np.ndarray:
+        """u(s) for 0 <= s <= total: Newton's method from the Hermite start, to round-off.
+
+        Newton converges quadratically: once a step is below 1e-7 (relative), the next
+        would be below ~1e-13 and is skipped.
+        """
+        u = self._start(s)
+        lo, hi = self.u[0], self.u[-1]
+        for _ in range(8):
+            step = (self.length(u) - s) / self.speed(u)
+            u = np.clip(u - step, lo, hi)
+            if not np.any(np.abs(step) > 1e-7 * self.scale):
+                break
+        return u
+
+    def parameter_scalar(self, s: float) -> float:
+        """:meth:`parameter` for one float (the controllers' hot path)."""
+        s_list, u_list, du_list = self._s_list, self._u_list, self._du_list
+        last = len(s_list) - 2
+        k = min(max(bisect.bisect_right(s_list, s) - 1, 0), last)
+        h = s_list[k + 1] - s_list[k]
+        x = (s - s_list[k]) / h
+        u = ((1.0 + 2.0 * x) * (1.0 - x) ** 2 * u_list[k] + x * (1.0 - x) ** 2 * h * du_list[k]
+             + x * x * (3.0 - 2.0 * x) * u_list[k + 1] + x * x * (x - 1.0) * h * du_list[k + 1])
+        lo, hi = u_list[0], u_list[-1]
+        for _ in range(8):
+            j = min(max(bisect.bisect_right(u_list, u) - 1, 0), last)
+            a = u_list[j]
+            speeds = self.speed(a + (u - a) * self._gl)
+            step = (s_list[j] + 0.5 * (u - a) * float(speeds[:8] @ _GL_W) - s) / float(speeds[8])
+            u = min(max(u - step, lo), hi)
+            if not abs(step) > 1e-7 * self.scale:
+                break
+        return u
+
+
+def _curve_terms(d1: np.ndarray, d2: np.ndarray, d3: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(tangent angle wrapped, kappa, dkappa/ds) from p', p'', p''' in any parameter."""
+    speed2 = np.einsum("...i,...i->...", d1, d1)
+    speed = np.sqrt(speed2)
+    c12 = _cross(d1, d2)
+    kappa = c12 / (speed2 * speed)
+    dkappa = (_cross(d1, d3) * speed2 - 3.0 * c12 * np.einsum("...i,...i->...", d1, d2)) \
+        / (speed2 * speed2 * speed2)
+    return np.arctan2(d1[..., 1], d1[..., 0]), kappa, dkappa
+
+
+# --------------------------------------------------------------------------- paths
+class Path(abc.ABC):
+    """A planar curve parametrised by arc length s (abstract base of the shapes).
+
+    Subclasses implement :meth:`_geometry` on a flat array of s; :attr:`length` is the
+    length of the defined part (``math.inf`` when unbounded, one lap for a circle).
+    """
+
+    #: Identifier used in file names and summaries.
+    name: str = "path"
+
+    @property
+    def length(self) -> float:
+        """Length of the curve [m] (``math.inf`` if unbounded; one lap for a circle)."""
+        return math.inf
+
+    @abc.abstractmethod
+    def _geometry(self, s: np.ndarray) -> PathPoint:
+        """Geometry at a flat float array of arc lengths."""
+
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        """(x, y, gamma, kappa, dkappa) at one arc length (overridden by fast paths)."""
+        g = self._geometry(np.array([s]))
+        return (float(g.p[0, 0]), float(g.p[0, 1]), float(g.gamma[0]), float(g.kappa[0]),
+                float(g.dkappa[0]))
+
+    def geometry(self, s: object) -> PathPoint:
+        """Point, tangent angle, curvature and its rate at arc length(s) ``s``."""
+        arr = np.asarray(s, dtype=float)
+        if not np.all(np.isfinite(arr)):
+            raise ParameterError("arc lengths must be finite")
+        flat = self._geometry(arr.reshape(-1))
+        shape = arr.shape
+        return PathPoint(flat.p.reshape((*shape, 2)), flat.gamma.reshape(shape),
+                         flat.kappa.reshape(shape), flat.dkappa.reshape(shape))
+
+    def point(self, s: object) -> np.ndarray:
+        """p(s): shape s.shape + (2,)."""
+        return self.geometry(s).p
+
+    def default_span(self) -> tuple[float, float]:
+        """Arc lengths searched by :meth:`project` unless told otherwise."""
+        if math.isfinite(self.length):
+            margin = max(1.0, 0.25 * self.length)
+            return (-margin, self.length + margin)
+        return (-1.0, DEFAULT_EXTENT)
+
+    def _projection_step(self, lo: float, hi: float) -> float:
+        """Grid step of the coarse search: 5 mm, finer where the curve bends tightly."""
+        probe = np.linspace(lo, hi, 2001)
+        kappa_max = float(np.max(np.abs(self._geometry(probe).kappa)))
+        return min(0.005, 0.1 / kappa_max) if kappa_max > 0 else 0.005
+
+    def project(self, points: object, *, span: tuple[float, float] | None = None,
+                hint: object = None) -> np.ndarray:
+        """Arc length s* of the closest point of the path to each point.
+
+        Parameters
+        ----------
+        points
+            (..., 2) array of points.
+        span
+            (s_min, s_max) searched; default :meth:`default_span`. The result lies in it.
+        hint
+            Arc lengths near the answer (scalar or one per point), e.g. the last step's
+            answer when tracking a moving point: then only Newton steps from the hint are
+            taken (no grid search), which follows the nearby branch of the path.
+
+        Returns
+        -------
+        numpy.ndarray
+            s*, shaped like ``points`` without its last axis.
+        """
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
+            raise ParameterError("points must be a finite (..., 2) array")
+        lo, hi = self.default_span() if span is None else (
+            _number(span[0], "span[0]"), _number(span[1], "span[1]"))
+        if not hi > lo:
+            raise ParameterError(f"span must be increasing, got ({lo}, {hi})")
+        flat = pts.reshape(-1, 2)
+        if hint is not None:
+            guess = np.broadcast_to(np.asarray(hint, dtype=float), (len(flat),)).copy()
+            if not np.all(np.isfinite(guess)):
+                raise ParameterError("hint must be finite")
+            return self._newton(flat, np.clip(guess, lo, hi), lo, hi, 0.05) \
+                .reshape(pts.shape[:-1])
+        step = self._projection_step(lo, hi)
+        count = min(math.ceil((hi - lo) / step) + 1, 1_000_001)
+        grid = np.linspace(lo, hi, count)
+        _, nearest = cKDTree(self._geometry(grid).p).query(flat)
+        return self._newton(flat, grid[nearest], lo, hi, 2.0 * (grid[1] - grid[0])) \
+            .reshape(pts.shape[:-1])
+
+    def _newton(self, points: np.ndarray, s: np.ndarray, lo: float, hi: float,
+                max_step: float) -> np.ndarray:
+        """Safeguarded Newton steps on f(s) = (p(s) - x) . t(s) = 0 (f' = 1 + kappa (p - x) . n)."""
+        best_s = s.copy()
+        best_d = np.full(len(s), np.inf)
+        for _ in range(12):
+            g = self._geometry(s)
+            diff = g.p - points
+            dist = np.einsum("ij,ij->i", diff, diff)
+            better = dist < best_d
+            best_s[better], best_d[better] = s[better], dist[better]
+            f = np.einsum("ij,ij->i", diff, g.tangent)
+            slope = 1.0 + g.kappa * np.einsum("ij,ij->i", diff, g.normal)
+            step = np.clip(-f / np.maximum(slope, 0.2), -max_step, max_step)
+            s = np.clip(s + step, lo, hi)
+            if not np.any(np.abs(step) > 1e-13 * max(1.0, hi - lo)):
+                break
+        g = self._geometry(s)
+        diff = g.p - points
+        dist = np.einsum("ij,ij->i", diff, diff)
+        # keep the last iterate unless it is clearly worse than an earlier one (near the
+        # minimum the squared distance is flat: comparing it would pick by round-off)
+        worse = dist > best_d + 1e-12 * (1.0 + best_d)
+        return np.where(worse, best_s, s)
+
+    def plot_points(self, span: tuple[float, float] | None = None,
+                    count: int = 1000) -> np.ndarray:
+        """(count, 2) points along the path over ``span`` (default: :meth:`default_span`)."""
+        lo, hi = self.default_span() if span is None else span
+        return self.point(np.linspace(lo, hi, count))
+
+
+class _Finite(Path):
+    """A curve defined on [0, length], continued along its end tangents beyond."""
+
+    @abc.abstractmethod
+    def _inside(self, s: np.ndarray) -> PathPoint:
+        """Geometry for 0 <= s <= length."""
+
+    def _geometry(self, s: np.ndarray) -> PathPoint:
+        length = self.length
+        inner = np.clip(s, 0.0, length)
+        g = self._inside(inner)
+        beyond = s - inner
+        if not np.any(beyond):
+            return g
+        ends = beyond != 0.0
+        p = g.p + beyond[:, None] * np.stack((np.cos(g.gamma), np.sin(g.gamma)), axis=-1)
+        return PathPoint(p, g.gamma, np.where(ends, 0.0, g.kappa),
+                         np.where(ends, 0.0, g.dkappa))
+
+    def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        g = self._inside(np.array([s]))
+        return (float(g.p[0, 0]), float(g.p[0, 1]), float(g.gamma[0]), float(g.kappa[0]),
+                float(g.dkappa[0]))
+
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        inner = min(max(s, 0.0), self.length)
+        x, y, gamma, kappa, dkappa = self._inside_scalar(inner)
+        beyond = s - inner
+        if beyond == 0.0:
+            return x, y, gamma, kappa, dkappa
+        return (x + beyond * math.cos(gamma), y + beyond * math.sin(gamma), gamma, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Line(Path):
+    """The straight line p(s) = start + s [cos direction, sin direction]."""
+
+    start: tuple[float, float] = (0.0, 0.0)
+    direction: float = 0.0
+    name = "line"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "start", _point(self.start, "start"))
+        object.__setattr__(self, "direction", _number(self.direction, "direction"))
+
+    def _geometry(self, s: np.ndarray) -> PathPoint:
+        c, d = math.cos(self.direction), math.sin(self.direction)
+        p = np.stack((self.start[0] + c * s, self.start[1] + d * s), axis=-1)
+        zero = np.zeros_like(s)
+        return PathPoint(p, zero + self.direction, zero, zero.copy())
+
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        return (self.start[0] + math.cos(self.direction) * s,
+                self.start[1] + math.sin(self.direction) * s, self.direction, 0.0, 0.0)
+
+    def project(self, points: object, *, span: tuple[float, float] | None = None,
+                hint: object = None) -> np.ndarray:
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
+            raise ParameterError("points must be a finite (..., 2) array")
+        s = (pts[..., 0] - self.start[0]) * math.cos(self.direction) \
+            + (pts[..., 1] - self.start[1]) * math.sin(self.direction)
+        return s if span is None else np.clip(s, span[0], span[1])
+
+
+def _circle_defaults(radius: float, centre: object, start_angle: object,
+                     clockwise: bool) -> tuple[tuple[float, float], float]:
+    """Centre and start angle: by default the circle through the origin heading along +x."""
+    side = -1.0 if clockwise else 1.0
+    if start_angle is None:
+        start = -side * _HALF_PI if centre is None else 0.0
+    else:
+        start = _number(start_angle, "start_angle")
+    if centre is None:
+        # the start point is at the origin: centre = -radius [cos start, sin start]
+        centre_xy = (-radius * math.cos(start), -radius * math.sin(start))
+    else:
+        centre_xy = _point(centre, "centre")
+    return centre_xy, start
+
+
+@dataclass(frozen=True)
+class Circle(Path):
+    """The circle of ``radius`` about ``centre``, from the polar angle ``start_angle``.
+
+    Counter-clockwise (turning left, kappa = 1/radius) unless ``clockwise``. By default
+    (no centre, no start angle) the circle passes through the origin heading along +x.
+    s runs on over any number of laps; gamma grows without wrapping.
+    """
+
+    radius: float = 1.2
+    centre: tuple[float, float] | None = None
+    start_angle: float | None = None
+    clockwise: bool = False
+    name = "circle"
+
+    def __post_init__(self) -> None:
+        radius = _number(self.radius, "radius", positive=True)
+        clockwise = _flag(self.clockwise, "clockwise")
+        centre, start = _circle_defaults(radius, self.centre, self.start_angle, clockwise)
+        object.__setattr__(self, "radius", radius)
+        object.__setattr__(self, "clockwise", clockwise)
+        object.__setattr__(self, "centre", centre)
+        object.__setattr__(self, "start_angle", start)
+
+    @property
+    def side(self) -> float:
+        """+1 counter-clockwise, -1 clockwise."""
+        return -1.0 if self.clockwise else 1.0
+
+    @property
+    def length(self) -> float:
+        return 2.0 * math.pi * self.radius
+
+    def _circle(self, s: np.ndarray) -> PathPoint:
+        side, radius = self.side, self.radius
+        polar = self.start_angle + side * s / radius
+        p = np.stack((self.centre[0] + radius * np.cos(polar),
+                      self.centre[1] + radius * np.sin(polar)), axis=-1)
+        zero = np.zeros_like(s)
+        return PathPoint(p, polar + side * _HALF_PI, zero + side / radius, zero)
+
+    def _geometry(self, s: np.ndarray) -> PathPoint:
+        return self._circle(s)
+
+    def _circle_scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        side, radius = self.side, self.radius
+        polar = self.start_angle + side * s / radius
+        return (self.centre[0] + radius * math.cos(polar),
+                self.centre[1] + radius * math.sin(polar), polar + side * _HALF_PI,
+                side / radius, 0.0)
+
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        return self._circle_scalar(s)
+
+    def default_span(self) -> tuple[float, float]:
+        return (0.0, self.length)
+
+    def project(self, points: object, *, span: tuple[float, float] | None = None,
+                hint: object = None) -> np.ndarray:
+        """Closest point by the polar angle (exact); the lap nearest ``hint``, else the first."""
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
+            raise ParameterError("points must be a finite (..., 2) array")
+        polar = np.arctan2(pts[..., 1] - self.centre[1], pts[..., 0] - self.centre[0])
+        lap = self.length
+        s = np.mod(self.side * (polar - self.start_angle) * self.radius, lap)
+        if hint is not None:
+            ref = np.asarray(hint, dtype=float)
+            s = s + lap * np.round((ref - s) / lap)
+        elif span is not None:
+            s = s + lap * np.ceil((span[0] - s) / lap)
+            s = np.minimum(s, span[1])
+        return s
+
+
+@dataclass(frozen=True)
+class Arc(_Finite, Circle):
+    """A circular arc sweeping ``angle`` > 0 radians; straight beyond its ends.
+
+    The other parameters and defaults are those of :class:`Circle`.
+    """
+
+    angle: float = _HALF_PI
+    name = "arc"
+
+    def __post_init__(self) -> None:
+        Circle.__post_init__(self)
+        object.__setattr__(self, "angle", _number(self.angle, "angle", positive=True))
+
+    @property
+    def length(self) -> float:
+        return self.radius * self.angle
+
+    def _inside(self, s: np.ndarray) -> PathPoint:
+        return self._circle(s)
+
+    def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        return self._circle_scalar(s)
+
+    def _geometry(self, s: np.ndarray) -> PathPoint:
+        return _Finite._geometry(self, s)
+
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        return _Finite._scalar(self, s)
+
+    def default_span(self) -> tuple[float, float]:
+        return Path.default_span(self)
+
+    def project(self, points: object, *, span: tuple[float, float] | None = None,
+                hint: object = None) -> np.ndarray:
+        return Path.project(self, points, span=span, hint=hint)
+
+
+class _GraphCurve(Path):
+    """A curve y = f(x) in a frame at ``origin`` rotated by ``direction`` (arc length tabled)."""
+
+    origin: tuple[float, float]
+    direction: float
+
+    def _place(self, p_local: np.ndarray, gamma_local: np.ndarray, kappa: np.ndarray,
+               dkappa: np.ndarray) -> PathPoint:
+        p = _rotate(p_local, self.direction) + np.asarray(self.origin)
+        return PathPoint(p, gamma_local + self.direction, kappa, dkappa)
+
+    def _place_scalar(self, x: float, y: float, f1: float, f2: float, f3: float
+                      ) -> tuple[float, float, float, float, float]:
+        """One point of the graph, placed (kappa = f2 / w^3, dkappa/ds = (f3 w^2 - 3 f1 f2^2) / w^6,
+        w^2 = 1 + f1^2, fk the k-th derivative of f)."""
+        w2 = 1.0 + f1 * f1
+        w = math.sqrt(w2)
+        c, s = math.cos(self.direction), math.sin(self.direction)
+        return (self.origin[0] + c * x - s * y, self.origin[1] + s * x + c * y,
+                math.atan(f1) + self.direction, f2 / (w2 * w),
+                (f3 * w2 - 3.0 * f1 * f2 * f2) / (w2 * w2 * w2))
+
+    @staticmethod
+    def _terms(f1: np.ndarray, f2: np.ndarray, f3: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """gamma = atan f' (continuous: x' = 1 > 0), kappa and dkappa/ds of a graph."""
+        ones, zeros = np.ones_like(f1), np.zeros_like(f1)
+        _, kappa, dkappa = _curve_terms(np.stack((ones, f1), -1), np.stack((zeros, f2), -1),
+                                        np.stack((zeros, f3), -1))
+        return np.arctan(f1), kappa, dkappa
+
+
+@dataclass(frozen=True)
+class LaneChange(_GraphCurve):
+    """Straight along +x for ``start``, an S of ``length`` to the line y = ``offset``, straight on.
+
+    In the frame at ``origin`` rotated by ``direction``; ``offset`` > 0 moves left. The S is
+    y = offset P(x / length) with the septic smootherstep P (C3 joins, see the module).
+    """
+
+    offset: float = 0.3
+    length_x: float = 2.0
+    start: float = 0.5
+    origin: tuple[float, float] = (0.0, 0.0)
+    direction: float = 0.0
+    name = "lane_change"
+
+    _P = Polynomial([0, 0, 0, 0, 35, -84, 70, -20])
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "offset", _number(self.offset, "offset"))
+        object.__setattr__(self, "length_x", _number(self.length_x, "length", positive=True))
+        object.__setattr__(self, "start", _number(self.start, "start", non_negative=True))
+        object.__setattr__(self, "origin", _point(self.origin, "origin"))
+        object.__setattr__(self, "direction", _number(self.direction, "direction"))
+        scale = self.offset / self.length_x
+        polys = [self._P]
+        for _ in range(3):
+            polys.append(polys[-1].deriv())
+        # derivatives in x: P^(k)(x / L) * offset / L^k
+        object.__setattr__(self, "_f", tuple(
+            (poly, self.offset / self.length_x**k) for k, poly in enumerate(polys)))
+        table = _ArcLength(lambda x: np.sqrt(1.0 + (polys[1](x / self.length_x) * scale) ** 2),
+                           np.linspace(0.0, self.length_x, 257))
+        object.__setattr__(self, "_table", table)
+
+    @property
+    def s_length(self) -> float:
+        """Arc length of the S alone [m]."""
+        return self._table.total
+
+    def default_span(self) -> tuple[float, float]:
+        return (-1.0, max(DEFAULT_EXTENT, self.start + self.s_length + 2.0))
+
+    def _geometry(self, s: np.ndarray) -> PathPoint:
+        start, curve = self.start, self.s_length
+        local = s - start
+        inside = (local > 0.0) & (local < curve)
+        x = np.where(local <= 0.0, s, start + self.length_x + (local - curve))
+        y = np.where(local <= 0.0, 0.0, self.offset)
+        gamma = np.zeros_like(s)
+        kappa = np.zeros_like(s)
+        dkappa = np.zeros_like(s)
+        if np.any(inside):
+            u = self._table.parameter(local[inside])
+            (p0, c0), (p1, c1), (p2, c2), (p3, c3) = self._f
+            xi = u / self.length_x
+            x[inside] = start + u
+            y[inside] = c0 * p0(xi)
+            gamma[inside], kappa[inside], dkappa[inside] = self._terms(
+                c1 * p1(xi), c2 * p2(xi), c3 * p3(xi))
+        return self._place(np.stack((x, y), axis=-1), gamma, kappa, dkappa)
+
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        local = s - self.start
+        if local <= 0.0:
+            return self._place_scalar(s, 0.0, 0.0, 0.0, 0.0)
+        curve = self._table.total
+        if local >= curve:
+            return self._place_scalar(self.start + self.length_x + (local - curve),
+                                      self.offset, 0.0, 0.0, 0.0)
+        u = self._table.parameter_scalar(local)
+        xi = u / self.length_x
+        f = [c * poly(xi) for poly, c in self._f]
+        return self._place_scalar(self.start + u, f[0], f[1], f[2], f[3])
+
+
+@dataclass(frozen=True)
+class Sinusoid(_GraphCurve):
+    """y = amplitude sin(2 pi x / wavelength) in the frame at ``origin``, turned by ``direction``.
+    """
+
+    amplitude: float = 0.2
+    wavelength: float = 2.0
+    origin: tuple[float, float] = (0.0, 0.0)
+    direction: float = 0.0
+    name = "sinusoid"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "amplitude", _number(self.amplitude, "amplitude"))
+        object.__setattr__(self, "wavelength",
+                           _number(self.wavelength, "wavelength", positive=True))
+        object.__setattr__(self, "origin", _point(self.origin, "origin"))
+        object.__setattr__(self, "direction", _number(self.direction, "direction"))
+        k = 2.0 * math.pi / self.wavelength
+        slope = self.amplitude * k
+        table = _ArcLength(lambda x: np.sqrt(1.0 + (slope * np.cos(k * x)) ** 2),
+                           np.linspace(0.0, self.wavelength, 129))
+        object.__setattr__(self, "_table", table)
+
+    def _geometry(self, s: np.ndarray) -> PathPoint:
+        table = self._table
+        laps = np.floor(s / table.total)
+        u = table.parameter(s - laps * table.total)
+        x = u + laps * self.wavelength
+        k, a = 2.0 * math.pi / self.wavelength, self.amplitude
+        sine, cosine = np.sin(k * x), np.cos(k * x)
+        gamma, kappa, dkappa = self._terms(a * k * cosine, -a * k**2 * sine,
+                                           -a * k**3 * cosine)
+        return self._place(np.stack((x, a * sine), axis=-1), gamma, kappa, dkappa)
+
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        total = self._table.total
+        laps = math.floor(s / total)
+        x = self._table.parameter_scalar(s - laps * total) + laps * self.wavelength
+        k, a = 2.0 * math.pi / self.wavelength, self.amplitude
+        sine, cosine = math.sin(k * x), math.cos(k * x)
+        return self._place_scalar(x, a * sine, a * k * cosine, -a * k * k * sine,
+                                  -a * k**3 * cosine)
+
+
+@dataclass(frozen=True)
+class Waypoints(_Finite):
+    """The C2 cubic spline through ``points`` (natural ends), by arc length.
+
+    Chord-length parameter u (cumulative distances between consecutive points); the
+    curve is straight beyond the first and last points (zero curvature there).
+    """
+
+    points: tuple[tuple[float, float], ...] = field(default=())
+    name = "waypoints"
+
+    def __post_init__(self) -> None:
+        pts = _waypoints(self.points)
+        object.__setattr__(self, "points", tuple(map(tuple, pts.tolist())))
+        chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        knots = np.r_[0.0, np.cumsum(chords)]
+        spline = CubicSpline(knots, pts, bc_type="natural")
+        derivs = tuple(spline.derivative(k) for k in (1, 2, 3))
+        sub = 16
+        nodes = (knots[:-1, None] + np.diff(knots)[:, None] * np.arange(sub) / sub).reshape(-1)
+        nodes = np.r_[nodes, knots[-1]]
+        d1 = derivs[0](nodes)
+        speed = np.linalg.norm(d1, axis=1)
+        if speed.min() <= 1e-9 * max(1.0, knots[-1]):
+            k = int(np.searchsorted(knots, nodes[int(np.argmin(speed))], side="right"))
+            raise ParameterError(f"points: the spline through them has a cusp near waypoint {k}")
+        gamma_nodes = np.unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
+        if np.any(np.abs(np.diff(gamma_nodes)) > 1.0):
+            raise ParameterError("points: the spline turns too sharply between waypoints "
+                                 "(add waypoints or space them out)")
+        table = _ArcLength(lambda u: np.linalg.norm(derivs[0](u), axis=1), nodes)
+        object.__setattr__(self, "_spline", spline)
+        object.__setattr__(self, "_derivs", derivs)
+        object.__setattr__(self, "_table", table)
+        object.__setattr__(self, "_gamma_nodes", gamma_nodes)
+        object.__setattr__(self, "knots_s", table.length(knots))
+        # per knot interval: cubic coefficients of x and y (highest first) as floats
+        object.__setattr__(self, "_knots_list", knots.tolist())
+        object.__setattr__(self, "_coefficients", [
+            (tuple(spline.c[:, i, 0].tolist()), tuple(spline.c[:, i, 1].tolist()))
+            for i in range(len(knots) - 1)])
+        object.__setattr__(self, "_gamma_list", gamma_nodes.tolist())
+
+    @property
+    def length(self) -> float:
+        return self._table.total
+
+    def _inside(self, s: np.ndarray) -> PathPoint:
+        table = self._table
+        u = table.parameter(s)
+        d1, d2, d3 = (d(u) for d in self._derivs)
+        wrapped, kappa, dkappa = _curve_terms(d1, d2, d3)
+        k = np.clip(np.searchsorted(table.u, u, side="right") - 1, 0, len(table.u) - 1)
+        near = self._gamma_nodes[k]
+        gamma = near + np.mod(wrapped - near + math.pi, 2.0 * math.pi) - math.pi
+        return PathPoint(self._spline(u), gamma, kappa, dkappa)
+
+    def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
+        table = self._table
+        u = table.parameter_scalar(s)
+        knots = self._knots_list
+        i = min(max(bisect.bisect_right(knots, u) - 1, 0), len(knots) - 2)
+        d = u - knots[i]
+        (ax, bx, cx, ex), (ay, by, cy, ey) = self._coefficients[i]
+        x, y = ((ax * d + bx) * d + cx) * d + ex, ((ay * d + by) * d + cy) * d + ey
+        x1, y1 = (3.0 * ax * d + 2.0 * bx) * d + cx, (3.0 * ay * d + 2.0 * by) * d + cy
+        x2, y2 = 6.0 * ax * d + 2.0 * bx, 6.0 * ay * d + 2.0 * by
+        x3, y3 = 6.0 * ax, 6.0 * ay
+        v2 = x1 * x1 + y1 * y1
+        v = math.sqrt(v2)
+        c12 = x1 * y2 - y1 * x2
+        kappa = c12 / (v2 * v)
+        dkappa = ((x1 * y3 - y1 * x3) * v2 - 3.0 * c12 * (x1 * x2 + y1 * y2)) / (v2 * v2 * v2)
+        nodes = table._u_list
+        k = min(max(bisect.bisect_right(nodes, u) - 1, 0), len(nodes) - 1)
+        near = self._gamma_list[k]
+        gamma = near + (math.atan2(y1, x1) - near + math.pi) % (2.0 * math.pi) - math.pi
+        return x, y, gamma, kappa, dkappa
+
+
+def _waypoints(points: object) -> np.ndarray:
+    """Waypoints as a checked (m, 2) array, or one ParameterError line."""
+    try:
+        pts = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"points must be a list of [x, y] pairs, got {_short(points)}") \
+            from exc
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ParameterError(f"points must be a list of [x, y] pairs, got shape {pts.shape}")
+    if len(pts) < 2:
+        raise ParameterError(f"points: a path needs at least two waypoints, got {len(pts)}")
+    if len(pts) > MAX_WAYPOINTS:
+        raise ParameterError(f"points: at most {MAX_WAYPOINTS} waypoints, got {len(pts)}")
+    bad = ~np.all(np.isfinite(pts), axis=1)
+    if bad.any():
+        raise ParameterError(f"points: waypoint {int(np.argmax(bad)) + 1} is not finite")
+    chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    tol = 1e-9 * max(1.0, float(np.abs(pts).max()))
+    if np.any(chords <= tol):
+        k = int(np.argmax(chords <= tol)) + 1
+        raise ParameterError(f"points: waypoints {k} and {k + 1} coincide "
+                             f"({pts[k - 1, 0]:g}, {pts[k - 1, 1]:g})")
+    return pts
+
+
+# -------------------------------------------------------------------------- timing
+@dataclass(frozen=True)
+class Timing:
+    """s(t): constant ``speed`` from arc length ``start``, after an optional smooth start.
+
+    With ``ramp`` = T > 0 the speed rises from 0 to v over 0 <= t <= T as
+    v sigma(t / T), sigma(u) = 10 u^3 - 15 u^4 + 6 u^5 (so s'' is continuous), then
+    s = start + v (t - T / 2). Before t = 0 the reference waits at ``start`` (with a ramp)
+    or extends the line backwards (without).
+    """
+
+    speed: float = 0.1
+    ramp: float = 0.0
+    start: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "speed", _number(self.speed, "speed", positive=True))
+        object.__setattr__(self, "ramp", _number(self.ramp, "ramp", non_negative=True))
+        object.__setattr__(self, "start", _number(self.start, "start"))
+
+    def __call__(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(s, s', s'') at time(s) t."""
+        t_arr = np.asarray(t, dtype=float)
+        v, big_t = self.speed, self.ramp
+        if big_t == 0.0:
+            return self.start + v * t_arr, np.full_like(t_arr, v), np.zeros_like(t_arr)
+        u = np.clip(t_arr / big_t, 0.0, 1.0)
+        ramp_s = big_t * v * u**4 * (2.5 - 3.0 * u + u**2)
+        after = t_arr > big_t
+        s = np.where(after, v * (t_arr - 0.5 * big_t), ramp_s)
+        ds = v * u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+        dds = np.where(after, 0.0, v / big_t * 30.0 * u**2 * (1.0 - u) ** 2)
+        return self.start + s, ds, dds
+
+    def scalar(self, t: float) -> tuple[float, float, float]:
+        """(s, s', s'') at one time t, in plain floats."""
+        v, big_t = self.speed, self.ramp
+        if big_t == 0.0:
+            return self.start + v * t, v, 0.0
+        if t >= big_t:
+            return self.start + v * (t - 0.5 * big_t), v, 0.0
+        u = max(t / big_t, 0.0)
+        return (self.start + big_t * v * u**4 * (2.5 - 3.0 * u + u * u),
+                v * u**3 * (10.0 - 15.0 * u + 6.0 * u * u),
+                v / big_t * 30.0 * u * u * (1.0 - u) ** 2)
+
+
+class PathReference:
+    """Head reference along a path: w_r(t) = [p(s(t)), gamma(s(t)) + pi] (head first).
+
+    Same interface as :class:`~snake_pin.control.reference.LinearReference`: calling it
+    at a time t gives (w_r, w_r', w_r''), three fresh float arrays of length 3.
+
+    Parameters
+    ----------
+    path
+        The curve.
+    timing
+        s(t); default :class:`Timing` (0.1 m/s from s = 0, no ramp).
+    """
+
+    def __init__(self, path: Path, timing: Timing | None = None) -> None:
+        if not isinstance(path, Path):
+            raise ParameterError(f"path must be a Path, got {type(path).__name__}")
+        if timing is not None and not isinstance(timing, Timing):
+            raise ParameterError(f"timing must be a Timing, got {type(timing).__name__}")
+        self.path = path
+        self.timing = timing or Timing()
+
+    def __repr__(self) -> str:
+        return f"PathReference({self.path!r}, {self.timing!r})"
+
+    @property
+    def name(self) -> str:
+        """The path's name."""
+        return self.path.name
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(w_r, w_r', w_r'') at time t (fresh arrays: callers may modify them).
+
+        One float at a time through plain-float code (the controllers call this every
+        step); :meth:`at` is the vectorised form and agrees with it to round-off.
+        """
+        t = float(t)
+        if not math.isfinite(t):
+            raise ParameterError("time must be finite")
+        s, ds, dds = self.timing.scalar(t)
+        x, y, gamma, kappa, dkappa = self.path._scalar(s)
+        c, d = math.cos(gamma), math.sin(gamma)
+        bend = kappa * ds * ds
+        return (np.array([x, y, gamma + math.pi]),
+                np.array([c * ds, d * ds, kappa * ds]),
+                np.array([-d * bend + c * dds, c * bend + d * dds,
+                          dkappa * ds * ds + kappa * dds]))
+
+    def at(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(w_r, w_r', w_r'') at many times: arrays of shape t.shape + (3,)."""
+        t_arr = np.asarray(t, dtype=float)
+        if not np.all(np.isfinite(t_arr)):
+            raise ParameterError("times must be finite")
+        s, ds, dds = self.timing(t_arr)
+        g = self.path.geometry(s)
+        tangent, normal = g.tangent, g.normal
+        w = np.concatenate((g.p, (g.gamma + math.pi)[..., None]), axis=-1)
+        dw = np.concatenate((tangent * ds[..., None], (g.kappa * ds)[..., None]), axis=-1)
+        ddw = np.concatenate(
+            ((g.kappa * ds**2)[..., None] * normal + tangent * dds[..., None],
+             (g.dkappa * ds**2 + g.kappa * dds)[..., None]), axis=-1)
+        return w, dw, ddw
+
+
+# ---------------------------------------------------------------- distance to a path
+def cross_track_error(path: Path | PathReference, points: object, *,
+                      span: tuple[float, float] | None = None) -> np.ndarray:
+    """Signed distance from each point to the path [m], positive on the left.
+
+    ``points`` is a (..., 2) array; the closest point is searched over ``span`` (see
+    :meth:`Path.project`). Where the closest point is an end of the span, the distance to
+    it is returned, signed by the side of the tangent there.
+    """
+    curve = path.path if isinstance(path, PathReference) else path
+    pts = np.asarray(points, dtype=float)
+    s = curve.project(pts, span=span)
+    g = curve.geometry(s)
+    diff = pts - g.p
+    side = np.einsum("...i,...i->...", diff, g.normal)
+    return np.where(side < 0.0, -1.0, 1.0) * np.linalg.norm(diff, axis=-1)
+
+
+def along_track(path: Path | PathReference, points: object, *,
+                span: tuple[float, float] | None = None) -> np.ndarray:
+    """Arc length of the closest point of the path to each point [m] (see :meth:`Path.project`)."""
+    curve = path.path if isinstance(path, PathReference) else path
+    return curve.project(points, span=span)
+
+
+# ------------------------------------------------------------------- construction
+_SHAPES: dict[str, type[Path]] = {
+    "line": Line, "circle": Circle, "arc": Arc, "lane_change": LaneChange,
+    "sinusoid": Sinusoid, "waypoints": Waypoints,
+}
+#: Parameter names of each shape as users write them (``length`` is LaneChange.length_x).
+_RENAMED = {"lane_change": {"length": "length_x"}}
+_TIMING_KEYS = ("speed", "ramp")
+
+
+def _shape_keys(name: str) -> tuple[str, ...]:
+    renamed = {v: k for k, v in _RENAMED.get(name, {}).items()}
+    return tuple(renamed.get(f.name, f.name) for f in fields(_SHAPES[name])  # type: ignore[arg-type]
+                 if not f.name.startswith("_"))
+
+
+def make_path(name: str, **params: Any) -> Path:
+    """The shape ``name`` (one of :data:`PATH_NAMES`) with its parameters.
+
+    Parameters (defaults start at the origin heading along +x):
+
+    - ``line``: ``start`` [x, y], ``direction`` [rad];
+    - ``circle``: ``radius`` (1.2), ``centre`` [x, y], ``start_angle`` [rad], ``clockwise``;
+    - ``arc``: as circle, plus ``angle`` (the sweep, pi/2);
+    - ``lane_change``: ``offset`` (0.3, left positive), ``length`` (2.0), ``start`` (0.5),
+      ``origin``, ``direction``;
+    - ``sinusoid``: ``amplitude`` (0.2), ``wavelength`` (2.0), ``origin``, ``direction``;
+    - ``waypoints``: ``points`` [[x, y], ...].
+    """
+    if not isinstance(name, str) or name not in _SHAPES:
+        raise ParameterError(f"unknown path {_short(name)}: expected one of "
+                             f"{', '.join(PATH_NAMES)} or a .toml/.csv path file")
+    allowed = _shape_keys(name)
+    for key in params:
+        if key not in allowed:
+            raise ParameterError(f"unknown parameter {_short(key)} for path {name!r} "
+                                 f"(expected one of {', '.join(allowed)})")
+    if name == "waypoints" and "points" not in params:
+        raise ParameterError("waypoints: points is required")
+    renames = _RENAMED.get(name, {})
+    return _SHAPES[name](**{renames.get(k, k): v for k, v in params.items()})
+
+
+def _file_error(path: str | os.PathLike[str], message: str) -> PathFileError:
+    return PathFileError(" ".join(f"{os.fspath(path)}: {message}".split()))
+
+
+def _read_file(path: str | os.PathLike[str]) -> str:
+    target = FilePath(path)
+    try:
+        if not target.exists():
+            raise _file_error(path, "no such path file")
+        if target.is_dir():
+            raise _file_error(path, "is a folder, not a path file")
+        with open(target, "rb") as handle:
+            data = handle.read(MAX_PATH_FILE_BYTES + 1)
+    except OSError as exc:
+        raise _file_error(path, f"cannot read it ({exc.strerror or exc})") from exc
+    if len(data) > MAX_PATH_FILE_BYTES:
+        raise _file_error(path, f"is larger than {MAX_PATH_FILE_BYTES} bytes: not a path file")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise _file_error(path, f"not a text file (not UTF-8 at byte {exc.start})") from None
+
+
+def _parse_toml(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise _file_error(path, f"not valid TOML: {exc}") from None
+    kind = doc.pop("type", None)
+    if kind is None:
+        raise _file_error(path, f"type is required (one of {', '.join(PATH_NAMES)})")
+    if not isinstance(kind, str) or kind not in _SHAPES:
+        raise _file_error(path, f"type: unknown path type {_short(kind)} "
+                                f"(expected one of {', '.join(PATH_NAMES)})")
+    allowed = (*_shape_keys(kind), *_TIMING_KEYS)
+    for key, value in doc.items():
+        if key not in allowed:
+            raise _file_error(path, f"unknown key {_short(key)} for type {kind!r} "
+                                    f"(expected one of {', '.join(allowed)})")
+        if isinstance(value, dict):
+            raise _file_error(path, f"{key} must be a value, not a table")
+    return {"type": kind, **doc}
+
+
+def _parse_csv(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
+    """Waypoints from CSV: two columns x, y; the first line may be a header (no numbers)."""
+    rows: list[tuple[float, float]] = []
+    seen_line = False
+    try:
+        for row in csv.reader(io.StringIO(text)):
+            cells = [c.strip() for c in row]
+            if not any(cells):
+                continue
+            first, seen_line = not seen_line, True
+            if len(cells) != 2:
+                raise _file_error(path, f"row {len(rows) + 1 + (not first)}: expected two "
+                                        f"columns x, y, got {len(cells)}")
+            try:
+                x, y = float(cells[0]), float(cells[1])
+            except ValueError:
+                if first and not _any_number(cells):
+                    continue  # the header
+                raise _file_error(path, f"waypoint {len(rows) + 1}: not a number pair "
+                                        f"{_short(','.join(cells))}") from None
+            if not (math.isfinite(x) and math.isfinite(y)):
+                raise _file_error(path, f"waypoint {len(rows) + 1}: not finite ({x}, {y})")
+            rows.append((x, y))
+            if len(rows) > MAX_WAYPOINTS:
+                raise _file_error(path, f"more than {MAX_WAYPOINTS} waypoints")
+    except csv.Error as exc:
+        raise _file_error(path, f"not valid CSV: {exc}") from None
+    return {"type": "waypoints", "points": rows}
+
+
+def _any_number(cells: list[str]) -> bool:
+    for cell in cells:
+        try:
+            float(cell)
+        except ValueError:
+            continue
+        return True
+    return False
+
+
+def load_path(spec: str | os.PathLike[str] | Path | PathReference,
+              **params: Any) -> PathReference:
+    """A head reference from a shape name and its parameters, or from a path file.
+
+    Parameters
+    ----------
+    spec
+        One of :data:`PATH_NAMES` (parameters in ``params``, see :func:`make_path`), a
+        ``.toml`` or ``.csv`` path file (see the module docstring), a :class:`Path`, or a
+        :class:`PathReference` (returned as is when no parameter is given).
+    params
+        Shape parameters and the timing's ``speed`` [m/s] (default 0.1) and ``ramp`` [s]
+        (default 0). With a file, these override the file's values (e.g. a speed given
+        on the command line).
+
+    Raises
+    ------
+    PathFileError
+        A file problem, one line naming the file and the field.
+    ParameterError
+        A bad name or parameter, one line naming it.
+    """
+    if isinstance(spec, PathReference) and not params:
+        return spec
+    timing = {k: params.pop(k) for k in _TIMING_KEYS if k in params}
+    if isinstance(spec, Path):
+        if params:
+            raise ParameterError(f"unknown parameter {next(iter(params))!r} for a Path object")
+        return PathReference(spec, Timing(**timing))
+    if isinstance(spec, str) and spec in _SHAPES:
+        if spec == "waypoints" and "points" not in params:
+            raise ParameterError("waypoints: points is required (or give a .toml/.csv file)")
+        return PathReference(make_path(spec, **params), Timing(**timing))
+    if not isinstance(spec, (str, os.PathLike)):
+        raise ParameterError(f"path must be a name ({', '.join(PATH_NAMES)}) or a file, "
+                             f"got {_short(spec)}")
+    file_name = os.fspath(spec)
+    suffix = FilePath(file_name).suffix.lower()
+    if suffix not in (".toml", ".csv"):
+        raise ParameterError(f"unknown path {_short(file_name)}: expected one of "
+                             f"{', '.join(PATH_NAMES)} or a .toml/.csv path file")
+    text = _read_file(spec)
+    doc = _parse_toml(spec, text) if suffix == ".toml" else _parse_csv(spec, text)
+    kind = doc.pop("type")
+    file_timing = {k: doc.pop(k) for k in _TIMING_KEYS if k in doc}
+    doc.update(params)
+    try:
+        return PathReference(make_path(kind, **doc), Timing(**{**file_timing, **timing}))
+    except PathFileError:
+        raise
+    except ParameterError as exc:
+        raise _file_error(spec, str(exc)) from None

@@ -1,0 +1,292 @@
+"""Paths and head references: exact derivatives, arc length, continuity, files, distances."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path as FilePath
+
+import numpy as np
+import pytest
+
+from snake_pin.control import head_first_reference
+from snake_pin.exceptions import ParameterError
+from snake_pin.paths import (
+    Arc,
+    Circle,
+    LaneChange,
+    Line,
+    Path,
+    PathFileError,
+    PathReference,
+    Sinusoid,
+    Timing,
+    Waypoints,
+    along_track,
+    cross_track_error,
+    load_path,
+    make_path,
+)
+
+#: A loop of waypoints whose heading passes through +-pi (it heads back along -x).
+LOOP = [(0.0, 0.0), (1.0, 0.2), (2.0, -0.5), (2.5, 1.0), (1.0, 1.5), (-1.0, 0.5)]
+
+PATHS: dict[str, Path] = {
+    "line": Line(start=(1.0, 2.0), direction=2.5),
+    "circle": Circle(radius=0.6),
+    "circle_cw": Circle(radius=1.0, clockwise=True, centre=(1.0, 1.0), start_angle=0.3),
+    "arc": Arc(radius=0.8, angle=2.0),
+    "lane_change": LaneChange(offset=-0.4, length_x=1.5, start=0.3, direction=0.7),
+    "sinusoid": Sinusoid(amplitude=0.3, wavelength=1.5, origin=(1.0, 0.0), direction=-0.4),
+    "waypoints": Waypoints(points=LOOP),
+}
+
+
+@pytest.fixture(params=list(PATHS), ids=list(PATHS))
+def path(request: pytest.FixtureRequest) -> Path:
+    return PATHS[request.param]
+
+
+def _span(path: Path) -> np.ndarray:
+    """Arc lengths over the defined part and beyond both ends (at most 8 m)."""
+    return np.linspace(-0.5, min(path.length, 8.0) + 0.5, 4001)
+
+
+def test_derivatives_match_central_differences(path: Path, rng: np.random.Generator) -> None:
+    """w_r' and w_r'' equal central differences of w_r and w_r' (ramp included)."""
+    ref = PathReference(path, Timing(speed=0.13, ramp=2.0))
+    h = 1e-5
+    for t in np.r_[rng.uniform(-1.0, 70.0, 25), 0.7, 1.9]:
+        _, dw, ddw = ref(t)
+        w_p, dw_p, _ = ref(t + h)
+        w_m, dw_m, _ = ref(t - h)
+        np.testing.assert_allclose((w_p - w_m) / (2 * h), dw, atol=1e-8)
+        np.testing.assert_allclose((dw_p - dw_m) / (2 * h), ddw, atol=1e-7)
+
+
+def test_scalar_and_vectorised_references_agree(path: Path, rng: np.random.Generator) -> None:
+    """The per-step float path and PathReference.at give the same w_r, w_r', w_r''."""
+    ref = PathReference(path, Timing(speed=0.13, ramp=2.0, start=-0.2))
+    ts = np.r_[rng.uniform(-1.0, 70.0, 50), 0.0, 2.0]
+    batch = ref.at(ts)
+    for k, t in enumerate(ts):
+        for single, many in zip(ref(t), batch, strict=True):
+            np.testing.assert_allclose(single, many[k], rtol=1e-12, atol=1e-12)
+
+
+def test_arc_length_parametrisation(path: Path) -> None:
+    """|dp/ds| = 1, d gamma/ds = kappa and d kappa/ds = dkappa (central differences)."""
+    s, h = _span(path), 1e-5
+    g, g_p, g_m = path.geometry(s), path.geometry(s + h), path.geometry(s - h)
+    dp = (g_p.p - g_m.p) / (2 * h)
+    np.testing.assert_allclose(np.linalg.norm(dp, axis=1), 1.0, atol=1e-7)
+    np.testing.assert_allclose(dp, g.tangent, atol=1e-7)
+    smooth = (np.abs(g_p.kappa - g_m.kappa) < 1e-3)  # away from an arc's ends
+    np.testing.assert_allclose(((g_p.gamma - g_m.gamma) / (2 * h))[smooth], g.kappa[smooth],
+                               atol=1e-6)
+    if path.name not in ("waypoints", "arc"):  # kappa' jumps at spline knots, arc ends
+        np.testing.assert_allclose((g_p.kappa - g_m.kappa) / (2 * h), g.dkappa, atol=1e-5)
+
+
+def test_heading_is_continuous(path: Path) -> None:
+    """No jump in theta_1 between close samples, also where the tangent crosses +-pi."""
+    ref = PathReference(path, Timing(speed=0.1))
+    ts = np.linspace(-5.0, 80.0, 85001)  # 1 mm of path between samples
+    heading = ref.at(ts)[0][:, 2]
+    assert np.max(np.abs(np.diff(heading))) < 5e-3
+    if path.name in ("circle", "circle_cw", "waypoints"):
+        # these sweep past theta_1 = +-pi (mod 2 pi) without a 2 pi jump
+        crossings = np.floor((heading - np.pi) / (2 * np.pi))
+        assert crossings.min() != crossings.max()
+
+
+def test_head_first_convention() -> None:
+    """theta_1 = tangent angle + pi; a line along +x at 0.1 m/s is the paper's reference."""
+    paper, line = head_first_reference(0.1), PathReference(Line(), Timing(0.1))
+    for t in (0.0, 3.7, 59.0):
+        for a, b in zip(paper(t), line(t), strict=True):
+            np.testing.assert_allclose(a, b, atol=1e-15)
+    w = PathReference(Line(direction=0.5))(1.0)[0]
+    assert w[2] == pytest.approx(0.5 + np.pi)
+
+
+@pytest.mark.parametrize("name", ["lane_change", "waypoints"])
+def test_second_derivative_continuous_at_joins(name: str) -> None:
+    """p'' = kappa n has no jump where pieces meet (lane change also kappa', C3)."""
+    path = PATHS[name]
+    if name == "lane_change":
+        joins = np.array([path.start, path.start + path.s_length])
+    else:
+        joins = np.r_[path.knots_s, 0.0, path.length]
+    eps = 1e-7
+    left, right = path.geometry(joins - eps), path.geometry(joins + eps)
+    np.testing.assert_allclose(left.kappa, right.kappa, atol=1e-5)
+    np.testing.assert_allclose(left.tangent, right.tangent, atol=1e-6)
+    assert np.any(np.abs(path.geometry(np.linspace(0, path.length if math.isfinite(
+        path.length) else 3.0, 50)).kappa) > 0.1)  # the pieces do bend
+    if name == "lane_change":
+        np.testing.assert_allclose(left.dkappa, right.dkappa, atol=1e-4)
+
+
+def test_spline_passes_through_its_waypoints() -> None:
+    """p(s_k) is waypoint k, and the ends have zero curvature (natural spline)."""
+    path = PATHS["waypoints"]
+    np.testing.assert_allclose(path.point(path.knots_s), LOOP, atol=1e-12)
+    assert np.abs(path.geometry(np.array([0.0, path.length])).kappa).max() < 1e-9
+
+
+def test_circle_geometry() -> None:
+    """Default circle: through the origin heading +x, centre (0, R), kappa = 1/R, laps on."""
+    circle = Circle(radius=1.2)
+    assert circle.centre == pytest.approx((0.0, 1.2))
+    g = circle.geometry(np.array([0.0, circle.length / 4, 2.5 * circle.length]))
+    np.testing.assert_allclose(g.p, [[0, 0], [1.2, 1.2], [0, 2.4]], atol=1e-12)
+    np.testing.assert_allclose(g.gamma, [0.0, np.pi / 2, 5 * np.pi])
+    np.testing.assert_allclose(g.kappa, 1 / 1.2)
+    cw = Circle(radius=2.0, clockwise=True)
+    assert cw.centre == pytest.approx((0.0, -2.0))
+    assert cw.geometry(1.0).kappa == pytest.approx(-0.5)
+
+
+def test_cross_track_error_of_offset_points(path: Path, rng: np.random.Generator) -> None:
+    """Points moved d along the left normal are at signed distance d, closest at s."""
+    s = rng.uniform(0.0, min(path.length, 6.0), 200)
+    g = path.geometry(s)
+    d = rng.uniform(-0.08, 0.08, 200)
+    points = g.p + d[:, None] * g.normal
+    np.testing.assert_allclose(cross_track_error(path, points), d, atol=1e-10)
+    np.testing.assert_allclose(along_track(path, points), s, atol=1e-8)
+
+
+def test_projection_tracks_from_a_hint() -> None:
+    """With a hint, the projection follows the nearby lap/branch (circle's second lap)."""
+    circle = Circle(radius=1.0)
+    point = circle.point(1.5 * circle.length) * 1.1
+    s = circle.project(point, hint=1.4 * circle.length)
+    assert s == pytest.approx(1.5 * circle.length)
+    sine = PATHS["sinusoid"]
+    target = 7.3
+    near = sine.point(target) + 0.02 * sine.geometry(target).normal
+    assert sine.project(near, hint=target + 0.3) == pytest.approx(target, abs=1e-9)
+
+
+def test_timing_ramp_is_smooth() -> None:
+    """The ramp starts at rest, reaches v at T with s'' = 0 there, and s = v (t - T/2) after."""
+    timing = Timing(speed=0.2, ramp=3.0, start=1.0)
+    s, ds, dds = timing(np.array([0.0, 3.0, 5.0]))
+    np.testing.assert_allclose(s, [1.0, 1.3, 1.7])
+    np.testing.assert_allclose(ds, [0.0, 0.2, 0.2])
+    np.testing.assert_allclose(dds, 0.0, atol=1e-15)
+    assert timing(1.5)[2] > 0
+
+
+# ---------------------------------------------------------------------- path files
+def test_toml_and_csv_files_load(tmp_path: FilePath) -> None:
+    """TOML waypoints/shapes and CSV (with or without a header) give the paths they name."""
+    toml = tmp_path / "loop.toml"
+    toml.write_text(f"type = \"waypoints\"\npoints = {[list(p) for p in LOOP]}\nspeed = 0.2\n")
+    ref = load_path(toml)
+    assert ref.timing.speed == 0.2
+    np.testing.assert_allclose(ref.path.point(ref.path.knots_s), LOOP)
+    circle = tmp_path / "circle.toml"
+    circle.write_text('type = "circle"\nradius = 0.9\nclockwise = true\nramp = 2.0\n')
+    ref = load_path(circle, speed=0.05)  # a command-line speed overrides the file
+    assert ref.path == Circle(radius=0.9, clockwise=True)
+    assert (ref.timing.speed, ref.timing.ramp) == (0.05, 2.0)
+    lane = tmp_path / "lane.toml"
+    lane.write_text('type = "lane_change"\noffset = -0.2\nlength = 1.5\n')
+    assert load_path(lane).path == LaneChange(offset=-0.2, length_x=1.5)
+    rows = "\n".join(f"{x},{y}" for x, y in LOOP)
+    for text in (rows, "x,y\n" + rows, "x, y\n\n" + rows + "\n"):
+        csv = tmp_path / "loop.csv"
+        csv.write_text(text)
+        np.testing.assert_allclose(load_path(csv).path.points, LOOP)
+
+
+def test_named_paths() -> None:
+    """Names with parameters build the shapes; unknown names and keys are refused."""
+    assert load_path("circle", radius=2.0, speed=0.3).path == Circle(radius=2.0)
+    assert make_path("lane_change", length=3.0) == LaneChange(length_x=3.0)
+    assert isinstance(load_path("sinusoid").path, Sinusoid)
+    with pytest.raises(ParameterError, match="unknown path 'hexagon'"):
+        load_path("hexagon")
+    with pytest.raises(ParameterError, match="unknown parameter 'radious'"):
+        load_path("circle", radious=1.0)
+
+
+BAD_FILES = {
+    "one_waypoint.toml": ('type = "waypoints"\npoints = [[0, 0]]\n', "at least two waypoints"),
+    "repeated.toml": ('type = "waypoints"\npoints = [[0, 0], [1, 0], [1, 0], [2, 1]]\n',
+                      "waypoints 2 and 3 coincide"),
+    "radius.toml": ('type = "circle"\nradius = 0.0\n', "radius must be positive"),
+    "negative_radius.toml": ('type = "arc"\nradius = -1.0\n', "radius must be positive"),
+    "speed.toml": ('type = "line"\nspeed = 0\n', "speed must be positive"),
+    "nan.toml": ('type = "sinusoid"\namplitude = nan\n', "amplitude must be finite"),
+    "nan_point.toml": ('type = "waypoints"\npoints = [[0, 0], [nan, 1]]\n', "waypoint 2"),
+    "syntax.toml": ('type = "circle"\nradius = = 1\n', "not valid TOML"),
+    "unknown_key.toml": ('type = "circle"\nradius = 1\ncolour = "red"\n',
+                         "unknown key 'colour'"),
+    "no_type.toml": ("radius = 1\n", "type is required"),
+    "bad_type.toml": ('type = "spiral"\n', "unknown path type 'spiral'"),
+    "string_radius.toml": ('type = "circle"\nradius = "big"\n', "radius must be a number"),
+    "one_row.csv": ("x,y\n0,0\n", "at least two waypoints"),
+    "repeated.csv": ("0,0\n0,0\n1,1\n", "waypoints 1 and 2 coincide"),
+    "text.csv": ("0,0\n1,one\n", "waypoint 2: not a number pair"),
+    "columns.csv": ("0,0,0\n1,1,1\n", "expected two columns"),
+    "nan.csv": ("0,0\nnan,1\n", "waypoint 2: not finite"),
+    "binary.csv": (b"\xff\xfe\x00", "not UTF-8"),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_FILES))
+def test_bad_path_files_are_refused_in_one_line(tmp_path: FilePath, name: str) -> None:
+    """Every bad file is one PathFileError line naming the file and the problem."""
+    text, expected = BAD_FILES[name]
+    target = tmp_path / name
+    if isinstance(text, bytes):
+        target.write_bytes(text)
+    else:
+        target.write_text(text)
+    with pytest.raises(PathFileError) as info:
+        load_path(target)
+    message = str(info.value)
+    assert "\n" not in message
+    assert str(target) in message and expected in message
+    assert isinstance(info.value, ParameterError)
+
+
+def test_missing_and_unsupported_files(tmp_path: FilePath) -> None:
+    """A missing file, a folder and a suffix that is neither .toml nor .csv are refused."""
+    with pytest.raises(PathFileError, match="no such path file"):
+        load_path(tmp_path / "absent.toml")
+    folder = tmp_path / "dir.csv"
+    folder.mkdir()
+    with pytest.raises(PathFileError, match="is a folder"):
+        load_path(folder)
+    with pytest.raises(ParameterError, match="unknown path"):
+        load_path(tmp_path / "path.json")
+
+
+@pytest.mark.parametrize("kwargs, expected", [
+    ({"points": [(0, 0)]}, "at least two waypoints"),
+    ({"points": [(0, 0), (0, 0)]}, "coincide"),
+    ({"points": [(0, 0), (1, float("nan"))]}, "not finite"),
+])
+def test_bad_waypoints(kwargs: dict[str, object], expected: str) -> None:
+    """Waypoints built in Python are checked like files' (one ParameterError line)."""
+    with pytest.raises(ParameterError, match=expected):
+        Waypoints(**kwargs)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("build, expected", [
+    (lambda: Circle(radius=-0.5), "radius must be positive"),
+    (lambda: Arc(angle=0.0), "angle must be positive"),
+    (lambda: Timing(speed=-0.1), "speed must be positive"),
+    (lambda: Timing(ramp=float("inf")), "ramp must be finite"),
+    (lambda: Sinusoid(wavelength=0.0), "wavelength must be positive"),
+    (lambda: LaneChange(length_x=-1.0), "length must be positive"),
+    (lambda: Line(start=(0.0,)), "start must be a point"),
+])
+def test_bad_parameters(build: object, expected: str) -> None:
+    """Out-of-domain shape and timing parameters are one ParameterError naming them."""
+    with pytest.raises(ParameterError, match=expected):
+        build()  # type: ignore[operator]
