@@ -21,6 +21,7 @@ from .exceptions import (
     RunInterrupted,
     SingularPostureError,
     SnakePinError,
+    StudyError,
     TrajectoryFileError,
 )
 from .params import SnakeParams
@@ -57,6 +58,7 @@ __all__ = [
     "Snake",
     "SnakeParams",
     "SnakePinError",
+    "StudyError",
     "Trajectory",
     "TrajectoryFileError",
     "arc",

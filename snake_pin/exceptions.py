@@ -16,6 +16,7 @@ __all__ = [
     "RunInterrupted",
     "SingularPostureError",
     "SnakePinError",
+    "StudyError",
     "TrajectoryFileError",
 ]
 
@@ -42,6 +43,10 @@ class TrajectoryFileError(SnakePinError):
 
 class RobotFileError(SnakePinError):
     """A robot description (TOML robot file or URDF) is missing, malformed or unsupported."""
+
+
+class StudyError(SnakePinError, ValueError):
+    """A study file, its output folder or the scheduler address is not usable."""
 
 
 class RunInterrupted(KeyboardInterrupt):
