@@ -142,14 +142,14 @@ def test_a_positive_offset_turns_right_at_the_identified_rate(snake: Snake) -> N
 
 @pytest.mark.parametrize("side", [1.0, -1.0])
 def test_converges_to_a_straight_path(snake: Snake, side: float) -> None:
-    """From 0.3 m off the x axis the CM error falls below 0.1 of it within 25 s."""
+    """From 0.3 m off the x axis the CM error falls below 0.1 of it within 30 s."""
     ctrl = LOSController(snake, Line())
-    traj = simulate(snake, ctrl, _start(snake, ctrl, 0.3 * side), 25.0, dt=STEP,
+    traj = simulate(snake, ctrl, _start(snake, ctrl, 0.3 * side), 30.0, dt=STEP,
                     control_dt=STEP)
     assert traj.status == "completed"
     error = traj.signals["e_ct"]
     assert error[0] == pytest.approx(0.3 * side)
-    assert np.nanmax(np.abs(error[traj.t > 23.0])) < 0.1 * 0.3
+    assert np.nanmax(np.abs(error[traj.t > 27.0])) < 0.1 * 0.3
     assert traj.signals["s_cm"][-2] - traj.signals["s_cm"][0] > 2.0  # it moves along
     phi_r = np.array([ctrl.gait(t)[0] for t in traj.t]) + traj.signals["phi_0"][:, None]
     settled = traj.t > 5.0

@@ -88,9 +88,10 @@ Parameters and their defaults (:class:`LOSParams`)
 Chosen for the Table 1 robot with c_x = 0.5, c_y = 25 N s/m
 (``SnakeParams.table1(c_y=25.0)``), all measured with :func:`snake_pin.sim.simulate`:
 
-- gait alpha = 0.5 rad, omega = 1.1 rad/s, delta = 0.94 rad (about the VI.2
-  serpenoid's amplitude and its 1.5 waves along the body; omega chosen for ~0.1 m/s,
-  the head-tracking runs' speed; omega = 2 rad/s gives 0.19 m/s);
+- gait alpha = 0.5 rad, omega = 0.8 rad/s, delta = 0.94 rad (about the VI.2
+  serpenoid's amplitude and its 1.5 waves along the body; omega chosen for 0.1 m/s
+  along the path, the head-tracking runs' speed: 0.07-0.10 m/s on the scenarios below,
+  0.13-0.14 m/s at omega = 1.1, 0.19 m/s at omega = 2 without steering);
 - lambda_1 = 20 /s, lambda_2 = 186 /(m s): open-loop runs with constant offsets
   (phi_0 = +-0.1, 0.1 then -0.05) fitted to the averaged model give a turning rate
   psi' = -(lambda_2 / lambda_1) v_t phi_bar with lambda_2 / lambda_1 = 9.3 /m at
@@ -102,9 +103,9 @@ Chosen for the Table 1 robot with c_x = 0.5, c_y = 25 N s/m
   phi0_rate = 0.3 rad/s, offset_period = 0.5 s, joint gains k_p = 100 /s^2,
   k_d = 20 /s (critically damped, 10 rad/s). Of the settings tried (Delta 0.6 or 1.2 m,
   k_theta 5-20, ref_period 0.5-4 s, phi0_max 0.35-0.6, phi0_rate 0.25-1, the PD law with
-  k_p 0.1-1), these gave the lowest CM cross-track errors over circles of radius 0.6,
-  1.2 and 2.4 m, a lane change and a sinusoid (RMS 1-3 cm over 20-60 s, 60 s runs at
-  5 ms steps) with peak torques of 3.4 N m in the start-up (0.6 N m RMS); a 4 s
+  k_p 0.1-1, omega 0.7-1.1), these gave the lowest CM cross-track errors over circles of
+  radius 0.6, 1.2 and 2.4 m, a lane change and a sinusoid (RMS 1-2 cm over 20-60 s of
+  60 s runs) with peak torques of about 3.4 N m in the start-up (0.6 N m RMS); a 4 s
   reference filter lags on circles (0.12-0.22 m), 0.5 s passes the gait's oscillation
   of e into phi_0; the PD law keeps 5-16 cm on the circles.
 
@@ -165,7 +166,7 @@ class LOSParams:
     """
 
     alpha: float = 0.5
-    omega: float = 1.1
+    omega: float = 0.8
     delta: float = 0.94
     look_ahead: float = 0.6
     steering: str = "cascaded"
