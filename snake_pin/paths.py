@@ -185,7 +185,7 @@ def _number(value: object, name: str, *, positive: bool = False,
 
 def _point(value: object, name: str) -> tuple[float, float]:
     """A finite 2-vector [x, y] or one ParameterError line."""
-    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+    if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
         raise ParameterError(f"{name} must be a point [x, y], got {_short(value)}")
     return (_number(value[0], f"{name}[0]"), _number(value[1], f"{name}[1]"))
 
@@ -513,6 +513,8 @@ class Circle(Path):
     centre: tuple[float, float] | None = None
     start_angle: float | None = None
     clockwise: bool = False
+    _c: tuple[float, float] = field(init=False, repr=False, compare=False)
+    _a0: float = field(init=False, repr=False, compare=False)
     name = "circle"
 
     def __post_init__(self) -> None:
@@ -523,6 +525,8 @@ class Circle(Path):
         object.__setattr__(self, "clockwise", clockwise)
         object.__setattr__(self, "centre", centre)
         object.__setattr__(self, "start_angle", start)
+        object.__setattr__(self, "_c", centre)  # the same values, typed as never None
+        object.__setattr__(self, "_a0", start)
 
     @property
     def side(self) -> float:
@@ -535,9 +539,9 @@ class Circle(Path):
 
     def _circle(self, s: np.ndarray) -> PathPoint:
         side, radius = self.side, self.radius
-        polar = self.start_angle + side * s / radius
-        p = np.stack((self.centre[0] + radius * np.cos(polar),
-                      self.centre[1] + radius * np.sin(polar)), axis=-1)
+        polar = self._a0 + side * s / radius
+        p = np.stack((self._c[0] + radius * np.cos(polar),
+                      self._c[1] + radius * np.sin(polar)), axis=-1)
         zero = np.zeros_like(s)
         return PathPoint(p, polar + side * _HALF_PI, zero + side / radius, zero)
 
@@ -546,9 +550,9 @@ class Circle(Path):
 
     def _circle_scalar(self, s: float) -> tuple[float, float, float, float, float]:
         side, radius = self.side, self.radius
-        polar = self.start_angle + side * s / radius
-        return (self.centre[0] + radius * math.cos(polar),
-                self.centre[1] + radius * math.sin(polar), polar + side * _HALF_PI,
+        polar = self._a0 + side * s / radius
+        return (self._c[0] + radius * math.cos(polar),
+                self._c[1] + radius * math.sin(polar), polar + side * _HALF_PI,
                 side / radius, 0.0)
 
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
@@ -563,9 +567,9 @@ class Circle(Path):
         pts = np.asarray(points, dtype=float)
         if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
             raise ParameterError("points must be a finite (..., 2) array")
-        polar = np.arctan2(pts[..., 1] - self.centre[1], pts[..., 0] - self.centre[0])
+        polar = np.arctan2(pts[..., 1] - self._c[1], pts[..., 0] - self._c[0])
         lap = self.length
-        s = np.mod(self.side * (polar - self.start_angle) * self.radius, lap)
+        s = np.mod(self.side * (polar - self._a0) * self.radius, lap)
         if hint is not None:
             ref = np.asarray(hint, dtype=float)
             s = s + lap * np.round((ref - s) / lap)
@@ -658,6 +662,8 @@ class LaneChange(_GraphCurve):
     start: float = 0.5
     origin: tuple[float, float] = (0.0, 0.0)
     direction: float = 0.0
+    _f: tuple[tuple[Polynomial, float], ...] = field(init=False, repr=False, compare=False)
+    _table: _ArcLength = field(init=False, repr=False, compare=False)
     name = "lane_change"
 
     _P = Polynomial([0, 0, 0, 0, 35, -84, 70, -20])
@@ -729,6 +735,7 @@ class Sinusoid(_GraphCurve):
     wavelength: float = 2.0
     origin: tuple[float, float] = (0.0, 0.0)
     direction: float = 0.0
+    _table: _ArcLength = field(init=False, repr=False, compare=False)
     name = "sinusoid"
 
     def __post_init__(self) -> None:
@@ -773,6 +780,15 @@ class Waypoints(_Finite):
     """
 
     points: tuple[tuple[float, float], ...] = field(default=())
+    knots_s: np.ndarray = field(init=False, repr=False, compare=False)
+    _spline: CubicSpline = field(init=False, repr=False, compare=False)
+    _derivs: tuple[Any, ...] = field(init=False, repr=False, compare=False)
+    _table: _ArcLength = field(init=False, repr=False, compare=False)
+    _gamma_nodes: np.ndarray = field(init=False, repr=False, compare=False)
+    _knots_list: list[float] = field(init=False, repr=False, compare=False)
+    _coefficients: list[tuple[tuple[float, ...], tuple[float, ...]]] = field(
+        init=False, repr=False, compare=False)
+    _gamma_list: list[float] = field(init=False, repr=False, compare=False)
     name = "waypoints"
 
     def __post_init__(self) -> None:
@@ -1018,7 +1034,7 @@ _TIMING_KEYS = ("speed", "ramp")
 def _shape_keys(name: str) -> tuple[str, ...]:
     renamed = {v: k for k, v in _RENAMED.get(name, {}).items()}
     return tuple(renamed.get(f.name, f.name) for f in fields(_SHAPES[name])  # type: ignore[arg-type]
-                 if not f.name.startswith("_"))
+                 if f.init)
 
 
 def make_path(name: str, **params: Any) -> Path:
