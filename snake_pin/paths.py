@@ -180,6 +180,11 @@ def _number(value: object, name: str, *, positive: bool = False,
     """A finite float (optionally > 0 or >= 0) or one ParameterError line naming ``name``."""
     if not isinstance(value, numbers.Real) or isinstance(value, bool):
         raise ParameterError(f"{name} must be a number, got {_short(value)}")
+    try:
+        float(value)
+    except OverflowError:
+        raise ParameterError(f"{name} must be finite, got an integer of "
+                             f"{len(str(value))} digits") from None
     return finite_number(value, name, positive=positive, non_negative=non_negative)
 
 
@@ -864,7 +869,7 @@ def _waypoints(points: object) -> np.ndarray:
     """Waypoints as a checked (m, 2) array, or one ParameterError line."""
     try:
         pts = np.asarray(points, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise ParameterError(f"points must be a list of [x, y] pairs, got {_short(points)}") \
             from exc
     if pts.ndim != 2 or pts.shape[1] != 2:
