@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 from urllib.parse import urlparse
 
+from . import __version__
 from .exceptions import RunInterrupted, SnakePinError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
@@ -53,6 +54,10 @@ MIN_FPS, MAX_FPS = 1.0, 120.0
 #: Engine options' ranges: a wheel bigger than the link collides with its neighbours.
 MAX_WHEEL_RADIUS = 0.1
 MAX_MU = 10.0
+#: ``engine --seeds``: most runs of one distribution (each 60 s run writes ~13 MB), and
+#: the largest offset of the initial joint angles [rad] (a perturbation, not a new posture).
+MAX_SEEDS = 100
+MAX_PERTURBATION = 0.1
 
 _EPILOG = """\
 exit status:
@@ -66,7 +71,11 @@ exit status:
 
 limits: --n <= {links}, --t-final <= {t_max:g} s ({steps} control steps),
 --points <= {points}, --starts <= {starts}, 0 <= --seed <= 2**32 - 1, --port <= 65535,
---fps in [1, 120], |--q entries| <= 1e9.
+--fps in [1, 120], |--q entries| <= 1e9, --seeds <= {seeds}, --perturbation <= {eps:g} rad.
+
+robots: --robot takes a preset (table1, engine), a TOML robot file (.toml) or a URDF
+(.urdf); the robots shipped with snake_pin also by bare file name (e.g.
+camera_head_snake.toml). A problem with the file is one line naming it.
 """
 
 _ANGLE = re.compile(r"^\s*([+-]?)\s*(\d+(?:\.\d*)?(?:e[+-]?\d+)?|\.\d+(?:e[+-]?\d+)?)?"
@@ -179,8 +188,12 @@ def _max_steps() -> int:
 _FRICTION_FLAGS = {"cx": "c_x", "cy": "c_y", "ctheta": "c_theta"}
 
 
+_ROBOT_HELP = ("a preset (" + ", ".join(ROBOTS) + "), a .toml robot file or a .urdf "
+               "(shipped robots also by file name, e.g. camera_head_snake.toml)")
+
+
 def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = False) -> None:
-    parser.add_argument("--robot", choices=ROBOTS, help="preset robot (default table1)")
+    parser.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default table1")
     parser.add_argument("--n", type=_int_in(2, MAX_LINKS),
                         help=f"number of links, 2..{MAX_LINKS} (overrides the preset)")
     parser.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
@@ -191,9 +204,19 @@ def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = False) -
         parser.add_argument("--ctheta", type=_float_in(0.0), help="c_theta [N m s]")
 
 
-def _params(args: argparse.Namespace) -> SnakeParams:
-    """The robot the options describe; a joint index out of range names its option."""
-    base = SnakeParams.preset(args.robot or "table1")
+def _load_robot(spec: str, **changes: Any) -> SnakeParams:
+    """:func:`snake_pin.robot_file.load_robot`: a preset, a .toml or a .urdf (one-line
+    RobotFileError/ParameterError naming the file)."""
+    from .robot_file import load_robot
+
+    return load_robot(spec, **changes)
+
+
+def _params(args: argparse.Namespace, default: str = "table1") -> SnakeParams:
+    """The robot the options describe (--robot, then --n, --passive and friction applied);
+    a joint index out of range names its option, a bad robot file is one line naming it."""
+    spec = getattr(args, "robot", None) or default
+    base = _load_robot(spec)
     n = args.n if getattr(args, "n", None) is not None else base.n
     for k in getattr(args, "passive", None) or []:
         if not 1 <= k <= n - 1:
@@ -207,7 +230,7 @@ def _params(args: argparse.Namespace) -> SnakeParams:
     for flag, key in _FRICTION_FLAGS.items():
         if getattr(args, flag, None) is not None:
             changes[key] = getattr(args, flag)
-    return SnakeParams.preset(args.robot or "table1", **changes)
+    return _load_robot(spec, **changes) if changes else base
 
 
 def _free_joints(args: argparse.Namespace, params: SnakeParams) -> int | tuple[int, ...] | None:
@@ -265,7 +288,7 @@ def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
 
 
 def _json_text(value: Any, indent: int | None = None) -> str:
-    from .report import json_text
+    from ._json import json_text
 
     return json_text(value, indent=indent)
 
@@ -282,8 +305,9 @@ def _cmd_generate(args: argparse.Namespace) -> _Outcome:
 
     out.parent.mkdir(parents=True, exist_ok=True)
     write_urdf(params, out)
-    return _Outcome({"urdf": str(out), "n": params.n, "passive": list(params.passive)},
-                    f"wrote {out} ({params.n} links, passive joints: "
+    return _Outcome({"urdf": str(out), "robot": params.name, "n": params.n,
+                     "passive": list(params.passive)},
+                    f"wrote {out} (robot {params.name}, {params.n} links, passive joints: "
                     f"{list(params.passive) or 'none'})")
 
 
@@ -355,6 +379,7 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
     free = _free_joints(args, params)
     out = _output_folder(args.output)
+    from .experiments.manipulability import write_sweep
     from .manipulability import task_split
     from .model import Snake
     from .sweeps import sweep
@@ -369,12 +394,12 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
         partial = exc.partial
         if partial is None or not len(partial.values):
             return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
-        paths = partial.write(out)
+        paths = write_sweep(partial, out)
         payload = {**partial.to_dict(), "files": {k: str(v) for k, v in paths.items()}}
         return _Outcome(payload, f"wrote {', '.join(map(str, paths.values()))}",
                         EXIT_INTERRUPTED, f"{exc}; partial sweep saved to {paths['json']} "
                                           "(status interrupted)")
-    paths = result.write(out)
+    paths = write_sweep(result, out)
     zeros = result.zeros().tolist()
     payload = {"family": args.family, "free_joint": result.to_dict()["free_joint"],
                "status": result.status, "zeros": zeros, "R_min": float(result.R.min()),
@@ -393,32 +418,13 @@ def _singular_text(search: Any) -> str:
     return "\n".join(lines)
 
 
-def _write_singular(search: Any, out: Path) -> list[Path]:
-    """The drawing and the JSON of a search, as one set of files."""
-    import io
-
-    import matplotlib.pyplot as plt
-
-    from ._io import atomic_group
-    from .experiments.manipulability import draw_singular
-
-    png = io.BytesIO()
-    drawing = draw_singular(search, None)
-    drawing.savefig(png, format="png", dpi=110, bbox_inches="tight")
-    plt.close(drawing)
-    with atomic_group(out) as group:
-        data = group.write_bytes("singular_postures.json",
-                                 (_json_text(search.to_dict(), indent=2) + "\n").encode())
-        figure = group.write_bytes("singular_postures.png", png.getvalue(), figure=True)
-    return [data, figure]
-
-
 def _cmd_singular(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
     free = _free_joints(args, params)
     if not 0 < args.bound <= math.pi:
         raise UsageError(f"argument --bound: must lie in (0, pi], got {args.bound:g}")
     out = _output_folder(args.output) if args.output else None
+    from .experiments.manipulability import write_singular
     from .manipulability import task_split
     from .singular import find_singular_postures
 
@@ -435,7 +441,7 @@ def _cmd_singular(args: argparse.Namespace) -> _Outcome:
         note = str(exc)
     payload = search.to_dict()
     if out is not None:
-        files = _write_singular(search, out)
+        files = write_singular(search, out)
         payload["files"] = [str(p) for p in files]
         if status == EXIT_INTERRUPTED:
             note += f"; partial search saved to {files[0]} (status interrupted)"
@@ -460,10 +466,10 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
                           control_dt=SIMULATE_DT, progress=_progress(args))
             traj = run.trajectory
         else:
-            from .experiments.tracking import TRACKING_FRICTION, plot_tracking, run_tracking
+            from .experiments.tracking import plot_tracking, run_tracking, tracking_friction
 
             if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
-                params = params.replace(**TRACKING_FRICTION)
+                params, _ = tracking_friction(params)
             traj = run_tracking(params, t_final=args.t_final or 60.0, progress=_progress(args))
     except RunInterrupted as exc:
         return _interrupted_run(exc, out, stem)
@@ -477,22 +483,23 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
 
 
 def _cmd_engine(args: argparse.Namespace) -> _Outcome:
-    from .engine.model import WheelSpec
+    from .engine.model import WheelSpec, build_engine_model
 
-    params = SnakeParams.engine()
-    for k in args.passive:
-        if not 1 <= k <= params.n - 1:
-            raise UsageError(f"argument --passive: joint {k} is outside 1..{params.n - 1} "
-                             f"for the {params.n}-link engine robot")
-    params = params.replace(passive=tuple(args.passive))
+    params = _params(args, default="engine")
+    if args.perturbation is not None and args.seeds is None:
+        raise UsageError("argument --perturbation: applies with --seeds N (a distribution of "
+                         "N perturbed runs)")
     wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu, cone=args.cone)
     _check_t_final(args.t_final, wheels.control_dt)
     out = _output_folder(args.output)
+    build_engine_model(params, wheels)  # wheels that do not fit the robot: refused here
     from .engine.run import identify_friction, run_engine
     from .experiments.engine import plot_engine, summarize
 
     out.mkdir(parents=True, exist_ok=True)
     friction = identify_friction(params.replace(passive=()), wheels)
+    if args.seeds is not None:
+        return _engine_seeds(args, params, wheels, friction, out)
     try:
         run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
                          law=args.law, progress=_progress(args))
@@ -505,6 +512,73 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
                "files": [str(npz), str(summary_path), *(str(p) for p in figures.values())]}
     status, note = _run_note(run.trajectory, out)
     return _Outcome(payload, _json_text(payload, indent=2), status, note)
+
+
+def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
+                  friction: dict[str, Any], out: Path) -> _Outcome:
+    """``engine --seeds N``: N runs from perturbed initial joint angles, as a distribution.
+
+    Every run is saved as it finishes (``engine_seedK``); the figures show the median run;
+    ``engine_seeds.json`` holds the settings, every run's offset and summary, and each
+    metric's median and 10-90 % range. Interrupted, the runs finished are kept and the
+    distribution is over them (status "interrupted").
+    """
+    from ._io import atomic_write_bytes
+    from .experiments.engine import PERTURBATION, Draws, engine_draw, perturbations, plot_engine
+    from .experiments.parallel import iter_jobs
+    from .sim import Trajectory
+
+    size = PERTURBATION if args.perturbation is None else args.perturbation
+    draws = Draws(f"engine, {args.law} law" + (f", joints {list(params.passive)} passive"
+                                               if params.passive else ""),
+                  size, 0, perturbations(args.seeds, params.n - 1, size, seed=0))
+    width = len(str(args.seeds))
+    stems = [f"engine_seed{k + 1:0{width}d}" for k in range(args.seeds)]
+    jobs = [(engine_draw, (params, offset), {"wheels": wheels, "t_final": args.t_final,
+                                             "friction": friction, "law": args.law})
+            for offset in draws.offsets]
+    bar, interrupted = None, False
+    if _progress(args):
+        from tqdm import tqdm
+
+        bar = tqdm(total=args.seeds, desc="engine runs", unit="run", leave=False, disable=None)
+    try:
+        for k, run in iter_jobs(jobs):
+            npz, summary = run.trajectory.save(out / stems[k])
+            draws.record(k, run.trajectory.summary_dict(), [npz, summary])
+            if bar is not None:
+                bar.update(1)
+    except KeyboardInterrupt:  # RunInterrupted included: a run in progress is dropped
+        interrupted = True
+    finally:
+        if bar is not None:
+            bar.close()
+    files: list[str] = [f for k in draws.done for f in draws.files[k]]
+    median = draws.median_draw()
+    if median is not None:
+        traj = Trajectory.load(out / f"{stems[median]}.npz")
+        files += [str(p) for p in plot_engine(traj, None, out, "engine").values()]
+    data = {"status": "interrupted" if interrupted else "completed", "robot": params.name,
+            "law": args.law, "t_final": args.t_final, "friction": friction,
+            **draws.to_dict()}
+    if median is not None:
+        data["median_run"] = stems[median]
+    table = out / "engine_seeds.json"
+    atomic_write_bytes(table, (_json_text(data, indent=2) + "\n").encode())
+    files.insert(0, str(table))
+    payload = {**data, "files": files}
+    text = draws.text() + (f"\nmedian run: {stems[median]}" if median is not None else "")
+    if interrupted:
+        return _Outcome(payload, text, EXIT_INTERRUPTED,
+                        f"engine runs interrupted; {len(draws.done)} of "
+                        f"{args.seeds} runs finished, saved with their distribution in {table}"
+                        " (status interrupted)")
+    faults = draws.faults()
+    if faults:
+        return _Outcome(payload, text, EXIT_FAILED,
+                        f"{len(faults)} of {args.seeds} runs diverged or failed (results in "
+                        f"{out})")
+    return _Outcome(payload, text)
 
 
 def _cmd_view(args: argparse.Namespace) -> _Outcome:
@@ -520,10 +594,11 @@ def _cmd_view(args: argparse.Namespace) -> _Outcome:
     from .sim import Trajectory
     from .viz.meshcat_view import view, write_html
 
+    expected = _load_robot(args.robot).name if args.robot is not None else None
     traj = Trajectory.load(args.trajectory, signals=False)
-    if args.robot is not None and traj.params.name != args.robot:
+    if expected is not None and traj.params.name != expected:
         raise UsageError(f"view: {args.trajectory} is a run of the '{traj.params.name}' robot, "
-                         f"not '{args.robot}'")
+                         f"not '{expected}' ({args.robot})")
     if args.html is not None:
         out = write_html(traj, args.html, fps=args.fps)
         return _Outcome({"html": str(out), "t_end": traj.t_end}, f"wrote {out}")
@@ -587,7 +662,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0],
                      formatter_class=argparse.RawDescriptionHelpFormatter,
                      epilog=_EPILOG.format(links=MAX_LINKS, t_max=steps * SIMULATE_DT,
-                                           steps=steps, points=MAX_POINTS, starts=MAX_STARTS))
+                                           steps=steps, points=MAX_POINTS, starts=MAX_STARTS,
+                                           seeds=MAX_SEEDS, eps=MAX_PERTURBATION))
+    parser.add_argument("--version", action="version", version=f"snake-pin {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     p = sub.add_parser("generate", help="write the URDF of a snake robot")
@@ -655,7 +732,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_simulate)
 
-    p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)")
+    p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)",
+                       description="The Lyapunov-like law on MuJoCo, a wheel pair per link "
+                       "(Section VI.3). The runs are chaotic: --seeds N runs N times from the "
+                       "initial posture with every joint angle offset by a uniform draw in "
+                       "[-EPS, EPS] (--perturbation, default 1e-6 rad; seed 0) and reports the"
+                       " median and 10-90 % range of each metric (RMS and max head error in "
+                       "% of the body length, R min or R~ min, torque RMS). Every run is saved "
+                       "(engine_seedK), the figures show the median run, engine_seeds.json "
+                       "holds the distribution.")
+    p.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default engine")
     p.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
                    metavar="K", help="make joint K passive (repeatable)")
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
@@ -668,6 +754,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="form of the Lyapunov-like law (velocity level with servos by default)")
     p.add_argument("--cone", choices=("elliptic", "pyramidal"), default="elliptic",
                    help="MuJoCo friction cone (pyramidal: about 2x faster, less faithful)")
+    p.add_argument("--seeds", type=_int_in(1, MAX_SEEDS), metavar="N",
+                   help=f"run N times from perturbed initial postures, 1..{MAX_SEEDS}, and "
+                   "report the distribution")
+    p.add_argument("--perturbation", type=_float_in(0.0, MAX_PERTURBATION, open_low=True),
+                   metavar="EPS", help="with --seeds: offsets of the initial joint angles, "
+                   f"uniform in [-EPS, EPS] rad (default 1e-6, at most {MAX_PERTURBATION:g})")
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_engine)
@@ -678,7 +770,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=_int_in(1, MAX_PORT), help="web port of the live viewer")
     p.add_argument("--fps", type=_float_in(MIN_FPS, MAX_FPS), default=20.0,
                    help="animation frame rate, 1..120")
-    p.add_argument("--robot", choices=ROBOTS, help="refuse a run of another robot")
+    p.add_argument("--robot", metavar="ROBOT",
+                   help=f"refuse a run of another robot ({_ROBOT_HELP}; compared by name)")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (with --html: the page; live: the URL, then "
                    "serve until Ctrl-C)")
@@ -690,7 +783,14 @@ def build_parser() -> argparse.ArgumentParser:
                        "far are written with an index marked interrupted: in the output folder,"
                        " or in its interrupted/ subfolder when it already holds a complete "
                        "report (left untouched). Robot options apply to the stages that use "
-                       "them; a stage that sets one itself refuses it.")
+                       "them; a stage that sets one itself refuses it. A robot file or URDF "
+                       "(--robot FILE) runs in every stage, and the report says what a stage "
+                       "changes: integrability sets c_y itself and checks involutivity on the "
+                       "robot's first 4 and 5 links; pfl actuates every joint; tracking uses "
+                       "the robot's friction if it is anisotropic on every link (c_y > c_x), "
+                       "else c_x = 0.5, c_y = 25 N s/m; engine puts the robot itself on wheels "
+                       "and identifies its friction. With a preset, the engine stage runs the "
+                       "8-link engine robot of VI.3.")
     _robot_options(p, friction=True)
     p.add_argument("-o", "--output", default="results", help="output folder")
     p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")

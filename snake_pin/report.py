@@ -6,58 +6,27 @@ alone) and ``summary.json`` with the numbers. A report knows whether its run com
 or was interrupted (:attr:`Report.status`, :attr:`Report.note`): an interrupted one says
 so at the top of the page and under ``"run"`` in the summary.
 
-:func:`json_text` is the one way snake_pin turns results into JSON text (the report's
-summary, sweep files, the command line's ``--json``): RFC 8259 only, so NaN and
-infinities become ``null``.
+The summary is written with :func:`snake_pin._json.json_text` (RFC 8259: NaN and
+infinities become ``null``). ``json_safe`` and ``json_text`` are re-exported here for
+code that imported them from this module before they moved to :mod:`snake_pin._json`.
 """
 
 from __future__ import annotations
 
 import base64
-import dataclasses
 import html
-import json
-import math
 import os
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ._io import atomic_write_bytes
+from ._json import json_safe, json_text
+
+# json_safe and json_text live in snake_pin._json; they are re-exported here for code
+# that still imports them from snake_pin.report (snake_pin.study does, for now).
 
 __all__ = ["Report", "Section", "json_safe", "json_text"]
-
-
-def json_safe(value: Any) -> Any:
-    """``value`` as plain JSON data: NaN and infinities become None, NumPy values and
-    arrays become numbers and lists, paths become strings, dataclasses become dicts.
-
-    Raises
-    ------
-    TypeError
-        For anything else that JSON cannot hold.
-    """
-    if value is None or isinstance(value, (bool, str, int)):
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, Mapping):
-        return {str(k): json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, set, frozenset)):
-        return [json_safe(v) for v in value]
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    if hasattr(value, "tolist"):  # NumPy arrays and scalars
-        return json_safe(value.tolist())
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return json_safe(dataclasses.asdict(value))
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
-
-
-def json_text(value: Any, *, indent: int | None = None) -> str:
-    """RFC 8259 JSON text of ``value`` after :func:`json_safe` (never NaN or Infinity)."""
-    return json.dumps(json_safe(value), indent=indent, allow_nan=False)
 
 
 @dataclass

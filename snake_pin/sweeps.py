@@ -1,27 +1,29 @@
 """Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map.
 
 A :class:`Sweep` holds one family: the swept parameter, D and R at each value, and the
-free joints if any. It writes itself as CSV, JSON and a PNG like the paper's figures, as
-one set of files. A sweep stopped by Ctrl-C/SIGTERM raises
-:class:`~snake_pin.exceptions.RunInterrupted` whose ``partial`` is the sweep of the
-postures computed so far (``status == "interrupted"``).
+free joints if any, as data (:meth:`Sweep.to_dict`, :meth:`Sweep.rows`). This module
+draws and writes nothing: the figure and the files are made a layer up, by
+:func:`snake_pin.experiments.manipulability.write_sweep`. A sweep stopped by
+Ctrl-C/SIGTERM raises :class:`~snake_pin.exceptions.RunInterrupted` whose ``partial`` is
+the sweep of the postures computed so far (``status == "interrupted"``).
+
+BLAS and OpenMP thread pools are limited to one thread while a sweep or a map runs
+(``threadpoolctl``): the matrices are (n + 2)-square, and multi-threaded OpenBLAS on
+matrices that small costs far more than it gives (measured on a 2-core machine with the
+other core busy: a singular-posture search 5x slower, scipy's L-BFGS-B ~2 ms per
+iteration instead of 7-9 us).
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import math
 import numbers
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-from ._io import atomic_group
 from .exceptions import ParameterError, RunInterrupted
 from .gaits import Serpenoid, arc
 from .manipulability import manipulability, manipulability_R_batch, task_split
@@ -69,6 +71,10 @@ class Sweep:
             return self.values[:0]
         return self.values[self.R <= relative * self.R.max()]
 
+    def rows(self) -> list[tuple[float, float, float]]:
+        """(parameter value, D, R) at every posture, in order (the CSV's rows)."""
+        return list(zip(self.values.tolist(), self.D.tolist(), self.R.tolist(), strict=True))
+
     def to_dict(self) -> dict[str, object]:
         """Plain JSON data (non-finite D or R as None; ``status`` is ``"interrupted"`` for a
         partial sweep)."""
@@ -77,36 +83,6 @@ class Sweep:
                 "free_joint": list(free) if isinstance(free, tuple) else free,
                 "status": self.status, "values": self.values.tolist(),
                 "D": _finite_or_none(self.D), "R": _finite_or_none(self.R), **self.meta}
-
-    def write(self, folder: str | os.PathLike[str]) -> dict[str, Path]:
-        """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` into ``folder``.
-
-        The three files appear together (data first, then the figure) or not at all.
-        """
-        from .viz.plots import plot_sweep
-
-        folder = Path(folder)
-        buf = io.StringIO()
-        writer = csv.writer(buf)
-        writer.writerow([self.label, "D", "R"])
-        writer.writerows(zip(self.values.tolist(), self.D.tolist(), self.R.tolist(),
-                             strict=True))
-        names = {ext: f"{self.stem}.{ext}" for ext in ("csv", "json", "png")}
-        png = io.BytesIO()
-        if self.values.size:
-            import matplotlib.pyplot as plt
-
-            fig = plot_sweep(self)
-            fig.savefig(png, format="png", dpi=110, bbox_inches="tight")
-            plt.close(fig)
-        with atomic_group(folder) as group:
-            group.write_bytes(names["csv"], buf.getvalue().encode())
-            group.write_bytes(names["json"],
-                              (json.dumps(self.to_dict(), allow_nan=False) + "\n").encode())
-            if self.values.size:
-                group.write_bytes(names["png"], png.getvalue(), figure=True)
-        return {ext: folder / name for ext, name in names.items()
-                if ext != "png" or self.values.size}
 
 
 def _family_configuration(family: str, n: int, value: float) -> np.ndarray:
@@ -177,11 +153,12 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
                         disable=None)
     done = 0
     try:
-        for i in iterator:
-            res = manipulability(snake, _family_configuration(family, snake.n, values[i]),
-                                 free_joint=free)
-            d[i], r[i] = res.D, res.R
-            done = i + 1
+        with threadpool_limits(limits=1):  # small matrices: BLAS threads only cost (module doc)
+            for i in iterator:
+                res = manipulability(snake, _family_configuration(family, snake.n, values[i]),
+                                     free_joint=free)
+                d[i], r[i] = res.D, res.R
+                done = i + 1
     except KeyboardInterrupt as exc:
         partial = Sweep(family, label, values[:done], d[:done], r[:done], kept,
                         snake.params.name, meta={"points_requested": int(points)},
@@ -210,5 +187,6 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
     a_grid, t_grid = np.meshgrid(alpha, ts)
     k = 2 * np.pi * t_grid.ravel()[:, None] / n
     phi = k * a_grid.ravel()[:, None] * np.sin(-k * np.arange(1, n)[None, :])  # eq. (43), t = 0
-    r = manipulability_R_batch(snake.params, phi, free_joint=free_joint)
+    with threadpool_limits(limits=1):
+        r = manipulability_R_batch(snake.params, phi, free_joint=free_joint)
     return RMap(alpha, ts, r.reshape(t_grid.shape), free_joint)

@@ -214,3 +214,174 @@ def test_simulate_shorter_than_the_error_window(capsys: pytest.CaptureFixture[st
     data = json.loads(out)
     assert code == 0 and data["t_end"] == pytest.approx(2.0)
     assert data["rms_head_error"] is None and data["rms_relative"] is None
+
+
+# ---------------------------------------------------------------- robot files
+SMALL_ROBOT = """\
+name = "small_camera_snake"
+n = 6
+
+[links]
+link_length = [0.26, 0.176, 0.176, 0.176, 0.176, 0.176]
+mass = [0.75, 0.417, 0.417, 0.417, 0.417, 0.667]
+inertia = [4.286e-3, 1.2e-3, 1.2e-3, 1.2e-3, 1.2e-3, 1.333e-3]
+com_offset = [0.106, 0.088, 0.088, 0.088, 0.088, 0.088]
+
+[friction]
+c_x = [0.9, 0.5, 0.5, 0.5, 0.5, 0.8]
+c_y = [9.0, 5.0, 5.0, 5.0, 5.0, 8.0]
+c_theta = 1e-4
+"""
+Q6 = [0.1, -0.2, 0.3, 0.4, -0.3, 0.5, 0.2, -0.6]
+
+
+@pytest.fixture
+def robot_file(tmp_path: Path) -> Path:
+    path = tmp_path / "small.toml"
+    path.write_text(SMALL_ROBOT)
+    return path
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    """`snake-pin --version` prints `snake-pin <snake_pin.__version__>` and exits 0."""
+    import snake_pin
+
+    code, out, _ = _run(capsys, "--version")
+    assert code == 0 and out == f"snake-pin {snake_pin.__version__}\n"
+
+
+def test_info_json_of_a_robot_file_lists_per_link_values(capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
+    """info --robot camera_head_snake.toml --json: per-link fields as lists (head first),
+    CM offsets, total mass and body length of that robot."""
+    from snake_pin.robot_file import load_robot
+
+    params = load_robot("camera_head_snake.toml")
+    code, out, _ = _run(capsys, "info", "--robot", "camera_head_snake.toml", "--json")
+    data = json.loads(out)
+    assert code == 0 and data["name"] == "camera_head_snake" and data["n"] == 10
+    for key, values in (("link_length", params.link_lengths), ("mass", params.masses),
+                        ("c_y", params.per_link("c_y")), ("com_offsets", params.com_offsets)):
+        assert data[key] == values.tolist(), key
+    assert data["total_mass"] == pytest.approx(params.masses.sum())
+    assert data["body_length"] == pytest.approx(params.link_lengths.sum())
+    assert "half_length" not in data
+
+
+def test_generate_writes_the_urdf_of_a_robot_file(capsys: pytest.CaptureFixture[str],
+                                                  robot_file: Path, tmp_path: Path) -> None:
+    """generate --robot FILE.toml writes a URDF that reads back as the same robot, and
+    --robot FILE.urdf then gives the same D and R as the TOML file."""
+    from snake_pin.robot_file import load_robot
+
+    urdf = tmp_path / "small.urdf"
+    code, out, _ = _run(capsys, "generate", "--robot", str(robot_file), "-o", str(urdf),
+                        "--json")
+    assert code == 0 and json.loads(out)["robot"] == "small_camera_snake"
+    assert load_robot(urdf) == load_robot(robot_file)
+    results = []
+    for spec in (robot_file, urdf):
+        code, out, _ = _run(capsys, "manip", "--robot", str(spec), "--q",
+                            ",".join(map(str, Q6)), "--json")
+        results.append(json.loads(out))
+    assert code == 0 and results[0]["R"] == pytest.approx(results[1]["R"], rel=1e-12)
+
+
+def test_analysis_commands_use_the_robot_file(capsys: pytest.CaptureFixture[str],
+                                              robot_file: Path, tmp_path: Path) -> None:
+    """manip, sweep and singular with --robot FILE give the library's numbers for that
+    robot (not Table 1's)."""
+    import numpy as np
+
+    from snake_pin import Snake, SnakeParams
+    from snake_pin.manipulability import manipulability
+    from snake_pin.robot_file import load_robot
+    from snake_pin.singular import find_singular_postures
+    from snake_pin.sweeps import sweep
+
+    params = load_robot(robot_file)
+    snake = Snake(params)
+    code, out, _ = _run(capsys, "manip", "--robot", str(robot_file), "--q",
+                        ",".join(map(str, Q6)), "--json")
+    r = json.loads(out)["R"]
+    assert code == 0 and r == pytest.approx(manipulability(snake, np.array(Q6)).R, rel=1e-12)
+    assert r != pytest.approx(
+        manipulability(Snake(SnakeParams.table1(n=6)), np.array(Q6)).R, rel=1e-3)
+    code, out, _ = _run(capsys, "sweep", "arc", "--robot", str(robot_file), "--points", "5",
+                        "-o", str(tmp_path / "sweep"), "--json")
+    files = json.loads(out)["files"]
+    data = json.loads(Path(files["json"]).read_text())
+    assert code == 0 and data["robot"] == "small_camera_snake"
+    assert np.allclose(data["R"], sweep(snake, "arc", points=5).R, rtol=1e-12)
+    code, out, _ = _run(capsys, "singular", "--robot", str(robot_file), "--starts", "1",
+                        "--json")
+    search = find_singular_postures(params, starts=1)
+    assert code == 0 and json.loads(out)["R"] == pytest.approx(search.to_dict()["R"])
+
+
+def test_runs_and_view_use_the_robot_file(capsys: pytest.CaptureFixture[str],
+                                          robot_file: Path, tmp_path: Path) -> None:
+    """simulate (both controllers), engine and reproduce run the file's robot (the
+    Lyapunov run keeps its anisotropic per-link friction, the engine identifies friction
+    per link); view --robot accepts its runs and refuses another robot's."""
+    from snake_pin.robot_file import load_robot
+    from snake_pin.sim import Trajectory
+
+    params = load_robot(robot_file)
+    code, out, _ = _run(capsys, "simulate", "--controller", "pfl", "--robot", str(robot_file),
+                        "--t-final", "0.05", "-o", str(tmp_path / "pfl"), "--json")
+    assert code == 0 and json.loads(out)["robot"] == "small_camera_snake"
+    assert Trajectory.load(tmp_path / "pfl" / "pfl.npz").params == params
+    code, out, _ = _run(capsys, "simulate", "--controller", "lyapunov", "--robot",
+                        str(robot_file), "--t-final", "0.05", "-o", str(tmp_path / "lyap"),
+                        "--json")
+    assert code == 0 and json.loads(out)["c_y"] == params.per_link("c_y").tolist()
+    code, out, _ = _run(capsys, "engine", "--robot", str(robot_file), "--t-final", "0.05",
+                        "-o", str(tmp_path / "engine"), "--json")
+    data = json.loads(out)
+    assert code == 0 and data["robot"] == "small_camera_snake"
+    assert len(data["friction"]["c_y"]) == 6
+    run = str(tmp_path / "engine" / "engine.npz")
+    code, out, _ = _run(capsys, "view", run, "--robot", str(robot_file), "--html",
+                        str(tmp_path / "page.html"), "--json")
+    assert code == 0 and (tmp_path / "page.html").is_file()
+    code, _, err = _run(capsys, "view", run, "--robot", "table1", "--html",
+                        str(tmp_path / "other.html"))
+    assert code == 2 and "small_camera_snake" in err and "table1" in err
+    code, _, _ = _run(capsys, "reproduce", "--only", "robot", "--robot", str(robot_file),
+                      "-o", str(tmp_path / "report"))
+    robot = json.loads((tmp_path / "report" / "summary.json").read_text())["robot"]
+    assert code == 0 and robot["name"] == "small_camera_snake"
+    assert robot["mass"] == params.masses.tolist()
+
+
+def test_engine_seeds_reports_the_distribution(capsys: pytest.CaptureFixture[str],
+                                               tmp_path: Path) -> None:
+    """engine --seeds 3: three runs from the seeded offsets (within +-EPS), each saved; the
+    JSON's median and 10-90 % range are those of the runs' own summaries; a run can be
+    repeated from its recorded offset; the text gives the medians."""
+    import numpy as np
+
+    from snake_pin.engine.run import run_engine
+    from snake_pin.experiments.engine import perturbations, summarize
+
+    code, out, _ = _run(capsys, "engine", "--seeds", "3", "--perturbation", "1e-3",
+                        "--t-final", "0.3", "-o", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 0 and data["status"] == "completed" and data["finished"] == 3
+    offsets = np.array([run["offset"] for run in data["runs"]])
+    assert np.array_equal(offsets, perturbations(3, 7, 1e-3, seed=0))
+    r_min = [run["summary"]["R_min"] for run in data["runs"]]
+    assert len(set(r_min)) == 3  # the offsets do change the runs
+    dist = data["distribution"]["R_min"]
+    assert dist["median"] == pytest.approx(np.median(r_min), rel=1e-15)
+    assert dist["p10"] == pytest.approx(np.percentile(r_min, 10), rel=1e-15)
+    assert dist["p90"] == pytest.approx(np.percentile(r_min, 90), rel=1e-15)
+    assert data["median_run"] == "engine_seed1"  # no RMS before t = 10 s: the first run
+    assert all((tmp_path / f"engine_seed{k}.npz").is_file() for k in (1, 2, 3))
+    assert (tmp_path / "engine_head.png").is_file()
+    again = run_engine(t_final=0.3, initial_offset=offsets[1]).trajectory
+    assert summarize(again)["R_min"] == pytest.approx(r_min[1], rel=1e-9)
+    code, out, _ = _run(capsys, "engine", "--seeds", "1", "--t-final", "0.3", "-o",
+                        str(tmp_path / "text"))
+    assert code == 0 and "R min" in out and "median" in out

@@ -20,10 +20,10 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from snake_pin import Snake, SnakeParams, Trajectory, arc
+from snake_pin._json import json_text
 from snake_pin.cli import EXIT_FAILED, EXIT_USAGE, main
 from snake_pin.gaits import Serpenoid
 from snake_pin.manipulability import manipulability
-from snake_pin.report import json_text
 
 
 def _run(capfd: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -104,6 +104,8 @@ def test_manip_passive_and_free_joint_are_both_free(capfd: pytest.CaptureFixture
     (["--n", "12", "--only", "engine"], "--n"),
     (["--robot", "table1", "--only", "engine"], "--robot"),
     (["--passive", "5", "--only", "pfl"], "--passive"),
+    (["--robot", "camera_head_snake.toml", "--passive", "5", "--only", "engine"], "--passive"),
+    (["--robot", "camera_head_snake.toml", "--cy", "9", "--only", "tracking"], "--cy"),
 ])
 def test_reproduce_refuses_options_a_stage_sets_itself(capfd: pytest.CaptureFixture[str],
                                                        tmp_path: Path, argv: list[str],
@@ -207,6 +209,14 @@ def test_negative_number_for_a_count_is_refused_as_a_value(
     (["manip", "--q", "1e300" + ",0" * 11], "--q"),
     (["view", "x.npz", "--port", "70000"], "--port"),
     (["view", "x.npz", "--fps", "1e9", "--html", "{out}/x.html"], "--fps"),
+    (["engine", "--seeds", "0", "-o", "{out}"], "--seeds"),
+    (["engine", "--seeds", "101", "-o", "{out}"], "--seeds"),
+    (["engine", "--seeds", "3", "--perturbation", "1", "-o", "{out}"], "--perturbation"),
+    (["engine", "--seeds", "3", "--perturbation", "0", "-o", "{out}"], "--perturbation"),
+    (["engine", "--perturbation", "1e-3", "-o", "{out}"], "--perturbation"),
+    (["engine", "--wheel-radius", "0.09", "-o", "{out}"], "wheels"),
+    (["engine", "--robot", "camera_head_snake.toml", "--passive", "10", "-o", "{out}"],
+     "--passive"),
 ])
 def test_limits_are_refused_before_anything_is_created(capfd: pytest.CaptureFixture[str],
                                                        tmp_path: Path, argv: list[str],
@@ -223,11 +233,49 @@ def test_help_documents_exit_statuses_and_limits(capfd: pytest.CaptureFixture[st
     assert code == 0
     for text in ("0    done", "2    a wrong argument", "3    the run diverged",
                  "130  interrupted", "--n <= 200", "--t-final <= 1000 s", "--points <= 100000",
-                 "--starts <= 10000", "0 <= --seed <= 2**32 - 1"):
+                 "--starts <= 10000", "0 <= --seed <= 2**32 - 1", "--seeds <= 100",
+                 "--perturbation <= 0.1 rad", "--robot takes a preset"):
         assert text in out
 
 
 # --------------------------------------------------------------------- smaller
+BROKEN_ROBOT = 'name = "broken"\nn = 4\n[links]\nlink_length = 0.1\nmass = -1.0\ninertia = 1e-4\n'
+
+
+@pytest.mark.parametrize("argv", [
+    ["generate", "-o", "{out}/x.urdf"], ["info"], ["manip"], ["sweep", "arc", "-o", "{out}"],
+    ["singular", "-o", "{out}"], ["simulate", "--controller", "pfl", "-o", "{out}"],
+    ["engine", "-o", "{out}"], ["reproduce", "-o", "{out}"],
+    ["view", "{tmp}/run.npz", "--html", "{tmp}/x.html"],
+])
+@pytest.mark.parametrize("robot", ["missing.toml", "broken.toml", "broken.urdf", "cobra"])
+def test_every_command_refuses_a_bad_robot_in_one_line(capfd: pytest.CaptureFixture[str],
+                                                       tmp_path: Path, argv: list[str],
+                                                       robot: str) -> None:
+    """--robot with a missing file, a negative mass, a URDF that is not XML or an unknown
+    name: every command says so in one line naming the robot given, status 2, no folder."""
+    (tmp_path / "broken.toml").write_text(BROKEN_ROBOT)
+    (tmp_path / "broken.urdf").write_text("<robot name='x'><link name='a'>")
+    _tiny().save(tmp_path / "run")
+    out = tmp_path / "out"
+    given = str(tmp_path / robot) if "." in robot else robot
+    args = [a.replace("{out}", str(out)).replace("{tmp}", str(tmp_path)) for a in argv]
+    line = _usage_error(*_run(capfd, *args, "--robot", given))
+    assert given in line and not out.exists() and not (tmp_path / "x.html").exists()
+    if robot == "broken.toml":
+        assert "mass" in line
+
+
+def test_report_re_exports_the_json_functions() -> None:
+    """snake_pin.report still offers json_safe/json_text (for older imports): the same
+    functions as snake_pin._json."""
+    import snake_pin._json
+    import snake_pin.report
+
+    assert snake_pin.report.json_text is snake_pin._json.json_text
+    assert snake_pin.report.json_safe is snake_pin._json.json_safe
+
+
 def test_json_text_is_rfc_8259() -> None:
     """NaN and infinities (Python or NumPy) become null; NumPy values become plain JSON."""
     text = json_text({"a": math.nan, "b": [math.inf, 1.5], "c": np.float64("-inf"),
@@ -331,7 +379,7 @@ def _values(*good: str) -> st.SearchStrategy[str]:
 
 Q12 = ",".join(map(str, Q))
 OPTIONS: dict[str, st.SearchStrategy[str]] = {
-    "--robot": _values("table1", "engine", "cobra"),
+    "--robot": _values("table1", "engine", "cobra", "camera_head_snake.toml"),
     "--n": _values("2", "4", "6", "8", "12", "201", "500"),
     "--passive": _values("1", "3", "5", "7", "9", "10", "201"),
     "--free-joint": _values("1", "3", "5", "9", "10"),
@@ -369,7 +417,8 @@ EXPENSIVE = {
                                            ["--climb-r", "-1"], ["--cx", "inf"], ["--bogus"],
                                            ["--n", "500"]]),
     "engine": ([], [["--t-final", "1e12"], ["--mu", "0"], ["--wheel-radius", "1"],
-                    ["--cone", "square"], ["--passive", "8"], ["--law", "x"], ["--n", "8"]]),
+                    ["--cone", "square"], ["--passive", "10"], ["--law", "x"], ["--n", "8"],
+                    ["--seeds", "0"], ["--perturbation", "1e-3"]]),
     "reproduce": (["--quick"], [["--only", "nothing"], ["--passive", "3"], ["--cx", "1"],
                                ["--n", "500"], ["--n", "3"], ["--robot", "cobra"]]),
 }

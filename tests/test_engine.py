@@ -112,3 +112,98 @@ def test_short_closed_loop_run_moves_head_forward() -> None:
     traj = run.trajectory
     assert not traj.diverged and traj.q[-1, 0] > 0.3
     assert abs(traj.q[-1, 0] - 0.1 * traj.t_end) < 0.3
+
+
+def _camera_head() -> SnakeParams:
+    from snake_pin.robot_file import load_robot
+
+    return load_robot("camera_head_snake.toml")
+
+
+def test_per_link_identification_shares_the_whole_robots_fit() -> None:
+    """Per-link robot: c_x equal per link and summing to the fit, c_y in proportion to the
+    link masses and summing to the fit (within 5 % of 1.5 mu M g / v0), c_theta from each
+    link's own wheel offset."""
+    params = _camera_head()
+    wheels = WheelSpec()
+    friction = identify_friction(params, wheels)
+    c_x, c_y = np.array(friction["c_x"]), np.array(friction["c_y"])
+    assert c_x.shape == c_y.shape == (params.n,)
+    assert np.allclose(c_x, friction["c_x_total"] / params.n, rtol=1e-15)
+    assert np.allclose(c_y / params.masses, friction["c_y_total"] / params.total_mass,
+                       rtol=1e-12)
+    assert c_y.sum() == pytest.approx(friction["c_y_total"], rel=1e-12)
+    assert friction["c_y_total"] == pytest.approx(friction["c_y_coulomb_model"], rel=0.05)
+    assert friction["c_y_coulomb_model"] == pytest.approx(
+        1.5 * wheels.friction * params.total_mass * 9.81 / friction["speed"])
+    assert c_x.mean() == pytest.approx(friction["c_x_rolling_model"], rel=0.1)
+    offsets = build_engine_model(params, wheels).wheel_offsets
+    expected = 2 * offsets**2 * wheels.rolling_damping / wheels.radius**2
+    assert np.allclose(friction["c_theta"], expected, rtol=1e-15)
+    assert friction["c_theta"][0] > friction["c_theta"][1]  # the longer head's wider wheels
+
+
+def test_per_link_identification_of_nearly_equal_links_matches_the_uniform_one() -> None:
+    """A robot whose links differ by 1e-6 in mass is identified (per link) like the equal-link
+    robot it nearly is (per-link values within 1e-4): the shares add up to the same fit."""
+    base = SnakeParams.engine()
+    nearly = base.replace(mass=tuple(base.mass * (1 + 1e-6 * np.arange(base.n))),
+                          name="nearly_engine")
+    assert base.uniform and not nearly.uniform
+    uniform, per_link = identify_friction(base), identify_friction(nearly)
+    assert isinstance(uniform["c_y"], float) and len(per_link["c_y"]) == base.n
+    for key in ("c_x", "c_y", "c_theta"):
+        assert np.allclose(per_link[key], uniform[key], rtol=1e-4), key
+
+
+def test_initial_offset_moves_only_the_initial_joint_angles() -> None:
+    """run_engine(initial_offset=d) starts at the arc of (82) with phi + d, records d, and
+    refuses an offset of the wrong size or a non-finite one."""
+    from snake_pin.engine.run import run_engine
+    from snake_pin.gaits import initial_state
+
+    offset = np.linspace(-1e-3, 1e-3, 7)
+    traj = run_engine(t_final=0.01, initial_offset=offset).trajectory
+    q0 = initial_state(8, theta_1=math.pi)[:10]
+    assert np.allclose(traj.q[0, 3:], q0[3:] + offset, atol=1e-12)
+    assert np.allclose(traj.q[0, :3], q0[:3], atol=1e-12)
+    assert traj.meta["initial_offset"] == offset.tolist()
+    for bad in (np.zeros(6), [math.nan] * 7):
+        with pytest.raises(ParameterError, match="initial_offset"):
+            run_engine(t_final=0.01, initial_offset=bad)
+
+
+def test_perturbations_are_seeded_uniform_offsets() -> None:
+    """perturbations(): (count, joints) draws within [-size, size], the same for the same
+    seed, different rows and seeds, zeros for size 0; bad counts and sizes refused."""
+    from snake_pin.experiments.engine import perturbations
+
+    a = perturbations(11, 7, 1e-6, seed=0)
+    assert a.shape == (11, 7) and np.abs(a).max() <= 1e-6 and np.abs(a).max() > 5e-7
+    assert np.array_equal(a, perturbations(11, 7, 1e-6, seed=0))
+    assert not np.array_equal(a, perturbations(11, 7, 1e-6, seed=1))
+    assert len({tuple(row) for row in a}) == 11
+    assert not perturbations(3, 7, 0.0).any()
+    for bad in ({"count": 0}, {"count": 2.5}, {"size": -1.0}, {"size": math.inf}):
+        with pytest.raises(ParameterError):
+            perturbations(**{"count": 3, "joints": 7, "size": 1e-6, **bad})
+
+
+def test_distribution_and_median_draw() -> None:
+    """distribution(): median and linearly interpolated 10/90 % percentiles of the numbers
+    (None left out); Draws.median_draw() names the run whose RMS is the median."""
+    from snake_pin.experiments.engine import Draws, distribution
+
+    d = distribution([float(v) for v in range(11, 0, -1)] + [None])
+    assert (d["median"], d["p10"], d["p90"], d["min"], d["max"], d["count"]) == \
+        (6.0, 2.0, 10.0, 1.0, 11.0, 11)
+    assert distribution([None])["median"] is None
+    draws = Draws("x", 1e-6, 0, np.zeros((4, 7)))
+    assert draws.median_draw() is None and draws.distributions()["rms_percent"]["count"] == 0
+    for i, rms in enumerate([9.0, 11.5, 8.9]):
+        draws.record(i, {"rms_percent": rms, "status": "completed"})
+    assert draws.done == [0, 1, 2] and draws.median_draw() == 0
+    draws.record(3, {"rms_percent": 10.2, "status": "diverged"})
+    assert draws.median_draw() == 0  # even count: the lower middle one
+    assert draws.faults() == [3]
+    assert draws.to_dict()["distribution"]["rms_percent"]["median"] == pytest.approx(9.6)

@@ -47,6 +47,114 @@ def test_key_results_are_reported(report: Path) -> None:
     assert summary["engine"]["friction"]["c_y"] > summary["engine"]["friction"]["c_x"]
 
 
+def test_engine_results_are_distributions(report: Path) -> None:
+    """The engine stage reports each configuration over 3 perturbed runs (--quick): the
+    median and range are those of the runs, the files are the median run's, the target is
+    judged on the median, and the viscous model is found insensitive."""
+    import numpy as np
+
+    from snake_pin.sim import Trajectory
+
+    engine = json.loads((report / "summary.json").read_text())["engine"]
+    for stem in ("engine", "engine_passive5"):
+        draws = engine[stem]["draws"]
+        rms = [run["summary"]["rms_percent"] for run in draws["runs"]]
+        assert draws["draws"] == draws["finished"] == 3 and draws["perturbation"] == 1e-6
+        assert draws["distribution"]["rms_percent"]["median"] == pytest.approx(np.median(rms))
+        median = draws["median_draw"]
+        assert rms[median] == pytest.approx(np.median(rms))
+        saved = Trajectory.load(report / f"{stem}.npz", signals=False)
+        assert saved.summary["rms_percent"] == pytest.approx(rms[median], rel=1e-12)
+        assert np.abs(np.array([run["offset"] for run in draws["runs"]])).max() <= 1e-6
+    label = "velocity law, no passive joint"
+    assert engine["target_met"][label] == \
+        (engine["engine"]["draws"]["distribution"]["rms_percent"]["median"] <= 10.0)
+    check = engine["viscous_sensitivity"]
+    assert check["sensitive"] is False and len(check["rms_percent_perturbed"]) == 3
+    assert check["relative_change"] < 1e-3
+
+
+def test_reproduce_on_a_robot_file(tmp_path: Path) -> None:
+    """reproduce --quick --robot camera_head_snake.toml (robot and engine stages): the
+    robot stage lists its per-link values, the engine stage puts that robot itself on
+    wheels (10 links, friction identified per link) and reports its distributions."""
+    from snake_pin.robot_file import load_robot
+    from snake_pin.sim import Trajectory
+
+    params = load_robot("camera_head_snake.toml")
+    assert main(["reproduce", "--quick", "--robot", "camera_head_snake.toml", "--only", "robot",
+                 "--only", "engine", "-o", str(tmp_path)]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["robot"]["mass"] == params.masses.tolist()
+    engine = summary["engine"]
+    assert len(engine["friction"]["c_y"]) == 10
+    assert engine["friction"]["c_y"][0] > engine["friction"]["c_y"][1]  # the heavier head
+    run = Trajectory.load(tmp_path / "engine.npz", signals=False)
+    assert run.params.name == "camera_head_snake" and run.params.n == 10
+    assert run.params.link_lengths.tolist() == params.link_lengths.tolist()
+    assert engine["engine"]["draws"]["finished"] == 3
+    assert engine["engine"]["body_length"] == pytest.approx(params.body_length)
+    html = (tmp_path / "index.html").read_text()
+    assert "camera_head_snake" in html and "median" in html
+
+
+def test_which_stages_honour_which_robot() -> None:
+    """The engine stage honours --robot for the engine preset and for a robot of one's own,
+    not for Table 1 (it would run the engine preset); it never honours --passive or --n."""
+    from snake_pin import SnakeParams
+    from snake_pin.experiments.engine import engine_robot
+    from snake_pin.experiments.reproduce import unhonoured
+    from snake_pin.robot_file import load_robot
+
+    own = load_robot("camera_head_snake.toml")
+    assert unhonoured("engine", {"robot"}, own) == []
+    assert unhonoured("engine", {"robot"}, SnakeParams.engine()) == []
+    assert unhonoured("engine", {"robot"}, SnakeParams.table1()) == ["robot"]
+    assert unhonoured("engine", {"robot", "passive", "n"}, own) == ["n", "passive"]
+    assert engine_robot(SnakeParams.table1()) == SnakeParams.engine()
+    assert engine_robot(own.replace(passive=(5,))) == own
+
+
+def test_tracking_keeps_an_anisotropic_robots_own_friction() -> None:
+    """The tracking stage's friction: a robot file's own when c_y > c_x on every link, else
+    (presets, an isotropic robot file) the tracking friction of erratum 3, said so."""
+    from snake_pin import SnakeParams
+    from snake_pin.experiments.tracking import TRACKING_FRICTION, tracking_friction
+    from snake_pin.robot_file import load_robot
+
+    own = load_robot("camera_head_snake.toml")
+    robot, sentence = tracking_friction(own)
+    assert robot is own and "own friction" in sentence
+    iso = own.replace(c_y=own.per_link("c_x"))
+    robot, sentence = tracking_friction(iso)
+    assert (robot.c_x, robot.c_y) == (TRACKING_FRICTION["c_x"], TRACKING_FRICTION["c_y"])
+    assert "replaces the robot's own" in sentence
+    assert robot.masses.tolist() == own.masses.tolist()
+    robot, sentence = tracking_friction(SnakeParams.table1())
+    assert robot == SnakeParams.table1(**TRACKING_FRICTION) and "replaces" not in sentence
+
+
+def test_first_links_and_the_pfl_threshold_follow_the_robot() -> None:
+    """first_links cuts per-link values to the first n links (equal links: replace(n=n));
+    PFL's breakdown threshold is 1 N m for Table 1 and scales with m (2l)^2 per link."""
+    import numpy as np
+
+    from snake_pin import SnakeParams
+    from snake_pin.experiments.integrability import first_links
+    from snake_pin.experiments.pfl import TAU_BREAKDOWN, breakdown_threshold
+    from snake_pin.robot_file import load_robot
+
+    own = load_robot("camera_head_snake.toml")
+    four = first_links(own, 4)
+    assert four.n == 4 and four.masses.tolist() == own.masses[:4].tolist()
+    assert four.com_offsets.tolist() == own.com_offsets[:4].tolist()
+    assert four.per_link("c_y").tolist() == own.per_link("c_y")[:4].tolist()
+    assert first_links(SnakeParams.table1(), 4) == SnakeParams.table1(n=4)
+    assert breakdown_threshold(SnakeParams.table1()) == TAU_BREAKDOWN
+    expected = np.mean(own.masses * own.link_lengths**2) / (0.182 * 0.12**2)
+    assert breakdown_threshold(own) == pytest.approx(TAU_BREAKDOWN * expected, rel=1e-12)
+
+
 def test_report_is_complete_strict_json_and_in_place(report: Path) -> None:
     """The run is marked complete, summary.json is RFC 8259 (no NaN/Infinity), every file
     has the umask's mode and no staging folder is left in the output folder."""

@@ -86,9 +86,11 @@ def test_sigterm_during_simulate_saves_the_partial_run(capfd: pytest.CaptureFixt
                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """SIGTERM in simulate: status 130, one line naming the signal and the time, the
     partial run saved with status "interrupted", the JSON says so, handlers restored."""
-    import snake_pin.sim as sim
+    from snake_pin.control import PFLController
 
-    monkeypatch.setattr(sim, "_rk4_step", _signal_on_call(signal.SIGTERM, 300, sim._rk4_step))
+    # the 300th control step (t = 0.299 s): samples 0 .. 0.299 s are whole
+    monkeypatch.setattr(PFLController, "__call__",
+                        _signal_on_call(signal.SIGTERM, 300, PFLController.__call__))
     before = signal.getsignal(signal.SIGTERM)
     code, out, err = _run(capfd, "simulate", "--controller", "pfl", "--t-final", "5",
                           "-o", str(tmp_path), "--json")
@@ -228,6 +230,65 @@ def test_interrupt_while_waiting_terminates_the_pool() -> None:
     assert multiprocessing.active_children() == []
 
 
+def _pool_state() -> tuple[int, list[int], str | None]:
+    """What a job sees: its pid, its BLAS/OpenMP pools' thread counts, OMP_WAIT_POLICY."""
+    from threadpoolctl import threadpool_info
+
+    return (os.getpid(), [pool["num_threads"] for pool in threadpool_info()],
+            os.environ.get("OMP_WAIT_POLICY"))
+
+
+def test_pool_jobs_run_with_one_blas_thread_and_passive_openmp() -> None:
+    """Jobs in pool workers see every BLAS/OpenMP pool limited to one thread and
+    OMP_WAIT_POLICY=PASSIVE; a job run in this process (one job) is limited too, and the
+    limits are restored after it."""
+    from threadpoolctl import threadpool_info
+
+    before = [pool["num_threads"] for pool in threadpool_info()]
+    results = run_jobs([(_pool_state, (), {}), (_pool_state, (), {})], workers=2)
+    assert all(pid != os.getpid() for pid, _, _ in results)
+    assert all(set(threads) == {1} and policy == "PASSIVE" for _, threads, policy in results)
+    (pid, threads, _), = run_jobs([(_pool_state, (), {})])
+    assert pid == os.getpid() and set(threads) == {1}
+    assert [pool["num_threads"] for pool in threadpool_info()] == before
+
+
+def test_iter_jobs_yields_each_result_with_its_index() -> None:
+    """iter_jobs gives every job's result once, with the job's index (any order)."""
+    from snake_pin.experiments.parallel import iter_jobs
+
+    jobs = [(pow, (k, 2), {}) for k in range(6)]
+    pairs = list(iter_jobs(jobs, workers=2))
+    assert sorted(pairs) == [(k, k * k) for k in range(6)]
+
+
+def test_sigterm_during_engine_seeds_keeps_the_runs_done(capfd: pytest.CaptureFixture[str],
+                                                         tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """engine --seeds 3, SIGTERM during the second run (runs in this process): status 130,
+    one line, the first run saved, engine_seeds.json marked interrupted with the
+    distribution of the one finished run, and the JSON output says so."""
+    import snake_pin.experiments.parallel as parallel
+    from snake_pin.engine.run import DirtyDerivative
+
+    monkeypatch.setattr(parallel.os, "cpu_count", lambda: 1)
+    monkeypatch.setattr(DirtyDerivative, "__call__",
+                        _signal_on_call(signal.SIGTERM, 150, DirtyDerivative.__call__))
+    code, out, err = _run(capfd, "engine", "--seeds", "3", "--t-final", "0.1", "--cone",
+                          "pyramidal", "-o", str(tmp_path), "--json")
+    assert code == EXIT_INTERRUPTED
+    line = _one_line(err)
+    assert "SIGTERM" in line and "1 of 3 runs finished" in line
+    data = json.loads(out)
+    table = json.loads((tmp_path / "engine_seeds.json").read_text())
+    for record in (data, table):
+        assert record["status"] == "interrupted" and record["finished"] == 1
+        assert record["distribution"]["R_min"]["count"] == 1
+    assert (tmp_path / "engine_seed1.npz").is_file()
+    assert not (tmp_path / "engine_seed2.npz").exists()
+    assert Trajectory.load(tmp_path / "engine_seed1.npz").status == "completed"
+
+
 # -------------------------------------------------------------- real processes
 def _popen(*args: str, cwd: Path, code: str | None = None) -> subprocess.Popen[str]:
     command = [sys.executable, "-c", code] if code else [sys.executable, "-m", "snake_pin.cli"]
@@ -249,14 +310,16 @@ def test_ctrl_c_on_a_simulate_process(tmp_path: Path) -> None:
     marker = tmp_path / "started"
     code = textwrap.dedent(f"""
         import pathlib, sys
-        import snake_pin.sim as sim
+        from snake_pin.control import LyapunovController
         from snake_pin.cli import main
-        step = sim._rk4_step
-        def first_step(*args):
-            pathlib.Path({str(marker)!r}).touch()
-            sim._rk4_step = step
+        step, calls = LyapunovController.__call__, [0]
+        def counted(*args):
+            calls[0] += 1
+            if calls[0] == 50:  # 49 control steps are whole by now: t_end >= 0.049 s
+                pathlib.Path({str(marker)!r}).touch()
+                LyapunovController.__call__ = step
             return step(*args)
-        sim._rk4_step = first_step
+        LyapunovController.__call__ = counted
         sys.exit(main(sys.argv[1:]))
     """)
     proc = _popen("simulate", "--controller", "lyapunov", "--t-final", "100", "-o", "out",
@@ -291,6 +354,27 @@ def test_sigterm_on_reproduce_leaves_no_worker(tmp_path: Path) -> None:
     folder = tmp_path / "out"
     assert sorted(p.name for p in folder.iterdir()) == ["index.html", "summary.json"]
     assert json.loads((folder / "summary.json").read_text())["run"]["status"] == "interrupted"
+
+
+@linux_only
+def test_sigterm_on_engine_seeds_leaves_no_worker(tmp_path: Path) -> None:
+    """SIGTERM to `snake-pin engine --seeds 4` while its pool runs: exit 130, one line,
+    every worker gone, engine_seeds.json marked interrupted."""
+    proc = _popen("engine", "--seeds", "4", "--t-final", "30", "--cone", "pyramidal",
+                  "-o", "out", cwd=tmp_path)
+    try:
+        _wait_for(lambda: len(_children(proc.pid)) >= 2)
+        workers = _children(proc.pid)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == EXIT_INTERRUPTED and out.startswith("engine")
+    assert "SIGTERM" in _one_line(err) and "runs finished" in err
+    assert _all_gone(workers)
+    table = json.loads((tmp_path / "out" / "engine_seeds.json").read_text())
+    assert table["status"] == "interrupted" and table["finished"] < 4
+    assert not [p for p in (tmp_path / "out").iterdir() if ".snake_pin-" in p.name]
 
 
 @linux_only

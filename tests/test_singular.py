@@ -119,3 +119,25 @@ def test_passive_joints_are_free_in_the_search() -> None:
     free = find_singular_postures(SnakeParams.table1(), starts=2, seed=5, free_joint=5)
     assert passive.free_joint == free.free_joint == 5
     assert np.allclose(passive.minima_R, free.minima_R)
+
+
+def test_search_runs_with_one_blas_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every R evaluation of a search (the typical R and L-BFGS-B's objective) runs with
+    BLAS/OpenMP limited to one thread; the limits are restored afterwards."""
+    from threadpoolctl import threadpool_info
+
+    import snake_pin.singular as singular
+
+    seen: list[set[int]] = []
+    batch = singular.manipulability_R_batch
+
+    def spy(*args: object, **kwargs: object) -> object:
+        if len(seen) < 5:
+            seen.append({pool["num_threads"] for pool in threadpool_info()})
+        return batch(*args, **kwargs)
+
+    before = [pool["num_threads"] for pool in threadpool_info()]
+    monkeypatch.setattr(singular, "manipulability_R_batch", spy)
+    find_singular_postures(SnakeParams.table1(n=6), starts=1)
+    assert len(seen) == 5 and all(threads == {1} for threads in seen)
+    assert [pool["num_threads"] for pool in threadpool_info()] == before

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from snake_pin import ParameterError, Snake
+from snake_pin.experiments.manipulability import write_sweep
 from snake_pin.sweeps import MAX_POINTS, r_map, sweep
 
 
@@ -38,12 +39,14 @@ def test_free_joint_lowers_manipulability(table1: Snake) -> None:
 
 
 def test_sweep_files(table1: Snake, tmp_path: Path) -> None:
-    """write() produces CSV, JSON and PNG with the same numbers."""
+    """write_sweep() produces CSV, JSON and PNG with the same numbers as rows()."""
     sw = sweep(table1, "ts", points=11)
-    paths = sw.write(tmp_path)
+    paths = write_sweep(sw, tmp_path)
     data = json.loads(paths["json"].read_text())
     assert np.allclose(data["R"], sw.R)
-    assert paths["csv"].read_text().count("\n") == 12
+    lines = paths["csv"].read_text().splitlines()
+    assert len(lines) == 12 and lines[0] == "T_s,D,R"
+    assert np.allclose(np.loadtxt(lines[1:], delimiter=","), np.array(sw.rows()), rtol=1e-15)
     assert paths["png"].read_bytes()[:4] == b"\x89PNG"
 
 
@@ -83,7 +86,7 @@ def test_interrupted_sweep_keeps_the_postures_done(table1: Snake, tmp_path: Path
     assert partial.status == "interrupted" and len(partial.values) == len(partial.R) == 3
     monkeypatch.undo()
     assert np.allclose(partial.R, sweep(table1, "ts", points=11).R[:3], rtol=1e-12)
-    data = json.loads(partial.write(tmp_path)["json"].read_text())
+    data = json.loads(write_sweep(partial, tmp_path)["json"].read_text())
     assert data["status"] == "interrupted" and data["points_requested"] == 11
 
 
@@ -106,7 +109,7 @@ def test_files_appear_together_or_not_at_all(table1: Snake, tmp_path: Path,
 
     monkeypatch.setattr(plots, "plot_sweep", broken)
     with pytest.raises(RuntimeError):
-        sw.write(tmp_path)
+        write_sweep(sw, tmp_path)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -120,3 +123,29 @@ def test_passive_joints_are_free_beside_the_free_joint(table1: Snake) -> None:
     expected = [manipulability(table1, np.r_[0, 0, 0, np.full(9, v)], free_joint=(3, 5)).R
                 for v in sw.values]
     assert np.allclose(sw.R, expected, rtol=1e-12)
+
+
+def test_sweeps_and_maps_run_with_one_blas_thread(table1: Snake,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Inside a sweep and an R map every BLAS/OpenMP pool is limited to one thread; the
+    limits are restored afterwards."""
+    from threadpoolctl import threadpool_info
+
+    import snake_pin.sweeps as sweeps
+
+    seen: list[set[int]] = []
+    single, batch = sweeps.manipulability, sweeps.manipulability_R_batch
+
+    def spy(fn):
+        def wrapped(*args: object, **kwargs: object) -> object:
+            seen.append({pool["num_threads"] for pool in threadpool_info()})
+            return fn(*args, **kwargs)
+        return wrapped
+
+    before = [pool["num_threads"] for pool in threadpool_info()]
+    monkeypatch.setattr(sweeps, "manipulability", spy(single))
+    monkeypatch.setattr(sweeps, "manipulability_R_batch", spy(batch))
+    sweep(table1, "arc", points=3)
+    r_map(table1, alpha_points=3, ts_points=3)
+    assert len(seen) == 4 and all(threads == {1} for threads in seen)
+    assert [pool["num_threads"] for pool in threadpool_info()] == before

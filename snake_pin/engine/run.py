@@ -7,7 +7,9 @@
   wheels roll (c_x should match the axle damping, 2 b / r^2 per link); across it they slide
   with Coulomb friction, whose viscous equivalent depends on the speed range, here
   0..v0 = 0.1 m/s, the speed of the task. c_theta is the axle damping seen by a link
-  turning about its CM, 2 d^2 b / r^2.
+  turning about its CM, 2 d^2 b / r^2. A robot with per-link values is fitted whole (its
+  total mass) and the totals are shared out per link: c_x equally, c_y in proportion to
+  each link's mass (the load on its wheels), c_theta from each link's own wheel offset.
 * :class:`DirtyDerivative` estimates velocities from positions with 2 pi f_c s / (s + 2 pi f_c)
   (erratum 4 in docs/errata.md), discretised by backward Euler.
 * :func:`run_engine` runs the Lyapunov-like controller against MuJoCo at 1 kHz.
@@ -16,7 +18,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -89,20 +93,62 @@ def _viscous_fit(t: np.ndarray, v: np.ndarray, mass: float) -> float:
 
 
 def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | None = None,
-                      speed: float = 0.1) -> dict[str, float]:
-    """Viscous c_x, c_y, c_theta per link fitted to the engine (see module docstring)."""
+                      speed: float = 0.1) -> dict[str, Any]:
+    """Viscous c_x, c_y, c_theta per link fitted to the engine (see module docstring).
+
+    Parameters
+    ----------
+    params
+        The robot (default: the ``engine`` preset); its passive joints do not matter.
+    wheels
+        The wheels and contact settings (default :class:`WheelSpec`).
+    speed
+        The coasting speed v0 [m/s] along and across the body.
+
+    Returns
+    -------
+    dict
+        ``c_x``, ``c_y``, ``c_theta`` [N s/m, N s/m, N m s], the model checks
+        ``c_x_rolling_model`` (2 b / r^2, per link) and ``c_y_coulomb_model``
+        (1.5 mu M g / v0), and ``speed``.
+
+        Equal links (``params.uniform``): each coefficient is one number, fitted per link
+        (the straight snake's deceleration with the link mass m), and
+        ``c_y_coulomb_model`` is per link (M = m).
+
+        Per-link robots: the whole robot is fitted with its total mass M, giving
+        ``c_x_total`` and ``c_y_total`` (also returned), and distributed over the links
+        as tuples, head first: c_x,i = c_x,total / n (every link rolls on the same
+        wheels), c_y,i = c_y,total m_i / M (Coulomb sliding is proportional to the load a
+        link puts on its wheels), c_theta,i = 2 d_i^2 b / r^2 with link i's own wheel
+        offset d_i. ``c_y_coulomb_model`` is then the whole robot's (M = total mass).
+    """
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
     engine = build_engine_model(params, wheels)
+    b, r = wheels.rolling_damping, wheels.radius
+    if params.uniform:
+        t, v = _coast(engine, (speed, 0.0, 0.0), 2.0)
+        c_x = _viscous_fit(t, v[:, 0], params.mass)
+        t, v = _coast(engine, (0.0, speed, 0.0), 0.2)
+        c_y = _viscous_fit(t, v[:, 1], params.mass)
+        d = engine.wheel_offset
+        return {"c_x": c_x, "c_y": c_y, "c_theta": 2 * d**2 * b / r**2,
+                "c_x_rolling_model": 2 * b / r**2,
+                "c_y_coulomb_model": 1.5 * wheels.friction * params.mass * GRAVITY / speed,
+                "speed": speed}
+    total = params.total_mass
     t, v = _coast(engine, (speed, 0.0, 0.0), 2.0)
-    c_x = _viscous_fit(t, v[:, 0], params.mass)
+    c_x_total = _viscous_fit(t, v[:, 0], total)
     t, v = _coast(engine, (0.0, speed, 0.0), 0.2)
-    c_y = _viscous_fit(t, v[:, 1], params.mass)
-    b, r, d = wheels.rolling_damping, wheels.radius, engine.wheel_offset
-    return {"c_x": c_x, "c_y": c_y, "c_theta": 2 * d**2 * b / r**2,
+    c_y_total = _viscous_fit(t, v[:, 1], total)
+    offsets = np.asarray(engine.wheel_offsets, dtype=float)
+    return {"c_x": tuple([c_x_total / params.n] * params.n),
+            "c_y": tuple((c_y_total * params.masses / total).tolist()),
+            "c_theta": tuple((2 * offsets**2 * b / r**2).tolist()),
             "c_x_rolling_model": 2 * b / r**2,
-            "c_y_coulomb_model": 1.5 * wheels.friction * params.mass * GRAVITY / speed,
-            "speed": speed}
+            "c_y_coulomb_model": 1.5 * wheels.friction * total * GRAVITY / speed,
+            "c_x_total": c_x_total, "c_y_total": c_y_total, "speed": speed}
 
 
 @dataclass
@@ -119,13 +165,20 @@ LAWS = ("velocity", "acceleration")
 
 def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = None,
                t_final: float = 60.0, friction: dict[str, float] | None = None,
-               cutoff: float = 10.0, law: str = "velocity", progress: bool = False) -> EngineRun:
+               cutoff: float = 10.0, law: str = "velocity",
+               initial_offset: Sequence[float] | np.ndarray | None = None,
+               progress: bool = False) -> EngineRun:
     """Lyapunov-like head tracking on MuJoCo, control at 1 kHz, velocities from the filter.
 
     The controller's internal model is ``params`` with the identified viscous friction.
     ``law="velocity"`` uses the quasi-static, velocity-level form of V's minimisation with
     joint servos (:class:`QuasiStaticLyapunovController`); ``law="acceleration"`` the
     torque-level form of VI.2 (:class:`LyapunovController`).
+
+    The run starts at rest on the arc of eq. (82), head first (theta_1 = pi), with
+    ``initial_offset`` (n - 1 angles [rad], default zeros) added to its joint angles: the
+    engine runs are chaotic, and :func:`snake_pin.experiments.engine.engine_draws` runs
+    them as distributions over small offsets.
 
     The run ends like :func:`snake_pin.sim.simulate`'s, with a trajectory status:
     "diverged" if the engine state becomes non-finite or the robot leaves the floor,
@@ -149,6 +202,15 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     if steps > MAX_STEPS:
         raise ParameterError(f"t_final = {t_final:g} s is {steps} control steps of {dt:g} s; "
                              f"at most {MAX_STEPS} ({MAX_STEPS * dt:g} s)")
+    offset = np.zeros(params.n - 1)
+    if initial_offset is not None:
+        try:
+            offset = np.asarray(initial_offset, dtype=float).reshape(params.n - 1).copy()
+        except (TypeError, ValueError):
+            raise ParameterError(f"initial_offset must be {params.n - 1} joint angles, got "
+                                 f"{np.shape(initial_offset)}") from None
+        if not np.all(np.isfinite(offset)):
+            raise ParameterError("initial_offset must be finite")
     friction = friction or identify_friction(params.replace(passive=()), wheels)
     model_params = params.replace(c_x=friction["c_x"], c_y=friction["c_y"],
                                   c_theta=friction["c_theta"])
@@ -160,6 +222,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     else:
         controller = LyapunovController(snake, head_first_reference())
     q0 = initial_state(params.n, theta_1=math.pi)[: params.n + 2]
+    q0[3:] += offset
     engine.set_paper_configuration(q0)
     nq = snake.nq
     filt = DirtyDerivative(nq, cutoff, dt)
@@ -174,15 +237,17 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     bar = None
     chain = engine.chain_dofs
 
+    meta = {"controller": controller.name, "law": law, "engine": "mujoco",
+            "cutoff_hz": cutoff, "control_dt": dt, "engine_timestep": wheels.timestep,
+            "wheel_radius": wheels.radius, "wheel_friction": wheels.friction}
+    if initial_offset is not None:
+        meta["initial_offset"] = offset.tolist()
+
     def collect(run_status: str, run_reason: str) -> EngineRun:
         traj = Trajectory(t=ts[:good].copy(), q=qs[:good].copy(), dq=dqs[:good].copy(),
                           tau=taus[:good].copy(), params=model_params, status=run_status,
                           reason=run_reason,
-                          meta={"controller": controller.name, "law": law, "engine": "mujoco",
-                                "cutoff_hz": cutoff, "control_dt": dt,
-                                "engine_timestep": wheels.timestep,
-                                "wheel_radius": wheels.radius,
-                                "wheel_friction": wheels.friction})
+                          meta=dict(meta))
         return EngineRun(traj, true_dq[:good].copy(), friction)
 
     try:

@@ -1,24 +1,87 @@
 """Report stage: manipulability along posture families, the (alpha, T_s) map, shapes of
-Figs. 6-7, and the singular-posture search over the whole joint box."""
+Figs. 6-7, and the singular-posture search over the whole joint box.
+
+Also the files of a sweep and of a search (:func:`write_sweep`, :func:`write_singular`),
+used by this stage and by ``snake-pin sweep`` / ``snake-pin singular``: the analysis
+modules (:mod:`snake_pin.sweeps`, :mod:`snake_pin.singular`) return data, and the
+drawing and writing happen here, a layer above them.
+"""
 
 from __future__ import annotations
 
+import csv
+import io
 import os
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._io import atomic_group
+from .._json import json_text
 from ..gaits import Serpenoid, straight
 from ..model import Snake
 from ..singular import SingularSearch, find_singular_postures
-from ..sweeps import FAMILIES, r_map, sweep
+from ..sweeps import FAMILIES, Sweep, r_map, sweep
 from ..viz.plots import plot_postures, plot_r_maps
 from .reproduce import Context
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["draw_singular", "manipulability_stage"]
+__all__ = ["draw_singular", "manipulability_stage", "write_singular", "write_sweep"]
+
+
+def _png(fig: Figure) -> bytes:
+    """The figure as PNG bytes (closed). Figures laid out with tight_layout are saved
+    without the tight bounding box, which cost 1.67x per figure."""
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path]:
+    """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` of a sweep into ``folder``.
+
+    The files appear together (data first, then the figure) or not at all; an empty
+    (interrupted before its first posture) sweep has no figure. The JSON is RFC 8259
+    (:meth:`~snake_pin.sweeps.Sweep.to_dict`: non-finite D or R as null).
+
+    Returns
+    -------
+    dict
+        ``{"csv": path, "json": path, "png": path}`` (no "png" for an empty sweep).
+    """
+    from ..viz.plots import plot_sweep
+
+    folder = Path(folder)
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow([result.label, "D", "R"])
+    writer.writerows(result.rows())
+    names = {ext: f"{result.stem}.{ext}" for ext in ("csv", "json", "png")}
+    png = _png(plot_sweep(result)) if result.values.size else b""
+    with atomic_group(folder) as group:
+        group.write_bytes(names["csv"], buf.getvalue().encode())
+        group.write_bytes(names["json"], (json_text(result.to_dict()) + "\n").encode())
+        if result.values.size:
+            group.write_bytes(names["png"], png, figure=True)
+    return {ext: folder / name for ext, name in names.items()
+            if ext != "png" or result.values.size}
+
+
+def write_singular(search: SingularSearch, folder: str | os.PathLike[str]) -> list[Path]:
+    """Write ``singular_postures.json`` and ``singular_postures.png`` (the drawing of
+    :func:`draw_singular`) into ``folder`` as one set; returns their paths."""
+    png = _png(draw_singular(search, None))
+    with atomic_group(Path(folder)) as group:
+        data = group.write_bytes("singular_postures.json",
+                                 (json_text(search.to_dict(), indent=2) + "\n").encode())
+        figure = group.write_bytes("singular_postures.png", png, figure=True)
+    return [data, figure]
 
 FREE_JOINT = 5  # the paper's example of a free joint
 
@@ -53,7 +116,7 @@ def manipulability_stage(ctx: Context) -> None:
     for family, (_, _, description) in FAMILIES.items():
         for free in (None, FREE_JOINT):
             result = sweep(snake, family, free_joint=free, points=points)
-            paths = result.write(folder)
+            paths = write_sweep(result, folder)
             figure_no = {"arc": (2, 3), "alpha": (4, 8), "ts": (5, 9)}[family][free is not None]
             sec.figure(paths["png"], f"Fig. {figure_no}: {description}"
                        + (f", joint {free} free" if free else ""))

@@ -16,11 +16,31 @@ from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory, simulate
 
-__all__ = ["TAU_BREAKDOWN", "PFLRun", "initial_state", "plot_pfl", "run_pfl"]
+__all__ = ["TAU_BREAKDOWN", "PFLRun", "breakdown_threshold", "initial_state", "plot_pfl",
+           "run_pfl"]
 
-#: ||tau|| above this [N m] counts as the breakdown of PFL. While tracking, the Table 1
-#: robot needs 0.01-0.3 N m; 1 N m is several times that and a tenth of the rated effort.
+#: ||tau|| above this [N m] counts as the breakdown of PFL on the Table 1 robot. While
+#: tracking, it needs 0.01-0.3 N m; 1 N m is several times that and a tenth of the rated
+#: effort. Other robots scale it (:func:`breakdown_threshold`).
 TAU_BREAKDOWN = 1.0
+#: m (2l)^2 of a Table 1 link [kg m^2]: the scale of :data:`TAU_BREAKDOWN`.
+_TABLE1_LINK = 0.182 * 0.12**2
+
+
+def breakdown_threshold(params: SnakeParams) -> float:
+    """||tau|| [N m] that counts as PFL's breakdown for ``params``: :data:`TAU_BREAKDOWN`
+    times the robot's m_i (2l_i)^2 (mean over links) over a Table 1 link's.
+
+    Joint torques for the same joint accelerations scale with m (2l)^2 (the camera-head
+    example needs 1.1 N m at t = 0, the Table 1 robot 0.25 N m), so a fixed threshold
+    would call a heavier robot broken down at once. Exactly :data:`TAU_BREAKDOWN` for the
+    Table 1 robot.
+    """
+    if params.uniform:
+        link = float(params.mass) * float(params.link_length) ** 2
+    else:
+        link = float(np.mean(params.masses * params.link_lengths**2))
+    return TAU_BREAKDOWN * link / _TABLE1_LINK
 
 
 def initial_state(params: SnakeParams) -> np.ndarray:
@@ -44,7 +64,8 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
     """Run Section VI.1 (gains 79, reference 80, serpenoid 81, initial state 82).
 
     The summary has t_end, diverged, breakdown_time, t_R_min, R_min, g_drift_max and
-    head_error_max, all taken before the breakdown.
+    head_error_max, all taken before the breakdown (||tau|| above
+    :func:`breakdown_threshold`, in the summary as breakdown_threshold).
     """
     params = params or SnakeParams.table1()
     snake = Snake(params)
@@ -54,7 +75,8 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
                     control_dt=control_dt, progress=progress,
                     meta={"climb_R": climb_R, "reference_velocity": [0.1, 0.0, 0.0]})
     tau_norm = np.linalg.norm(traj.tau, axis=1)
-    over = np.flatnonzero(tau_norm > TAU_BREAKDOWN)
+    threshold = breakdown_threshold(params)
+    over = np.flatnonzero(tau_norm > threshold)
     breakdown = int(over[0]) if over.size else len(traj) - 1
     broke = bool(over.size) or traj.diverged
     _, d, r = criteria_along(traj)
@@ -70,7 +92,7 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
                          "head_error": error})
     traj.summary.update({
         "controller": "pfl", "climb_R": climb_R, "c_x": params.c_x, "c_y": params.c_y,
-        "breakdown_threshold": TAU_BREAKDOWN,
+        "breakdown_threshold": threshold,
         "breakdown_time": float(traj.t[breakdown]) if broke else None,
         "t_R_min": float(traj.t[k_min]), "R_min": float(r[k_min]),
         "t_R_dip": float(traj.t[k_dip]), "R_dip": float(r[k_dip]),
@@ -114,7 +136,7 @@ def plot_pfl(run: PFLRun, folder: Path, stem: str) -> dict[str, Path]:
 
     fig, ax = plt.subplots(figsize=(8, 3.8))
     ax.semilogy(t, traj.signals["tau_norm"] + 1e-12, color="k", label="||tau|| [N m]")
-    ax.axhline(TAU_BREAKDOWN, color="firebrick", lw=0.8)
+    ax.axhline(s["breakdown_threshold"], color="firebrick", lw=0.8)
     mark(ax)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("||tau|| [N m]")
@@ -169,7 +191,9 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
     axes[0].set_ylabel("R")
     axes[1].set_ylabel("||tau|| [N m]")
     axes[1].set_ylim(1e-3, 1e3)
-    axes[1].axhline(TAU_BREAKDOWN, color="firebrick", lw=0.8)
+    for run in runs.values():
+        axes[1].axhline(run.trajectory.summary["breakdown_threshold"], color="firebrick",
+                        lw=0.8)
     axes[1].set_xlabel("t [s]")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
@@ -182,34 +206,59 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
 def pfl_stage(ctx) -> None:
     """Section VI.1 run, its figures, and the singularity-aware comparison."""
     params = ctx.params.replace(passive=())
+    isotropic = params.isotropic
+    friction = ("isotropic" if isotropic else "the robot's")
+    key = "isotropic" if isotropic else "robot_friction"
     sec = ctx.report.section("pfl", "Partial feedback linearisation of the head (VI.1)")
+    described = (f"isotropic friction c_x = c_y = {params.c_x}" if isotropic and params.uniform
+                 else "isotropic friction c_x = c_y (per link, as the robot's)" if isotropic
+                 else "the robot's own friction (c_y != c_x: not the paper's isotropic case)")
     sec.text("Law derived from (27): tau = H22 H12^+ (-Hs a - h1 + H12 H22^-1 h2) + "
              "H22 (I - H12^+ H12) kappa (the printed (70) has +Hs a, erratum 2). Gains (79), "
-             "w_r = [0.1 t, 0, 0], serpenoid (81), initial arc phi = pi/6 (82), isotropic "
-             f"friction c_x = c_y = {params.c_x}. Breakdown: ||tau|| > {TAU_BREAKDOWN} N m.")
+             "w_r = [0.1 t, 0, 0], serpenoid (81), initial arc phi = pi/6 (82), "
+             f"{described}. Breakdown: ||tau|| > {breakdown_threshold(params):.3g} N m"
+             + ("." if breakdown_threshold(params) == TAU_BREAKDOWN else
+                f" ({TAU_BREAKDOWN:g} N m for the Table 1 robot, scaled by this robot's mean "
+                "m_i (2l_i)^2).")
+             + ("" if not ctx.params.passive else " Every joint is actuated here (PFL needs "
+                "them all), whatever the robot's passive joints."))
     t_final = 6.0 if ctx.quick else 10.0
     plain = run_pfl(params, t_final=t_final)
-    plain.trajectory.save(ctx.folder / "pfl_isotropic")
-    for key, path in plot_pfl(plain, ctx.folder, "pfl_isotropic").items():
+    stem = f"pfl_{key}"
+    plain.trajectory.save(ctx.folder / stem)
+    for name, path in plot_pfl(plain, ctx.folder, stem).items():
         sec.figure(path, {"criteria": "D and R (Fig. 10a)", "torque": "||tau|| and R (Fig. 10b)",
-                          "g": "g of eq. (67) (Fig. 12)", "postures": "Fig. 11"}[key])
+                          "g": "g of eq. (67) (Fig. 12)", "postures": "Fig. 11"}[name])
     summary = plain.trajectory.summary
-    sec.numbers["isotropic"] = plain.trajectory.summary_dict()
-    sec.text(
-        f"Breakdown at t = {summary['breakdown_time']} s (paper: R dips at 3.44 s, then "
-        f"||tau|| grows). R rises from {plain.R[0]:.3g} (initial arc) to {summary['R_peak']:.3g}"
-        f" and falls to {summary['R_dip']:.3g} at the breakdown, where the body has been "
-        "pulled almost straight: with isotropic friction g is conserved (drift "
-        f"{summary['g_drift_max']:.1e} before the breakdown), so the centre of mass cannot "
-        "follow the head and the head runs out of body. The paper's dip is about 0.4 s "
-        "earlier. Not from our discretisation: the breakdown is at 3.8330 s with control and "
-        "RK4 steps of 1 ms and 0.5 ms and 3.8329 s at 0.1 ms; not from J: ten times J gives "
-        "3.839 s, and J = 0.22 as printed breaks down at once. It must come from something "
-        "the paper does not state (serpenoid phase at t = 0, the pseudo-inverse used, or its "
-        "own simulator).")
-    aniso_params = params.replace(c_y=10 * params.c_x)
-    runs = {"isotropic, plain": plain,
-            "isotropic, climb R": run_pfl(params, t_final=t_final, climb_R=0.5),
+    sec.numbers[key] = plain.trajectory.summary_dict()
+    paper_robot = params.name == "table1" and params.uniform and isotropic
+    text = (f"Breakdown at t = {summary['breakdown_time']} s. R rises from {plain.R[0]:.3g} "
+            f"(initial arc) to {summary['R_peak']:.3g} and falls to {summary['R_dip']:.3g} at "
+            "the breakdown.")
+    if isotropic:
+        text += (" With isotropic friction g is conserved (drift "
+                 f"{summary['g_drift_max']:.1e} before the breakdown), so the centre of mass "
+                 "cannot follow the head and the head runs out of body.")
+    if paper_robot:
+        text = (f"Breakdown at t = {summary['breakdown_time']} s (paper: R dips at 3.44 s, then "
+                f"||tau|| grows). R rises from {plain.R[0]:.3g} (initial arc) to "
+                f"{summary['R_peak']:.3g} and falls to {summary['R_dip']:.3g} at the breakdown, "
+                "where the body has been pulled almost straight: with isotropic friction g is "
+                f"conserved (drift {summary['g_drift_max']:.1e} before the breakdown), so the "
+                "centre of mass cannot follow the head and the head runs out of body. The "
+                "paper's dip is about 0.4 s earlier. Not from our discretisation: the "
+                "breakdown is at 3.8330 s with control and RK4 steps of 1 ms and 0.5 ms and "
+                "3.8329 s at 0.1 ms; not from J: ten times J gives 3.839 s, and J = 0.22 as "
+                "printed breaks down at once. It must come from something the paper does not "
+                "state (serpenoid phase at t = 0, the pseudo-inverse used, or its own "
+                "simulator).")
+    elif params.name != "table1":
+        text += (f" (The paper's numbers, e.g. its R dip at 3.44 s, are for the Table 1 robot, "
+                 f"not '{params.name}'.)")
+    sec.text(text)
+    aniso_params = params.replace(c_y=10 * params.per_link("c_x"))
+    runs = {f"{friction}, plain": plain,
+            f"{friction}, climb R": run_pfl(params, t_final=t_final, climb_R=0.5),
             "c_y = 10 c_x, plain": run_pfl(aniso_params, t_final=2 * t_final),
             "c_y = 10 c_x, climb R": run_pfl(aniso_params, t_final=2 * t_final, climb_R=0.5)}
     rows = []
@@ -222,8 +271,13 @@ def pfl_stage(ctx) -> None:
               rows)
     sec.figure(compare_variants(runs, ctx.folder / "pfl_variants.png"),
                "Beyond the paper: using kappa to climb log R (gamma = 0.5, k_d = 2)")
-    sec.text("Climbing log R with the redundancy does not remove the breakdown: with isotropic "
-             "friction it cannot, because the conserved g pins the centre of mass whatever the "
-             "posture; with c_y = 10 c_x the head still outruns the slow serpenoid (v = 0.18 "
-             "rad/s) and the null-space motion only changes when the body straightens. The "
-             "table gives the measured breakdown times.")
+    if paper_robot:
+        sec.text("Climbing log R with the redundancy does not remove the breakdown: with "
+                 "isotropic friction it cannot, because the conserved g pins the centre of mass"
+                 " whatever the posture; with c_y = 10 c_x the head still outruns the slow "
+                 "serpenoid (v = 0.18 rad/s) and the null-space motion only changes when the "
+                 "body straightens. The table gives the measured breakdown times.")
+    else:
+        sec.text("The table gives the measured breakdown times (none: no breakdown within the "
+                 "run) of the plain law and of the law climbing log R with its redundancy, with"
+                 f" {friction} friction and with c_y = 10 c_x on every link.")

@@ -20,6 +20,15 @@ Which robot options each stage honours is declared in :data:`HONOURED`: a stage 
 robot it is given for those fields and sets the others itself (e.g. the tracking runs'
 anisotropic friction, PFL's all-actuated joints, the engine's own 8-link robot), so a
 caller must refuse the others rather than let a stage override them silently.
+
+Robots of one's own (a robot file, a URDF, or parameters whose name is not a preset's)
+run in every stage, each stage saying in the report what it changes: the robot,
+manipulability and PFL stages use the robot as given (PFL with every joint actuated);
+integrability sets c_y itself (c_y = c_x and 10 c_x) and checks involutivity on the
+robot's first 4 and 5 links; tracking uses the robot's own friction when it is
+anisotropic on every link (c_y > c_x; Section V rules out isotropic friction), else the
+tracking friction of erratum 3; the engine stage runs the robot itself on wheels with
+its friction identified (for a preset it runs the ``engine`` preset of VI.3).
 """
 
 from __future__ import annotations
@@ -41,14 +50,15 @@ from typing import Any
 
 from .._io import current_umask
 from ..exceptions import ParameterError, RunInterrupted
-from ..params import SnakeParams
+from ..params import ROBOTS, SnakeParams
 from ..report import Report
 
 __all__ = ["HONOURED", "MIN_LINKS", "Context", "reproduce", "stages", "unhonoured"]
 
-#: Stage -> the robot fields (``SnakeParams`` names, plus "robot" for the preset) it takes
+#: Stage -> the robot fields (``SnakeParams`` names, plus "robot" for --robot) it takes
 #: from the robot it is given. Friction does not enter D and R, so the manipulability
-#: stage honours it trivially; the engine stage always runs the engine robot of VI.3.
+#: stage honours it trivially; the engine stage runs the engine robot of VI.3 for a
+#: preset and a robot of one's own itself (see :func:`unhonoured`).
 HONOURED: dict[str, frozenset[str]] = {
     "robot": frozenset({"robot", "n", "passive", "c_x", "c_y", "c_theta"}),
     "manipulability": frozenset({"robot", "n", "c_x", "c_y", "c_theta"}),
@@ -96,10 +106,12 @@ def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams
     """The fields of ``given`` that ``stage`` would not honour (sorted).
 
     ``given`` holds the fields a user set (names of :data:`HONOURED`). The engine stage
-    honours "robot" when it is the engine robot, which it always runs.
+    honours "robot" when it is the engine preset, or a robot of one's own (a name that is
+    not a preset's: a robot file or a URDF), which it runs on wheels; for the other
+    presets it would run the engine preset instead.
     """
     honoured = set(HONOURED[stage])
-    if stage == "engine" and params.name == "engine":
+    if stage == "engine" and (params.name == "engine" or params.name not in ROBOTS):
         honoured.add("robot")
     return sorted(set(given) - honoured)
 

@@ -26,8 +26,10 @@ def robot_stage(ctx: Context) -> None:
     plot_postures(snake, postures, figure, title=f"{params.name}: link frames O_i - x_i y_i")
     sec = ctx.report.section("robot", f"Robot '{params.name}'")
     sec.text("Generalised coordinates q = [x_h, y_h, theta_1, phi_1..phi_{n-1}] (paper "
-             "coordinates, a composite PX-PY-RZ root joint in Pinocchio). Links are numbered "
-             "from the head; each link frame sits at its front end with x towards the tail.")
+             "coordinates; in Pinocchio a chain of three single-DoF root joints PX -> PY -> "
+             "RZ). Links are numbered from the head; each link frame sits at its front end "
+             "with x towards the tail."
+             + ("" if params.uniform else " Per-link values are listed head first."))
     sec.table(["quantity", "value"], info_rows(params, snake))
     sec.figure(figure, "Postures of the robot with the link frames (red: x_i along the link, "
                "blue: y_i), head in orange, like Fig. 1")
@@ -35,11 +37,21 @@ def robot_stage(ctx: Context) -> None:
 
 
 def info(params: SnakeParams, snake: Snake | None = None) -> dict[str, object]:
-    """Parameters and model sizes as a JSON-friendly dict (``snake-pin info``)."""
+    """Parameters and model sizes as a JSON-friendly dict (``snake-pin info``).
+
+    The fields of ``params`` (a per-link field as a list, head first), nq, nv, the total
+    mass and body length; for equal links the paper's half length l, for per-link robots
+    ``com_offsets`` (every link's CM from its front end [m]) instead.
+    """
     snake = snake or Snake(params)
-    return {**params.to_dict(), "nq": snake.nq, "nv": snake.nv,
-            "total_mass": params.total_mass, "body_length": params.body_length,
-            "half_length": params.half_length}
+    data: dict[str, object] = {**params.to_dict(), "nq": snake.nq, "nv": snake.nv,
+                               "total_mass": params.total_mass,
+                               "body_length": params.body_length}
+    if params.uniform:
+        data["half_length"] = params.half_length
+    else:
+        data["com_offsets"] = params.com_offsets.tolist()
+    return data
 
 
 def info_rows(params: SnakeParams, snake: Snake) -> list[list[object]]:

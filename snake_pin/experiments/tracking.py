@@ -20,12 +20,12 @@ from ..metrics import (
     percent,
 )
 from ..model import Snake
-from ..params import SnakeParams
+from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory, simulate
 from .parallel import run_jobs
 
-__all__ = ["TRACKING_FRICTION", "plot_tracking", "run_tracking", "tracking_params",
-           "tracking_stage"]
+__all__ = ["TRACKING_FRICTION", "plot_tracking", "run_tracking", "tracking_friction",
+           "tracking_params", "tracking_stage"]
 
 #: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
 #: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
@@ -39,6 +39,27 @@ def tracking_params(params: SnakeParams | None = None, **changes: object) -> Sna
     """Table 1 robot with the tracking friction unless friction is given in ``changes``."""
     base = (params or SnakeParams.table1()).replace(**TRACKING_FRICTION)
     return base.replace(**changes) if changes else base
+
+
+def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
+    """The robot with the friction a tracking run uses, and a sentence saying which.
+
+    A robot of one's own (its name is not a preset's: a robot file, a URDF) keeps its
+    friction when it is anisotropic on every link (c_y > c_x, as wheels give; Section V
+    rules out isotropic friction). Presets (Table 1's friction is isotropic) and other
+    robots get :data:`TRACKING_FRICTION` (erratum 3).
+    """
+    own = params.name not in ROBOTS
+    if own and np.all(params.per_link("c_y") > params.per_link("c_x")):
+        ratio = params.per_link("c_y") / params.per_link("c_x")
+        return params, ("the robot's own friction (anisotropic on every link, c_y > c_x; "
+                        f"c_y / c_x from {ratio.min():.3g} to {ratio.max():.3g})")
+    sentence = (f"friction c_x = {TRACKING_FRICTION['c_x']}, c_y = {TRACKING_FRICTION['c_y']} "
+                "N s/m (erratum 3)")
+    if own:
+        sentence += (", which replaces the robot's own friction: it is not anisotropic on "
+                     "every link, and Section V rules out tracking with isotropic friction")
+    return tracking_params(params), sentence
 
 
 def initial_state(params: SnakeParams) -> np.ndarray:
@@ -167,6 +188,8 @@ def tracking_stage(ctx) -> None:
     """Runs with and without a passive joint, the isotropic contrast, Fig. 15."""
     t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
     base = ctx.params.replace(passive=())
+    robot, friction = tracking_friction(base)
+    own = robot is base  # the robot's own friction is used
     sec = ctx.report.section("tracking", "Lyapunov-like head tracking (VI.2)")
     sec.text("Law: weighted least squares on q'' = A tau + b towards s' = -lambda s (head, "
              "weight K_w2) and phi'' = phi_r'' + mu e (joints, weight K_phi), gains (84), "
@@ -174,22 +197,29 @@ def tracking_stage(ctx) -> None:
              "rho with the unreachable residual rho (derivation and the choice of the two rates "
              "in snake_pin/control/lyapunov.py). In the paper's coordinates theta_1 "
              "points from the head to the tail, so the head-first run along +x has theta_1 = pi:"
-             " w_r = [0.1 t, 0, pi], the arc of (82) turned by pi. Friction c_x = "
-             f"{TRACKING_FRICTION['c_x']}, c_y = {TRACKING_FRICTION['c_y']} N s/m (erratum 3).")
+             f" w_r = [0.1 t, 0, pi], the arc of (82) turned by pi. The robot '{base.name}' with"
+             f" {friction}.")
+    c_x = robot.per_link("c_x")
+    contrast = ((f"isotropic (c_x = c_y = {robot.c_x})" if robot.uniform
+                 else "isotropic (c_y = c_x per link)"), robot.replace(c_y=c_x))
     # (label, file stem, robot, duration, controller options, animated page)
-    runs = [("no passive joint", "tracking", tracking_params(base), t_final, {}, True),
-            ("joint 5 passive", "tracking_passive5", tracking_params(base, passive=(5,)),
+    runs = [("no passive joint", "tracking", robot, t_final, {}, True),
+            ("joint 5 passive", "tracking_passive5", robot.replace(passive=(5,)),
              t_final, {}, True),
             # the isotropic contrast shows failure and a constant g: 30 s are enough
-            ("isotropic (c_x = c_y = 0.5)", "tracking_isotropic",
-             base.replace(c_x=0.5, c_y=0.5), min(t_final, 30.0), {}, False),
+            (contrast[0], "tracking_isotropic", contrast[1], min(t_final, 30.0), {}, False),
             ("one rate for head and gait (lambda = mu = 1/s)", "tracking_one_rate",
-             tracking_params(base), t_final, {"lam": 1.0, "lam_shape": 1.0}, False)]
+             robot, t_final, {"lam": 1.0, "lam_shape": 1.0}, False)]
     # the design's tuning, table rows only: rates along mu = lambda / 2, and other c_y
-    sweep = [(f"lambda = {lam:g}/s, mu = {lam / 2:g}/s", tracking_params(base),
+    sweep = [(f"lambda = {lam:g}/s, mu = {lam / 2:g}/s", robot,
               {"lam": lam, "lam_shape": lam / 2}) for lam in (3.0, 7.0)]
-    sweep += [(f"c_y = {c_y:g} N s/m (lambda = 10/s)", tracking_params(base, c_y=c_y), {})
-              for c_y in (10.0, 50.0)]
+    if own:
+        sweep += [(f"c_y x {factor:g} on every link (lambda = 10/s)",
+                   robot.replace(c_y=factor * robot.per_link("c_y")), {})
+                  for factor in (0.5, 2.0)]
+    else:
+        sweep += [(f"c_y = {c_y:g} N s/m (lambda = 10/s)", tracking_params(base, c_y=c_y), {})
+                  for c_y in (10.0, 50.0)]
     rows = []
     results = run_jobs([(run_tracking, (params,), {"t_final": duration, **options})
                         for _, _, params, duration, options, _ in runs]
@@ -218,11 +248,12 @@ def tracking_stage(ctx) -> None:
             sec.numbers["lateral_criterion"] = lateral
     sec.table(["run", "RMS head error [m]", "% of body", "max error [m]", "R min",
                "max |g - g(0)|"], rows)
-    sec.text("Targets: RMS <= 5 % of the 1.2 m body without a passive joint, <= 10 % with joint "
-             "5 passive; R never reaches zero. With isotropic friction the head cannot follow "
-             "and g of eq. (67) stays constant (Section V). The last row is the same law with "
-             "one decay rate for head and gait: the head's x error then swings slowly (20-50 s) "
-             "about the reference, which is why the head's rate is the faster one.")
+    sec.text(f"Targets: RMS <= 5 % of the {robot.body_length:.4g} m body without a passive "
+             "joint, <= 10 % with joint 5 passive; R never reaches zero. With isotropic "
+             "friction the head cannot follow and g of eq. (67) stays constant (Section V). "
+             "The last row is the same law with one decay rate for head and gait: the head's "
+             "x error then swings slowly (20-50 s) about the reference, which is why the "
+             "head's rate is the faster one.")
     sweep_rows = []
     for (label, _, _), traj in zip(sweep, swept, strict=True):
         s = traj.summary
@@ -231,8 +262,10 @@ def tracking_stage(ctx) -> None:
     sec.table(["no passive joint, varied", "RMS head error [m]", "% of body", "R min"],
               sweep_rows)
     sec.text("The decay rates along mu = lambda / 2 (the default is lambda = 10/s) and the "
-             "sideways friction (the default is c_y = 25 = 50 c_x): the error falls as the "
-             "head's rate rises, and stiffer sideways friction tracks better.")
+             "sideways friction (the default is "
+             + ("the robot's own" if own else "c_y = 25 = 50 c_x")
+             + "): the error falls as the head's rate rises, and stiffer sideways friction "
+             "tracks better.")
     sec.figure(ctx.folder / "lateral_criterion.png",
                "Fig. 15: R against the lateral-constraint criterion over [0, 10] s")
     sec.text(f"At the initial arc the lateral-constraint criterion is "

@@ -1,0 +1,79 @@
+"""JSON text of results: the one way snake_pin turns numbers into JSON (RFC 8259).
+
+A low-level module (it imports nothing from the package): the report's summary, the
+sweep and search files, the command line's ``--json`` and the studies all go through
+:func:`json_text`, so NaN and infinities always become ``null`` and NumPy values, paths
+and dataclasses become plain JSON data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["json_safe", "json_text"]
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` as plain JSON data.
+
+    Parameters
+    ----------
+    value
+        None, bools, strings, numbers, mappings, sequences and sets of them, NumPy
+        arrays and scalars, paths or dataclass instances, nested in any way.
+
+    Returns
+    -------
+    Any
+        The same data with NaN and infinities as None, NumPy values and arrays as
+        numbers and lists, paths as strings, dataclasses as dicts, mapping keys as
+        strings.
+
+    Raises
+    ------
+    TypeError
+        For anything else that JSON cannot hold.
+    """
+    if value is None or isinstance(value, (bool, str, int)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, Mapping):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, set, frozenset)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if hasattr(value, "tolist"):  # NumPy arrays and scalars
+        return json_safe(value.tolist())
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return json_safe(dataclasses.asdict(value))
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def json_text(value: Any, *, indent: int | None = None) -> str:
+    """RFC 8259 JSON text of ``value`` after :func:`json_safe` (never NaN or Infinity).
+
+    Parameters
+    ----------
+    value
+        Anything :func:`json_safe` accepts.
+    indent
+        Indentation of nested levels (None: one line).
+
+    Returns
+    -------
+    str
+        The JSON text, without a trailing newline.
+
+    Raises
+    ------
+    TypeError
+        If ``value`` holds something JSON cannot hold.
+    """
+    return json.dumps(json_safe(value), indent=indent, allow_nan=False)
