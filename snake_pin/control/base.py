@@ -65,19 +65,19 @@ class TimeTerms:
         """The times of the coming calls, in order."""
         self._times = np.asarray(times, dtype=float)
         self._cursor = 0
-        self._start = 0
-        self._block: np.ndarray = np.zeros((0, 0))
+        self._next = float(self._times[0]) if len(self._times) else None
+        self._rows_left: list[np.ndarray] = []
 
     def __call__(self, t: float) -> np.ndarray:
         """The row at time t (read only)."""
-        cursor = self._cursor
-        if cursor < len(self._times) and self._times[cursor] == t:
-            self._cursor = cursor + 1
-            index = cursor - self._start
-            if index >= len(self._block):
-                self._start, index = cursor, 0
-                self._block = self._rows(self._times[cursor:cursor + _BLOCK])
-            return self._block[index]
+        if t == self._next:
+            cursor = self._cursor = self._cursor + 1
+            if not self._rows_left:
+                block = self._rows(self._times[cursor - 1:cursor - 1 + _BLOCK])
+                self._rows_left = list(block[::-1])  # popped from the end, in order
+            times = self._times
+            self._next = float(times[cursor]) if cursor < len(times) else None
+            return self._rows_left.pop()
         return self._rows(np.array([float(t)]))[0]
 
 

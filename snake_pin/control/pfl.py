@@ -25,8 +25,10 @@ Evaluation (the closed loop's hot path, issue 13). Expanding the law,
     tau = h2 + H22 w,   w = H12^+ z - u,   z = -H11 a - h1 + H12 (H22^-1 H21 a + u),
 
 the same torque with one Cholesky solve of a vector (p = H22^-1 H21 a) instead of a matrix,
-H12^+ applied through its SVD (which gives R as well), and H and h from one CRBA, one
-RNEA and the friction passes (:class:`~snake_pin.model.FastDynamics`). The time-only parts
+H12^+ z = H12^T (H12 H12^T)^-1 z (R > 0: full row rank) by a 3 x 3 Cholesky solve, R as the
+square root of the smallest eigenvalue of H12 H12^T (LAPACK dsyev; a full SVD of H12 costs
+4x more), and H and h from one CRBA, one RNEA and the friction passes
+(:class:`~snake_pin.model.FastDynamics`). The time-only parts
 of a and u are computed in blocks for the coming calls. The closed loop's q'' at the state
 is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p, which the simulator
 uses as RK4's first stage (:meth:`PFLController.plant_acceleration`).
@@ -41,7 +43,7 @@ them; the torque scales with the robot through H, so the gains of (79) serve eve
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import lapack
+from scipy.linalg import blas, lapack
 
 from .._symmetric import symmetric_from_upper
 from .._validation import finite_number
@@ -132,9 +134,9 @@ class PFLController(Controller):
         upper, h_vec = self._mass_and_bias(x)
         h_mat = symmetric_from_upper(upper)
         h12, h22 = h_mat[:3, 3:], h_mat[3:, 3:]
-        # H12 = U S V^T (LAPACK directly: a third of numpy.linalg's per-call cost)
-        u_svd, s_svd, vt_svd, info = lapack.dgesdd(h12, full_matrices=0)
-        r = s_svd[-1]
+        gram = blas.dsyrk(1.0, h12)  # H12 H12^T (upper triangle)
+        eigenvalues, _, info = lapack.dsyev(gram, compute_v=0)
+        r = float(np.sqrt(max(eigenvalues[0], 0.0)))  # R: the smallest singular value
         if info != 0 or not r > self.r_min:
             raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
         commands = self._gain @ x
@@ -147,12 +149,15 @@ class PFLController(Controller):
             raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
         z = h_mat[:3] @ np.concatenate((-a, p + u))
         z -= h_vec[:3]  # -Hs a - h1 + H12 u
-        w = vt_svd.T @ ((u_svd.T @ z) / s_svd)
+        solved, info = lapack.dposv(gram, z)[1:]
+        if info != 0:
+            raise SingularPostureError(f"H12 H12^T is not positive definite (LAPACK info {info})")
+        w = h12.T @ solved  # H12^+ z
         w -= u
         tau = h22 @ w
         tau += h_vec[3:]
         self._ddq = np.concatenate((a, w - p))
-        self._last = {"R": float(r)}
+        self._last = {"R": r}
         return tau
 
     def plant_acceleration(self, snake: Snake) -> np.ndarray | None:
