@@ -282,7 +282,7 @@ def _final_times(t_final: object, size: int) -> np.ndarray:
 
 def _positive_int(value: object, name: str, upper: int) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) \
-            or not 1 <= value <= upper:
+            or not 1 <= int(value) <= upper:
         raise ParameterError(f"{name} must be an integer in 1..{upper}, "
                              f"got {reprlib.repr(value)}")
     return int(value)
@@ -353,7 +353,7 @@ def simulate_batch(robots: SnakeParams | Snake | Sequence[SnakeParams | Snake],
                              f"got {reprlib.repr(controllers)}")
     n = params[0].n
     nq, n_tau = n + 2, n - 1
-    ctrls = [_as_controller(c) for c in controllers]  # type: ignore[union-attr]
+    ctrls = [_as_controller(c) for c in controllers]
     if len({id(c) for c in ctrls}) != size:
         raise ParameterError("each run needs its own controller object (they hold state)")
     x = _initial_states(x0s, size, 2 * nq)
@@ -504,41 +504,42 @@ class _Run:
             failed = controller.reset()
             if failed:
                 rows = np.array(sorted(failed))
-                self.stop(ids, rows, "failed", [_failure(0.0, failed[r])
-                                                  if isinstance(failed[r], BaseException)
-                                                  else failed[r] for r in rows], 0, x)
+                self.stop(ids, rows, "failed", [_reason(0.0, failed[r]) for r in rows], 0, x)
                 ids, x = self._compact(ids, x, rows, controller, plant)
             k = 0
+            size = len(self.params)
+            next_end = int(self.steps[ids].min()) if len(ids) else 0
             while len(ids):
+                # the runs' rows in the recorded arrays (a slice while none has stopped)
+                where: slice | np.ndarray = slice(None) if len(ids) == size else ids
                 t = k * control_dt
-                with np.errstate(all="ignore"):
-                    tau, failures = controller(x, t)
+                tau, failures = controller(x, t)
                 finite = np.isfinite(tau).all(axis=1)
-                for row in np.flatnonzero(~finite):
-                    failures.setdefault(int(row), "controller returned a non-finite torque")
+                if not finite.all():
+                    for row in np.flatnonzero(~finite):
+                        failures.setdefault(int(row), "controller returned a non-finite torque")
                 signals = controller.signals()
                 if failures:
                     rows = np.array(sorted(failures))
-                    reasons = [_failure(t, f) if isinstance(f, BaseException)
-                               else f"{f} at t = {t:.4f} s" for f in
-                               (failures[r] for r in rows)]
+                    reasons = [_reason(t, failures[r]) for r in rows]
                     self.stop(ids, rows, "failed", reasons, k, x)
                     keep = np.setdiff1d(np.arange(len(ids)), rows)
                     tau = tau[keep]
                     signals = {name: values[keep] for name, values in signals.items()}
                     ids, x = self._compact(ids, x, rows, controller, plant)
+                    where = ids
                     if not len(ids):
                         break
                 for name, values in signals.items():
                     given = self.signal_runs.get(name)
                     if given is None:
-                        given = self.signal_runs[name] = np.zeros(len(self.params), dtype=bool)
-                    given[ids] |= ~np.isnan(values)
+                        given = self.signal_runs[name] = np.zeros(size, dtype=bool)
+                    given[where] |= ~np.isnan(values)
                 if k % stride == 0:
                     j = k // stride
-                    self.tau[j, ids] = tau
+                    self.tau[j, where] = tau
                     for name, values in signals.items():
-                        self._signal(name)[j, ids] = values
+                        self._signal(name)[j, where] = values
                 with np.errstate(all="ignore"):
                     new = x
                     first = controller.predicted(x)
@@ -547,8 +548,9 @@ class _Run:
                         first = None
                 speed = np.abs(new[:, nq:]).max(axis=1)
                 distance = np.abs(new[:, :2]).max(axis=1)
-                bad = np.flatnonzero(~((speed <= max_speed) & (distance <= max_distance)))
-                if len(bad):
+                fine = (speed <= max_speed) & (distance <= max_distance)
+                if not fine.all():
+                    bad = np.flatnonzero(~fine)
                     reasons = [f"diverged at t = {t + control_dt:.4f} s: "
                                f"{_divergence(new[r], nq, max_speed, max_distance)}"
                                for r in bad]
@@ -556,17 +558,20 @@ class _Run:
                     keep = np.setdiff1d(np.arange(len(ids)), bad)
                     new = new[keep]
                     ids, x = self._compact(ids, x, bad, controller, plant)
+                    where = ids
                 k += 1
                 if k % stride == 0:
                     j = k // stride
-                    self.q[j, ids] = new[:, :nq]
-                    self.dq[j, ids] = new[:, nq:]
+                    self.q[j, where] = new[:, :nq]
+                    self.dq[j, where] = new[:, nq:]
                 x = new
                 good_ids, good_x, good_step = ids, x, k
-                done = np.flatnonzero(self.steps[ids] == k)
-                if len(done):
-                    self.stop(ids, done, "completed", [""] * len(done), k, x)
-                    ids, x = self._compact(ids, x, done, controller, plant)
+                if k == next_end or k >= self.longest:
+                    done = np.flatnonzero(self.steps[ids] == k)
+                    if len(done):
+                        self.stop(ids, done, "completed", [""] * len(done), k, x)
+                        ids, x = self._compact(ids, x, done, controller, plant)
+                    next_end = int(self.steps[ids].min()) if len(ids) else 0
                 if bar is not None and k % 100 == 0:
                     bar.update(min(100, self.longest - bar.n))
             if bar is not None:
@@ -593,6 +598,13 @@ class _Run:
         controller.keep(keep)
         plant.keep(keep)
         return ids[keep], x[keep]
+
+
+def _reason(t: float, failure: BaseException | str) -> str:
+    """A controller failure as :func:`~snake_pin.sim.simulate` words it."""
+    if isinstance(failure, BaseException):
+        return _failure(t, failure)
+    return f"{failure} at t = {t:.4f} s"
 
 
 def _rk4_step(accel: Callable[[np.ndarray, np.ndarray], np.ndarray], x: np.ndarray,

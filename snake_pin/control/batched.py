@@ -37,14 +37,23 @@ and H = J_q^T H-bar J_q, Coriolis = J_q^T W-bar (theta')^2 (J_q = blockdiag(I_2,
 products with L are suffix sums). Friction follows :class:`snake_pin.friction.FrictionModel`'s
 complex-number route with per-run, per-link coefficients: with e_i = exp(j theta_i) and the
 CM velocities z_i, link i's world force is F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i). Its
-matrix C(q) is the same map applied to the unit velocities. Solves are batched LU
-(``numpy.linalg.solve`` on (B, k, k)); where a run's solve fails or gives non-finite
-values, that run alone is solved again with the scalar law's LAPACK routine, so a failing
-run fails with the scalar law's message and the others go on.
+matrix C(q) is the same map applied to the unit velocities. The plant's q''
+(:meth:`BatchTerms.forward_dynamics`) is solved in q-bar coordinates with the head
+eliminated: one n x n solve of S = (G - a a^T / M) o cos(theta_i - theta_j) + diag(J) per
+run. ``tests/test_batch.py`` checks every term against Pinocchio on heterogeneous robots.
+A :class:`BatchTerms` remembers the last state array it saw, so the plant and the
+controllers of its layout share the terms at the sampled states.
 
-Passive joints are masks, not different models: a passive column of E is zeroed and its
-normal-equation row replaced by the identity with a zero right-hand side, which gives the
-reduced system's solution on the actuated joints and exactly 0 on the passive ones.
+Solves are batched LU (``numpy.linalg.solve`` on (B, k, k)). A run whose solve fails or
+gives non-finite values is evaluated again alone - by its own scalar controller
+(torque level), or with the scalar law's LAPACK routine (velocity level, PFL) - so it
+fails (or not) with the scalar law's message while the others go on.
+
+Passive joints are masks, not different models: the torque-level law solves a KKT system
+whose constraint rows hold the passive torques at zero (:class:`BatchedLyapunov`); the
+velocity-level law zeroes a passive column and replaces its normal-equation row by the
+identity with a zero right-hand side, which gives the reduced system's solution on the
+actuated joints and exactly 0 on the passive ones.
 
 Interface (:class:`BatchedController`): ``ctrl(x, t) -> (tau, failures)`` with x (m, 2(n +
 2)) the states of the m runs still going, tau (m, n - 1), and failures mapping a row to
@@ -79,6 +88,7 @@ __all__ = [
     "BatchedLyapunov",
     "BatchedPFL",
     "BatchedQuasiStatic",
+    "FrictionCoefficients",
     "GroupedControllers",
     "PerRunControllers",
     "batch_controller",
@@ -360,10 +370,12 @@ class FrictionCoefficients:
         """Whether ``other`` holds the same coefficients, run by run."""
         if other is self:
             return True
-        return (np.array_equal(self.cbar, other.cbar)
-                and np.array_equal(self.c_theta, other.c_theta)
-                and (self.ratio is None) == (other.ratio is None)
-                and (self.ratio is None or np.array_equal(self.ratio, other.ratio)))
+        if not (np.array_equal(self.cbar, other.cbar)
+                and np.array_equal(self.c_theta, other.c_theta)):
+            return False
+        if self.ratio is None or other.ratio is None:
+            return self.ratio is None and other.ratio is None
+        return np.array_equal(self.ratio, other.ratio)
 
     def take(self, rows: np.ndarray) -> FrictionCoefficients:
         """The coefficients of ``rows`` only."""
@@ -570,6 +582,15 @@ class _Vectorised(BatchedController):
             setattr(self, name, getattr(self, name)[rows])
         self._last = {k: v[rows] for k, v in self._last.items()}
 
+    def __call__(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
+        # a run's NaN or overflow stays in its own row (and is judged there), unwarned
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            return self._evaluate(x, t)
+
+    @abc.abstractmethod
+    def _evaluate(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
+        """The law for every row (see :meth:`BatchedController.__call__`)."""
+
     def bias(self, x: np.ndarray) -> np.ndarray:
         """h = Coriolis - friction force for each state (the controllers' model)."""
         return self.terms.bias(x, self.friction)
@@ -622,8 +643,9 @@ class BatchedLyapunov(_Vectorised):
         self._kkt_fixed[:, diagonal, diagonal] = self.k_phi
         self._kkt_fixed[:, k + diagonal, k + diagonal] = self.actuated
 
-    def __call__(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
-        nq, k, failures = self.nq, self.n - 1, {}
+    def _evaluate(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
+        nq, k = self.nq, self.n - 1
+        failures: dict[int, Failure] = {}
         q, dq = x[:, :nq], x[:, nq:]
         h_mat = self.terms.inertia(x)
         h_vec = self.bias(x)
@@ -729,8 +751,9 @@ class BatchedQuasiStatic(_Vectorised):
         self._started[:] = False
         return {}
 
-    def __call__(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
-        nq, failures = self.nq, {}
+    def _evaluate(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
+        nq = self.nq
+        failures: dict[int, Failure] = {}
         q = x[:, :nq]
         c = self.terms.friction_matrix(x, self.friction)
         # J = -C_uu^-1 C_ua on the u rows (zero on the actuated rows and passive columns)
@@ -785,8 +808,9 @@ class BatchedPFL(_Vectorised):
         self.climb_damping = np.array([c.climb_damping for c in controllers])
         self._params = controllers[0].snake.params
 
-    def __call__(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
-        nq, failures = self.nq, {}
+    def _evaluate(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
+        nq = self.nq
+        failures: dict[int, Failure] = {}
         q, dq = x[:, :nq], x[:, nq:]
         h_mat = self.terms.inertia(x)
         h_vec = self.bias(x)
