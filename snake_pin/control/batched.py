@@ -612,14 +612,16 @@ class BatchedLyapunov(_Vectorised):
     the law's argmin over tau_a is the argmin over y of ||Z y + c - q''*||_W subject to
     (S y + r2)_k = 0 on the passive joints k (a bijection: tau = S y + r2). Without passive
     joints that is one (n - 1) x (n - 1) solve, (Z^T W Z) y = Z^T W (q''* - c); with them,
-    the KKT system [[Z^T W Z, S^T D], [D S, I - D]] [y; nu] = [Z^T W (q''* - c); -D r2]
-    (D: the passive joints' diagonal mask). Then tau = S y + r2. A run whose result is not
+    the KKT system [[Z^T W Z, (P S)^T], [P S, U]] [y; nu] = [Z^T W (q''* - c); -P r2] of
+    size n - 1 + p, p the most passive joints of any run in the batch: P's rows pick a
+    run's passive joints, rows beyond its own count are zero with a 1 on U's diagonal
+    (their multiplier is 0). Then tau = S y + r2. A run whose result is not
     finite is evaluated again by its own scalar controller, so it fails (or not) exactly
     as in :func:`~snake_pin.sim.simulate`.
     """
 
     _per_run = ("k_w1", "k_w2", "k_phi", "lam", "lam_shape", "k_shape", "_kkt_fixed",
-                "_scalar", "exact")
+                "_pick", "_scalar", "exact")
 
     def __init__(self, controllers: Sequence[LyapunovController],
                  terms: BatchTerms | None = None) -> None:
@@ -636,12 +638,19 @@ class BatchedLyapunov(_Vectorised):
         #: Whether each run's controller models its plant exactly (set by the simulator).
         self.exact = np.zeros(self.size, dtype=bool)
         self._predicted: tuple[np.ndarray, np.ndarray] | None = None
-        self._passive = bool((self.actuated == 0.0).any())
-        # the constant blocks of the KKT matrix: W_phi on the top-left diagonal, I - D below
-        self._kkt_fixed = np.zeros((self.size, 2 * k, 2 * k))
+        passive = [np.flatnonzero(row == 0.0) for row in self.actuated]
+        width = max(len(joints) for joints in passive)
+        self._passive = width > 0
+        # P picks each run's passive joints; the KKT matrix's constant blocks: W_phi on the
+        # top-left diagonal, U (1 on the rows P leaves empty) on the bottom-right one
+        self._pick = np.zeros((self.size, width, k))
+        self._kkt_fixed = np.zeros((self.size, k + width, k + width))
         diagonal = np.arange(k)
         self._kkt_fixed[:, diagonal, diagonal] = self.k_phi
-        self._kkt_fixed[:, k + diagonal, k + diagonal] = self.actuated
+        for row, joints in enumerate(passive):
+            self._pick[row, np.arange(len(joints)), joints] = 1.0
+            for slot in range(len(joints), width):
+                self._kkt_fixed[row, k + slot, k + slot] = 1.0
 
     def _evaluate(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
         nq, k = self.nq, self.n - 1
@@ -674,10 +683,10 @@ class BatchedLyapunov(_Vectorised):
         if self._passive:
             kkt = self._kkt_fixed.copy()
             kkt[:, :k, :k] += weighted @ f_12
-            constraint = schur * (1.0 - self.actuated)[:, :, None]
+            constraint = self._pick @ schur
             kkt[:, k:, :k] = constraint
             kkt[:, :k, k:] = constraint.transpose(0, 2, 1)
-            rhs = np.concatenate((gradient, -(1.0 - self.actuated) * r2), axis=1)
+            rhs = np.concatenate((gradient, -_mat_vec(self._pick, r2)), axis=1)
             y = _solve_or_nan(kkt, rhs)[:, :k]
         else:
             normal = weighted @ f_12
