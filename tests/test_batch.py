@@ -62,7 +62,8 @@ def test_lyapunov_batch_equals_simulate_with_passive_friction_gains_and_divergen
     base = tracking_params()
     per_link = base.replace(c_x=(0.5,) * 9 + (1.5,), c_y=(25.0,) * 5 + (10.0,) * 5)
     robots = [base, base.replace(passive=(5,)), base.replace(c_y=5.0), base, per_link,
-              per_link.replace(passive=(2, 7))]
+              per_link.replace(passive=(2, 7)), base]
+    model = Snake(base.replace(c_y=10.0))  # a controller whose friction model is off
     make = [
         lambda s: LyapunovController(s),
         lambda s: LyapunovController(s),
@@ -72,20 +73,21 @@ def test_lyapunov_batch_equals_simulate_with_passive_friction_gains_and_divergen
         lambda s: LyapunovController(s, k_w1=[[2.0, 0.5, 0.0], [0.5, 2.0, 0.0], [0, 0, 3.0]],
                                      reference=LinearReference((0.05, 0.02, 0.0), (0, 0, np.pi))),
         lambda s: LyapunovController(s, k_shape=1.0, k_w2=(100.0, 100.0, 10.0)),
+        lambda s: LyapunovController(model),
     ]
     x0s = [initial_state(p) for p in robots]
     x0s[2] = x0s[2] + np.r_[np.zeros(3), np.linspace(-0.1, 0.1, 9), np.zeros(12)]
     result = _check_batch(robots, make, x0s)
-    assert result.status == ["completed"] * 3 + ["diverged"] + ["completed"] * 2
+    assert result.status == ["completed"] * 3 + ["diverged"] + ["completed"] * 3
     assert 0.2 < result.last_t[3] < 0.5 * T_FINAL  # it left mid-run; the others went on
-    assert np.all(result.last_t[[0, 1, 2, 4, 5]] == pytest.approx(T_FINAL))
+    assert np.all(result.last_t[[0, 1, 2, 4, 5, 6]] == pytest.approx(T_FINAL))
 
 
 def test_velocity_and_pfl_laws_in_one_batch_equal_simulate() -> None:
     """Velocity-level and PFL runs grouped in one batch equal simulate, with a passive joint."""
     wheels = SnakeParams.table1(c_x=0.5, c_y=10.0)
     iso = SnakeParams.table1()
-    robots = [wheels, wheels.replace(passive=(3,)), wheels.replace(c_y=5.0), iso, iso, iso]
+    robots = [wheels, wheels.replace(passive=(3,)), wheels.replace(c_y=5.0), iso, iso, iso, iso]
     make = [
         lambda s: QuasiStaticLyapunovController(s),
         lambda s: QuasiStaticLyapunovController(s),
@@ -94,10 +96,12 @@ def test_velocity_and_pfl_laws_in_one_batch_equal_simulate() -> None:
         lambda s: PFLController(s),
         lambda s: PFLController(s, k_v=4.0, r_p=0.2),
         lambda s: PFLController(s, climb_R=0.5),
+        lambda s: PFLController(s, r_min=1e3),  # R is never that large: fails at once
     ]
-    x0s = [initial_state(p) for p in robots[:3]] + [arc_state(10)] * 3
+    x0s = [initial_state(p) for p in robots[:3]] + [arc_state(10)] * 4
     result = _check_batch(robots, make, x0s, t_final=2.0)
-    assert result.status == ["completed"] * 6
+    assert result.status == ["completed"] * 6 + ["failed"]
+    assert "SingularPostureError: R = " in result.reason[6]
     assert set(result.signals) == {"V", "R"}
 
 
