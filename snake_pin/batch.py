@@ -13,18 +13,34 @@ runs still going:
 1. the controllers' torques for all m runs (vectorised laws of
    :mod:`snake_pin.control.batched`; other controllers run by run), held over the
    control period (zero-order hold);
-2. ``control_dt / dt`` classical RK4 steps of ``dt``, whose four stage accelerations are
-   each one ``pin.abaInParallel`` over a ``pin.ModelPool`` (Pinocchio's C++ ABA for the
-   whole batch) with the friction force of every run (per-run, per-link coefficients;
-   the complex-number route of :mod:`snake_pin.friction`, vectorised over the batch) and
-   the masked torques as the generalised force;
+2. ``control_dt / dt`` classical RK4 steps of ``dt`` (simulate's arithmetic), whose
+   stage accelerations come, for the whole batch at once, from one of two routes
+   (``dynamics``):
+
+   - ``"closed_form"`` (default): the closed-form model over the batch
+     (:meth:`~snake_pin.control.batched.BatchTerms.forward_dynamics`: in link-angle
+     coordinates with the head eliminated, one batched n x n solve per stage), with
+     every run's friction (per-run, per-link coefficients; the complex-number route of
+     :mod:`snake_pin.friction`) and its masked torques as the generalised force. When
+     every run's torque-level controller models its plant exactly, the first stage is
+     the q'' the controller already solved for;
+   - ``"aba"``: ``pin.abaInParallel`` over a ``pin.ModelPool`` (Pinocchio's C++ ABA for
+     the batch), friction and masked torques as the joint torque.
+
+   Measured at n = 10 (``scripts/bench_batch.py``; one process on this 2-core machine,
+   a busy neighbour): about 8 us per run and control step at B = 256..1024 for the
+   closed form (120+ simulated seconds per wall second, 10x the single run of commit
+   dc0b889 timed alongside), 30-50 us with ``abaInParallel`` (whose ABA alone costs
+   ~4-5 us per run and evaluation);
 3. the divergence test on each run.
 
 A run that diverges, whose controller raises or returns a bad torque, or that reaches its
 final time, leaves the batch on its own, with :func:`~snake_pin.sim.simulate`'s status
 and reason; the others go on. The results equal :func:`~snake_pin.sim.simulate`'s run
 by run up to rounding (closed-form model terms and batched solves instead of Pinocchio's
-and LAPACK's per-run calls; ``tests/test_batch.py`` checks 1e-9 over 3 s).
+and LAPACK's per-run calls; ``tests/test_batch.py`` checks 1e-9 over 3 s). Small batches
+pay numpy's per-call overhead: below B of about 16, :func:`~snake_pin.sim.simulate` is
+faster.
 
 OpenMP: ``abaInParallel`` runs on ``threads`` OpenMP threads (default 1, one process per
 core being the usual layout). With more than one thread, start the process with
@@ -76,7 +92,8 @@ from .sim import (
     _torque,
 )
 
-__all__ = ["DYNAMICS", "MAX_BATCH", "MAX_RECORD_BYTES", "BatchResult", "simulate_batch"]
+__all__ = ["DYNAMICS", "LAYOUT_FIELDS", "MAX_BATCH", "MAX_RECORD_BYTES", "BatchResult",
+           "layout_key", "simulate_batch"]
 
 #: The forward-dynamics routes of :func:`simulate_batch` (see the module docstring).
 DYNAMICS = ("closed_form", "aba")
