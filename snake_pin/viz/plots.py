@@ -27,10 +27,17 @@ PASSIVE_COLOR = "#1f4fd1"
 
 
 def save_figure(fig: plt.Figure, path: str | os.PathLike[str] | None) -> plt.Figure:
-    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it; return it."""
+    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it; return it.
+
+    A figure without a layout engine gets the constrained layout, which makes room for
+    labels, titles and colorbars in the one draw that renders the PNG; the tight bounding
+    box (``bbox_inches="tight"``) would draw every figure twice (measured 1.2-1.7x).
+    """
     if path is not None:
+        if fig.get_layout_engine() is None:
+            fig.set_layout_engine("constrained")
         buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        fig.savefig(buf, format="png", dpi=110)
         atomic_write_bytes(path, buf.getvalue())
         plt.close(fig)
     return fig
@@ -72,7 +79,8 @@ def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
     count = len(postures)
     cols = min(count, 3)
     rows = int(np.ceil(count / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False,
+                             layout="constrained")
     for ax, (label, q) in zip(axes.flat, postures, strict=False):
         draw_snake(ax, snake, q, frames=frames)
         ax.set_title(label, fontsize=10)
@@ -83,13 +91,12 @@ def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
         ax.axis("off")
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
 def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None) -> plt.Figure:
     """Head pose, joint angles and torque norm over time."""
-    fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True, layout="constrained")
     axes[0].plot(traj.t, traj.q[:, 0], label="x_h [m]")
     axes[0].plot(traj.t, traj.q[:, 1], label="y_h [m]")
     axes[0].plot(traj.t, traj.q[:, 2], label="theta_1 [rad]")
@@ -103,7 +110,6 @@ def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None
         ax.grid(alpha=0.3)
     if traj.diverged:
         fig.suptitle(traj.reason, fontsize=9, color="firebrick")
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
@@ -113,7 +119,7 @@ def _positive(values: np.ndarray, floor: float) -> np.ndarray:
 
 def plot_sweep(sweep, path: str | os.PathLike[str] | None = None) -> plt.Figure:
     """D and R against the swept parameter, log scale (zeros drawn at the floor)."""
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), layout="constrained")
     suffix = f", joint {sweep.free_joint} free" if sweep.free_joint else ""
     for ax, key, name in ((axes[0], "D", "D"), (axes[1], "R", "R")):
         values = getattr(sweep, key)
@@ -129,13 +135,13 @@ def plot_sweep(sweep, path: str | os.PathLike[str] | None = None) -> plt.Figure:
         ax.set_ylabel(f"{name}{'~' if sweep.free_joint else ''}")
         ax.set_title(f"{name} along '{sweep.family}'{suffix}", fontsize=10)
         ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
 def plot_r_maps(maps, path: str | os.PathLike[str] | None = None) -> plt.Figure:
     """log10 R over (alpha, T_s), one panel per map."""
-    fig, axes = plt.subplots(1, len(maps), figsize=(5.2 * len(maps), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(maps), figsize=(5.2 * len(maps), 4.2), squeeze=False,
+                             layout="constrained")
     for ax, rmap in zip(axes[0], maps, strict=True):
         floor = 1e-8 * rmap.R.max()  # exact zeros (alpha = 0, T_s = 0) would swamp the scale
         image = ax.pcolormesh(rmap.alpha, rmap.ts, np.log10(np.maximum(rmap.R, floor)),
@@ -145,5 +151,4 @@ def plot_r_maps(maps, path: str | os.PathLike[str] | None = None) -> plt.Figure:
         ax.set_ylabel("T_s")
         free = f", joint {rmap.free_joint} free" if rmap.free_joint else ""
         ax.set_title(f"R of the serpenoid{free}", fontsize=10)
-    fig.tight_layout()
     return save_figure(fig, path)
