@@ -244,6 +244,28 @@ def test_interrupt_anywhere_in_the_dynamics(table1: Snake, at: int) -> None:
     assert _is_prefix(partial, _reference(_Plant(table1, 0, KeyboardInterrupt()), 0.02))
 
 
+@settings(max_examples=15, deadline=None)
+@given(at=st.integers(1, 80))
+def test_interrupt_anywhere_in_the_fast_step(at: int) -> None:
+    """Ctrl-C inside any stage of the robot's own (fast) RK4 keeps the samples before it."""
+    snake = Snake(SnakeParams.table1())
+    evaluate, calls = snake.fast_dynamics.evaluate, []
+
+    def interrupted(row: int) -> np.ndarray:
+        calls.append(row)
+        if len(calls) == at:
+            raise KeyboardInterrupt
+        return evaluate(row)
+
+    snake.fast_dynamics.evaluate = interrupted
+    with pytest.raises(RunInterrupted) as info:
+        simulate(snake, _wave(10), _x0(10), 0.02)
+    partial = info.value.partial
+    assert calls[:4] == [0, 1, 2, 3][:at]  # open loop: four stages evaluated per step
+    assert len(partial) == (at - 1) // 4 + 1 and partial.status == "interrupted"
+    assert _is_prefix(partial, _reference(Snake(SnakeParams.table1()), 0.02))
+
+
 def test_dynamics_errors_end_as_divergence(table1: Snake) -> None:
     """A SnakePinError from the dynamics (e.g. a non-finite stage) is a divergence, not a crash."""
     plant = _Plant(table1, 42, ConfigurationError("x has non-finite entries"))

@@ -8,6 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from snake_pin import OpenLoop, Snake, SnakeParams, simulate
+from snake_pin.control import LyapunovController, PFLController
+from snake_pin.experiments.tracking import initial_state, tracking_params
+from snake_pin.friction import WHEELED_TWIN_MAX_LINKS
+
+from .conftest import head_first_state, heterogeneous_params
+
 FIXTURE = Path(__file__).parent / "data" / "speed_baseline.npz"
 SCRIPT = Path(__file__).parents[1] / "scripts" / "record_speed_fixture.py"
 
@@ -37,3 +44,157 @@ def test_reference_runs_end_where_they_did(name: str) -> None:
         then = recorded[f"{name}_{key}"]
         scale = max(1.0, float(np.abs(then).max()))
         assert np.abs(now - then).max() <= 1e-9 * scale, key
+
+
+# ----------------------------------------------------------------- fast step vs plain step
+class _PlainSnake(Snake):
+    """The same robot with its own state_derivative, so simulate takes the plain RK4 step."""
+
+    def state_derivative(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        return super().state_derivative(x, tau)
+
+
+def _robots() -> dict[str, SnakeParams]:
+    rng = np.random.default_rng(13)
+    return {"isotropic": tracking_params(c_y=0.5), "wheels": tracking_params(),
+            "passive": tracking_params(passive=(3, 5)),
+            "numpy route": tracking_params(SnakeParams.table1(n=WHEELED_TWIN_MAX_LINKS + 2)),
+            "per link": heterogeneous_params(rng, 10, "anisotropic", passive=(4,))}
+
+
+@pytest.mark.parametrize("robot", list(_robots()))
+@pytest.mark.parametrize("law", ["lyapunov", "pfl", "open loop, two substeps"])
+def test_fast_step_equals_the_plain_step(robot: str, law: str) -> None:
+    """The fast RK4 (its first stage from the controller) follows the plain RK4 to 1e-9.
+
+    Measured: 3e-11 at most (n = 16, the numpy friction route); a wrong stage or hold
+    would be off by O(dt) = 1e-3.
+    """
+    params = _robots()[robot]
+    if law == "pfl" and params.passive:
+        pytest.skip("PFL needs every joint actuated")
+    runs = []
+    for cls in (Snake, _PlainSnake):
+        snake = cls(params)
+        settings = {}
+        if law == "lyapunov":
+            controller = LyapunovController(snake)
+        elif law == "pfl":
+            controller = PFLController(snake)
+        else:
+            controller = OpenLoop(lambda t, n=snake.n: 0.02 * np.sin(3 * t + np.arange(n - 1)))
+            settings = {"dt": 5e-4}
+        runs.append(simulate(snake, controller, initial_state(params), 0.3, **settings))
+    fast, plain = runs
+    assert fast.status == plain.status == "completed" and len(fast) == len(plain) == 301
+    assert np.abs(fast.q - plain.q).max() < 1e-9
+    assert np.abs(fast.dq - plain.dq).max() < 1e-9 * max(1.0, np.abs(plain.dq).max())
+    assert np.abs(fast.tau - plain.tau).max() < 1e-7 * max(1.0, np.abs(plain.tau).max())
+
+
+def test_fast_step_diverges_where_the_plain_step_does() -> None:
+    """A run leaving its bounds stops at the same sample with the same reason on both paths."""
+    params = tracking_params()
+    runs = [simulate(cls(params), OpenLoop(lambda t: np.full(9, 0.0 if t < 0.05 else 40.0)),
+                     initial_state(params), 1.0, max_speed=20.0) for cls in (Snake, _PlainSnake)]
+    assert runs[0].status == runs[1].status == "diverged"
+    assert runs[0].reason == runs[1].reason and len(runs[0]) == len(runs[1]) > 50
+
+
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "numpy route"])
+def test_controllers_know_the_plants_acceleration(robot: str) -> None:
+    """plant_acceleration is the plant's q'' under the returned torque, for its own robot only."""
+    params = _robots()[robot]
+    snake, other = Snake(params), Snake(params)
+    rng = np.random.default_rng(5)
+    laws = [LyapunovController(snake)] + ([] if params.passive else [PFLController(snake)])
+    for law in laws:
+        for _ in range(5):
+            x = head_first_state(rng, snake.n)
+            tau = law(x, rng.uniform(0, 10))
+            ddq = snake.forward_dynamics(x[:snake.nq], x[snake.nq:], tau)
+            assert np.abs(law.plant_acceleration(snake) - ddq).max() < \
+                1e-9 * max(1.0, np.abs(ddq).max())
+            assert law.plant_acceleration(other) is None
+
+
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "numpy route"])
+def test_fast_dynamics_match_the_checked_api(robot: str) -> None:
+    """affine gives b = q''(tau = 0) and H^-1's upper triangle; mass_and_bias H's and h."""
+    snake = Snake(_robots()[robot])
+    rng = np.random.default_rng(8)
+    nq = snake.nq
+    for _ in range(5):
+        x = head_first_state(rng, snake.n)
+        q, dq = x[:nq], x[nq:]
+        b, minv = snake.fast_dynamics.affine(x)
+        assert np.allclose(b, snake.forward_dynamics(q, dq, np.zeros(snake.n - 1)),
+                           rtol=1e-10, atol=1e-10)
+        assert np.allclose(np.triu(minv), np.triu(snake.inverse_inertia_matrix(q)), rtol=1e-10,
+                           atol=1e-10)
+        mass, bias = snake.fast_dynamics.mass_and_bias(x)
+        assert np.allclose(np.triu(mass), np.triu(snake.inertia_matrix(q)), atol=1e-14)
+        assert np.allclose(bias, snake.bias(q, dq), rtol=1e-12, atol=1e-13)
+
+
+@pytest.mark.parametrize("law", [LyapunovController, PFLController])
+def test_time_terms_do_not_depend_on_prepare(law: type) -> None:
+    """Announced times (blocks of references) give the torques of calls one at a time."""
+    snake = Snake(tracking_params())
+    first, second = law(snake), law(snake)
+    times = np.arange(2100) * 1e-3
+    second.prepare(times)
+    rng = np.random.default_rng(2)
+    for k in (0, 1, 2, 3, 1500, 1501, 2099):
+        x = head_first_state(rng, snake.n)
+        for t in (times[k], 0.123456):  # an announced time, then one that is not
+            expected = first(x, float(t))
+            assert np.abs(second(x, float(t)) - expected).max() <= \
+                1e-12 * max(1.0, np.abs(expected).max())
+        for skipped in range(k + 1, min(k + 1 + 1499 * (k == 0), len(times))):
+            second(x, float(times[skipped]))  # walk past a block boundary
+
+
+def test_one_blas_thread_inside_simulate() -> None:
+    """The run's loop holds BLAS to one thread; the limits are restored after it."""
+    from threadpoolctl import threadpool_info
+
+    before = {pool["filepath"]: pool["num_threads"] for pool in threadpool_info()}
+    seen: list[set[int]] = []
+
+    def controller(x: np.ndarray, t: float) -> np.ndarray:
+        seen.append({pool["num_threads"] for pool in threadpool_info()
+                     if pool["user_api"] == "blas"})
+        return np.zeros(9)
+
+    simulate(Snake(), controller, initial_state(SnakeParams.table1()), 0.003)
+    assert seen and all(threads == {1} for threads in seen)
+    assert {pool["filepath"]: pool["num_threads"] for pool in threadpool_info()} == before
+
+
+def test_saved_figures_keep_their_labels_without_the_tight_box(tmp_path: Path) -> None:
+    """save_figure lays a figure out (constrained) and writes it whole: every label inside."""
+    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from PIL import Image
+
+    from snake_pin.viz.plots import save_figure
+
+    fig, axes = plt.subplots(2, 1, figsize=(6, 4))
+    for ax in axes:
+        ax.plot([0, 1], [0, 1])
+        ax.set_yticks([0, 1], ["a long tick label", "another long tick label"])
+        ax.set_ylabel("a long label [m s^-1]")
+        ax.set_xlabel("t [s]")
+    fig.suptitle("a title")
+    save_figure(fig, tmp_path / "figure.png")
+    assert fig.get_layout_engine() is not None
+    with Image.open(tmp_path / "figure.png") as image:
+        assert image.size == (660, 440)  # 6 x 4 in at 110 dpi: nothing cropped
+    renderer = FigureCanvasAgg(fig).get_renderer()  # the closed figure, laid out as saved
+    whole = fig.bbox
+    for text in [fig.get_suptitle() and fig._suptitle, *(ax.yaxis.label for ax in axes),
+                 axes[1].xaxis.label]:
+        box = text.get_window_extent(renderer)
+        assert box.x0 >= whole.x0 and box.y0 >= whole.y0
+        assert box.x1 <= whole.x1 and box.y1 <= whole.y1
