@@ -4,7 +4,10 @@ Build (from the repository root; warnings are errors, the gallery runs)::
 
     python3 -m sphinx -W --keep-going -b html docs docs/_build/html
 
-Everything is local: no intersphinx mappings, nothing fetched at build time.
+Everything is local: no intersphinx mappings, nothing fetched at build time. A build
+writes generated pages into this folder (``api/generated``, ``auto_examples``, emptied at
+its start), so two builds of one checkout must not run at once; ``tests/test_docs.py``
+builds a copy of the sources.
 """
 
 from __future__ import annotations
