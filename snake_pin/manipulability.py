@@ -25,6 +25,8 @@ w~ = [x_h, y_h, theta_1, phi_k] is the unactuated set and the same formula gives
 
 from __future__ import annotations
 
+import sys
+import types
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -343,3 +345,22 @@ def lateral_constraint_manipulability(snake: Snake, q: np.ndarray,
     head = projected[:3] @ snake.actuation_matrix
     sigma = _singular_values(head, 3)
     return Manipulability(float(sigma[-1]), float("nan"), sigma, np.full(3, np.nan))
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as :func:`manipulability`.
+
+    ``snake_pin.manipulability`` names both this module and the function exported by the
+    package. Importing the submodule (``import snake_pin.sweeps`` does) makes Python bind
+    the package attribute to the module, which would shadow the function; a callable
+    module keeps ``from snake_pin import manipulability; manipulability(snake, q)`` right
+    whichever object the name holds.
+    """
+
+    def __call__(self, snake: Snake, q: np.ndarray,
+                 free_joint: int | Sequence[int] | None = None, heading: bool = True, *,
+                 blocks: bool = False) -> Manipulability:
+        return manipulability(snake, q, free_joint, heading, blocks=blocks)
+
+
+sys.modules[__name__].__class__ = _CallableModule

@@ -109,7 +109,7 @@ class SnakeParams:
     n: int = 10
     link_length: PerLink = 0.12
     mass: PerLink = 0.182
-    inertia: PerLink = 2.2e-4  # erratum 1 (docs/errata.md): Table 1 prints 0.22 (g m^2)
+    inertia: PerLink = 2.2e-4  # erratum 1 (docs/errata.rst): Table 1 prints 0.22 (g m^2)
     c_x: PerLink = 0.5
     c_y: PerLink = 0.5
     c_theta: PerLink = 7.2e-5

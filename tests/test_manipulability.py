@@ -215,3 +215,18 @@ def test_batch_r_keeps_passive_joints_free_like_the_single_route() -> None:
     assert np.allclose(batch, single, rtol=1e-9)
     plain = manipulability_R_batch(SnakeParams.table1(), phi, free_joint=3)
     assert not np.allclose(batch, plain)
+
+
+def test_package_name_stays_callable_after_the_submodule_is_imported() -> None:
+    """`from snake_pin import manipulability` gives D, R even once snake_pin.sweeps is loaded."""
+    import importlib
+
+    import snake_pin
+
+    importlib.import_module("snake_pin.sweeps")  # binds snake_pin.manipulability to the module
+    from snake_pin import manipulability as by_name
+
+    snake = Snake(SnakeParams.table1())
+    q = np.r_[0.0, 0.0, 0.0, np.full(9, 0.3)]
+    assert by_name(snake, q).R == pytest.approx(manipulability(snake, q).R, rel=1e-15)
+    assert callable(snake_pin.manipulability)
