@@ -418,18 +418,16 @@ class FastDynamics:
                     return aba(model, data, q, v, gen, world)
 
                 def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    own_q[:] = x[:nq]
-                    own_v[:] = x[nq:]
-                    negative(rnea(roll, roll_data, own_zq, zero, own_zv)[:nq], out=gen)
-                    b = aba(model, data, own_q, own_v, gen, world)
+                    q, v = x[:nq], x[nq:]  # no wheels: the twin's state is x itself
+                    negative(rnea(roll, roll_data, q, zero, v), out=gen)
+                    b = aba(model, data, q, v, gen, world)
                     return b, minverse(model, data)
 
                 def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    own_q[:] = x[:nq]
-                    own_v[:] = x[nq:]
-                    damping = rnea(roll, roll_data, own_zq, zero, own_zv)[:nq]  # -Q
-                    mass = crba(model, data, own_q, world)
-                    return mass, add(nle(model, data, own_q, own_v), damping, out=damping)
+                    q, v = x[:nq], x[nq:]
+                    damping = rnea(roll, roll_data, q, zero, v)  # -Q
+                    mass = crba(model, data, q, world)
+                    return mass, add(nle(model, data, q, v), damping, out=damping)
 
             else:
                 def evaluate(row: int) -> np.ndarray:
