@@ -12,6 +12,7 @@ from typing import Any
 __all__ = [
     "ConfigurationError",
     "ParameterError",
+    "PathFileError",
     "RobotFileError",
     "RunInterrupted",
     "SingularPostureError",
@@ -39,6 +40,10 @@ class SingularPostureError(SnakePinError):
 
 class TrajectoryFileError(SnakePinError):
     """A saved trajectory is missing, unreadable, hostile or belongs to another robot."""
+
+
+class PathFileError(ParameterError):
+    """A path file (TOML or CSV of waypoints) is missing, malformed or describes a bad path."""
 
 
 class RobotFileError(SnakePinError):

@@ -101,7 +101,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from ._validation import finite_number
-from .exceptions import ParameterError
+from .exceptions import ParameterError, PathFileError
 
 __all__ = [
     "DEFAULT_EXTENT",
@@ -137,10 +137,6 @@ PATH_NAMES = ("line", "circle", "arc", "lane_change", "sinusoid", "waypoints")
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 _HALF_PI = 0.5 * math.pi
-
-
-class PathFileError(ParameterError):
-    """A path file (TOML or CSV) is missing, unreadable, malformed or describes a bad path."""
 
 
 class PathPoint(NamedTuple):
