@@ -11,8 +11,14 @@ Heavy modules (Pinocchio, MuJoCo, meshcat, matplotlib) load on first use of a na
 from __future__ import annotations
 
 import importlib
+import os
 from importlib import metadata as _metadata
 from typing import Any
+
+# Pinocchio's parallel algorithms use OpenMP; its default spinning wait policy made two
+# threads 5-10x slower than one when the other core was busy. libgomp reads this once, when
+# it loads, so it is set before anything imports Pinocchio (a user's own value wins).
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from .exceptions import (
     ConfigurationError,
@@ -38,6 +44,7 @@ _LAZY = {
     "LOSController": ".control",
     "PathReference": ".paths", "load_path": ".paths", "cross_track_error": ".paths",
     "along_track": ".paths",
+    "BatchResult": ".batch", "simulate_batch": ".batch",
     "Snake": ".model", "DynamicsDerivatives": ".model",
     "load_robot": ".robot_file", "read_robot_file": ".robot_file", "read_urdf": ".robot_file",
     "robot_paths": ".robot_file", "write_robot_file": ".robot_file",
@@ -46,6 +53,7 @@ _LAZY = {
 }
 
 __all__ = [
+    "BatchResult",
     "ConfigurationError",
     "Controller",
     "DynamicsDerivatives",
@@ -82,6 +90,7 @@ __all__ = [
     "read_urdf",
     "robot_paths",
     "simulate",
+    "simulate_batch",
     "straight",
     "write_robot_file",
     "write_urdf",
