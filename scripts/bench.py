@@ -1,46 +1,81 @@
 #!/usr/bin/env python
-"""Benchmarks of snake_pin's hot paths against the closed-form route, in one run.
+"""Benchmarks of snake_pin's hot paths, every figure against a reference timed in the same run.
 
-Prints medians per call (timeit, several repeats) and the ratio closed-form / Pinocchio.
-Usage: python scripts/bench.py [--quick] [--only dynamics,...]
+The references: the closed form (``snake_pin.paper`` + numpy), central differences, the
+closed-loop step of commit dc0b889 (the step before issue 13, run from a checkout of that
+commit in a subprocess) and the floor of the Pinocchio calls one step makes. The two sides
+of a ratio are timed in interleaved rounds (A B A B ...), so that a neighbour's load hits
+both alike; each figure is the median over the rounds with its 10-90 % range.
+
+Usage: python scripts/bench.py [--quick] [--only dynamics,derivatives,manipulability,runs,engine]
+                               [--baseline COMMIT | --no-baseline]
 """
 
 from __future__ import annotations
 
 import argparse
+import io
+import json
+import os
 import statistics
+import subprocess
 import sys
+import tarfile
+import tempfile
 import time
 import timeit
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
 from snake_pin import Snake, SnakeParams, paper
 from snake_pin.friction import FrictionModel, friction_forces
 
-
-def median_us(fn: Callable[[], object], *, budget: float = 0.2, repeat: int = 7) -> float:
-    """Median time per call in microseconds over ``repeat`` batches of ~``budget`` s."""
-    number = max(1, int(budget / max(timeit.timeit(fn, number=3) / 3, 1e-7)))
-    return statistics.median(timeit.repeat(fn, number=number, repeat=repeat)) / number * 1e6
+#: The commit whose closed-loop step is the runs' reference route.
+BASELINE = "dc0b889"
+REPO = Path(__file__).resolve().parents[1]
 
 
-def interleaved_us(fns: dict[str, Callable[[], object]], *, budget: float = 0.2,
-                   rounds: int = 9) -> dict[str, tuple[float, float, float]]:
-    """Median, 10th and 90th percentile us per call of each function, timed in interleaved
-    rounds (A B C A B C ...) so that a neighbour's load hits every route alike."""
+# ----------------------------------------------------------------------- timing helpers
+def interleaved_samples(fns: dict[str, Callable[[], object]], *, budget: float = 0.2,
+                        rounds: int = 9) -> dict[str, list[float]]:
+    """us per call of each function in each of ``rounds`` interleaved rounds (A B C A B C
+    ...), each round of each function lasting about ``budget / rounds`` seconds."""
     numbers = {name: max(1, int(budget / rounds / max(timeit.timeit(fn, number=3) / 3, 1e-7)))
                for name, fn in fns.items()}
     samples: dict[str, list[float]] = {name: [] for name in fns}
     for _ in range(rounds):
         for name, fn in fns.items():
             samples[name].append(timeit.timeit(fn, number=numbers[name]) / numbers[name] * 1e6)
-    out = {}
-    for name, values in samples.items():
-        deciles = statistics.quantiles(values, n=10)
-        out[name] = (statistics.median(values), deciles[0], deciles[-1])
-    return out
+    return samples
+
+
+def spread(values: list[float]) -> tuple[float, float, float]:
+    """Median, 10th and 90th percentile (the extremes for fewer than 3 values)."""
+    if len(values) < 3:
+        return statistics.median(values), min(values), max(values)
+    deciles = statistics.quantiles(values, n=10, method="inclusive")
+    return statistics.median(values), deciles[0], deciles[-1]
+
+
+def interleaved_us(fns: dict[str, Callable[[], object]], *, budget: float = 0.2,
+                   rounds: int = 9) -> dict[str, tuple[float, float, float]]:
+    """Median, 10th and 90th percentile us per call of each function, timed in interleaved
+    rounds (see :func:`interleaved_samples`)."""
+    return {name: spread(values) for name, values in
+            interleaved_samples(fns, budget=budget, rounds=rounds).items()}
+
+
+def ratios(numerator: list[float], denominator: list[float]) -> tuple[float, float, float]:
+    """Median and 10-90 % range of the per-round ratios (rounds paired by position)."""
+    return spread([a / b for a, b in zip(numerator, denominator, strict=True)])
+
+
+def show(stats: tuple[float, float, float], digits: int = 1, unit: str = "") -> str:
+    """``median (p10-p90)`` with ``digits`` decimals."""
+    median, low, high = stats
+    return f"{median:.{digits}f}{unit} ({low:.{digits}f}-{high:.{digits}f})"
 
 
 def table(title: str, header: list[str], rows: list[list[str]]) -> None:
@@ -50,10 +85,14 @@ def table(title: str, header: list[str], rows: list[list[str]]) -> None:
     print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
     for r in rows:
         print("| " + " | ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) + " |")
+    sys.stdout.flush()
 
 
+# ------------------------------------------------------------------------- dynamics
 def bench_dynamics(budget: float) -> None:
     """H, h and forward dynamics: Pinocchio path vs snake_pin.paper + numpy solve."""
+    import pinocchio as pin
+
     rows = []
     for n in (10, 30, 100):
         for label, cy in (("iso", 0.5), ("aniso", 5.0)):
@@ -69,13 +108,6 @@ def bench_dynamics(budget: float) -> None:
                 return np.linalg.solve(paper.inertia_matrix(params, q),
                                        e @ tau - paper.bias(params, q, dq))
 
-            def fext_fd(q=q, dq=dq, tau=tau, snake=snake, params=params) -> np.ndarray:
-                import pinocchio as pin
-
-                fext = friction_forces(snake.model, snake.data, params, q, dq)
-                return pin.aba(snake.model, snake.data, q, dq, snake.generalized_torque(tau),
-                               fext)
-
             pairs = {
                 "H": (lambda s=snake, q=q: s.inertia_matrix(q),
                       lambda p=params, q=q: paper.inertia_matrix(p, q)),
@@ -84,26 +116,39 @@ def bench_dynamics(budget: float) -> None:
                 "forward dynamics": (
                     lambda s=snake, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t), closed_fd),
             }
+            route = ("twin" if not snake.friction.has_wheels else "wheeled twin") \
+                if snake.friction.uses_twin else "numpy"
             for name, (fast, slow) in pairs.items():
                 if name == "H" and label != "iso":
                     continue  # H does not depend on friction
-                t_fast, t_slow = median_us(fast, budget=budget), median_us(slow, budget=budget)
-                route = ("twin" if not snake.friction.has_wheels else "wheeled twin") \
-                    if snake.friction.uses_twin else "numpy"
+                times = interleaved_samples({"fast": fast, "slow": slow}, budget=budget)
                 rows.append([str(n), name, f"{label} ({route})" if name != "H" else "-",
-                             f"{t_fast:.1f}",
-                             f"{t_slow:.1f}", f"{t_slow / t_fast:.1f}x"])
+                             show(spread(times["fast"])), show(spread(times["slow"])),
+                             show(ratios(times["slow"], times["fast"]), unit="x")])
             if n == 10:
-                t_ref = median_us(fext_fd, budget=budget)
-                rows.append([str(n), "fwd dyn via pin.Force list (reference)", label,
-                             f"{t_ref:.1f}", "-", "-"])
+                def fext_fd(q=q, dq=dq, tau=tau, snake=snake, params=params) -> np.ndarray:
+                    fext = friction_forces(snake.model, snake.data, params, q, dq)
+                    return pin.aba(snake.model, snake.data, q, dq,
+                                   snake.generalized_torque(tau), fext)
+
+                times = interleaved_samples({
+                    "fast": lambda s=snake, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t),
+                    "slow": fext_fd}, budget=budget)
+                rows.append([str(n), "forward dynamics against a pin.Force list", label,
+                             show(spread(times["fast"])), show(spread(times["slow"])),
+                             show(ratios(times["slow"], times["fast"]), unit="x")])
                 numpy_route = FrictionModel(params)
-                for route_label, route in (("twin", snake.friction), ("numpy", numpy_route)):
-                    t_route = median_us(lambda f=route, q=q, dq=dq: f(q, dq), budget=budget)
-                    rows.append([str(n), f"friction Q alone, {route_label} route", label,
-                                 f"{t_route:.1f}", "-", "-"])
-    table("Dynamics, median us per call", ["n", "quantity", "friction", "pinocchio [us]",
-                                           "closed form [us]", "ratio"], rows)
+                times = interleaved_samples({
+                    "fast": lambda f=snake.friction, q=q, dq=dq: f(q, dq),
+                    "slow": lambda f=numpy_route, q=q, dq=dq: f(q, dq)}, budget=budget)
+                rows.append([str(n), "friction Q alone: twin against numpy", label,
+                             show(spread(times["fast"])), show(spread(times["slow"])),
+                             show(ratios(times["slow"], times["fast"]), unit="x")])
+    table("Dynamics, us per call, median (10-90 %) of interleaved rounds",
+          ["n", "quantity", "friction", "snake_pin [us]", "reference [us]",
+           "reference / snake_pin"], rows)
+    print("\nReference: the closed form (snake_pin.paper, numpy solve) unless the row names "
+          "another route.")
 
 
 def bench_derivatives(budget: float) -> None:
@@ -166,9 +211,9 @@ def bench_derivatives(budget: float) -> None:
 def closed_form_manipulability(params: SnakeParams, q: np.ndarray) -> tuple[float, float]:
     """D and R by the closed form: paper.inertia_matrix, Schur complement, numpy SVD."""
     h = paper.inertia_matrix(params, q)
-    h11, h12, h22 = h[:3, :3], h[:3, 3:], h[3:, 3:]
+    h12, h22 = h[:3, 3:], h[3:, 3:]
     h22_inv = np.linalg.inv(h22)
-    a = np.linalg.solve(h11 - h12 @ h22_inv @ h12.T, h12 @ h22_inv)
+    a = np.linalg.solve(h[:3, :3] - h12 @ h22_inv @ h12.T, h12 @ h22_inv)
     return (np.linalg.svd(a, compute_uv=False)[-1], np.linalg.svd(h12, compute_uv=False)[-1])
 
 
@@ -182,23 +227,239 @@ def bench_manipulability(budget: float) -> None:
         snake = Snake(params)
         rng = np.random.default_rng(n)
         q = np.r_[0.0, 0.0, 0.0, rng.uniform(-1, 1, n - 1)]
-        fast = median_us(lambda s=snake, q=q: manipulability(s, q), budget=budget)
-        fast5 = median_us(lambda s=snake, q=q: manipulability(s, q, free_joint=5), budget=budget)
-        slow = median_us(lambda p=params, q=q: closed_form_manipulability(p, q), budget=budget)
-        rows.append([str(n), "D and R, one posture", f"{fast:.1f} us", f"{slow:.1f} us",
-                     f"{slow / fast:.1f}x"])
-        rows.append([str(n), "D~ and R~ (joint 5 free)", f"{fast5:.1f} us", "-", "-"])
-        phis = rng.uniform(-1.5, 1.5, (100_000, n - 1))
-        times = []
-        for _ in range(5):
-            start = time.perf_counter()
-            manipulability_R_batch(params, phis)
-            times.append(time.perf_counter() - start)
-        rate = len(phis) / statistics.median(times)
-        single_rate = 1e6 / slow
-        rows.append([str(n), "R batch (100k postures)", f"{rate:,.0f} /s",
-                     f"{single_rate:,.0f} /s", f"{rate / single_rate:.0f}x"])
-    table("Manipulability", ["n", "quantity", "snake_pin", "closed form", "ratio"], rows)
+        phis = rng.uniform(-1.5, 1.5, (20_000, n - 1))
+        times = interleaved_samples({
+            "one": lambda s=snake, q=q: manipulability(s, q),
+            "free": lambda s=snake, q=q: manipulability(s, q, free_joint=5),
+            "closed": lambda p=params, q=q: closed_form_manipulability(p, q),
+            "batch": lambda p=params, phis=phis: manipulability_R_batch(p, phis)},
+            budget=4 * budget, rounds=7)
+        per_posture = [t / len(phis) for t in times["batch"]]
+        rows.append([str(n), "D and R, one posture", show(spread(times["one"])),
+                     show(spread(times["closed"])), show(ratios(times["closed"], times["one"]),
+                                                        unit="x")])
+        rows.append([str(n), "D~ and R~ (joint 5 free), one posture",
+                     show(spread(times["free"])), show(spread(times["closed"])),
+                     show(ratios(times["closed"], times["free"]), unit="x")])
+        rows.append([str(n), "R, batch of 20k postures (per posture)",
+                     show(spread(per_posture), 2), show(spread(times["closed"])),
+                     show(ratios(times["closed"], per_posture), 0, "x")])
+    table("Manipulability, us per posture, median (10-90 %) of interleaved rounds",
+          ["n", "quantity", "snake_pin [us]", "closed form D and R [us]",
+           "closed form / snake_pin"], rows)
+
+
+# ------------------------------------------------------------------- closed-loop runs
+#: The runs: label, controller, robot (changes to tracking_params or SnakeParams.table1),
+#: t_final [s] of the full run and of the interleaved segments.
+RUNS = [
+    ("Lyapunov-like, 60 s (c_y = 50 c_x)", "lyapunov", {}, 60.0, 5.0),
+    ("Lyapunov-like, 60 s, joint 5 passive", "lyapunov", {"passive": [5]}, 60.0, 5.0),
+    ("Lyapunov-like, 60 s, isotropic", "lyapunov", {"c_y": 0.5}, 60.0, 5.0),
+    ("PFL, VI.1 to breakdown (isotropic)", "pfl", {}, 10.0, 10.0),
+    ("PFL, 20 s, c_y = 10 c_x", "pfl", {"c_y": 5.0}, 20.0, 5.0),
+]
+
+#: Runs a closed loop per request line {"kind", "robot", "t_final"} with whatever
+#: snake_pin is first on the path (this checkout or the baseline's), using only the API
+#: both have; answers {"seconds", "steps", "t_end"}. Robots are built once per request kind.
+WORKER = r"""
+import json, sys, time
+from snake_pin import Snake, SnakeParams
+from snake_pin.control import LyapunovController, PFLController
+from snake_pin.experiments import pfl, tracking
+from snake_pin.sim import simulate
+
+built = {}
+def build(kind, robot):
+    key = json.dumps([kind, robot], sort_keys=True)
+    if key not in built:
+        robot = {k: tuple(v) if isinstance(v, list) else v for k, v in robot.items()}
+        if kind == "pfl":
+            params = SnakeParams.table1(**robot)
+            snake = Snake(params)
+            built[key] = snake, PFLController(snake), pfl.initial_state(params)
+        else:
+            params = tracking.tracking_params(**robot)
+            snake = Snake(params)
+            built[key] = snake, LyapunovController(snake), tracking.initial_state(params)
+    return built[key]
+
+for line in sys.stdin:
+    request = json.loads(line)
+    snake, controller, x0 = build(request["kind"], request["robot"])
+    start = time.perf_counter()
+    traj = simulate(snake, controller, x0, request["t_final"])
+    seconds = time.perf_counter() - start
+    print(json.dumps({"seconds": seconds, "steps": len(traj) - 1, "t_end": traj.t_end}),
+          flush=True)
+"""
+
+
+class Worker:
+    """A Python process running :data:`WORKER` with ``root`` first on its path."""
+
+    def __init__(self, root: Path) -> None:
+        env = dict(os.environ, PYTHONPATH=str(root))
+        self.process = subprocess.Popen(
+            [sys.executable, "-P", "-c", WORKER], stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE, text=True, env=env, cwd=tempfile.gettempdir())
+
+    def run(self, kind: str, robot: dict, t_final: float) -> dict:
+        assert self.process.stdin is not None and self.process.stdout is not None
+        self.process.stdin.write(json.dumps({"kind": kind, "robot": robot,
+                                             "t_final": t_final}) + "\n")
+        self.process.stdin.flush()
+        answer = self.process.stdout.readline()
+        if not answer:
+            raise RuntimeError(f"benchmark worker exited ({self.process.wait()})")
+        return json.loads(answer)
+
+    def close(self) -> None:
+        if self.process.stdin is not None:
+            self.process.stdin.close()
+        self.process.wait(timeout=60)
+
+
+def baseline_checkout(commit: str) -> tuple[Path | None, str]:
+    """A copy of ``commit``'s tree in the temporary folder (made once, from git), or None
+    and why not (no git, no history: the baseline column is then skipped)."""
+    target = Path(tempfile.gettempdir()) / f"snake_pin_{commit}"
+    if (target / "snake_pin" / "__init__.py").is_file():
+        return target, f"{commit} from {target}"
+    try:
+        archive = subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", commit],
+                                 capture_output=True, check=True, timeout=120).stdout
+        staging = Path(tempfile.mkdtemp(prefix=f"snake_pin_{commit}.",
+                                        dir=tempfile.gettempdir()))
+        with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+            tar.extractall(staging, filter="data")
+        try:
+            staging.rename(target)
+        except OSError:  # made meanwhile by another run
+            pass
+    except (OSError, subprocess.SubprocessError, tarfile.TarError) as exc:
+        detail = getattr(exc, "stderr", b"") or str(exc).encode()
+        return None, (f"the {commit} column is skipped: its tree could not be extracted with "
+                      f"git archive ({detail.decode(errors='replace').strip()[:200]})")
+    return target, f"{commit} from {target} (git archive)"
+
+
+def step_floor(snake: Snake, kind: str, states: np.ndarray,
+               taus: np.ndarray) -> Callable[[], None]:
+    """A function making exactly the Pinocchio calls of one closed-loop step of
+    ``simulate`` (see :class:`snake_pin.model.FastDynamics`), on the run's states in turn:
+    the controller's (Lyapunov-like: the friction passes, ABA, computeMinverse; PFL: the
+    friction passes, CRBA, nonLinearEffects), then three RK4 stages (the friction passes
+    and ABA each; the first stage comes from the controller)."""
+    import pinocchio as pin
+
+    passes = snake.friction.passes
+    if passes is None:
+        raise ValueError("the floor is defined for the friction passes' route")
+    model, data, nq, size = snake.model, snake.data, snake.nq, passes.size
+    lock, lock_data, roll, roll_data = passes.lock, passes.lock_data, passes.roll, \
+        passes.roll_data
+    zero, world = passes.zero, pin.Convention.WORLD
+    rnea, aba = pin.rnea, pin.aba
+    arguments = []
+    for x, tau in zip(states, taus, strict=True):
+        q_ext, v_ext = np.zeros(size), np.zeros(size)
+        q_ext[:nq], v_ext[:nq] = x[:nq], x[nq:]
+        torque = np.zeros(nq)
+        torque[3:] = tau
+        arguments.append((q_ext, v_ext, q_ext[:nq], v_ext[:nq], torque))
+    cursor = iter(range(1 << 62))
+    count = len(arguments)
+
+    def passes_calls(q_ext: np.ndarray, v_ext: np.ndarray) -> None:
+        if lock is not None:
+            rnea(lock, lock_data, q_ext, zero, v_ext)
+        rnea(roll, roll_data, q_ext, zero, v_ext)
+
+    def step() -> None:
+        q_ext, v_ext, q, v, torque = arguments[next(cursor) % count]
+        passes_calls(q_ext, v_ext)
+        if kind == "pfl":
+            pin.crba(model, data, q, world)
+            pin.nonLinearEffects(model, data, q, v)
+        else:
+            aba(model, data, q, v, torque, world)
+            pin.computeMinverse(model, data)
+        for _ in range(3):
+            passes_calls(q_ext, v_ext)
+            aba(model, data, q, v, torque, world)
+
+    return step
+
+
+def bench_runs(budget: float, baseline: str | None = BASELINE) -> None:
+    """Closed-loop runs at 1 kHz (RK4, dt = 1 ms): wall time, real-time factor, and the step
+    against dc0b889's (interleaved segments in two worker processes) and against the floor
+    of its Pinocchio calls (timed in this process in the same rounds)."""
+    import snake_pin
+    from snake_pin.control import LyapunovController, PFLController
+    from snake_pin.experiments import pfl, tracking
+    from snake_pin.sim import simulate
+
+    quick = budget < 0.1
+    rounds = 3 if quick else 7
+    repeat = 1 if quick else 3
+    root, note = (None, "no baseline asked for") if baseline is None else \
+        baseline_checkout(baseline)
+    new = Worker(Path(snake_pin.__file__).resolve().parents[1])
+    old = Worker(root) if root is not None else None
+    rows = []
+    try:
+        for label, kind, robot, t_final, segment in RUNS:
+            segment = min(segment, 2.0) if quick else segment
+            fixed = {k: tuple(v) if isinstance(v, list) else v for k, v in robot.items()}
+            params = SnakeParams.table1(**fixed) if kind == "pfl" else \
+                tracking.tracking_params(**fixed)
+            snake = Snake(params)
+            ctrl = PFLController(snake) if kind == "pfl" else LyapunovController(snake)
+            x0 = pfl.initial_state(params) if kind == "pfl" else tracking.initial_state(params)
+            walls, traj = [], None
+            for _ in range(repeat):
+                start = time.perf_counter()
+                traj = simulate(snake, ctrl, x0, t_final)
+                walls.append(time.perf_counter() - start)
+            assert traj is not None
+            wall = statistics.median(walls)
+            pick = slice(None, None, max(1, len(traj) // 64))
+            floor = step_floor(snake, kind, np.hstack((traj.q, traj.dq))[pick], traj.tau[pick])
+            for worker in (new, old):  # warm-up: imports, first allocations
+                if worker is not None:
+                    worker.run(kind, robot, 0.01)
+            us_new, us_old, us_floor = [], [], []
+            for _ in range(rounds):
+                if old is not None:
+                    answer = old.run(kind, robot, segment)
+                    us_old.append(answer["seconds"] / answer["steps"] * 1e6)
+                answer = new.run(kind, robot, segment)
+                us_new.append(answer["seconds"] / answer["steps"] * 1e6)
+                number = max(1, int(budget / max(timeit.timeit(floor, number=3) / 3, 1e-7)))
+                us_floor.append(timeit.timeit(floor, number=number) / number * 1e6)
+            if traj.t_end < t_final - 1e-9:
+                label = f"{label} (ends at {traj.t_end:.2f} s: {traj.status})"
+            rows.append([label, f"{wall:.2f}", f"{traj.t_end / wall:.1f}x",
+                         show(spread(us_new)),
+                         show(spread(us_old)) if us_old else "-",
+                         show(ratios(us_old, us_new), 2, "x") if us_old else "-",
+                         show(spread(us_floor)), show(ratios(us_new, us_floor), 2, "x")])
+    finally:
+        new.close()
+        if old is not None:
+            old.close()
+    table(f"Closed-loop runs at 1 kHz (simulate only), us per step: median (10-90 %) of "
+          f"{rounds} interleaved rounds",
+          ["run", "wall [s]", "real-time factor", "us/step new", f"us/step {baseline}",
+           "speed-up", "floor us/step", "new/floor"], rows)
+    print(f"\nBaseline: {note}. Segments of at most 5 s (2 s with --quick) are run "
+          "alternately by the two checkouts in worker processes; the floor (the Pinocchio "
+          "calls one step makes, on the run's states) is timed here in the same rounds. "
+          "Wall time and real-time factor: the whole run in this process, median of "
+          f"{repeat}.")
 
 
 def _timed_run(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
@@ -208,61 +469,6 @@ def _timed_run(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
         result = fn()
         times.append(time.perf_counter() - start)
     return statistics.median(times), result
-
-
-def bench_runs(budget: float) -> None:
-    """Closed-loop runs at 1 kHz control (RK4, dt = 1 ms): wall time and real-time factor."""
-    from snake_pin.control import LyapunovController, PFLController
-    from snake_pin.experiments import pfl, tracking
-    from snake_pin.sim import simulate
-
-    repeat = 1 if budget < 0.1 else 3
-    rows, floor_rows = [], []
-    cases = [
-        ("PFL, VI.1 to breakdown (isotropic)", SnakeParams.table1(), 10.0, "pfl"),
-        ("PFL, 20 s, c_y = 10 c_x", SnakeParams.table1(c_y=5.0), 20.0, "pfl"),
-        ("Lyapunov-like, 60 s", tracking.tracking_params(), 60.0, "lyapunov"),
-        ("Lyapunov-like, 60 s, joint 5 passive", tracking.tracking_params(passive=(5,)), 60.0,
-         "lyapunov"),
-    ]
-    for label, params, t_final, kind in cases:
-        snake = Snake(params)
-        if kind == "pfl":
-            ctrl, x0 = PFLController(snake), pfl.initial_state(params)
-        else:
-            ctrl, x0 = LyapunovController(snake), tracking.initial_state(params)
-        wall, traj = _timed_run(lambda s=snake, c=ctrl, x=x0, t=t_final: simulate(s, c, x, t),
-                                repeat)
-        rows.append([label, f"{traj.t_end:.2f}", f"{wall:.2f}", f"{traj.t_end / wall:.1f}x",
-                     f"{wall / max(len(traj) - 1, 1) * 1e6:.0f}"])
-        controller_us, dynamics_us = _step_pieces(snake, ctrl, traj, budget)
-        floor = controller_us + 3 * dynamics_us
-        floor_rows.append([label, f"{controller_us:.1f}", f"{dynamics_us:.1f}", f"{floor:.0f}",
-                           f"{1e3 / floor:.1f}x"])
-    table("Closed-loop runs (simulate only, no post-processing)",
-          ["run", "simulated [s]", "wall [s]", "real-time factor", "us per 1 ms step"], rows)
-    table("Per-step floor of RK4 at 1 kHz: the controller plus three new dynamics evaluations",
-          ["run", "controller [us]", "dynamics eval [us]", "floor [us/step]",
-           "best real-time factor"], floor_rows)
-
-
-def _step_pieces(snake: Snake, ctrl: object, traj: object, budget: float) -> tuple[float, float]:
-    """Median us of one controller call and one dynamics evaluation on states of ``traj``
-    (a new state each call, so no cache is hit)."""
-    states = np.hstack((traj.q, traj.dq))[:: max(1, len(traj) // 64)]
-    taus = traj.tau[:: max(1, len(traj) // 64)]
-    count = len(states)
-    k = iter(range(1 << 62))
-
-    def control() -> object:
-        i = next(k) % count
-        return ctrl(states[i], 0.5)
-
-    def dynamics() -> object:
-        i = next(k) % count
-        return snake.state_derivative(states[i], taus[i])
-
-    return median_us(control, budget=budget), median_us(dynamics, budget=budget)
 
 
 def bench_engine(budget: float) -> None:
@@ -315,6 +521,10 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter timing batches")
     parser.add_argument("--only", default=",".join(BENCHES), help="comma-separated benches")
+    parser.add_argument("--baseline", default=BASELINE,
+                        help=f"commit whose closed-loop step the runs compare to ({BASELINE})")
+    parser.add_argument("--no-baseline", action="store_true",
+                        help="skip the baseline column of the runs")
     args = parser.parse_args()
     budget = 0.05 if args.quick else 0.2
     names = [n for n in args.only.split(",") if n]
@@ -323,9 +533,15 @@ def main() -> int:
         print(f"bench: unknown bench(es) {unknown}; choose from {list(BENCHES)}", file=sys.stderr)
         return 2
     start = time.perf_counter()
+    print(f"# python scripts/bench.py {' '.join(sys.argv[1:])}".rstrip())
+    print(f"(load average at start: {', '.join(f'{x:.2f}' for x in os.getloadavg())})")
     for name in names:
-        BENCHES[name](budget)
-    print(f"\n(total {time.perf_counter() - start:.1f} s)")
+        if name == "runs":
+            bench_runs(budget, None if args.no_baseline else args.baseline)
+        else:
+            BENCHES[name](budget)
+    print(f"\n(total {time.perf_counter() - start:.1f} s; load average at the end: "
+          f"{', '.join(f'{x:.2f}' for x in os.getloadavg())})")
     return 0
 
 

@@ -230,7 +230,7 @@ class LyapunovController(Controller):
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
         torque_full = self._torque_full
-        torque_full[self._act] = tau_a
+        torque_full[self._columns] = tau_a
         self._ddq = blas.dsymv(1.0, minv.T, torque_full, beta=1.0, y=b, lower=1)
         weighted_errors = errors[nq:]
         self._last = {"V": float(weighted_errors @ weighted_errors)}
