@@ -14,6 +14,13 @@ Every run ends with a :attr:`Trajectory.status`:
 In each case the samples up to the last good one are kept, and ``reason`` says when and
 why. ``diverged`` is True for the two faults ("diverged", "failed"), as before.
 
+Speed: with the robot's own :class:`~snake_pin.model.Snake` the RK4 step runs on
+preallocated buffers (:class:`_FastRK4`, :class:`~snake_pin.model.FastDynamics`), takes its
+first stage from the controller when the controller computed it
+(:meth:`~snake_pin.control.Controller.plant_acceleration`), and the loop holds BLAS to one
+thread; the stages, weights and hold are those of :func:`_rk4_step` (the plain step, kept
+for other plants), so results agree to rounding (``tests/test_speed_equivalence.py``).
+
 Trajectory files are read defensively: :meth:`Trajectory.load` reads only the arrays it
 needs, checks each array's .npy header (dtype, shape, declared size against
 :data:`MAX_ARRAY_BYTES` and :data:`MAX_TOTAL_BYTES`) before decompressing any of its
