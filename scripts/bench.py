@@ -177,13 +177,14 @@ def bench_derivatives(budget: float) -> None:
             def floor(s=snake, q=q, dq=dq) -> object:  # the ABA derivatives alone
                 return pin.computeABADerivatives(s.model, s.data, q, dq, np.zeros(s.nv))
 
-            times = interleaved_us({
+            times = interleaved_samples({
                 "analytical": lambda s=snake, q=q, dq=dq, t=tau: s.dynamics_derivatives(q, dq, t),
                 "central": central, "floor": floor}, budget=budget)
-            (fast, f10, f90), (slow, s10, s90) = times["analytical"], times["central"]
-            rows.append([str(n), label, f"{fast:.1f} ({f10:.1f}-{f90:.1f})",
-                         f"{slow:.0f} ({s10:.0f}-{s90:.0f})", f"{slow / fast:.1f}x",
-                         f"{times['floor'][0]:.1f}", f"{fast / times['floor'][0]:.1f}x"])
+            rows.append([str(n), label, show(spread(times["analytical"])),
+                         show(spread(times["central"]), 0),
+                         show(ratios(times["central"], times["analytical"]), 1, "x"),
+                         show(spread(times["floor"])),
+                         show(ratios(times["analytical"], times["floor"]), 1, "x")])
     table("Derivatives of q'' with friction, median us (10-90 %), interleaved rounds",
           ["n", "friction", "analytical", "central differences", "speed-up",
            "computeABADerivatives alone", "analytical / floor"], rows)
@@ -201,10 +202,11 @@ def bench_derivatives(budget: float) -> None:
         snakes = {"uniform": Snake(uniform), "per-link": Snake(hetero)}
         calls = {name: (lambda s=s, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t))
                  for name, s in snakes.items()}
-        times = interleaved_us(calls, budget=budget)
-        per_link.append([label, f"{times['uniform'][0]:.1f}", f"{times['per-link'][0]:.1f}",
-                         f"{times['per-link'][0] / times['uniform'][0]:.2f}"])
-    table("Forward dynamics with friction at n = 10: per-link robot against uniform, median us",
+        times = interleaved_samples(calls, budget=budget)
+        per_link.append([label, show(spread(times["uniform"])), show(spread(times["per-link"])),
+                         show(ratios(times["per-link"], times["uniform"]), 2)])
+    table("Forward dynamics with friction at n = 10: per-link robot against uniform, us, "
+          "median (10-90 %)",
           ["friction", "uniform (Table 1)", "per-link", "ratio"], per_link)
 
 
