@@ -145,6 +145,12 @@ class Snake:
     def __repr__(self) -> str:
         return f"Snake({self.params!r})"
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the cached :attr:`fast_dynamics` (closures; rebuilt on use)."""
+        state = self.__dict__.copy()
+        state.pop("fast_dynamics", None)
+        return state
+
     @classmethod
     def from_urdf(cls, path: str | os.PathLike[str],
                   friction: Mapping[str, Any] | None = None) -> Snake:
@@ -372,6 +378,7 @@ class FastDynamics:
     """
 
     def __init__(self, snake: Snake, rows: int = 4) -> None:
+        self._snake = snake
         model, data, nq = snake.model, snake.data, snake.nq
         passes = snake.friction.passes
         size = passes.size if passes is not None else nq
@@ -457,6 +464,14 @@ class FastDynamics:
         self.evaluate = evaluate
         self.affine = affine
         self.mass_and_bias = mass_and_bias
+
+    def __reduce__(self) -> tuple[Any, tuple[Snake]]:
+        """Pickled as its robot's (the closures are rebuilt by the robot on use)."""
+        return _fast_dynamics_of, (self._snake,)
+
+
+def _fast_dynamics_of(snake: Snake) -> FastDynamics:
+    return snake.fast_dynamics
 
 
 def _vector(value: object, size: int, name: str) -> np.ndarray:

@@ -198,3 +198,18 @@ def test_saved_figures_keep_their_labels_without_the_tight_box(tmp_path: Path) -
         box = text.get_window_extent(renderer)
         assert box.x0 >= whole.x0 and box.y0 >= whole.y0
         assert box.x1 <= whole.x1 and box.y1 <= whole.y1
+
+
+def test_robots_and_controllers_still_pickle_after_a_run() -> None:
+    """The hot path's closures are not pickled: a used robot and its laws round-trip and rerun."""
+    import pickle
+
+    params = tracking_params()
+    snake = Snake(params)
+    laws = [LyapunovController(snake), PFLController(snake)]
+    for law in laws:
+        before = simulate(snake, law, initial_state(params), 0.02)
+        copy = pickle.loads(pickle.dumps(law))
+        assert copy.snake is not snake and copy._dynamics is copy.snake.fast_dynamics
+        after = simulate(copy.snake, copy, initial_state(params), 0.02)
+        assert np.array_equal(before.q, after.q) and np.array_equal(before.tau, after.tau)

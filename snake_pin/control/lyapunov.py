@@ -141,8 +141,7 @@ class LyapunovController(Controller):
         self._tau = np.zeros(n - 1)
         self._last: dict[str, float] = {}
         self._build_law()
-        self._time_row = TimeTerms(
-            lambda times: reference_rows(self.reference, self.gait, times) @ self._law_time)
+        self._time_row = TimeTerms(self._time_terms)
 
     def _build_law(self) -> None:
         """Constant matrices of the hot path (see the module docstring)."""
@@ -185,7 +184,7 @@ class LyapunovController(Controller):
         self._columns = slice(3, nq) if all_actuated else self._act
         self._all_actuated = all_actuated
         self._torque_full = np.zeros(nq)  # E_a tau_a
-        self._affine = snake.fast_dynamics.affine
+        self._dynamics = snake.fast_dynamics
         self._ddq: np.ndarray | None = None
 
     # ------------------------------------------------------------ the law
@@ -218,10 +217,13 @@ class LyapunovController(Controller):
         """Compute the references' terms for the coming calls in blocks (see TimeTerms)."""
         self._time_row.prepare(times)
 
+    def _time_terms(self, times: np.ndarray) -> np.ndarray:
+        return reference_rows(self.reference, self.gait, times) @ self._law_time
+
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
         nq = self.snake.nq
-        b, minv = self._affine(x)  # minv: upper triangle of H^-1, so minv.T's lower one
+        b, minv = self._dynamics.affine(x)  # minv: upper triangle of H^-1, so minv.T's lower one
         errors = self._law_state @ np.concatenate((x, b))
         errors += self._time_row(t)  # [W^(1/2) (q''* - b); W^(1/2) [s; e]]
         weighted = blas.dsymm(1.0, minv.T, self._sqrt_w, side=1, lower=1)[:, self._columns]

@@ -112,10 +112,9 @@ class PFLController(Controller):
         self._gain = np.zeros((nq, 2 * nq))  # on x = [q, q']
         self._gain[:3, :3], self._gain[:3, nq:nq + 3] = -self.k_p, -self.k_v
         self._gain[3:, 3:nq], self._gain[3:, nq + 3:] = self.r_p, self.r_v
-        law_t = law.T.copy()
-        self._time_row = TimeTerms(
-            lambda times: reference_rows(self.reference, self.gait, times) @ law_t)
-        self._mass_and_bias = snake.fast_dynamics.mass_and_bias
+        self._law_time = law.T.copy()
+        self._time_row = TimeTerms(self._time_terms)
+        self._dynamics = snake.fast_dynamics
         self._ddq: np.ndarray | None = None
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
@@ -128,10 +127,13 @@ class PFLController(Controller):
         """Compute the references' terms for the coming calls in blocks (see TimeTerms)."""
         self._time_row.prepare(times)
 
+    def _time_terms(self, times: np.ndarray) -> np.ndarray:
+        return reference_rows(self.reference, self.gait, times) @ self._law_time
+
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
         nq = self._nq
-        upper, h_vec = self._mass_and_bias(x)
+        upper, h_vec = self._dynamics.mass_and_bias(x)
         h_mat = symmetric_from_upper(upper)
         h12, h22 = h_mat[:3, 3:], h_mat[3:, 3:]
         gram = blas.dsyrk(1.0, h12)  # H12 H12^T (upper triangle)
