@@ -80,25 +80,27 @@ class SnakeParams:
 
     Parameters
     ----------
-    n
-        Number of links, 2 <= n <= :data:`MAX_LINKS`.
-    link_length
+    n : int
+        Number of links, ``2 <= n <= MAX_LINKS`` (:data:`MAX_LINKS`).
+    link_length : float or sequence of n floats
         Full link length 2l_i [m] (joint i sits at x = 2l_i of link i); > 0.
-    mass
+    mass : float or sequence of n floats
         Link mass m_i [kg]; > 0.
-    inertia
+    inertia : float or sequence of n floats
         Link moment of inertia about its centre of mass, J_i [kg m^2]; > 0.
-    com_offset
-        Distance of link i's centre of mass from its front end, along the link [m];
-        ``None`` puts it in the middle (l_i, the paper's robot). 0 <= offset <= 2l_i.
-    c_x, c_y
+    c_x, c_y : float or sequence of n floats
         Viscous friction along / across link i [N s/m] (eqs. 10-12); >= 0.
-    c_theta
+    c_theta : float or sequence of n floats
         Rotational viscous friction of link i [N m s] (eq. 13); >= 0.
-    passive
-        1-based indices of joints without an actuator (free joints, Section III.2).
-    name
-        A label carried into file names and reports (letters, digits, underscores).
+    passive : sequence of int
+        1-based indices of joints without an actuator (free joints, Section III.2), each
+        in 1..n - 1; stored sorted and without repeats.
+    name : str
+        A label carried into file names and reports (letters, digits, underscores). A
+        preset's name given to a robot with per-link values becomes ``NAME_custom``.
+    com_offset : float or sequence of n floats or None
+        Distance of link i's centre of mass from its front end, along the link [m];
+        ``None`` puts it in the middle (l_i, the paper's robot). ``0 <= offset <= 2l_i``.
 
     Raises
     ------
@@ -155,14 +157,32 @@ class SnakeParams:
         for k in items:
             if not isinstance(k, numbers.Integral) or isinstance(k, bool):
                 raise ParameterError(f"passive joint indices must be integers, got {k!r}")
-            if not 1 <= k <= n - 1:
+            if not 1 <= int(k) <= n - 1:
                 raise ParameterError(
                     f"passive joint {k} is outside 1..{n - 1} for a {n}-link snake")
         return tuple(sorted({int(k) for k in items}))
 
     # ----------------------------------------------------------------- derived
     def per_link(self, key: str) -> np.ndarray:
-        """The field ``key`` (one of :data:`LINK_FIELDS`) as an array of n values, head first."""
+        """Return the field ``key`` as an array of n values, head first.
+
+        Parameters
+        ----------
+        key : str
+            One of :data:`LINK_FIELDS` (``"link_length"``, ``"mass"``, ``"inertia"``,
+            ``"com_offset"``, ``"c_x"``, ``"c_y"``, ``"c_theta"``).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            A new array of the field's value for each link, in the field's SI unit; an
+            unset ``com_offset`` gives the link midpoints l_i.
+
+        Raises
+        ------
+        ParameterError
+            If ``key`` is not a per-link field.
+        """
         if key not in LINK_FIELDS:
             raise ParameterError(f"{key!r} is not a per-link field ({', '.join(LINK_FIELDS)})")
         value = getattr(self, key)
@@ -198,7 +218,13 @@ class SnakeParams:
 
     @property
     def half_length(self) -> float:
-        """The paper's l (half the link length) [m]; uniform robots only."""
+        """The paper's l (half the link length) [m]; uniform robots only.
+
+        Raises
+        ------
+        ParameterError
+            If the links have different lengths (use :attr:`link_lengths`).
+        """
         if isinstance(self.link_length, tuple):
             raise ParameterError("half_length is defined for equal links only; "
                                  "use link_lengths / com_offsets")
@@ -231,15 +257,48 @@ class SnakeParams:
     # ----------------------------------------------------------------- presets
     @classmethod
     def table1(cls, **changes: Any) -> SnakeParams:
-        """The robot of Table 1 (Sections IV and VI.1), J in kg m^2 (erratum 1)."""
+        """Return the robot of Table 1 (Sections IV and VI.1), J in kg m^2 (erratum 1).
+
+        Parameters
+        ----------
+        **changes
+            Fields to change from the preset (validated as in :class:`SnakeParams`).
+
+        Returns
+        -------
+        SnakeParams
+            n = 10, 2l = 0.12 m, m = 0.182 kg, J = 2.2e-4 kg m^2,
+            c_x = c_y = 0.5 N s/m, c_theta = 7.2e-5 N m s, unless changed.
+
+        Raises
+        ------
+        ParameterError
+            If a change is out of its domain or names no field.
+        """
         return cls._named("table1", {}, changes)
 
     @classmethod
     def engine(cls, **changes: Any) -> SnakeParams:
-        """The 8-link robot of Section VI.3 (2l = 0.176 m, m = 0.417 kg, J = 1.2e-3 kg m^2).
+        """Return the 8-link robot of Section VI.3 (2l = 0.176 m, m = 0.417 kg, J = 1.2e-3 kg m^2).
 
         Its viscous coefficients are the controller's model of the wheels; the engine
         experiment identifies them from the MuJoCo model.
+
+        Parameters
+        ----------
+        **changes
+            Fields to change from the preset (validated as in :class:`SnakeParams`).
+
+        Returns
+        -------
+        SnakeParams
+            The preset (c_x = 0.5 N s/m, c_y = 5 N s/m, c_theta = 1e-4 N m s), with the
+            changes.
+
+        Raises
+        ------
+        ParameterError
+            If a change is out of its domain or names no field.
         """
         base = {"n": 8, "link_length": 0.176, "mass": 0.417, "inertia": 1.20e-3,
                 "c_x": 0.5, "c_y": 5.0, "c_theta": 1.0e-4}
@@ -251,20 +310,60 @@ class SnakeParams:
 
     @classmethod
     def preset(cls, name: str, **changes: Any) -> SnakeParams:
-        """A named preset from :data:`ROBOTS`."""
+        """Return a named preset from :data:`ROBOTS`.
+
+        Parameters
+        ----------
+        name : str
+            ``"table1"`` or ``"engine"``.
+        **changes
+            Fields to change from the preset.
+
+        Returns
+        -------
+        SnakeParams
+            ``SnakeParams.table1(**changes)`` or ``SnakeParams.engine(**changes)``.
+
+        Raises
+        ------
+        ParameterError
+            If ``name`` is no preset, or a change is out of its domain.
+        """
         if name not in ROBOTS:
             raise ParameterError(f"unknown robot {name!r}; choose one of {', '.join(ROBOTS)}")
         return getattr(cls, name)(**changes)
 
     def replace(self, **changes: Any) -> SnakeParams:
-        """A validated copy with some fields changed."""
+        """Return a validated copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            Field name -> new value (any field of :class:`SnakeParams`).
+
+        Returns
+        -------
+        SnakeParams
+            A new, validated instance; ``self`` is unchanged (frozen).
+
+        Raises
+        ------
+        ParameterError
+            If a name is not a field, or a new value is out of its domain.
+        """
         unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
         if unknown:
             raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-friendly dict of the fields (per-link fields as lists)."""
+        """Return the fields as a plain JSON-friendly dict (per-link fields as lists).
+
+        Returns
+        -------
+        dict of str to object
+            Field name -> value; :meth:`from_dict` reads it back into an equal instance.
+        """
         out: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
@@ -273,7 +372,24 @@ class SnakeParams:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> SnakeParams:
-        """Inverse of :meth:`to_dict` (validated; unknown keys refused)."""
+        """Build a validated instance from a dict: the inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        data : dict of str to object
+            Field name -> value; missing fields take their defaults.
+
+        Returns
+        -------
+        SnakeParams
+            The validated robot.
+
+        Raises
+        ------
+        ParameterError
+            If ``data`` is not a dict, names an unknown field, or a value is out of its
+            domain.
+        """
         if not isinstance(data, dict):
             raise ParameterError(f"robot parameters must be a table, got {type(data).__name__}")
         known = {f.name for f in dataclasses.fields(cls)}
