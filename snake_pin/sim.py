@@ -246,12 +246,6 @@ class Trajectory:
             raise TrajectoryFileError(f"{_shown(file)} is not a readable snake_pin trajectory "
                                       f"({type(exc).__name__}: {_one_line(str(exc))})") from None
 
-    def plot(self, path: str | os.PathLike[str] | None = None):
-        """Head position, joint angles and torques over time; saved as PNG if ``path``."""
-        from .viz.plots import plot_trajectory
-
-        return plot_trajectory(self, path)
-
 
 # ---------------------------------------------------------------------- file names
 def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
