@@ -1,32 +1,46 @@
 """The paper's closed-form model (Section II, eqs. 3-20), independent of Pinocchio.
 
 Everything here is plain numpy and serves as the cross-check of
-:class:`snake_pin.model.Snake`. Coordinates: q = [x_h, y_h, theta_1, phi] and
-q-bar = [x_h, y_h, theta] (link orientations, theta = L [theta_1, phi], eq. 17).
+:class:`snake_pin.model.Snake`. Coordinates: ``q = [x_h, y_h, theta_1, phi]`` (length
+n + 2) and ``q-bar = [x_h, y_h, theta]`` (link orientations, ``theta = L [theta_1, phi]``,
+eq. 17).
 
 The printed equations assume identical links with the centre of mass in the middle.
 They generalise to link i of length 2l_i, mass m_i, inertia J_i about its CM, CM at a
 distance d_i from its front end, and friction c_x,i, c_y,i, c_theta,i, as follows.
 
-* Positions (eqs. 3-4). With e_j = (cos theta_j, sin theta_j), link i's CM is
-  p_i = p_h + sum_{j<i} 2l_j e_j + d_i e_i = p_h + sum_j K_ij e_j, so
-  K_ij = 2l_j (j < i), K_ii = d_i, 0 above the diagonal (the printed K has d_i = l,
-  2l_j = 2l).
-* Velocities (eqs. 5-7). p_i' = p_h' + sum_j K_ij theta_j' (-sin theta_j, cos theta_j), so
-  J_{q-bar x} = [1, 0, -K diag(sin theta)] and J_{q-bar y} = [0, 1, K diag(cos theta)]:
-  the printed forms with the per-link K.
-* Kinetic energy (eqs. 8-9). T = 1/2 sum_i (m_i |p_i'|^2 + J_i theta_i'^2) gives
-  H-bar = J_x^T M J_x + J_y^T M J_y + diag(0, 0, J_1 .. J_n) with M = diag(m_1 .. m_n)
+* Positions (eqs. 3-4). With ``e_j = (cos theta_j, sin theta_j)``, link i's CM is::
+
+      p_i = p_h + sum_{j<i} 2l_j e_j + d_i e_i = p_h + sum_j K_ij e_j
+
+  so ``K_ij = 2l_j`` (j < i), ``K_ii = d_i``, 0 above the diagonal (the printed K has
+  ``d_i = l``, ``2l_j = 2l``).
+* Velocities (eqs. 5-7). ``p_i' = p_h' + sum_j K_ij theta_j' (-sin theta_j, cos theta_j)``,
+  so ``J_{q-bar x} = [1, 0, -K diag(sin theta)]`` and
+  ``J_{q-bar y} = [0, 1, K diag(cos theta)]``: the printed forms with the per-link K.
+* Kinetic energy (eqs. 8-9). ``T = 1/2 sum_i (m_i |p_i'|^2 + J_i theta_i'^2)`` gives::
+
+      H-bar = J_x^T M J_x + J_y^T M J_y + diag(0, 0, J_1 .. J_n),  M = diag(m_1 .. m_n)
+
   (the printed m I and J I become diagonal matrices).
-* Coriolis (eqs. 15-16). p_i'' = J_{q-bar} q-bar'' - sum_j K_ij theta_j'^2 e_j, so the
-  centripetal Jacobians are J_x = -K diag(cos theta), J_y = -K diag(sin theta) and
-  W-bar = J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y; the term is W-bar (q-bar')^2.
-* Friction (eqs. 10-14). In the world frame link i's force is -R_i diag(c_x,i, c_y,i)
-  R_i^T p_i', so C-bar = J_xy^T [[C_xx, C_xy], [C_xy, C_yy]] J_xy + diag(0, 0, c_theta)
-  with the diagonal blocks C_xx = diag(c_x cos^2 + c_y sin^2), C_xy =
-  diag((c_x - c_y) sin cos), C_yy = diag(c_x sin^2 + c_y cos^2), per link.
-* Paper coordinates (eq. 19). H = J_q^T H-bar J_q, W = J_q^T W-bar, C = J_q^T C-bar J_q
-  with J_q = blockdiag(I_2, L); h = W (J_q q')^2 + C q' (eq. 20) and E = [0; I].
+* Coriolis (eqs. 15-16). ``p_i'' = J_{q-bar} q-bar'' - sum_j K_ij theta_j'^2 e_j``, so the
+  centripetal Jacobians are ``J_x = -K diag(cos theta)``, ``J_y = -K diag(sin theta)`` and
+  ``W-bar = J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y``; the term is ``W-bar (q-bar')^2``.
+* Friction (eqs. 10-14). In the world frame link i's force is
+  ``-R_i diag(c_x,i, c_y,i) R_i^T p_i'``, so::
+
+      C-bar = J_xy^T [[C_xx, C_xy], [C_xy, C_yy]] J_xy + diag(0, 0, c_theta)
+      C_xx = diag(c_x cos^2 + c_y sin^2)
+      C_xy = diag((c_x - c_y) sin cos)
+      C_yy = diag(c_x sin^2 + c_y cos^2)        (per link)
+
+* Paper coordinates (eq. 19). ``H = J_q^T H-bar J_q``, ``W = J_q^T W-bar``,
+  ``C = J_q^T C-bar J_q`` with ``J_q = blockdiag(I_2, L)``; ``h = W (J_q q')^2 + C q'``
+  (eq. 20) and ``E = [0; I]``.
+
+Every function that takes a configuration ``q`` wants the paper's
+``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2 numbers, m and rad); velocities ``dq``
+are its plain time derivatives (m/s and rad/s).
 
 ``tests/test_paper.py`` checks every one of these against Pinocchio, which knows nothing
 of this derivation, on random states of random heterogeneous robots.
@@ -59,11 +73,21 @@ __all__ = [
 
 
 def k_matrix(params: SnakeParams) -> np.ndarray:
-    """K of eq. (4), per link: K_ij = 2l_j for j < i, d_i (CM offset) for j = i, else 0.
+    """Return K of eq. (4), per link: ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i), else 0.
 
-    Link i's centre of mass is p_i = p_h + sum_j K_ij e_j with e_j = (cos theta_j,
-    sin theta_j). For equal links with the CM in the middle, d_i = l and 2l_j = 2l: the
-    printed K (l on the diagonal, 2l below it).
+    Link i's centre of mass is ``p_i = p_h + sum_j K_ij e_j`` with
+    ``e_j = (cos theta_j, sin theta_j)``. For equal links with the CM in the middle,
+    ``d_i = l`` and ``2l_j = 2l``: the printed K (l on the diagonal, 2l below it).
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot (link lengths 2l_j and CM offsets d_i are read).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n)
+        Lower-triangular K [m].
     """
     lengths = params.link_lengths
     k = np.tril(np.broadcast_to(lengths, (params.n, params.n)), -1)
@@ -72,12 +96,34 @@ def k_matrix(params: SnakeParams) -> np.ndarray:
 
 
 def l_matrix(n: int) -> np.ndarray:
-    """L of eq. (17): lower-triangular ones."""
+    """Return L of eq. (17): lower-triangular ones, ``theta = L [theta_1, phi]``.
+
+    Parameters
+    ----------
+    n : int
+        Number of links.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n)
+        Ones on and below the diagonal, zeros above.
+    """
     return np.tril(np.ones((n, n)))
 
 
 def jacobian_q(n: int) -> np.ndarray:
-    """J_{q-bar q} = blockdiag(I_2, L) of eq. (17)."""
+    """Return ``J_{q-bar q} = blockdiag(I_2, L)`` of eq. (17), mapping q' to q-bar'.
+
+    Parameters
+    ----------
+    n : int
+        Number of links.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        The constant Jacobian from paper coordinates to ``[x_h, y_h, theta_1 .. theta_n]``.
+    """
     out = np.zeros((n + 2, n + 2))
     out[:2, :2] = np.eye(2)
     out[2:, 2:] = l_matrix(n)
@@ -85,12 +131,38 @@ def jacobian_q(n: int) -> np.ndarray:
 
 
 def link_angles(q: np.ndarray) -> np.ndarray:
-    """theta_i = theta_1 + sum_{j<i} phi_j (definition of phi)."""
+    """Return the absolute link angles ``theta_i = theta_1 + sum_{j<i} phi_j``.
+
+    Parameters
+    ----------
+    q : numpy.ndarray, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...];
+        not validated (the public functions validate it first).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+        theta_1 .. theta_n [rad], head first.
+    """
     return q[2] + np.concatenate([[0.0], np.cumsum(q[3:])])
 
 
 def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """J_{q-bar x} and J_{q-bar y} of eq. (7), each n x (n + 2)."""
+    """Return ``J_{q-bar x}`` and ``J_{q-bar y}`` of eq. (7): q-bar' to the CM velocities.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    theta : numpy.ndarray, shape (n,)
+        Link angles [rad] (:func:`link_angles`).
+
+    Returns
+    -------
+    jx, jy : numpy.ndarray, shape (n, n + 2)
+        Rows i map ``q-bar' = [x_h', y_h', theta']`` to link i's CM velocity along the
+        world x and y axes [m/s].
+    """
     n = params.n
     k = k_matrix(params)
     jx = np.hstack([np.ones((n, 1)), np.zeros((n, 1)), -k @ np.diag(np.sin(theta))])
@@ -99,7 +171,22 @@ def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """H-bar of eq. (9): Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_1, ..., J_n), M = diag(m_i)."""
+    """Return H-bar of eq. (9), the inertia matrix in q-bar coordinates.
+
+    ``H-bar = Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_1, ..., J_n)`` with ``M = diag(m_i)``.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    theta : numpy.ndarray, shape (n,)
+        Link angles [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        Symmetric positive definite H-bar [kg, kg m, kg m^2 blocks].
+    """
     jx, jy = jacobian_xy(params, theta)
     m = params.masses[:, None]
     j_bar = np.diag(np.r_[0.0, 0.0, params.inertias])
@@ -107,17 +194,51 @@ def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
 
 
 def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
-    """H of eq. (19): J_{q-bar q}^T H-bar J_{q-bar q}."""
+    """Return H of eq. (19), the inertia matrix in paper coordinates.
+
+    ``H = J_{q-bar q}^T H-bar J_{q-bar q}``; Pinocchio's CRBA in
+    :meth:`snake_pin.model.Snake.inertia_matrix` must agree with it.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        Symmetric positive definite H.
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` does not have n + 2 finite entries.
+    """
     q = as_vector(q, params.n + 2, "q")
     jq = jacobian_q(params.n)
     return jq.T @ inertia_matrix_bar(params, link_angles(q)) @ jq
 
 
 def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """W-bar of eq. (16): J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y with M = diag(m_i).
+    """Return W-bar of eq. (16), the centripetal matrix in q-bar coordinates.
 
-    J_x = -K diag(cos theta) and J_y = -K diag(sin theta) (padded with two zero columns)
-    map theta'^2 to the centripetal part of the CM accelerations.
+    ``W-bar = J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y`` with ``M = diag(m_i)``;
+    ``J_x = -K diag(cos theta)`` and ``J_y = -K diag(sin theta)`` (padded with two zero
+    columns) map ``theta'^2`` to the centripetal part of the CM accelerations.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    theta : numpy.ndarray, shape (n,)
+        Link angles [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        W-bar; the Coriolis term is ``W-bar (q-bar')^2`` (elementwise square).
     """
     n = params.n
     k = k_matrix(params)
@@ -129,7 +250,29 @@ def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
 
 
 def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """W diag(J dq) J dq of eq. (18), W = J_{q-bar q}^T W-bar."""
+    """Return the Coriolis/centrifugal term ``W diag(J dq) J dq`` of eq. (18).
+
+    ``W = J_{q-bar q}^T W-bar`` and ``J = J_{q-bar q}``.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    dq : array_like, shape (n + 2,)
+        Its time derivative [m/s, m/s, rad/s, rad/s...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2,)
+        Generalised forces [N, N, N m, N m...] (friction excluded).
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` or ``dq`` does not have n + 2 finite entries.
+    """
     q = as_vector(q, params.n + 2, "q")
     dq = as_vector(dq, params.n + 2, "dq")
     jq = jacobian_q(params.n)
@@ -138,7 +281,20 @@ def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
 
 
 def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """C-bar = C_tr + C_rot of eqs. (11)-(14)."""
+    """Return the friction matrix ``C-bar = C_tr + C_rot`` of eqs. (11)-(14).
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot (c_x, c_y, c_theta per link).
+    theta : numpy.ndarray, shape (n,)
+        Link angles [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        Symmetric positive semi-definite C-bar in q-bar coordinates.
+    """
     c, s = np.cos(theta), np.sin(theta)
     cx, cy = params.per_link("c_x"), params.per_link("c_y")
     middle = np.block([[np.diag(cx * c**2 + cy * s**2), np.diag((cx - cy) * s * c)],
@@ -150,29 +306,103 @@ def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
 
 
 def friction_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
-    """C = J_{q-bar q}^T C-bar J_{q-bar q} (after eq. 19); dissipation R = dq^T C dq / 2."""
+    """Return the friction matrix C in paper coordinates (after eq. 19).
+
+    ``C = J_{q-bar q}^T C-bar J_{q-bar q}``; the dissipation function is
+    ``dq^T C dq / 2`` and the friction forces are ``-C dq``.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        Symmetric positive semi-definite C.
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` does not have n + 2 finite entries.
+    """
     q = as_vector(q, params.n + 2, "q")
     jq = jacobian_q(params.n)
     return jq.T @ friction_matrix_bar(params, link_angles(q)) @ jq
 
 
 def actuation_matrix(n: int) -> np.ndarray:
-    """E = [O_{3 x (n-1)}; I_{n-1}] (after eq. 19)."""
+    """Return the actuation matrix ``E = [O_{3 x (n-1)}; I_{n-1}]`` (after eq. 19).
+
+    Parameters
+    ----------
+    n : int
+        Number of links.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n - 1)
+        Maps the joint torques tau to generalised forces (every joint actuated).
+    """
     return np.vstack([np.zeros((3, n - 1)), np.eye(n - 1)])
 
 
 def bias(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """h of eq. (20): W diag(J dq) J dq + C dq."""
+    """Return the bias h of eq. (20): ``W diag(J dq) J dq + C dq``.
+
+    The dynamics read ``H q'' + h = E tau``; Pinocchio's
+    :meth:`snake_pin.model.Snake.bias` must agree with it.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    dq : array_like, shape (n + 2,)
+        Its time derivative [m/s, m/s, rad/s, rad/s...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2,)
+        Coriolis/centrifugal plus viscous-friction generalised forces [N, N, N m, N m...].
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` or ``dq`` does not have n + 2 finite entries.
+    """
     return coriolis(params, q, dq) + friction_matrix(params, q) @ np.asarray(dq, float)
 
 
 def g2(params: SnakeParams, q: np.ndarray) -> np.ndarray:
-    """g_2 of eq. (67) for isotropic friction (c_x,i = c_y,i = c_i on every link).
+    """Return g_2 of eq. (67) for isotropic friction (``c_x,i = c_y,i = c_i`` on every link).
 
-    g_2 = sum_i c_i p_i, the friction-weighted sum of the links' CM positions: total
-    momentum plus g_2 is conserved, since d/dt sum_i m_i p_i' = -sum_i c_i p_i'. For equal
-    links this is the printed g21 = n c x_h + c l sum_j (2n - 2j + 1) cos(theta_j) (and g22
-    with y_h and sin).
+    ``g_2 = sum_i c_i p_i``, the friction-weighted sum of the links' CM positions: total
+    momentum plus g_2 is conserved, since ``d/dt sum_i m_i p_i' = -sum_i c_i p_i'``. For
+    equal links this is the printed ``g21 = n c x_h + c l sum_j (2n - 2j + 1) cos(theta_j)``
+    (and g22 with y_h and sin).
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot; its friction must be isotropic.
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        ``[g21, g22]`` [N s].
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` does not have n + 2 finite entries.
+    ParameterError
+        If the robot's friction is not isotropic.
     """
     q = as_vector(q, params.n + 2, "q")
     if not params.isotropic:
