@@ -4,9 +4,9 @@ The generated description is the single source of truth for the robot's geometry
 inertia: :class:`snake_pin.model.Snake` builds its Pinocchio model from it, and the
 engine model reads the same parameters.
 
-Layout (README, conventions): link ``link_i``'s frame sits at the link's front end with x pointing
-towards the tail; its centre of mass is at x = l. ``joint_i`` (revolute about z) joins
-``link_i`` to ``link_{i+1}`` at x = 2l of ``link_i``. A ``world`` link and a ``planar``
+Layout (README, conventions): link ``link_i``'s frame sits at the link's front end with x
+pointing towards the tail; its centre of mass is at x = l. ``joint_i`` (revolute about z)
+joins ``link_i`` to ``link_{i+1}`` at x = 2l of ``link_i``. A ``world`` link and a ``planar``
 joint ``base`` carry the head, so that generic tools see the floating planar base.
 
 Passive joints are marked by ``<limit effort="0">``: a joint with zero effort limit
@@ -45,7 +45,7 @@ EXTENSION_TAG = "snake_pin"
 EXTENSION_VERSION = 1
 #: Rated joint torque written into the URDF [N m] (not enforced by the dynamics).
 EFFORT_LIMIT = 10.0
-#: Joint range written into the URDF [rad] (|phi_i| <= pi/2, the singular search's box).
+#: Joint range written into the URDF [rad] (``|phi_i| <= pi/2``, the singular search's box).
 JOINT_LIMIT = 0.5 * np.pi
 #: Joint velocity limit written into the URDF [rad/s].
 VELOCITY_LIMIT = 10.0
@@ -90,11 +90,18 @@ def build_urdf(params: SnakeParams, *, floating_base: bool = True) -> yourdfpy.U
 
     Parameters
     ----------
-    params
+    params : SnakeParams
         Robot parameters; ``params.passive`` joints get a zero effort limit.
-    floating_base
+    floating_base : bool, optional
         Include the ``world`` link and the ``planar`` joint ``base`` (default). Without
         it the head link is the root, ready for a custom root joint (Pinocchio).
+
+    Returns
+    -------
+    yourdfpy.URDF
+        Links ``link_1`` .. ``link_n`` (head first) joined by revolute z joints
+        ``joint_1`` .. ``joint_{n-1}`` limited to ``[-JOINT_LIMIT, JOINT_LIMIT]``; no meshes.
+        The friction coefficients are not in it (see :func:`urdf_string`).
     """
     links = [_link(params, i) for i in range(1, params.n + 1)]
     joints = []
@@ -120,7 +127,22 @@ def build_urdf(params: SnakeParams, *, floating_base: bool = True) -> yourdfpy.U
 
 
 def urdf_string(params: SnakeParams, *, floating_base: bool = True) -> str:
-    """The URDF text of ``params``, pretty-printed (same parameters, same bytes)."""
+    """Return the URDF text of ``params``, pretty-printed (same parameters, same bytes).
+
+    Parameters
+    ----------
+    params : SnakeParams
+        Robot parameters.
+    floating_base : bool, optional
+        As in :func:`build_urdf`.
+
+    Returns
+    -------
+    str
+        The XML document, with a ``<snake_pin>`` element carrying each link's friction
+        coefficients and the robot's name (read back by
+        :func:`snake_pin.robot_file.read_urdf`; other tools ignore it).
+    """
     # yourdfpy's own write_xml_string drops its keyword arguments (``*kwargs``), so
     # serialise its element tree the way its write_xml_file does.
     tree = build_urdf(params, floating_base=floating_base).write_xml()
@@ -146,9 +168,31 @@ def _add_extension(robot: etree._Element, params: SnakeParams) -> None:
 
 
 def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
-    """Write the URDF of ``params`` to ``path`` whole or not at all; return the path.
+    """Write the URDF of ``params`` to ``path`` whole or not at all.
 
     The description is validated with yourdfpy before it is written.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        Robot parameters.
+    path : str or os.PathLike
+        Output file; must end in ``.urdf`` and its folder must exist. An existing file is
+        replaced atomically.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    ParameterError
+        If ``path`` does not end in ``.urdf`` or its folder does not exist.
+    SnakePinError
+        If yourdfpy rejects the generated description (a bug, not a user error).
+    OSError
+        If the file cannot be written.
     """
     urdf = build_urdf(params)
     if not urdf.validate():
@@ -163,7 +207,18 @@ def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
 
 
 def passive_joints(urdf_text: str) -> tuple[int, ...]:
-    """1-based indices of the joints marked passive (zero effort limit) in a URDF text."""
+    """Return the joints marked passive (zero effort limit) in a URDF text.
+
+    Parameters
+    ----------
+    urdf_text : str
+        A URDF document whose joints are named ``joint_<i>`` (as generated here).
+
+    Returns
+    -------
+    tuple of int
+        Sorted 1-based indices i of the ``joint_<i>`` elements whose effort limit is 0.
+    """
     urdf = yourdfpy.URDF.load(io.BytesIO(urdf_text.encode()), build_scene_graph=False,
                               load_meshes=False)
     out = []
