@@ -196,7 +196,7 @@ def bench_derivatives(budget: float) -> None:
         scale = rng.uniform(0.5, 2.0, 10)
         hetero = uniform.replace(mass=(0.182 * scale).tolist(),
                                  link_length=(0.12 * scale).tolist(),
-                                 c_y=(cy * scale).tolist())
+                                 c_x=(0.5 * scale).tolist(), c_y=(cy * scale).tolist())
         q = np.r_[0.1, -0.2, 0.3, rng.uniform(-1, 1, 9)]
         dq, tau = rng.normal(size=12), rng.normal(size=9)
         snakes = {"uniform": Snake(uniform), "per-link": Snake(hetero)}
