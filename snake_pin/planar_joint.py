@@ -4,35 +4,36 @@ Plain Pinocchio users load our URDFs with ``pin.buildModelFromUrdf("urdf/snake_t
 and get the ``world -> base`` joint as a ``JointModelPlanar``. That model's coordinates are
 not the paper's:
 
-=====================  =========================================  ==========================
-                       planar model (Pinocchio)                   paper (:class:`~snake_pin.Snake`)
-=====================  =========================================  ==========================
-configuration          [x, y, cos theta, sin theta, q_1..q_{n-1}]  [x_h, y_h, theta_1, phi]
-                       (nq = n + 3)                                (nq = n + 2)
-velocity               [v_x, v_y, omega, q_1'..q_{n-1}']           [x_h', y_h', theta_1', phi']
-                       v_x, v_y in the *head's* frame              all plain time derivatives
-acceleration           d/dt of the velocity's components           q''
-=====================  =========================================  ==========================
+=============  ================================================  =================================
+quantity       planar model (Pinocchio)                          paper (:class:`~snake_pin.Snake`)
+=============  ================================================  =================================
+configuration  ``[x, y, cos theta, sin theta, q_1 .. q_{n-1}]``  ``[x_h, y_h, theta_1, phi]``
+               (nq = n + 3)                                      (nq = n + 2)
+velocity       ``[v_x, v_y, omega, q_1' .. q_{n-1}']``           ``[x_h', y_h', theta_1', phi']``
+               v_x, v_y in the *head's* frame                    all plain time derivatives
+acceleration   d/dt of the velocity's components                 ``q''``
+=============  ================================================  =================================
 
 (x, y) is the head link frame's origin (x_h, y_h) and theta = theta_1. With R(theta) the
-head's rotation in the plane, the velocity map is
+head's rotation in the plane, the velocity map is::
 
     v_planar = T(theta) q',   T = blockdiag(R(theta)^T, 1, S),
 
-with S = diag(s_i), s_i = +1 for a joint about +z and -1 for one about -z (q_i = s_i phi_i).
-Differentiating, a_planar = T q'' + T' q', where T' q' = theta' [v_y, -v_x, 0, ..., 0]
-(the velocity-product term: the head frame turns under the base velocity). Hence
+with ``S = diag(s_i)``, ``s_i = +1`` for a joint about +z and -1 for one about -z
+(``q_i = s_i phi_i``). Differentiating, ``a_planar = T q'' + T' q'``, where
+``T' q' = theta' [v_y, -v_x, 0, ..., 0]`` (the velocity-product term: the head frame turns
+under the base velocity). Hence::
 
     q'' = T^-1 (a_planar - T' q'),    H = T^T M T,    h = T^T (b + M T' q'),
 
 with M and b Pinocchio's mass matrix and nonlinear effects of the planar model, and
-generalised forces map as f_paper = T^T f_planar (equal power); joint torques are the same
-up to the sign s_i. Gravity (along -z) does no work in the plane and drops out. Friction
+generalised forces map as ``f_paper = T^T f_planar`` (equal power); joint torques are the
+same up to the sign s_i. Gravity (along -z) does no work in the plane and drops out. Friction
 is not part of a URDF: ``pin.aba`` on the planar model is the friction-free dynamics.
 
 Also accepted: ``continuous`` joints (Pinocchio's unbounded revolute joints: two
 coordinates cos q_i, sin q_i) and revolute joints about -z. Angles read back from
-(cos, sin) pairs lie in (-pi, pi]. Models of other shapes (another root joint, a rotated
+(cos, sin) pairs lie in ``(-pi, pi]``. Models of other shapes (another root joint, a rotated
 joint placement, a branch) are refused with :class:`~snake_pin.exceptions.ParameterError`
 naming the joint; vectors of the wrong size or with non-finite entries with
 :class:`~snake_pin.exceptions.ConfigurationError`.
@@ -70,18 +71,21 @@ _TOLERANCE = 1e-12
 class PlanarLayout:
     """Where a planar-joint snake model keeps each coordinate.
 
-    Attributes
+    Built by :func:`planar_layout`; every conversion function accepts it in place of
+    the model (no re-check of the model).
+
+    Parameters
     ----------
-    n
+    n : int
         Number of links.
-    nq, nv
+    nq, nv : int
         The planar model's sizes (nq = n + 3 + number of continuous joints, nv = n + 2).
-    idx_q
-        Index in the planar configuration of each joint's first coordinate (n - 1).
-    unbounded
+    idx_q : numpy.ndarray of int, shape (n - 1,)
+        Index in the planar configuration of each joint's first coordinate.
+    unbounded : numpy.ndarray of bool, shape (n - 1,)
         True for joints stored as (cos, sin) (``continuous`` in the URDF).
-    signs
-        s_i: +1 for a joint about +z, -1 about -z (q_i = s_i phi_i).
+    signs : numpy.ndarray of float, shape (n - 1,)
+        s_i: +1 for a joint about +z, -1 about -z (``q_i = s_i phi_i``).
     """
 
     n: int
@@ -109,6 +113,17 @@ def _axis_sign(joint: pin.JointModel, name: str) -> tuple[float, bool]:
 
 def planar_layout(model: pin.Model) -> PlanarLayout:
     """Check that ``model`` is a planar-root serial snake and say where its coordinates are.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        A model with a ``JointModelPlanar`` root, e.g. ``pin.buildModelFromUrdf`` of a
+        URDF written by :func:`snake_pin.urdf.write_urdf`.
+
+    Returns
+    -------
+    PlanarLayout
+        Sizes, coordinate indices, storage and axis signs of its joints.
 
     Raises
     ------
@@ -149,7 +164,28 @@ def _layout(model: pin.Model | PlanarLayout) -> PlanarLayout:
 
 
 def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
-    """T(theta_1) with v_planar = T q' ((n + 2) x (n + 2)), from the paper configuration ``q``."""
+    """Return ``T(theta_1)`` with ``v_planar = T q'``, from the paper configuration ``q``.
+
+    Parameters
+    ----------
+    model : pinocchio.Model or PlanarLayout
+        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
+        :func:`planar_layout`.
+    q : array_like, shape (n + 2,)
+        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        ``blockdiag(R(theta_1)^T, 1, S)``; orthogonal, so ``T^-1 = T^T``.
+
+    Raises
+    ------
+    ParameterError
+        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+    ConfigurationError
+        If a vector has the wrong size or non-finite entries.
+    """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
     c, s = np.cos(q[2]), np.sin(q[2])
@@ -167,14 +203,32 @@ def _rate_term(dq: np.ndarray, v_planar: np.ndarray) -> np.ndarray:
 
 def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray]:
-    """(q_planar, v_planar) of the paper state (q, q').
+    """Convert the paper state (q, q') to the planar model's (q_planar, v_planar).
 
     Parameters
     ----------
-    model
-        The planar model (``pin.buildModelFromUrdf`` of our URDF) or its :func:`planar_layout`.
-    q, dq
-        Paper configuration [x_h, y_h, theta_1, phi] and its time derivative (n + 2 each).
+    model : pinocchio.Model or PlanarLayout
+        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
+        :func:`planar_layout`.
+    q : array_like, shape (n + 2,)
+        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    dq : array_like, shape (n + 2,)
+        Its time derivative q' [m/s, m/s, rad/s, rad/s...].
+
+    Returns
+    -------
+    q_planar : numpy.ndarray, shape (nq,)
+        ``[x_h, y_h, cos theta_1, sin theta_1, s_i phi_i ..]`` (cos, sin pairs for
+        continuous joints).
+    v_planar : numpy.ndarray, shape (n + 2,)
+        ``T q'``.
+
+    Raises
+    ------
+    ParameterError
+        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+    ConfigurationError
+        If a vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -191,9 +245,34 @@ def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarr
 
 def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
                     v_planar: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(q, q') in paper coordinates of the planar model's state (q_planar, v_planar).
+    """Convert the planar model's state (q_planar, v_planar) to the paper's (q, q').
 
-    theta_1 (and the angle of a continuous joint) comes back in (-pi, pi].
+    theta_1 (and the angle of a continuous joint) comes back in ``(-pi, pi]``.
+
+    Parameters
+    ----------
+    model : pinocchio.Model or PlanarLayout
+        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
+        :func:`planar_layout`.
+    q_planar : array_like, shape (nq,)
+        The planar model's configuration ``[x, y, cos theta, sin theta, q_1 ..]``.
+    v_planar : array_like, shape (nv,) = (n + 2,)
+        The planar model's velocity ``[v_x, v_y, omega, q_1' ..]`` (v_x, v_y in the head's
+        frame).
+
+    Returns
+    -------
+    q : numpy.ndarray, shape (n + 2,)
+        ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    dq : numpy.ndarray, shape (n + 2,)
+        ``T^T v_planar`` [m/s, m/s, rad/s, rad/s...].
+
+    Raises
+    ------
+    ParameterError
+        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+    ConfigurationError
+        If a vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q_planar = as_vector(q_planar, layout.nq, "q_planar")
@@ -210,7 +289,32 @@ def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
 
 def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
                                  dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
-    """a_planar = T q'' + T' q' (what ``pin.aba`` on the planar model returns)."""
+    """Return ``a_planar = T q'' + T' q'`` (what ``pin.aba`` on the planar model returns).
+
+    Parameters
+    ----------
+    model : pinocchio.Model or PlanarLayout
+        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
+        :func:`planar_layout`.
+    q : array_like, shape (n + 2,)
+        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    dq : array_like, shape (n + 2,)
+        Its time derivative q' [m/s, m/s, rad/s, rad/s...].
+    ddq : array_like, shape (n + 2,)
+        Paper acceleration q'' [m/s^2, m/s^2, rad/s^2, rad/s^2...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2,)
+        The planar model's acceleration (derivative of the components of ``v_planar``).
+
+    Raises
+    ------
+    ParameterError
+        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+    ConfigurationError
+        If a vector has the wrong size or non-finite entries.
+    """
     layout = _layout(model)
     _, v_planar = paper_to_planar(layout, q, dq)
     ddq = as_vector(ddq, layout.n + 2, "ddq")
@@ -220,7 +324,33 @@ def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
 
 def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
                                  v_planar: np.ndarray, a_planar: np.ndarray) -> np.ndarray:
-    """q'' = T^-1 (a_planar - T' q') of the planar model's acceleration ``a_planar``."""
+    """Return ``q'' = T^-1 (a_planar - T' q')`` of the planar model's acceleration.
+
+    Parameters
+    ----------
+    model : pinocchio.Model or PlanarLayout
+        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
+        :func:`planar_layout`.
+    q_planar : array_like, shape (nq,)
+        The planar model's configuration ``[x, y, cos theta, sin theta, q_1 ..]``.
+    v_planar : array_like, shape (nv,) = (n + 2,)
+        The planar model's velocity ``[v_x, v_y, omega, q_1' ..]`` (v_x, v_y in the head's
+        frame).
+    a_planar : array_like, shape (n + 2,)
+        The planar model's acceleration (e.g. ``pin.aba``'s result).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2,)
+        Paper acceleration q'' [m/s^2, m/s^2, rad/s^2, rad/s^2...].
+
+    Raises
+    ------
+    ParameterError
+        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+    ConfigurationError
+        If a vector has the wrong size or non-finite entries.
+    """
     layout = _layout(model)
     q, dq = planar_to_paper(layout, q_planar, v_planar)
     a_planar = as_vector(a_planar, layout.nv, "a_planar")
@@ -230,10 +360,32 @@ def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.n
 
 def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
                           force: np.ndarray) -> np.ndarray:
-    """The planar model's generalised force of a paper one: f_planar = T^-T f = T f.
+    """Return the planar model's generalised force of a paper one: ``T^-T f = T f``.
 
     For joint torques, ``force = E tau`` (zeros on x_h, y_h, theta_1) gives
     ``[0, 0, 0, s_i tau_i]``, the ``tau`` to pass to ``pin.aba`` on the planar model.
+
+    Parameters
+    ----------
+    model : pinocchio.Model or PlanarLayout
+        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
+        :func:`planar_layout`.
+    q : array_like, shape (n + 2,)
+        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    force : array_like, shape (n + 2,)
+        Generalised force in paper coordinates [N, N, N m, N m...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2,)
+        The same force for the planar model (equal power).
+
+    Raises
+    ------
+    ParameterError
+        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+    ConfigurationError
+        If a vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     force = as_vector(force, layout.n + 2, "force")
@@ -242,11 +394,37 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
 
 def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """H(q) and the friction-free h(q, q') of eq. (20), computed on the planar model.
+    """Return H(q) and the friction-free h(q, q') of eq. (20), computed on the planar model.
 
-    H = T^T M T and h = T^T (b + M T' q'), with M by CRBA and b = ``nonLinearEffects``
-    of the planar model at the converted state; equal to :class:`~snake_pin.Snake`'s
-    ``inertia_matrix`` and ``coriolis`` (friction is not in a URDF).
+    ``H = T^T M T`` and ``h = T^T (b + M T' q')``, with M by CRBA and b =
+    ``nonLinearEffects`` of the planar model at the converted state; equal to
+    :class:`~snake_pin.Snake`'s ``inertia_matrix`` and ``coriolis`` (friction is not in a
+    URDF).
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The planar model.
+    data : pinocchio.Data
+        Its data (overwritten).
+    q : array_like, shape (n + 2,)
+        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    dq : array_like, shape (n + 2,)
+        Its time derivative q' [m/s, m/s, rad/s, rad/s...].
+
+    Returns
+    -------
+    H : numpy.ndarray, shape (n + 2, n + 2)
+        Inertia matrix in paper coordinates.
+    h : numpy.ndarray, shape (n + 2,)
+        Coriolis/centrifugal generalised forces (no friction) [N, N, N m, N m...].
+
+    Raises
+    ------
+    ParameterError
+        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+    ConfigurationError
+        If a vector has the wrong size or non-finite entries.
     """
     layout = planar_layout(model)
     q_planar, v_planar = paper_to_planar(layout, q, dq)
