@@ -5,7 +5,7 @@ A study file is TOML (read with :mod:`tomllib`) with three tables::
     [study]                      # optional
     name = "friction_and_gains"  # a label for the page
     description = "..."
-    batch_size = 16              # runs per task on the viscous model (engine: always 1)
+    batch_size = 256             # most runs per task on the viscous model (engine: 1)
 
     [base]                       # the scenario every run starts from (see SETTINGS)
     robot = "table1"             # a preset, or a .toml/.urdf robot file (relative to this file)
@@ -84,6 +84,7 @@ from .errors import StudyError
 
 __all__ = [
     "CONTROLLERS",
+    "DEFAULT_BATCH",
     "KEY_FORMAT",
     "MAX_BATCH",
     "MAX_RUNS",
@@ -105,6 +106,9 @@ __all__ = [
 MAX_RUNS = 100_000
 #: Largest ``batch_size``.
 MAX_BATCH = 1024
+#: ``batch_size`` when the file gives none: lockstep batches gain little beyond it
+#: (see :func:`snake_pin.study.runner.plan_batches`).
+DEFAULT_BATCH = 256
 #: Largest study file [bytes].
 MAX_STUDY_BYTES = 1 << 20
 #: Seeds (of random axes and of the initial-posture noise) lie in 0..MAX_SEED.
@@ -482,7 +486,7 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
         if not isinstance(value, str) or not value.isprintable() or len(value) > 2000:
             raise where.error(f"[study] {key} must be one line of printable text, "
                               f"got {_short(value)}")
-    batch_size = study.get("batch_size", 16)
+    batch_size = study.get("batch_size", DEFAULT_BATCH)
     if not _is_int(batch_size) or not 1 <= batch_size <= MAX_BATCH:
         raise where.error(f"[study] batch_size must be an integer in 1..{MAX_BATCH}, "
                           f"got {_short(batch_size)}")

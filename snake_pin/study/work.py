@@ -6,15 +6,20 @@ the other runs of the batch go on. Inside it, BLAS and OpenMP pools are limited 
 thread (:func:`threadpoolctl.threadpool_limits`): multi-threaded OpenBLAS on tiny matrices
 was measured ~100x slower when another core is busy.
 
-**The hook for the batched simulator.** Viscous-model batches go through
-:func:`simulate_viscous_batch` and nothing else simulates them: today it runs each
-scenario through :func:`snake_pin.sim.simulate` one by one; the lockstep simulator of
-issue 14.1 replaces its body (one function) and everything around it (metrics, rows,
-files, resuming, the report) stays. Its contract: given scenarios of one robot layout
-(same n; friction, gains, gait, reference, initial state and passive joints may differ),
-return one :class:`RunOutcome` per scenario, in order, whose trajectory equals what
-:func:`simulate_scenario` gives for it (same status and reason), with the wall time of
-each run (for a lockstep batch: the batch's time divided by its size).
+**Viscous batches run in lockstep.** Viscous-model batches go through
+:func:`simulate_viscous_batch`: the runs of a task (one robot layout, one ``dt`` and
+``control_dt``; the runner plans them so) are stepped together by
+:func:`snake_pin.batch.simulate_batch` at ``stride = 1`` (every sample kept, so the metrics
+are those of :func:`simulate_scenario`; the two agree to about 1e-12, ``tests/test_study_
+runner.py`` checks 1e-9). A task larger than :func:`runs_per_batch` allows (its recorded
+samples would pass :data:`BATCH_RECORD_BYTES`) is stepped as consecutive lockstep chunks.
+When :func:`~snake_pin.batch.simulate_batch` refuses a batch as a whole (any error other
+than an interrupt), its runs go one by one through :func:`simulate_scenario`. Each run's
+:class:`~snake_pin.sim.Trajectory` is cut from the batch's arrays only when its row is
+computed and dropped after it, so a task holds the batch's arrays plus one run's copy.
+Measured on this 2-core machine: one process running the 40 runs of 60 s of
+``studies/failure_map.toml`` as one task (one lockstep batch, rows included) peaked at
+977 MiB resident (the batch's samples: 640 MiB) and took 40 s.
 
 Engine scenarios run one per task through :func:`snake_pin.engine.run.run_engine`.
 
@@ -36,7 +41,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -49,12 +54,20 @@ from ..params import SnakeParams
 from ..sim import Trajectory
 from .spec import Scenario, canonical_json
 
-__all__ = ["CRITERIA_PERIOD", "RunOutcome", "build_controller", "failed_row", "initial_state",
-           "reference", "result_row", "run_batch", "simulate_scenario",
-           "simulate_viscous_batch"]
+__all__ = ["BATCH_RECORD_BYTES", "CRITERIA_PERIOD", "MIN_LOCKSTEP", "RunOutcome",
+           "build_controller",
+           "failed_row", "initial_state", "reference", "result_row", "run_batch",
+           "runs_per_batch", "simulate_scenario", "simulate_viscous_batch"]
 
 #: Manipulability criteria are evaluated along a run every this many seconds.
 CRITERIA_PERIOD = 0.1
+#: Largest samples one lockstep batch records [bytes] (:func:`runs_per_batch`): 63 runs of
+#: 60 s of a 10-link robot at 1 kHz (17 MB each).
+BATCH_RECORD_BYTES = 2**30
+#: Fewest runs simulated as a lockstep batch; fewer run one by one through
+#: :func:`simulate_scenario` (measured here: a lockstep batch of B runs matches B single
+#: runs near B = 6-8 and is slower below; at B = 1 it is 4-6x slower).
+MIN_LOCKSTEP = 8
 
 
 @dataclass
@@ -91,13 +104,103 @@ def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
     return rows
 
 
-def simulate_viscous_batch(scenarios: Sequence[Scenario]) -> list[RunOutcome]:
-    """Simulate viscous-model scenarios: THE place where the lockstep simulator plugs in.
+def simulate_viscous_batch(scenarios: Sequence[Scenario]) -> Sequence[RunOutcome]:
+    """Simulate viscous-model scenarios of one robot layout and time step in lockstep.
 
-    Today: each scenario through :func:`simulate_scenario`, one by one. See the module
-    docstring for the contract a batched replacement keeps.
+    One :class:`RunOutcome` per scenario, in order, whose trajectory is what
+    :func:`simulate_scenario` gives for it up to rounding (same status and reason), with the
+    wall time of each run (a chunk's time divided by its runs). The outcomes form a lazy
+    sequence: a trajectory is cut from the batch's arrays when its outcome is read.
+    Fewer than :data:`MIN_LOCKSTEP` scenarios run one by one (faster than a small lockstep
+    batch); more than :func:`runs_per_batch` allows run as evenly sized lockstep chunks.
+
+    A scenario whose controller cannot be built is a failed outcome; the others go on. A
+    batch that :func:`~snake_pin.batch.simulate_batch` refuses as a whole runs one by one
+    (:func:`simulate_scenario`). An interrupt propagates.
     """
-    return [_guarded(simulate_scenario, s) for s in scenarios]
+    scenarios = list(scenarios)
+    outcomes: list[RunOutcome | Callable[[], RunOutcome] | None] = [None] * len(scenarios)
+    if not scenarios:
+        return _Outcomes(outcomes)
+    if len(scenarios) < MIN_LOCKSTEP:
+        return _Outcomes([functools.partial(_guarded, simulate_scenario, s) for s in scenarios])
+    count = math.ceil(len(scenarios) / runs_per_batch(scenarios))
+    size = math.ceil(len(scenarios) / count)
+    for first in range(0, len(scenarios), size):
+        chunk = range(first, min(first + size, len(scenarios)))
+        _simulate_chunk([scenarios[i] for i in chunk], chunk, outcomes)
+    return _Outcomes(outcomes)
+
+
+def runs_per_batch(scenarios: Sequence[Scenario]) -> int:
+    """Most runs of ``scenarios`` one lockstep batch holds: its samples at stride 1 (q, q',
+    tau and two signals per control step, for the longest run) within
+    :data:`BATCH_RECORD_BYTES`; at least 1."""
+    if not scenarios:
+        return 1
+    longest = max(math.ceil(s["t_final"] / s["control_dt"] - 1e-9) + 1 for s in scenarios)
+    n = max(s.params.n for s in scenarios)
+    per_run = longest * (2 * (n + 2) + (n - 1) + 2) * 8
+    return max(1, BATCH_RECORD_BYTES // per_run)
+
+
+def _simulate_chunk(scenarios: list[Scenario], places: Sequence[int],
+                    outcomes: list[Any]) -> None:
+    """One lockstep batch: fill ``outcomes[places[j]]`` for each scenario j."""
+    from ..batch import simulate_batch
+    from ..model import Snake
+
+    start = time.perf_counter()
+    snakes: dict[SnakeParams, Any] = {}
+    runs = []  # (place, scenario, controller, initial state)
+    for place, scenario in zip(places, scenarios, strict=True):
+        try:
+            snake = snakes.get(scenario.params)
+            if snake is None:
+                snake = snakes[scenario.params] = Snake(scenario.params)
+            runs.append((place, scenario, build_controller(scenario, snake),
+                         initial_state(scenario)))
+        except RunInterrupted:
+            raise
+        except Exception as exc:
+            outcomes[place] = RunOutcome(None, _error_text(exc), 0.0)
+    if not runs:
+        return
+    first = runs[0][1]
+    try:
+        result = simulate_batch([s.params for _, s, _, _ in runs], [c for _, _, c, _ in runs],
+                                [x for _, _, _, x in runs], [s["t_final"] for _, s, _, _ in runs],
+                                dt=first["dt"], control_dt=first["control_dt"], stride=1)
+    except RunInterrupted:
+        raise
+    except Exception:  # refused as a whole: each run on its own
+        for place, scenario, _, _ in runs:
+            outcomes[place] = functools.partial(_guarded, simulate_scenario, scenario)
+        return
+    wall = (time.perf_counter() - start) / len(runs)
+    for b, (place, _, _, _) in enumerate(runs):
+        outcomes[place] = functools.partial(_cut, result, b, wall)
+
+
+def _cut(result: Any, run: int, wall: float) -> RunOutcome:
+    return RunOutcome(result.trajectory(run), "", wall)
+
+
+class _Outcomes(Sequence[RunOutcome]):
+    """Outcomes made when read: a batch's run becomes a Trajectory only when its row is
+    computed (and can be dropped after it); per-run fallbacks simulate when read."""
+
+    def __init__(self, items: list[Any]) -> None:
+        self._items = items
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __getitem__(self, index: Any) -> Any:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        item = self._items[index]
+        return item() if callable(item) else item
 
 
 def _guarded(simulate: Any, scenario: Scenario) -> RunOutcome:
