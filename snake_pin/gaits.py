@@ -1,9 +1,15 @@
-"""Posture families of Section IV: straight, arcs (all joints equal) and the serpenoid (43)."""
+"""Posture families of Section IV: straight, arcs (all joints equal) and the serpenoid (43).
+
+Configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2
+numbers: head position [m], head angle [rad], joint angles [rad]); states are
+``x = [q, dq]`` (2(n + 2) numbers).
+"""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -21,17 +27,72 @@ def _check_n(n: int) -> int:
 
 def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
                   theta_1: float = 0.0) -> np.ndarray:
-    """q = [x_h, y_h, theta_1, phi] from joint angles and a head pose."""
+    """Return ``q = [x_h, y_h, theta_1, phi]`` from joint angles and a head pose.
+
+    Parameters
+    ----------
+    phi : array_like, shape (n - 1,)
+        Joint angles phi_1 .. phi_{n-1} [rad].
+    x_h, y_h : float, optional
+        Head position [m] (the head link's front end).
+    theta_1 : float, optional
+        Head link angle [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2,)
+        ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+    """
     return np.r_[x_h, y_h, theta_1, np.asarray(phi, dtype=float)]
 
 
 def straight(n: int, **head: float) -> np.ndarray:
-    """All joint angles zero (Section IV.1): the known singular posture."""
+    """Return the straight posture, all joint angles zero (Section IV.1): singular (R = 0).
+
+    Parameters
+    ----------
+    n : int
+        Number of links, >= 2.
+    **head : float
+        Head pose: ``x_h`` and ``y_h`` [m], ``theta_1`` [rad] (each 0 by default).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2,)
+        ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+
+    Raises
+    ------
+    ParameterError
+        If ``n`` is not an integer >= 2.
+    """
     return configuration(np.zeros(_check_n(n) - 1), **head)
 
 
 def arc(n: int, phi0: float, **head: float) -> np.ndarray:
-    """All joints at the same angle phi0 (Section IV.2); |phi0| = 2 pi / n closes a polygon."""
+    """Return the arc posture, all joints at the same angle phi0 (Section IV.2).
+
+    ``abs(phi0) = 2 pi / n`` closes the body into a regular polygon.
+
+    Parameters
+    ----------
+    n : int
+        Number of links, >= 2.
+    phi0 : float
+        Angle of every joint [rad].
+    **head : float
+        Head pose: ``x_h`` and ``y_h`` [m], ``theta_1`` [rad] (each 0 by default).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2,)
+        ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+
+    Raises
+    ------
+    ParameterError
+        If ``n`` is not an integer >= 2 or ``phi0`` is not a finite number.
+    """
     phi0 = finite_number(phi0, "phi0")
     return configuration(np.full(_check_n(n) - 1, phi0), **head)
 
@@ -40,18 +101,25 @@ def arc(n: int, phi0: float, **head: float) -> np.ndarray:
 class Serpenoid:
     """The serpenoid curve of eq. (43) for an n-link robot.
 
-    phi_i(t) = (2 pi T_s / n) alpha sin(v t - (2 pi T_s / n) i), i = 1..n-1.
+    Joint i follows::
+
+        phi_i(t) = (2 pi T_s / n) alpha sin(v t - (2 pi T_s / n) i),   i = 1 .. n-1
 
     Parameters
     ----------
-    n
-        Number of links.
-    alpha
+    n : int
+        Number of links, >= 2.
+    alpha : float
         Winding angle [rad].
-    ts
+    ts : float
         Number of periods T_s along the body.
-    v
-        Temporal frequency [rad/s].
+    v : float, optional
+        Temporal frequency [rad/s]; 0 (default) gives a still posture.
+
+    Raises
+    ------
+    ParameterError
+        If ``n`` is not an integer >= 2 or a parameter is not a finite number.
     """
 
     n: int
@@ -63,49 +131,131 @@ class Serpenoid:
         _check_n(self.n)
         for name in ("alpha", "ts", "v"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name))
-        # constant parts of the phase and amplitudes, computed once (controllers' hot path)
+
+    # constant parts of the phase and amplitudes, computed once (controllers' hot path);
+    # cached_property stores them in the instance dict, which a frozen dataclass allows
+    @cached_property
+    def _offsets(self) -> np.ndarray:
         offsets = self.spatial_frequency * np.arange(1, self.n)
         offsets.flags.writeable = False
-        object.__setattr__(self, "_offsets", offsets)
+        return offsets
+
+    @cached_property
+    def _amplitudes(self) -> tuple[float, float, float]:
         amplitude = self.spatial_frequency * self.alpha
-        object.__setattr__(self, "_amplitudes",
-                           (amplitude, amplitude * self.v, -amplitude * self.v**2))
+        return amplitude, amplitude * self.v, -amplitude * self.v**2
 
     @property
     def spatial_frequency(self) -> float:
-        """2 pi T_s / n."""
+        """The spatial frequency ``2 pi T_s / n`` [rad per link]."""
         return 2.0 * math.pi * self.ts / self.n
 
     def _phase(self, t: float) -> np.ndarray:
         return self.v * t - self._offsets
 
     def angles(self, t: float = 0.0) -> np.ndarray:
-        """phi(t) of eq. (43)."""
+        """Return the joint angles phi(t) of eq. (43).
+
+        Parameters
+        ----------
+        t : float, optional
+            Time [s].
+
+        Returns
+        -------
+        numpy.ndarray, shape (n - 1,)
+            phi_1 .. phi_{n-1} [rad].
+        """
         return self.spatial_frequency * self.alpha * np.sin(self._phase(t))
 
     def velocities(self, t: float = 0.0) -> np.ndarray:
-        """phi'(t)."""
+        """Return the joint velocities phi'(t).
+
+        Parameters
+        ----------
+        t : float, optional
+            Time [s].
+
+        Returns
+        -------
+        numpy.ndarray, shape (n - 1,)
+            [rad/s].
+        """
         return self.spatial_frequency * self.alpha * self.v * np.cos(self._phase(t))
 
     def accelerations(self, t: float = 0.0) -> np.ndarray:
-        """phi''(t)."""
+        """Return the joint accelerations phi''(t).
+
+        Parameters
+        ----------
+        t : float, optional
+            Time [s].
+
+        Returns
+        -------
+        numpy.ndarray, shape (n - 1,)
+            [rad/s^2].
+        """
         return -self.spatial_frequency * self.alpha * self.v**2 * np.sin(self._phase(t))
 
     def derivatives(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(phi, phi', phi'') at time t with one sine and one cosine (controllers' hot path)."""
+        """Return (phi, phi', phi'') at time t with one sine and one cosine (a hot path).
+
+        Parameters
+        ----------
+        t : float, optional
+            Time [s].
+
+        Returns
+        -------
+        phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
+            Angles [rad], velocities [rad/s] and accelerations [rad/s^2]; equal to
+            :meth:`angles`, :meth:`velocities` and :meth:`accelerations`.
+        """
         phase = self._phase(t)
         amplitude, velocity, acceleration = self._amplitudes
         sine = np.sin(phase)
         return amplitude * sine, velocity * np.cos(phase), acceleration * sine
 
     def configuration(self, t: float = 0.0, **head: float) -> np.ndarray:
-        """q with the serpenoid joint angles at time t."""
+        """Return the configuration q with the serpenoid joint angles at time t.
+
+        Parameters
+        ----------
+        t : float, optional
+            Time [s].
+        **head : float
+            Head pose: ``x_h`` and ``y_h`` [m], ``theta_1`` [rad] (each 0 by default).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n + 2,)
+            ``q = [x_h, y_h, theta_1, phi_1(t) .. phi_{n-1}(t)]``.
+        """
         return configuration(self.angles(t), **head)
 
 
 def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
-    """Eq. (82): head at the origin, every joint at pi/6, at rest; x = [q, dq].
+    """Return the initial state of eq. (82): head at the origin, every joint at pi/6, at rest.
 
     ``theta_1 = pi`` gives the head-first orientation used for tracking along +x.
+
+    Parameters
+    ----------
+    n : int
+        Number of links, >= 2.
+    theta_1 : float, optional
+        Head link angle [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (2(n + 2),)
+        The state ``x = [q, dq]`` with ``q = [0, 0, theta_1, pi/6 .. pi/6]`` and
+        ``dq = 0``.
+
+    Raises
+    ------
+    ParameterError
+        If ``n`` is not an integer >= 2.
     """
     return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(_check_n(n) + 2)]
