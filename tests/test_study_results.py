@@ -195,3 +195,29 @@ def test_written_batches_keep_the_parameters_of_each_run(tmp_path: Path) -> None
                 value = getattr(scenario.params, name)
             assert row[name] == value, name
         assert json.loads(row["robot_params"]) == scenario.params.to_dict()
+
+
+def test_figures_label_the_axes_in_words_and_show_c_y_as_the_friction_ratio(
+        tmp_path: Path) -> None:
+    """save_figures writes one PNG per metric whose axes read "c_y/c_x" (ticks 20, 50) and
+    "failed joint"; log colours for R~ grey out cells 1e6 below the largest."""
+    from matplotlib import image
+
+    from snake_pin.study.report import axis_label, save_figures
+
+    spec = parse_study(STUDY)
+    label, shown = axis_label(spec, "c_y")
+    assert label.startswith("c_y/c_x") and [shown(v) for v in (10.0, 25.0)] == [20.0, 50.0]
+    assert axis_label(spec, "failed_joint")[0] == "failed joint (0: none)"
+    mixed = parse_study("[axes.c_x]\nvalues = [0.5, 1.0]\n[axes.c_y]\nvalues = [5.0, 25.0]\n")
+    assert axis_label(mixed, "c_y")[0] == "c_y [N s/m]"  # no single c_x: no ratio
+    rows = _rows(spec, spec.scenarios)
+    for row in rows:
+        if row["failed_joint"] == 5 and row["c_y"] == 10.0:
+            row["R_tilde_min"] = 1e-18  # structurally zero: below the log floor
+    figures = save_figures(spec, rows, tmp_path, "map")
+    assert [p.name for p, _ in figures] == ["map_rms_head_error_pct.png",
+                                            "map_R_tilde_min.png"]
+    assert all(image.imread(p).shape[0] > 100 for p, _ in figures)
+    assert "c_y/c_x" in figures[0][1] and "failed joint" in figures[0][1]
+    assert "grey" in figures[1][1] and "grey" not in figures[0][1]

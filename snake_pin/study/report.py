@@ -6,10 +6,18 @@ other grid axes:
 
 - two or more: heatmaps over the first two (median over the rest and the replicates) of
   the RMS head error in % of the body length and of R~_min, each cell annotated, cells
-  without a successful run marked "x";
+  without a successful run marked "x". Colours follow a log scale when the values span
+  a factor of 10 or more, floored at :data:`LOG_SPAN` below the largest (cells under the
+  floor are grey, their value still written: R~ is exactly 0 up to rounding when the
+  failed joint makes the head's heading unactuated);
 - one: the median of each metric against the axis with a 10-90 % band over the
   replicates (and any other spread);
 - none: histograms of the metrics over all runs.
+
+Axes are labelled in words (:data:`AXIS_LABELS`); an axis over ``c_y`` in a study whose
+runs share one uniform ``c_x`` is shown as the friction ratio ``c_y/c_x``.
+:func:`save_figures` writes the same figures as PNG files (the report stage of the
+actuator-failure map uses it).
 
 Medians and bands use the runs with status ``ok`` only; the table lists every run
 (sortable: click a header) up to :data:`MAX_TABLE_ROWS`. The PNGs are embedded as data URIs
@@ -24,24 +32,37 @@ import html
 import io
 import json
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .._io import atomic_group
+from .._io import atomic_group, atomic_write_bytes
 from .results import RUNS, StudyFolder
 from .spec import StudySpec
 from .summary import StudySummary
 
-__all__ = ["MAX_TABLE_ROWS", "METRICS", "figure_plan", "write_index"]
+__all__ = ["AXIS_LABELS", "LOG_SPAN", "MAX_TABLE_ROWS", "METRICS", "axis_label", "figure_plan",
+           "save_figures", "write_index"]
 
 #: Most rows in the page's table (all runs are in the Parquet dataset anyway).
 MAX_TABLE_ROWS = 2000
-#: Metrics plotted: column, label, log scale.
-METRICS = (("rms_head_error_pct", "RMS head error [% of body length]", False),
-           ("R_tilde_min", "R~ min along the run", True))
+#: Metrics plotted: column, label, scale ("log", or "auto": log when the values span a
+#: factor of 10 or more).
+METRICS = (("rms_head_error_pct", "RMS head error [% of body length]", "auto"),
+           ("R_tilde_min", "R~ min along the run", "log"))
+#: Words for the axes of the figures (other settings are shown by name).
+AXIS_LABELS = {"failed_joint": "failed joint (0: none)", "c_x": "c_x [N s/m]",
+               "c_y": "c_y [N s/m]", "c_theta": "c_theta [N m s]", "lam": "lambda [1/s]",
+               "lam_shape": "mu [1/s]", "k_shape": "k_shape [1/s^2]", "t_final": "t_final [s]",
+               "ref_speed": "reference speed [m/s]", "gait_alpha": "gait alpha [rad]",
+               "gait_ts": "gait T_s", "gait_v": "gait v [rad/s]",
+               "init_noise": "initial noise [rad]", "mu": "wheel friction mu",
+               "wheel_radius": "wheel radius [m]"}
+#: A log colour scale spans at most this factor below its largest value.
+LOG_SPAN = 1e6
 _TABLE_METRICS = ("rms_head_error_pct", "max_head_error_pct", "R_min", "R_tilde_min", "D_min",
                   "t_end", "torque_rms", "wall_time")
 _JS = """<script>
@@ -100,43 +121,86 @@ def _finite(value: Any) -> bool:
     return isinstance(value, (int, float)) and math.isfinite(value)
 
 
-def _png(fig: Any) -> str:
+def _png(fig: Any) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-    return base64.b64encode(buf.getvalue()).decode("ascii")
+    fig.savefig(buf, format="png", dpi=100)
+    return buf.getvalue()
 
 
 def _figures(kind: str, plotted: list[str], spec: StudySpec,
              rows: Sequence[dict[str, Any]]) -> list[tuple[str, str]]:
     """(caption, base64 PNG) of each figure."""
+    return [(caption, base64.b64encode(_png(fig)).decode("ascii"))
+            for _, caption, fig in _figure_objects(kind, plotted, spec, rows)]
+
+
+def save_figures(spec: StudySpec, rows: Sequence[dict[str, Any]],
+                 folder: str | os.PathLike[str], stem: str) -> list[tuple[Path, str]]:
+    """Write the study's figures (:func:`figure_plan`) as ``folder/STEM_METRIC.png``.
+
+    ``rows`` are result rows (dicts, as ``pandas.read_parquet(DIR).to_dict("records")``
+    gives them). Returns (path, caption) of each figure, in :data:`METRICS` order.
+    """
+    kind, plotted, _ = figure_plan(spec)
+    out = []
+    for metric, caption, fig in _figure_objects(kind, plotted, spec, list(rows)):
+        path = Path(folder) / f"{stem}_{metric}.png"
+        atomic_write_bytes(path, _png(fig))
+        out.append((path, caption))
+    return out
+
+
+def axis_label(spec: StudySpec, name: str) -> tuple[str, Any]:
+    """(label, value -> shown value) of the axis over setting ``name``: words from
+    :data:`AXIS_LABELS`; ``c_y`` as the ratio ``c_y/c_x`` when every run's robot has one
+    uniform, positive c_x."""
+    if name == "c_y":
+        c_x = {s.params.c_x for s in spec.scenarios}
+        if len(c_x) == 1:
+            value = next(iter(c_x))
+            if isinstance(value, float) and value > 0:
+                return f"c_y/c_x (c_x = {value:g} N s/m)", lambda v: v / value
+    return AXIS_LABELS.get(name, name), lambda v: v
+
+
+def _figure_objects(kind: str, plotted: list[str], spec: StudySpec,
+                    rows: Sequence[dict[str, Any]]) -> list[tuple[str, str, Any]]:
+    """(metric, caption, matplotlib Figure) of each figure."""
     from matplotlib.figure import Figure
 
     if not rows:
         return []
     out = []
     values = {a.setting: list(a.values) for a in spec.axes}
-    for metric, label, log in METRICS:
-        fig = Figure(figsize=(7.5, 4.2))
+    for metric, label, scale in METRICS:
+        fig = Figure(figsize=(7.5, 4.2), layout="constrained")
         ax = fig.add_subplot()
+        data = _ok_values(rows, metric)
+        positive = [v for v in data if v > 0]
+        log = scale == "log" or (scale == "auto" and bool(positive)
+                                 and max(positive) >= 10 * min(positive))
         if kind == "heatmap":
-            caption = _heatmap(fig, ax, plotted, values, rows, metric, label, log)
+            caption = _heatmap(fig, ax, plotted, spec, values, rows, metric, label, log)
         elif kind == "lines":
-            caption = _lines(ax, plotted[0], values[plotted[0]], rows, metric, label, log)
+            caption = _lines(ax, plotted[0], spec, values[plotted[0]], rows, metric, label,
+                             log)
         else:
-            data = _ok_values(rows, metric)
-            if log:
-                data = [math.log10(v) for v in data if v > 0]
-            ax.hist(data, bins=min(30, max(5, len(data) // 3 or 1)), color="#4a7bd1")
+            shown = [math.log10(v) for v in positive] if log else data
+            ax.hist(shown, bins=min(30, max(5, len(shown) // 3 or 1)), color="#4a7bd1")
             ax.set_xlabel(("log10 " if log else "") + label)
             ax.set_ylabel("runs")
             caption = f"{label}: distribution over the {len(data)} successful runs"
         ax.set_title(label, fontsize=10)
-        out.append((caption, _png(fig)))
+        out.append((metric, caption, fig))
     return out
 
 
-def _heatmap(fig: Any, ax: Any, plotted: list[str], values: dict[str, list[Any]],
-             rows: Sequence[dict[str, Any]], metric: str, label: str, log: bool) -> str:
+def _heatmap(fig: Any, ax: Any, plotted: list[str], spec: StudySpec,
+             values: dict[str, list[Any]], rows: Sequence[dict[str, Any]], metric: str,
+             label: str, log: bool) -> str:
+    from matplotlib import colormaps
+    from matplotlib.colors import LogNorm, Normalize
+
     x_name, y_name = plotted
     xs, ys = values[x_name], values[y_name]
     grid = np.full((len(ys), len(xs)), np.nan)
@@ -149,30 +213,45 @@ def _heatmap(fig: Any, ax: Any, plotted: list[str], values: dict[str, list[Any]]
             cells.setdefault((i, j), []).append(r[metric])
     for (i, j), data in cells.items():
         grid[i, j] = float(np.median(data))
-    shown = np.log10(np.where(grid > 0, grid, np.nan)) if log else grid
-    masked = np.ma.masked_invalid(shown)
-    image = ax.imshow(masked, origin="lower", aspect="auto", cmap="viridis")
-    fig.colorbar(image, ax=ax, label=("log10 " if log else "") + label)
-    ax.set_xticks(range(len(xs)), [_tick(v) for v in xs], fontsize=8)
-    ax.set_yticks(range(len(ys)), [_tick(v) for v in ys], fontsize=8)
-    ax.set_xlabel(x_name)
-    ax.set_ylabel(y_name)
+    cmap = colormaps["viridis"].with_extremes(under="0.75", bad="white")
+    shown = np.where(grid > 0, grid, np.nan) if log else grid
+    finite = shown[np.isfinite(shown)]
+    norm: Any = Normalize()
+    extend = "neither"
+    if log and finite.size:
+        top = float(finite.max())
+        low = max(float(finite.min()), top / LOG_SPAN)
+        norm = LogNorm(vmin=min(low, top / 1.01), vmax=top)
+        extend = "min" if finite.min() < low else "neither"
+    image = ax.imshow(np.ma.masked_invalid(shown), origin="lower", aspect="auto", cmap=cmap,
+                      norm=norm)
+    fig.colorbar(image, ax=ax, label=label + (" (log scale)" if log else ""), extend=extend)
+    x_label, x_shown = axis_label(spec, x_name)
+    y_label, y_shown = axis_label(spec, y_name)
+    ax.set_xticks(range(len(xs)), [_tick(x_shown(v)) for v in xs], fontsize=8)
+    ax.set_yticks(range(len(ys)), [_tick(y_shown(v)) for v in ys], fontsize=8)
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
     if len(xs) * len(ys) <= 400:
         for i in range(len(ys)):
             for j in range(len(xs)):
                 text = "x" if np.isnan(grid[i, j]) and counts[i, j] else \
                     ("" if np.isnan(grid[i, j]) else f"{grid[i, j]:.3g}")
-                light = bool(np.isfinite(shown[i, j]) and image.norm(shown[i, j]) > 0.6)
+                value = shown[i, j]
+                light = bool(np.isfinite(value) and (norm(value) > 0.6 or norm(value) < 0))
                 ax.text(j, i, text, ha="center", va="center", fontsize=7,
                         color="k" if light else "w")
-    return (f"{label}: median over the successful runs of each ({x_name}, {y_name}) cell "
-            "(x: no successful run; blank: not run yet)")
+    return (f"{label}: median over the successful runs of each ({x_label}, {y_label}) cell "
+            "(x: no successful run; blank: not run yet"
+            + ("; grey: more than a factor 1e6 below the largest" if extend == "min" else "")
+            + ")")
 
 
-def _lines(ax: Any, name: str, xs: list[Any], rows: Sequence[dict[str, Any]], metric: str,
-           label: str, log: bool) -> str:
+def _lines(ax: Any, name: str, spec: StudySpec, xs: list[Any], rows: Sequence[dict[str, Any]],
+           metric: str, label: str, log: bool) -> str:
+    x_label, x_shown = axis_label(spec, name)
     numeric = all(_finite(v) for v in xs)
-    positions = [float(v) for v in xs] if numeric else list(range(len(xs)))
+    positions = [float(x_shown(v)) for v in xs] if numeric else list(range(len(xs)))
     med, low, high = [], [], []
     for v in xs:
         data = [r[metric] for r in rows
@@ -190,11 +269,11 @@ def _lines(ax: Any, name: str, xs: list[Any], rows: Sequence[dict[str, Any]], me
         ax.set_xticks(positions, [_tick(v) for v in xs])
     if log:
         ax.set_yscale("log")
-    ax.set_xlabel(name)
+    ax.set_xlabel(x_label)
     ax.set_ylabel(label)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
-    return (f"{label} against {name}: median and 10-90 % band over the successful runs at "
+    return (f"{label} against {x_label}: median and 10-90 % band over the successful runs at "
             "each value")
 
 
