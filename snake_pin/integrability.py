@@ -1,26 +1,29 @@
 """Integrability of the unactuated rows (Section V, Theorems 2-3, eqs. 44-67).
 
 * :func:`partial_integrability` checks the two conditions of Theorem 2 for the split
-  q1 = q[:k], k = 1, 2, 3, at random states: (1) q1 cyclic, d/dq1 (dq^T H dq) = 0; (2)
-  C1 (the first k rows of C) is a gradient, i.e. the Jacobian of each row is symmetric.
-  Derivatives are central differences of Pinocchio's H and of the friction map (step
-  1e-6; truncation ~1e-12, round-off ~1e-10 relative), so a defect below 1e-6 of the
-  quantities' scale counts as zero.
+  ``q1 = q[:k]``, k = 1, 2, 3, at random states: (1) q1 cyclic,
+  ``d/dq1 (dq^T H dq) = 0``; (2) C1 (the first k rows of C) is a gradient, i.e. the
+  Jacobian of each row is symmetric. Derivatives are central differences of Pinocchio's H
+  and of the friction map (step 1e-6; truncation ~1e-12, round-off ~1e-10 relative), so
+  a defect below 1e-6 of the quantities' scale counts as zero.
 * :func:`implied_g2` integrates C1 along a straight path (Gauss-Legendre): if C1 is a
   gradient, this is the g2 of Theorem 2, compared in the tests with eq. (67).
-* :func:`conserved_quantity` is g = H1 dq + g2 (eq. 67): for c_x = c_y it is m * sum(x_i')
-  + c * sum(x_i), i.e. n (m X' + c X) for the centre of mass X.
+* :func:`conserved_quantity` is ``g = H1 dq + g2`` (eq. 67): for c_x = c_y it is
+  ``m sum(x_i') + c sum(x_i)``, i.e. ``n (m X' + c X)`` for the centre of mass X.
 * :func:`involutivity` tests Theorem 3 (beyond the paper): the distribution
-  ker [H1(q) g2(q)] on (q, t)-space is involutive iff every Lie bracket of fields in it
-  stays in it. It returns the bracket components outside the distribution, with the
+  ``ker [H1(q) g2(q)]`` on (q, t)-space is involutive iff every Lie bracket of fields in
+  it stays in it. It returns the bracket components outside the distribution, with the
   same computation on an exact (hence involutive) system as the numerical noise floor.
 
-Analytically the answer is yes: each form is omega = n (m dX + c X dt), so
-d omega = n c dX ^ dt and d omega_a ^ omega_1 ^ omega_2 = 0 (every term repeats dX or
-dt). With the integrating factor exp(c t / m), d(exp(c t / m) X) = 0 on the constraint:
-the centre of mass relaxes to the fixed point X_inf = X(0) + (m / c) X'(0) whatever the
-torques. The constraints are completely integrable and the CM is uncontrollable; the
-head can only move within reach of that point.
+Analytically the answer is yes: each form is ``omega = n (m dX + c X dt)``, so
+``d omega = n c dX ^ dt`` and ``d omega_a ^ omega_1 ^ omega_2 = 0`` (every term repeats dX
+or dt). With the integrating factor ``exp(c t / m)``, ``d(exp(c t / m) X) = 0`` on the
+constraint: the centre of mass relaxes to the fixed point ``X_inf = X(0) + (m / c) X'(0)``
+whatever the torques. The constraints are completely integrable and the CM is
+uncontrollable; the head can only move within reach of that point.
+
+Configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2
+numbers [m, m, rad, rad...]) and ``dq`` their time derivatives.
 """
 
 from __future__ import annotations
@@ -49,10 +52,18 @@ _STEP = 1e-6
 
 @dataclass
 class PartialIntegrability:
-    """Theorem 2 for the split q1 = q[:k].
+    """Theorem 2 for the split ``q1 = q[:k]``, as :func:`partial_integrability` found it.
 
-    ``cyclic_defect``: max |d/dq1 (dq^T H dq)| over samples, relative to |dq^T H dq|.
-    ``gradient_defect``: max |dC1[a,i]/dq_j - dC1[a,j]/dq_i|, relative to max |dC1/dq|.
+    Parameters
+    ----------
+    k : int
+        Number of leading coordinates in q1 (1, 2 or 3).
+    cyclic_defect : float
+        ``max abs(d/dq1 (dq^T H dq))`` over the samples, relative to ``dq^T H dq``.
+    gradient_defect : float
+        ``max abs(dC1[a,i]/dq_j - dC1[a,j]/dq_i)``, relative to ``max abs(dC1/dq)``.
+    tolerance : float
+        A relative defect below this counts as zero.
     """
 
     k: int
@@ -90,7 +101,31 @@ def _random_state(snake: Snake, rng: np.random.Generator) -> tuple[np.ndarray, n
 
 def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int = 0,
                           tolerance: float = 1e-6) -> PartialIntegrability:
-    """Check Theorem 2's conditions for q1 = q[:k] at ``samples`` random states."""
+    """Check Theorem 2's conditions for ``q1 = q[:k]`` at ``samples`` random states.
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot (Pinocchio model with its friction).
+    k : int
+        Split: q1 holds the first k coordinates (1: x_h; 2: x_h, y_h; 3: and theta_1).
+    samples : int, optional
+        Number of random states (joint angles within +-1.5 rad).
+    seed : int, optional
+        Seed of the random states.
+    tolerance : float, optional
+        Relative defect below which a condition holds.
+
+    Returns
+    -------
+    PartialIntegrability
+        The largest relative defects of both conditions over the samples.
+
+    Raises
+    ------
+    ParameterError
+        If ``k`` is not 1, 2 or 3.
+    """
     if k not in (1, 2, 3):
         raise ParameterError(f"k must be 1, 2 or 3, got {k}")
     rng = np.random.default_rng(seed)
@@ -119,7 +154,32 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
 
 def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
                nodes: int = 32) -> np.ndarray:
-    """g2(q) - g2(q0) = integral of C1 dq along the segment q0 -> q (k = 2, Gauss-Legendre)."""
+    """Return ``g2(q) - g2(q0)``, the integral of C1 dq along the segment q0 -> q (k = 2).
+
+    If C1 (the first two rows of the friction matrix C) is a gradient, the integral is
+    path-independent and equals the g2 of Theorem 2 (eq. 67 for isotropic friction).
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot (Pinocchio model with its friction).
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    q0 : array_like, shape (n + 2,), optional
+        Start of the segment; the zero configuration by default.
+    nodes : int, optional
+        Number of Gauss-Legendre nodes.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        The integral [N s].
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` or ``q0`` does not have n + 2 finite entries.
+    """
     q = snake.check_q(q)
     q0 = np.zeros(snake.nq) if q0 is None else snake.check_q(q0, "q0")
     s, w = np.polynomial.legendre.leggauss(nodes)
@@ -130,12 +190,52 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
 
 
 def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """g = H1 dq + g2 (eq. 67), H1 the first two rows of H; constant when c_x = c_y."""
+    """Return ``g = H1 dq + g2`` of eq. (67), H1 the first two rows of H.
+
+    Constant along any motion when the friction is isotropic (c_x = c_y on every link),
+    whatever the joint torques.
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot (Pinocchio model with its friction).
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    dq : array_like, shape (n + 2,)
+        Its time derivative [m/s, m/s, rad/s, rad/s...].
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        g [N s] (momentum plus friction-weighted position).
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` or ``dq`` does not have n + 2 finite entries.
+    ParameterError
+        If the robot's friction is not isotropic (g2 is undefined).
+    """
     return snake.inertia_matrix(q)[:2] @ dq + paper.g2(snake.params, q)
 
 
 def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """g at every sample of a run, (N, 2), vectorised: H1 dq = sum m_i p_i', g2 = sum c_i p_i."""
+    """Return g of eq. (67) at every sample of a run, vectorised.
+
+    Uses ``H1 dq = sum m_i p_i'`` and ``g2 = sum c_i p_i`` (isotropic friction: c = c_x).
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot.
+    q, dq : numpy.ndarray, shape (N, n + 2)
+        Configurations and velocities of the run's samples (not validated).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 2)
+        g at each sample [N s].
+    """
     params = snake.params
     m, c = params.masses, params.per_link("c_x")
     k = paper.k_matrix(params)
@@ -157,11 +257,26 @@ def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.
 
 def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
                        step: float = 1e-5) -> float:
-    """Largest component of [X_i, X_j] outside ker A(z), relative to |A| |X|^2 / step scale.
+    """Return the largest component of a Lie bracket ``[X_i, X_j]`` outside ``ker A(z)``.
 
-    ``forms(z)`` returns A (r x d). The fields X_i = (I - A^+ A) e_i span ker A; their
-    brackets [X_i, X_j] = DX_j X_i - DX_i X_j (central differences) lie in ker A for all
-    i, j iff the distribution is involutive at z. Returns max |A [X_i, X_j]| / |A|.
+    The fields ``X_i = (I - A^+ A) e_i`` span ``ker A``; their brackets
+    ``[X_i, X_j] = DX_j X_i - DX_i X_j`` (central differences) lie in ``ker A`` for all
+    i, j iff the distribution is involutive at z.
+
+    Parameters
+    ----------
+    forms : callable
+        ``forms(z)`` returns the constraint forms A(z) as an array of shape (r, d).
+    z : numpy.ndarray, shape (d,)
+        The point.
+    step : float, optional
+        Central-difference step.
+
+    Returns
+    -------
+    float
+        ``max abs(A [X_i, X_j]) / max abs(A)`` over all pairs i < j; near the
+        central-difference noise when the distribution is involutive.
     """
     d = z.size
 
@@ -186,12 +301,26 @@ def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
 
 @dataclass
 class Involutivity:
-    """Theorem 3 tested numerically at random points of (q, t)-space."""
+    """Theorem 3 tested numerically at random points of (q, t)-space.
+
+    Parameters
+    ----------
+    n : int
+        Number of links.
+    samples : int
+        Number of random points tested.
+    defect : float
+        Largest relative bracket component outside ``Delta = ker [H1 g2]``
+        (:func:`lie_bracket_defect`).
+    noise : float
+        The same for an exact system of the same size (involutive by construction): the
+        numerical noise floor.
+    """
 
     n: int
     samples: int
-    defect: float  # max bracket component outside Delta for ker [H1 g2]
-    noise: float  # same for an exact system (involutive by construction)
+    defect: float
+    noise: float
 
     @property
     def involutive(self) -> bool:
@@ -200,7 +329,27 @@ class Involutivity:
 
 
 def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutivity:
-    """Lie-bracket test of Delta = ker [H1(q) g2(q)] (eq. 60) on (q, t), isotropic friction."""
+    """Test the involutivity of ``Delta = ker [H1(q) g2(q)]`` (eq. 60) on (q, t) by Lie brackets.
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot; its friction must be isotropic.
+    samples : int, optional
+        Number of random points (q, t).
+    seed : int, optional
+        Seed of the random points.
+
+    Returns
+    -------
+    Involutivity
+        The largest defect and the noise floor; ``.involutive`` compares them.
+
+    Raises
+    ------
+    ParameterError
+        If the robot's friction is not isotropic.
+    """
     if not snake.params.isotropic:
         raise ParameterError("Theorem 3 applies to the partial integral, which needs c_x = c_y")
     rng = np.random.default_rng(seed)
