@@ -1,35 +1,42 @@
 """Dynamic manipulability of an underactuated system (Section III, eqs. 22-42).
 
 One definition serves the snake and any other Pinocchio model. Split the velocity
-coordinates into *unactuated* ones u (for the snake: w = [x_h, y_h, theta_1], plus phi_k
-of a free joint) and *actuated* ones a. Solving (24)-(25) for the unactuated
-accelerations gives (27): u'' = -(H_uu - H_ua H_aa^-1 H_au)^-1 H_ua H_aa^-1 tau + (terms
-without tau). By the block-inverse formula that matrix is exactly the (u, a) block of H^-1,
-so the manipulability ellipsoid is the image of the unit ball under
+coordinates into *unactuated* ones u (for the snake: ``w = [x_h, y_h, theta_1]``, plus
+phi_k of a free joint) and *actuated* ones a. Solving (24)-(25) for the unactuated
+accelerations gives (27)::
+
+    u'' = -(H_uu - H_ua H_aa^-1 H_au)^-1 H_ua H_aa^-1 tau + (terms without tau)
+
+By the block-inverse formula that matrix is exactly the (u, a) block of ``H^-1``, so the
+manipulability ellipsoid is the image of the unit ball under::
 
     A = [H^-1]_{u,a}              (= -(Schur complement)^-1 H_ua H_aa^-1),
 
-with singular values sigma and D = min sigma (30, 42). R = min lambda, lambda the singular
-values of H_ua = H12 (31, 42). For a task other than u with Jacobian J, A = J H^-1 B
-(B selects the actuated columns), which for a fully actuated arm is Yoshikawa's J M^-1.
-Singular values are padded with zeros up to the task dimension, so a wide task with too
-few inputs reports D = R = 0, as the ellipsoid is flat. (With a free joint, H12~ is
-4 x (n - 2): it can have rank 4 only for n >= 6, not n >= 5 as Section III.2 states; at
-n = 5, D~ = R~ = 0 at every posture.)
+with singular values sigma and ``D = min sigma`` (30, 42). ``R = min lambda``, lambda the
+singular values of ``H_ua = H12`` (31, 42). For a task other than u with Jacobian J,
+``A = J H^-1 B`` (B selects the actuated columns), which for a fully actuated arm is
+Yoshikawa's ``J M^-1``. Singular values are padded with zeros up to the task dimension, so
+a wide task with too few inputs reports D = R = 0, as the ellipsoid is flat. (With a free
+joint, H12~ is 4 x (n - 2): it can have rank 4 only for n >= 6, not n >= 5 as Section
+III.2 states; at n = 5, D~ = R~ = 0 at every posture.)
 
 Free joint k (Section III.2): the selection S of (33) only reorders coordinates, so
-w~ = [x_h, y_h, theta_1, phi_k] is the unactuated set and the same formula gives D~, R~.
-``heading=False`` leaves theta_1 out of the task and lets it join the second block
+``w~ = [x_h, y_h, theta_1, phi_k]`` is the unactuated set and the same formula gives D~,
+R~. ``heading=False`` leaves theta_1 out of the task and lets it join the second block
 (H11 2x2, H12 2xn), the variant named at the end of Section III.1.
+
+Snake configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2
+numbers [m, m, rad, rad...]).
 """
 
 from __future__ import annotations
 
 import sys
 import types
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any, cast
 
 import numpy as np
 import pinocchio as pin
@@ -56,16 +63,18 @@ __all__ = [
 class Manipulability:
     """Manipulability criteria at one configuration.
 
-    Attributes
+    Parameters
     ----------
-    D
-        Smallest singular value of the acceleration map A (eq. 30 / 42).
-    R
+    D : float
+        Smallest singular value of the acceleration map A (eq. 30 / 42) [task
+        acceleration per unit torque, e.g. (m/s^2)/(N m)].
+    R : float
         Smallest singular value of the coupling block H12 (eq. 31 / 42); NaN when the
         task is not the unactuated coordinates (no coupling block to speak of).
-    sigma, lambda_
-        All singular values, descending, padded with zeros to the task dimension.
-    blocks
+    sigma, lambda_ : numpy.ndarray, shape (m,)
+        All singular values of A and H12, descending, padded with zeros to the task
+        dimension m (lambda_ is all NaN where R is).
+    blocks : dict of str to numpy.ndarray or None, optional
         ``{"H11", "H12", "H22", "A"}`` when requested, else None.
     """
 
@@ -76,25 +85,54 @@ class Manipulability:
     blocks: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, object]:
-        """``{"D", "R", "sigma", "lambda"}`` as plain floats and lists (CLI JSON)."""
+        """Return ``{"D", "R", "sigma", "lambda"}`` as plain floats and lists (CLI JSON).
+
+        Returns
+        -------
+        dict of str to object
+            D and R as floats, sigma and lambda as lists of floats (the blocks are left
+            out).
+        """
         return {"D": float(self.D), "R": float(self.R), "sigma": self.sigma.tolist(),
                 "lambda": self.lambda_.tolist()}
 
 
 def task_split(n: int, free_joint: int | Sequence[int] | None = None,
                heading: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Unactuated (task) and actuated velocity indices of an n-link snake.
+    """Return the unactuated (task) and actuated velocity indices of an n-link snake.
 
-    The task is w = [x_h, y_h, theta_1] (or [x_h, y_h] without heading) plus phi_k of
-    each free joint k (1-based), i.e. the coordinates without an input.
+    The task is ``w = [x_h, y_h, theta_1]`` (or ``[x_h, y_h]`` without heading) plus phi_k
+    of each free joint k (1-based), i.e. the coordinates without an input.
+
+    Parameters
+    ----------
+    n : int
+        Number of links.
+    free_joint : int or sequence of int or None, optional
+        1-based free joint(s), each in 1..n - 1.
+    heading : bool, optional
+        Include theta_1 in the task (default); False lets it join the actuated block.
+
+    Returns
+    -------
+    task, actuated : numpy.ndarray of int
+        0-based velocity indices into ``dq = [x_h', y_h', theta_1', phi']`` (read-only).
+
+    Raises
+    ------
+    ParameterError
+        If a free joint is outside 1..n - 1, or n is too small for the task (n >= 4
+        plus one link per free joint).
     """
-    return _split(n, _free_tuple(n, free_joint), bool(heading))[:2]
+    task, actuated, _ = _split(n, _free_tuple(n, free_joint), bool(heading))
+    return task, actuated
 
 
 def _free_tuple(n: int, free_joint: int | Sequence[int] | None) -> tuple[int, ...]:
     if free_joint is None:
         return ()
-    free = (free_joint,) if np.isscalar(free_joint) else tuple(free_joint)
+    free: list[Any] = ([free_joint] if np.isscalar(free_joint)
+                       else list(cast(Iterable[Any], free_joint)))
     for k in free:
         if isinstance(k, (bool, np.bool_)) or int(k) != k or not 1 <= int(k) <= n - 1:
             raise ParameterError(f"free joint {k} is outside 1..{n - 1}")
@@ -102,7 +140,8 @@ def _free_tuple(n: int, free_joint: int | Sequence[int] | None) -> tuple[int, ..
 
 
 @lru_cache(maxsize=256)
-def _split(n: int, free: tuple[int, ...], heading: bool) -> tuple[np.ndarray, ...]:
+def _split(n: int, free: tuple[int, ...], heading: bool
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(task, actuated, flat) indices; flat indexes the (task, actuated) block row-major."""
     needed = 4 + len(free)
     if n < needed:
@@ -143,23 +182,39 @@ def _singular_values(a: np.ndarray, rows: int) -> np.ndarray:
 
 def manipulability(snake: Snake, q: np.ndarray, free_joint: int | Sequence[int] | None = None,
                    heading: bool = True, *, blocks: bool = False) -> Manipulability:
-    """D and R of the snake at configuration ``q`` (eqs. 30-31, or D~, R~ of eq. 42).
+    """Return D and R of the snake at configuration ``q`` (eqs. 30-31, or D~, R~ of eq. 42).
 
     Parameters
     ----------
-    snake
+    snake : Snake
         The robot. Its passive joints (``params.passive``) are always free joints.
-    q
-        Configuration [x_h, y_h, theta_1, phi]. D and R do not depend on x_h, y_h,
-        theta_1 (a rigid motion of the whole snake), so they are evaluated at
-        x_h = y_h = theta_1 = 0: exactly invariant, however far the snake has gone.
-    free_joint
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        D and R do not depend on x_h, y_h, theta_1 (a rigid motion of the whole snake),
+        so they are evaluated at ``x_h = y_h = theta_1 = 0``: exactly invariant, however
+        far the snake has gone.
+    free_joint : int or sequence of int or None, optional
         1-based index (or indices) of further free joints, applying the selection S of
         (33); they join the robot's passive joints.
-    heading
+    heading : bool, optional
         Include theta_1 in the task (default); False gives the 2-D variant of III.1.
-    blocks
+    blocks : bool, optional
         Also return H11, H12, H22 and the acceleration map A.
+
+    Returns
+    -------
+    Manipulability
+        ``.D`` and ``.R`` (the smallest singular values), ``.sigma`` and ``.lambda_``
+        (all of them, length 3 + free joints, or 2 + free joints without heading), and
+        ``.blocks`` if requested.
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` does not have n + 2 finite entries.
+    ParameterError
+        If a free joint is outside 1..n - 1, or the robot has too few links for the
+        task (n >= 4 plus one per free or passive joint).
     """
     q = snake.check_q(q).copy()
     q[:3] = 0.0  # D, R are invariant under rigid motions: remove them exactly
@@ -197,25 +252,43 @@ TASK_ROWS: dict[str, tuple[int, ...]] = {
 def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
                            unactuated: Sequence[int], task: np.ndarray | str | None = None,
                            rows: Sequence[int] | str | None = None) -> Manipulability:
-    """Dynamic manipulability of any Pinocchio model with unactuated velocity indices.
+    """Return the dynamic manipulability of any Pinocchio model with unactuated coordinates.
 
     Parameters
     ----------
-    model, data
-        A Pinocchio model and its data.
-    q
-        Configuration (length ``model.nq``).
-    unactuated
-        Velocity indices without an actuator (may be empty for a fully actuated robot).
-    task
+    model : pinocchio.Model
+        A Pinocchio model.
+    data : pinocchio.Data
+        Its data (overwritten).
+    q : array_like, shape (model.nq,)
+        Configuration in the model's own coordinates.
+    unactuated : sequence of int
+        0-based velocity indices without an actuator (may be empty for a fully actuated
+        robot).
+    task : numpy.ndarray of shape (m, model.nv), or str, or None, optional
         None: the task is the unactuated coordinates themselves (the snake's w); then
-        R is defined. A (m x nv) Jacobian, or a frame name (its 6-D Jacobian in
-        LOCAL_WORLD_ALIGNED), for any other task: A = J H^-1 B, and R is NaN.
-    rows
+        R is defined. A Jacobian, or a frame name (its 6-D Jacobian in
+        LOCAL_WORLD_ALIGNED), for any other task: ``A = J H^-1 B``, and R is NaN.
+    rows : sequence of int or str or None, optional
         Which rows of the task Jacobian to keep: indices, or a name of :data:`TASK_ROWS`
         (``"planar"`` keeps x, y and yaw). A planar robot's frame task must keep only its
         planar rows, or the rows it cannot move pad the singular values with zeros and D
         is always 0. Default: all rows.
+
+    Returns
+    -------
+    Manipulability
+        ``.D`` and ``.sigma`` (singular values of A, padded to the task dimension);
+        ``.R`` and ``.lambda_`` from ``H_ua`` when ``task`` is None, else NaN.
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` does not have ``model.nq`` finite entries, or the task Jacobian is not a
+        finite ``m x nv`` matrix.
+    ParameterError
+        If an unactuated index is outside 0..nv - 1, nothing is actuated, a fully
+        actuated model has no task, the frame does not exist, or ``rows`` is invalid.
     """
     q = np.asarray(q, dtype=float).reshape(-1)
     if q.size != model.nq or not np.all(np.isfinite(q)):
@@ -249,19 +322,42 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
 
 def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
                            free_joint: int | None = None, heading: bool = True) -> np.ndarray:
-    """R (or R~) for many joint-angle vectors at once, vectorised (sweeps and searches).
+    """Return R (or R~) for many joint-angle vectors at once, vectorised (sweeps, searches).
 
-    ``phi`` is (B, n - 1); theta_1 = 0 without loss of generality (R is invariant under a
-    rigid motion). As in :func:`manipulability`, the robot's passive joints are free joints
-    beside ``free_joint``. Uses the closed form of H from eq. (19) for the task rows only. With
-    s = sin(theta), c = cos(theta), a = 1^T K and e_r the indicator of links r + 1..n
-    (e_0 = 1), the rows of H against [theta_1, phi] are
+    theta_1 = 0 without loss of generality (R is invariant under a rigid motion). As in
+    :func:`manipulability`, the robot's passive joints are free joints beside
+    ``free_joint``. Uses the closed form of H from eq. (19) for the task rows only. With
+    ``s = sin(theta)``, ``c = cos(theta)``, ``a = 1^T K`` and e_r the indicator of links
+    r + 1..n (``e_0 = 1``), the rows of H against ``[theta_1, phi]`` are::
 
         x_h: -(a * s) L,   y_h: (a * c) L,   with a = m^T K (m the link masses),
         theta_1 (r = 0) or phi_r:  e_r^T H-bar_22 L
             = ([((m * K (s * e_r))^T K) * s + ((m * K (c * e_r))^T K) * c] + J * e_r) L,
 
     restricted to the input columns. Checked against :func:`manipulability` in the tests.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    phi : array_like, shape (B, n - 1) or (n - 1,)
+        Joint angles [rad], one posture per row.
+    free_joint : int or None, optional
+        1-based further free joint (gives R~).
+    heading : bool, optional
+        Include theta_1 in the task (default).
+
+    Returns
+    -------
+    numpy.ndarray, shape (B,)
+        R of each posture (0 where the robot has fewer inputs than task directions).
+
+    Raises
+    ------
+    ConfigurationError
+        If ``phi`` does not have n - 1 columns.
+    ParameterError
+        If the free joint is outside 1..n - 1 or the robot has too few links.
     """
     phi = np.atleast_2d(np.asarray(phi, dtype=float))
     n = params.n
@@ -315,15 +411,39 @@ def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
 def lateral_constraint_manipulability(snake: Snake, q: np.ndarray,
                                       constrained: Sequence[int] | None = None
                                       ) -> Manipulability:
-    """Head manipulability of the same robot *with* lateral constraints (after Date et al.).
+    """Return the head manipulability of the robot *with* lateral constraints (after Date et al.).
 
     Date et al.'s formula is not available; this is a criterion in their spirit (Fig. 15):
-    links ``constrained`` (1-based, default 2..n) may not slip sideways at their CM,
-    A_c(q) q' = 0. The constrained dynamics H q'' + h = E tau + A_c^T f, A_c q'' + A_c' q' = 0
-    give q'' = P E tau + (terms without tau) with P = N - N A_c^T (A_c N A_c^T)^-1 A_c N,
-    N = H^-1. D is the smallest singular value of the w rows of P E (the head's reachable
+    links ``constrained`` may not slip sideways at their CM, ``A_c(q) q' = 0``. The
+    constrained dynamics ``H q'' + h = E tau + A_c^T f``, ``A_c q'' + A_c' q' = 0`` give::
+
+        q'' = P E tau + (terms without tau),   P = N - N A_c^T (A_c N A_c^T)^-1 A_c N,
+        N = H^-1
+
+    D is the smallest singular value of the w rows of ``P E`` (the head's reachable
     accelerations per unit torque); R is NaN. Arcs make it vanish (the classical singular
     posture of wheeled snakes) while the unconstrained R stays positive.
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot.
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    constrained : sequence of int or None, optional
+        1-based links whose CM may not slip sideways; links 2..n by default.
+
+    Returns
+    -------
+    Manipulability
+        ``.D`` and ``.sigma`` (3 singular values); ``.R`` and ``.lambda_`` are NaN.
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` does not have n + 2 finite entries.
+    ParameterError
+        If ``constrained`` is empty or names a link outside 1..n.
     """
     q = snake.check_q(q)
     n = snake.n
