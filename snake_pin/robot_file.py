@@ -80,8 +80,8 @@ by :mod:`snake_pin.urdf` or not. What is accepted, and how it maps onto ``SnakeP
   ``<inertial>`` with ``<mass>`` and ``<inertia>``; links fixed onto them may have none.
   Per body: m_i is the merged mass, J_i the merged inertia about the merged CM about z
   (tilted inertial frames are rotated), the CM offset its x in the link frame. The CM
-  must lie on the link's x axis (|y| within the tolerance) and 0 <= x <= 2l_i; its
-  height z is ignored.
+  must lie on the link's x axis (``abs(y)`` within the tolerance) and ``0 <= x <= 2l_i``;
+  its height z is ignored.
 - **Lengths.** Link i's length 2l_i is the x of joint i's origin in link i's frame. The
   last link has no next joint: its length is the largest x that its own collision
   geometry reaches in its frame (box, cylinder or sphere; meshes are not loaded), else
@@ -338,8 +338,8 @@ def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
 
     Parameters
     ----------
-    path
-        The ``.toml`` file.
+    path : str or os.PathLike
+        The ``.toml`` file (at most :data:`MAX_ROBOT_FILE_BYTES`, UTF-8).
 
     Returns
     -------
@@ -419,12 +419,23 @@ def _toml_per_link(key: str, value: float | tuple[float, ...]) -> str:
 
 
 def robot_file_string(params: SnakeParams) -> str:
-    """The TOML robot file of ``params`` (read back by :func:`read_robot_file` as equal).
+    """Return the TOML robot file of ``params`` (:func:`read_robot_file` reads it back equal).
 
     The format is fixed and small, so it is written here rather than by a TOML library
     (none is a dependency): numbers as Python's shortest round-trip ``repr`` (valid TOML
     floats: parameters are validated finite), per-link fields as one number or an array
     (wrapped at about 80 characters), the name as a basic string (it is alphanumeric).
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+
+    Returns
+    -------
+    str
+        The file's text: ``name``, ``n``, ``passive`` (if any), ``[links]`` and
+        ``[friction]`` tables.
     """
     lines = ["# snake_pin robot file (snake_pin.robot_file.read_robot_file reads it)",
              f'name = "{params.name}"', f"n = {params.n}"]
@@ -441,12 +452,28 @@ def robot_file_string(params: SnakeParams) -> str:
 
 
 def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
-    """Write ``params`` as a TOML robot file, whole or not at all; return the path.
+    """Write ``params`` as a TOML robot file, whole or not at all.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+    path : str or os.PathLike
+        Output file ending in ``.toml`` in an existing folder; an existing file is
+        replaced atomically.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
 
     Raises
     ------
     ParameterError
-        The name does not end in ``.toml`` or its folder does not exist (nothing written).
+        If ``params`` is not a :class:`~snake_pin.params.SnakeParams`, or the name does
+        not end in ``.toml`` or its folder does not exist (nothing written).
+    OSError
+        If the file cannot be written.
     """
     if not isinstance(params, SnakeParams):
         raise ParameterError(f"write_robot_file needs SnakeParams, got {type(params).__name__}")
@@ -742,7 +769,7 @@ def _our_extension(path: str | os.PathLike[str], root: Any, chain: list[str]
         for key in FRICTION_KEYS:
             text = item.get(key)
             try:
-                value = float(text)  # type: ignore[arg-type]
+                value = float(text)
             except (TypeError, ValueError):
                 raise _error(path, f"<link_friction link={link!r}> {key} must be a number, "
                                    f"got {_short(text)}") from None
@@ -773,20 +800,26 @@ def _friction_argument(friction: Mapping[str, Any] | None, n: int) -> dict[str, 
 
 def read_urdf(path: str | os.PathLike[str],
               friction: Mapping[str, Any] | None = None) -> SnakeParams:
-    """Parameters of the planar snake described by a URDF (ours or anyone's).
+    """Read the parameters of the planar snake described by a URDF (ours or anyone's).
 
     What is accepted and how lengths, masses, inertias, CM offsets, passive joints and
     the name are read is listed in the module docstring ("URDF import").
 
     Parameters
     ----------
-    path
-        The ``.urdf`` file.
-    friction
+    path : str or os.PathLike
+        The ``.urdf`` file (at most :data:`MAX_URDF_BYTES`).
+    friction : Mapping of str to float or sequence of float, optional
         ``{"c_x": .., "c_y": .., "c_theta": ..}`` (any subset; each one number or n
-        numbers). Each coefficient given here wins; the others come from the file's
-        ``<snake_pin>`` element if it has one, else they are **zero** (URDF itself has no
-        viscous ground friction).
+        numbers) [N s/m, N s/m, N m s]. Each coefficient given here wins; the others come
+        from the file's ``<snake_pin>`` element if it has one, else they are **zero**
+        (URDF itself has no viscous ground friction).
+
+    Returns
+    -------
+    SnakeParams
+        One link per body of the chain, head first, with per-link lengths, masses, yaw
+        inertias and CM offsets as read, passive joints from zero effort limits.
 
     Raises
     ------
@@ -806,6 +839,7 @@ def read_urdf(path: str | os.PathLike[str],
         name = body.link
         mass, centre, yaw = _planar_inertia(body)
         if body.joint is not None:
+            assert body.joint_pose is not None  # _chain sets both or neither
             length = _joint_offset(path, body.joint.name, name, body.joint_pose)
         else:
             length = _last_length(body.members[0][0], float(centre[0]))
@@ -838,8 +872,9 @@ def read_urdf(path: str | os.PathLike[str],
     values.update(ext_friction)
     values.update(caller)
     try:
-        return SnakeParams(n=n, link_length=lengths, mass=masses, inertia=inertias,
-                           com_offset=offsets, passive=passive, name=name, **values)
+        return SnakeParams(n=n, link_length=tuple(lengths), mass=tuple(masses),
+                           inertia=tuple(inertias), com_offset=tuple(offsets),
+                           passive=tuple(passive), name=name, **values)
     except ParameterError as exc:
         raise _error(path, _link_names(str(exc), chain)) from None
 
@@ -873,13 +908,18 @@ def _link_names(message: str, chain: list[str]) -> str:
 
 # ----------------------------------------------------------------------- shipped robots
 def robot_paths() -> dict[str, Path]:
-    """The shipped URDFs and example robot files, by file name (``snake_table1.urdf``, ...).
+    """Return the shipped URDFs and example robot files, by file name.
 
     Installed from a wheel, they are package data: ``snake_pin/robots/urdf/*.urdf`` (the
     repository's ``urdf/``) and ``snake_pin/robots/examples/*.toml`` (the repository's
     ``examples/robots/``), found through :mod:`importlib.resources`. From a source
     checkout (an editable install) where those folders are absent, the repository's own
     ``urdf/`` and ``examples/robots/`` are used.
+
+    Returns
+    -------
+    dict of str to pathlib.Path
+        File name (``snake_table1.urdf``, ``camera_head_snake.toml``, ...) -> its path.
     """
     packaged = importlib.resources.files("snake_pin") / "robots"
     checkout = Path(__file__).resolve().parent.parent
@@ -897,17 +937,22 @@ def robot_paths() -> dict[str, Path]:
 
 
 def load_robot(spec: str | os.PathLike[str], **overrides: Any) -> SnakeParams:
-    """The robot a ``--robot`` value names, with ``overrides`` applied (e.g. ``passive``).
+    """Return the robot a ``--robot`` value names, with ``overrides`` applied.
 
     Parameters
     ----------
-    spec
+    spec : str or os.PathLike
         A preset name (``table1``, ``engine``), a ``.toml`` robot file, a ``.urdf`` file,
         or the bare file name of a shipped robot (:func:`robot_paths`) when no such file
         exists in the working directory.
-    overrides
-        Field changes: keyword arguments of the preset, or :meth:`SnakeParams.replace`
-        applied to a file's robot.
+    **overrides
+        Field changes (e.g. ``passive=(3,)``): keyword arguments of the preset, or
+        :meth:`SnakeParams.replace` applied to a file's robot.
+
+    Returns
+    -------
+    SnakeParams
+        The validated robot.
 
     Raises
     ------
