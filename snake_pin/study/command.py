@@ -38,11 +38,18 @@ def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int =
 
     Parameters
     ----------
+    subparsers
+        The CLI's ``add_subparsers()`` action.
     outcome
         Called as ``outcome(payload=..., text=..., status=..., note=...)`` to build the
         handler's result (the CLI's ``_Outcome``).
     interrupted_status, failed_status
         Exit statuses of an interrupted study and of one with runs lost with a worker.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The subcommand's parser (its handler set as ``func``).
     """
     p = subparsers.add_parser("study", help="run a study (grids and random samples of runs) "
                               "on Dask, resumable", description=_DESCRIPTION)

@@ -84,7 +84,22 @@ document.querySelectorAll('table.sortable th').forEach(function (th, col) {
 
 
 def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
-    """(kind, plotted axes, replicate axes): ``heatmap``, ``lines`` or ``histogram``."""
+    """Which figures a study gets (see the module docstring).
+
+    Parameters
+    ----------
+    spec
+        The study.
+
+    Returns
+    -------
+    kind : str
+        ``heatmap``, ``lines`` or ``histogram``.
+    plotted : list of str
+        The axes plotted (two, one or none).
+    replicate : list of str
+        The axes aggregated over (random axes and ``init_seed``).
+    """
     replicate = [a.setting for a in spec.axes if a.random or a.setting == "init_seed"]
     shown = [a.setting for a in spec.grid_axes if a.setting not in replicate]
     if len(shown) >= 2:
@@ -95,7 +110,22 @@ def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
 
 
 def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> Path:
-    """Write ``summary.json`` then ``index.html`` into the study folder; return the page."""
+    """Write ``summary.json`` then ``index.html`` into the study folder.
+
+    Parameters
+    ----------
+    folder
+        The study folder (its recorded rows are read).
+    spec
+        The study.
+    summary
+        The invocation's summary.
+
+    Returns
+    -------
+    Path
+        ``index.html``.
+    """
     table = folder.read_table()
     keys = {s.key for s in spec.scenarios}
     columns = {name: table.column(name).to_pylist() for name in table.column_names}
@@ -138,8 +168,22 @@ def save_figures(spec: StudySpec, rows: Sequence[dict[str, Any]],
                  folder: str | os.PathLike[str], stem: str) -> list[tuple[Path, str]]:
     """Write the study's figures (:func:`figure_plan`) as ``folder/STEM_METRIC.png``.
 
-    ``rows`` are result rows (dicts, as ``pandas.read_parquet(DIR).to_dict("records")``
-    gives them). Returns (path, caption) of each figure, in :data:`METRICS` order.
+    Parameters
+    ----------
+    spec
+        The study.
+    rows
+        Result rows (dicts, as ``pandas.read_parquet(DIR).to_dict("records")`` gives
+        them).
+    folder
+        An existing folder.
+    stem
+        Start of the file names.
+
+    Returns
+    -------
+    list of (Path, str)
+        Path and caption of each figure, in :data:`METRICS` order (none without rows).
     """
     kind, plotted, _ = figure_plan(spec)
     out = []
@@ -151,9 +195,23 @@ def save_figures(spec: StudySpec, rows: Sequence[dict[str, Any]],
 
 
 def axis_label(spec: StudySpec, name: str) -> tuple[str, Any]:
-    """(label, value -> shown value) of the axis over setting ``name``: words from
-    :data:`AXIS_LABELS`; ``c_y`` as the ratio ``c_y/c_x`` when every run's robot has one
-    uniform, positive c_x."""
+    """How a figure shows the axis over a setting.
+
+    Parameters
+    ----------
+    spec
+        The study.
+    name
+        The setting.
+
+    Returns
+    -------
+    label : str
+        Words from :data:`AXIS_LABELS`; for ``c_y``, the ratio ``c_y/c_x`` when every
+        run's robot has one uniform, positive c_x.
+    shown : callable
+        Value -> the value shown (c_y -> c_y/c_x; otherwise unchanged).
+    """
     if name == "c_y":
         c_x = {s.params.c_x for s in spec.scenarios}
         if len(c_x) == 1:

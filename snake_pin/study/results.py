@@ -60,13 +60,35 @@ _FORMAT = 1
 
 
 def batch_name(keys: Sequence[str]) -> str:
-    """The file name of a batch: ``batch-<first 20 hex of sha256 of its keys>.parquet``."""
+    """The file name of a batch.
+
+    Parameters
+    ----------
+    keys
+        The run keys of the batch, in order.
+
+    Returns
+    -------
+    str
+        ``batch-<first 20 hex of sha256 of its keys>.parquet``.
+    """
     digest = hashlib.sha256("\n".join(keys).encode("ascii")).hexdigest()
     return f"batch-{digest[:20]}.parquet"
 
 
 def rows_table(rows: Sequence[dict[str, Any]]) -> pa.Table:
-    """Rows as a table of :data:`SCHEMA` (missing columns null, extra keys refused)."""
+    """Rows as a table of :data:`SCHEMA` (missing columns null, extra keys refused).
+
+    Parameters
+    ----------
+    rows
+        Result rows (dicts keyed by column).
+
+    Returns
+    -------
+    pyarrow.Table
+        One row per dict, in order.
+    """
     names = set(SCHEMA.names)
     for row in rows:
         extra = set(row) - names
@@ -92,6 +114,11 @@ class StudyFolder:
     # ------------------------------------------------------------ checking
     def check(self, spec: StudySpec) -> None:
         """Refuse a folder that cannot hold ``spec`` (creates nothing).
+
+        Parameters
+        ----------
+        spec
+            The study to be run here.
 
         Raises
         ------
@@ -123,7 +150,18 @@ class StudyFolder:
                              f"{spec.study_hash[:12]}); use another folder")
 
     def identity(self) -> dict[str, Any]:
-        """The stored ``study.json`` (StudyError if unreadable)."""
+        """The stored ``study.json``.
+
+        Returns
+        -------
+        dict
+            Its content.
+
+        Raises
+        ------
+        StudyError
+            The file is unreadable or not a JSON object.
+        """
         file = self.path / _IDENTITY
         try:
             with open(file, "rb") as handle:
@@ -137,6 +175,11 @@ class StudyFolder:
 
     def done_keys(self) -> set[str]:
         """Keys of the runs already recorded (every batch file's ``key`` column).
+
+        Returns
+        -------
+        set of str
+            The keys.
 
         Raises
         ------
@@ -155,7 +198,13 @@ class StudyFolder:
         return keys
 
     def batch_files(self) -> list[Path]:
-        """The batch files, sorted by name (hidden temporaries excluded)."""
+        """The batch files, sorted by name (hidden temporaries excluded).
+
+        Returns
+        -------
+        list of Path
+            The files of ``runs/``.
+        """
         if not self.runs.is_dir():
             return []
         return sorted(p for p in self.runs.iterdir()
@@ -164,6 +213,11 @@ class StudyFolder:
     # ------------------------------------------------------------- writing
     def prepare(self, spec: StudySpec) -> None:
         """Create the folder, take its lock, check it again and write ``study.json`` (if new).
+
+        Parameters
+        ----------
+        spec
+            The study to be run here.
 
         Raises
         ------
@@ -201,7 +255,18 @@ class StudyFolder:
 
     @contextlib.contextmanager
     def locked(self, spec: StudySpec) -> Iterator[StudyFolder]:
-        """:meth:`prepare` on entry, :meth:`release` on exit."""
+        """:meth:`prepare` on entry, :meth:`release` on exit.
+
+        Parameters
+        ----------
+        spec
+            The study to be run here.
+
+        Yields
+        ------
+        StudyFolder
+            This folder, locked.
+        """
         self.prepare(spec)
         try:
             yield self
@@ -209,14 +274,38 @@ class StudyFolder:
             self.release()
 
     def write_batch(self, keys: Sequence[str], rows: Sequence[dict[str, Any]]) -> Path:
-        """Write one batch's rows as ``runs/batch-<id>.parquet``, whole or not at all."""
+        """Write one batch's rows as ``runs/batch-<id>.parquet``, whole or not at all.
+
+        Parameters
+        ----------
+        keys
+            The batch's run keys (they name the file).
+        rows
+            Its result rows.
+
+        Returns
+        -------
+        Path
+            The file written.
+        """
         table = rows_table(rows)
         path = self.runs / batch_name(keys)
         atomic_save(path, lambda handle: pq.write_table(table, handle))
         return path
 
     def read_table(self, columns: Sequence[str] | None = None) -> pa.Table:
-        """Every recorded row (an empty table of :data:`SCHEMA` if none)."""
+        """Every recorded row (an empty table of :data:`SCHEMA` if none).
+
+        Parameters
+        ----------
+        columns
+            Only these columns (None: all).
+
+        Returns
+        -------
+        pyarrow.Table
+            The rows of every batch file.
+        """
         files = self.batch_files()
         if not files:
             return SCHEMA.empty_table() if columns is None else \

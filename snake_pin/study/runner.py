@@ -268,6 +268,20 @@ def plan_batches(scenarios: Sequence[Scenario], batch_size: int,
     its whole batch is done, so an interrupt or a dying worker loses up to ``slots``
     batches, and uneven batches leave a worker idle at the end. Batches of fewer than
     :data:`snake_pin.study.work.MIN_LOCKSTEP` runs are simulated one by one inside the task.
+
+    Parameters
+    ----------
+    scenarios
+        The runs to execute, in study order.
+    batch_size
+        Most runs per viscous task (the study's ``batch_size``).
+    slots
+        Worker threads of the cluster.
+
+    Returns
+    -------
+    list of list of Scenario
+        The tasks: engine runs alone, then each group's batches in study order.
     """
     from .work import runs_per_batch
 
@@ -289,6 +303,16 @@ def plan_batches(scenarios: Sequence[Scenario], batch_size: int,
 
 def check_scheduler(address: str) -> str:
     """``address`` as ``tcp://host:port`` once a TCP connection to it succeeds.
+
+    Parameters
+    ----------
+    address
+        ``tcp://HOST:PORT`` or ``HOST:PORT``.
+
+    Returns
+    -------
+    str
+        The address as ``tcp://host:port`` (IPv6 hosts in brackets).
 
     Raises
     ------

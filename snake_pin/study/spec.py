@@ -134,7 +134,7 @@ _MAX_MU = 10.0
 class Setting:
     """One scalar setting of a scenario.
 
-    Attributes
+    Parameters
     ----------
     name, kind, default
         Key in the study file; ``"float"``, ``"int"``, ``"str"`` or ``"joints"`` (a list
@@ -161,11 +161,28 @@ class Setting:
     controllers: tuple[str, ...] = CONTROLLERS
 
     def applies(self, model: str, controller: str) -> bool:
-        """Whether this setting means something for a run of ``model`` and ``controller``."""
+        """Whether this setting means something for a run of ``model`` and ``controller``.
+
+        Parameters
+        ----------
+        model, controller
+            The run's model and controller.
+
+        Returns
+        -------
+        bool
+            True where it applies.
+        """
         return model in self.models and controller in self.controllers
 
     def domain(self) -> str:
-        """The domain in words, e.g. ``"> 0"``, ``"in 0..10"``, ``"one of a, b"``."""
+        """The domain in words.
+
+        Returns
+        -------
+        str
+            E.g. ``"> 0"``, ``"in [0, 10]"``, ``"one of a, b"``.
+        """
         if self.choices:
             return "one of " + ", ".join(self.choices)
         if self.low is not None and self.high is not None:
@@ -175,7 +192,18 @@ class Setting:
         return "finite"
 
     def problem(self, value: Any) -> str:
-        """Why ``value`` (already of the right kind) is outside the domain, or ""."""
+        """Why a value is outside the domain.
+
+        Parameters
+        ----------
+        value
+            A value already of the setting's kind.
+
+        Returns
+        -------
+        str
+            The reason, or "" when the value is inside.
+        """
         if self.kind == "str":
             return "" if not self.choices or value in self.choices else \
                 f"must be {self.domain()}, got {_short(value)}"
@@ -288,7 +316,7 @@ GAIT_DEFAULTS = {"lyapunov": (math.pi / 6, 1.5, 2.0), "velocity": (math.pi / 6, 
 class Axis:
     """One axis of a study.
 
-    Attributes
+    Parameters
     ----------
     setting
         The setting it varies.
@@ -315,7 +343,7 @@ class Axis:
 class Scenario:
     """One run of a study, normalised.
 
-    Attributes
+    Parameters
     ----------
     index
         Position in the study (grid order, random point innermost).
@@ -352,7 +380,7 @@ class Scenario:
 class StudySpec:
     """A validated study: its axes and the runs they expand to (see the module docstring).
 
-    Attributes
+    Parameters
     ----------
     path
         The study file.
@@ -388,7 +416,13 @@ class StudySpec:
         return tuple(a for a in self.axes if a.random)
 
     def to_dict(self) -> dict[str, Any]:
-        """The normalised study as plain JSON data (written to ``study.json``)."""
+        """The normalised study as plain JSON data (written to ``study.json``).
+
+        Returns
+        -------
+        dict
+            Name, description, batch size, base, axes, run count, study hash, key format.
+        """
         return {"name": self.name, "description": self.description,
                 "batch_size": self.batch_size, "base": _plain(self.base),
                 "axes": [{"setting": a.setting, **a.source} for a in self.axes],
@@ -400,6 +434,16 @@ class StudySpec:
 def canonical_json(value: Any) -> str:
     """Canonical JSON text: sorted keys, no spaces, ASCII, floats by ``repr`` (-0.0 as 0.0).
 
+    Parameters
+    ----------
+    value
+        Plain data (mappings, sequences, str, int, float, bool, None, numpy scalars).
+
+    Returns
+    -------
+    str
+        The text.
+
     Raises
     ------
     ValueError
@@ -410,7 +454,20 @@ def canonical_json(value: Any) -> str:
 
 
 def run_key(settings: Mapping[str, Any], params: SnakeParams) -> str:
-    """The key of a run: SHA-256 (hex, 64 characters) of its canonical settings and robot."""
+    """The key of a run: SHA-256 of its canonical settings and robot.
+
+    Parameters
+    ----------
+    settings
+        The run's normalised settings.
+    params
+        The robot it simulates.
+
+    Returns
+    -------
+    str
+        64 hexadecimal characters.
+    """
     text = canonical_json({"format": KEY_FORMAT, "settings": dict(settings),
                            "robot": params.to_dict()})
     return hashlib.sha256(text.encode("ascii")).hexdigest()
@@ -434,6 +491,16 @@ def _plain(value: Any) -> Any:
 # ----------------------------------------------------------------------- reading
 def load_study(path: str | os.PathLike[str]) -> StudySpec:
     """Read and validate a study file (see the module docstring).
+
+    Parameters
+    ----------
+    path
+        The TOML study file.
+
+    Returns
+    -------
+    StudySpec
+        The validated study.
 
     Raises
     ------
@@ -465,6 +532,18 @@ def load_study(path: str | os.PathLike[str]) -> StudySpec:
 
 def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpec:
     """Validate study text; relative robot files are read beside ``path``.
+
+    Parameters
+    ----------
+    text
+        The TOML text.
+    path
+        Where it comes from (named in errors; robot files are relative to its folder).
+
+    Returns
+    -------
+    StudySpec
+        The validated study.
 
     Raises
     ------

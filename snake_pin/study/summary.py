@@ -13,7 +13,7 @@ __all__ = ["StudySummary"]
 class StudySummary:
     """The state of a study folder after one invocation.
 
-    Attributes
+    Parameters
     ----------
     name, study_hash, folder
         The study and where its results are.
@@ -60,11 +60,23 @@ class StudySummary:
     note: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain RFC 8259 JSON data (no NaN: non-finite numbers become null)."""
+        """Plain RFC 8259 JSON data.
+
+        Returns
+        -------
+        dict
+            Every field; non-finite numbers become None (null).
+        """
         return _finite(asdict(self))
 
     def text(self) -> str:
-        """A few lines for a terminal."""
+        """A few lines for a terminal.
+
+        Returns
+        -------
+        str
+            Status, counts, time, where the results are, and the note.
+        """
         counts = ", ".join(f"{v} {k}" for k, v in self.statuses.items() if v)
         lines = [f"study {self.name}: {self.status}, {self.recorded}/{self.runs} runs recorded"
                  f" ({counts or 'none'}); ran {self.ran}, skipped {self.skipped}"

@@ -72,7 +72,17 @@ MIN_LOCKSTEP = 8
 
 @dataclass
 class RunOutcome:
-    """What simulating one scenario gave: a trajectory, or the error that stopped it."""
+    """What simulating one scenario gave: a trajectory, or the error that stopped it.
+
+    Parameters
+    ----------
+    trajectory
+        The run (its status says whether it completed or diverged); None if it raised.
+    error
+        The error text of a run that raised ("" otherwise).
+    wall_time
+        Simulation time of the run [s] (a lockstep batch's time divided by its runs).
+    """
 
     trajectory: Trajectory | None
     error: str = ""
@@ -85,6 +95,17 @@ def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
 
     A run that raises is a ``failed`` row with the error; a KeyboardInterrupt is not
     caught (an interrupted batch is lost whole, never half-written).
+
+    Parameters
+    ----------
+    scenarios
+        Runs of one model: viscous runs of one robot layout and time step (simulated by
+        :func:`simulate_viscous_batch`), or engine runs (one by one).
+
+    Returns
+    -------
+    list of dict
+        :func:`result_row` (or :func:`failed_row`) of each scenario.
     """
     from threadpoolctl import threadpool_limits
 
@@ -117,6 +138,17 @@ def simulate_viscous_batch(scenarios: Sequence[Scenario]) -> Sequence[RunOutcome
     A scenario whose controller cannot be built is a failed outcome; the others go on. A
     batch that :func:`~snake_pin.batch.simulate_batch` refuses as a whole runs one by one
     (:func:`simulate_scenario`). An interrupt propagates.
+
+    Parameters
+    ----------
+    scenarios
+        Viscous-model runs of one robot layout (same n, link lengths, masses, inertias,
+        CM offsets) and one ``dt`` and ``control_dt``.
+
+    Returns
+    -------
+    Sequence of RunOutcome
+        One per scenario, in order.
     """
     scenarios = list(scenarios)
     outcomes: list[RunOutcome | Callable[[], RunOutcome] | None] = [None] * len(scenarios)
@@ -133,9 +165,19 @@ def simulate_viscous_batch(scenarios: Sequence[Scenario]) -> Sequence[RunOutcome
 
 
 def runs_per_batch(scenarios: Sequence[Scenario]) -> int:
-    """Most runs of ``scenarios`` one lockstep batch holds: its samples at stride 1 (q, q',
-    tau and two signals per control step, for the longest run) within
-    :data:`BATCH_RECORD_BYTES`; at least 1."""
+    """Most runs of ``scenarios`` one lockstep batch holds in memory.
+
+    Parameters
+    ----------
+    scenarios
+        Viscous-model runs.
+
+    Returns
+    -------
+    int
+        How many runs' samples at stride 1 (q, q', tau and two signals per control step,
+        for the longest run and the largest n) fit :data:`BATCH_RECORD_BYTES`; at least 1.
+    """
     if not scenarios:
         return 1
     longest = max(math.ceil(s["t_final"] / s["control_dt"] - 1e-9) + 1 for s in scenarios)
@@ -215,16 +257,39 @@ def _guarded(simulate: Any, scenario: Scenario) -> RunOutcome:
 
 # ---------------------------------------------------------------- one scenario
 def reference(scenario: Scenario) -> LinearReference:
-    """The head reference: along +x at ``ref_speed``; head-first (theta_1 = pi) for the
-    Lyapunov-like laws, the VI.1 reference (theta_1 = 0) for PFL."""
+    """The head reference of a run.
+
+    Parameters
+    ----------
+    scenario
+        The run.
+
+    Returns
+    -------
+    LinearReference
+        Along +x at ``ref_speed``; head-first (theta_1 = pi) for the Lyapunov-like laws,
+        the VI.1 reference (theta_1 = 0) for PFL.
+    """
     speed = scenario.settings.get("ref_speed", 0.1)
     heading = 0.0 if scenario.controller == "pfl" else math.pi
     return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, heading))
 
 
 def initial_state(scenario: Scenario) -> np.ndarray:
-    """Eq. (82)'s arc with every joint at ``init_phi`` (plus seeded Gaussian noise of
-    ``init_noise`` rad), head at the origin facing the reference's heading, at rest."""
+    """The initial state of a run.
+
+    Parameters
+    ----------
+    scenario
+        The run.
+
+    Returns
+    -------
+    numpy.ndarray
+        [q, dq] (2(n + 2)): eq. (82)'s arc with every joint at ``init_phi`` (plus seeded
+        Gaussian noise of ``init_noise`` rad), head at the origin facing the reference's
+        heading, at rest.
+    """
     from ..gaits import arc
 
     n = scenario.params.n
@@ -237,7 +302,22 @@ def initial_state(scenario: Scenario) -> np.ndarray:
 
 
 def build_controller(scenario: Scenario, snake: Any) -> Any:
-    """The scenario's controller on ``snake`` (its gains, gait and reference)."""
+    """The controller of a run.
+
+    Parameters
+    ----------
+    scenario
+        The run (its controller, gains, gait and reference).
+    snake
+        The :class:`~snake_pin.model.Snake` the controller models.
+
+    Returns
+    -------
+    Controller
+        A :class:`~snake_pin.control.LyapunovController`,
+        :class:`~snake_pin.control.QuasiStaticLyapunovController` or
+        :class:`~snake_pin.control.PFLController`.
+    """
     from ..control import LyapunovController, PFLController, QuasiStaticLyapunovController
     from ..gaits import Serpenoid
 
@@ -260,7 +340,18 @@ def build_controller(scenario: Scenario, snake: Any) -> Any:
 
 
 def simulate_scenario(scenario: Scenario) -> RunOutcome:
-    """One viscous-model scenario through :func:`snake_pin.sim.simulate` (may raise)."""
+    """One viscous-model scenario through :func:`snake_pin.sim.simulate` (may raise).
+
+    Parameters
+    ----------
+    scenario
+        The run.
+
+    Returns
+    -------
+    RunOutcome
+        Its trajectory and wall time.
+    """
     from ..model import Snake
     from ..sim import simulate
 
@@ -317,13 +408,41 @@ def _settings_columns(scenario: Scenario) -> dict[str, Any]:
 
 
 def failed_row(scenario: Scenario, reason: str, wall_time: float = math.nan) -> dict[str, Any]:
-    """The row of a run that raised: status ``failed``, ``reason``, no metrics."""
+    """The row of a run that raised: status ``failed``, ``reason``, no metrics.
+
+    Parameters
+    ----------
+    scenario
+        The run.
+    reason
+        The error text.
+    wall_time
+        Time spent before it raised [s] (NaN: unknown).
+
+    Returns
+    -------
+    dict
+        Its settings, identity columns, status and reason; metrics None.
+    """
     return {**_settings_columns(scenario), "status": "failed", "reason": reason,
             **dict.fromkeys(_METRICS), "wall_time": _finite_or_none(wall_time)}
 
 
 def result_row(scenario: Scenario, outcome: RunOutcome) -> dict[str, Any]:
-    """The row of a simulated scenario: its settings, status and metrics."""
+    """The row of a simulated scenario: its settings, status and metrics.
+
+    Parameters
+    ----------
+    scenario
+        The run.
+    outcome
+        What simulating it gave (a run without a trajectory gives :func:`failed_row`).
+
+    Returns
+    -------
+    dict
+        The columns of :data:`snake_pin.study.results.SCHEMA` (module docstring).
+    """
     traj = outcome.trajectory
     if traj is None:
         return failed_row(scenario, outcome.error, outcome.wall_time)
