@@ -2,7 +2,7 @@
 
 This module owns the geometry of head references beyond the paper's straight line: a
 :class:`Path` is a planar curve parametrised by arc length s, with its unit tangent (angle
-gamma(s), continuous: never wrapped to (-pi, pi]), curvature kappa(s) and its rate
+gamma(s), continuous: never wrapped to ``(-pi, pi]``), curvature kappa(s) and its rate
 kappa'(s); a :class:`Timing` gives s(t) at a constant speed v, optionally after a smooth
 start; a :class:`PathReference` joins the two into the head reference the controllers
 consume, with the same interface as :class:`~snake_pin.control.reference.LinearReference`:
@@ -16,10 +16,11 @@ Shapes
   passes through the origin heading along +x, like every default shape here.
 - :class:`LaneChange`: a lead-in along the line, then a smooth S to a parallel line at a
   lateral ``offset`` (left positive) over a longitudinal ``length``. The S is the septic
-  smootherstep y = offset P(x / length), P = 35 u^4 - 84 u^5 + 70 u^6 - 20 u^7, whose
-  first three derivatives vanish at both ends: the curve is C3, so heading, curvature and
-  the curvature's rate are continuous at the joins and w_r'' is continuous in time.
-- :class:`Sinusoid`: y = amplitude sin(2 pi x / wavelength).
+  smootherstep ``y = offset P(x / length)``, ``P = 35 u^4 - 84 u^5 + 70 u^6 - 20 u^7``,
+  whose first three derivatives vanish at both ends: the curve is C3, so heading,
+  curvature and the curvature's rate are continuous at the joins and w_r'' is continuous
+  in time.
+- :class:`Sinusoid`: ``y = amplitude sin(2 pi x / wavelength)``.
 - :class:`Waypoints`: a C2 curve through user points: ``scipy.interpolate.CubicSpline``
   on the chord-length parameter with natural ends (zero curvature there), re-parametrised
   by arc length. Its curvature is continuous; kappa' jumps at the knots (a cubic's third
@@ -32,29 +33,29 @@ zero curvature; only C1 at the ends of an arc). Lane changes and sinusoids are u
 a circle's s runs on over any number of laps.
 
 Arc length. Curves with no closed-form arc length (lane change, sinusoid, waypoints) are
-written p(u) in a parameter u; s(u) = int |p'(u)| du is tabulated by 8-point
+written p(u) in a parameter u; ``s(u) = int |p'(u)| du`` is tabulated by 8-point
 Gauss-Legendre quadrature on a fine grid of u, and u(s) is found by Newton's method on
-s(u) - s = 0 (derivative |p'(u)|) from a linear interpolation of the table, to round-off.
-The tangent, curvature and its rate then follow from the derivatives of p(u) (all exact
-for the polynomial and trigonometric pieces):
+``s(u) - s = 0`` (derivative ``|p'(u)|``) from a linear interpolation of the table, to
+round-off. The tangent, curvature and its rate then follow from the derivatives of p(u)
+(all exact for the polynomial and trigonometric pieces)::
 
     t = p'/|p'|,   kappa = (p' x p'')/|p'|^3,
     dkappa/ds = [(p' x p''') |p'|^2 - 3 (p' x p'')(p' . p'')] / |p'|^6.
 
 Head reference (head-first convention). In the paper's coordinates theta_1 points from
 the head towards the tail, so a head that leads along the tangent has
-theta_1 = gamma(s) + pi (the paper's straight run has gamma = 0, theta_1 = pi). With
-s = s(t), the chain rule gives exactly
+``theta_1 = gamma(s) + pi`` (the paper's straight run has gamma = 0, theta_1 = pi). With
+``s = s(t)``, the chain rule gives exactly::
 
     w_r   = [p(s), gamma(s) + pi]
     w_r'  = [t s',  kappa s']
     w_r'' = [kappa n s'^2 + t s'',  kappa' s'^2 + kappa s'']
 
-with n the left normal (t rotated by +pi/2), since dt/ds = kappa n.
+with n the left normal (t rotated by +pi/2), since ``dt/ds = kappa n``.
 
 Distance to a path. :meth:`Path.project` finds the arc length of the closest point: the
 nearest point of a fine grid over a span of s (by a k-d tree), then safeguarded Newton
-steps on (p(s) - x) . t(s) = 0. :func:`cross_track_error` is the signed distance (left of
+steps on ``(p(s) - x) . t(s) = 0``. :func:`cross_track_error` is the signed distance (left of
 the direction of travel positive) and :func:`along_track` the arc length of the closest
 point, both vectorised.
 
@@ -142,16 +143,16 @@ _HALF_PI = 0.5 * math.pi
 class PathPoint(NamedTuple):
     """Geometry at arc lengths s (arrays shaped like s; ``p`` and the frames get a last axis 2).
 
-    Attributes
+    Parameters
     ----------
-    p
-        Point on the curve.
-    gamma
-        Tangent angle (continuous in s, not wrapped).
-    kappa
-        Signed curvature (positive turning left), d gamma / ds.
-    dkappa
-        d kappa / ds.
+    p : numpy.ndarray, shape s.shape + (2,)
+        Point on the curve [m].
+    gamma : numpy.ndarray, shape s.shape
+        Tangent angle [rad] (continuous in s, not wrapped).
+    kappa : numpy.ndarray, shape s.shape
+        Signed curvature [1/m] (positive turning left), ``d gamma / ds``.
+    dkappa : numpy.ndarray, shape s.shape
+        ``d kappa / ds`` [1/m^2].
     """
 
     p: np.ndarray
@@ -161,12 +162,12 @@ class PathPoint(NamedTuple):
 
     @property
     def tangent(self) -> np.ndarray:
-        """Unit tangent [cos gamma, sin gamma]."""
+        """Unit tangent ``[cos gamma, sin gamma]``, shape s.shape + (2,)."""
         return np.stack((np.cos(self.gamma), np.sin(self.gamma)), axis=-1)
 
     @property
     def normal(self) -> np.ndarray:
-        """Left unit normal [-sin gamma, cos gamma]."""
+        """Left unit normal ``[-sin gamma, cos gamma]``, shape s.shape + (2,)."""
         return np.stack((-np.sin(self.gamma), np.cos(self.gamma)), axis=-1)
 
 
@@ -321,7 +322,24 @@ class Path(abc.ABC):
                 float(g.dkappa[0]))
 
     def geometry(self, s: object) -> PathPoint:
-        """Point, tangent angle, curvature and its rate at arc length(s) ``s``."""
+        """Return the point, tangent angle, curvature and its rate at arc length(s) ``s``.
+
+        Parameters
+        ----------
+        s : float or array_like
+            Arc length(s) [m], any shape; beyond a finite curve's ends the curve goes on
+            straight.
+
+        Returns
+        -------
+        PathPoint
+            Arrays shaped like ``s`` (``p`` with a last axis of 2).
+
+        Raises
+        ------
+        ParameterError
+            If an arc length is not finite.
+        """
         arr = np.asarray(s, dtype=float)
         if not np.all(np.isfinite(arr)):
             raise ParameterError("arc lengths must be finite")
@@ -331,11 +349,34 @@ class Path(abc.ABC):
                          flat.kappa.reshape(shape), flat.dkappa.reshape(shape))
 
     def point(self, s: object) -> np.ndarray:
-        """p(s): shape s.shape + (2,)."""
+        """Return the point p(s) of the curve.
+
+        Parameters
+        ----------
+        s : float or array_like
+            Arc length(s) [m].
+
+        Returns
+        -------
+        numpy.ndarray, shape s.shape + (2,)
+            Points [m].
+
+        Raises
+        ------
+        ParameterError
+            If an arc length is not finite.
+        """
         return self.geometry(s).p
 
     def default_span(self) -> tuple[float, float]:
-        """Arc lengths searched by :meth:`project` unless told otherwise."""
+        """Return the arc lengths searched by :meth:`project` unless told otherwise.
+
+        Returns
+        -------
+        tuple of float
+            ``(s_min, s_max)`` [m]: a finite curve with a margin of a quarter of its
+            length (at least 1 m) at each end, else ``(-1, DEFAULT_EXTENT)``.
+        """
         if math.isfinite(self.length):
             margin = max(1.0, 0.25 * self.length)
             return (-margin, self.length + margin)
@@ -349,23 +390,30 @@ class Path(abc.ABC):
 
     def project(self, points: object, *, span: tuple[float, float] | None = None,
                 hint: object = None) -> np.ndarray:
-        """Arc length s* of the closest point of the path to each point.
+        """Return the arc length ``s*`` of the closest point of the path to each point.
 
         Parameters
         ----------
-        points
-            (..., 2) array of points.
-        span
-            (s_min, s_max) searched; default :meth:`default_span`. The result lies in it.
-        hint
+        points : array_like, shape (..., 2)
+            Points [m].
+        span : tuple of float, optional
+            ``(s_min, s_max)`` searched [m]; default :meth:`default_span`. The result lies
+            in it.
+        hint : float or array_like, optional
             Arc lengths near the answer (scalar or one per point), e.g. the last step's
             answer when tracking a moving point: then only Newton steps from the hint are
             taken (no grid search), which follows the nearby branch of the path.
 
         Returns
         -------
-        numpy.ndarray
-            s*, shaped like ``points`` without its last axis.
+        numpy.ndarray, shape points.shape[:-1]
+            ``s*`` [m].
+
+        Raises
+        ------
+        ParameterError
+            If the points are not a finite (..., 2) array, the span is not increasing or
+            not finite, or the hint is not finite.
         """
         pts = np.asarray(points, dtype=float)
         if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
@@ -415,7 +463,20 @@ class Path(abc.ABC):
 
     def plot_points(self, span: tuple[float, float] | None = None,
                     count: int = 1000) -> np.ndarray:
-        """(count, 2) points along the path over ``span`` (default: :meth:`default_span`)."""
+        """Return evenly spaced points along the path, for drawing.
+
+        Parameters
+        ----------
+        span : tuple of float, optional
+            ``(s_min, s_max)`` [m]; default :meth:`default_span`.
+        count : int, optional
+            Number of points.
+
+        Returns
+        -------
+        numpy.ndarray, shape (count, 2)
+            Points [m].
+        """
         lo, hi = self.default_span() if span is None else span
         return self.point(np.linspace(lo, hi, count))
 
@@ -455,7 +516,20 @@ class _Finite(Path):
 
 @dataclass(frozen=True)
 class Line(Path):
-    """The straight line p(s) = start + s [cos direction, sin direction]."""
+    """The straight line ``p(s) = start + s [cos direction, sin direction]``.
+
+    Parameters
+    ----------
+    start : tuple of float, optional
+        Point at s = 0, ``(x, y)`` [m].
+    direction : float, optional
+        Heading of the line [rad] (0: along +x).
+
+    Raises
+    ------
+    ParameterError
+        If a parameter is not a finite number (or point).
+    """
 
     start: tuple[float, float] = (0.0, 0.0)
     direction: float = 0.0
@@ -477,6 +551,27 @@ class Line(Path):
 
     def project(self, points: object, *, span: tuple[float, float] | None = None,
                 hint: object = None) -> np.ndarray:
+        """Return the arc length of the closest point of the line to each point (exact).
+
+        Parameters
+        ----------
+        points : array_like, shape (..., 2)
+            Points [m].
+        span : tuple of float, optional
+            ``(s_min, s_max)`` [m] to clip the result to; unbounded by default.
+        hint : object, optional
+            Ignored (the projection is exact).
+
+        Returns
+        -------
+        numpy.ndarray, shape points.shape[:-1]
+            Arc lengths [m].
+
+        Raises
+        ------
+        ParameterError
+            If the points are not a finite (..., 2) array.
+        """
         pts = np.asarray(points, dtype=float)
         if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
             raise ParameterError("points must be a finite (..., 2) array")
@@ -508,6 +603,24 @@ class Circle(Path):
     Counter-clockwise (turning left, kappa = 1/radius) unless ``clockwise``. By default
     (no centre, no start angle) the circle passes through the origin heading along +x.
     s runs on over any number of laps; gamma grows without wrapping.
+
+    Parameters
+    ----------
+    radius : float, optional
+        Radius [m], > 0.
+    centre : tuple of float or None, optional
+        Centre ``(x, y)`` [m]; None places it so that the start point is the origin.
+    start_angle : float or None, optional
+        Polar angle of the start point about the centre [rad]; None: the angle that
+        makes the curve head along +x at the origin (or 0 when a centre is given).
+    clockwise : bool, optional
+        Travel clockwise (turning right, kappa = -1/radius).
+
+    Raises
+    ------
+    ParameterError
+        If the radius is not positive, a number is not finite, or ``clockwise`` is not
+        a boolean.
     """
 
     radius: float = 1.2
@@ -536,6 +649,7 @@ class Circle(Path):
 
     @property
     def length(self) -> float:
+        """One lap, ``2 pi radius`` [m] (s itself runs on over any number of laps)."""
         return 2.0 * math.pi * self.radius
 
     def _circle(self, s: np.ndarray) -> PathPoint:
@@ -560,11 +674,39 @@ class Circle(Path):
         return self._circle_scalar(s)
 
     def default_span(self) -> tuple[float, float]:
+        """Return the first lap, ``(0, 2 pi radius)``, searched by :meth:`project`.
+
+        Returns
+        -------
+        tuple of float
+            ``(s_min, s_max)`` [m].
+        """
         return (0.0, self.length)
 
     def project(self, points: object, *, span: tuple[float, float] | None = None,
                 hint: object = None) -> np.ndarray:
-        """Closest point by the polar angle (exact); the lap nearest ``hint``, else the first."""
+        """Return the arc length of the closest point by the polar angle (exact).
+
+        Parameters
+        ----------
+        points : array_like, shape (..., 2)
+            Points [m].
+        span : tuple of float, optional
+            ``(s_min, s_max)`` [m]: the first lap at or after s_min, capped at s_max.
+        hint : float or array_like, optional
+            Arc length(s) near the answer: the lap nearest to it is chosen (this wins over
+            ``span``). Without either, the first lap.
+
+        Returns
+        -------
+        numpy.ndarray, shape points.shape[:-1]
+            Arc lengths [m].
+
+        Raises
+        ------
+        ParameterError
+            If the points are not a finite (..., 2) array.
+        """
         pts = np.asarray(points, dtype=float)
         if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
             raise ParameterError("points must be a finite (..., 2) array")
@@ -585,6 +727,25 @@ class Arc(_Finite, Circle):
     """A circular arc sweeping ``angle`` > 0 radians; straight beyond its ends.
 
     The other parameters and defaults are those of :class:`Circle`.
+
+    Parameters
+    ----------
+    radius : float, optional
+        Radius [m], > 0.
+    centre : tuple of float or None, optional
+        Centre ``(x, y)`` [m]; None places it so that the start point is the origin.
+    start_angle : float or None, optional
+        Polar angle of the start point about the centre [rad] (see :class:`Circle`).
+    clockwise : bool, optional
+        Travel clockwise (turning right).
+    angle : float, optional
+        Angle swept [rad], > 0 (pi/2 by default).
+
+    Raises
+    ------
+    ParameterError
+        If the radius or the angle is not positive, a number is not finite, or
+        ``clockwise`` is not a boolean.
     """
 
     angle: float = _HALF_PI
@@ -596,6 +757,7 @@ class Arc(_Finite, Circle):
 
     @property
     def length(self) -> float:
+        """Length of the arc, ``radius angle`` [m]."""
         return self.radius * self.angle
 
     def _inside(self, s: np.ndarray) -> PathPoint:
@@ -611,10 +773,38 @@ class Arc(_Finite, Circle):
         return _Finite._scalar(self, s)
 
     def default_span(self) -> tuple[float, float]:
+        """Return the arc with a margin at each end (as :meth:`Path.default_span`).
+
+        Returns
+        -------
+        tuple of float
+            ``(s_min, s_max)`` [m].
+        """
         return Path.default_span(self)
 
     def project(self, points: object, *, span: tuple[float, float] | None = None,
                 hint: object = None) -> np.ndarray:
+        """Return the arc length of the closest point, the arc's straight ends included.
+
+        Parameters
+        ----------
+        points : array_like, shape (..., 2)
+            Points [m].
+        span : tuple of float, optional
+            ``(s_min, s_max)`` searched [m]; default :meth:`default_span`.
+        hint : float or array_like, optional
+            Arc lengths near the answer (see :meth:`Path.project`).
+
+        Returns
+        -------
+        numpy.ndarray, shape points.shape[:-1]
+            Arc lengths [m].
+
+        Raises
+        ------
+        ParameterError
+            As :meth:`Path.project`.
+        """
         return Path.project(self, points, span=span, hint=hint)
 
 
@@ -655,7 +845,26 @@ class LaneChange(_GraphCurve):
     """Straight along +x for ``start``, an S of ``length`` to the line y = ``offset``, straight on.
 
     In the frame at ``origin`` rotated by ``direction``; ``offset`` > 0 moves left. The S is
-    y = offset P(x / length) with the septic smootherstep P (C3 joins, see the module).
+    ``y = offset P(x / length)`` with the septic smootherstep P (C3 joins, see the module).
+
+    Parameters
+    ----------
+    offset : float, optional
+        Lateral shift [m], left positive.
+    length_x : float, optional
+        Longitudinal length of the S [m], > 0 (``length`` in :func:`make_path` and in
+        path files).
+    start : float, optional
+        Straight lead-in before the S [m], >= 0.
+    origin : tuple of float, optional
+        Start point ``(x, y)`` [m].
+    direction : float, optional
+        Heading of the lead-in [rad].
+
+    Raises
+    ------
+    ParameterError
+        If a number is not finite or out of its range.
     """
 
     offset: float = 0.3
@@ -692,6 +901,13 @@ class LaneChange(_GraphCurve):
         return self._table.total
 
     def default_span(self) -> tuple[float, float]:
+        """Return the arc lengths searched by :meth:`project`: the S and 2 m beyond it.
+
+        Returns
+        -------
+        tuple of float
+            ``(-1, max(DEFAULT_EXTENT, start + S length + 2))`` [m].
+        """
         return (-1.0, max(DEFAULT_EXTENT, self.start + self.s_length + 2.0))
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
@@ -729,7 +945,23 @@ class LaneChange(_GraphCurve):
 
 @dataclass(frozen=True)
 class Sinusoid(_GraphCurve):
-    """y = amplitude sin(2 pi x / wavelength) in the frame at ``origin``, turned by ``direction``.
+    """The curve ``y = amplitude sin(2 pi x / wavelength)`` in a frame at ``origin``.
+
+    Parameters
+    ----------
+    amplitude : float, optional
+        Amplitude [m] (negative: starts turning right).
+    wavelength : float, optional
+        Wavelength [m], > 0.
+    origin : tuple of float, optional
+        Start point ``(x, y)`` [m].
+    direction : float, optional
+        Angle of the frame's x axis [rad].
+
+    Raises
+    ------
+    ParameterError
+        If a number is not finite or the wavelength is not positive.
     """
 
     amplitude: float = 0.2
@@ -778,6 +1010,19 @@ class Waypoints(_Finite):
 
     Chord-length parameter u (cumulative distances between consecutive points); the
     curve is straight beyond the first and last points (zero curvature there).
+    ``knots_s`` holds the arc length of each waypoint.
+
+    Parameters
+    ----------
+    points : sequence of (float, float)
+        Waypoints ``[[x, y], ...]`` [m], at least two and at most :data:`MAX_WAYPOINTS`,
+        consecutive ones distinct.
+
+    Raises
+    ------
+    ParameterError
+        If there are fewer than two waypoints or too many, one is not finite, two
+        consecutive ones coincide, or the spline has a cusp or turns too sharply.
     """
 
     points: tuple[tuple[float, float], ...] = field(default=())
@@ -826,6 +1071,7 @@ class Waypoints(_Finite):
 
     @property
     def length(self) -> float:
+        """Arc length of the spline from the first to the last waypoint [m]."""
         return self._table.total
 
     def _inside(self, s: np.ndarray) -> PathPoint:
@@ -889,12 +1135,26 @@ def _waypoints(points: object) -> np.ndarray:
 # -------------------------------------------------------------------------- timing
 @dataclass(frozen=True)
 class Timing:
-    """s(t): constant ``speed`` from arc length ``start``, after an optional smooth start.
+    """The timing law s(t): constant ``speed`` from arc length ``start``, after a smooth start.
 
-    With ``ramp`` = T > 0 the speed rises from 0 to v over 0 <= t <= T as
-    v sigma(t / T), sigma(u) = 10 u^3 - 15 u^4 + 6 u^5 (so s'' is continuous), then
-    s = start + v (t - T / 2). Before t = 0 the reference waits at ``start`` (with a ramp)
-    or extends the line backwards (without).
+    With ``ramp`` = T > 0 the speed rises from 0 to v over ``0 <= t <= T`` as
+    ``v sigma(t / T)``, ``sigma(u) = 10 u^3 - 15 u^4 + 6 u^5`` (so s'' is continuous),
+    then ``s = start + v (t - T / 2)``. Before t = 0 the reference waits at ``start`` (with
+    a ramp) or extends the line backwards (without).
+
+    Parameters
+    ----------
+    speed : float, optional
+        Cruising speed v [m/s], > 0.
+    ramp : float, optional
+        Duration T of the smooth start [s], >= 0 (0: none).
+    start : float, optional
+        Arc length at t = 0 [m].
+
+    Raises
+    ------
+    ParameterError
+        If a number is not finite, the speed is not positive or the ramp is negative.
     """
 
     speed: float = 0.1
@@ -907,7 +1167,18 @@ class Timing:
         object.__setattr__(self, "start", _number(self.start, "start"))
 
     def __call__(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(s, s', s'') at time(s) t."""
+        """Return (s, s', s'') at time(s) t.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+
+        Returns
+        -------
+        s, ds, dds : numpy.ndarray, shape t.shape
+            Arc length [m], speed [m/s] and acceleration [m/s^2].
+        """
         t_arr = np.asarray(t, dtype=float)
         v, big_t = self.speed, self.ramp
         if big_t == 0.0:
@@ -921,7 +1192,18 @@ class Timing:
         return self.start + s, ds, dds
 
     def scalar(self, t: float) -> tuple[float, float, float]:
-        """(s, s', s'') at one time t, in plain floats."""
+        """Return (s, s', s'') at one time t, in plain floats (the controllers' hot path).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        s, ds, dds : float
+            Arc length [m], speed [m/s] and acceleration [m/s^2].
+        """
         v, big_t = self.speed, self.ramp
         if big_t == 0.0:
             return self.start + v * t, v, 0.0
@@ -941,10 +1223,15 @@ class PathReference:
 
     Parameters
     ----------
-    path
+    path : Path
         The curve.
-    timing
+    timing : Timing or None, optional
         s(t); default :class:`Timing` (0.1 m/s from s = 0, no ramp).
+
+    Raises
+    ------
+    ParameterError
+        If ``path`` is not a :class:`Path` or ``timing`` not a :class:`Timing`.
     """
 
     def __init__(self, path: Path, timing: Timing | None = None) -> None:
@@ -964,10 +1251,26 @@ class PathReference:
         return self.path.name
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(w_r, w_r', w_r'') at time t (fresh arrays: callers may modify them).
+        """Return (w_r, w_r', w_r'') at time t (fresh arrays: callers may modify them).
 
         One float at a time through plain-float code (the controllers call this every
         step); :meth:`at` is the vectorised form and agrees with it to round-off.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        w_r, dw_r, ddw_r : numpy.ndarray, shape (3,)
+            ``[x_h, y_h, theta_1]`` reference [m, m, rad] and its first and second time
+            derivatives.
+
+        Raises
+        ------
+        ParameterError
+            If ``t`` is not finite.
         """
         t = float(t)
         if not math.isfinite(t):
@@ -982,7 +1285,23 @@ class PathReference:
                           dkappa * ds * ds + kappa * dds]))
 
     def at(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(w_r, w_r', w_r'') at many times: arrays of shape t.shape + (3,)."""
+        """Return (w_r, w_r', w_r'') at many times (vectorised :meth:`__call__`).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times [s], any shape.
+
+        Returns
+        -------
+        w_r, dw_r, ddw_r : numpy.ndarray, shape t.shape + (3,)
+            ``[x_h, y_h, theta_1]`` reference [m, m, rad] and its time derivatives.
+
+        Raises
+        ------
+        ParameterError
+            If a time is not finite.
+        """
         t_arr = np.asarray(t, dtype=float)
         if not np.all(np.isfinite(t_arr)):
             raise ParameterError("times must be finite")
@@ -1000,11 +1319,30 @@ class PathReference:
 # ---------------------------------------------------------------- distance to a path
 def cross_track_error(path: Path | PathReference, points: object, *,
                       span: tuple[float, float] | None = None) -> np.ndarray:
-    """Signed distance from each point to the path [m], positive on the left.
+    """Return the signed distance from each point to the path, positive on the left.
 
-    ``points`` is a (..., 2) array; the closest point is searched over ``span`` (see
-    :meth:`Path.project`). Where the closest point is an end of the span, the distance to
-    it is returned, signed by the side of the tangent there.
+    The closest point is searched over ``span`` (see :meth:`Path.project`). Where the
+    closest point is an end of the span, the distance to it is returned, signed by the
+    side of the tangent there.
+
+    Parameters
+    ----------
+    path : Path or PathReference
+        The curve (a reference's own path).
+    points : array_like, shape (..., 2)
+        Points [m], e.g. the head positions ``traj.q[:, :2]`` of a run.
+    span : tuple of float, optional
+        ``(s_min, s_max)`` searched [m]; default the path's :meth:`Path.default_span`.
+
+    Returns
+    -------
+    numpy.ndarray, shape points.shape[:-1]
+        Signed distances [m].
+
+    Raises
+    ------
+    ParameterError
+        If the points are not a finite (..., 2) array or the span is invalid.
     """
     curve = path.path if isinstance(path, PathReference) else path
     pts = np.asarray(points, dtype=float)
@@ -1017,7 +1355,27 @@ def cross_track_error(path: Path | PathReference, points: object, *,
 
 def along_track(path: Path | PathReference, points: object, *,
                 span: tuple[float, float] | None = None) -> np.ndarray:
-    """Arc length of the closest point of the path to each point [m] (see :meth:`Path.project`)."""
+    """Return the arc length of the closest point of the path to each point.
+
+    Parameters
+    ----------
+    path : Path or PathReference
+        The curve (a reference's own path).
+    points : array_like, shape (..., 2)
+        Points [m].
+    span : tuple of float, optional
+        ``(s_min, s_max)`` searched [m]; default the path's :meth:`Path.default_span`.
+
+    Returns
+    -------
+    numpy.ndarray, shape points.shape[:-1]
+        Arc lengths [m] (see :meth:`Path.project`).
+
+    Raises
+    ------
+    ParameterError
+        If the points are not a finite (..., 2) array or the span is invalid.
+    """
     curve = path.path if isinstance(path, PathReference) else path
     return curve.project(points, span=span)
 
@@ -1034,22 +1392,42 @@ _TIMING_KEYS = ("speed", "ramp")
 
 def _shape_keys(name: str) -> tuple[str, ...]:
     renamed = {v: k for k, v in _RENAMED.get(name, {}).items()}
+    # every shape is a dataclass, but the dict's value type (type[Path]) cannot say so
     return tuple(renamed.get(f.name, f.name) for f in fields(_SHAPES[name])  # type: ignore[arg-type]
                  if f.init)
 
 
 def make_path(name: str, **params: Any) -> Path:
-    """The shape ``name`` (one of :data:`PATH_NAMES`) with its parameters.
+    """Return the shape ``name`` (one of :data:`PATH_NAMES`) with its parameters.
 
-    Parameters (defaults start at the origin heading along +x):
+    Parameters
+    ----------
+    name : str
+        ``"line"``, ``"circle"``, ``"arc"``, ``"lane_change"``, ``"sinusoid"`` or
+        ``"waypoints"``.
+    **params
+        The shape's parameters (defaults start at the origin heading along +x; lengths
+        in m, angles in rad):
 
-    - ``line``: ``start`` [x, y], ``direction`` [rad];
-    - ``circle``: ``radius`` (1.2), ``centre`` [x, y], ``start_angle`` [rad], ``clockwise``;
-    - ``arc``: as circle, plus ``angle`` (the sweep, pi/2);
-    - ``lane_change``: ``offset`` (0.3, left positive), ``length`` (2.0), ``start`` (0.5),
-      ``origin``, ``direction``;
-    - ``sinusoid``: ``amplitude`` (0.2), ``wavelength`` (2.0), ``origin``, ``direction``;
-    - ``waypoints``: ``points`` [[x, y], ...].
+        - ``line``: ``start`` [x, y], ``direction``;
+        - ``circle``: ``radius`` (1.2), ``centre`` [x, y], ``start_angle``, ``clockwise``;
+        - ``arc``: as circle, plus ``angle`` (the sweep, pi/2);
+        - ``lane_change``: ``offset`` (0.3, left positive), ``length`` (2.0), ``start``
+          (0.5), ``origin``, ``direction``;
+        - ``sinusoid``: ``amplitude`` (0.2), ``wavelength`` (2.0), ``origin``,
+          ``direction``;
+        - ``waypoints``: ``points`` [[x, y], ...] (required).
+
+    Returns
+    -------
+    Path
+        The validated shape.
+
+    Raises
+    ------
+    ParameterError
+        If the name is unknown, a parameter is unknown to the shape, ``points`` is
+        missing for waypoints, or a value is out of its domain.
     """
     if not isinstance(name, str) or name not in _SHAPES:
         raise ParameterError(f"unknown path {_short(name)}: expected one of "
@@ -1151,18 +1529,23 @@ def _any_number(cells: list[str]) -> bool:
 
 def load_path(spec: str | os.PathLike[str] | Path | PathReference,
               **params: Any) -> PathReference:
-    """A head reference from a shape name and its parameters, or from a path file.
+    """Return a head reference from a shape name and its parameters, or from a path file.
 
     Parameters
     ----------
-    spec
+    spec : str or os.PathLike or Path or PathReference
         One of :data:`PATH_NAMES` (parameters in ``params``, see :func:`make_path`), a
         ``.toml`` or ``.csv`` path file (see the module docstring), a :class:`Path`, or a
         :class:`PathReference` (returned as is when no parameter is given).
-    params
+    **params
         Shape parameters and the timing's ``speed`` [m/s] (default 0.1) and ``ramp`` [s]
         (default 0). With a file, these override the file's values (e.g. a speed given
         on the command line).
+
+    Returns
+    -------
+    PathReference
+        The path with its timing; calling it at t gives ``(w_r, w_r', w_r'')``.
 
     Raises
     ------
