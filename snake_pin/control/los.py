@@ -1,68 +1,73 @@
 """Line-of-sight (LOS) path following of the centre of mass: the field's baseline law.
 
-After Liljebäck, Pettersen, Stavdahl and Gravdahl, *Snake Robots: Modelling,
-Mechatronics, and Control* (Springer, 2013) and Liljebäck, Haugstuen and Pettersen, "Path
-following control of planar snake robots using a cascaded approach" (IEEE Trans. Control
-Systems Technology 20(1), 2012). The law does not track a head trajectory: it steers the
-whole body so that its centre of mass (CM) converges to a path and moves along it at
-whatever speed the gait gives.
+After Liljebäck, Pettersen, Stavdahl and Gravdahl,
+*Snake Robots: Modelling, Mechatronics, and Control* (Springer, 2013) and Liljebäck,
+Haugstuen and Pettersen, "Path following control of planar snake robots using a cascaded
+approach" (IEEE Trans. Control Systems Technology 20(1), 2012). The law does not track a
+head trajectory: it steers the whole body so that its centre of mass (CM) converges to a
+path and moves along it at whatever speed the gait gives.
 
 The primary texts were not at hand here; the law below is the book's cascaded law as it
 is stated there and coded in public reimplementations (the same terms, filter and the
 book's simulation constants lambda_1 = 0.5, lambda_2 = 20 for its robot), re-derived in
-this package's conventions.
+this package's conventions. States are ``x = [q, dq]`` (length 2(n + 2)) with the paper's
+``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
 
 Structure
 ---------
-1. **Gait with a steering offset** (lateral undulation). The joint references are
+1. **Gait with a steering offset** (lateral undulation). The joint references are::
 
        phi_ref,i(t) = alpha sin(omega t - (i - 1) delta) + phi_0,   i = 1 .. n - 1.
 
    Our joints are numbered from the head (the book numbers links from the tail and writes
-   + (i - 1) delta); with ``- (i - 1) delta`` the wave runs from head to tail, as it must
+   ``+ (i - 1) delta``); with ``- (i - 1) delta`` the wave runs from head to tail, as it must
    for the head to lead. A constant offset phi_0 bends the body into an arc on average
    and so turns it.
 
 2. **LOS guidance.** With the CM at signed cross-track distance e (left of the path
-   positive) from its closest path point s*, the desired heading is
+   positive) from its closest path point ``s*``, the desired heading is::
 
        theta_los = gamma_p(s*) - atan(e / Delta),
 
    gamma_p the path's tangent angle and Delta > 0 the look-ahead distance. For the book's
-   straight path along x this is theta_ref = -atan(p_y / Delta). theta_los is passed
-   through the third-order low-pass reference filter omega_c^3 / ((s + omega_c)
-   (s^2 + 2 zeta omega_c s + omega_c^2)) (zeta = 1, omega_c = 2 pi / ``ref_period``)
-   that gives the smooth theta_ref and its derivatives theta_ref', theta_ref'' the
-   heading law needs.
+   straight path along x this is ``theta_ref = -atan(p_y / Delta)``. theta_los is passed
+   through the third-order low-pass reference filter
+   ``omega_c^3 / ((s + omega_c) (s^2 + 2 zeta omega_c s + omega_c^2))`` (zeta = 1,
+   ``omega_c = 2 pi / ref_period``) that gives the smooth theta_ref and its derivatives
+   theta_ref', theta_ref'' the heading law needs.
 
 3. **Heading control** of the body's mean heading. In our coordinates theta_i points from
    the front of link i to its back (head to tail), so the direction of travel of a
-   head-first snake is psi = (1 / n) sum theta_i + pi (the book's theta_bar). Two laws:
+   head-first snake is ``psi = (1 / n) sum theta_i + pi`` (the book's theta_bar). Two laws:
 
    - ``steering = "cascaded"`` (default), the published model-based law. The book's
-     averaged model of the turning motion is theta_bar'' = -lambda_1 theta_bar'
-     + (lambda_2 / (n - 1)) v_t sum phi_i, with v_t the forward speed and lambda_1,
-     lambda_2 > 0 empirical constants. In our convention (phi_i = theta_{i+1} - theta_i,
-     head first) a positive joint offset bends the head clockwise relative to the tail,
-     so it turns the snake to the right: psi'' = -lambda_1 psi' - (lambda_2 / (n - 1))
-     v_t sum phi_i. Choosing
+     averaged model of the turning motion is
+     ``theta_bar'' = -lambda_1 theta_bar' + (lambda_2 / (n - 1)) v_t sum phi_i``, with v_t
+     the forward speed and lambda_1, lambda_2 > 0 empirical constants. In our convention
+     (``phi_i = theta_{i+1} - theta_i``, head first) a positive joint offset bends the
+     head clockwise relative to the tail, so it turns the snake to the right:
+     ``psi'' = -lambda_1 psi' - (lambda_2 / (n - 1)) v_t sum phi_i``. Choosing::
 
          phi_0 = -(theta_ref'' + lambda_1 theta_ref' + k_theta (theta_ref - psi))
                  / (lambda_2 v_t) - (1 / (n - 1)) sum_i alpha sin(omega t - (i - 1) delta)
 
      cancels the gait's own mean bending and makes the averaged heading error
-     e_psi = psi - theta_ref obey e_psi'' + lambda_1 e_psi' + k_theta e_psi = 0
+     ``e_psi = psi - theta_ref`` obey ``e_psi'' + lambda_1 e_psi' + k_theta e_psi = 0``
      (exponentially stable for k_theta > 0). This is the book's law with the sign of
-     phi_0 flipped by the convention (published: phi_0 = (1 / (lambda_2 v_t))
-     (theta_ref'' + lambda_1 theta_ref' - k_theta (theta_bar - theta_ref))
-     - (1 / (N - 1)) sum alpha sin(omega t + (i - 1) delta)). v_t is the model's
+     phi_0 flipped by the convention; the published law reads::
+
+         phi_0 = (1 / (lambda_2 v_t)) (theta_ref'' + lambda_1 theta_ref'
+                  - k_theta (theta_bar - theta_ref))
+                 - (1 / (N - 1)) sum alpha sin(omega t + (i - 1) delta)
+
+     v_t is the model's
      *averaged* forward speed: here the CM velocity along psi, low-pass filtered over
      one gait period (``speed_period``), floored at ``v_min`` (the published analysis
      assumes v_t > 0). With the instantaneous v_t, which nearly vanishes twice per gait
      cycle, 1 / v_t saturated phi_0 in bursts and the body curled up on the circle test
      (0.15-0.6 m RMS cross-track error instead of 0.03 m).
    - ``steering = "pd"``: the simpler form the same authors use in experiments,
-     phi_0 = -(k_p (theta_ref - psi) + k_d (theta_ref' - psi')), needing no model
+     ``phi_0 = -(k_p (theta_ref - psi) + k_d (theta_ref' - psi'))``, needing no model
      constants. Without the theta_ref' feedforward it keeps a steady error on curves.
 
    Either way phi_0 is saturated at +-``phi0_max``, rate-limited to ``phi0_rate`` (from
@@ -70,18 +75,19 @@ Structure
    third-order filter (``offset_period``) whose derivatives feed the joint references'
    phi_ref', phi_ref''. The rate limit is this implementation's: bending the whole body
    at once is expensive against c_y = 25 N s/m (phi_0 swept at 0.5 rad/s took 10 N m,
-   against 0.1 N m for the gait alone). theta_ref - psi is wrapped to (-pi, pi].
+   against 0.1 N m for the gait alone). ``theta_ref - psi`` is wrapped to ``(-pi, pi]``.
 
 4. **Joint control: feedback linearisation of the actuated joints** (collocated partial
    feedback linearisation, the same structure the PFL controller uses for its joints).
    Split q into actuated joints a and the rest u (base and passive joints). From
-   H q'' + h = E tau, the u rows give q_u'' = -H_uu^-1 (H_ua q_a'' + h_u); substituting
-   into the a rows,
+   ``H q'' + h = E tau``, the u rows give ``q_u'' = -H_uu^-1 (H_ua q_a'' + h_u)``;
+   substituting into the a rows::
 
        tau_a = (H_aa - H_au H_uu^-1 H_ua) v + h_a - H_au H_uu^-1 h_u
 
-   makes q_a'' = v exactly, with v = phi_ref'' + k_d (phi_ref' - phi') + k_p (phi_ref - phi)
-   (the book's joint law on its simplified model, here through the full model).
+   makes ``q_a'' = v`` exactly, with
+   ``v = phi_ref'' + k_d (phi_ref' - phi') + k_p (phi_ref - phi)`` (the book's joint law on
+   its simplified model, here through the full model).
 
 Parameters and their defaults (:class:`LOSParams`)
 --------------------------------------------------
@@ -94,7 +100,7 @@ Chosen for the Table 1 robot with c_x = 0.5, c_y = 25 N s/m
   0.13-0.14 m/s at omega = 1.1, 0.19 m/s at omega = 2 without steering);
 - lambda_1 = 20 /s, lambda_2 = 186 /(m s): open-loop runs with constant offsets
   (phi_0 = +-0.1, 0.1 then -0.05) fitted to the averaged model give a turning rate
-  psi' = -(lambda_2 / lambda_1) v_t phi_bar with lambda_2 / lambda_1 = 9.3 /m at
+  ``psi' = -(lambda_2 / lambda_1) v_t phi_bar`` with lambda_2 / lambda_1 = 9.3 /m at
   omega = 1, 1.5 and 2 rad/s (e.g. psi' = -0.169 rad/s at phi_0 = 0.1, v_t = 0.181 m/s);
   lambda_1 itself is poorly determined (15-50 /s: with c_y = 25 the heading settles
   within a fraction of a second), 20 /s fits to 1.3 mrad/s RMS;
@@ -139,30 +145,39 @@ _STEERING = ("cascaded", "pd")
 class LOSParams:
     """Parameters of :class:`LOSController` (validated; one ParameterError line each).
 
-    Attributes
+    Parameters
     ----------
-    alpha, omega, delta
-        Gait amplitude [rad], temporal frequency [rad/s], phase lag between joints [rad].
-    look_ahead
+    alpha, omega, delta : float, optional
+        Gait amplitude [rad] (>= 0), temporal frequency [rad/s] (> 0), phase lag between
+        joints [rad].
+    look_ahead : float, optional
         LOS look-ahead distance Delta [m] (> 0).
-    steering
-        "cascaded" (the published model-based heading law) or "pd".
-    k_theta
-        Heading gain of the cascaded law [1/s^2].
-    lambda1, lambda2
-        Turning constants of the averaged model [1/s], [1/(m s)] (cascaded law).
-    v_min
-        Floor of the (averaged) forward speed in the cascaded law [m/s].
-    k_p, k_d
-        Gains of the PD steering law [rad/rad], [rad s/rad].
-    phi0_max, phi0_rate
-        Saturation of the joint offset [rad] and of its rate of change [rad/s].
-    ref_period, offset_period
-        Periods 2 pi / omega_c of the reference filters on theta_ref and phi_0 [s].
-    speed_period
-        Period of the filter averaging v_t over the gait [s]; 0: one gait period 2 pi / omega.
-    k_joint_p, k_joint_d
-        Joint gains of the feedback-linearised joint law [1/s^2], [1/s].
+    steering : {"cascaded", "pd"}, optional
+        The published model-based heading law, or the PD law.
+    k_theta : float, optional
+        Heading gain of the cascaded law [1/s^2] (> 0).
+    lambda1, lambda2 : float, optional
+        Turning constants of the averaged model [1/s], [1/(m s)] (cascaded law; > 0).
+    v_min : float, optional
+        Floor of the (averaged) forward speed in the cascaded law [m/s] (> 0).
+    k_p, k_d : float, optional
+        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0).
+    phi0_max, phi0_rate : float, optional
+        Saturation of the joint offset [rad] and of its rate of change [rad/s] (> 0).
+    ref_period, offset_period : float, optional
+        Periods ``2 pi / omega_c`` of the reference filters on theta_ref and phi_0 [s]
+        (> 0).
+    speed_period : float, optional
+        Period of the filter averaging v_t over the gait [s]; 0: one gait period
+        ``2 pi / omega``.
+    k_joint_p, k_joint_d : float, optional
+        Joint gains of the feedback-linearised joint law [1/s^2], [1/s] (> 0).
+
+    Raises
+    ------
+    ParameterError
+        If a value is not a finite number, is out of its range, or ``steering`` is
+        unknown.
     """
 
     alpha: float = 0.5
@@ -208,16 +223,45 @@ class LOSParams:
 
 
 def los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
-    """LOS guidance angle theta_los = gamma - atan(e / Delta) (e left of the path positive)."""
+    """Return the LOS guidance angle ``theta_los = gamma - atan(e / Delta)``.
+
+    Parameters
+    ----------
+    gamma : float
+        Tangent angle of the path at the closest point [rad].
+    cross_track : float
+        Cross-track error e [m], left of the path positive.
+    look_ahead : float
+        Look-ahead distance Delta [m], > 0.
+
+    Returns
+    -------
+    float
+        The desired heading of travel [rad].
+    """
     return gamma - math.atan(cross_track / look_ahead)
 
 
 def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """(p_cm, p_cm', psi, psi') at state x = [q, dq]: the CM and the mean heading of travel.
+    """Return the centre of mass and the mean heading of travel at a state.
 
-    psi = mean(theta_i) + pi is the direction from tail to head averaged over the links
-    (theta_i points from the head towards the tail in the paper's coordinates); theta_i
-    is theta_1 plus the joint angles before link i, so psi is continuous in time.
+    ``psi = mean(theta_i) + pi`` is the direction from tail to head averaged over the
+    links (theta_i points from the head towards the tail in the paper's coordinates);
+    theta_i is theta_1 plus the joint angles before link i, so psi is continuous in time.
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot (its link masses, lengths and CM offsets).
+    x : numpy.ndarray, shape (2(n + 2),)
+        State ``x = [q, dq]`` (not validated).
+
+    Returns
+    -------
+    p_cm, v_cm : numpy.ndarray, shape (2,)
+        Position [m] and velocity [m/s] of the whole robot's centre of mass.
+    psi, dpsi : float
+        Mean heading of travel [rad] and its rate [rad/s].
     """
     return _kinematics(_cm_lever(snake), snake.nq, x)
 
@@ -249,10 +293,17 @@ def _kinematics(lever: np.ndarray, nq: int, x: np.ndarray
 class ReferenceFilter:
     """Third-order low-pass reference filter giving a signal and its two derivatives.
 
-    y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2)), zeta = 1,
-    omega_c = 2 pi / period: state z = [y, y', y''] with z' = F z + b r. Each
+    ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2))`` with
+    ``omega_c = 2 pi / period``: state ``z = [y, y', y'']`` with ``z' = F z + b r``. Each
     :meth:`update` holds the new input over the elapsed time and steps the state exactly
     (matrix exponential, cached per step length).
+
+    Parameters
+    ----------
+    period : float
+        ``2 pi / omega_c`` [s], > 0 (not validated: :class:`LOSParams` checks it).
+    zeta : float, optional
+        Damping ratio of the second-order factor (1: critically damped).
     """
 
     def __init__(self, period: float, zeta: float = 1.0) -> None:
@@ -267,11 +318,30 @@ class ReferenceFilter:
         self.state: np.ndarray | None = None
 
     def reset(self, value: float | None = None) -> None:
-        """Start at rest at ``value`` on the next update (None: at that update's input)."""
+        """Start at rest at ``value`` on the next update.
+
+        Parameters
+        ----------
+        value : float or None, optional
+            Initial output; None starts at rest at the next update's input.
+        """
         self.state = None if value is None else np.array([value, 0.0, 0.0])
 
     def update(self, r: float, dt: float) -> np.ndarray:
-        """Advance by ``dt`` with input r held; returns [y, y', y''] (a fresh array)."""
+        """Advance by ``dt`` with the input ``r`` held over the step.
+
+        Parameters
+        ----------
+        r : float
+            Filter input over the step.
+        dt : float
+            Step length [s]; 0 returns the current state.
+
+        Returns
+        -------
+        numpy.ndarray, shape (3,)
+            ``[y, y', y'']`` (a fresh array).
+        """
         if self.state is None:
             self.state = np.array([r, 0.0, 0.0])
             return self.state.copy()
@@ -288,16 +358,27 @@ class ReferenceFilter:
 class LOSController(Controller):
     """CM path following by LOS guidance and a steered serpenoid (Liljebäck et al.).
 
+    Called with a state ``x = [q, dq]`` (length 2(n + 2)) and a time t [s], it returns
+    the n - 1 joint torques [N m] (zero on passive joints).
+
     Parameters
     ----------
-    snake
+    snake : Snake
         The plant (passive joints get no torque; the gait still asks them to move).
-    path
+    path : Path or PathReference or None, optional
         The path for the CM: a :class:`~snake_pin.paths.Path`, or a
         :class:`~snake_pin.paths.PathReference` (its timing is ignored: the law has no
         timing, the gait sets the speed). Default: the x axis.
-    params
+    params : LOSParams or None, optional
         :class:`LOSParams`; keyword overrides may be given instead or on top.
+    **overrides
+        Fields of :class:`LOSParams` to change (e.g. ``look_ahead=1.2``).
+
+    Raises
+    ------
+    ParameterError
+        If every joint is passive, ``params`` is not a :class:`LOSParams`, an override
+        is unknown or out of its domain, or ``path`` is not a path.
     """
 
     name = "los"
@@ -338,6 +419,7 @@ class LOSController(Controller):
         self.reset()
 
     def reset(self) -> None:
+        """Forget the filters, the tracked path point and the offset before a new run."""
         self._t_last: float | None = None
         self._s_cm: float | None = None
         self._raw_last = 0.0
@@ -349,17 +431,41 @@ class LOSController(Controller):
 
     # ---------------------------------------------------------------- the law
     def gait(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(phi, phi', phi'') of the undulation without offset at time t."""
+        """Return the undulation without offset at time t.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
+            ``alpha sin(omega t - (i - 1) delta)`` [rad] and its first two time
+            derivatives.
+        """
         p = self.params
         phase = p.omega * t - self._lags
         sine = np.sin(phase)
         return p.alpha * sine, p.alpha * p.omega * np.cos(phase), -p.alpha * p.omega**2 * sine
 
     def guidance(self, x: np.ndarray) -> dict[str, float]:
-        """LOS quantities at state x: e_ct, s_cm, theta_los, theta_avg (psi), dtheta_avg, v_t.
+        """Return the LOS quantities at state x.
 
         Tracks the CM's closest path point from the previous call's (a global search on
         the first call after :meth:`reset`).
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (2(n + 2),)
+            State ``x = [q, dq]``.
+
+        Returns
+        -------
+        dict of str to float
+            ``e_ct`` (CM cross-track error [m]), ``s_cm`` (arc length of its closest path
+            point [m]), ``theta_los`` [rad], ``theta_avg`` (psi [rad]), ``dtheta_avg``
+            [rad/s] and ``v_t`` (CM speed along psi [m/s]).
         """
         p_cm, v_cm, psi, dpsi = _kinematics(self._lever, self.snake.nq, x)
         path = self.path
@@ -376,7 +482,23 @@ class LOSController(Controller):
                 "theta_avg": psi, "dtheta_avg": dpsi, "v_t": v_t}
 
     def steering_offset(self, t: float, g: dict[str, float], ref: np.ndarray) -> float:
-        """phi_0 commanded by the heading law (before saturation and filtering)."""
+        """Return the joint offset phi_0 the heading law asks for (before saturation and filtering).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        g : dict of str to float
+            :meth:`guidance`'s quantities plus ``v_avg``, the averaged forward speed
+            [m/s].
+        ref : numpy.ndarray, shape (3,)
+            Filtered ``[theta_ref, theta_ref', theta_ref'']``.
+
+        Returns
+        -------
+        float
+            phi_0 [rad].
+        """
         p = self.params
         error = (ref[0] - g["theta_avg"] + math.pi) % (2.0 * math.pi) - math.pi
         if p.steering == "pd":
@@ -389,7 +511,26 @@ class LOSController(Controller):
 
     def joint_torques(self, x: np.ndarray, phi_r: np.ndarray, dphi_r: np.ndarray,
                       ddphi_r: np.ndarray) -> np.ndarray:
-        """tau (n - 1) making the actuated joints follow v = phi_r'' + k_d e' + k_p e exactly."""
+        """Return the torques making the actuated joints follow ``v = phi_r'' + k_d e' + k_p e``.
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (2(n + 2),)
+            State ``x = [q, dq]``.
+        phi_r, dphi_r, ddphi_r : numpy.ndarray, shape (n - 1,)
+            Joint references [rad] and their first two time derivatives.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n - 1,)
+            Joint torques tau [N m] (zero on passive joints); the plant's q'' under them
+            is kept for :meth:`plant_acceleration`.
+
+        Raises
+        ------
+        SingularPostureError
+            If ``H_uu`` is not positive definite (LAPACK's Cholesky fails).
+        """
         snake, nq, p = self.snake, self.snake.nq, self.params
         v = ddphi_r + p.k_joint_d * (dphi_r - x[nq + 3:]) + p.k_joint_p * (phi_r - x[3:nq])
         h_mat = snake.inertia_matrix(x[:nq])
@@ -431,8 +572,28 @@ class LOSController(Controller):
         return tau
 
     def signals(self) -> dict[str, float]:
+        """Return the diagnostics of the last call, recorded by the simulator.
+
+        Returns
+        -------
+        dict of str to float
+            ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg`` and
+            ``s_cm`` (see the module docstring); empty before the first call.
+        """
         return self._last
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """q'' under the last torque (exact by construction), if ``snake`` is the plant."""
+        """Return q'' under the last torque (exact by construction), if ``snake`` is the plant.
+
+        Parameters
+        ----------
+        snake : object
+            The robot the simulator integrates.
+
+        Returns
+        -------
+        numpy.ndarray of shape (n + 2,) or None
+            The acceleration [m/s^2, rad/s^2] at the last call's state, or None when
+            ``snake`` is not this controller's plant (the simulator then computes it).
+        """
         return self._ddq if snake is self.snake else None
