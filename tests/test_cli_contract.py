@@ -266,6 +266,19 @@ def test_every_command_refuses_a_bad_robot_in_one_line(capfd: pytest.CaptureFixt
         assert "mass" in line
 
 
+def test_reproduce_refuses_a_robot_its_engine_stage_cannot_put_on_wheels(
+        capfd: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """A robot file whose links are shorter than the engine's wheels: reproduce refuses it
+    in one line naming the stage and the robot, before any stage runs or folder exists."""
+    short = tmp_path / "short.toml"
+    short.write_text('name = "short"\nn = 6\n[links]\nlink_length = 0.05\nmass = 0.2\n'
+                     'inertia = 1e-4\n[friction]\nc_x = 0.5\nc_y = 5.0\n')
+    out = tmp_path / "report"
+    line = _usage_error(*_run(capfd, "reproduce", "--robot", str(short), "-o", str(out)))
+    assert "stage 'engine'" in line and "short" in line and "wheels" in line
+    assert not out.exists()
+
+
 def test_report_re_exports_the_json_functions() -> None:
     """snake_pin.report still offers json_safe/json_text (for older imports): the same
     functions as snake_pin._json."""

@@ -69,9 +69,10 @@ HONOURED: dict[str, frozenset[str]] = {
 }
 
 #: Stage -> the fewest links it can run with (joint 5 free or passive needs n >= 6, PFL
-#: needs three actuated joints).
+#: needs three actuated joints, the engine stage two beside its passive joint; a preset's
+#: engine stage runs the 8-link engine robot whatever n).
 MIN_LINKS: dict[str, int] = {"robot": 2, "manipulability": 6, "integrability": 2, "pfl": 4,
-                             "tracking": 6, "engine": 2}
+                             "tracking": 6, "engine": 4}
 
 _STAGING = re.compile(r"\.reproduce-(\d+)-\w+")
 _PARTIAL = "interrupted"
@@ -128,8 +129,9 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
     Raises
     ------
     ParameterError
-        A stage named in ``only`` does not exist, or the robot has fewer links than a
-        chosen stage needs (:data:`MIN_LINKS`); nothing is written.
+        A stage named in ``only`` does not exist, the robot has fewer links than a
+        chosen stage needs (:data:`MIN_LINKS`), or the engine stage's wheels do not fit
+        the robot; nothing is written.
     RunInterrupted
         On KeyboardInterrupt; ``partial`` is the index of the partial report (see the
         module docstring for where it is), the message says where and which stage.
@@ -142,7 +144,9 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
             raise ParameterError(f"unknown stage {name!r}; stages: {', '.join(names)}")
     chosen = [(name, fn) for name, fn in known if only is None or name in only]
     for name, _ in chosen:
-        if params.n < MIN_LINKS[name]:
+        if name == "engine":
+            _check_engine_robot(params)
+        elif params.n < MIN_LINKS[name]:
             raise ParameterError(f"stage {name!r} needs n >= {MIN_LINKS[name]} links, "
                                  f"got n = {params.n}")
     folder = Path(folder)
@@ -182,6 +186,23 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
         return folder / "index.html"
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _check_engine_robot(params: SnakeParams) -> None:
+    """The engine stage's robot has enough links and takes the default wheels (checked
+    before anything is written: a robot file's links may be too short for them)."""
+    from ..engine.model import WheelSpec, build_engine_model
+    from .engine import engine_robot
+
+    robot = engine_robot(params)
+    if robot.n < MIN_LINKS["engine"]:
+        raise ParameterError(f"stage 'engine' needs n >= {MIN_LINKS['engine']} links, "
+                             f"got n = {robot.n}")
+    try:
+        build_engine_model(robot, WheelSpec())
+    except ParameterError as exc:
+        raise ParameterError(f"stage 'engine' cannot put robot '{robot.name}' on its wheels: "
+                             f"{exc}") from None
 
 
 def _timing(report: Report, timings: dict[str, float]) -> None:
