@@ -24,24 +24,26 @@ other reference or gait object is called run by run.
 **The model terms over a batch** (:class:`BatchTerms`). Per run, the laws need H(q) and
 h(q, q') (torque level, PFL) or the friction matrix C(q) (velocity level), from the
 controller's own model. ``pin.computeMinverse`` has no batched form, so these come from
-the closed form of :mod:`snake_pin.paper`, vectorised over the batch. With theta = L
-[theta_1, phi] (eq. 17), c = cos theta, s = sin theta, a = m^T K (per-link masses m,
-K of eq. 4) and G = K^T diag(m) K (constant per layout):
+the closed form of :mod:`snake_pin.paper`, vectorised over the batch. With
+``theta = L [theta_1, phi]`` (eq. 17), ``c = cos theta``, ``s = sin theta``,
+``a = m^T K`` (per-link masses m, K of eq. 4) and ``G = K^T diag(m) K`` (constant per
+layout)::
 
     H-bar:  [0,0] = [1,1] = sum m,  [0, theta_j] = -a_j s_j,  [1, theta_j] = a_j c_j,
             [theta_i, theta_j] = G_ij cos(theta_i - theta_j) + delta_ij J_i
     W-bar (theta')^2:  x: -sum_j a_j c_j theta_j'^2,  y: -sum_j a_j s_j theta_j'^2,
             theta_i: sum_j G_ij sin(theta_i - theta_j) theta_j'^2
 
-and H = J_q^T H-bar J_q, Coriolis = J_q^T W-bar (theta')^2 (J_q = blockdiag(I_2, L):
-products with L are suffix sums). Friction follows :class:`snake_pin.friction.FrictionModel`'s
-complex-number route with per-run, per-link coefficients: with e_i = exp(j theta_i) and the
-CM velocities z_i, link i's world force is F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i). Its
-matrix C(q) is the same map applied to the unit velocities. The plant's q''
-(:meth:`BatchTerms.forward_dynamics`) is solved in q-bar coordinates with the head
-eliminated: one n x n solve of S = (G - a a^T / M) o cos(theta_i - theta_j) + diag(J) per
-run. ``tests/test_batch.py`` checks every term against Pinocchio on heterogeneous robots.
-A :class:`BatchTerms` remembers the last state array it saw, so the plant and the
+and ``H = J_q^T H-bar J_q``, ``Coriolis = J_q^T W-bar (theta')^2``
+(``J_q = blockdiag(I_2, L)``: products with L are suffix sums). Friction follows
+:class:`snake_pin.friction.FrictionModel`'s complex-number route with per-run, per-link
+coefficients: with ``e_i = exp(j theta_i)`` and the CM velocities z_i, link i's world force
+is ``F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i)``. Its matrix C(q) is the same map applied
+to the unit velocities. The plant's q'' (:meth:`BatchTerms.forward_dynamics`) is solved in
+q-bar coordinates with the head eliminated: one n x n solve of
+``S = (G - a a^T / M) o cos(theta_i - theta_j) + diag(J)`` per run.
+``tests/test_batch.py`` checks every term against Pinocchio on heterogeneous robots. A
+:class:`BatchTerms` remembers the last state array it saw, so the plant and the
 controllers of its layout share the terms at the sampled states.
 
 Solves are batched LU (``numpy.linalg.solve`` on (B, k, k)). A run whose solve fails or
@@ -55,10 +57,11 @@ velocity-level law zeroes a passive column and replaces its normal-equation row 
 identity with a zero right-hand side, which gives the reduced system's solution on the
 actuated joints and exactly 0 on the passive ones.
 
-Interface (:class:`BatchedController`): ``ctrl(x, t) -> (tau, failures)`` with x (m, 2(n +
-2)) the states of the m runs still going, tau (m, n - 1), and failures mapping a row to
-the exception (or the torque problem text) that stops that run; ``keep(rows)`` drops the
-runs that stopped; ``signals()`` gives per-row diagnostics of the last call (V, R).
+Interface (:class:`BatchedController`): ``ctrl(x, t) -> (tau, failures)`` with x of shape
+(m, 2(n + 2)) the states ``[q, dq]`` of the m runs still going, tau (m, n - 1) [N m], and
+failures mapping a row to the exception (or the torque problem text) that stops that run;
+``keep(rows)`` drops the runs that stopped; ``signals()`` gives per-row diagnostics of the
+last call (V, R).
 """
 
 from __future__ import annotations
@@ -105,7 +108,18 @@ Failure = BaseException | str
 
 
 def layout_key(params: SnakeParams) -> tuple[Any, ...]:
-    """The layout fields of ``params`` (equal for robots that share a Pinocchio model)."""
+    """Return the layout fields of ``params`` (equal for robots that share a Pinocchio model).
+
+    Parameters
+    ----------
+    params : SnakeParams
+        A robot.
+
+    Returns
+    -------
+    tuple
+        The values of :data:`LAYOUT_FIELDS`, in that order (hashable: a dict key).
+    """
     return tuple(getattr(params, name) for name in LAYOUT_FIELDS)
 
 
@@ -120,7 +134,7 @@ class BatchTerms:
 
     Parameters
     ----------
-    params
+    params : SnakeParams
         Any robot of the layout (only the fields of :data:`LAYOUT_FIELDS` are used).
     """
 
@@ -192,7 +206,18 @@ class BatchTerms:
         return out
 
     def inertia(self, x: np.ndarray) -> np.ndarray:
-        """H(q) = J_q^T H-bar J_q for each state: (m, n + 2, n + 2). Do not modify it."""
+        """Return ``H(q) = J_q^T H-bar J_q`` for each state (cached: do not modify it).
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            Stacked states ``[q, dq]``, one run per row.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, n + 2, n + 2)
+            Inertia matrices in paper coordinates.
+        """
         cache = self._entry(x)
         out = cache.get("H")
         if out is not None:
@@ -229,7 +254,18 @@ class BatchTerms:
         return out
 
     def coriolis(self, x: np.ndarray) -> np.ndarray:
-        """W diag(J dq) J dq of eq. (18) for each state: (m, n + 2). Do not modify it."""
+        """Return the Coriolis term ``W diag(J dq) J dq`` of eq. (18) for each state (cached).
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            Stacked states ``[q, dq]``, one run per row.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, n + 2)
+            Generalised forces [N, N, N m, N m...]; do not modify them.
+        """
         cache = self._entry(x)
         out = cache.get("coriolis")
         if out is None:
@@ -259,7 +295,20 @@ class BatchTerms:
         return out
 
     def friction(self, x: np.ndarray, coeffs: FrictionCoefficients) -> np.ndarray:
-        """Generalised friction force -C(q) dq for each state: (m, n + 2). Do not modify it."""
+        """Return the generalised friction force ``-C(q) dq`` for each state (cached).
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            Stacked states ``[q, dq]``, one run per row.
+        coeffs : FrictionCoefficients
+            Friction coefficients of the same m runs.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, n + 2)
+            Friction forces [N, N, N m, N m...]; do not modify them.
+        """
         cache = self._entry(x)
         known = cache.get("friction")
         if known is not None and known[0].equals(coeffs):
@@ -290,14 +339,31 @@ class BatchTerms:
 
     def forward_dynamics(self, x: np.ndarray, coeffs: FrictionCoefficients,
                          tau: np.ndarray) -> np.ndarray:
-        """q'' (m, n + 2) under the joint torques tau (m, n - 1) and friction ``coeffs``.
+        """Return the plant's q'' under the joint torques tau and the friction ``coeffs``.
 
-        In q-bar coordinates, H-bar (J_q q'') = J_q^-T (E tau + Q - Coriolis) =: f (no
+        In q-bar coordinates, ``H-bar (J_q q'') = J_q^-T (E tau + Q - Coriolis) =: f`` (no
         products with L; joint torque k pushes link k + 1 and pulls link k). H-bar's xy
-        block is M I with the rows b_x = -a o sin theta, b_y = a o cos theta beside it, so
-        the head's acceleration is eliminated: S theta'' = f_theta - (b_x f_x + b_y f_y) / M
-        (an n x n solve), then [x_h'', y_h''] = (f_xy - [b_x; b_y] theta'') / M and
-        phi'' = differences of theta''.
+        block is ``M I`` with the rows ``b_x = -a o sin theta``, ``b_y = a o cos theta``
+        beside it, so the head's acceleration is eliminated::
+
+            S theta'' = f_theta - (b_x f_x + b_y f_y) / M          (an n x n solve)
+            [x_h'', y_h''] = (f_xy - [b_x; b_y] theta'') / M
+
+        and phi'' are the differences of theta''.
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            Stacked states ``[q, dq]``, one run per row.
+        coeffs : FrictionCoefficients
+            Friction coefficients of the same m runs.
+        tau : numpy.ndarray, shape (m, n - 1)
+            Joint torques [N m].
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, n + 2)
+            q'' [m/s^2, m/s^2, rad/s^2, rad/s^2...] (NaN rows where S is singular).
         """
         mass = self._total_mass
         _, _, c, s = self._angles(x)
@@ -316,14 +382,39 @@ class BatchTerms:
         return out
 
     def bias(self, x: np.ndarray, coeffs: FrictionCoefficients) -> np.ndarray:
-        """h = Coriolis - friction force for each state (a new array)."""
+        """Return ``h = Coriolis - friction force`` for each state (a new array).
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            Stacked states ``[q, dq]``, one run per row.
+        coeffs : FrictionCoefficients
+            Friction coefficients of the same m runs.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, n + 2)
+            h of ``H q'' + h = E tau`` [N, N, N m, N m...].
+        """
         return self.coriolis(x) - self.friction(x, coeffs)
 
     def friction_matrix(self, x: np.ndarray, coeffs: FrictionCoefficients) -> np.ndarray:
-        """C(q) of eq. (11) for each state (friction force -C dq): (m, n + 2, n + 2).
+        """Return the friction matrix C(q) of eq. (11) for each state (friction force -C dq).
 
         Columns 0 and 1 answer unit base velocities (z = 1, j); column 2 + k the unit rate
         of the k-th angle coordinate, which turns links k.. (theta' = 1 there).
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            Stacked states ``[q, dq]``, one run per row.
+        coeffs : FrictionCoefficients
+            Friction coefficients of the same m runs.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, n + 2, n + 2)
+            C(q) of each run (a new array).
         """
         m, n = len(x), self.n
         _, _, c, s = self._angles(x)
@@ -350,10 +441,13 @@ class BatchTerms:
 class FrictionCoefficients:
     """Per-run, per-link friction coefficients in the form the complex route uses.
 
+    Attributes ``cbar`` (``(c_x + c_y) / 2``), ``ratio`` (``(c_x - c_y) / (c_x + c_y)``,
+    None when isotropic everywhere) and ``c_theta`` are (B, n) arrays.
+
     Parameters
     ----------
-    robots
-        One :class:`~snake_pin.params.SnakeParams` per run.
+    robots : sequence of SnakeParams
+        One robot per run (B of them).
     """
 
     def __init__(self, robots: Sequence[SnakeParams]) -> None:
@@ -367,7 +461,18 @@ class FrictionCoefficients:
             len(robots), -1)
 
     def equals(self, other: FrictionCoefficients) -> bool:
-        """Whether ``other`` holds the same coefficients, run by run."""
+        """Tell whether ``other`` holds the same coefficients, run by run.
+
+        Parameters
+        ----------
+        other : FrictionCoefficients
+            Coefficients to compare with.
+
+        Returns
+        -------
+        bool
+            True when every array is equal (exactly).
+        """
         if other is self:
             return True
         if not (np.array_equal(self.cbar, other.cbar)
@@ -378,7 +483,18 @@ class FrictionCoefficients:
         return np.array_equal(self.ratio, other.ratio)
 
     def take(self, rows: np.ndarray) -> FrictionCoefficients:
-        """The coefficients of ``rows`` only."""
+        """Return the coefficients of ``rows`` only.
+
+        Parameters
+        ----------
+        rows : numpy.ndarray of int
+            Positions of the runs to keep.
+
+        Returns
+        -------
+        FrictionCoefficients
+            A new object; ``self`` is unchanged.
+        """
         out = object.__new__(FrictionCoefficients)
         out.cbar, out.c_theta = self.cbar[rows], self.c_theta[rows]
         out.ratio = None if self.ratio is None else self.ratio[rows]
@@ -527,28 +643,81 @@ class BatchedController(abc.ABC):
     size: int
 
     def reset(self) -> dict[int, Failure]:
-        """Forget internal state before the runs start; returns rows that failed to reset."""
+        """Forget internal state before the runs start.
+
+        Returns
+        -------
+        dict of int to BaseException or str
+            Rows that failed to reset, with their failure (empty by default).
+        """
         return {}
 
     @abc.abstractmethod
     def __call__(self, x: np.ndarray, t: float) -> tuple[np.ndarray, dict[int, Failure]]:
-        """Torques (m, n - 1) for the states x (m, 2(n + 2)) at time t, and the failures."""
+        """Return the torques for the states x at time t, and the failures.
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            States ``[q, dq]`` of the m runs held.
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        tau : numpy.ndarray, shape (m, n - 1)
+            Joint torques [N m] (rows that failed hold anything).
+        failures : dict of int to BaseException or str
+            Row -> the exception its law raised, or the torque problem (text).
+        """
 
     @abc.abstractmethod
     def keep(self, rows: np.ndarray) -> None:
-        """Keep only the runs at ``rows`` (sorted positions among those held)."""
+        """Keep only the runs at ``rows``.
+
+        Parameters
+        ----------
+        rows : numpy.ndarray of int
+            Sorted positions among the runs held.
+        """
 
     def signals(self) -> dict[str, np.ndarray]:
-        """Per-row diagnostics of the last call (NaN for rows that failed)."""
+        """Return the per-row diagnostics of the last call.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            Signal name (``V``, ``R``, ...) -> values of shape (m,) (NaN for rows that
+            failed); empty by default.
+        """
         return {}
 
     def predicted(self, x: np.ndarray) -> np.ndarray | None:
-        """The plant's q'' at the last call's states x, if the law knows it exactly."""
+        """Return the plant's q'' at the last call's states x, if the law knows it exactly.
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            The states array of the last call (compared by identity).
+
+        Returns
+        -------
+        numpy.ndarray of shape (m, n + 2) or None
+            q'' under the last torques, or None (by default, or for other states).
+        """
         return None
 
     def mark_exact(self, exact: np.ndarray) -> None:  # noqa: B027 - optional hook
-        """Tell which runs' controllers model their plant exactly (same layout, friction
-        and passive joints): :meth:`predicted` may then serve the plant's first stage."""
+        """Tell which runs' controllers model their plant exactly.
+
+        Same layout, friction and passive joints: :meth:`predicted` may then serve the
+        plant's first stage. Ignored by default.
+
+        Parameters
+        ----------
+        exact : numpy.ndarray of bool, shape (m,)
+            One flag per run held.
+        """
 
 
 class _Vectorised(BatchedController):
@@ -602,22 +771,33 @@ class _Vectorised(BatchedController):
 class BatchedLyapunov(_Vectorised):
     """:class:`~snake_pin.control.lyapunov.LyapunovController` over a batch.
 
-    The same least squares, solved without H^-1. Split H and h at the base (w: rows 0..2)
-    and the joints (phi): with F = H11^-1 [H12, h1] (H11 = [[M I, p], [p^T, w]] inverts in
-    closed form), S = H22 - H21 F_12 and r2 = h2 - H21 F_h, the dynamics read
+    The same least squares, solved without ``H^-1``. Split H and h at the base (w: rows
+    0..2) and the joints (phi): with ``F = H11^-1 [H12, h1]`` (``H11 = [[M I, p], [p^T, w]]``
+    inverts in closed form), ``S = H22 - H21 F_12`` and ``r2 = h2 - H21 F_h``, the
+    dynamics read::
 
         phi'' = S^-1 (E_a tau_a - r2),   w'' = -F_12 phi'' - F_h.
 
-    Taking y = phi'' as the unknown, q'' = Z y + c with Z = [-F_12; I], c = [-F_h; 0], and
-    the law's argmin over tau_a is the argmin over y of ||Z y + c - q''*||_W subject to
-    (S y + r2)_k = 0 on the passive joints k (a bijection: tau = S y + r2). Without passive
-    joints that is one (n - 1) x (n - 1) solve, (Z^T W Z) y = Z^T W (q''* - c); with them,
-    the KKT system [[Z^T W Z, (P S)^T], [P S, U]] [y; nu] = [Z^T W (q''* - c); -P r2] of
-    size n - 1 + p, p the most passive joints of any run in the batch: P's rows pick a
+    Taking ``y = phi''`` as the unknown, ``q'' = Z y + c`` with ``Z = [-F_12; I]``,
+    ``c = [-F_h; 0]``, and the law's argmin over tau_a is the argmin over y of
+    ``||Z y + c - q''*||_W`` subject to ``(S y + r2)_k = 0`` on the passive joints k (a
+    bijection: ``tau = S y + r2``). Without passive joints that is one (n - 1) x (n - 1)
+    solve, ``(Z^T W Z) y = Z^T W (q''* - c)``; with them, the KKT system::
+
+        [[Z^T W Z, (P S)^T], [P S, U]] [y; nu] = [Z^T W (q''* - c); -P r2]
+
+    of size n - 1 + p, p the most passive joints of any run in the batch: P's rows pick a
     run's passive joints, rows beyond its own count are zero with a 1 on U's diagonal
-    (their multiplier is 0). Then tau = S y + r2. A run whose result is not
-    finite is evaluated again by its own scalar controller, so it fails (or not) exactly
-    as in :func:`~snake_pin.sim.simulate`.
+    (their multiplier is 0). Then ``tau = S y + r2``. A run whose result is not finite is
+    evaluated again by its own scalar controller, so it fails (or not) exactly as in
+    :func:`~snake_pin.sim.simulate`.
+
+    Parameters
+    ----------
+    controllers : sequence of LyapunovController
+        One controller per run, all of one layout (exactly this type).
+    terms : BatchTerms or None, optional
+        Model terms to share (the plant's); default: a new one for the layout.
     """
 
     _per_run = ("k_w1", "k_w2", "k_phi", "lam", "lam_shape", "k_shape", "_kkt_fixed",
@@ -710,11 +890,31 @@ class BatchedLyapunov(_Vectorised):
         return tau, failures
 
     def mark_exact(self, exact: np.ndarray) -> None:
+        """Record which runs' controllers model their plant exactly (for :meth:`predicted`).
+
+        Parameters
+        ----------
+        exact : numpy.ndarray of bool, shape (m,)
+            One flag per run held.
+        """
         self.exact = np.asarray(exact, dtype=bool).copy()
 
     def predicted(self, x: np.ndarray) -> np.ndarray | None:
-        """q'' of the plant at the last call's states x under its torques, when every run's
-        controller models its plant exactly (y = phi'' and w'' = -F_12 y - F_h); else None."""
+        """Return the plant's q'' at the last call's states under its torques, if known.
+
+        Known when every run's controller models its plant exactly: ``y = phi''`` and
+        ``w'' = -F_12 y - F_h``.
+
+        Parameters
+        ----------
+        x : numpy.ndarray, shape (m, 2(n + 2))
+            The states array of the last call (compared by identity).
+
+        Returns
+        -------
+        numpy.ndarray of shape (m, n + 2) or None
+            q'' [m/s^2, rad/s^2], or None.
+        """
         known = self._predicted
         return known[1] if known is not None and known[0] is x else None
 
@@ -722,9 +922,16 @@ class BatchedLyapunov(_Vectorised):
 class BatchedQuasiStatic(_Vectorised):
     """:class:`~snake_pin.control.quasistatic.QuasiStaticLyapunovController` over a batch.
 
-    Per run: C(q) from the closed form; the connection J = -C_uu^-1 C_ua from one batched
-    solve with the actuated rows of C_uu replaced by the identity; the rate of least V by
-    the normal equations; the integrated joint reference and the PD servos.
+    Per run: C(q) from the closed form; the connection ``J = -C_uu^-1 C_ua`` from one
+    batched solve with the actuated rows of C_uu replaced by the identity; the rate of
+    least V by the normal equations; the integrated joint reference and the PD servos.
+
+    Parameters
+    ----------
+    controllers : sequence of QuasiStaticLyapunovController
+        One controller per run, all of one layout (exactly this type).
+    terms : BatchTerms or None, optional
+        Model terms to share (the plant's); default: a new one for the layout.
     """
 
     _per_run = ("k_w1", "_w_u", "_w_a", "_normal_diag", "_umask", "_k_p", "_k_d",
@@ -757,6 +964,13 @@ class BatchedQuasiStatic(_Vectorised):
         self._started = np.zeros(size, dtype=bool)
 
     def reset(self) -> dict[int, Failure]:
+        """Restart every run's integrated joint reference at its next state.
+
+        Returns
+        -------
+        dict of int to BaseException or str
+            Always empty (nothing can fail).
+        """
         self._started[:] = False
         return {}
 
@@ -801,6 +1015,13 @@ class BatchedPFL(_Vectorised):
     against r_min), H22^-1 [H21, h2] by one batched solve, then eqs. (70)-(78) as in the
     scalar law; the optional climb term takes its R probes for all climbing runs in one
     call of :func:`~snake_pin.manipulability.manipulability_R_batch`.
+
+    Parameters
+    ----------
+    controllers : sequence of PFLController
+        One controller per run, all of one layout (exactly this type).
+    terms : BatchTerms or None, optional
+        Model terms to share (the plant's); default: a new one for the layout.
     """
 
     _per_run = ("k_v", "k_p", "r_v", "r_p", "r_min", "climb_R", "climb_damping")
@@ -882,11 +1103,13 @@ class PerRunControllers(BatchedController):
 
     Parameters
     ----------
-    controllers
+    controllers : sequence of Controller
         One :class:`~snake_pin.control.base.Controller` per run (plain functions are
         wrapped by the caller).
-    validate
+    validate : callable
         ``validate(raw, size) -> (tau or None, problem)``: the simulator's torque check.
+    n_tau : int
+        n - 1, the number of torques each controller returns.
     """
 
     def __init__(self, controllers: Sequence[Controller],
@@ -899,6 +1122,13 @@ class PerRunControllers(BatchedController):
         self._last: dict[str, np.ndarray] = {}
 
     def reset(self) -> dict[int, Failure]:
+        """Reset every run's controller.
+
+        Returns
+        -------
+        dict of int to BaseException or str
+            Rows whose ``reset()`` raised, with the exception.
+        """
         failures: dict[int, Failure] = {}
         for row, ctrl in enumerate(self._controllers):
             try:
@@ -908,6 +1138,13 @@ class PerRunControllers(BatchedController):
         return failures
 
     def keep(self, rows: np.ndarray) -> None:
+        """Keep only the runs at ``rows``.
+
+        Parameters
+        ----------
+        rows : numpy.ndarray of int
+            Sorted positions among the runs held.
+        """
         self._controllers = [self._controllers[r] for r in rows]
         self.size = len(rows)
         self._last = {k: v[rows] for k, v in self._last.items()}
@@ -935,6 +1172,13 @@ class PerRunControllers(BatchedController):
         return tau, failures
 
     def signals(self) -> dict[str, np.ndarray]:
+        """Return the per-row diagnostics of the last call.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            Signal name -> values of shape (m,), NaN for rows without that signal.
+        """
         return self._last
 
 
@@ -943,11 +1187,11 @@ class GroupedControllers(BatchedController):
 
     Parameters
     ----------
-    groups
+    groups : sequence of (numpy.ndarray, BatchedController)
         ``(rows, controller)`` pairs: the batch positions (sorted) each controller holds;
         together they cover 0..B-1 once.
-    n_tau
-        n - 1.
+    n_tau : int
+        n - 1, the number of torques per run.
     """
 
     def __init__(self, groups: Sequence[tuple[np.ndarray, BatchedController]],
@@ -958,6 +1202,13 @@ class GroupedControllers(BatchedController):
         self._last: dict[str, np.ndarray] = {}
 
     def reset(self) -> dict[int, Failure]:
+        """Reset every group.
+
+        Returns
+        -------
+        dict of int to BaseException or str
+            Batch rows that failed to reset, with their failure.
+        """
         failures: dict[int, Failure] = {}
         for rows, ctrl in self._groups:
             for row, failure in ctrl.reset().items():
@@ -965,6 +1216,13 @@ class GroupedControllers(BatchedController):
         return failures
 
     def keep(self, rows: np.ndarray) -> None:
+        """Keep only the runs at ``rows``.
+
+        Parameters
+        ----------
+        rows : numpy.ndarray of int
+            Sorted positions among the runs held.
+        """
         position = np.full(self.size, -1)
         position[np.asarray(rows, dtype=int)] = np.arange(len(rows))
         groups = []
@@ -998,6 +1256,13 @@ class GroupedControllers(BatchedController):
         return tau, failures
 
     def signals(self) -> dict[str, np.ndarray]:
+        """Return the per-row diagnostics of the last call.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            Signal name -> values of shape (m,), NaN for rows without that signal.
+        """
         return self._last
 
 
@@ -1006,28 +1271,36 @@ _VECTORISED: dict[type, type[_Vectorised]] = {
     QuasiStaticLyapunovController: BatchedQuasiStatic,
     PFLController: BatchedPFL,
 }
+#: The same types as a tuple, for ``isinstance`` (each keeps its robot as ``snake``).
+_VECTORISED_TYPES = (LyapunovController, QuasiStaticLyapunovController, PFLController)
 
 
 def batch_controller(controllers: Sequence[Controller], n_tau: int,
                      validate: Callable[[object, int], tuple[np.ndarray | None, str]],
                      terms: Callable[[SnakeParams], BatchTerms] | None = None
                      ) -> BatchedController:
-    """One batched controller for per-run controllers (module docstring).
+    """Return one batched controller for per-run controllers (module docstring).
 
     Runs whose controllers are of a vectorised type (exactly) and model the same layout
     are one vectorised group; every other run is called on its own.
 
     Parameters
     ----------
-    controllers
+    controllers : sequence of Controller
         One controller per run.
-    n_tau
+    n_tau : int
         The plant's n - 1 (every controller must return that many torques).
-    validate
-        The simulator's torque check, for the per-run group.
-    terms
+    validate : callable
+        The simulator's torque check, ``validate(raw, size) -> (tau or None, problem)``,
+        for the per-run group.
+    terms : callable or None, optional
         ``terms(params)`` gives the :class:`BatchTerms` to use for a layout (the plant's,
         to share its evaluations); default: a new one per group.
+
+    Returns
+    -------
+    BatchedController
+        One vectorised or per-run controller, or a :class:`GroupedControllers` of them.
 
     Raises
     ------
@@ -1035,14 +1308,16 @@ def batch_controller(controllers: Sequence[Controller], n_tau: int,
         A vectorised controller models a robot with another number of joints.
     """
     groups: dict[tuple[Any, ...], list[int]] = {}
+    models: dict[tuple[Any, ...], SnakeParams] = {}
     for row, ctrl in enumerate(controllers):
         kind = type(ctrl)
-        if kind in _VECTORISED:
-            if ctrl.snake.n - 1 != n_tau:  # type: ignore[attr-defined]
+        if kind in _VECTORISED and isinstance(ctrl, _VECTORISED_TYPES):
+            if ctrl.snake.n - 1 != n_tau:
                 raise ParameterError(f"run {row}: the controller models a "
-                                     f"{ctrl.snake.n}-link robot, the plant has "  # type: ignore[attr-defined]
+                                     f"{ctrl.snake.n}-link robot, the plant has "
                                      f"{n_tau + 1} links")
-            key: tuple[Any, ...] = (kind, layout_key(ctrl.snake.params))  # type: ignore[attr-defined]
+            key: tuple[Any, ...] = (kind, layout_key(ctrl.snake.params))
+            models.setdefault(key, ctrl.snake.params)
         else:
             key = (None,)
         groups.setdefault(key, []).append(row)
@@ -1052,7 +1327,7 @@ def batch_controller(controllers: Sequence[Controller], n_tau: int,
         if key[0] is None:
             built.append((np.array(rows), PerRunControllers(members, validate, n_tau)))
         else:
-            shared = None if terms is None else terms(members[0].snake.params)  # type: ignore[attr-defined]
+            shared = None if terms is None else terms(models[key])
             built.append((np.array(rows), _VECTORISED[key[0]](members, shared)))
     if len(built) == 1:
         return built[0][1]
