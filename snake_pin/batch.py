@@ -108,34 +108,44 @@ MAX_RECORD_BYTES = 4 * 2**30
 class BatchResult:
     """The runs of a batch: samples on a shared grid plus each run's last sample.
 
-    Attributes
+    Built by :func:`simulate_batch`; B runs, S grid samples, n links. Configurations
+    are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+
+    Parameters
     ----------
-    params
+    params : list of SnakeParams
         Each run's robot (B).
-    t
-        Times of the grid samples (S,): every ``stride``-th control step from t = 0.
-    q, dq, tau
-        Grid samples, sample first: (S, B, n + 2), (S, B, n + 2), (S, B, n - 1). Entries
-        of run b are meaningful for grid steps before its last sample ``last_step[b]``;
-        the rest are zero.
-    signals
-        Controller diagnostics on the grid (S, B), NaN where missing.
-    status, reason
+    t : numpy.ndarray, shape (S,)
+        Times of the grid samples [s]: every ``stride``-th control step from t = 0.
+    q, dq : numpy.ndarray, shape (S, B, n + 2)
+        Grid samples of q and its time derivative, sample first. Entries of run b are
+        meaningful for grid steps before its last sample ``last_step[b]``; the rest are
+        zero.
+    tau : numpy.ndarray, shape (S, B, n - 1)
+        Joint torques [N m] held after each grid sample.
+    signals : dict of str to numpy.ndarray
+        Controller diagnostics on the grid, shape (S, B) each, NaN where missing.
+    status, reason : list of str
         Each run's status (:data:`snake_pin.sim.STATUSES`) and reason.
-    last_step
-        Control step of each run's last good sample (B,); its time is ``last_t``.
-    signal_runs
-        For each signal, which runs' controllers gave it (B,) (the others' trajectories
-        have no such signal, as from :func:`~snake_pin.sim.simulate`).
-    last_t, last_q, last_dq, last_tau, last_signals
-        Each run's last good sample ((B,), (B, n + 2), (B, n + 2), (B, n - 1), name ->
-        (B,)); ``last_tau`` is the torque held after it (zero unless the run diverged,
-        as in :func:`~snake_pin.sim.simulate`).
-    stride
+    last_step : numpy.ndarray of int, shape (B,)
+        Control step of each run's last good sample; its time is ``last_t``.
+    last_t : numpy.ndarray, shape (B,)
+        Time of each run's last good sample [s].
+    last_q, last_dq : numpy.ndarray, shape (B, n + 2)
+        Each run's last good configuration and velocity.
+    last_tau : numpy.ndarray, shape (B, n - 1)
+        The torque held after each run's last sample (zero unless the run diverged, as in
+        :func:`~snake_pin.sim.simulate`).
+    last_signals : dict of str to numpy.ndarray, optional
+        Signal name -> each run's last value, shape (B,).
+    signal_runs : dict of str to numpy.ndarray, optional
+        For each signal, which runs' controllers gave it (bool, shape (B,)); the others'
+        trajectories have no such signal, as from :func:`~snake_pin.sim.simulate`.
+    stride : int, optional
         Control steps between grid samples.
-    meta
+    meta : list of dict, optional
         Each run's :attr:`Trajectory.meta <snake_pin.sim.Trajectory.meta>`.
-    wall_time
+    wall_time : float, optional
         Wall-clock time of the whole batch [s].
     """
 
@@ -167,10 +177,25 @@ class BatchResult:
         return self.last_t.copy()
 
     def trajectory(self, run: int) -> Trajectory:
-        """Run ``run`` as a :class:`~snake_pin.sim.Trajectory` (grid samples + last one).
+        """Return run ``run`` as a :class:`~snake_pin.sim.Trajectory` (grid samples + last one).
 
         With ``stride = 1`` it holds exactly the samples :func:`~snake_pin.sim.simulate`
         records; otherwise every ``stride``-th one and the last.
+
+        Parameters
+        ----------
+        run : int
+            Index of the run, ``-B <= run < B``.
+
+        Returns
+        -------
+        Trajectory
+            The run's samples, robot, status, reason, signals and meta.
+
+        Raises
+        ------
+        ParameterError
+            If ``run`` is not an integer index of a run.
         """
         if isinstance(run, bool) or not isinstance(run, numbers.Integral) \
                 or not -len(self) <= run < len(self):
@@ -195,7 +220,13 @@ class BatchResult:
             reason=self.reason[b], meta=dict(self.meta[b]))
 
     def trajectories(self) -> list[Trajectory]:
-        """Every run as a :class:`~snake_pin.sim.Trajectory`, in order."""
+        """Return every run as a :class:`~snake_pin.sim.Trajectory`, in order.
+
+        Returns
+        -------
+        list of Trajectory
+            ``[self.trajectory(b) for b in range(B)]``.
+        """
         return [self.trajectory(b) for b in range(len(self))]
 
 
@@ -318,31 +349,36 @@ def simulate_batch(robots: SnakeParams | Snake | Sequence[SnakeParams | Snake],
 
     Parameters
     ----------
-    robots
+    robots : SnakeParams or Snake or sequence of them
         One robot for every run, or one per run (B). They must share
         :data:`~snake_pin.control.batched.LAYOUT_FIELDS`; friction and passive joints may
         differ.
-    controllers
+    controllers : sequence of Controller or callable
         One controller per run (B), as :func:`~snake_pin.sim.simulate` takes them, each
         with its own state: :class:`~snake_pin.control.LyapunovController`,
         :class:`~snake_pin.control.QuasiStaticLyapunovController` and
         :class:`~snake_pin.control.PFLController` run vectorised (their model may be
         another robot, of any one layout per kind); anything else run by run.
-    x0s
-        Initial states (B, 2(n + 2)).
-    t_final
-        Final time of every run, or one per run (B).
-    dt, control_dt, max_speed, max_distance
-        As for :func:`~snake_pin.sim.simulate`, shared by the batch.
-    stride
+    x0s : array_like, shape (B, 2(n + 2))
+        Initial states ``x = [q, dq]``, one per run.
+    t_final : float or sequence of float
+        Final time of every run [s], or one per run (B).
+    dt : float, optional
+        Integration step [s] (RK4), as for :func:`~snake_pin.sim.simulate`.
+    control_dt : float, optional
+        Control period [s], a whole multiple of ``dt``.
+    stride : int, optional
         Keep every ``stride``-th control step's sample (and each run's last one).
-    dynamics
-        ``"closed_form"`` or ``"aba"``: the forward-dynamics route (module docstring).
-    threads
+    max_speed, max_distance : float, optional
+        Divergence limits on the velocity entries [m/s, rad/s] and on the head's distance
+        [m], as for :func:`~snake_pin.sim.simulate` (``inf`` allowed).
+    dynamics : {"closed_form", "aba"}, optional
+        The forward-dynamics route (module docstring).
+    threads : int, optional
         OpenMP threads of ``pin.abaInParallel`` (1..cpu count; see the module docstring).
-    progress
+    progress : bool, optional
         A tqdm bar over the control steps, on a terminal only.
-    meta
+    meta : Mapping or sequence of (Mapping or None) or None, optional
         Extra entries for every run's ``Trajectory.meta``: one mapping for all, or one
         (or None) per run.
 
@@ -356,8 +392,12 @@ def simulate_batch(robots: SnakeParams | Snake | Sequence[SnakeParams | Snake],
     RunInterrupted
         On KeyboardInterrupt; ``.partial`` is the BatchResult so far, the runs still
         going marked "interrupted" at their last whole sample.
-    ParameterError, ConfigurationError
-        Bad arguments (before anything runs).
+    ParameterError
+        A bad argument (before anything runs): robots of different layouts, the wrong
+        number of controllers, a shared controller object, bad steps, an unknown
+        ``dynamics``, records beyond :data:`MAX_RECORD_BYTES`.
+    ConfigurationError
+        Initial states of the wrong shape or with non-finite entries.
     """
     size_hint = None if isinstance(controllers, (str, bytes)) or \
         not isinstance(controllers, Sequence) else len(controllers)
