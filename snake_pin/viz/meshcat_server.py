@@ -53,7 +53,20 @@ _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
 
 class LoopbackApplication(tornado.web.Application):
-    """A tornado application whose ``listen`` binds 127.0.0.1 whatever address it is given."""
+    """A tornado application whose ``listen`` binds 127.0.0.1 whatever address it is given.
+
+    Parameters
+    ----------
+    handlers : list, optional
+        Tornado rules or ``(pattern, handler, kwargs)`` tuples, as for
+        :class:`tornado.web.Application`.
+    default_host : str or None, optional
+        As for :class:`tornado.web.Application`.
+    transforms : list or None, optional
+        As for :class:`tornado.web.Application`.
+    **settings
+        As for :class:`tornado.web.Application`.
+    """
 
     def listen(self, port: int, address: str | None = None,
                **kwargs: Any) -> tornado.httpserver.HTTPServer:
@@ -62,23 +75,53 @@ class LoopbackApplication(tornado.web.Application):
         The accept queue holds :data:`BACKLOG` connections (tornado's default, 128, is
         overrun by a burst of short connections: the kernel then drops SYNs and every
         client waits a second for the retransmission).
+
+        Parameters
+        ----------
+        port : int
+            TCP port on 127.0.0.1 (0: any free one).
+        address : str or None, optional
+            Ignored: the server always binds :data:`HOST`.
+        **kwargs
+            Passed to tornado's ``listen`` (``backlog`` defaults to :data:`BACKLOG`).
+
+        Returns
+        -------
+        tornado.httpserver.HTTPServer
+            The listening server.
+
+        Raises
+        ------
+        OSError
+            If the port is in use or cannot be bound.
         """
         kwargs.setdefault("backlog", BACKLOG)
         return super().listen(port, HOST, **kwargs)
 
 
 class LoopbackBridge(ZMQWebSocketBridge):
-    """meshcat's bridge with its web app on :class:`LoopbackApplication` and ZMQ on 127.0.0.1."""
+    """meshcat's bridge with its web app on :class:`LoopbackApplication` and ZMQ on 127.0.0.1.
+
+    Parameters
+    ----------
+    port : int or None, optional
+        Web port on 127.0.0.1; None searches from 7000 as meshcat does.
+    """
 
     def __init__(self, port: int | None = None) -> None:
         super().__init__(host=HOST, port=port)
 
     def make_app(self) -> LoopbackApplication:
-        """meshcat's two routes (static viewer files, the WebSocket) on a loopback app.
+        """Return meshcat's two routes (static viewer files, the WebSocket) on a loopback app.
 
         They answer only requests whose ``Host`` names the loopback address
         (:data:`LOCAL_HOSTS`); any other host gets 404, so a page from elsewhere that
         re-points its own domain at 127.0.0.1 (DNS rebinding) reaches nothing.
+
+        Returns
+        -------
+        LoopbackApplication
+            The application meshcat's bridge listens with.
         """
         return LoopbackApplication([Rule(HostMatches(LOCAL_HOSTS), [
             (r"/static/(.*)", StaticFileHandlerNoCache,
@@ -124,7 +167,19 @@ def _silence() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Start the bridge, print its URLs, serve until interrupted, the parent dies or stdin ends."""
+    """Start the bridge, print its URLs, serve until interrupted, the parent dies or stdin ends.
+
+    Parameters
+    ----------
+    argv : list of str or None, optional
+        Command-line arguments (``--port``, ``--parent PID``, ``--stdin-eof``,
+        ``--quiet``); ``sys.argv[1:]`` by default.
+
+    Returns
+    -------
+    int
+        The exit status, 0.
+    """
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--port", type=int, default=None,
                         help="web port on 127.0.0.1 (default: the first free one from 7000)")

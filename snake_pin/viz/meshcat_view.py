@@ -101,16 +101,19 @@ def start_server(port: int | None = None, timeout: float = 20.0
 
     Parameters
     ----------
-    port
+    port : int or None, optional
         The web port on 127.0.0.1; None takes the first free one from 7000.
-    timeout
+    timeout : float, optional
         Seconds to wait for the server to announce its URLs.
 
     Returns
     -------
-    tuple
-        ``(process, zmq_url, web_url)``. Stop the process with :func:`stop_server`; it
-        also stops by itself when this process ends, however it ends.
+    process : subprocess.Popen
+        The server process.
+    zmq_url, web_url : str
+        Its ZMQ address and the viewer's URL (both on 127.0.0.1). Stop the process with
+        :func:`stop_server`; it also stops by itself when this process ends, however it
+        ends.
 
     Raises
     ------
@@ -152,7 +155,16 @@ def start_server(port: int | None = None, timeout: float = 20.0
 
 
 def stop_server(proc: subprocess.Popen[bytes]) -> None:
-    """Stop a server from :func:`start_server` and reap it (harmless if it already ended)."""
+    """Stop a server from :func:`start_server` and reap it (harmless if it already ended).
+
+    Closes its stdin (the server stops at end of file), then sends SIGTERM, and SIGKILL
+    after 5 s.
+
+    Parameters
+    ----------
+    proc : subprocess.Popen
+        The process :func:`start_server` returned.
+    """
     if proc.stdin is not None and not proc.stdin.closed:
         proc.stdin.close()  # end of file: the server leaves its loop
     if proc.poll() is None:
@@ -210,11 +222,16 @@ class _Requests:
 
 
 def offline_visualizer() -> meshcat.Visualizer:
-    """A :class:`meshcat.Visualizer` with no server, socket or process behind it.
+    """Return a :class:`meshcat.Visualizer` with no server, socket or process behind it.
 
     Its window passes every command to meshcat's own bridge code, run in this process on
     an in-memory scene tree; ``static_html()`` then returns meshcat's static export of
     the scene, as a live server would.
+
+    Returns
+    -------
+    meshcat.Visualizer
+        A visualizer on an empty in-memory scene.
     """
     import meshcat
     from meshcat.servers.tree import SceneTree
@@ -310,7 +327,9 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, fps: float, reference: boo
     low, high = points.min(axis=0) - traj.params.body_length / 2, points.max(axis=0) \
         + traj.params.body_length / 2
     scale = min(1.0, 3.0 / max(high - low))
-    fit = np.diag([scale, scale, scale, 1.0]) @ _translation(*(-0.5 * (low + high)), 0.0)
+    centre_x, centre_y = 0.5 * (low + high)
+    fit = np.diag([scale, scale, scale, 1.0]) @ _translation(-float(centre_x), -float(centre_y),
+                                                             0.0)
     vis.set_transform(fit)
     # camera straight above the origin (meshcat's camera frame is y-up)
     vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 3.0, 0.01])
@@ -336,20 +355,28 @@ def write_html(traj: Trajectory, path: str | os.PathLike[str], *, fps: float = 2
 
     Parameters
     ----------
-    traj
+    traj : Trajectory
         The trajectory to animate.
-    path
+    path : str or os.PathLike
         The page to write (``.html`` or ``.htm``, in an existing folder); written whole
         or not at all.
-    fps
+    fps : float, optional
         Animation frames per second of simulated time, 1..120.
-    reference
+    reference : bool, optional
         Draw the reference line of the head (the x axis).
 
     Returns
     -------
-    Path
+    pathlib.Path
         ``path``.
+
+    Raises
+    ------
+    ParameterError
+        If ``path`` does not end in ``.html``/``.htm``, its folder does not exist, or
+        ``fps`` is outside 1..120.
+    OSError
+        If the page cannot be written.
     """
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):
@@ -374,13 +401,13 @@ def view(traj: Trajectory, *, port: int | None = None, fps: float = 30.0,
 
     Parameters
     ----------
-    traj
+    traj : Trajectory
         The trajectory to play.
-    port
+    port : int or None, optional
         The web port on 127.0.0.1 (None: the first free one from 7000).
-    fps
+    fps : float, optional
         Animation frames per second of simulated time, 1..120.
-    block
+    block : bool, optional
         Wait until interrupted, then stop the server: once the URL is printed, a
         ``KeyboardInterrupt`` (Ctrl-C) ends the wait and the call returns normally; one
         that comes earlier, or a ``SystemExit``, propagates after the server is stopped.
@@ -394,6 +421,8 @@ def view(traj: Trajectory, *, port: int | None = None, fps: float = 30.0,
 
     Raises
     ------
+    ParameterError
+        If ``fps`` is outside 1..120, or ``port`` is out of range or in use.
     SnakePinError
         If the server does not start or stops on its own while ``block`` waits.
     """

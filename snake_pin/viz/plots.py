@@ -5,7 +5,7 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import matplotlib
 
@@ -27,11 +27,23 @@ PASSIVE_COLOR = "#1f4fd1"
 
 
 def save_figure(fig: plt.Figure, path: str | os.PathLike[str] | None) -> plt.Figure:
-    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it; return it.
+    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it.
 
     A figure without a layout engine gets the constrained layout, which makes room for
     labels, titles and colorbars in the one draw that renders the PNG; the tight bounding
     box (``bbox_inches="tight"``) would draw every figure twice (measured 1.2-1.7x).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or os.PathLike or None
+        PNG file to write at 110 dpi; None does nothing.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        ``fig`` (closed if it was saved).
     """
     if path is not None:
         if fig.get_layout_engine() is None:
@@ -48,8 +60,30 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
     """Draw the snake at ``q`` on ``ax``: links, head dot, passive joints as crosses.
 
     Each link is drawn at its own length (per-link robots too). With ``frames`` each link
-    frame O_i - x_i y_i is drawn at that link's CM (as in Fig. 1), its arrows 0.3 of that
-    link's length.
+    frame ``O_i - x_i y_i`` is drawn at that link's CM (as in Fig. 1), its arrows 0.3 of
+    that link's length.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Where to draw (its aspect is set equal).
+    snake : Snake
+        The robot.
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+    frames : bool, optional
+        Draw each link's frame at its CM.
+    color : str, optional
+        Colour of the links.
+    alpha : float, optional
+        Opacity (below 1 the links are drawn thinner, for ghosts of earlier postures).
+    label : str or None, optional
+        Legend label of the body line.
+
+    Raises
+    ------
+    ConfigurationError
+        If ``q`` does not have n + 2 finite entries.
     """
     points = snake.joint_points(q)
     width = 4.0 if alpha == 1.0 else 2.0
@@ -75,7 +109,28 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
 def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
                   path: str | os.PathLike[str] | None = None, *, frames: bool = True,
                   title: str | None = None) -> plt.Figure:
-    """One panel per (label, q): the robot drawn with its link frames."""
+    """Draw one panel per ``(label, q)``: the robot drawn with its link frames.
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot.
+    postures : sequence of (str, numpy.ndarray)
+        Panel title and configuration ``q`` (length n + 2) of each panel; three panels a
+        row.
+    path : str or os.PathLike or None, optional
+        PNG file to write (whole or not at all; the figure is then closed); None keeps
+        the figure open and writes nothing.
+    frames : bool, optional
+        Draw each link's frame (as in Fig. 1).
+    title : str or None, optional
+        Title of the whole figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+    """
     count = len(postures)
     cols = min(count, 3)
     rows = int(np.ceil(count / cols))
@@ -95,7 +150,21 @@ def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
 
 
 def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None) -> plt.Figure:
-    """Head pose, joint angles and torque norm over time."""
+    """Plot the head pose, the joint angles and the torque norm of a run over time.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The run; a diverged run's reason becomes the figure's title.
+    path : str or os.PathLike or None, optional
+        PNG file to write (whole or not at all; the figure is then closed); None keeps
+        the figure open and writes nothing.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Three panels sharing the time axis [s].
+    """
     fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True, layout="constrained")
     axes[0].plot(traj.t, traj.q[:, 0], label="x_h [m]")
     axes[0].plot(traj.t, traj.q[:, 1], label="y_h [m]")
@@ -117,8 +186,22 @@ def _positive(values: np.ndarray, floor: float) -> np.ndarray:
     return np.maximum(values, floor)
 
 
-def plot_sweep(sweep, path: str | os.PathLike[str] | None = None) -> plt.Figure:
-    """D and R against the swept parameter, log scale (zeros drawn at the floor)."""
+def plot_sweep(sweep: Any, path: str | os.PathLike[str] | None = None) -> plt.Figure:
+    """Plot D and R against the swept parameter, log scale (zeros drawn at the floor).
+
+    Parameters
+    ----------
+    sweep : snake_pin.sweeps.Sweep
+        A sweep: ``values``, ``D``, ``R``, ``label``, ``family`` and ``free_joint``.
+    path : str or os.PathLike or None, optional
+        PNG file to write (whole or not at all; the figure is then closed); None keeps
+        the figure open and writes nothing.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels, D and R.
+    """
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), layout="constrained")
     suffix = f", joint {sweep.free_joint} free" if sweep.free_joint else ""
     for ax, key, name in ((axes[0], "D", "D"), (axes[1], "R", "R")):
@@ -138,8 +221,23 @@ def plot_sweep(sweep, path: str | os.PathLike[str] | None = None) -> plt.Figure:
     return save_figure(fig, path)
 
 
-def plot_r_maps(maps, path: str | os.PathLike[str] | None = None) -> plt.Figure:
-    """log10 R over (alpha, T_s), one panel per map."""
+def plot_r_maps(maps: Sequence[Any], path: str | os.PathLike[str] | None = None
+                ) -> plt.Figure:
+    """Plot log10 R over (alpha, T_s), one panel per map.
+
+    Parameters
+    ----------
+    maps : sequence of snake_pin.sweeps.RMap
+        Maps with ``alpha``, ``ts``, ``R`` and ``free_joint``.
+    path : str or os.PathLike or None, optional
+        PNG file to write (whole or not at all; the figure is then closed); None keeps
+        the figure open and writes nothing.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One panel per map with its colour bar.
+    """
     fig, axes = plt.subplots(1, len(maps), figsize=(5.2 * len(maps), 4.2), squeeze=False,
                              layout="constrained")
     for ax, rmap in zip(axes[0], maps, strict=True):
