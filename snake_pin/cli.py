@@ -529,8 +529,9 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     from .sim import Trajectory
 
     size = PERTURBATION if args.perturbation is None else args.perturbation
-    draws = Draws(f"engine, {args.law} law" + (f", joints {list(params.passive)} passive"
-                                               if params.passive else ""),
+    passive = ", ".join(map(str, params.passive))
+    draws = Draws(f"engine, {args.law} law" + (f", joint{'s' if len(params.passive) > 1 else ''}"
+                                               f" {passive} passive" if passive else ""),
                   size, 0, perturbations(args.seeds, params.n - 1, size, seed=0))
     width = len(str(args.seeds))
     stems = [f"engine_seed{k + 1:0{width}d}" for k in range(args.seeds)]
