@@ -11,7 +11,7 @@ top (a floor, gravity, a wheel pair per link, contacts, motors). Layout:
   friction is anisotropic as in the paper's V-REP robot;
 * every link has its own pair, sized to that link (per-link robots: a long heavy head, a
   short tail): the wheels sit at that link's centre of mass c_i (``com_offsets``), at a
-  lateral distance d_i = 0.15 (2l_i) + 1.1 r (clear of that link's capsule), and that
+  lateral distance ``d_i = 0.15 (2l_i) + 1.1 r`` (clear of that link's capsule), and that
   link's mass m_i and yaw inertia J_i are shared between its body and its wheels
   (``m_i = m_body,i + 2 m_w``, ``J_i = J_body,i + 2 (m_w d_i^2 + I_w)``), so the chain's
   mass matrix equals Pinocchio's H of the same ``SnakeParams`` (the wheels' spin DOFs
@@ -70,20 +70,26 @@ class WheelSpec:
 
     Parameters
     ----------
-    radius, mass
-        Wheel radius [m] and mass [kg] (each); wheels are spheres on hinge axles.
-    friction
-        Coulomb coefficient wheel-floor (sliding sideways).
-    rolling_damping
-        Viscous damping of each wheel's axle [N m s] (rolling resistance).
-    timestep
-        Engine step [s]; the controller runs every ``substeps`` steps.
-    substeps
-        Engine steps per 1 ms control period.
-    max_bend
+    radius, mass : float, optional
+        Wheel radius [m] and mass [kg] (each), > 0; wheels are spheres on hinge axles.
+    friction : float, optional
+        Coulomb coefficient wheel-floor (sliding sideways), > 0.
+    rolling_damping : float, optional
+        Viscous damping of each wheel's axle [N m s] (rolling resistance), >= 0.
+    timestep : float, optional
+        Engine step [s], > 0; the controller runs every ``substeps`` steps.
+    substeps : int, optional
+        Engine steps per control period (``control_dt = timestep * substeps``).
+    max_bend : float, optional
         Joint angle [rad] up to which wheels of neighbouring links must not overlap.
-    cone
-        MuJoCo friction cone, ``"elliptic"`` (default) or ``"pyramidal"`` (faster).
+    cone : {"elliptic", "pyramidal"}, optional
+        MuJoCo friction cone; pyramidal is faster.
+
+    Raises
+    ------
+    ParameterError
+        If ``cone`` is unknown, a number is not finite or out of its range, or
+        ``substeps`` is not a positive integer.
     """
 
     radius: float = 0.03
@@ -116,19 +122,51 @@ class WheelSpec:
 
 @dataclass
 class EngineModel:
-    """A compiled MuJoCo model with the index maps to paper coordinates."""
+    """A compiled MuJoCo model with the index maps to paper coordinates.
+
+    Built by :func:`build_engine_model`; n links, paper configurations
+    ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot the model was built from.
+    wheels : WheelSpec
+        Its wheels and solver settings.
+    model : mujoco.MjModel
+        The compiled model.
+    data : mujoco.MjData
+        Its data (the engine's state).
+    hinge_qpos : numpy.ndarray of int, shape (n - 1,)
+        qpos addresses of ``joint_1`` .. ``joint_{n-1}``.
+    hinge_dof : numpy.ndarray of int, shape (n - 1,)
+        DOF addresses of the same joints.
+    link_bodies : numpy.ndarray of int, shape (n,)
+        Body ids of ``link_1`` .. ``link_n``.
+    actuated : tuple of int
+        1-based joints with a motor, in actuator order.
+    body_masses : numpy.ndarray, shape (n,)
+        ``m_i - 2 m_w``: each link's mass without its wheels [kg].
+    body_inertias : numpy.ndarray, shape (n,)
+        ``J_i - 2 (m_w d_i^2 + I_w)``: each link's yaw inertia without its wheels
+        [kg m^2].
+    wheel_offsets : numpy.ndarray, shape (n,)
+        d_i: lateral distance of link i's wheel centres from its axis [m].
+    meta : dict of str to float, optional
+        Build facts carried into run summaries.
+    """
 
     params: SnakeParams
     wheels: WheelSpec
     model: mujoco.MjModel
     data: mujoco.MjData
-    hinge_qpos: np.ndarray  # qpos addresses of joint_1..joint_{n-1}
-    hinge_dof: np.ndarray  # dof addresses of the same
-    link_bodies: np.ndarray  # body ids of link_1..link_n
-    actuated: tuple[int, ...]  # 1-based joints with a motor, in actuator order
-    body_masses: np.ndarray  # m_i - 2 m_w: each link's mass without its wheels [kg]
-    body_inertias: np.ndarray  # J_i - 2 (m_w d_i^2 + I_w): yaw inertia without wheels
-    wheel_offsets: np.ndarray  # d_i: lateral distance of link i's wheel centres [m]
+    hinge_qpos: np.ndarray
+    hinge_dof: np.ndarray
+    link_bodies: np.ndarray
+    actuated: tuple[int, ...]
+    body_masses: np.ndarray
+    body_inertias: np.ndarray
+    wheel_offsets: np.ndarray
     meta: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -136,17 +174,35 @@ class EngineModel:
 
     @property
     def body_mass(self) -> float:
-        """Mass of a link body without its wheels [kg]; equal links only."""
+        """Mass of a link body without its wheels [kg]; equal links only.
+
+        Raises
+        ------
+        ParameterError
+            If the links differ (read :attr:`body_masses`).
+        """
         return self._same("body_masses")
 
     @property
     def body_inertia(self) -> float:
-        """Yaw inertia of a link body without its wheels [kg m^2]; equal links only."""
+        """Yaw inertia of a link body without its wheels [kg m^2]; equal links only.
+
+        Raises
+        ------
+        ParameterError
+            If the links differ (read :attr:`body_inertias`).
+        """
         return self._same("body_inertias")
 
     @property
     def wheel_offset(self) -> float:
-        """Lateral distance of the wheel centres from the link axis [m]; equal links only."""
+        """Lateral distance of the wheel centres from the link axis [m]; equal links only.
+
+        Raises
+        ------
+        ParameterError
+            If the links differ (read :attr:`wheel_offsets`).
+        """
         return self._same("wheel_offsets")
 
     def _same(self, key: str) -> float:
@@ -157,11 +213,18 @@ class EngineModel:
 
     @property
     def chain_dofs(self) -> np.ndarray:
-        """DOF addresses of (x, y, yaw) of the free joint and the hinges: paper's q order."""
+        """DOF addresses of the free joint's (x, y, yaw) and of the hinges, in q's order (n + 2)."""
         return self._chain_dofs
 
     def paper_configuration(self) -> np.ndarray:
-        """q = [x_h, y_h, theta_1, phi] read from the engine (yaw in (-pi, pi])."""
+        """Return the paper configuration read from the engine's current state.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n + 2,)
+            ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...], theta_1
+            (the head's yaw) in ``(-pi, pi]``.
+        """
         head = self.data.xmat[self.link_bodies[0]].reshape(3, 3)
         pos = self.data.xpos[self.link_bodies[0]]
         yaw = math.atan2(head[1, 0], head[0, 0])
@@ -171,7 +234,14 @@ class EngineModel:
         return out
 
     def set_paper_configuration(self, q: np.ndarray) -> None:
-        """Place the snake flat on its wheels at q (at rest) and run forward kinematics."""
+        """Place the snake flat on its wheels at q (at rest) and run forward kinematics.
+
+        Parameters
+        ----------
+        q : numpy.ndarray, shape (n + 2,)
+            Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (not
+            validated).
+        """
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:3] = (q[0], q[1], self.wheels.radius)
         self.data.qpos[3:7] = (math.cos(q[2] / 2), 0.0, 0.0, math.sin(q[2] / 2))
@@ -179,14 +249,27 @@ class EngineModel:
         mujoco.mj_forward(self.model, self.data)
 
     def chain_mass_matrix(self) -> np.ndarray:
-        """MuJoCo's mass matrix on (x, y, yaw, phi) at the current state."""
+        """Return MuJoCo's mass matrix on (x, y, yaw, phi) at the current state.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n + 2, n + 2)
+            Rows and columns :attr:`chain_dofs` of the full mass matrix; equals
+            Pinocchio's H of the same robot (the wheels' spin DOFs left out).
+        """
         full = np.zeros((self.model.nv, self.model.nv))
         mujoco.mj_fullM(self.model, self.data, full)
         idx = self.chain_dofs
         return full[np.ix_(idx, idx)]
 
     def apply_torque(self, tau: np.ndarray) -> None:
-        """Set the motors from the n - 1 joint torques (passive entries are ignored)."""
+        """Set the motors from the n - 1 joint torques (passive entries are ignored).
+
+        Parameters
+        ----------
+        tau : numpy.ndarray, shape (n - 1,)
+            Joint torques [N m], joint 1 first.
+        """
         self.data.ctrl[:] = [tau[k - 1] for k in self.actuated]
 
 
@@ -198,9 +281,9 @@ def _wheel_geometry(params: SnakeParams, wheels: WheelSpec) -> np.ndarray:
     """
     lengths, centres = params.link_lengths, params.com_offsets
     offsets = RADIUS_RATIO * lengths + wheels.radius + 0.1 * wheels.radius
-    for i in np.flatnonzero(2 * wheels.radius >= lengths):
-        raise ParameterError(f"link {i + 1}: wheels of radius {wheels.radius} m are longer "
-                             f"than the {lengths[i]:g} m link")
+    for short in np.flatnonzero(2 * wheels.radius >= lengths):
+        raise ParameterError(f"link {short + 1}: wheels of radius {wheels.radius} m are longer "
+                             f"than the {lengths[short]:g} m link")
     c, s = math.cos(wheels.max_bend), math.sin(wheels.max_bend)
     bend = np.array([[c, -s], [s, c]])
     for i in range(params.n - 1):
@@ -245,6 +328,19 @@ def build_engine_model(params: SnakeParams | None = None,
     Every link gets its own wheel pair, sized to it (see the module docstring); per-link
     robots are built link by link from ``params.link_lengths``, ``masses``, ``inertias``
     and ``com_offsets``.
+
+    Parameters
+    ----------
+    params : SnakeParams or None, optional
+        The robot; :meth:`SnakeParams.engine` by default. Its friction coefficients are
+        not used (the wheels make the friction).
+    wheels : WheelSpec or None, optional
+        Wheels and solver settings; ``WheelSpec()`` by default.
+
+    Returns
+    -------
+    EngineModel
+        The compiled model with its index maps, at MuJoCo's default state.
 
     Raises
     ------
