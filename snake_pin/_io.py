@@ -59,10 +59,15 @@ _UMASK_LOCK = threading.Lock()
 
 
 def current_umask() -> int:
-    """The process's umask, read without a window in which files get a wider mode.
+    """Return the process's umask, read without a window in which files get a wider mode.
 
     Linux reports it in ``/proc/self/status``; elsewhere it is swapped with 077 and back
     under a lock (a file another thread creates in that instant is private, not wider).
+
+    Returns
+    -------
+    int
+        The umask (e.g. ``0o022``).
     """
     try:
         with open("/proc/self/status", "rb") as status:
@@ -104,6 +109,11 @@ def clean_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
     considered, and only when process PID is gone (or a zombie). A pid the kernel has
     since reused keeps its file until that process ends. Errors (a folder that cannot be
     listed, a file already removed) are ignored: cleaning is best effort and cheap.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        The folder to clean (not recursively).
 
     Returns
     -------
@@ -160,7 +170,7 @@ class AtomicGroup:
 
     Parameters
     ----------
-    folder
+    folder : str or os.PathLike
         Where the files go; names given to the methods are relative to it.
     """
 
@@ -181,7 +191,26 @@ class AtomicGroup:
         """Stage ``name``: a binary handle on its temporary file.
 
         If the body raises, that temporary is removed at once (the group can go on).
-        ``figure=True`` puts the file among the figures, renamed after every data file.
+
+        Parameters
+        ----------
+        name : str or os.PathLike
+            File name relative to the group's folder (its folder must exist).
+        figure : bool, optional
+            Put the file among the figures, renamed after every data file.
+
+        Yields
+        ------
+        IO[bytes]
+            The temporary file, open for writing; flushed, given the umask's mode and
+            fsync-ed when the body ends.
+
+        Raises
+        ------
+        ParameterError
+            If ``name`` is already staged in this group.
+        OSError
+            If the temporary file cannot be created or written (naming ``name``).
         """
         target = self.folder / name
         if any(s.target == target for s in self._staged):
@@ -216,14 +245,58 @@ class AtomicGroup:
 
     def write_bytes(self, name: str | os.PathLike[str], data: bytes, *,
                     figure: bool = False) -> Path:
-        """Stage ``data`` as ``name``; returns the final path."""
+        """Stage ``data`` as ``name``.
+
+        Parameters
+        ----------
+        name : str or os.PathLike
+            File name relative to the group's folder (its folder must exist).
+        data : bytes
+            The file's content.
+        figure : bool, optional
+            Put the file among the figures, renamed after every data file.
+
+        Returns
+        -------
+        pathlib.Path
+            The final path (the file appears there when the group commits).
+
+        Raises
+        ------
+        ParameterError
+            If ``name`` is already staged in this group.
+        OSError
+            If the temporary file cannot be created or written (naming ``name``).
+        """
         with self.open(name, figure=figure) as handle:
             handle.write(data)
         return self.folder / name
 
     def save(self, name: str | os.PathLike[str], save: Callable[[IO[bytes]], object], *,
              figure: bool = False) -> Path:
-        """Stage ``name`` written by ``save(handle)``; returns the final path."""
+        """Stage ``name`` written by ``save(handle)``.
+
+        Parameters
+        ----------
+        name : str or os.PathLike
+            File name relative to the group's folder (its folder must exist).
+        save : callable
+            Called with the binary handle, e.g. ``lambda f: np.savez(f, t=t)``.
+        figure : bool, optional
+            Put the file among the figures, renamed after every data file.
+
+        Returns
+        -------
+        pathlib.Path
+            The final path (the file appears there when the group commits).
+
+        Raises
+        ------
+        ParameterError
+            If ``name`` is already staged in this group.
+        OSError
+            If the temporary file cannot be created or written (naming ``name``).
+        """
         with self.open(name, figure=figure) as handle:
             save(handle)
         return self.folder / name
@@ -282,6 +355,21 @@ def atomic_group(folder: str | os.PathLike[str]) -> Iterator[AtomicGroup]:
     filesystem). A rename that fails (OSError naming the file) stops there: the files
     before it are in place, the remaining temporaries are removed.
 
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Where the files go (an existing folder).
+
+    Yields
+    ------
+    AtomicGroup
+        Stage files on it inside the block.
+
+    Raises
+    ------
+    OSError
+        If a file cannot be staged or renamed into place (naming that file).
+
     Examples
     --------
     >>> with atomic_group(folder) as group:                    # doctest: +SKIP
@@ -301,6 +389,21 @@ def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
     """Open a temporary file beside ``path``; on success rename it onto ``path``.
 
     If the body raises, the temporary file is removed and ``path`` is untouched.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write (its folder must exist).
+
+    Yields
+    ------
+    IO[bytes]
+        The temporary file, open for writing.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be written or renamed (naming ``path``).
     """
     path = Path(path)
     with atomic_group(path.parent) as group, group.open(path.name) as handle:
@@ -308,12 +411,38 @@ def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` whole or not at all."""
+    """Write ``data`` to ``path`` whole or not at all.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write (its folder must exist).
+    data : bytes
+        Its content.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be written (naming ``path``).
+    """
     with atomic_writer(path) as handle:
         handle.write(data)
 
 
 def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object]) -> None:
-    """Call ``save(handle)`` on a temporary file and move it onto ``path`` when it succeeds."""
+    """Call ``save(handle)`` on a temporary file and move it onto ``path`` when it succeeds.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write (its folder must exist).
+    save : callable
+        Called with a binary handle, e.g. ``lambda f: np.savez(f, t=t)``.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be written (naming ``path``).
+    """
     with atomic_writer(path) as handle:
         save(handle)

@@ -18,7 +18,18 @@ def _strict_lower(size: int) -> np.ndarray:
 
 
 def symmetric_from_upper(upper: np.ndarray) -> np.ndarray:
-    """A new symmetric matrix: ``upper``'s upper triangle mirrored into the lower one."""
+    """Return a new symmetric matrix: ``upper``'s upper triangle mirrored into the lower one.
+
+    Parameters
+    ----------
+    upper : numpy.ndarray, shape (k, k)
+        A square matrix whose upper triangle (diagonal included) is meaningful.
+
+    Returns
+    -------
+    numpy.ndarray, shape (k, k)
+        The symmetric matrix; ``upper`` is unchanged.
+    """
     out = upper.copy()
     np.copyto(out, upper.T, where=_strict_lower(upper.shape[0]))
     return out

@@ -12,7 +12,27 @@ __all__ = ["as_vector", "finite_number"]
 
 
 def as_vector(value: object, size: int, name: str) -> np.ndarray:
-    """Return ``value`` as a finite float vector of length ``size`` or raise ConfigurationError."""
+    """Return ``value`` as a finite float vector of length ``size``.
+
+    Parameters
+    ----------
+    value : array_like
+        Anything numpy reads as ``size`` numbers (flattened).
+    size : int
+        The length required.
+    name : str
+        The vector's name in the error message (e.g. ``"q"``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (size,)
+        A float array (a view of ``value`` when it already is one).
+
+    Raises
+    ------
+    ConfigurationError
+        If ``value`` is not numeric, has another size, or has non-finite entries.
+    """
     try:
         vec = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
@@ -26,7 +46,29 @@ def as_vector(value: object, size: int, name: str) -> np.ndarray:
 
 def finite_number(value: object, name: str, *, positive: bool = False,
                   non_negative: bool = False) -> float:
-    """Return ``value`` as a finite float, optionally > 0 or >= 0, or raise ParameterError."""
+    """Return ``value`` as a finite float, optionally > 0 or >= 0.
+
+    Parameters
+    ----------
+    value : object
+        A real number (a bool is refused).
+    name : str
+        The parameter's name in the error message.
+    positive : bool, optional
+        Require ``value > 0``.
+    non_negative : bool, optional
+        Require ``value >= 0``.
+
+    Returns
+    -------
+    float
+        The value.
+
+    Raises
+    ------
+    ParameterError
+        If ``value`` is not a finite number, or breaks the sign requirement.
+    """
     if isinstance(value, bool):
         raise ParameterError(f"{name} must be a number, got {value!r}")
     try:
