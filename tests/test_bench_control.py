@@ -1,0 +1,152 @@
+"""Tests of snake_pin.experiments.bench_control: metrics, the benchmark, user controllers."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from snake_pin.control import Controller, LyapunovController, head_first_reference
+from snake_pin.exceptions import ParameterError
+from snake_pin.experiments import bench_control as bc
+from snake_pin.experiments.tracking import initial_state, tracking_params
+from snake_pin.model import Snake
+from snake_pin.paths import Circle, Line, PathReference, Timing
+from snake_pin.sim import simulate
+
+
+@pytest.fixture(scope="module")
+def snake() -> Snake:
+    """The benchmark's viscous robot."""
+    return Snake(tracking_params())
+
+
+def _posture(snake: Snake, head: np.ndarray) -> np.ndarray:
+    q = np.tile(initial_state(snake.params)[:snake.nq], (len(head), 1))
+    q[:, :2] = head
+    return q
+
+
+def test_circle_offset_gives_cross_track_d(snake: Snake) -> None:
+    """A head on a circle of radius r + d about the path's centre has cross-track d."""
+    ref = PathReference(Circle(radius=1.2), Timing(0.1))
+    t = np.linspace(0.0, 60.0, 601)
+    w = ref.at(t)[0]
+    centre = np.asarray(ref.path.centre)
+    d = 0.05
+    head = centre + (w[:, :2] - centre) * (1.2 + d) / 1.2
+    m = bc.path_metrics(t, _posture(snake, head), np.zeros((len(t), 9)), snake, ref,
+                        criteria_dt=None)
+    assert m["head_ct_rms"] == pytest.approx(d, abs=1e-9)
+    assert m["head_ct_max"] == pytest.approx(d, abs=1e-9)
+    assert m["head_ct_rms_pct"] == pytest.approx(100 * d / 1.2, rel=1e-6)
+    assert m["head_lag_rms"] == pytest.approx(0.0, abs=1e-9)  # radial offset, no lag
+    assert m["head_error_rms"] == pytest.approx(d, abs=1e-9)
+
+
+def test_lagging_head_gives_the_lag(snake: Snake) -> None:
+    """A head a fixed arc length behind the reference has that lag and no cross-track."""
+    for path in (Line(), Circle(radius=0.6)):
+        ref = PathReference(path, Timing(0.1))
+        t = np.linspace(0.0, 60.0, 601)
+        lag = 0.3
+        head = path.geometry(0.1 * t - lag).p
+        m = bc.path_metrics(t, _posture(snake, head), np.ones((len(t), 9)), snake, ref,
+                            criteria_dt=None)
+        assert m["head_lag_rms"] == pytest.approx(lag, abs=1e-7)
+        assert m["head_ct_rms"] == pytest.approx(0.0, abs=1e-7)
+        assert m["torque_rms"] == pytest.approx(1.0)
+        # the time-indexed error is the chord of the lag
+        chord = lag if isinstance(path, Line) else 2 * 0.6 * math.sin(lag / (2 * 0.6))
+        assert m["head_error_rms"] == pytest.approx(chord, abs=1e-7)
+
+
+def test_window_and_head_tracking_flag(snake: Snake) -> None:
+    """Only t >= 10 s counts; a non-head-tracking run has no time-indexed error."""
+    ref = PathReference(Line(), Timing(0.1))
+    t = np.linspace(0.0, 20.0, 201)
+    head = ref.at(t)[0][:, :2] + np.where(t < 10.0, 1.0, 0.02)[:, None] * [0.0, 1.0]
+    m = bc.path_metrics(t, _posture(snake, head), np.zeros((len(t), 9)), snake, ref,
+                        head_tracking=False, criteria_dt=None)
+    assert m["head_ct_max"] == pytest.approx(0.02)
+    assert math.isnan(m["head_error_rms"])
+
+
+def test_criteria_sampled_and_arc_singular_for_wheels(snake: Snake) -> None:
+    """Criteria every 0.1 s: at the initial arc R > 0 while the lateral criterion vanishes."""
+    ref = PathReference(Line(), Timing(0.1))
+    t = np.linspace(0.0, 1.0, 101)
+    q = np.tile(initial_state(snake.params)[:snake.nq], (len(t), 1))
+    m = bc.path_metrics(t, q, np.zeros((len(t), 9)), snake, ref, start=0.0)
+    assert len(m["series"]["t"]) == 11
+    assert m["R_min"] > 1e-4
+    assert m["lateral_min"] < 1e-8 * m["R_min"]
+    assert m["R_tilde_min"] <= m["R_min"]
+
+
+class Damped(Controller):
+    """A user's controller: joint damping only (not a head-tracking law)."""
+
+    name = "damped"
+
+    def __init__(self, snake: Snake) -> None:
+        self.nq = snake.nq
+
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        return -0.1 * x[self.nq + 3:]
+
+
+def test_quick_benchmark_with_a_user_controller(tmp_path) -> None:
+    """2 scenarios x 2 controllers + a user factory: rows, finite metrics, table, files."""
+    result = bc.run_benchmark(
+        scenarios=["line", "circle_1L"],
+        controllers={"lyapunov": None, "pfl": None,
+                     "mine": lambda snake, reference, path: Damped(snake)},
+        failed=(None, 5), t_final=11.0, workers=1)
+    assert len(result.rows) == 2 * 3 * 2
+    for row in result.rows:
+        assert set(bc.METRIC_FIELDS) <= set(row)
+    lyap = result.cell("circle_1L", "lyapunov")
+    for key in ("head_ct_rms", "head_ct_max", "head_lag_rms", "head_error_rms", "cm_ct_rms",
+                "R_min", "R_tilde_min", "lateral_min", "torque_rms"):
+        assert np.isfinite(lyap[key]), key
+    assert lyap["status"] == "completed"
+    assert result.cell("line", "pfl", failed=5)["status"] == "not applicable"
+    mine = result.cell("line", "mine")
+    assert mine["status"] == "completed" and math.isnan(mine["head_error_rms"])
+    # a damped snake stays near its start while the reference is 1.0-1.1 m ahead
+    assert mine["head_lag_rms"] > 0.9 > 10 * result.cell("line", "lyapunov")["head_lag_rms"]
+    files = bc.write_benchmark(result, tmp_path)
+    with open(files["csv"]) as handle:
+        rows = list(csv.DictReader(handle))
+    assert {r["controller"] for r in rows} == {"lyapunov", "pfl", "mine"}
+    doc = json.loads(files["json"].read_text())
+    assert len(doc["rows"]) == 12 and "circle_1L/lyapunov/viscous/0" in doc["criteria"]
+    assert {"table_viscous_0", "table_viscous_5", "claim_circle_1L"} <= set(files)
+
+
+def test_bad_names_refused() -> None:
+    """An unknown scenario, controller or model is one ParameterError."""
+    with pytest.raises(ParameterError, match="scenario"):
+        bc.run_benchmark(scenarios=["spiral"], t_final=1.0)
+    with pytest.raises(ParameterError, match="controller"):
+        bc.run_benchmark(controllers=["magic"], t_final=1.0)
+    with pytest.raises(ParameterError, match="model"):
+        bc.run_benchmark(models=["real"], t_final=1.0)
+
+
+def test_lyapunov_follows_the_circle(snake: Snake) -> None:
+    """Radius 1 body length, 20 s: head cross-track RMS < 4 % of L; a line would fail."""
+    row = bc.run_cell("circle_1L", "lyapunov", t_final=20.0, criteria_dt=None)
+    # measured 1.8 % (0.022 m); 4 % (0.048 m) is generous and under the issue's 5 %
+    assert row["status"] == "completed"
+    assert row["head_ct_rms_pct"] < 4.0
+    # the same law on the straight reference, judged against the circle, is far off
+    straight = simulate(snake, LyapunovController(snake, head_first_reference()),
+                        initial_state(snake.params), 20.0)
+    m = bc.path_metrics(straight.t[::10], straight.q[::10], straight.tau[::10], snake,
+                        bc.make_scenario("circle_1L", 1.2), criteria_dt=None)
+    assert m["head_ct_rms_pct"] > 4.0
