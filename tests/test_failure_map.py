@@ -1,0 +1,167 @@
+"""Tests of snake_pin.experiments.failure_map (the report stage) and .batched_sweeps."""
+
+from __future__ import annotations
+
+import functools
+import json
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pytest
+
+from snake_pin import SnakeParams
+from snake_pin.exceptions import RunInterrupted
+from snake_pin.experiments import failure_map
+from snake_pin.experiments.batched_sweeps import run_tracking_batch
+from snake_pin.experiments.failure_map import (
+    FULL,
+    MapPlan,
+    failure_map_stage,
+    failure_map_study,
+    findings,
+    map_tables,
+)
+from snake_pin.experiments.reproduce import Context
+from snake_pin.experiments.tracking import run_tracking, tracking_params
+from snake_pin.metrics import head_error_summary, percent
+from snake_pin.report import Report
+from snake_pin.robot_file import load_robot
+from snake_pin.study import load_study
+
+REPO = Path(__file__).resolve().parent.parent
+#: A tiny map: 3 failed joints x 2 ratios, 1 s, errors judged from 0.5 s.
+TINY = MapPlan(1.0, (0, 1, 5), (25.0, 50.0), error_window=0.5)
+
+
+def test_the_full_plan_on_table1_is_the_shipped_study(tmp_path: Path) -> None:
+    """The stage's full study on Table 1 expands to the runs of studies/failure_map.toml."""
+    path = failure_map_study(SnakeParams.table1(), FULL, tmp_path)
+    shipped = load_study(REPO / "studies" / "failure_map.toml")
+    assert load_study(path).study_hash == shipped.study_hash
+    assert len(shipped.scenarios) == 40
+
+
+def test_a_robot_of_ones_own_is_written_beside_the_study(tmp_path: Path) -> None:
+    """A 6-link robot with a passive joint: its file (passive cleared), failed joints 0..5."""
+    robot = SnakeParams.table1(n=6, mass=0.3, name="my_robot").replace(passive=(2,))
+    spec = load_study(failure_map_study(robot, FULL, tmp_path))
+    assert load_robot(str(tmp_path / "failure_map_robot.toml")).passive == ()
+    assert sorted({s["failed_joint"] for s in spec.scenarios}) == [0, 1, 2, 3, 4, 5]
+    assert {s.params.mass for s in spec.scenarios} == {0.3}
+    assert {s.params.c_y / s.params.c_x for s in spec.scenarios} == {10.0, 25.0, 50.0, 100.0}
+
+
+def _tables(rms: dict[int, list[float]], rt: dict[int, list[float]],
+            ratios: tuple[float, ...]) -> dict[str, Any]:
+    rows = [{"failed_joint": j, "c_x": 0.5, "c_y": 0.5 * r, "status": "ok",
+             "rms_head_error_pct": rms[j][i], "R_tilde_min": rt[j][i]}
+            for j in rms for i, r in enumerate(ratios)]
+    return map_tables(rows, sorted(rms), ratios)
+
+
+def test_findings_name_the_lost_ratio_the_broken_and_the_zero_R_joints() -> None:
+    """Synthetic map: ratio 10 lost, joint 2 breaks (worst), joint 1's R~ is rounding."""
+    ratios = (10.0, 50.0, 100.0)
+    rms = {0: [150.0, 3.0, 3.5], 1: [100.0, 3.6, 4.5], 2: [120.0, 14.0, 19.0],
+           5: [170.0, 6.0, 11.0]}
+    rt = {0: [1e-3, 9e-3, 1e-2], 1: [1e-18, 2e-18, 1e-18], 2: [1e-5, 7e-6, 4e-6],
+          5: [3e-4, 8e-5, 1e-4]}
+    text, numbers = findings(_tables(rms, rt, ratios), sorted(rms), ratios)
+    assert numbers["tracking_ratios"] == [50.0, 100.0]
+    assert numbers["broken_joints"] == [2, 5] and numbers["worst_joint"] == 2
+    assert numbers["tracking_joints"] == [1]
+    assert numbers["R_tilde_zero_joints"] == [1] and numbers["lowest_R_tilde_joint"] == 2
+    assert "c_y/c_x = 10 no run tracks" in text[0]
+    assert "joint 2 and 5 failed" in text[1] and "the worst is joint 2" in text[1]
+
+
+def test_map_tables_key_every_cell_and_keep_failed_runs_as_their_status() -> None:
+    """Every (joint, ratio) cell exists; a diverged run has no value but its status."""
+    rows = [{"failed_joint": 0, "c_x": 0.5, "c_y": 25.0, "status": "ok",
+             "rms_head_error_pct": 3.0, "R_tilde_min": 1e-2},
+            {"failed_joint": 3, "c_x": 0.5, "c_y": 25.0, "status": "diverged",
+             "rms_head_error_pct": 80.0, "R_tilde_min": 1e-4}]
+    tables = map_tables(rows, [0, 3], (50.0, 100.0))
+    assert tables["rms_head_error_pct"] == {"0": {"50": 3.0, "100": None},
+                                            "3": {"50": None, "100": None}}
+    assert tables["status"]["3"] == {"50": "diverged", "100": "missing"}
+
+
+def test_the_stage_runs_the_study_and_reports_its_numbers(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A tiny quick map: study folder, heatmaps, series, tables equal to the Parquet rows,
+    joint 1's R~ found zero, numbers JSON-safe."""
+    monkeypatch.setattr(failure_map, "QUICK", TINY)
+    report = Report("test")
+    ctx = Context(folder=tmp_path, params=SnakeParams.table1(), report=report, quick=True,
+                  options={"study_workers": 1})
+    failure_map_stage(ctx)
+    sec = report.sections[-1]
+    assert sec.key == "failure_map"
+    for name in ("failure_map.toml", "failure_map/index.html", "failure_map_series.png",
+                 "failure_map_rms_head_error_pct.png", "failure_map_R_tilde_min.png"):
+        assert (tmp_path / name).is_file(), name
+    assert {p.name for p, _ in sec.figures} >= {"failure_map_rms_head_error_pct.png",
+                                                 "failure_map_R_tilde_min.png",
+                                                 "failure_map_series.png"}
+    frame = pd.read_parquet(tmp_path / "failure_map" / "runs")
+    assert len(frame) == 6 and set(frame["status"]) == {"ok"}
+    for _, row in frame.iterrows():
+        cell = sec.numbers["rms_head_error_pct"][str(row["failed_joint"])][
+            f"{row['c_y'] / row['c_x']:g}"]
+        assert cell == row["rms_head_error_pct"]
+    assert sec.numbers["findings"]["R_tilde_zero_joints"] == [1]
+    assert sec.numbers["series_ratio"] == 50.0
+    assert set(sec.numbers["series"]) == {"no failure", "joint 5 failed (worst here)",
+                                          "joint 1 failed"} or \
+        set(sec.numbers["series"]) == {"no failure", "joint 1 failed (worst here)"}
+    assert sec.numbers["study"]["status"] == "complete"
+    json.dumps(report.summary(), allow_nan=False)
+    assert any("failed joint" in " ".join(map(str, h)) for h, _ in sec.tables)
+
+
+def test_an_interrupted_study_propagates(tmp_path: Path,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """RunInterrupted from the study leaves the stage unchanged (nothing swallowed)."""
+    import snake_pin.study
+
+    def interrupted(*_args: Any, **_kwargs: Any) -> Any:
+        raise RunInterrupted("study failure_map interrupted", partial=None)
+
+    monkeypatch.setattr(snake_pin.study, "run_study", interrupted)
+    monkeypatch.setattr(failure_map, "QUICK", TINY)
+    report = Report("test")
+    ctx = Context(folder=tmp_path, params=SnakeParams.table1(), report=report, quick=True)
+    with pytest.raises(RunInterrupted):
+        failure_map_stage(ctx)
+
+
+def test_batched_tracking_rows_equal_the_per_run_rows(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The report's sweep (lambda 3, 7; c_y 10, 50) through one lockstep batch gives
+    run_tracking's rows (RMS, % of body, R min; max error, D min, g drift) to 1e-9 (2 s
+    runs, errors judged from 1 s in both paths)."""
+    from snake_pin.experiments import batched_sweeps, tracking
+
+    for module in (tracking, batched_sweeps):
+        monkeypatch.setattr(module, "head_error_summary",
+                            functools.partial(head_error_summary, start=1.0))
+    base = SnakeParams.table1()
+    robot = tracking_params(base)
+    sweep = [(robot, {"lam": lam, "lam_shape": lam / 2}) for lam in (3.0, 7.0)] + \
+        [(tracking_params(base, c_y=c_y), {}) for c_y in (10.0, 50.0)]
+    t_final = 2.0
+    batched = run_tracking_batch([(params, t_final, options) for params, options in sweep])
+    for (params, options), traj in zip(sweep, batched, strict=True):
+        alone = run_tracking(params, t_final=t_final, **options)
+        got, want = traj.summary, alone.summary
+        assert traj.t_end == alone.t_end == t_final and traj.status == alone.status
+        assert got["rms_head_error"] is not None
+        assert percent(got["rms_relative"]) == pytest.approx(percent(want["rms_relative"]),
+                                                             rel=1e-9)
+        for key in ("rms_head_error", "max_head_error", "R_min", "D_min"):
+            assert got[key] == pytest.approx(want[key], rel=1e-9), key
+        assert got["g_drift"] == pytest.approx(want["g_drift"], rel=1e-6, abs=1e-12)
+        assert (got["c_x"], got["c_y"], got["passive"]) == (want["c_x"], want["c_y"],
+                                                            want["passive"])
+        assert traj.meta["lam"] == alone.meta["lam"]
