@@ -117,7 +117,23 @@ class _Outcome:
 
 # ------------------------------------------------------------------- argument types
 def parse_angle(text: str) -> float:
-    """An angle in radians from ``0.3``, ``pi/5``, ``-pi/3``, ``2*pi/3`` or ``pi``."""
+    """An angle in radians from ``0.3``, ``pi/5``, ``-pi/3``, ``2*pi/3`` or ``pi``.
+
+    Parameters
+    ----------
+    text
+        A number, optionally times ``pi`` and divided by a number.
+
+    Returns
+    -------
+    float
+        The angle [rad].
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Not an angle, a division by zero, or not finite.
+    """
     match = _ANGLE.match(text)
     if not match or not (match.group(2) or match.group(3)):
         raise argparse.ArgumentTypeError(f"not an angle: {text!r} (use e.g. 0.3 or pi/5)")
@@ -655,7 +671,14 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
 
 # --------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
-    """The whole command line, built in one place."""
+    """The whole command line, built in one place.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        ``snake-pin`` with its subcommands; its errors raise :class:`UsageError` (one
+        line) instead of exiting.
+    """
     from .singular import MAX_SEED, MAX_STARTS
     from .sweeps import MAX_POINTS
 
@@ -874,7 +897,19 @@ def _say(message: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``snake-pin``; returns the exit status (see ``snake-pin --help``)."""
+    """Entry point of ``snake-pin``.
+
+    Parameters
+    ----------
+    argv
+        The arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status: 0 done, 2 wrong input, 3 a run diverged or failed, 130
+        interrupted (see ``snake-pin --help``).
+    """
     with _signals_as_interrupts() as received:
         try:
             try:

@@ -31,7 +31,25 @@ __all__ = ["Report", "Section", "json_safe", "json_text"]
 
 @dataclass
 class Section:
-    """One report section: a title, paragraphs, figures (paths), tables and links."""
+    """One report section: a title, paragraphs, figures (paths), tables and links.
+
+    Parameters
+    ----------
+    key
+        The section's anchor in the page and its key in the summary.
+    title
+        Its heading.
+    paragraphs
+        Plain-text paragraphs (escaped when written).
+    figures
+        (PNG path, caption) pairs; the PNGs are embedded in the page.
+    tables
+        (header, rows) pairs.
+    links
+        (href relative to the report folder, label) pairs.
+    numbers
+        The section's numbers for ``summary.json``.
+    """
 
     key: str
     title: str
@@ -42,22 +60,72 @@ class Section:
     numbers: dict[str, Any] = field(default_factory=dict)
 
     def text(self, paragraph: str) -> Section:
-        """Add a paragraph (plain text, escaped)."""
+        """Add a paragraph.
+
+        Parameters
+        ----------
+        paragraph
+            Plain text (escaped when written).
+
+        Returns
+        -------
+        Section
+            This section, for chaining.
+        """
         self.paragraphs.append(paragraph)
         return self
 
     def figure(self, path: str | os.PathLike[str], caption: str) -> Section:
-        """Add a PNG figure with a caption."""
+        """Add a PNG figure with a caption.
+
+        Parameters
+        ----------
+        path
+            The PNG file (read when the report is written).
+        caption
+            Its caption.
+
+        Returns
+        -------
+        Section
+            This section, for chaining.
+        """
         self.figures.append((Path(path), caption))
         return self
 
     def table(self, header: list[str], rows: list[list[Any]]) -> Section:
-        """Add a table."""
+        """Add a table.
+
+        Parameters
+        ----------
+        header
+            Column titles.
+        rows
+            Rows of cells (floats shown with 4 significant digits, None as "-").
+
+        Returns
+        -------
+        Section
+            This section, for chaining.
+        """
         self.tables.append((header, rows))
         return self
 
     def link(self, href: str, label: str) -> Section:
-        """Add a link (relative to the report folder)."""
+        """Add a link.
+
+        Parameters
+        ----------
+        href
+            The target, relative to the report folder.
+        label
+            The link's text.
+
+        Returns
+        -------
+        Section
+            This section, for chaining.
+        """
         self.links.append((href, label))
         return self
 
@@ -66,7 +134,7 @@ class Section:
 class Report:
     """Sections in order, written as one HTML page and one JSON summary.
 
-    Attributes
+    Parameters
     ----------
     title
         The page's title.
@@ -84,19 +152,50 @@ class Report:
     note: str = ""
 
     def section(self, key: str, title: str) -> Section:
-        """Append and return a new section."""
+        """Append a new section.
+
+        Parameters
+        ----------
+        key
+            Its anchor and summary key.
+        title
+            Its heading.
+
+        Returns
+        -------
+        Section
+            The new (empty) section.
+        """
         sec = Section(key, title)
         self.sections.append(sec)
         return sec
 
     def summary(self) -> dict[str, Any]:
-        """The numbers of every section, keyed by section, and ``"run"``: status and note."""
+        """The report's numbers.
+
+        Returns
+        -------
+        dict
+            Every section's numbers under its key, and ``"run"``: status, note and the
+            sections' keys.
+        """
         return {"run": {"status": self.status, "note": self.note,
                         "sections": [sec.key for sec in self.sections]},
                 **{sec.key: sec.numbers for sec in self.sections}}
 
     def write(self, folder: str | os.PathLike[str]) -> Path:
-        """Write ``index.html`` and ``summary.json`` into ``folder``; return the HTML path."""
+        """Write ``index.html`` (figures embedded) and ``summary.json`` into ``folder``.
+
+        Parameters
+        ----------
+        folder
+            An existing folder; each file is written whole or not at all.
+
+        Returns
+        -------
+        pathlib.Path
+            The path of ``index.html``.
+        """
         folder = Path(folder)
         parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{_e(self.title)}"
                  "</title><style>body{font-family:sans-serif;max-width:1100px;margin:auto;"

@@ -53,7 +53,7 @@ MAX_SEED = 2**32 - 1
 class SingularFamily:
     """Connected set of minima with R = 0, up to the mirror phi -> -phi.
 
-    Attributes
+    Parameters
     ----------
     phi
         Representative posture (the member with the smallest R).
@@ -84,19 +84,29 @@ class SingularFamily:
 class SingularSearch:
     """Result of :func:`find_singular_postures`.
 
-    Attributes
+    Parameters
     ----------
-    families
-        Distinct postures where R is numerically zero (R <= threshold).
-    minima_phi, minima_R
-        Every polished local minimum (one per start), for the record.
+    params
+        The robot searched.
+    bound
+        The box |phi_i| <= bound [rad].
+    starts
+        Starts that ran.
+    free_joint
+        The free joint(s) (the robot's passive joints included), or None.
     R_typical
         Median R over random postures in the box: the scale "numerically zero" refers to.
     threshold
         R below this counts as zero (``relative * R_typical``).
+    minima_phi, minima_R
+        Every polished local minimum (one per start), for the record.
+    families
+        Distinct postures where R is numerically zero (R <= threshold).
     status
         ``"completed"``, or ``"interrupted"`` when only the first ``starts`` of
         ``starts_requested`` starts ran.
+    starts_requested
+        Starts asked for (None: ``starts``).
     """
 
     params: SnakeParams
@@ -117,12 +127,30 @@ class SingularSearch:
         return [f for f in self.families if not f.straight]
 
     def smallest_non_straight_R(self, straight_tol: float = 1e-3) -> float:
-        """The smallest R among minima that are not the straight posture."""
+        """The smallest R among minima that are not the straight posture.
+
+        Parameters
+        ----------
+        straight_tol
+            A minimum with every |phi_i| <= this [rad] counts as the straight posture.
+
+        Returns
+        -------
+        float
+            That R (NaN if every minimum is straight).
+        """
         mask = np.max(np.abs(self.minima_phi), axis=1) > straight_tol
         return float(self.minima_R[mask].min()) if np.any(mask) else float("nan")
 
     def to_dict(self) -> dict[str, object]:
-        """``{"postures": [[phi...]], "R": [...]}`` plus the search settings."""
+        """Plain JSON data of the search.
+
+        Returns
+        -------
+        dict
+            ``{"postures": [[phi...]], "R": [...]}`` per family (with ``straight``,
+            ``members``, ``span``) plus the search settings and status.
+        """
         return {"postures": [f.phi.tolist() for f in self.families],
                 "R": [f.R for f in self.families],
                 "straight": [f.straight for f in self.families],
@@ -162,11 +190,19 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     progress
         Show a progress bar on stderr when it is a terminal.
 
+    Returns
+    -------
+    SingularSearch
+        The minima and the families they cluster into.
+
     Raises
     ------
     RunInterrupted
         On Ctrl-C (or SIGTERM turned into KeyboardInterrupt) after at least one start:
         ``partial`` is the search over the starts finished so far.
+    ParameterError
+        ``starts``, ``seed`` or ``bound`` out of range, free joints that leave no task,
+        or a robot whose R is zero everywhere.
     """
     for name, value in (("starts", starts), ("seed", seed)):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):

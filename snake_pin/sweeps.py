@@ -47,7 +47,27 @@ FreeJoints = int | tuple[int, ...] | None
 
 @dataclass
 class Sweep:
-    """D and R along one posture family."""
+    """D and R along one posture family.
+
+    Parameters
+    ----------
+    family
+        One of :data:`FAMILIES`.
+    label
+        The swept parameter with its unit (e.g. ``"phi0 [rad]"``).
+    values
+        The parameter values (N,).
+    D, R
+        The criteria at each value (N,) (D~ and R~ with free joints).
+    free_joint
+        The free joint(s), or None.
+    robot
+        The robot's name.
+    meta
+        Extra settings written with the data (e.g. ``points_requested``).
+    status
+        ``"completed"``, or ``"interrupted"`` for a partial sweep.
+    """
 
     family: str
     label: str
@@ -66,18 +86,42 @@ class Sweep:
         return f"sweep_{self.family}" + (f"_free{'_'.join(map(str, free))}" if free else "")
 
     def zeros(self, relative: float = 1e-9) -> np.ndarray:
-        """Parameter values where R is numerically zero (relative to the largest R)."""
+        """Parameter values where R is numerically zero.
+
+        Parameters
+        ----------
+        relative
+            R <= relative * (largest R of the sweep) counts as zero.
+
+        Returns
+        -------
+        numpy.ndarray
+            Those values of :attr:`values`.
+        """
         if self.R.size == 0:
             return self.values[:0]
         return self.values[self.R <= relative * self.R.max()]
 
     def rows(self) -> list[tuple[float, float, float]]:
-        """(parameter value, D, R) at every posture, in order (the CSV's rows)."""
+        """The sweep as rows, in order (the CSV's rows).
+
+        Returns
+        -------
+        list of tuple
+            (parameter value, D, R) at every posture.
+        """
         return list(zip(self.values.tolist(), self.D.tolist(), self.R.tolist(), strict=True))
 
     def to_dict(self) -> dict[str, object]:
-        """Plain JSON data (non-finite D or R as None; ``status`` is ``"interrupted"`` for a
-        partial sweep)."""
+        """Plain JSON data of the sweep.
+
+        Returns
+        -------
+        dict
+            family, parameter (the label), robot, free_joint, status (``"interrupted"``
+            for a partial sweep), values, D, R (non-finite entries as None) and
+            :attr:`meta`.
+        """
         free = self.free_joint
         return {"family": self.family, "parameter": self.label, "robot": self.robot,
                 "free_joint": list(free) if isinstance(free, tuple) else free,
@@ -126,11 +170,19 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     progress
         Show a progress bar on stderr when it is a terminal.
 
+    Returns
+    -------
+    Sweep
+        D and R at every value.
+
     Raises
     ------
     RunInterrupted
         On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the sweep
         of the values computed so far, with ``status == "interrupted"``.
+    ParameterError
+        An unknown family, ``points`` not an integer in 2 .. :data:`MAX_POINTS`, or free
+        joints that leave the task no actuated joint.
     """
     if family not in FAMILIES:
         raise ParameterError(f"unknown family {family!r}; choose one of {', '.join(FAMILIES)}")
@@ -170,7 +222,17 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
 
 @dataclass
 class RMap:
-    """R over a grid of serpenoid parameters (alpha, T_s)."""
+    """R over a grid of serpenoid parameters (alpha, T_s).
+
+    Parameters
+    ----------
+    alpha, ts
+        The grid's axes.
+    R
+        R at every (T_s, alpha), shape (len(ts), len(alpha)).
+    free_joint
+        The free joint, or None.
+    """
 
     alpha: np.ndarray
     ts: np.ndarray
@@ -180,7 +242,24 @@ class RMap:
 
 def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 121,
           ts_points: int = 101, alpha_max: float = np.pi / 2, ts_max: float = 2.0) -> RMap:
-    """R of the serpenoid (43) over alpha in [0, alpha_max] x T_s in [0, ts_max] (batch path)."""
+    """R of the serpenoid (43) over alpha in [0, alpha_max] x T_s in [0, ts_max] (batch path).
+
+    Parameters
+    ----------
+    snake
+        The robot (its parameters go to the batched closed form).
+    free_joint
+        A free joint (R~), or None.
+    alpha_points, ts_points
+        Grid sizes along alpha and T_s.
+    alpha_max, ts_max
+        Upper ends of the grid (both start at 0).
+
+    Returns
+    -------
+    RMap
+        R over the grid.
+    """
     alpha = np.linspace(0.0, alpha_max, alpha_points)
     ts = np.linspace(0.0, ts_max, ts_points)
     n = snake.n

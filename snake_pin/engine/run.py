@@ -27,7 +27,7 @@ import numpy as np
 
 from .._validation import finite_number
 from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
-from ..exceptions import ParameterError, RunInterrupted, SnakePinError
+from ..exceptions import ParameterError, RunInterrupted
 from ..gaits import initial_state
 from ..model import Snake
 from ..params import SnakeParams
@@ -38,7 +38,17 @@ __all__ = ["LAWS", "DirtyDerivative", "EngineRun", "identify_friction", "run_eng
 
 
 class DirtyDerivative:
-    """y = 2 pi f_c s / (s + 2 pi f_c) x, backward Euler at period dt, per channel."""
+    """y = 2 pi f_c s / (s + 2 pi f_c) x, backward Euler at period dt, per channel.
+
+    Parameters
+    ----------
+    size
+        Number of channels.
+    cutoff
+        Cut-off frequency f_c [Hz].
+    dt
+        Sampling period [s].
+    """
 
     def __init__(self, size: int, cutoff: float, dt: float) -> None:
         self.omega = 2 * math.pi * finite_number(cutoff, "cutoff", positive=True)
@@ -49,7 +59,13 @@ class DirtyDerivative:
         self._started = False
 
     def reset(self, x0: np.ndarray) -> None:
-        """Start from x0 at rest."""
+        """Start from ``x0`` at rest (zero velocity estimate).
+
+        Parameters
+        ----------
+        x0
+            The first sample, one value per channel.
+        """
         self._x = np.asarray(x0, dtype=float).copy()
         self._y[:] = 0.0
         self._started = True
@@ -153,7 +169,18 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
 
 @dataclass
 class EngineRun:
-    """An engine run: the trajectory of the estimated state and the true one."""
+    """An engine run: the trajectory of the estimated state and the true one.
+
+    Parameters
+    ----------
+    trajectory
+        q read from the engine and dq estimated by the filter (what the controller saw),
+        the torques, status and meta.
+    true_dq
+        The engine's own velocities on (x, y, yaw, phi) at the same samples.
+    friction
+        The viscous model the controller used (:func:`identify_friction`).
+    """
 
     trajectory: Trajectory  # q from the engine, dq estimated (what the controller saw)
     true_dq: np.ndarray
@@ -177,13 +204,38 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
 
     The run starts at rest on the arc of eq. (82), head first (theta_1 = pi), with
     ``initial_offset`` (n - 1 angles [rad], default zeros) added to its joint angles: the
-    engine runs are chaotic, and :func:`snake_pin.experiments.engine.engine_draws` runs
-    them as distributions over small offsets.
+    engine runs are chaotic, and ``snake-pin engine --seeds N`` and the report run them as
+    distributions over small offsets (:mod:`snake_pin.experiments.engine`).
 
     The run ends like :func:`snake_pin.sim.simulate`'s, with a trajectory status:
     "diverged" if the engine state becomes non-finite or the robot leaves the floor,
     "failed" if the controller raises (any exception), "completed" otherwise. At most
     :data:`snake_pin.sim.MAX_STEPS` control steps (``t_final / wheels.control_dt``).
+
+    Parameters
+    ----------
+    params
+        The robot (default: the ``engine`` preset); its passive joints get no motor.
+    wheels
+        Wheels, contacts and time steps (default :class:`WheelSpec`).
+    t_final
+        Duration [s].
+    friction
+        The controller's viscous model (default: :func:`identify_friction` of the robot
+        with every joint actuated).
+    cutoff
+        Cut-off of the velocity filter [Hz].
+    law
+        "velocity" or "acceleration" (see above).
+    initial_offset
+        n - 1 offsets added to the initial joint angles [rad] (see above).
+    progress
+        Show a progress bar on stderr when it is a terminal.
+
+    Returns
+    -------
+    EngineRun
+        The run (status "completed", "diverged" or "failed").
 
     Raises
     ------
@@ -191,6 +243,9 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         On KeyboardInterrupt during the run (Ctrl-C, or SIGTERM/SIGHUP turned into it by
         the command line): ``partial`` is the trajectory of every completed sample, with
         status "interrupted" and the time in its reason.
+    ParameterError
+        An unknown law, a non-positive ``t_final`` or more than ``MAX_STEPS`` steps, an
+        ``initial_offset`` of the wrong size or not finite.
     """
     if law not in LAWS:
         raise ParameterError(f"law must be one of {', '.join(LAWS)}, got {law!r}")
@@ -275,11 +330,14 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
             try:
                 tau = np.asarray(controller(np.concatenate((q, dq)), engine.data.time),
                                  dtype=float)
-                if tau.shape != (params.n - 1,) or not np.all(np.isfinite(tau)):
-                    raise SnakePinError(f"torque of shape {tau.shape} or not finite")
             except Exception as exc:
                 status = "failed"
                 reason = f"controller failed at t = {engine.data.time:.3f} s: {exc}"
+                break
+            if tau.shape != (params.n - 1,) or not np.all(np.isfinite(tau)):
+                status = "failed"
+                reason = (f"controller failed at t = {engine.data.time:.3f} s: torque of "
+                          f"shape {tau.shape} or not finite")
                 break
             taus[k] = tau
             engine.apply_torque(tau)

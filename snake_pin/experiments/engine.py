@@ -42,7 +42,8 @@ from .parallel import run_jobs
 
 __all__ = ["DRAWS", "METRICS", "PERTURBATION", "QUICK_DRAWS", "SENSITIVE", "VISCOUS_DRAWS",
            "Draws",
-           "distribution", "engine_draw", "engine_stage", "perturbations", "plot_engine",
+           "distribution", "engine_draw", "engine_robot", "engine_stage", "perturbations",
+           "plot_engine",
            "summarize", "viscous_twin"]
 
 #: Default half-width of the uniform offsets of the initial joint angles [rad].
@@ -67,11 +68,22 @@ METRICS: dict[str, str] = {
 def summarize(traj: Trajectory, *, every: int = 10) -> dict[str, object]:
     """Head errors and torques over t >= 10 s, D and R from the (estimated) state.
 
-    Stored in (and returned as) ``traj.summary``: rms_head_error, max_head_error [m],
-    rms_relative (fraction of the body length), the metrics of :data:`METRICS`
-    (``rms_percent``, ``max_percent``: % of the body length; ``torque_rms``: RMS over
-    the samples and actuated joints [N m]; None for a run shorter than the window),
-    R_min, D_min, body_length, passive, final_head.
+    Parameters
+    ----------
+    traj
+        A head-tracking run along w_r = [0.1 t, 0, pi] (engine or viscous model). Its
+        ``signals`` get ``head_error`` and its ``meta`` the ``criteria`` (t, D, R).
+    every
+        D and R are evaluated at every ``every``-th sample.
+
+    Returns
+    -------
+    dict
+        ``traj.summary``, updated with rms_head_error, max_head_error [m], rms_relative
+        (fraction of the body length), the metrics of :data:`METRICS` (``rms_percent``,
+        ``max_percent``: % of the body length; ``torque_rms``: RMS over the samples and
+        actuated joints [N m]; None for a run shorter than the window), R_min, D_min,
+        body_length, passive, final_head.
     """
     reference = head_first_reference()
     error = head_position_error(traj, reference)
@@ -105,6 +117,22 @@ def perturbations(count: int, joints: int, size: float = PERTURBATION,
     Seeded (``numpy.random.default_rng(seed)``): the same arguments give the same
     offsets, so any draw can be run again with ``run_engine(initial_offset=...)``.
 
+    Parameters
+    ----------
+    count
+        Number of draws (rows).
+    joints
+        Joint angles per draw (n - 1).
+    size
+        Half-width of the uniform distribution [rad].
+    seed
+        Seed of the generator.
+
+    Returns
+    -------
+    numpy.ndarray
+        (count, joints) offsets [rad].
+
     Raises
     ------
     ParameterError
@@ -119,8 +147,20 @@ def perturbations(count: int, joints: int, size: float = PERTURBATION,
 
 
 def distribution(values: Sequence[float | None]) -> dict[str, Any]:
-    """Median, 10 % and 90 % percentiles (linear interpolation), min, max of the values
-    that are numbers, and how many there were (``count``); None entries are left out."""
+    """Median, 10 % and 90 % percentiles, min and max of the values that are numbers.
+
+    Parameters
+    ----------
+    values
+        One metric of several runs; None (no value: a run shorter than the error
+        window) and non-finite entries are left out.
+
+    Returns
+    -------
+    dict
+        ``median``, ``p10``, ``p90`` (percentiles interpolated linearly between the
+        values), ``min``, ``max`` (all None when no value is left) and ``count``.
+    """
     finite = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
     if finite.size == 0:
         return {"median": None, "p10": None, "p90": None, "min": None, "max": None,
@@ -134,7 +174,7 @@ def distribution(values: Sequence[float | None]) -> dict[str, Any]:
 class Draws:
     """Runs of one configuration from perturbed initial postures, and their distribution.
 
-    Attributes
+    Parameters
     ----------
     label
         What was run (e.g. "velocity law, joint 5 passive").
@@ -163,7 +203,17 @@ class Draws:
             self.files = [[] for _ in self.offsets]
 
     def record(self, index: int, summary: dict[str, Any], files: Sequence[str] = ()) -> None:
-        """Keep the summary (and files) of draw ``index``."""
+        """Keep the summary (and files) of a finished draw.
+
+        Parameters
+        ----------
+        index
+            The draw (row of :attr:`offsets`).
+        summary
+            Its JSON summary (``Trajectory.summary_dict()`` after :func:`summarize`).
+        files
+            The files it was saved to, if any.
+        """
         self.summaries[index] = summary
         self.files[index] = [str(f) for f in files]
 
@@ -173,21 +223,51 @@ class Draws:
         return [i for i, s in enumerate(self.summaries) if s is not None]
 
     def values(self, metric: str) -> list[float | None]:
-        """``metric`` of every finished draw, in draw order."""
+        """One metric of every finished draw, in draw order.
+
+        Parameters
+        ----------
+        metric
+            A summary key (e.g. one of :data:`METRICS`).
+
+        Returns
+        -------
+        list
+            The values (None where a draw has none).
+        """
         return [self.summaries[i].get(metric) for i in self.done]  # type: ignore[union-attr]
 
     def distributions(self) -> dict[str, dict[str, Any]]:
-        """:func:`distribution` of every metric of :data:`METRICS` over the finished draws."""
+        """The distribution of every metric over the finished draws.
+
+        Returns
+        -------
+        dict
+            Metric of :data:`METRICS` -> its :func:`distribution`.
+        """
         return {key: distribution(self.values(key)) for key in METRICS}
 
     def faults(self) -> list[int]:
-        """Finished draws that diverged or failed."""
+        """The finished draws that diverged or failed.
+
+        Returns
+        -------
+        list of int
+            Their indices.
+        """
         return [i for i in self.done
                 if self.summaries[i].get("status") in ("diverged", "failed")]  # type: ignore[union-attr]
 
     def median_draw(self) -> int | None:
-        """The finished draw whose RMS head error is the median (the lower middle one for
-        an even count), or the first finished draw if none has an RMS; None if none ran."""
+        """The draw that stands for the distribution in figures and files.
+
+        Returns
+        -------
+        int or None
+            The finished draw whose RMS head error is the median (the lower middle one
+            for an even count), or the first finished draw if none has an RMS; None if
+            none finished.
+        """
         done = self.done
         if not done:
             return None
@@ -199,7 +279,14 @@ class Draws:
         return rms[(len(rms) - 1) // 2][1]
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON data: settings, every draw (offset, summary, files), distributions."""
+        """Plain JSON data of the draws.
+
+        Returns
+        -------
+        dict
+            label, draws (how many), finished, perturbation, seed, distribution (per
+            metric), median_draw, and runs: every draw's offset, summary and files.
+        """
         return {"label": self.label, "draws": len(self.offsets), "finished": len(self.done),
                 "perturbation": self.perturbation, "seed": self.seed,
                 "distribution": self.distributions(), "median_draw": self.median_draw(),
@@ -208,7 +295,13 @@ class Draws:
                                                            self.files, strict=True)]}
 
     def text(self) -> str:
-        """Lines for a terminal: the draws and each metric's median and 10-90 % range."""
+        """The draws and each metric's median and 10-90 % range, for a terminal.
+
+        Returns
+        -------
+        str
+            Lines without a trailing newline.
+        """
         lines = [f"{self.label}: {len(self.done)} of {len(self.offsets)} runs, initial joint "
                  f"angles offset by U(-{self.perturbation:g}, {self.perturbation:g}) rad "
                  f"(seed {self.seed})"]
@@ -238,8 +331,30 @@ def _cell(dist: dict[str, Any]) -> str:
 def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None, *,
                 wheels: WheelSpec, t_final: float, friction: dict[str, Any],
                 law: str = "velocity") -> EngineRun:
-    """One engine run from the arc of (82) with ``offset`` added to its joint angles,
-    passed through :func:`summarize` (a job for :mod:`snake_pin.experiments.parallel`)."""
+    """One engine run from the arc of (82) with ``offset`` added to its joint angles.
+
+    A job for :mod:`snake_pin.experiments.parallel` (module-level, picklable).
+
+    Parameters
+    ----------
+    params
+        The robot (passive joints included).
+    offset
+        n - 1 offsets of the initial joint angles [rad], or None.
+    wheels
+        Wheels and contact settings.
+    t_final
+        Duration [s].
+    friction
+        The identified viscous model (:func:`~snake_pin.engine.run.identify_friction`).
+    law
+        "velocity" or "acceleration" (see :func:`~snake_pin.engine.run.run_engine`).
+
+    Returns
+    -------
+    EngineRun
+        The run, its trajectory passed through :func:`summarize`.
+    """
     run = run_engine(params, wheels=wheels, t_final=t_final, friction=friction, law=law,
                      initial_offset=offset)
     summarize(run.trajectory)
@@ -248,8 +363,26 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
 
 def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
                  offset: Sequence[float] | np.ndarray | None = None) -> Trajectory:
-    """The same controller on the viscous Pinocchio model of the same robot, from the same
-    initial posture (plus ``offset`` on the joint angles [rad], if given)."""
+    """The same controller on the viscous Pinocchio model of the same robot.
+
+    Parameters
+    ----------
+    params
+        The robot with its identified viscous friction.
+    t_final
+        Duration [s].
+    law
+        "velocity" (:class:`~snake_pin.control.QuasiStaticLyapunovController`) or
+        "acceleration" (:class:`~snake_pin.control.LyapunovController`).
+    offset
+        n - 1 offsets of the initial joint angles [rad] (default none): the run starts
+        from the engine runs' arc of (82), head first.
+
+    Returns
+    -------
+    Trajectory
+        The run, passed through :func:`summarize`.
+    """
     snake = Snake(params)
     controller = (QuasiStaticLyapunovController(snake, head_first_reference())
                   if law == "velocity" else LyapunovController(snake, head_first_reference()))
@@ -265,8 +398,22 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
                 stem: str) -> dict[str, Path]:
     """Figs. 19 (head vs reference), 20 (D, R), 21 (snapshots), and the side by side.
 
-    ``run`` is an engine run (or its trajectory) passed through :func:`summarize`;
-    ``twin`` the viscous model's run to draw beside it, if any. Returns the PNG paths.
+    Parameters
+    ----------
+    run
+        An engine run (or its trajectory) passed through :func:`summarize`.
+    twin
+        The viscous model's run to draw beside it (passed through :func:`summarize`),
+        or None.
+    folder
+        Where the PNGs go.
+    stem
+        Their file-name prefix.
+
+    Returns
+    -------
+    dict
+        Figure key ("head", "criteria", "snapshots", "side_by_side") -> PNG path.
     """
     import matplotlib.pyplot as plt
 
@@ -333,10 +480,20 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
 
 
 def engine_robot(params: SnakeParams) -> SnakeParams:
-    """The robot the engine stage runs for a report on ``params``: the ``engine`` preset of
-    VI.3 when ``params`` is a preset (the paper's Table 1 robot has no wheeled model in the
-    paper), else ``params`` itself (a robot file or a user's own parameters), all joints
-    actuated."""
+    """The robot the engine stage runs for a report on ``params``.
+
+    Parameters
+    ----------
+    params
+        The report's robot.
+
+    Returns
+    -------
+    SnakeParams
+        The ``engine`` preset of VI.3 when ``params`` is a preset (the paper's Table 1
+        robot has no wheeled model in the paper), else ``params`` itself (a robot file or
+        a user's own parameters), every joint actuated.
+    """
     if params.name in ROBOTS:
         return SnakeParams.engine()
     return params.replace(passive=())
@@ -387,7 +544,13 @@ def _friction_section(sec: Any, base: SnakeParams, wheels: WheelSpec,
 
 def engine_stage(ctx: Any) -> None:
     """Identification, the engine runs as distributions (both forms of the law), the
-    viscous twin and its sensitivity check."""
+    viscous twin and its sensitivity check.
+
+    Parameters
+    ----------
+    ctx
+        The report's :class:`~snake_pin.experiments.reproduce.Context`.
+    """
     from ..viz.meshcat_view import write_html
 
     t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window

@@ -21,9 +21,21 @@ __all__ = ["first_links", "integrability_stage"]
 
 
 def first_links(params: SnakeParams, n: int) -> SnakeParams:
-    """The robot made of the first ``n`` links of ``params`` (head first), every joint
-    actuated: ``params.replace(n=n)`` for equal links; per-link values cut to n links
-    (and the name marked ``_first<n>``) otherwise."""
+    """The robot made of the first ``n`` links of ``params`` (head first).
+
+    Parameters
+    ----------
+    params
+        The robot.
+    n
+        How many links to keep (2 .. params.n).
+
+    Returns
+    -------
+    SnakeParams
+        Every joint actuated: ``params.replace(n=n)`` for equal links; per-link values
+        cut to n links (and the name marked ``_first<n>``) otherwise.
+    """
     if params.uniform:
         return params.replace(n=n, passive=())
     changes = {key: params.per_link(key)[:n] for key in LINK_FIELDS if key != "com_offset"}
@@ -38,7 +50,14 @@ def _ten_times_cx(params: SnakeParams) -> SnakeParams:
 
 
 def integrability_stage(ctx: Context) -> None:
-    """Table of splits, the implied g2, involutivity for n = 4, 5, and g along open-loop runs."""
+    """Table of splits, the implied g2, involutivity for n = 4, 5, and g along open-loop runs.
+
+    Parameters
+    ----------
+    ctx
+        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        robot, report and quick mode.
+    """
     import matplotlib.pyplot as plt
 
     from .. import paper

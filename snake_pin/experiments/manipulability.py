@@ -50,6 +50,13 @@ def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path
     (interrupted before its first posture) sweep has no figure. The JSON is RFC 8259
     (:meth:`~snake_pin.sweeps.Sweep.to_dict`: non-finite D or R as null).
 
+    Parameters
+    ----------
+    result
+        The sweep (:func:`~snake_pin.sweeps.sweep`).
+    folder
+        An existing folder.
+
     Returns
     -------
     dict
@@ -74,8 +81,21 @@ def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path
 
 
 def write_singular(search: SingularSearch, folder: str | os.PathLike[str]) -> list[Path]:
-    """Write ``singular_postures.json`` and ``singular_postures.png`` (the drawing of
-    :func:`draw_singular`) into ``folder`` as one set; returns their paths."""
+    """Write ``singular_postures.json`` and ``singular_postures.png`` into ``folder``.
+
+    Parameters
+    ----------
+    search
+        The search (:func:`~snake_pin.singular.find_singular_postures`).
+    folder
+        An existing folder; the JSON and the drawing (:func:`draw_singular`) appear
+        together or not at all.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The JSON's and the PNG's paths.
+    """
     png = _png(draw_singular(search, None))
     with atomic_group(Path(folder)) as group:
         data = group.write_bytes("singular_postures.json",
@@ -90,7 +110,19 @@ def draw_singular(search: SingularSearch, path: str | os.PathLike[str] | None,
                   limit: int = 5) -> Figure:
     """Draw the representative of up to ``limit`` families (plus the straight posture).
 
-    Saved as PNG at ``path`` (and closed); with ``path=None`` the open figure is returned.
+    Parameters
+    ----------
+    search
+        The search.
+    path
+        PNG file to save to (the figure is then closed), or None.
+    limit
+        Most families drawn (the largest first).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (open when ``path`` is None).
     """
     snake = Snake(search.params)
     free = f", joint {search.free_joint} free" if search.free_joint else ""
@@ -103,7 +135,14 @@ def draw_singular(search: SingularSearch, path: str | os.PathLike[str] | None,
 
 
 def manipulability_stage(ctx: Context) -> None:
-    """Figs. 2-9, the R map, and the singular-posture search."""
+    """Figs. 2-9, the R map, and the singular-posture search.
+
+    Parameters
+    ----------
+    ctx
+        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        robot, report and quick mode.
+    """
     snake = Snake(ctx.params.replace(passive=()))
     folder = ctx.folder
     points = 61 if ctx.quick else 201

@@ -119,6 +119,18 @@ def run_jobs(jobs: Sequence[Job], workers: int | None = None) -> list[Any]:
     package's dataclasses and arrays are). An exception of a job, or a KeyboardInterrupt
     while waiting, terminates the pool's workers and is raised again (see
     :func:`iter_jobs`).
+
+    Parameters
+    ----------
+    jobs
+        ``(fn, args, kwargs)`` triples.
+    workers
+        Processes to use (default: as many as jobs, at most the number of cores).
+
+    Returns
+    -------
+    list
+        The jobs' results, in the order of ``jobs``.
     """
     results: list[Any] = [None] * len(jobs)
     for index, result in iter_jobs(jobs, workers):

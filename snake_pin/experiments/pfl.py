@@ -28,13 +28,22 @@ _TABLE1_LINK = 0.182 * 0.12**2
 
 
 def breakdown_threshold(params: SnakeParams) -> float:
-    """||tau|| [N m] that counts as PFL's breakdown for ``params``: :data:`TAU_BREAKDOWN`
-    times the robot's m_i (2l_i)^2 (mean over links) over a Table 1 link's.
+    """||tau|| [N m] that counts as PFL's breakdown for ``params``.
 
     Joint torques for the same joint accelerations scale with m (2l)^2 (the camera-head
     example needs 1.1 N m at t = 0, the Table 1 robot 0.25 N m), so a fixed threshold
-    would call a heavier robot broken down at once. Exactly :data:`TAU_BREAKDOWN` for the
-    Table 1 robot.
+    would call a heavier robot broken down at once.
+
+    Parameters
+    ----------
+    params
+        The robot.
+
+    Returns
+    -------
+    float
+        :data:`TAU_BREAKDOWN` times the robot's m_i (2l_i)^2 (mean over links) over a
+        Table 1 link's: exactly :data:`TAU_BREAKDOWN` for the Table 1 robot.
     """
     if params.uniform:
         link = float(params.mass) * float(params.link_length) ** 2
@@ -44,13 +53,36 @@ def breakdown_threshold(params: SnakeParams) -> float:
 
 
 def initial_state(params: SnakeParams) -> np.ndarray:
-    """Eq. (82): w0 = 0, phi0 = pi/6 for every joint, at rest."""
+    """Eq. (82): w0 = 0, phi0 = pi/6 for every joint, at rest.
+
+    Parameters
+    ----------
+    params
+        The robot.
+
+    Returns
+    -------
+    numpy.ndarray
+        The state x = [q, dq], 2 (n + 2) values.
+    """
     return gaits.initial_state(params.n)
 
 
 @dataclass
 class PFLRun:
-    """A PFL run with its analysis."""
+    """A PFL run with its analysis.
+
+    Parameters
+    ----------
+    trajectory
+        The run (its summary filled by :func:`run_pfl`).
+    D, R
+        Manipulability at every sample.
+    g
+        (N, 2) conserved quantity of eq. (67) at every sample.
+    breakdown
+        Sample index of the breakdown (the last sample if none).
+    """
 
     trajectory: Trajectory
     D: np.ndarray  # manipulability at every sample
@@ -66,6 +98,24 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
     The summary has t_end, diverged, breakdown_time, t_R_min, R_min, g_drift_max and
     head_error_max, all taken before the breakdown (||tau|| above
     :func:`breakdown_threshold`, in the summary as breakdown_threshold).
+
+    Parameters
+    ----------
+    params
+        The robot (default Table 1), every joint actuated.
+    t_final
+        Duration [s].
+    climb_R
+        Gain of the singularity-aware use of the redundancy (0: the paper's law).
+    control_dt
+        Control period and RK4 step [s].
+    progress
+        Show a progress bar on stderr when it is a terminal.
+
+    Returns
+    -------
+    PFLRun
+        The run with D, R and g at every sample.
     """
     params = params or SnakeParams.table1()
     snake = Snake(params)
@@ -106,7 +156,22 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
 
 
 def plot_pfl(run: PFLRun, folder: Path, stem: str) -> dict[str, Path]:
-    """Figures like Figs. 10-12 and a posture figure like Fig. 11; returns their paths."""
+    """Figures like Figs. 10-12 and a posture figure like Fig. 11.
+
+    Parameters
+    ----------
+    run
+        A run of :func:`run_pfl`.
+    folder
+        Where the PNGs go.
+    stem
+        Their file-name prefix.
+
+    Returns
+    -------
+    dict
+        Figure key ("criteria", "torque", "g", "postures") -> PNG path.
+    """
     import matplotlib.pyplot as plt
 
     from ..viz.plots import draw_snake, save_figure
@@ -204,7 +269,14 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
 
 
 def pfl_stage(ctx) -> None:
-    """Section VI.1 run, its figures, and the singularity-aware comparison."""
+    """Section VI.1 run, its figures, and the singularity-aware comparison.
+
+    Parameters
+    ----------
+    ctx
+        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        robot, report and quick mode.
+    """
     params = ctx.params.replace(passive=())
     isotropic = params.isotropic
     friction = ("isotropic" if isotropic else "the robot's")

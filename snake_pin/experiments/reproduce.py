@@ -80,7 +80,21 @@ _PARTIAL = "interrupted"
 
 @dataclass
 class Context:
-    """What every stage gets: the output folder, the robot, the report, options."""
+    """What every stage gets: the output folder, the robot, the report, options.
+
+    Parameters
+    ----------
+    folder
+        The staging folder the stage writes its files into.
+    params
+        The report's robot.
+    report
+        The report the stage adds its section to.
+    quick
+        Shorter runs (``--quick``).
+    options
+        What stages pass on to later ones (e.g. the tracking runs' files).
+    """
 
     folder: Path
     params: SnakeParams
@@ -90,7 +104,13 @@ class Context:
 
 
 def stages() -> list[tuple[str, Callable[[Context], None]]]:
-    """The report stages in order (imported lazily: each pulls in its own tools)."""
+    """The report stages in order (imported lazily: each pulls in its own tools).
+
+    Returns
+    -------
+    list of tuple
+        (name, stage function) pairs, in the order they run.
+    """
     from .engine import engine_stage
     from .integrability import integrability_stage
     from .manipulability import manipulability_stage
@@ -104,12 +124,25 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
 
 
 def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams) -> list[str]:
-    """The fields of ``given`` that ``stage`` would not honour (sorted).
+    """The fields of ``given`` that ``stage`` would not honour.
 
-    ``given`` holds the fields a user set (names of :data:`HONOURED`). The engine stage
-    honours "robot" when it is the engine preset, or a robot of one's own (a name that is
-    not a preset's: a robot file or a URDF), which it runs on wheels; for the other
-    presets it would run the engine preset instead.
+    The engine stage honours "robot" when it is the engine preset, or a robot of one's
+    own (a name that is not a preset's: a robot file or a URDF), which it runs on wheels;
+    for the other presets it would run the engine preset instead.
+
+    Parameters
+    ----------
+    stage
+        A stage name (:func:`stages`).
+    given
+        The fields a user set (names of :data:`HONOURED`).
+    params
+        The robot they describe.
+
+    Returns
+    -------
+    list of str
+        The fields the stage would not honour, sorted.
     """
     honoured = set(HONOURED[stage])
     if stage == "engine" and (params.name == "engine" or params.name not in ROBOTS):
@@ -120,6 +153,20 @@ def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams
 def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: bool = False,
               only: list[str] | None = None, log: Callable[[str], None] = print) -> Path:
     """Run the stages (all, or those named in ``only``) and put the report in ``folder``.
+
+    Parameters
+    ----------
+    folder
+        The output folder (created if needed; see the module docstring for what it holds
+        whatever happens).
+    params
+        The robot (default Table 1).
+    quick
+        Shorter runs, fewer engine draws (smoke tests).
+    only
+        Stage names to run (default all).
+    log
+        Called with one line as each stage starts and ends.
 
     Returns
     -------

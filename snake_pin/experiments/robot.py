@@ -14,7 +14,14 @@ __all__ = ["robot_stage"]
 
 
 def robot_stage(ctx: Context) -> None:
-    """Parameters, model sizes and three postures with link frames."""
+    """Parameters, model sizes and three postures with link frames.
+
+    Parameters
+    ----------
+    ctx
+        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        robot, report and quick mode.
+    """
     params = ctx.params
     snake = Snake(params)
     n = params.n

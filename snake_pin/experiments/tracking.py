@@ -36,7 +36,21 @@ CRITERIA_EVERY = 10
 
 
 def tracking_params(params: SnakeParams | None = None, **changes: object) -> SnakeParams:
-    """Table 1 robot with the tracking friction unless friction is given in ``changes``."""
+    """A robot with the tracking friction of erratum 3.
+
+    Parameters
+    ----------
+    params
+        The robot (default Table 1).
+    **changes
+        Further field changes (friction given here wins).
+
+    Returns
+    -------
+    SnakeParams
+        ``params`` with c_x = 0.5, c_y = 25 N s/m (:data:`TRACKING_FRICTION`), then
+        ``changes``.
+    """
     base = (params or SnakeParams.table1()).replace(**TRACKING_FRICTION)
     return base.replace(**changes) if changes else base
 
@@ -48,6 +62,17 @@ def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
     friction when it is anisotropic on every link (c_y > c_x, as wheels give; Section V
     rules out isotropic friction). Presets (Table 1's friction is isotropic) and other
     robots get :data:`TRACKING_FRICTION` (erratum 3).
+
+    Parameters
+    ----------
+    params
+        The robot.
+
+    Returns
+    -------
+    tuple of (SnakeParams, str)
+        The robot to run (``params`` itself when it keeps its friction) and a sentence
+        for the report saying which friction it has.
     """
     own = params.name not in ROBOTS
     if own and np.all(params.per_link("c_y") > params.per_link("c_x")):
@@ -63,7 +88,18 @@ def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
 
 
 def initial_state(params: SnakeParams) -> np.ndarray:
-    """Eq. (82)'s arc (phi = pi/6), head-first along +x: theta_1 = pi, at rest."""
+    """Eq. (82)'s arc (phi = pi/6), head-first along +x: theta_1 = pi, at rest.
+
+    Parameters
+    ----------
+    params
+        The robot.
+
+    Returns
+    -------
+    numpy.ndarray
+        The state x = [q, dq], 2 (n + 2) values.
+    """
     return gaits.initial_state(params.n, theta_1=np.pi)
 
 
@@ -71,10 +107,25 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
                  progress: bool = False, **controller_options: float) -> Trajectory:
     """60 s of head tracking, w_r = [0.1 t, 0, pi], gains (84), control at 1 kHz.
 
-    ``params`` is used as given (pass :func:`tracking_params` for the anisotropic default);
-    ``controller_options`` go to :class:`LyapunovController` (e.g. ``lam``, ``lam_shape``).
-    The summary has t_end, diverged, rms_head_error, max_head_error (over t >= 10 s),
-    R_min, D_min, body_length, g_drift (|g - g(0)| max) and the friction used.
+    Parameters
+    ----------
+    params
+        The robot, used as given (pass :func:`tracking_params` for the anisotropic
+        default; default: Table 1 with it).
+    t_final
+        Duration [s].
+    progress
+        Show a progress bar on stderr when it is a terminal.
+    **controller_options
+        Options of :class:`~snake_pin.control.LyapunovController` (e.g. ``lam``,
+        ``lam_shape``).
+
+    Returns
+    -------
+    Trajectory
+        The run; its summary has t_end, diverged, rms_head_error, max_head_error (over
+        t >= 10 s), R_min, D_min, body_length, g_drift (|g - g(0)| max) and the friction
+        used.
     """
     params = params or tracking_params()
     snake = Snake(params)
@@ -100,7 +151,22 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
 
 
 def plot_tracking(traj: Trajectory, folder: Path, stem: str) -> dict[str, Path]:
-    """Snapshots along the path (Figs. 13, 16), D and R (Figs. 14, 17), head vs reference."""
+    """Snapshots along the path (Figs. 13, 16), D and R (Figs. 14, 17), head vs reference.
+
+    Parameters
+    ----------
+    traj
+        A run of :func:`run_tracking`.
+    folder
+        Where the PNGs go.
+    stem
+        Their file-name prefix.
+
+    Returns
+    -------
+    dict
+        Figure key ("motion", "criteria", "head") -> PNG path.
+    """
     import matplotlib.pyplot as plt
 
     from ..viz.plots import draw_snake, save_figure
@@ -185,7 +251,14 @@ def lateral_comparison(traj: Trajectory, path: Path, t_max: float = 10.0) -> dic
 
 
 def tracking_stage(ctx) -> None:
-    """Runs with and without a passive joint, the isotropic contrast, Fig. 15."""
+    """Runs with and without a passive joint, the isotropic contrast, Fig. 15.
+
+    Parameters
+    ----------
+    ctx
+        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        robot, report and quick mode.
+    """
     t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
     base = ctx.params.replace(passive=())
     robot, friction = tracking_friction(base)
