@@ -40,6 +40,7 @@ from typing import Any, cast
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 from scipy.linalg import lapack
 
 from ._symmetric import symmetric_from_upper
@@ -180,7 +181,7 @@ def _singular_values(a: np.ndarray, rows: int) -> np.ndarray:
     return values
 
 
-def manipulability(snake: Snake, q: np.ndarray, free_joint: int | Sequence[int] | None = None,
+def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] | None = None,
                    heading: bool = True, *, blocks: bool = False) -> Manipulability:
     """Return D and R of the snake at configuration ``q`` (eqs. 30-31, or D~, R~ of eq. 42).
 
@@ -249,7 +250,7 @@ TASK_ROWS: dict[str, tuple[int, ...]] = {
 }
 
 
-def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
+def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
                            unactuated: Sequence[int], task: np.ndarray | str | None = None,
                            rows: Sequence[int] | str | None = None) -> Manipulability:
     """Return the dynamic manipulability of any Pinocchio model with unactuated coordinates.
@@ -320,8 +321,9 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: np.ndarray,
     return Manipulability(float(sigma[-1]), float("nan"), sigma, np.full(jac.shape[0], np.nan))
 
 
-def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
-                           free_joint: int | None = None, heading: bool = True) -> np.ndarray:
+def manipulability_R_batch(params: SnakeParams, phi: ArrayLike, *,
+                           free_joint: int | Sequence[int] | None = None,
+                           heading: bool = True) -> np.ndarray:
     """Return R (or R~) for many joint-angle vectors at once, vectorised (sweeps, searches).
 
     theta_1 = 0 without loss of generality (R is invariant under a rigid motion). As in
@@ -342,8 +344,8 @@ def manipulability_R_batch(params: SnakeParams, phi: np.ndarray, *,
         The robot.
     phi : array_like, shape (B, n - 1) or (n - 1,)
         Joint angles [rad], one posture per row.
-    free_joint : int or None, optional
-        1-based further free joint (gives R~).
+    free_joint : int or sequence of int or None, optional
+        1-based further free joint(s) (gives R~).
     heading : bool, optional
         Include theta_1 in the task (default).
 
@@ -408,7 +410,7 @@ def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
     return chosen
 
 
-def lateral_constraint_manipulability(snake: Snake, q: np.ndarray,
+def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
                                       constrained: Sequence[int] | None = None
                                       ) -> Manipulability:
     """Return the head manipulability of the robot *with* lateral constraints (after Date et al.).
@@ -477,7 +479,7 @@ class _CallableModule(types.ModuleType):
     whichever object the name holds.
     """
 
-    def __call__(self, snake: Snake, q: np.ndarray,
+    def __call__(self, snake: Snake, q: ArrayLike,
                  free_joint: int | Sequence[int] | None = None, heading: bool = True, *,
                  blocks: bool = False) -> Manipulability:
         return manipulability(snake, q, free_joint, heading, blocks=blocks)
