@@ -1,0 +1,149 @@
+"""Typing and layers: mypy passes on every module, import-linter's contracts hold."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MODULES = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "snake_pin").rglob("*.py"))
+
+#: Module files still being edited by other helpers: skipped (the reason says how many
+#: mypy errors each has left) until they are handed over and fixed.
+PENDING: frozenset[str] = frozenset({
+    "snake_pin/control/lyapunov.py",
+    "snake_pin/control/pfl.py",
+    "snake_pin/control/reference.py",
+    "snake_pin/engine/run.py",
+    "snake_pin/experiments/batched_sweeps.py",
+    "snake_pin/experiments/bench_control.py",
+    "snake_pin/experiments/engine.py",
+    "snake_pin/experiments/failure_map.py",
+    "snake_pin/experiments/integrability.py",
+    "snake_pin/experiments/pfl.py",
+    "snake_pin/experiments/reproduce.py",
+    "snake_pin/experiments/tracking.py",
+    "snake_pin/sim.py",
+    "snake_pin/sweeps.py",
+})
+
+#: Known breaks of the import-linter contracts, as ``"importer -> imported"`` (the
+#: sim -> viz one of issue 16 item 8 is gone: none today).
+KNOWN_VIOLATIONS: frozenset[str] = frozenset()
+
+_ERROR = re.compile(r"^(?P<path>[^:\s]+\.py):(?P<line>\d+):(?:\d+:)? error: (?P<text>.*)$")
+_SUMMARY = re.compile(r"^(?:Success: no issues found|Found (?P<count>\d+) errors? in \d+ files?)")
+_VIOLATION = re.compile(r"^(?P<importer>\S+) is not allowed to import (?P<imported>\S+):\s*$")
+_CONTRACTS = re.compile(r"^Contracts: (?P<kept>\d+) kept, (?P<broken>\d+) broken\.")
+
+
+def parse_mypy(output: str) -> dict[str, list[str]]:
+    """Module file -> its mypy error lines; AssertionError if the summary disagrees."""
+    errors: dict[str, list[str]] = defaultdict(list)
+    summary = None
+    for line in output.splitlines():
+        match = _ERROR.match(line)
+        if match:
+            errors[match["path"]].append(line)
+        elif _SUMMARY.match(line):
+            summary = _SUMMARY.match(line)
+    assert summary is not None, f"mypy printed no summary:\n{output[-3000:]}"
+    expected = int(summary["count"] or 0)
+    assert sum(map(len, errors.values())) == expected, "unparsed mypy error lines"
+    return dict(errors)
+
+
+def parse_lint_imports(output: str) -> set[str]:
+    """Broken imports ``"importer -> imported"``; AssertionError if the tool did not finish."""
+    counts = next((m for m in map(_CONTRACTS.match, output.splitlines()) if m), None)
+    assert counts is not None, f"lint-imports printed no summary:\n{output[-3000:]}"
+    found = {f"{m['importer']} -> {m['imported']}"
+             for m in map(_VIOLATION.match, output.splitlines()) if m}
+    assert int(counts["broken"]) == 0 or found, "a contract is broken in an unparsed way"
+    return found
+
+
+@pytest.fixture(scope="module")
+def mypy_errors() -> dict[str, list[str]]:
+    """mypy run once over ``snake_pin/`` with the configuration in pyproject.toml."""
+    done = subprocess.run([sys.executable, "-m", "mypy"], cwd=ROOT, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode in (0, 1), f"mypy failed to run:\n{done.stdout}{done.stderr}"
+    return parse_mypy(done.stdout)
+
+
+@pytest.mark.parametrize("module", MODULES)
+def test_module_type_checks(module: str, mypy_errors: dict[str, list[str]]) -> None:
+    """mypy reports no error in the module."""
+    errors = mypy_errors.get(module, [])
+    if module in PENDING:
+        pytest.skip(reason=f"{module} is PENDING (another helper's): {len(errors)} mypy "
+                    f"error(s) left" + ("; it now passes: remove it" if not errors else ""))
+    assert not errors, "\n".join(errors)
+
+
+def test_mypy_checks_only_known_files(mypy_errors: dict[str, list[str]]) -> None:
+    """Every file mypy reports on is a module of the package (so a test above covers it)."""
+    assert set(mypy_errors) <= set(MODULES), sorted(set(mypy_errors) - set(MODULES))
+
+
+def test_pending_names_real_files() -> None:
+    """PENDING lists existing module files only."""
+    assert PENDING <= set(MODULES), sorted(PENDING - set(MODULES))
+
+
+def test_layer_contracts_hold() -> None:
+    """import-linter's contracts (pyproject.toml) hold, except the known violations."""
+    done = subprocess.run(
+        [sys.executable, "-c", "from importlinter.cli import lint_imports_command as c; c()",
+         "--no-logo"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    broken = parse_lint_imports(done.stdout)
+    assert broken <= KNOWN_VIOLATIONS, f"new layer violations: {sorted(broken - KNOWN_VIOLATIONS)}"
+    assert done.returncode == (1 if broken else 0), done.stdout[-3000:]
+
+
+# ----------------------------------------------------------------- the parsers
+_MYPY_SAMPLE = """\
+snake_pin/params.py:158: error: Unsupported operand types for <= ("int" and "Integral")  [operator]
+snake_pin/params.py:160: note: See https://mypy.rtfd.io
+snake_pin/sim.py:12:5: error: Name "x" is not defined  [name-defined]
+snake_pin/sim.py:14: error: Missing return statement  [return]
+Found 3 errors in 2 files (checked 60 source files)
+"""
+
+_LINT_SAMPLE = """\
+Layers: a lower layer never imports a higher one BROKEN
+The closed form stays independent of Pinocchio and of the model KEPT
+
+Contracts: 1 kept, 1 broken.
+
+Layers: a lower layer never imports a higher one
+------------------------------------------------
+
+snake_pin.sim is not allowed to import snake_pin.viz:
+
+- snake_pin.sim -> snake_pin.viz.plots (l.251)
+"""
+
+
+def test_mypy_parser_groups_errors_by_file() -> None:
+    """Errors (with or without a column) go to their file; notes are not errors."""
+    errors = parse_mypy(_MYPY_SAMPLE)
+    assert {path: len(lines) for path, lines in errors.items()} == {
+        "snake_pin/params.py": 1, "snake_pin/sim.py": 2}
+    assert parse_mypy("Success: no issues found in 60 source files\n") == {}
+    with pytest.raises(AssertionError):
+        parse_mypy(_MYPY_SAMPLE.replace("Found 3 errors", "Found 4 errors"))
+
+
+def test_lint_parser_names_the_broken_import() -> None:
+    """A broken layer contract gives its importer -> imported pair; a clean run none."""
+    assert parse_lint_imports(_LINT_SAMPLE) == {"snake_pin.sim -> snake_pin.viz"}
+    assert parse_lint_imports("Contracts: 2 kept, 0 broken.\n") == set()
+    with pytest.raises(AssertionError):
+        parse_lint_imports("Contracts: 1 kept, 1 broken.\n")
