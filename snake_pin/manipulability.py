@@ -74,7 +74,7 @@ class Manipulability:
         task is not the unactuated coordinates (no coupling block to speak of).
     sigma, lambda_ : numpy.ndarray, shape (m,)
         All singular values of A and H12, descending, padded with zeros to the task
-        dimension m (lambda_ is all NaN where R is).
+        dimension m (``lambda_`` is all NaN where R is).
     blocks : dict of str to numpy.ndarray or None, optional
         ``{"H11", "H12", "H22", "A"}`` when requested, else None.
     """
