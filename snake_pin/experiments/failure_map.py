@@ -120,8 +120,8 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
                           else range(robot.n)) if 0 <= k <= robot.n - 1]
     c_y = [_number(ratio * C_X) for ratio in plan.ratios]
     description = (f"Actuator-failure map: robot {robot.name}, Lyapunov-like law, "
-                   f"{plan.t_final:g} s, failed joint 0 (none) and "
-                   f"{', '.join(map(str, joints[1:]))} against c_y/c_x = "
+                   f"{plan.t_final:g} s, failed joint {', '.join(map(str, joints))} "
+                   f"(0: none) against c_y/c_x = "
                    f"{', '.join(f'{r:g}' for r in plan.ratios)} (c_x = {C_X:g} N s/m).")
     window = "" if plan.error_window is None else \
         f"error_window = {_number(plan.error_window)}\n"
