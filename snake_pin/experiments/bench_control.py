@@ -714,16 +714,22 @@ def bench_control_stage(ctx: Any) -> None:
     for name, path in files.items():
         if name.startswith("claim_"):
             row = result.cell(name[6:], "lyapunov")
+            t_c = np.asarray(row["series"]["t"])
+            late = np.asarray(row["series"]["lateral"])[t_c >= ERROR_WINDOW]
+            late_min = float(late.min()) if late.size else math.nan
             claims.append(f"{row['scenario']}: head cross-track RMS "
                           f"{row['head_ct_rms_pct']:.1f} % of the body (target 5 %), "
-                          f"R >= {row['R_min']:.2e}, lateral-constraint criterion down to "
-                          f"{row['lateral_min']:.1e}")
+                          f"R >= {row['R_min']:.2e}, lateral-constraint criterion "
+                          f"{row['lateral_min']:.1e} at the start arc and >= {late_min:.2g} "
+                          f"for t >= {ERROR_WINDOW:g} s")
             sec.figure(path, f"{name[6:]}: R and the lateral-constraint criterion along the run")
     if claims:
         sec.text("The paper's claim on curved paths (Lyapunov-like law, no failure): "
-                 + "; ".join(claims) + ". Where the lateral-constraint criterion falls by "
-                 "orders of magnitude (the body bends into the arc the circle asks for) a "
-                 "wheeled snake would be singular; R of the sliding snake stays bounded away "
-                 "from zero there, and the head tracks.")
+                 + "; ".join(claims) + ". The sliding snake starts from the arc of eq. (82),"
+                 " where a wheeled snake is singular (criterion ~1e-12), and leaves it and "
+                 "tracks every circle with R > 0 throughout. Once undulating, the serpenoid "
+                 "body is never a pure arc, so on these circles the lateral-constraint "
+                 "criterion does not approach zero after the start: the runs show the "
+                 "singular arc only at t = 0, not along the circle itself.")
     sec.numbers.update({"settings": s, "rows": [{k: _json_number(v) for k, v in r.items()}
                                                 for r in result.table()]})
