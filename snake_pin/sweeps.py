@@ -146,7 +146,7 @@ def _free_tuple(free_joint: FreeJoints) -> tuple[int, ...]:
         return ()
     if isinstance(free_joint, numbers.Integral):
         return (int(free_joint),)
-    return tuple(free_joint)
+    return tuple(int(k) for k in free_joint)  # type: ignore[union-attr]
 
 
 def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None = None,

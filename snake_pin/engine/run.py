@@ -144,14 +144,15 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
     engine = build_engine_model(params, wheels)
     b, r = wheels.rolling_damping, wheels.radius
     if params.uniform:
+        mass = float(params.mass)  # type: ignore[arg-type]  # one number: equal links
         t, v = _coast(engine, (speed, 0.0, 0.0), 2.0)
-        c_x = _viscous_fit(t, v[:, 0], params.mass)
+        c_x = _viscous_fit(t, v[:, 0], mass)
         t, v = _coast(engine, (0.0, speed, 0.0), 0.2)
-        c_y = _viscous_fit(t, v[:, 1], params.mass)
+        c_y = _viscous_fit(t, v[:, 1], mass)
         d = engine.wheel_offset
         return {"c_x": c_x, "c_y": c_y, "c_theta": 2 * d**2 * b / r**2,
                 "c_x_rolling_model": 2 * b / r**2,
-                "c_y_coulomb_model": 1.5 * wheels.friction * params.mass * GRAVITY / speed,
+                "c_y_coulomb_model": 1.5 * wheels.friction * mass * GRAVITY / speed,
                 "speed": speed}
     total = params.total_mass
     t, v = _coast(engine, (speed, 0.0, 0.0), 2.0)
@@ -271,6 +272,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                                   c_theta=friction["c_theta"])
     engine = build_engine_model(params, wheels)
     snake = Snake(model_params)
+    controller: QuasiStaticLyapunovController | LyapunovController
     if law == "velocity":
         controller = QuasiStaticLyapunovController(snake, head_first_reference(),
                                                    control_dt=wheels.control_dt)

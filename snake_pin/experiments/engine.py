@@ -92,9 +92,9 @@ def summarize(traj: Trajectory, *, every: int = 10) -> dict[str, object]:
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
     errors = head_error_summary(traj, error)
     late = window(traj, ERROR_WINDOW)
-    actuated = [k - 1 for k in traj.params.actuated]
+    actuated = np.array([k - 1 for k in traj.params.actuated], dtype=int)
     torque = (float(np.sqrt(np.mean(traj.tau[np.ix_(late, actuated)] ** 2)))
-              if late.any() and actuated else None)
+              if late.any() and actuated.size else None)
     body = traj.params.body_length
     max_error = errors["max_head_error"]
     traj.summary.update({
@@ -256,7 +256,7 @@ class Draws:
             Their indices.
         """
         return [i for i in self.done
-                if self.summaries[i].get("status") in ("diverged", "failed")]  # type: ignore[union-attr]
+                if (self.summaries[i] or {}).get("status") in ("diverged", "failed")]
 
     def median_draw(self) -> int | None:
         """The draw that stands for the distribution in figures and files.

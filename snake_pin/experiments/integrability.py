@@ -89,8 +89,8 @@ def integrability_stage(ctx: Context) -> None:
 
     inv_rows = []
     for n in (4, 5):
-        res = involutivity(Snake(first_links(params.replace(c_y=params.c_x), n)), samples=10)
-        inv_rows.append([n, res.defect, res.noise, "involutive" if res.involutive else "not"])
+        inv = involutivity(Snake(first_links(params.replace(c_y=params.c_x), n)), samples=10)
+        inv_rows.append([n, inv.defect, inv.noise, "involutive" if inv.involutive else "not"])
     sec.table(["n", "bracket component outside Delta", "noise floor (exact system)", "result"],
               inv_rows)
     sec.numbers["involutivity"] = inv_rows
@@ -126,8 +126,10 @@ def integrability_stage(ctx: Context) -> None:
         plant = Snake(p)
         x0 = np.r_[gait.configuration(), np.zeros(plant.nv)]
         phases = np.arange(p.n - 1)
-        run = simulate(plant, OpenLoop(lambda t, g=gait, k=phases: 0.02 * np.sin(g.v * t + k)),
-                       x0, t_final, dt=5e-4, control_dt=1e-3)
+        def torques(t: float, g: Serpenoid = gait, k: np.ndarray = phases) -> np.ndarray:
+            return 0.02 * np.sin(g.v * t + k)
+
+        run = simulate(plant, OpenLoop(torques), x0, t_final, dt=5e-4, control_dt=1e-3)
         g = conserved_quantity_along(plant, run.q, run.dq)
         change = np.linalg.norm(g - g[0], axis=1)
         drift[label] = float(change.max())

@@ -46,7 +46,7 @@ def breakdown_threshold(params: SnakeParams) -> float:
         Table 1 link's: exactly :data:`TAU_BREAKDOWN` for the Table 1 robot.
     """
     if params.uniform:
-        link = float(params.mass) * float(params.link_length) ** 2
+        link = float(params.masses[0] * params.link_lengths[0] ** 2)
     else:
         link = float(np.mean(params.masses * params.link_lengths**2))
     return TAU_BREAKDOWN * link / _TABLE1_LINK

@@ -220,14 +220,14 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
             report.write(staging)
         except KeyboardInterrupt as exc:
             with _signals_deferred():
-                index = _keep_partial(folder, staging, report, timings, current, sections,
-                                      files, exc)
+                partial = _keep_partial(folder, staging, report, timings, current, sections,
+                                        files, exc)
             done = ", ".join(timings) or "none"
             where = (f"the previous report in {folder} is untouched; the stages done so far "
-                     f"are in {index}" if index.parent != folder
-                     else f"the stages done so far are in {index}, marked interrupted")
+                     f"are in {partial}" if partial.parent != folder
+                     else f"the stages done so far are in {partial}, marked interrupted")
             raise RunInterrupted(f"reproduce interrupted during stage '{current or 'report'}'"
-                                 f" (done: {done}); {where}", partial=index) from None
+                                 f" (done: {done}); {where}", partial=partial) from None
         with _signals_deferred():
             _move_into(staging, folder)
         return folder / "index.html"

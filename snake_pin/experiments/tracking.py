@@ -4,6 +4,7 @@ without a passive joint, the isotropic contrast, and the lateral-constraint crit
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -104,7 +105,7 @@ def initial_state(params: SnakeParams) -> np.ndarray:
 
 
 def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
-                 progress: bool = False, **controller_options: float) -> Trajectory:
+                 progress: bool = False, **controller_options: Any) -> Trajectory:
     """60 s of head tracking, w_r = [0.1 t, 0, pi], gains (84), control at 1 kHz.
 
     Parameters
