@@ -464,8 +464,107 @@ def _cmd_singular(args: argparse.Namespace) -> _Outcome:
     return _Outcome(payload, _singular_text(search), status, note)
 
 
+def _user_controller_class(spec: str) -> type:
+    """The ``module:Class`` a user names with ``--controller`` (a Controller subclass)."""
+    import importlib
+
+    from .control import Controller
+
+    module_name, _, class_name = spec.partition(":")
+    try:
+        cls = getattr(importlib.import_module(module_name), class_name)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise UsageError(f"argument --controller: cannot import {spec!r} "
+                         f"({type(exc).__name__}: {exc})") from None
+    if not (isinstance(cls, type) and issubclass(cls, Controller)):
+        raise UsageError(f"argument --controller: {spec!r} is not a snake_pin Controller "
+                         "subclass")
+    return cls
+
+
+def _path_parameters(args: argparse.Namespace) -> dict[str, Any]:
+    """``--speed`` and every ``--path-param KEY=VALUE`` as keyword arguments of load_path."""
+    params: dict[str, Any] = {}
+    if args.speed is not None:
+        params["speed"] = args.speed
+    for item in args.path_param or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.isidentifier():
+            raise UsageError(f"argument --path-param: expected KEY=VALUE, got {item!r}")
+        try:
+            params[key] = float(value)
+        except ValueError:
+            raise UsageError(f"argument --path-param: {key} must be a number, "
+                             f"got {value!r}") from None
+    return params
+
+
+def _cmd_simulate_on_path(args: argparse.Namespace, params: SnakeParams,
+                          out: Path) -> _Outcome:
+    """A run along ``--path`` (any controller, a user's ``module:Class`` too)."""
+    from .control import LOSController, LyapunovController, PFLController
+    from .experiments.bench_control import path_metrics
+    from .experiments.tracking import initial_state, tracking_friction
+    from .model import Snake
+    from .paths import load_path
+    from .sim import simulate
+    from .viz.plots import plot_trajectory
+
+    reference = load_path(args.path or "line", **_path_parameters(args))
+    if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
+        params, _ = tracking_friction(params)
+    snake = Snake(params)
+    kind = args.controller
+    if kind == "lyapunov":
+        controller: Any = LyapunovController(snake, reference)
+    elif kind == "pfl":
+        controller = PFLController(snake, reference, climb_R=args.climb_r or 0.0)
+    elif kind == "los":
+        controller = LOSController(snake, reference)
+    else:
+        controller = _user_controller_class(kind)(snake, reference)
+    stem = "run" if ":" in kind else kind
+    t_final = args.t_final or 60.0
+    try:
+        traj = simulate(snake, controller, initial_state(params), t_final,
+                        progress=_progress(args), meta={"path": repr(reference)})
+    except RunInterrupted as exc:
+        return _interrupted_run(exc, out, stem)
+    metrics = path_metrics(traj.t, traj.q, traj.tau, snake, reference,
+                           head_tracking=kind != "los")
+    traj.summary.update({k: v for k, v in metrics.items() if not hasattr(v, "shape")})
+    npz, summary_path = traj.save(out / stem)  # data first, then the figure
+    figure = out / f"{stem}.png"
+    plot_trajectory(traj, figure)
+    payload = traj.summary_dict()
+    payload["files"] = [str(npz), str(summary_path), str(figure)]
+    status, note = _run_note(traj, out)
+    return _Outcome(payload, _json_text(payload, indent=2), status, note)
+
+
 def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
+    on_path = args.path is not None or args.controller not in ("pfl", "lyapunov")
+    if not on_path and (args.speed is not None or args.path_param):
+        raise UsageError("arguments --speed/--path-param: apply with --path")
+    if args.controller not in ("pfl", "lyapunov", "los") and ":" not in args.controller:
+        raise UsageError(f"argument --controller: choose pfl, lyapunov, los or "
+                         f"module:Class (a Controller subclass), got {args.controller!r}")
+    if on_path:
+        if args.controller != "pfl" and args.climb_r is not None:
+            raise UsageError("argument --climb-r: applies to --controller pfl only")
+        _check_t_final(args.t_final, SIMULATE_DT)
+        if args.controller == "pfl" and params.passive:
+            raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
+        if ":" in args.controller:
+            _user_controller_class(args.controller)  # refused before any folder exists
+        if args.path is not None:
+            from .paths import load_path
+
+            load_path(args.path, **_path_parameters(args))  # a bad path: refused here
+        out = _output_folder(args.output)
+        out.mkdir(parents=True, exist_ok=True)
+        return _cmd_simulate_on_path(args, params, out)
     if args.controller == "pfl" and params.passive:
         raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
     if args.controller != "pfl" and args.climb_r is not None:
@@ -670,6 +769,35 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
 
 
 # --------------------------------------------------------------------- parser
+def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
+    from .experiments.bench_control import CONTROLLERS, SCENARIOS, run_benchmark, write_benchmark
+
+    _check_t_final(args.t_final, SIMULATE_DT)
+    for name in args.scenario or []:
+        if name not in SCENARIOS:
+            raise UsageError(f"argument --scenario: unknown {name!r}; choose from "
+                             f"{', '.join(SCENARIOS)}")
+    controllers: dict[str, Any] = {}
+    for spec in args.controller or list(CONTROLLERS):
+        if ":" in spec:
+            cls = _user_controller_class(spec)
+            controllers[spec] = lambda snake, reference, path, cls=cls: cls(snake, reference)
+        elif spec in CONTROLLERS:
+            controllers[spec] = None
+        else:
+            raise UsageError(f"argument --controller: unknown {spec!r}; choose from "
+                             f"{', '.join(CONTROLLERS)} or module:Class")
+    out = _output_folder(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    result = run_benchmark(scenarios=args.scenario, controllers=controllers,
+                           models=tuple(args.model or ("viscous",)),
+                           failed=(None,) if args.no_failure else (None, 5),
+                           t_final=args.t_final, quick=args.quick)
+    files = write_benchmark(result, out)
+    payload = {"rows": result.table(), "files": {k: str(v) for k, v in files.items()}}
+    return _Outcome(payload, f"wrote {', '.join(str(v) for v in files.values())}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line, built in one place.
 
@@ -746,7 +874,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_singular)
 
     p = sub.add_parser("simulate", help="closed-loop head tracking run (VI.1 / VI.2)")
-    p.add_argument("--controller", choices=("pfl", "lyapunov"), required=True)
+    p.add_argument("--controller", required=True, metavar="pfl|lyapunov|los|module:Class",
+                   help="the law: pfl, lyapunov, los (line-of-sight path following, "
+                   "needs a path: default line) or a Controller subclass of your own, "
+                   "built as Class(snake, reference)")
+    p.add_argument("--path", metavar="NAME|FILE",
+                   help="follow a path instead of the paper's straight line: line, circle, "
+                   "arc, lane_change, sinusoid, or a .toml/.csv path file")
+    p.add_argument("--path-param", action="append", metavar="KEY=VALUE",
+                   help="a parameter of the path shape (e.g. radius=1.2), repeatable")
+    p.add_argument("--speed", type=_float_in(0.0, open_low=True),
+                   help="reference speed along the path [m/s] (default 0.1)")
     _robot_options(p, friction=True)
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True),
                    help=f"duration [s], at most {steps * SIMULATE_DT:g} (pfl 10, lyapunov 60)")
@@ -822,6 +960,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--verbose", action="store_true",
                    help="log the stages on stderr even when it is not a terminal")
     p.set_defaults(func=_cmd_reproduce)
+
+    from .study import add_study_parser
+
+    add_study_parser(sub, outcome=_Outcome, interrupted_status=EXIT_INTERRUPTED,
+                     failed_status=EXIT_FAILED)
+
+    p = sub.add_parser("bench-control", help="controller benchmark on paths (scenarios x "
+                       "controllers x models, with and without joint 5 failed)")
+    p.add_argument("--scenario", action="append", metavar="NAME",
+                   help="a scenario (repeatable; default all): line, circle_0.5L, circle_1L, "
+                   "circle_2L, lane_change, sinusoid, waypoints")
+    p.add_argument("--controller", action="append", metavar="NAME|module:Class",
+                   help="a controller (repeatable; default all built-in): lyapunov, velocity, "
+                   "pfl, pfl_climb, los, or a Controller subclass of your own")
+    p.add_argument("--model", action="append", choices=("viscous", "engine"),
+                   help="plant (repeatable; default viscous)")
+    p.add_argument("--no-failure", action="store_true", help="skip the runs with joint 5 failed")
+    p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
+                   help="duration of each run [s]")
+    p.add_argument("--quick", action="store_true", help="short runs of a few cells")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_bench_control)
     return parser
 
 
