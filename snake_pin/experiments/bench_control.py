@@ -310,7 +310,8 @@ def _engine_trajectory(scenario: str, controller: str, failed: int | None,
 def run_cell(scenario: str, controller: str, model: str = "viscous",
              failed: int | None = None, *, t_final: float = 60.0,
              factory: ControllerFactory | None = None,
-             criteria_dt: float | None = _CRITERIA_DT) -> dict[str, Any]:
+             criteria_dt: float | None = _CRITERIA_DT,
+             robot: SnakeParams | None = None) -> dict[str, Any]:
     """Run one benchmark cell and return its row (see :data:`METRIC_FIELDS`).
 
     Parameters
@@ -327,6 +328,8 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
         Duration [s].
     factory : callable, optional
         ``factory(snake, reference, path) -> Controller``; default the built-in one.
+    robot : SnakeParams or None, optional
+        The viscous robot (default: the Table 1 tracking robot).
     criteria_dt : float or None, optional
         Sampling of the criteria [s]; None: not computed.
 
@@ -341,7 +344,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     if model not in MODELS:
         raise ParameterError(f"unknown model {model!r} (expected one of {', '.join(MODELS)})")
     wall = time.perf_counter()
-    params = tracking_params()
+    params = robot if robot is not None else tracking_params()
     if failed:
         params = params.replace(passive=(failed,))
     reference = make_scenario(scenario, params.body_length)
@@ -432,7 +435,8 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
                   models: Sequence[str] = ("viscous",),
                   failed: Sequence[int | None] = (None, FAILED_JOINT), *,
                   t_final: float = 60.0, quick: bool = False,
-                  workers: int | None = None) -> BenchmarkResult:
+                  workers: int | None = None,
+                  robot: SnakeParams | None = None) -> BenchmarkResult:
     """Run every cell of scenarios x controllers x models x failed joints.
 
     Parameters
@@ -452,6 +456,9 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         The small benchmark of ``reproduce --quick``.
     workers : int or None, optional
         Processes (default: the cores).
+    robot : SnakeParams or None, optional
+        The viscous robot (default: the Table 1 tracking robot, c_y = 50 c_x). The LOS
+        law's constants are identified for that robot.
 
     Returns
     -------
@@ -487,16 +494,18 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     wall = time.perf_counter()
     pooled = [k for k, (_, c, _, _) in enumerate(cells) if _picklable(chosen[c])]
     rows: list[dict[str, Any] | None] = [None] * len(cells)
-    jobs = [(run_cell, cells[k], {"t_final": t_final, "factory": chosen[cells[k][1]]})
+    jobs = [(run_cell, cells[k], {"t_final": t_final, "factory": chosen[cells[k][1]],
+                                  "robot": robot})
             for k in pooled]
     for k, row in zip(pooled, run_jobs(jobs, workers), strict=True):
         rows[k] = row
     for k, (s, c, m, f) in enumerate(cells):
         if rows[k] is None:
-            rows[k] = run_cell(s, c, m, f, t_final=t_final, factory=chosen[c])
+            rows[k] = run_cell(s, c, m, f, t_final=t_final, factory=chosen[c], robot=robot)
     settings = {"t_final": t_final, "scenarios": names, "controllers": list(chosen),
                 "models": list(models), "failed": [f or 0 for f in failed],
                 "speed": SPEED, "window_start": ERROR_WINDOW,
+                "robot": robot.to_dict() if robot is not None else None,
                 "wall_s": time.perf_counter() - wall}
     return BenchmarkResult([r for r in rows if r is not None], settings)
 
@@ -574,7 +583,8 @@ def _path_figure(result: BenchmarkResult, scenario: str, model: str, failed: int
             and r["failed_joint"] == failed and r["snapshots"]]
     fig, axes = plt.subplots(1, max(len(rows), 1), figsize=(3.6 * max(len(rows), 1), 3.8),
                              squeeze=False)
-    params = tracking_params()
+    robot = result.settings.get("robot")
+    params = SnakeParams.from_dict(robot) if robot else tracking_params()
     if failed:
         params = params.replace(passive=(failed,))
     snake = Snake(params)
@@ -679,10 +689,16 @@ def bench_control_stage(ctx: Any) -> None:
     x every built-in controller, with and without joint 5 failed, 60 s (about 3-4
     minutes on 2 cores).
     """
+    from ..params import ROBOTS
+    from .tracking import tracking_friction
+
+    # a robot of one's own runs the benchmark (with the tracking friction rule of the
+    # tracking stage); the presets run the Table 1 tracking robot the LOS law is tuned for
+    robot = None if ctx.params.name in ROBOTS else tracking_friction(ctx.params)[0]
     if ctx.quick:
-        result = run_benchmark(quick=True, failed=(None,))
+        result = run_benchmark(quick=True, failed=(None,), robot=robot)
     else:
-        result = run_benchmark(t_final=60.0)
+        result = run_benchmark(t_final=60.0, robot=robot)
     files = write_benchmark(result, ctx.folder)
     sec = ctx.report.section("bench_control", "Controller benchmark on paths (issue 15)")
     s = result.settings

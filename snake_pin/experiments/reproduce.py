@@ -66,13 +66,15 @@ HONOURED: dict[str, frozenset[str]] = {
     "pfl": frozenset({"robot", "n", "c_x", "c_y", "c_theta"}),
     "tracking": frozenset({"robot", "n", "c_theta"}),
     "engine": frozenset(),
+    "failure_map": frozenset({"robot", "n", "c_x", "c_theta"}),
+    "bench_control": frozenset(),
 }
 
 #: Stage -> the fewest links it can run with (joint 5 free or passive needs n >= 6, PFL
 #: needs three actuated joints, the engine stage two beside its passive joint; a preset's
 #: engine stage runs the 8-link engine robot whatever n).
 MIN_LINKS: dict[str, int] = {"robot": 2, "manipulability": 6, "integrability": 2, "pfl": 4,
-                             "tracking": 6, "engine": 4}
+                             "tracking": 6, "engine": 4, "failure_map": 6, "bench_control": 2}
 
 _STAGING = re.compile(r"\.reproduce-(\d+)-\w+")
 _PARTIAL = "interrupted"
@@ -111,7 +113,9 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
     list of tuple
         (name, stage function) pairs, in the order they run.
     """
+    from .bench_control import bench_control_stage
     from .engine import engine_stage
+    from .failure_map import failure_map_stage
     from .integrability import integrability_stage
     from .manipulability import manipulability_stage
     from .pfl import pfl_stage
@@ -120,7 +124,8 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
 
     return [("robot", robot_stage), ("manipulability", manipulability_stage),
             ("integrability", integrability_stage), ("pfl", pfl_stage),
-            ("tracking", tracking_stage), ("engine", engine_stage)]
+            ("tracking", tracking_stage), ("engine", engine_stage),
+            ("failure_map", failure_map_stage), ("bench_control", bench_control_stage)]
 
 
 def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams) -> list[str]:
@@ -128,7 +133,8 @@ def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams
 
     The engine stage honours "robot" when it is the engine preset, or a robot of one's
     own (a name that is not a preset's: a robot file or a URDF), which it runs on wheels;
-    for the other presets it would run the engine preset instead.
+    for the other presets it would run the engine preset instead. The path benchmark
+    honours a robot of one's own (it runs it); a preset runs the Table 1 tracking robot.
 
     Parameters
     ----------
@@ -147,6 +153,8 @@ def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams
     honoured = set(HONOURED[stage])
     if stage == "engine" and (params.name == "engine" or params.name not in ROBOTS):
         honoured.add("robot")
+    if stage == "bench_control" and params.name not in ROBOTS:
+        honoured.add("robot")  # a robot of one's own runs the benchmark itself
     return sorted(set(given) - honoured)
 
 
