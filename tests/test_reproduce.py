@@ -171,3 +171,18 @@ def test_report_is_complete_strict_json_and_in_place(report: Path) -> None:
         == {0o666 & ~umask}
     assert {p.stat().st_mode & 0o777 for p in report.iterdir() if p.is_dir()} \
         <= {0o777 & ~umask}
+
+
+def test_reproduce_runs_every_stage_on_a_robot_file(tmp_path: Path) -> None:
+    """reproduce --quick --robot examples/robots/camera_head_snake.toml: every stage runs on
+    that robot (the failure map and the path benchmark too) and the report is complete."""
+    from snake_pin.experiments import stages
+    from snake_pin.robot_file import robot_paths
+
+    robot_file = robot_paths()["camera_head_snake.toml"]
+    assert main(["reproduce", "--quick", "--robot", str(robot_file), "-o", str(tmp_path)]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["run"]["status"] == "complete"
+    assert set(summary["run"]["sections"]) >= {name for name, _ in stages()}
+    rows = json.loads((tmp_path / "benchmark.json").read_text())
+    assert rows["settings"]["robot"]["name"] == "camera_head_snake"
