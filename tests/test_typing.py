@@ -19,7 +19,6 @@ PENDING: frozenset[str] = frozenset({
     "snake_pin/cli.py",
     "snake_pin/control/lyapunov.py",
     "snake_pin/control/pfl.py",
-    "snake_pin/control/reference.py",
     "snake_pin/experiments/batched_sweeps.py",
     "snake_pin/experiments/bench_control.py",
     "snake_pin/experiments/failure_map.py",
