@@ -75,7 +75,7 @@ from ..gaits import Serpenoid
 from ..model import Snake
 from .base import Controller, TimeTerms, gait_for, reference_rows
 from .gains import gain_matrix
-from .reference import LinearReference
+from .reference import HeadReference, LinearReference
 
 __all__ = ["LyapunovController", "head_first_reference"]
 
@@ -110,7 +110,7 @@ class LyapunovController(Controller):
 
     name = "lyapunov"
 
-    def __init__(self, snake: Snake, reference: LinearReference | None = None,
+    def __init__(self, snake: Snake, reference: HeadReference | None = None,
                  gait: Serpenoid | None = None, *, k_w1: object = (2.0, 2.0, 3.0),
                  k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
                  lam: float = 10.0, lam_shape: float | None = None,
@@ -241,7 +241,7 @@ class LyapunovController(Controller):
         self._tau[self._act - 3] = tau_a
         return self._tau.copy()
 
-    def plant_acceleration(self, snake: Snake) -> np.ndarray | None:
+    def plant_acceleration(self, snake: object) -> np.ndarray | None:
         """q'' = A tau_a + b of the last call, if ``snake`` is the robot this law models."""
         return self._ddq if snake is self.snake else None
 

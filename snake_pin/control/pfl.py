@@ -53,7 +53,7 @@ from ..manipulability import manipulability_R_batch
 from ..model import Snake
 from .base import Controller, TimeTerms, gait_for, reference_rows
 from .gains import gain_matrix
-from .reference import LinearReference
+from .reference import HeadReference, LinearReference
 
 __all__ = ["PFLController"]
 
@@ -81,7 +81,7 @@ class PFLController(Controller):
 
     name = "pfl"
 
-    def __init__(self, snake: Snake, reference: LinearReference | None = None,
+    def __init__(self, snake: Snake, reference: HeadReference | None = None,
                  gait: Serpenoid | None = None, *, k_v: object = 6.0, k_p: object = 6.2,
                  r_v: object = 0.041, r_p: object = 0.079, r_min: float = 1e-9,
                  climb_R: float = 0.0, climb_damping: float = 2.0) -> None:
@@ -162,7 +162,7 @@ class PFLController(Controller):
         self._last = {"R": r}
         return tau
 
-    def plant_acceleration(self, snake: Snake) -> np.ndarray | None:
+    def plant_acceleration(self, snake: object) -> np.ndarray | None:
         """q'' = [a; H22^-1 (tau - h2 - H21 a)] of the last call, if ``snake`` is the
         robot this law models (w'' = a holds there: R > r_min was checked)."""
         return self._ddq if snake is self.snake else None

@@ -44,7 +44,7 @@ from ..params import SnakeParams
 from .base import Controller, gait_for
 from .gains import gain_matrix
 from .lyapunov import head_first_reference
-from .reference import LinearReference
+from .reference import HeadReference
 
 __all__ = ["QuasiStaticLyapunovController", "servo_gains"]
 
@@ -85,7 +85,7 @@ class QuasiStaticLyapunovController(Controller):
 
     name = "lyapunov_velocity"
 
-    def __init__(self, snake: Snake, reference: LinearReference | None = None,
+    def __init__(self, snake: Snake, reference: HeadReference | None = None,
                  gait: Serpenoid | None = None, *, k_w1: object = (2.0, 2.0, 3.0),
                  k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
                  servo_bandwidth: float = 20.0, max_lead: float = 0.3,
