@@ -38,7 +38,6 @@ PENDING: frozenset[str] = frozenset({
     "snake_pin.control.lyapunov",
     "snake_pin.control.pfl",
     "snake_pin.control.quasistatic",
-    "snake_pin.experiments.batched_sweeps",
     "snake_pin.experiments.bench_control",
     "snake_pin.friction",
     "snake_pin.model",

@@ -20,6 +20,7 @@ for the time of a few single runs.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -41,18 +42,37 @@ __all__ = ["run_tracking_batch", "tracking_summary"]
 TrackingJob = tuple[SnakeParams, float, Mapping[str, float]]
 
 
+#: The LyapunovController keywords a job's options may set (the numeric ones).
+_OPTIONS = frozenset({"lam", "lam_shape", "k_shape"})
+#: The controller's own default of ``lam`` (read, not copied).
+_DEFAULT_LAM: float = inspect.signature(LyapunovController).parameters["lam"].default
+
+
+def _controller(snake: Snake, reference: LinearReference, options: Mapping[str, float],
+                index: int) -> LyapunovController:
+    """The job's LyapunovController, its options passed as explicit keywords."""
+    unknown = set(options) - _OPTIONS
+    if unknown:
+        raise ParameterError(f"job {index}: unknown controller options {sorted(unknown)}; "
+                             f"allowed: {sorted(_OPTIONS)}")
+    return LyapunovController(snake, reference, lam=options.get("lam", _DEFAULT_LAM),
+                              lam_shape=options.get("lam_shape"),
+                              k_shape=options.get("k_shape"))
+
+
 def run_tracking_batch(jobs: Sequence[TrackingJob], *, progress: bool = False
                        ) -> list[Trajectory]:
     """:func:`~snake_pin.experiments.tracking.run_tracking` of each job, in lockstep batches.
 
     Parameters
     ----------
-    jobs
-        (params, t_final, controller_options) per run, as ``run_tracking(params,
-        t_final=..., **controller_options)`` takes them. Runs of one robot layout
+    jobs : sequence of tuple
+        (params, t_final [s], controller_options) per run, as ``run_tracking(params,
+        t_final=..., **controller_options)`` takes them; the options may set ``lam``,
+        ``lam_shape`` and ``k_shape`` of the LyapunovController. Runs of one robot layout
         (:data:`snake_pin.batch.LAYOUT_FIELDS`) form one batch; friction, passive joints,
         durations and options may differ.
-    progress
+    progress : bool, optional
         A tqdm bar per batch (terminal only).
 
     Returns
@@ -60,6 +80,12 @@ def run_tracking_batch(jobs: Sequence[TrackingJob], *, progress: bool = False
     list[Trajectory]
         In job order, each with the ``summary``, ``signals["head_error"]`` and
         ``meta["criteria"]`` that ``run_tracking`` gives.
+
+    Raises
+    ------
+    ParameterError
+        If a job is not ``(SnakeParams, t_final, options)`` or its options name a
+        keyword other than ``lam``, ``lam_shape`` and ``k_shape``.
     """
     from ..batch import layout_key, simulate_batch
 
@@ -73,7 +99,7 @@ def run_tracking_batch(jobs: Sequence[TrackingJob], *, progress: bool = False
     reference = head_first_reference()
     for members in groups.values():
         snakes = [Snake(jobs[i][0]) for i in members]
-        controllers = [LyapunovController(snake, reference, **dict(jobs[i][2]))
+        controllers = [_controller(snake, reference, jobs[i][2], i)
                        for snake, i in zip(snakes, members, strict=True)]
         metas = [{"reference": "w_r = [0.1 t, 0, pi]", "k_shape": c.k_shape, "lam": c.lam,
                   "lam_shape": c.lam_shape} for c in controllers]
