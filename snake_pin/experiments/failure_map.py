@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from ..exceptions import ConfigurationError
 from ..params import SnakeParams
 
 __all__ = ["C_X", "FULL", "QUICK", "SERIES_RATIO", "TRACKING_LIMIT", "MapPlan",
@@ -313,6 +314,11 @@ def run_series(scenario: Any) -> dict[str, Any]:
         ``status``, ``t_end``, ``rms_along_pct`` and ``rms_across_pct`` (RMS of the
         error along and across the path over the error window, % of the body),
         ``R_tilde_median``, ``R_tilde_xy_median``.
+
+    Raises
+    ------
+    ConfigurationError
+        If the run gave no trajectory (not expected: the simulation raises instead).
     """
     from ..manipulability import manipulability
     from ..metrics import head_position_error
@@ -321,6 +327,8 @@ def run_series(scenario: Any) -> dict[str, Any]:
 
     outcome = simulate_scenario(scenario)
     traj = outcome.trajectory
+    if traj is None:  # simulate_scenario raises rather than return no trajectory
+        raise ConfigurationError(f"the scenario gave no trajectory: {outcome.error}")
     ref = reference(scenario)
     body = float(traj.params.body_length)
     every = max(1, round(CRITERIA_PERIOD / scenario["control_dt"]))
