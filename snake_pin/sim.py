@@ -101,26 +101,42 @@ _HEADER_KEYS = {"params": dict, "reason": str, "meta": dict, "summary": dict, "s
 class Trajectory:
     """A recorded run: samples at every control step (plus the initial state).
 
-    Attributes
+    The parameters are kept as attributes of the same names.
+
+    Parameters
     ----------
-    t, q, dq, tau
-        Times (N,), configurations and velocities (N, n + 2), applied torques (N, n - 1);
-        ``tau[k]`` is held over [t[k], t[k + 1]).
-    params
+    t : numpy.ndarray
+        Sample times [s], shape (N,).
+    q : numpy.ndarray
+        Configurations ``[x, y, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+        shape (N, n + 2).
+    dq : numpy.ndarray
+        Their velocities [m/s, m/s, rad/s, rad/s], shape (N, n + 2).
+    tau : numpy.ndarray
+        Applied joint torques [N m], shape (N, n - 1); ``tau[k]`` is held over
+        ``[t[k], t[k + 1])``.
+    params : SnakeParams
         The robot.
-    signals
+    signals : dict of str to numpy.ndarray, optional
         Extra per-sample series (controller diagnostics, manipulability, ...), each with N
         rows; NaN where a value is missing.
-    diverged, reason
-        Whether the run stopped on a fault (status "diverged" or "failed"), and why it
-        stopped (empty for a completed run).
-    meta
+    diverged : bool, optional
+        Whether the run stopped on a fault (status "diverged" or "failed").
+    reason : str, optional
+        Why the run stopped (empty for a completed run).
+    meta : dict, optional
         Run settings (controller name, time steps, reference ...).
-    summary
+    summary : dict, optional
         Scalar results written to the JSON summary.
-    status
+    status : str, optional
         One of :data:`STATUSES`. Left empty, it follows ``diverged`` ("diverged" or
         "completed"); given, it sets ``diverged``.
+
+    Raises
+    ------
+    ParameterError
+        ``status`` is not one of :data:`STATUSES`, or ``diverged=True`` with a status
+        that is not a fault.
     """
 
     t: np.ndarray
@@ -162,6 +178,16 @@ class Trajectory:
         renamed into place together, the .npz first (see :func:`snake_pin._io.atomic_group`).
         The JSON summary is RFC 8259 JSON: non-finite numbers are written as null.
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The files' common name, with or without ``.npz``/``.json``.
+
+        Returns
+        -------
+        tuple of pathlib.Path
+            The ``.npz`` and ``.json`` files written.
+
         Raises
         ------
         ParameterError
@@ -180,7 +206,8 @@ class Trajectory:
         summary_text = _to_json(self.summary_dict(), "the trajectory's summary", strict=True)
         arrays["header"] = np.array(header_text)
         with atomic_group(npz.parent) as group:
-            group.save(npz.name, lambda handle: np.savez_compressed(handle, **arrays))
+            group.save(npz.name, lambda handle: np.savez_compressed(
+                handle, allow_pickle=True, **arrays))
             group.write_bytes(js.name, (summary_text + "\n").encode())
         return npz, js
 
@@ -201,7 +228,14 @@ class Trajectory:
         return arrays
 
     def summary_dict(self) -> dict[str, Any]:
-        """The JSON summary: run status plus :attr:`summary`."""
+        """The JSON summary: run status plus :attr:`summary`.
+
+        Returns
+        -------
+        dict
+            ``robot``, ``n``, ``t_end`` [s], ``status``, ``diverged`` and ``reason``,
+            then the entries of :attr:`summary`.
+        """
         return {"robot": self.params.name, "n": self.params.n, "t_end": self.t_end,
                 "status": self.status, "diverged": self.diverged, "reason": self.reason,
                 **self.summary}
@@ -281,8 +315,13 @@ def _resolve(path: str | os.PathLike[str]) -> Path:
                 return alternative
     except (OSError, ValueError) as exc:
         raise TrajectoryFileError(f"cannot open {_shown(given)}: "
-                                  f"{_one_line(exc.strerror or str(exc))}") from None
+                                  f"{_one_line(_reason(exc))}") from None
     raise TrajectoryFileError(f"no trajectory file at {_shown(given)}")
+
+
+def _reason(exc: OSError | ValueError) -> str:
+    """An error's own words: an OSError's strerror when it has one, else its text."""
+    return (exc.strerror if isinstance(exc, OSError) else None) or str(exc)
 
 
 def _shown(path: object) -> str:
@@ -398,8 +437,9 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
     problem = _array_problem(core, signals, n)
     if problem:
         raise _Refused(problem)
-    return cls(params=params, signals=signals, reason=header["reason"], meta=header["meta"],
-               summary=header["summary"], status=header["status"], **core)
+    return cls(t=core["t"], q=core["q"], dq=core["dq"], tau=core["tau"], params=params,
+               signals=signals, reason=header["reason"], meta=header["meta"],
+               summary=header["summary"], status=header["status"])
 
 
 def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
@@ -439,6 +479,7 @@ def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
     buffer = bytearray(member.nbytes)
     view = memoryview(buffer)
     with archive.open(member.info) as stream:
+        assert isinstance(stream, io.BufferedIOBase)  # a ZipExtFile: it has readinto
         version = np.lib.format.read_magic(stream)
         reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
                   else np.lib.format.read_array_header_2_0)
@@ -703,18 +744,27 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
 
     Parameters
     ----------
+    snake : Snake
+        The plant (any object with a Snake's ``nq``, ``n``, ``params`` and
+        ``state_derivative``).
     controller
         A :class:`~snake_pin.control.Controller`, or any function ``f(x, t) -> tau``
         (wrapped in an adapter named after the function). It must return exactly
         n - 1 finite torques; any exception it raises ends the run as "failed".
+    x0 : numpy.ndarray
+        Initial state ``x = [q, dq]``, length 2(n + 2), finite.
     t_final, dt, control_dt
-        Positive, finite; ``control_dt`` a multiple of ``dt`` (at most
+        Times [s]: positive, finite; ``control_dt`` a multiple of ``dt`` (at most
         :data:`MAX_SUBSTEPS` times), at most :data:`MAX_STEPS` control steps, and arrays
         within :data:`MAX_ARRAY_BYTES`/:data:`MAX_TOTAL_BYTES`.
+    method : {"rk4", "solve_ivp"}, optional
+        The integrator (see above).
     max_speed, max_distance
-        Divergence bounds (positive; ``math.inf`` for none).
+        Divergence bounds [m/s, m] (positive; ``math.inf`` for none).
     progress
         Show a tqdm bar, on a terminal only (never drawn into a non-TTY stderr).
+    meta : mapping, optional
+        Extra run settings merged into the trajectory's ``meta``.
 
     Returns
     -------
