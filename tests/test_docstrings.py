@@ -41,7 +41,6 @@ PENDING: frozenset[str] = frozenset({
     "snake_pin.experiments.bench_control",
     "snake_pin.friction",
     "snake_pin.model",
-    "snake_pin.study.results",
 })
 
 

@@ -88,6 +88,11 @@ def rows_table(rows: Sequence[dict[str, Any]]) -> pa.Table:
     -------
     pyarrow.Table
         One row per dict, in order.
+
+    Raises
+    ------
+    StudyError
+        A row has a key that is not a column of :data:`SCHEMA`.
     """
     names = set(SCHEMA.names)
     for row in rows:
