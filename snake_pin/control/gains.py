@@ -12,7 +12,27 @@ __all__ = ["gain_matrix"]
 def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -> np.ndarray:
     """A symmetric size x size gain, positive definite (or semi-definite if not ``definite``).
 
-    ``value`` may be a scalar (times identity), a vector (the diagonal) or a matrix.
+    Parameters
+    ----------
+    value : float, array_like of shape (size,) or (size, size)
+        The gain: a scalar (times identity), a vector (the diagonal) or a matrix.
+    size : int
+        The matrix's order (3 for a head gain, n - 1 for a joint gain).
+    name : str
+        The gain's name in error messages (e.g. ``"K_w1"``).
+    definite : bool, optional
+        Require positive definite (True) or only positive semi-definite (False).
+
+    Returns
+    -------
+    numpy.ndarray
+        The gain as a float matrix of shape (size, size).
+
+    Raises
+    ------
+    ParameterError
+        ``value`` is not numeric, has the wrong shape, is not finite, not symmetric, or
+        not (semi-)definite.
     """
     try:
         arr = np.asarray(value, dtype=float)
