@@ -24,7 +24,27 @@ _BLOCK = 1024
 
 
 def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
-    """``gait`` (or ``default``) after checking it is a serpenoid for n links."""
+    """``gait`` (or ``default``) after checking it is a serpenoid for n links.
+
+    Parameters
+    ----------
+    n : int
+        Number of links of the robot.
+    gait : Serpenoid or None
+        The chosen gait; None takes ``default``.
+    default : Serpenoid
+        The controller's default gait.
+
+    Returns
+    -------
+    Serpenoid
+        ``gait``, or ``default`` when ``gait`` is None.
+
+    Raises
+    ------
+    ParameterError
+        The gait is for another number of links.
+    """
     chosen = default if gait is None else gait
     if chosen.n != n:
         raise ParameterError(f"gait is for {chosen.n} links, the robot has {n}")
@@ -37,6 +57,21 @@ def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: S
 
     A :class:`LinearReference` and the serpenoid are evaluated for all times at once (the
     same arithmetic as one call each); any other reference is called once per time.
+
+    Parameters
+    ----------
+    reference : callable
+        The head reference ``t -> (w_r, w_r', w_r'')``, each of shape (3,).
+    gait : Serpenoid
+        The joint reference ``phi_r(t)`` (n - 1 angles [rad]).
+    times : numpy.ndarray
+        Times [s], shape (T,).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (T, 3 (n + 2)): per time the reference, then its first and second time
+        derivatives, each as ``[w_r, phi_r]`` (n + 2 values).
     """
     column = np.asarray(times, dtype=float)[:, None]
     if isinstance(reference, LinearReference):
@@ -55,6 +90,11 @@ class TimeTerms:
     After :meth:`prepare` with the times of the coming calls, the rows are computed in
     vectorised blocks of 1024 and a call at the next announced time reads its row; a call
     at any other time computes its row alone. Either way the values are the same.
+
+    Parameters
+    ----------
+    rows : callable
+        ``rows(times) -> array`` with one row per time of the (T,) array ``times`` [s].
     """
 
     def __init__(self, rows: Callable[[np.ndarray], np.ndarray]) -> None:
@@ -62,7 +102,13 @@ class TimeTerms:
         self.prepare(np.zeros(0))
 
     def prepare(self, times: np.ndarray) -> None:
-        """The times of the coming calls, in order."""
+        """The times of the coming calls, in order.
+
+        Parameters
+        ----------
+        times : numpy.ndarray
+            Times [s], shape (T,), in the order of the coming calls.
+        """
         self._times = np.asarray(times, dtype=float)
         self._cursor = 0
         self._next = float(self._times[0]) if len(self._times) else None
@@ -96,6 +142,11 @@ class Controller(abc.ABC):
         :func:`snake_pin.sim.simulate` calls it after :meth:`reset`. A controller may
         precompute what depends on time only; its output must not depend on whether
         this was called. Empty by default.
+
+        Parameters
+        ----------
+        times : numpy.ndarray
+            The run's sampling instants [s], shape (T,), in order.
         """
 
     @abc.abstractmethod
@@ -103,7 +154,13 @@ class Controller(abc.ABC):
         """Joint torques (length n - 1) at state ``x`` and time ``t``."""
 
     def signals(self) -> dict[str, float]:
-        """Diagnostics of the last call, recorded by the simulator (empty by default)."""
+        """Diagnostics of the last call, recorded by the simulator (empty by default).
+
+        Returns
+        -------
+        dict of str to float
+            Signal name to value at the last call (e.g. ``R``, ``V``).
+        """
         return {}
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
@@ -113,12 +170,28 @@ class Controller(abc.ABC):
         it, and :func:`snake_pin.sim.simulate` uses it as RK4's first stage instead of
         evaluating the dynamics again; None (the default) when it did not. The array is
         read before the next call and not modified.
+
+        Parameters
+        ----------
+        snake : object
+            The plant being simulated (a :class:`~snake_pin.model.Snake` or a stand-in).
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``q''`` (length n + 2) of the last call, or None.
         """
         return None
 
 
 class OpenLoop(Controller):
-    """Torques as a function of time only: ``tau = schedule(t)``."""
+    """Torques as a function of time only: ``tau = schedule(t)``.
+
+    Parameters
+    ----------
+    schedule : callable
+        ``schedule(t) -> tau``: the n - 1 joint torques [N m] at time ``t`` [s].
+    """
 
     name = "open_loop"
 
