@@ -77,6 +77,11 @@ class PFLController(Controller):
         Gain gamma of the singularity-aware redundancy term (0: the paper's law).
     climb_damping
         Its damping k_d [1/s].
+
+    Raises
+    ------
+    ParameterError
+        A joint is passive, n < 4, or a gain is not a valid (semi-)definite matrix.
     """
 
     name = "pfl"
@@ -118,13 +123,32 @@ class PFLController(Controller):
         self._ddq: np.ndarray | None = None
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
-        """The head acceleration a of eq. (71) at state x and time t."""
+        """The head acceleration a of eq. (71) at state x and time t.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            ``a = w''`` commanded to the head, shape (3,) [m/s^2, m/s^2, rad/s^2].
+        """
         w_r, dw_r, ddw_r = self.reference(t)
         nq = self._nq
         return ddw_r + self.k_v @ (dw_r - x[nq:nq + 3]) + self.k_p @ (w_r - x[:3])
 
     def prepare(self, times: np.ndarray) -> None:
-        """Compute the references' terms for the coming calls in blocks (see TimeTerms)."""
+        """Compute the references' terms for the coming calls in blocks (see TimeTerms).
+
+        Parameters
+        ----------
+        times : numpy.ndarray
+            The run's sampling instants [s], shape (T,), in order.
+        """
         self._time_row.prepare(times)
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:
@@ -163,8 +187,21 @@ class PFLController(Controller):
         return tau
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """q'' = [a; H22^-1 (tau - h2 - H21 a)] of the last call, if ``snake`` is the
-        robot this law models (w'' = a holds there: R > r_min was checked)."""
+        """``q''`` of the last call, if ``snake`` is the robot this law models.
+
+        It is ``[a; H22^-1 (tau - h2 - H21 a)]`` (``w'' = a`` holds there: R > r_min was
+        checked).
+
+        Parameters
+        ----------
+        snake : object
+            The plant being simulated.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``q''`` (length n + 2), or None for another plant.
+        """
         return self._ddq if snake is self.snake else None
 
     def _grad_log_r(self, phi: np.ndarray, step: float = 1e-6) -> np.ndarray:
@@ -175,4 +212,11 @@ class PFLController(Controller):
         return (np.log(r[:dim]) - np.log(r[dim:])) / (2 * step)
 
     def signals(self) -> dict[str, float]:
+        """Diagnostics of the last call.
+
+        Returns
+        -------
+        dict of str to float
+            ``R``: the head's manipulability at the last call.
+        """
         return self._last
