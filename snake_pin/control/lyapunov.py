@@ -82,7 +82,18 @@ __all__ = ["LyapunovController", "head_first_reference"]
 
 
 def head_first_reference(speed: float = 0.1) -> LinearReference:
-    """w_r = [speed t, 0, pi]: the head leads along +x with the body behind it (eq. 80)."""
+    """``w_r = [speed t, 0, pi]``: the head leads along +x, the body behind it (eq. 80).
+
+    Parameters
+    ----------
+    speed : float, optional
+        Head speed along +x [m/s].
+
+    Returns
+    -------
+    LinearReference
+        The reference.
+    """
     return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, np.pi))
 
 
@@ -106,6 +117,12 @@ class LyapunovController(Controller):
     k_shape
         Shape spring k_s [1/s^2]; default 0 with every joint actuated, 0.3 with a
         passive joint.
+
+    Raises
+    ------
+    ParameterError
+        Every joint is passive, the gait is for another robot, or a gain or rate is
+        invalid.
     """
 
     name = "lyapunov"
@@ -189,7 +206,21 @@ class LyapunovController(Controller):
 
     # ------------------------------------------------------------ the law
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(q''*, s, e): the target accelerations and the errors of V at (x, t)."""
+        """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``q''*`` (length n + 2), the head's error ``s`` (length 3) and the joint
+            velocity error ``e`` (length n - 1).
+        """
         nq = self.snake.nq
         w_r, dw_r, ddw_r = self.reference(t)
         de_w = dw_r - x[nq:nq + 3]
@@ -203,18 +234,50 @@ class LyapunovController(Controller):
         return target, s, e
 
     def affine_map(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(A, b) with q'' = A tau_a + b at state x (A = H^-1 E_a, b = -H^-1 h)."""
+        """``(A, b)`` with ``q'' = A tau_a + b`` at state x.
+
+        ``A = H^-1 E_a`` and ``b = -H^-1 h``.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``A`` of shape (n + 2, number of actuated joints) and ``b`` of length n + 2.
+        """
         snake = self.snake
         h_inv = snake.inverse_inertia_matrix(x[:snake.nq])
         return h_inv[:, self._act], -h_inv @ snake.bias_of_state(x)
 
     def lyapunov(self, x: np.ndarray, t: float) -> float:
-        """V of eq. (83) at (x, t)."""
+        """V of eq. (83) at (x, t).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        float
+            ``V = s' K_w2 s + e' K_phi e``.
+        """
         _, s, e = self.targets(x, t)
         return float(s @ self.k_w2 @ s + e @ self.k_phi @ e)
 
     def prepare(self, times: np.ndarray) -> None:
-        """Compute the references' terms for the coming calls in blocks (see TimeTerms)."""
+        """Compute the references' terms for the coming calls in blocks (see TimeTerms).
+
+        Parameters
+        ----------
+        times : numpy.ndarray
+            The run's sampling instants [s], shape (T,), in order.
+        """
         self._time_row.prepare(times)
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:
@@ -242,8 +305,26 @@ class LyapunovController(Controller):
         return self._tau.copy()
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """q'' = A tau_a + b of the last call, if ``snake`` is the robot this law models."""
+        """``q'' = A tau_a + b`` of the last call, if ``snake`` is the robot this law models.
+
+        Parameters
+        ----------
+        snake : object
+            The plant being simulated.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``q''`` (length n + 2), or None for another plant.
+        """
         return self._ddq if snake is self.snake else None
 
     def signals(self) -> dict[str, float]:
+        """Diagnostics of the last call.
+
+        Returns
+        -------
+        dict of str to float
+            ``V``: eq. (83) at the state and time of the last call.
+        """
         return self._last
