@@ -52,10 +52,26 @@ __all__ = ["QuasiStaticLyapunovController", "servo_gains"]
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
     """(K_p, K_d) per joint (n - 1 each) of critically damped servos of ``bandwidth`` [rad/s].
 
-    K_p,k = omega^2 I_k, K_d,k = 2 omega I_k with I_k = (m_k (2l_k)^2 + m_k+1 (2l_k+1)^2) / 2,
+    With ``omega = bandwidth``::
+
+        K_p,k = omega^2 I_k,   K_d,k = 2 omega I_k,
+        I_k = (m_k (2 l_k)^2 + m_k+1 (2 l_k+1)^2) / 2,
+
     the mean inertia scale of the two links joint k joins (each about its own end, as a
     point mass at the far end would be). It scales with each link's mass times its length
-    squared; on equal links every I_k is m (2l)^2.
+    squared; on equal links every ``I_k`` is ``m (2l)^2``.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot (link masses [kg] and full lengths 2l [m]).
+    bandwidth : float
+        Servo bandwidth ``omega`` [rad/s].
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``K_p`` [N m/rad] and ``K_d`` [N m s/rad], each of length n - 1.
     """
     link = params.masses * params.link_lengths**2
     inertia = 0.5 * (link[:-1] + link[1:])
@@ -81,6 +97,14 @@ class QuasiStaticLyapunovController(Controller):
         it. On equal links I_k = m (2l)^2 for every joint (the paper's robots).
     max_lead
         Largest distance [rad] the integrated joint reference may run ahead of the joint.
+    control_dt
+        The controller's sampling period [s] (the joint reference is integrated over it).
+
+    Raises
+    ------
+    ParameterError
+        Every joint is passive, a link has no lateral or longitudinal friction, or a gain
+        or number is invalid.
     """
 
     name = "lyapunov_velocity"
@@ -123,10 +147,27 @@ class QuasiStaticLyapunovController(Controller):
         self._last: dict[str, float] = {}
 
     def reset(self) -> None:
+        """Forget the integrated joint reference before a new run."""
         self._reference_a = None
 
     def connection(self, q: np.ndarray) -> np.ndarray:
-        """J(q) with u' = J a' (rows: x_h, y_h, theta_1, passive phi; columns: actuated)."""
+        """``J(q)`` with ``u' = J a'`` (rows: x_h, y_h, theta_1, passive phi; columns: actuated).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration, length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``J``, shape (3 + passive joints, actuated joints).
+
+        Raises
+        ------
+        SingularPostureError
+            The friction block ``C_uu`` is singular at ``q``.
+        """
         c = self.snake.friction.matrix(q)
         m, k = len(self._u), len(self._a)
         c_uu = c.take(self._flat_uu).reshape(m, m)
@@ -137,7 +178,25 @@ class QuasiStaticLyapunovController(Controller):
         return -solved
 
     def velocity_command(self, x: np.ndarray, t: float) -> tuple[np.ndarray, float]:
-        """(a'*, V(a'*)): the actuated joint velocity of least V at (x, t), and that V."""
+        """``(a'*, V(a'*))``: the actuated joint velocity of least V at (x, t), and that V.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        tuple of (numpy.ndarray, float)
+            The actuated joints' velocities [rad/s] and V at them.
+
+        Raises
+        ------
+        SingularPostureError
+            The connection is singular or its normal equations are not positive definite.
+        """
         nq = self.snake.nq
         q = x[:nq]
         jac = self.connection(q)
@@ -168,4 +227,11 @@ class QuasiStaticLyapunovController(Controller):
         return tau
 
     def signals(self) -> dict[str, float]:
+        """Diagnostics of the last call.
+
+        Returns
+        -------
+        dict of str to float
+            ``V``: the least V of the last call's velocity command.
+        """
         return self._last
