@@ -203,7 +203,20 @@ def _project(path: Curve, points: np.ndarray, s_ref: np.ndarray) -> np.ndarray:
 
 
 def cm_positions(snake: Snake, q: np.ndarray) -> np.ndarray:
-    """Return the centre of mass of the links at each configuration, shape (N, 2) [m]."""
+    """Return the centre of mass of the links at each configuration, shape (N, 2) [m].
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot (its link masses weigh the links' centres).
+    q : numpy.ndarray
+        Configurations, shape (N, n + 2).
+
+    Returns
+    -------
+    numpy.ndarray
+        The centre of mass ``(x, y)`` [m] at each configuration, shape (N, 2).
+    """
     masses = snake.params.per_link("mass")
     weights = masses / masses.sum()
     return np.array([weights @ snake.link_poses(qk)[:, :2] for qk in q])
@@ -341,6 +354,11 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
         configurations with their times) and ``head`` (the head path every 0.1 s).
         Status "not applicable" when the controller refuses the robot (PFL with a
         passive joint), "unsupported" for engine cells the engine cannot run yet.
+
+    Raises
+    ------
+    ParameterError
+        An unknown scenario, model or controller (without a ``factory``).
     """
     if model not in MODELS:
         raise ParameterError(f"unknown model {model!r} (expected one of {', '.join(MODELS)})")
@@ -403,12 +421,34 @@ class BenchmarkResult:
     settings: dict[str, Any] = field(default_factory=dict)
 
     def table(self) -> list[dict[str, Any]]:
-        """Return the rows without their series (the CSV's content)."""
+        """Return the rows without their series (the CSV's content).
+
+        Returns
+        -------
+        list of dict
+            One dict per cell with the keys of :data:`METRIC_FIELDS`, in run order.
+        """
         return [{k: row[k] for k in METRIC_FIELDS} for row in self.rows]
 
     def cell(self, scenario: str, controller: str, model: str = "viscous",
              failed: int | None = None) -> dict[str, Any]:
         """Return the row of one cell.
+
+        Parameters
+        ----------
+        scenario : str
+            One of :data:`SCENARIOS`.
+        controller : str
+            The controller's name.
+        model : {"viscous", "engine"}, optional
+            The plant.
+        failed : int or None, optional
+            The joint (1-based) made passive, or None (also 0) for none.
+
+        Returns
+        -------
+        dict
+            The cell's row, as :func:`run_cell` returned it.
 
         Raises
         ------
@@ -693,6 +733,12 @@ def bench_control_stage(ctx: Any) -> None:
     Quick: line and circle 1L x lyapunov and los, 12 s, no failure. Full: every scenario
     x every built-in controller, with and without joint 5 failed, 60 s (about 3-4
     minutes on 2 cores).
+
+    Parameters
+    ----------
+    ctx
+        The report's :class:`~snake_pin.experiments.reproduce.Context`: output ``folder``,
+        robot ``params``, ``report`` and ``quick`` mode.
     """
     from ..params import ROBOTS
     from .tracking import tracking_friction
