@@ -72,6 +72,13 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.n
     c_y,i != c_x,i, a wheel joint ``wheel_i`` (prismatic along the link, at the CM)
     carrying "mass" c_y,i - c_x,i follows each link joint in the tree.
 
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
+    params : SnakeParams
+        The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
+
     Returns
     -------
     twin, chain, wheels
@@ -121,6 +128,13 @@ class ForcePasses:
     rolling pass on :attr:`roll` at ``[q', -u]`` gives C(q) q' = -Q in its first n + 2 rows.
     Without wheels :attr:`lock` is None and one pass at ``[q']`` gives -Q.
 
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
+    params : SnakeParams
+        The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
+
     Attributes
     ----------
     size
@@ -150,7 +164,20 @@ class ForcePasses:
         self._v = np.zeros(self.size)
 
     def force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Q(q, dq) as a new array (copies the state into the extended buffers)."""
+        """Q(q, dq) as a new array (copies the state into the extended buffers).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration, length n + 2.
+        dq : numpy.ndarray
+            Velocity, length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            The generalised friction force ``Q``, length n + 2 [N, N, N m, N m].
+        """
         nq, q_ext, v_ext = self._nq, self._q, self._v
         q_ext[:nq] = q
         v_ext[:nq] = dq
@@ -259,7 +286,18 @@ class FrictionModel:
         return self._force(both[0], both[1], complex(dq[0], dq[1]))
 
     def of_state(self, x: np.ndarray) -> np.ndarray:
-        """Same as ``self(q, dq)`` for the stacked state x = [q, dq] (hot path)."""
+        """Same as ``self(q, dq)`` for the stacked state x = [q, dq] (hot path).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+
+        Returns
+        -------
+        numpy.ndarray
+            The generalised friction force ``Q``, length n + 2.
+        """
         n2 = self._n + 2
         if self._force_on_twin:
             return self._twin_force(x[:n2], x[n2:])
@@ -274,6 +312,16 @@ class FrictionModel:
         is linear in dq, so the columns are the responses to the unit velocities,
         computed together: theta' of the unit vectors is [0 | L] and the base velocity
         is 1 (x_h') or j (y_h').
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration, length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``C(q)``, shape (n + 2, n + 2), symmetric positive semi-definite.
         """
         if self._twin is not None:
             mass = symmetric_from_upper(pin.crba(self._twin, self._twin_data,
@@ -310,6 +358,23 @@ class FrictionModel:
         rolling speed and Q = -RNEA_c(q, 0, [dq; w]), the chain rule over the two passes
         gives dQ/dq = -(R2_q + M_cw dw/dq) and dQ/ddq = -(M_cc + M_cw dw/ddq), with
         dw/dq = roll * R1_q (wheel rows) and dw/ddq = roll * M_wc.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration, length n + 2.
+        dq : numpy.ndarray
+            Velocity, length n + 2.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``Q`` (length n + 2), ``dQ/dq`` and ``dQ/ddq`` (each (n + 2, n + 2)).
+
+        Raises
+        ------
+        ValueError
+            The friction model was built without the snake's Pinocchio model.
         """
         if self._twin is None:
             raise ValueError("friction derivatives need the snake's Pinocchio model")
@@ -367,6 +432,24 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
 
     Runs ``pin.forwardKinematics`` on ``data``. Joint i + 2 of the paper model carries
     link i, whose frame is at its front end; the CM sits at x = d_i on the link axis.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
+    params : SnakeParams
+        The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
+    data : pinocchio.Data
+        The model's workspace (its kinematics are updated).
+    q : numpy.ndarray
+        Configuration, length n + 2.
+    dq : numpy.ndarray
+        Velocity, length n + 2.
+
+    Returns
+    -------
+    pinocchio.StdVec_Force
+        One spatial force per joint (zero on the joints before the first link).
     """
     c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
     offsets = params.com_offsets
