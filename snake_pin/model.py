@@ -51,6 +51,16 @@ def paper_model(params: SnakeParams) -> pin.Model:
     Joint ``base_yaw`` (index 3) carries link 1; joint i + 3 carries link i + 1 and is the
     paper's joint i. Each link also gets a body frame named ``link_i``. Passive joints get
     a zero effort limit, as in the URDF.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+
+    Returns
+    -------
+    pinocchio.Model
+        The model, with nq = nv = n + 2.
     """
     fixed = pin.buildModelFromXML(urdf_string(params, floating_base=False))
     model = pin.Model()
@@ -84,14 +94,14 @@ def paper_model(params: SnakeParams) -> pin.Model:
 class DynamicsDerivatives:
     """Partial derivatives of q'' = H^-1 (E tau - h(q, q')) (friction included).
 
-    Attributes
+    Parameters
     ----------
-    ddq_dq, ddq_dv
-        (n + 2, n + 2): d q'' / d q and d q'' / d q'.
-    ddq_dtau
-        (n + 2, n - 1): d q'' / d tau = H^-1 E (zero columns for passive joints).
-    ddq
-        (n + 2,): q'' itself at the point.
+    ddq_dq, ddq_dv : numpy.ndarray
+        (n + 2, n + 2): ``d q'' / d q`` and ``d q'' / d q'``.
+    ddq_dtau : numpy.ndarray
+        (n + 2, n - 1): ``d q'' / d tau = H^-1 E`` (zero columns for passive joints).
+    ddq : numpy.ndarray
+        (n + 2,): ``q''`` itself at the point.
     """
 
     ddq_dq: np.ndarray
@@ -105,8 +115,13 @@ class Snake:
 
     Parameters
     ----------
-    params
+    params : SnakeParams or None, optional
         Robot parameters; defaults to the Table 1 robot.
+
+    Raises
+    ------
+    ConfigurationError
+        ``params`` is not a SnakeParams.
 
     Attributes
     ----------
@@ -179,8 +194,18 @@ class Snake:
     def from_file(cls, spec: str | os.PathLike[str], **overrides: Any) -> Snake:
         """The snake a ``--robot`` value names: a preset, a ``.toml`` robot file or a URDF.
 
-        ``overrides`` change fields of the robot (e.g. ``passive=(5,)``); see
-        :func:`snake_pin.robot_file.load_robot`.
+        Parameters
+        ----------
+        spec : str or os.PathLike
+            A preset's name, a ``.toml`` robot file or a URDF.
+        **overrides
+            Fields of the robot to change (e.g. ``passive=(5,)``); see
+            :func:`snake_pin.robot_file.load_robot`.
+
+        Returns
+        -------
+        Snake
+            The robot's model.
         """
         from .robot_file import load_robot
 
@@ -193,19 +218,91 @@ class Snake:
 
     # ------------------------------------------------------------ validation
     def check_q(self, q: object, name: str = "q") -> np.ndarray:
-        """``q`` as a finite vector of length n + 2, or ConfigurationError."""
+        """``q`` as a finite vector of length n + 2, or ConfigurationError.
+
+        Parameters
+        ----------
+        q : array_like
+            The configuration to check.
+        name : str, optional
+            The argument's name in the error message.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``q`` as floats, length n + 2.
+
+        Raises
+        ------
+        ConfigurationError
+            Not a finite vector of that length.
+        """
         return _vector(q, self.nq, name)
 
     def check_dq(self, dq: object, name: str = "dq") -> np.ndarray:
-        """``dq`` as a finite vector of length n + 2, or ConfigurationError."""
+        """``dq`` as a finite vector of length n + 2, or ConfigurationError.
+
+        Parameters
+        ----------
+        dq : array_like
+            The velocity to check.
+        name : str, optional
+            The argument's name in the error message.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``dq`` as floats, length n + 2.
+
+        Raises
+        ------
+        ConfigurationError
+            Not a finite vector of that length.
+        """
         return _vector(dq, self.nv, name)
 
     def check_tau(self, tau: object, name: str = "tau") -> np.ndarray:
-        """``tau`` as a finite vector of length n - 1 (never broadcast), or ConfigurationError."""
+        """``tau`` as a finite vector of length n - 1 (never broadcast), or ConfigurationError.
+
+        Parameters
+        ----------
+        tau : array_like
+            The joint torques to check.
+        name : str, optional
+            The argument's name in the error message.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``tau`` as floats, length n - 1.
+
+        Raises
+        ------
+        ConfigurationError
+            Not a finite vector of that length.
+        """
         return _vector(tau, self.n - 1, name)
 
     def check_state(self, x: object, name: str = "x") -> np.ndarray:
-        """The stacked state ``x = [q, dq]`` (length 2(n + 2)), or ConfigurationError."""
+        """The stacked state ``x = [q, dq]`` (length 2(n + 2)), or ConfigurationError.
+
+        Parameters
+        ----------
+        x : array_like
+            The state to check.
+        name : str, optional
+            The argument's name in the error message.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``x`` as floats, length 2(n + 2).
+
+        Raises
+        ------
+        ConfigurationError
+            Not a finite vector of that length.
+        """
         return _vector(x, self.nq + self.nv, name)
 
     # -------------------------------------------------------------- dynamics
@@ -217,40 +314,133 @@ class Snake:
         return e_matrix
 
     def inertia_matrix(self, q: np.ndarray) -> np.ndarray:
-        """H(q) of eq. (19) by CRBA, symmetric (n + 2) x (n + 2)."""
+        """H(q) of eq. (19) by CRBA, symmetric (n + 2) x (n + 2).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``H(q)``, shape (n + 2, n + 2).
+        """
         q = self.check_q(q)
         # CRBA fills the upper triangle; the WORLD convention is 2x faster at n = 100
         return symmetric_from_upper(pin.crba(self.model, self.data, q, pin.Convention.WORLD))
 
     def inverse_inertia_matrix(self, q: np.ndarray) -> np.ndarray:
-        """H(q)^-1 by Pinocchio's computeMinverse (symmetric)."""
+        """``H(q)^-1`` by Pinocchio's computeMinverse (symmetric).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``H(q)^-1``, shape (n + 2, n + 2).
+        """
         q = self.check_q(q)
         return symmetric_from_upper(pin.computeMinverse(self.model, self.data, q))
 
     def coriolis(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Coriolis/centrifugal term W diag(J dq) J dq of eq. (18) by RNEA."""
+        """Coriolis/centrifugal term ``W diag(J dq) J dq`` of eq. (18) by RNEA.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+        dq : numpy.ndarray
+            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            The term, length n + 2 [N, N, N m, N m].
+        """
         q, dq = self.check_q(q), self.check_dq(dq)
         return pin.nonLinearEffects(self.model, self.data, q, dq).copy()
 
     def friction_force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Generalised viscous friction force -C(q) dq (eqs. 11-13)."""
+        """Generalised viscous friction force ``-C(q) dq`` (eqs. 11-13).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+        dq : numpy.ndarray
+            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            The force, length n + 2 [N, N, N m, N m].
+        """
         q, dq = self.check_q(q), self.check_dq(dq)
         return self.friction(q, dq)
 
     def bias(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """h(q, dq) of eq. (20): Coriolis/centrifugal plus friction, so H q'' + h = E tau."""
+        """``h(q, dq)`` of eq. (20): Coriolis/centrifugal plus friction, ``H q'' + h = E tau``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+        dq : numpy.ndarray
+            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``h``, length n + 2.
+        """
         q, dq = self.check_q(q), self.check_dq(dq)
         return pin.nonLinearEffects(self.model, self.data, q, dq) - self.friction(q, dq)
 
     def generalized_torque(self, tau: np.ndarray) -> np.ndarray:
-        """E tau with passive joints' entries dropped (their torque is zero)."""
+        """``E tau`` with passive joints' entries dropped (their torque is zero).
+
+        Parameters
+        ----------
+        tau : numpy.ndarray
+            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+
+        Returns
+        -------
+        numpy.ndarray
+            The generalised torque, length n + 2 (zero on x, y, theta_1).
+        """
         tau = self.check_tau(tau)
         out = np.zeros(self.nv)
         out[3 + self._actuated] = tau[self._actuated]
         return out
 
     def forward_dynamics(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """q'' = H^-1 (E tau - h) by ABA; torques on passive joints are ignored."""
+        """``q'' = H^-1 (E tau - h)`` by ABA; torques on passive joints are ignored.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+        dq : numpy.ndarray
+            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        tau : numpy.ndarray
+            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``q''``, length n + 2.
+        """
         q, dq, tau = self.check_q(q), self.check_dq(dq), self.check_tau(tau)
         generalized = self.friction(q, dq)
         generalized[3:] += tau if self._mask is None else tau * self._mask
@@ -260,7 +450,7 @@ class Snake:
                              tau: np.ndarray) -> DynamicsDerivatives:
         """Analytical derivatives of q'' = H^-1 (E tau - h), friction included.
 
-        With Q(q, q') the friction force, q'' = ABA(q, q', E tau + Q), so
+        With ``Q(q, q')`` the friction force, ``q'' = ABA(q, q', E tau + Q)``, so::
 
             d q''/d q  = ABA_q + H^-1 dQ/dq,   d q''/d q' = ABA_v + H^-1 dQ/dq',
             d q''/d tau = H^-1 E,
@@ -268,6 +458,21 @@ class Snake:
         where ABA_q, ABA_v and H^-1 come from ``pin.computeABADerivatives`` and the
         friction's Jacobians from the damping twin's RNEA derivatives
         (:meth:`snake_pin.friction.FrictionModel.derivatives`), all in Pinocchio's C++.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+        dq : numpy.ndarray
+            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        tau : numpy.ndarray
+            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+
+        Returns
+        -------
+        DynamicsDerivatives
+            The three Jacobians and ``q''`` itself.
         """
         q, dq, tau = self.check_q(q), self.check_dq(dq), self.check_tau(tau)
         force, dforce_dq, dforce_dv = self.friction.derivatives(q, dq)
@@ -287,6 +492,16 @@ class Snake:
         A controller evaluates h at the sampled state and the integrator's first stage
         evaluates q'' at the same state: the second call is served from the cache.
         Unchecked (hot path).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+
+        Returns
+        -------
+        numpy.ndarray
+            The friction force, length n + 2 (a new array).
         """
         key = x.tobytes()  # bitwise equality: 15x cheaper than comparing arrays
         if key == self._cache_key:
@@ -297,30 +512,92 @@ class Snake:
         return out
 
     def bias_of_state(self, x: np.ndarray) -> np.ndarray:
-        """h at the stacked state x = [q, dq] (same as ``bias(q, dq)``; unchecked)."""
+        """h at the stacked state x = [q, dq] (same as ``bias(q, dq)``; unchecked).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``h``, length n + 2.
+        """
         nq = self.nq
         return pin.nonLinearEffects(self.model, self.data, x[:nq], x[nq:]) \
             - self.friction_of_state(x)
 
     def state_derivative(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """q'' for the stacked state x = [q, dq] (the simulator's hot path; unchecked)."""
+        """q'' for the stacked state x = [q, dq] (the simulator's hot path; unchecked).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+        tau : numpy.ndarray
+            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``q''``, length n + 2.
+        """
         nq = self.nq
         generalized = self.friction_of_state(x)
         generalized[3:] += tau if self._mask is None else tau * self._mask
         return pin.aba(self.model, self.data, x[:nq], x[nq:], generalized).copy()
 
     def kinetic_energy(self, q: np.ndarray, dq: np.ndarray) -> float:
-        """T of eq. (8)."""
+        """T of eq. (8).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+        dq : numpy.ndarray
+            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+
+        Returns
+        -------
+        float
+            The kinetic energy [J].
+        """
         q, dq = self.check_q(q), self.check_dq(dq)
         return float(pin.computeKineticEnergy(self.model, self.data, q, dq))
 
     # ------------------------------------------------------------- geometry
     def head_pose(self, q: np.ndarray) -> np.ndarray:
-        """w = [x_h, y_h, theta_1]: the head point and the head link's orientation."""
+        """``w = [x_h, y_h, theta_1]``: the head point and the head link's orientation.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``w`` [m, m, rad], length 3.
+        """
         return self.check_q(q)[:3].copy()
 
     def link_poses(self, q: np.ndarray) -> np.ndarray:
-        """(n, 3) array of [x_i, y_i, theta_i]: CM position and orientation of each link."""
+        """(n, 3) array of ``[x_i, y_i, theta_i]``: CM position and orientation of each link.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (n, 3) [m, m, rad], head link first.
+        """
         theta, ends = self._chain(self.check_q(q))
         offsets = self.params.com_offsets
         out = np.empty((self.n, 3))
@@ -330,7 +607,19 @@ class Snake:
         return out
 
     def joint_points(self, q: np.ndarray) -> np.ndarray:
-        """(n + 1, 2) array: head point, the n - 1 joints, then the tail end, for drawing."""
+        """(n + 1, 2) array: head point, the n - 1 joints, then the tail end, for drawing.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+            length n + 2.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (n + 1, 2) [m].
+        """
         return self._chain(self.check_q(q))[1]
 
     def _chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -359,6 +648,13 @@ class FastDynamics:
     evaluation. Every ABA is in Pinocchio's WORLD convention: faster than LOCAL here, and
     the one after which the two-argument ``pin.computeMinverse`` is right (after a LOCAL
     ABA it silently returns a wrong matrix).
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot.
+    rows : int, optional
+        Number of stage states (rows of :attr:`states`; 4 for RK4).
 
     Attributes
     ----------
