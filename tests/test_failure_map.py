@@ -52,6 +52,17 @@ def test_a_robot_of_ones_own_is_written_beside_the_study(tmp_path: Path) -> None
     assert {s.params.c_y / s.params.c_x for s in spec.scenarios} == {10.0, 25.0, 50.0, 100.0}
 
 
+def test_the_robots_own_c_x_sets_the_friction_of_the_ratios(tmp_path: Path) -> None:
+    """Table 1 with c_x = 1: c_y = 10..100 N s/m; per-link c_x falls back to C_X = 0.5."""
+    spec = load_study(failure_map_study(SnakeParams.table1(c_x=1.0), FULL, tmp_path))
+    assert {s.params.c_x for s in spec.scenarios} == {1.0}
+    assert sorted({s.params.c_y for s in spec.scenarios}) == [10.0, 25.0, 50.0, 100.0]
+    per_link = SnakeParams.table1(n=4, c_x=[0.5, 0.6, 0.5, 0.5], name="lumpy")
+    (tmp_path / "lumpy").mkdir()
+    spec = load_study(failure_map_study(per_link, FULL, tmp_path / "lumpy"))
+    assert {s.params.c_x for s in spec.scenarios} == {0.5}
+
+
 def _tables(rms: dict[int, list[float]], rt: dict[int, list[float]],
             ratios: tuple[float, ...]) -> dict[str, Any]:
     rows = [{"failed_joint": j, "c_x": 0.5, "c_y": 0.5 * r, "status": "ok",

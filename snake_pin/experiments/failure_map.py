@@ -7,7 +7,8 @@ the report folder:
 - ``failure_map.toml``: the study as run. For the Table 1 robot and the full plan it is
   the shipped ``studies/failure_map.toml`` (same runs, same study hash): the Lyapunov-like
   law, 60 s, no failed joint (0) and each single failed joint k = 1..n-1, times
-  c_y/c_x in {10, 25, 50, 100} with c_x = :data:`C_X`. A robot of one's own runs the same
+  c_y/c_x in {10, 25, 50, 100} with the robot's c_x (Table 1: :data:`C_X`; a robot whose
+  c_x differs between links, or is 0, gets :data:`C_X`). A robot of one's own runs the same
   plan on its own layout (written beside it as ``failure_map_robot.toml``), with its
   passive joints cleared (the failures are the axis);
 - ``failure_map/``: the study folder (``runs/`` Parquet dataset, ``index.html``,
@@ -47,9 +48,11 @@ from ..exceptions import ConfigurationError
 from ..params import SnakeParams
 
 __all__ = ["C_X", "FULL", "QUICK", "SERIES_RATIO", "TRACKING_LIMIT", "MapPlan",
-           "failure_map_stage", "failure_map_study", "findings", "map_tables", "run_series"]
+           "failure_map_stage", "failure_map_study", "findings", "map_c_x", "map_tables",
+           "run_series"]
 
-#: Friction along each link in the map [N s/m]; c_y = ratio * C_X.
+#: Friction along each link in the map [N s/m] when the robot has no single positive
+#: c_x of its own (Table 1's is this); c_y = ratio * c_x.
 C_X = 0.5
 #: RMS head error [% of body length] beyond which a run counts as not tracking: the
 #: issue's target with a passive joint (and twice the one without).
@@ -69,7 +72,7 @@ class MapPlan:
     failed_joints
         The failed joints (0: none); None: 0..n-1 for the robot.
     ratios
-        The ratios c_y/c_x (c_x = :data:`C_X`).
+        The ratios c_y/c_x (c_x: :func:`map_c_x`).
     error_window
         Start of the head-error window [s]; None: the study's default (10 s).
     """
@@ -119,11 +122,12 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
         write_robot_file(robot, folder / name)
     joints = [k for k in (plan.failed_joints if plan.failed_joints is not None
                           else range(robot.n)) if 0 <= k <= robot.n - 1]
-    c_y = [_number(ratio * C_X) for ratio in plan.ratios]
+    c_x = map_c_x(robot)
+    c_y = [_number(ratio * c_x) for ratio in plan.ratios]
     description = (f"Actuator-failure map: robot {robot.name}, Lyapunov-like law, "
                    f"{plan.t_final:g} s, failed joint {', '.join(map(str, joints))} "
                    f"(0: none) against c_y/c_x = "
-                   f"{', '.join(f'{r:g}' for r in plan.ratios)} (c_x = {C_X:g} N s/m).")
+                   f"{', '.join(f'{r:g}' for r in plan.ratios)} (c_x = {c_x:g} N s/m).")
     window = "" if plan.error_window is None else \
         f"error_window = {_number(plan.error_window)}\n"
     text = ("# The actuator-failure map (issue 14, item 7), written by snake-pin reproduce.\n"
@@ -136,7 +140,7 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
             'model = "viscous"\n'
             f"t_final = {_number(plan.t_final)}\n"
             f"{window}"
-            f"c_x = {_number(C_X)}\n\n"
+            f"c_x = {_number(c_x)}\n\n"
             "[axes.failed_joint]\n"
             f"values = [{', '.join(map(str, joints))}]\n\n"
             "[axes.c_y]\n"
@@ -146,6 +150,23 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
     path = folder / "failure_map.toml"
     atomic_write_bytes(path, text.encode())
     return path
+
+
+def map_c_x(params: SnakeParams) -> float:
+    """The c_x of the map for a robot.
+
+    Parameters
+    ----------
+    params
+        The robot.
+
+    Returns
+    -------
+    float
+        Its c_x when it is one positive number for every link, else :data:`C_X`.
+    """
+    value = params.c_x
+    return float(value) if isinstance(value, float) and value > 0 else C_X
 
 
 def _is_table1(params: SnakeParams) -> bool:
@@ -430,7 +451,7 @@ def failure_map_stage(ctx: Any) -> None:
              f"0.3 with a failed joint) on the {base.n}-link robot{own} for {plan.t_final:g} "
              "s, head-first along w_r = [0.1 t, 0, pi], with no failed joint (0) and each "
              f"single failed joint k (its actuator gives no torque), against c_y/c_x = "
-             f"{', '.join(f'{r:g}' for r in plan.ratios)} with c_x = {C_X:g} N s/m. "
+             f"{', '.join(f'{r:g}' for r in plan.ratios)} with c_x = {map_c_x(base):g} N s/m. "
              f"{summary.runs} runs as a study ({summary.scheduler}, lockstep batches): "
              f"failure_map.toml, results in failure_map/ (Parquet: "
              "pandas.read_parquet('failure_map/runs')).")
@@ -482,7 +503,7 @@ def failure_map_stage(ctx: Any) -> None:
              "% with joint 3, 7-11 % with joints 4-7. See docs/failure_map.rst.")
     sec.numbers.update({
         "plan": {"t_final": plan.t_final, "failed_joints": joints,
-                 "ratios": list(plan.ratios), "c_x": C_X},
+                 "ratios": list(plan.ratios), "c_x": map_c_x(base)},
         **tables,
         "findings": numbers,
         "series": {label: {k: v for k, v in data.items()
