@@ -186,3 +186,14 @@ def test_reproduce_runs_every_stage_on_a_robot_file(tmp_path: Path) -> None:
     assert set(summary["run"]["sections"]) >= {name for name, _ in stages()}
     rows = json.loads((tmp_path / "benchmark.json").read_text())
     assert rows["settings"]["robot"]["name"] == "camera_head_snake"
+
+
+def test_reproduce_twice_into_the_same_folder(tmp_path: Path) -> None:
+    """A second reproduce replaces the first, stage folders (the failure map's study) too."""
+    argv = ["reproduce", "--quick", "--only", "failure_map", "-o", str(tmp_path)]
+    assert main(argv) == 0
+    first = (tmp_path / "failure_map").stat().st_ino
+    assert main(argv) == 0
+    assert (tmp_path / "failure_map" / "runs").is_dir()
+    assert (tmp_path / "failure_map").stat().st_ino != first
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]

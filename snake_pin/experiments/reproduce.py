@@ -277,7 +277,11 @@ def _keep_partial(folder: Path, staging: Path, report: Report, timings: dict[str
         del report.sections[sections:]
         for name in _names(staging) - files:
             with contextlib.suppress(OSError):
-                (staging / name).unlink()
+                path = staging / name
+                if path.is_dir() and not path.is_symlink():
+                    shutil.rmtree(path)
+                else:
+                    path.unlink()
     when = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
     report.status = "interrupted"
     report.note = (f"interrupted ({_cause(exc)}) at {when} during stage "
@@ -337,7 +341,16 @@ def _move_into(staging: Path, folder: Path) -> None:
         return 1 if name.endswith((".png", ".html", ".svg")) else 0
 
     for name in sorted(_names(staging), key=lambda name: (rank(name), name)):
-        os.replace(staging / name, folder / name)
+        source, target = staging / name, folder / name
+        if source.is_dir() and target.is_dir():
+            # a stage's folder (e.g. the failure map's study): a folder cannot be renamed
+            # onto a non-empty one, so the old one steps aside and is removed after
+            old = folder / f".{name}.old-{os.getpid()}"
+            os.replace(target, old)
+            os.replace(source, target)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(source, target)
     fd = os.open(folder, os.O_RDONLY)
     try:
         os.fsync(fd)  # make the renames durable
