@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -200,3 +201,29 @@ class OpenLoop(Controller):
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         return np.asarray(self.schedule(t), dtype=float)
+
+
+class _ReferenceTimeTerms:
+    """The time-only terms of a law that follows ``self.reference`` with ``self.gait``.
+
+    Shared by the Lyapunov-like law and PFL: each keeps a :class:`TimeTerms` in
+    ``_time_row`` and the matrix ``_law_time`` mapping the reference rows to its terms.
+    """
+
+    reference: Any
+    gait: Serpenoid
+    _time_row: TimeTerms
+    _law_time: np.ndarray
+
+    def prepare(self, times: np.ndarray) -> None:
+        """Compute the references' terms for the coming calls in blocks (see TimeTerms).
+
+        Parameters
+        ----------
+        times : numpy.ndarray
+            The run's sampling instants [s], shape (T,), in order.
+        """
+        self._time_row.prepare(times)
+
+    def _time_terms(self, times: np.ndarray) -> np.ndarray:
+        return reference_rows(self.reference, self.gait, times) @ self._law_time

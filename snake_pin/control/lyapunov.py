@@ -73,7 +73,7 @@ from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
-from .base import Controller, TimeTerms, gait_for, reference_rows
+from .base import Controller, TimeTerms, _ReferenceTimeTerms, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
@@ -97,7 +97,7 @@ def head_first_reference(speed: float = 0.1) -> LinearReference:
     return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, np.pi))
 
 
-class LyapunovController(Controller):
+class LyapunovController(_ReferenceTimeTerms, Controller):
     """Head tracking that reduces V of (83) by weighted least squares on q''.
 
     Parameters
@@ -269,19 +269,6 @@ class LyapunovController(Controller):
         """
         _, s, e = self.targets(x, t)
         return float(s @ self.k_w2 @ s + e @ self.k_phi @ e)
-
-    def prepare(self, times: np.ndarray) -> None:
-        """Compute the references' terms for the coming calls in blocks (see TimeTerms).
-
-        Parameters
-        ----------
-        times : numpy.ndarray
-            The run's sampling instants [s], shape (T,), in order.
-        """
-        self._time_row.prepare(times)
-
-    def _time_terms(self, times: np.ndarray) -> np.ndarray:
-        return reference_rows(self.reference, self.gait, times) @ self._law_time
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None

@@ -51,14 +51,14 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import manipulability_R_batch
 from ..model import Snake
-from .base import Controller, TimeTerms, gait_for, reference_rows
+from .base import Controller, TimeTerms, _ReferenceTimeTerms, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
 __all__ = ["PFLController"]
 
 
-class PFLController(Controller):
+class PFLController(_ReferenceTimeTerms, Controller):
     """Head PFL controller of Section VI.1.
 
     Parameters
@@ -140,19 +140,6 @@ class PFLController(Controller):
         w_r, dw_r, ddw_r = self.reference(t)
         nq = self._nq
         return ddw_r + self.k_v @ (dw_r - x[nq:nq + 3]) + self.k_p @ (w_r - x[:3])
-
-    def prepare(self, times: np.ndarray) -> None:
-        """Compute the references' terms for the coming calls in blocks (see TimeTerms).
-
-        Parameters
-        ----------
-        times : numpy.ndarray
-            The run's sampling instants [s], shape (T,), in order.
-        """
-        self._time_row.prepare(times)
-
-    def _time_terms(self, times: np.ndarray) -> np.ndarray:
-        return reference_rows(self.reference, self.gait, times) @ self._law_time
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
