@@ -27,6 +27,7 @@ import numpy as np
 
 from .._validation import finite_number
 from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
+from ..control.reference import HeadReference
 from ..exceptions import ParameterError, RunInterrupted
 from ..gaits import initial_state
 from ..model import Snake
@@ -195,6 +196,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                t_final: float = 60.0, friction: dict[str, float] | None = None,
                cutoff: float = 10.0, law: str = "velocity",
                initial_offset: Sequence[float] | np.ndarray | None = None,
+               reference: HeadReference | None = None,
                progress: bool = False) -> EngineRun:
     """Lyapunov-like head tracking on MuJoCo, control at 1 kHz, velocities from the filter.
 
@@ -230,6 +232,11 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         "velocity" or "acceleration" (see above).
     initial_offset
         n - 1 offsets added to the initial joint angles [rad] (see above).
+    reference
+        The head reference ``t -> (w_r, w_r', w_r'')`` (default
+        :func:`~snake_pin.control.head_first_reference`: 0.1 m/s along +x); any path of
+        :mod:`snake_pin.paths` with its timing law. The run starts with the head at the
+        origin leading along +x (theta_1 = pi), so a reference should start there.
     progress
         Show a progress bar on stderr when it is a terminal.
 
@@ -272,12 +279,13 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                                   c_theta=friction["c_theta"])
     engine = build_engine_model(params, wheels)
     snake = Snake(model_params)
+    head_reference = reference if reference is not None else head_first_reference()
     controller: QuasiStaticLyapunovController | LyapunovController
     if law == "velocity":
-        controller = QuasiStaticLyapunovController(snake, head_first_reference(),
+        controller = QuasiStaticLyapunovController(snake, head_reference,
                                                    control_dt=wheels.control_dt)
     else:
-        controller = LyapunovController(snake, head_first_reference())
+        controller = LyapunovController(snake, head_reference)
     q0 = initial_state(params.n, theta_1=math.pi)[: params.n + 2]
     q0[3:] += offset
     engine.set_paper_configuration(q0)
@@ -299,6 +307,8 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
             "wheel_radius": wheels.radius, "wheel_friction": wheels.friction}
     if initial_offset is not None:
         meta["initial_offset"] = offset.tolist()
+    if reference is not None:
+        meta["reference"] = repr(reference)
 
     def collect(run_status: str, run_reason: str) -> EngineRun:
         traj = Trajectory(t=ts[:good].copy(), q=qs[:good].copy(), dq=dqs[:good].copy(),
