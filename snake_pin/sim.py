@@ -926,9 +926,10 @@ class _FastRK4:
         coefficients = [np.array(row) for row in (
             (0.0, 0.0, 0.0, 0.0, 0.0), (1.0, 0.5 * h, 0.0, 0.0, 0.0),
             (1.0, 0.0, 0.5 * h, 0.0, 0.0), (1.0, 0.0, 0.0, h, 0.0))]
-        self._stages = [(i, coefficients[i], dynamics.states[i], self._slopes[i + 1, :nq],
-                         self._slopes[i + 1, size:size + nq],
-                         dynamics.states[i, size:size + nq]) for i in range(4)]
+        stages = [(i, coefficients[i], dynamics.states[i], self._slopes[i + 1, :nq],
+                   self._slopes[i + 1, size:size + nq],
+                   dynamics.states[i, size:size + nq]) for i in range(4)]
+        self._first_stage, self._later_stages = stages[0][2:5], stages[1:]
         self._final = np.array((1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))
         self._velocity = self._state[size:size + nq]
         self._plain = size == nq  # no wheel slots: the layout is [q, q'] itself
@@ -953,7 +954,7 @@ class _FastRK4:
         else:
             torque[3 + actuated] = tau[actuated]
         slopes, state, evaluate, dot = self._slopes, self._state, self._evaluate, np.dot
-        (_, _, row0, d0, a0, _), *later = self._stages
+        (row0, d0, a0), later = self._first_stage, self._later_stages
         for sub in range(self._substeps):
             if sub or first is None:
                 row0[:] = state

@@ -196,6 +196,7 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
         law[nq:] *= weights[:, None]  # [s; e] weighted: V is their squared norm
         self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
         self._law_state = law[:, 3 * nq:].copy()  # applied to [q, q', b]
+        self._state_and_b = np.zeros(3 * nq)
         self._sqrt_w = np.diag(sqrt_w)
         all_actuated = len(self._act) == n - 1
         self._columns = slice(3, nq) if all_actuated else self._act
@@ -274,7 +275,10 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
         self._ddq = None
         nq = self.snake.nq
         b, minv = self._dynamics.affine(x)  # minv: upper triangle of H^-1, so minv.T's lower one
-        errors = self._law_state @ np.concatenate((x, b))
+        state_and_b = self._state_and_b  # [q, q', b] (np.dot: cheaper than @ on tiny arrays)
+        state_and_b[:2 * nq] = x
+        state_and_b[2 * nq:] = b
+        errors = np.dot(self._law_state, state_and_b)
         errors += self._time_row(t)  # [W^(1/2) (q''* - b); W^(1/2) [s; e]]
         weighted = blas.dsymm(1.0, minv.T, self._sqrt_w, side=1, lower=1)[:, self._columns]
         tau_a, info = lapack.dposv(blas.dsyrk(1.0, weighted, trans=1),
@@ -285,7 +289,7 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
         torque_full[self._columns] = tau_a
         self._ddq = blas.dsymv(1.0, minv.T, torque_full, beta=1.0, y=b, lower=1)
         weighted_errors = errors[nq:]
-        self._last = {"V": float(weighted_errors @ weighted_errors)}
+        self._last = {"V": float(np.dot(weighted_errors, weighted_errors))}
         if self._all_actuated:
             return tau_a
         self._tau[self._act - 3] = tau_a

@@ -42,10 +42,11 @@ them; the torque scales with the robot through H, so the gains of (79) serve eve
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.linalg import blas, lapack
 
-from .._symmetric import symmetric_from_upper
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
@@ -121,6 +122,9 @@ class PFLController(_ReferenceTimeTerms, Controller):
         self._time_row = TimeTerms(self._time_terms)
         self._dynamics = snake.fast_dynamics
         self._ddq: np.ndarray | None = None
+        self._ddq_buffer = np.zeros(nq)
+        self._stacked = np.zeros(nq)
+        self._strict_lower = np.tril(np.ones((nq, nq), dtype=bool), -1)
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
@@ -143,33 +147,39 @@ class PFLController(_ReferenceTimeTerms, Controller):
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
-        nq = self._nq
-        upper, h_vec = self._dynamics.mass_and_bias(x)
-        h_mat = symmetric_from_upper(upper)
+        nq, dot = self._nq, np.dot  # np.dot: cheaper than @ on these tiny arrays
+        h_mat, h_vec = self._dynamics.mass_and_bias(x)  # H: a new array, upper triangle
+        np.copyto(h_mat, h_mat.T, where=self._strict_lower)  # mirrored in place
         h12, h22 = h_mat[:3, 3:], h_mat[3:, 3:]
         gram = blas.dsyrk(1.0, h12)  # H12 H12^T (upper triangle)
         eigenvalues, _, info = lapack.dsyev(gram, compute_v=0)
-        r = float(np.sqrt(max(eigenvalues[0], 0.0)))  # R: the smallest singular value
+        r = math.sqrt(max(float(eigenvalues[0]), 0.0))  # R: the smallest singular value
         if info != 0 or not r > self.r_min:
             raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
-        commands = self._gain @ x
+        commands = dot(self._gain, x)
         commands += self._time_row(t)
         a, u = commands[:3], commands[3:]  # eqs. (71), (78)
         if self.climb_R:
             u = u - self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq]) - x[nq + 3:])
-        p, info = lapack.dposv(h22, h12.T @ a)[1:]  # H22^-1 H21 a (H22 > 0, Prop. 1)
+        p, info = lapack.dposv(h22, dot(h12.T, a))[1:]  # H22^-1 H21 a (H22 > 0, Prop. 1)
         if info != 0:
             raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-        z = h_mat[:3] @ np.concatenate((-a, p + u))
+        stacked = self._stacked  # [-a, p + u]
+        np.negative(a, out=stacked[:3])
+        np.add(p, u, out=stacked[3:])
+        z = dot(h_mat[:3], stacked)
         z -= h_vec[:3]  # -Hs a - h1 + H12 u
         solved, info = lapack.dposv(gram, z)[1:]
         if info != 0:
             raise SingularPostureError(f"H12 H12^T is not positive definite (LAPACK info {info})")
-        w = h12.T @ solved  # H12^+ z
+        w = dot(h12.T, solved)  # H12^+ z
         w -= u
-        tau = h22 @ w
+        tau = dot(h22, w)
         tau += h_vec[3:]
-        self._ddq = np.concatenate((a, w - p))
+        ddq = self._ddq_buffer
+        ddq[:3] = a
+        np.subtract(w, p, out=ddq[3:])
+        self._ddq = ddq
         self._last = {"R": r}
         return tau
 
