@@ -93,6 +93,8 @@ def test_dirty_derivative_of_a_ramp() -> None:
     tau = 1 / (2 * math.pi * 10.0)  # first-order lag: y = 3 (1 - exp(-t / tau))
     k = int(tau / 1e-3)
     assert out[k] == pytest.approx(3.0 * (1 - math.exp(-k * 1e-3 / tau)), rel=0.05)
+    into, buffer = DirtyDerivative(1, 10.0, 1e-3), np.empty(1)
+    assert [into(np.array([3.0 * k * 1e-3]), buffer)[0] for k in range(500)] == out
 
 
 @pytest.mark.parametrize("kwargs", [{"radius": 0.09}, {"radius": math.nan}, {"friction": -1.0},
@@ -231,3 +233,27 @@ def test_run_engine_follows_the_reference_it_is_given() -> None:
     line, turned = (run_engine(t_final=2.0, reference=ref).trajectory
                     for ref in (None, circle))
     assert turned.q[-1, 1] > 0.02 > abs(line.q[-1, 1])
+
+
+def test_run_engine_prepares_the_controllers_sampling_instants(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The instants run_engine announces are MuJoCo's clock exactly: the velocity law reads
+    every call's time terms from the prepared blocks (none computed alone), and the
+    recorded times are the running sums of the engine timestep."""
+    from snake_pin.control import QuasiStaticLyapunovController
+    from snake_pin.engine.run import run_engine
+
+    alone = []
+    original = QuasiStaticLyapunovController._time_terms
+
+    def counting(self: QuasiStaticLyapunovController, times: np.ndarray) -> np.ndarray:
+        if len(times) == 1:
+            alone.append(float(times[0]))
+        return original(self, times)
+
+    monkeypatch.setattr(QuasiStaticLyapunovController, "_time_terms", counting)
+    wheels = WheelSpec(cone="pyramidal")
+    traj = run_engine(t_final=0.3, wheels=wheels).trajectory
+    assert traj.status == "completed" and len(traj) == 301 and alone == []
+    clock = np.r_[0.0, np.cumsum(np.full(600, wheels.timestep))[1::2]]
+    assert np.array_equal(traj.t, clock)

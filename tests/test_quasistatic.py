@@ -110,3 +110,56 @@ def test_link_without_friction_is_named() -> None:
     params = SnakeParams.engine(c_y=[5.0] * 6 + [0.0, 5.0])
     with pytest.raises(ParameterError, match=r"link 7: .*c_y = 0"):
         QuasiStaticLyapunovController(Snake(params))
+
+
+def _straightforward_torques(ctrl: QuasiStaticLyapunovController, states: list[np.ndarray],
+                             times: list[float]) -> list[np.ndarray]:
+    """The law evaluated directly: C(q) from FrictionModel.matrix, numpy solves, np.clip."""
+    snake = ctrl.snake
+    nq, u, a = snake.nq, ctrl._u, ctrl._a
+    w_u, w_a = ctrl._w_u, ctrl._w_a
+    reference_a, out = None, []
+    for x, t in zip(states, times, strict=True):
+        c = snake.friction.matrix(x[:nq])
+        jac = -np.linalg.solve(c[np.ix_(u, u)], c[np.ix_(u, a)])
+        w_r, dw_r, _ = ctrl.reference(t)
+        _, dphi_r, _ = ctrl.gait.derivatives(t)
+        target_u = np.r_[dw_r + ctrl.k_w1 @ (w_r - x[:3]), dphi_r[u[3:] - 3]]
+        target_a = dphi_r[a - 3]
+        normal = jac.T @ np.diag(w_u) @ jac + np.diag(w_a)
+        rate = np.linalg.solve(normal, jac.T @ (w_u * target_u) + w_a * target_a)
+        joints = x[a]
+        if reference_a is None:
+            reference_a = joints.copy()
+        lead = np.clip(reference_a + rate * ctrl.dt - joints, -ctrl.max_lead, ctrl.max_lead)
+        reference_a = joints + lead
+        tau = np.zeros(snake.n - 1)
+        tau[a - 3] = ctrl.k_p[a - 3] * lead + ctrl.k_d[a - 3] * (rate - x[nq + a])
+        out.append(tau)
+    return out
+
+
+@pytest.mark.parametrize("params", [SnakeParams.engine(c_x=0.04, c_y=60.0, c_theta=1.6e-4),
+                                    SnakeParams.engine(c_x=0.04, c_y=60.0, passive=(5,)),
+                                    SnakeParams.engine(c_x=0.5, c_y=0.5),
+                                    _heavy_head(passive=(5,))],
+                         ids=["engine", "passive", "isotropic", "heavy_head_passive"])
+@pytest.mark.parametrize("prepared", [False, True], ids=["alone", "prepared"])
+def test_torque_equals_a_straightforward_evaluation(params: SnakeParams, prepared: bool,
+                                                    rng: np.random.Generator) -> None:
+    """Torques of 6 successive calls (random states, lead clipped or not) equal the law
+    evaluated directly to 1e-10, with the time terms prepared in blocks or not; V too."""
+    snake = Snake(params)
+    ctrl = QuasiStaticLyapunovController(snake)
+    times = [0.0, 0.001, 0.002, 7.5, 7.501, 30.0]
+    if prepared:
+        ctrl.prepare(np.array(times))
+    states = [head_first_state(rng, snake.n, spread=0.2, joints=1.0, speed=0.3)
+              for _ in times]
+    expected = _straightforward_torques(ctrl, states, times)
+    for x, t, tau in zip(states, times, expected, strict=True):
+        got = ctrl(x, t)
+        assert got.shape == (snake.n - 1,)
+        assert np.abs(got - tau).max() <= 1e-10 * max(1.0, np.abs(tau).max())
+        assert ctrl.signals()["V"] == pytest.approx(ctrl.velocity_command(x, t)[1], rel=1e-12)
+    assert np.abs(np.array(expected)).max() > 0.01  # the torques are not trivially zero

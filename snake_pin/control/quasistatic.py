@@ -34,14 +34,16 @@ do not honour (see the engine section of the report).
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import lapack
+import pinocchio as pin
+from scipy.linalg import blas, lapack
 
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
+from ..friction import damping_twin
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..params import SnakeParams
-from .base import Controller, gait_for
+from .base import Controller, TimeTerms, _ReferenceTimeTerms, gait_for, reference_rows
 from .gains import gain_matrix
 from .lyapunov import head_first_reference
 from .reference import HeadReference
@@ -78,7 +80,7 @@ def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.n
     return bandwidth**2 * inertia, 2.0 * bandwidth * inertia
 
 
-class QuasiStaticLyapunovController(Controller):
+class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
     """Velocity-level minimiser of V (83) through the quasi-static connection, with servos.
 
     Parameters
@@ -133,9 +135,6 @@ class QuasiStaticLyapunovController(Controller):
                                       else k_phi, n - 1, "K_phi"))
         self._u = np.array([0, 1, 2] + [2 + k for k in params.passive])
         self._a = np.array([2 + k for k in params.actuated])
-        size = n + 2  # flat indices of the C_uu and C_ua blocks
-        self._flat_uu = (self._u[:, None] * size + self._u[None, :]).ravel()
-        self._flat_ua = (self._u[:, None] * size + self._a[None, :]).ravel()
         self._w_u = np.r_[k_w2_d, k_phi_d[self._u[3:] - 3]]
         self._w_a = k_phi_d[self._a - 3]
         omega = finite_number(servo_bandwidth, "servo_bandwidth", positive=True)
@@ -144,7 +143,67 @@ class QuasiStaticLyapunovController(Controller):
         self.max_lead = finite_number(max_lead, "max_lead", positive=True)
         self.dt = finite_number(control_dt, "control_dt", positive=True)
         self._reference_a: np.ndarray | None = None
-        self._last: dict[str, float] = {}
+        self._last: tuple[np.ndarray, ...] | None = None
+        self._build_law()
+        self._time_row = TimeTerms(self._time_terms)
+
+    def _build_law(self) -> None:
+        """Constant arrays of the hot path (friction twin, gathers, weights, time map)."""
+        params, nq = self.snake.params, self.snake.nq
+        u, a = self._u, self._a
+        m, k = len(u), len(a)
+        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction), M_ww
+        # diagonal (each wheel's c_y,i - c_x,i). C_uu X = C_ua is the first block row of
+        # [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa] (eliminate Y = M_ww^-1 (M_wa - M_wu X)),
+        # so one CRBA and one solve give X = C_uu^-1 C_ua = -J without forming C; the
+        # entries are read from the upper triangle Pinocchio fills (row <= column). Wheels
+        # of c_y,i = c_x,i weigh nothing and are left out (they add nothing to C).
+        twin, chain, wheels = damping_twin(self.snake.model, params)
+        self._twin, self._twin_data = twin, twin.createData()
+        self._twin_q = np.zeros(twin.nq)  # every twin joint has nq = nv = 1
+        self._chain = chain
+        if len(wheels):
+            extra = params.per_link("c_y") - params.per_link("c_x")
+            wheels = wheels[extra != 0.0]
+        rows = np.r_[chain[u], wheels]
+        cols = np.r_[rows, chain[a]]
+        self._gather = (np.minimum.outer(rows, cols) * twin.nv
+                        + np.maximum.outer(rows, cols)).ravel()
+        self._block = len(rows)
+        # V's weights as square roots (J enters as -sqrt(W_u) C_uu^-1 C_ua, eq. of the
+        # module docstring) and the normal matrix's diagonal, in LAPACK's column order
+        self._sqrt_w_u = np.sqrt(self._w_u)
+        self._neg_sqrt_w_u = -self._sqrt_w_u[:, None]
+        self._diag_w_a = np.asfortranarray(np.diag(self._w_a))
+        # time-only terms, per reference row [w_r, phi_r, w_r', phi_r', w_r'', phi_r'']:
+        # [w_r' + K_w1 w_r, phi_r,passive', phi_r,actuated']
+        law = np.zeros((3 * nq, m + k))
+        law[:3, :3] = self.k_w1.T
+        law[nq:nq + 3, :3] = np.eye(3)
+        law[nq + u[3:], np.arange(3, m)] = 1.0
+        law[nq + a, np.arange(m, m + k)] = 1.0
+        self._law_time = law
+        self._m = m
+        self._all_actuated = k == params.n - 1
+
+    def _time_terms(self, times: np.ndarray) -> np.ndarray:
+        """Rows ``[w_r' + K_w1 w_r, phi_r,passive', phi_r,actuated']``, one per time.
+
+        Many times: the vectorised reference rows (:func:`reference_rows`) through the
+        law's map; one time (a call at an unannounced time): the reference and the gait
+        at that time directly, which is cheaper than building a one-row block.
+        """
+        if len(times) != 1:
+            return reference_rows(self.reference, self.gait, times) @ self._law_time
+        t = float(times[0])
+        w_r, dw_r, _ = self.reference(t)
+        dphi_r = self.gait.derivatives(t)[1]
+        m = self._m
+        row = np.empty((1, m + len(self._a)))
+        row[0, :3] = self.k_w1 @ w_r + dw_r
+        row[0, 3:m] = dphi_r[self._u[3:] - 3]
+        row[0, m:] = dphi_r[self._a - 3]
+        return row
 
     def reset(self) -> None:
         """Forget the integrated joint reference before a new run."""
@@ -168,14 +227,46 @@ class QuasiStaticLyapunovController(Controller):
         SingularPostureError
             The friction block ``C_uu`` is singular at ``q``.
         """
-        c = self.snake.friction.matrix(q)
-        m, k = len(self._u), len(self._a)
-        c_uu = c.take(self._flat_uu).reshape(m, m)
-        c_ua = c.take(self._flat_ua).reshape(m, k)
-        _, _, solved, info = lapack.dgesv(c_uu, c_ua)  # LAPACK: a third of numpy's cost
+        return -self._solved(q)
+
+    def _solved(self, q: np.ndarray) -> np.ndarray:
+        """``C_uu^-1 C_ua`` at q (``-J``)."""
+        twin_q = self._twin_q
+        twin_q[self._chain] = q
+        mass = pin.crba(self._twin, self._twin_data, twin_q, pin.Convention.WORLD)
+        block = self._block
+        system = mass.take(self._gather).reshape(block, -1)
+        _, _, solved, info = lapack.dgesv(system[:, :block], system[:, block:],
+                                          overwrite_a=1, overwrite_b=1)
         if info != 0:
             raise SingularPostureError(f"C_uu is singular (LAPACK info {info})")
-        return -solved
+        return solved[:self._m]
+
+    def _rate(self, x: np.ndarray, t: float) -> np.ndarray:
+        """a'* at (x, t); keeps what V needs for :meth:`signals`."""
+        m = self._m
+        weighted = self._solved(x[:self.snake.nq]) * self._neg_sqrt_w_u  # sqrt(W_u) J
+        time = self._time_row(t)
+        target_u = time[:m].copy()
+        target_u[:3] -= self.k_w1 @ x[:3]  # w_r' + K_w1 (w_r - w)
+        target_u *= self._sqrt_w_u
+        target_a = time[m:]
+        normal = blas.dsyrk(1.0, weighted, beta=1.0, c=self._diag_w_a, trans=1)
+        rhs = weighted.T @ target_u
+        rhs += self._w_a * target_a
+        rate, info = lapack.dposv(normal, rhs, overwrite_a=1, overwrite_b=1)[1:]
+        if info != 0:
+            raise SingularPostureError(f"normal equations not positive definite (info {info})")
+        self._last = (weighted, rate, target_u, target_a)
+        return rate
+
+    def _value(self) -> float:
+        """V at the last call's command (the weighted residuals' squared norm)."""
+        if self._last is None:
+            return float("nan")
+        weighted, rate, target_u, target_a = self._last
+        residual_u, residual_a = weighted @ rate - target_u, rate - target_a
+        return float(residual_u @ residual_u + residual_a @ (self._w_a * residual_a))
 
     def velocity_command(self, x: np.ndarray, t: float) -> tuple[np.ndarray, float]:
         """``(a'*, V(a'*))``: the actuated joint velocity of least V at (x, t), and that V.
@@ -197,33 +288,29 @@ class QuasiStaticLyapunovController(Controller):
         SingularPostureError
             The connection is singular or its normal equations are not positive definite.
         """
-        nq = self.snake.nq
-        q = x[:nq]
-        jac = self.connection(q)
-        w_r, dw_r, _ = self.reference(t)
-        _, dphi_r, _ = self.gait.derivatives(t)
-        target_u = np.concatenate((dw_r + self.k_w1 @ (w_r - q[:3]), dphi_r[self._u[3:] - 3]))
-        target_a = dphi_r[self._a - 3]
-        weighted = jac.T * self._w_u
-        normal = weighted @ jac + np.diag(self._w_a)
-        rate, info = lapack.dposv(normal, weighted @ target_u + self._w_a * target_a)[1:]
-        if info != 0:
-            raise SingularPostureError(f"normal equations not positive definite (info {info})")
-        residual_u, residual_a = jac @ rate - target_u, rate - target_a
-        value = float(residual_u @ (self._w_u * residual_u) + residual_a @ (self._w_a * residual_a))
-        return rate, value
+        rate = self._rate(x, t)
+        return rate.copy(), self._value()
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        nq = self.snake.nq
-        joints = x[self._a]
-        rate, value = self.velocity_command(x, t)
+        a = self._a
+        joints = x[a]
+        rate = self._rate(x, t)
         if self._reference_a is None:
-            self._reference_a = joints.copy()
-        lead = np.clip(self._reference_a + rate * self.dt - joints, -self.max_lead, self.max_lead)
+            self._reference_a = joints
+        lead = self._reference_a + rate * self.dt
+        lead -= joints
+        max_lead = self.max_lead
+        np.minimum(lead, max_lead, out=lead)
+        np.maximum(lead, -max_lead, out=lead)
         self._reference_a = joints + lead
+        servo = rate - x[self.snake.nq + a]  # a new array: rate is kept for signals()
+        servo *= self._k_d_a
+        lead *= self._k_p_a
+        lead += servo  # K_p (phi_ref - phi) + K_d (a'* - phi')
+        if self._all_actuated:
+            return lead
         tau = np.zeros(self.snake.n - 1)
-        tau[self._a - 3] = self._k_p_a * lead + self._k_d_a * (rate - x[nq + self._a])
-        self._last = {"V": value}
+        tau[a - 3] = lead
         return tau
 
     def signals(self) -> dict[str, float]:
@@ -232,6 +319,6 @@ class QuasiStaticLyapunovController(Controller):
         Returns
         -------
         dict of str to float
-            ``V``: the least V of the last call's velocity command.
+            ``V``: the least V of the last call's velocity command (NaN before any call).
         """
-        return self._last
+        return {"V": self._value()}

@@ -67,18 +67,25 @@ class DirtyDerivative:
         x0
             The first sample, one value per channel.
         """
-        self._x = np.asarray(x0, dtype=float).copy()
+        self._x = np.array(x0, dtype=float)
         self._y[:] = 0.0
         self._started = True
 
-    def __call__(self, x: np.ndarray) -> np.ndarray:
-        """Feed the next sample, return the velocity estimate."""
+    def __call__(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Feed the next sample, return the velocity estimate (in ``out`` if given)."""
         if not self._started:
             self.reset(x)
-        # y' = -w y + w x'  ->  y_k = (y_{k-1} + w (x_k - x_{k-1})) / (1 + w dt)
-        self._y = self._gain * (self._y + self.omega * (x - self._x))
-        self._x = np.array(x, dtype=float)
-        return self._y.copy()
+        # y' = -w y + w x'  ->  y_k = (y_{k-1} + w (x_k - x_{k-1})) / (1 + w dt), in place
+        y = self._y
+        step = np.subtract(x, self._x)
+        step *= self.omega
+        y += step
+        y *= self._gain
+        self._x[:] = x
+        if out is None:
+            return y.copy()
+        out[:] = y
+        return out
 
 
 def _coast(engine: EngineModel, velocity: tuple[float, float, float],
@@ -292,15 +299,19 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     nq = snake.nq
     filt = DirtyDerivative(nq, cutoff, dt)
     ts = np.empty(steps + 1)
-    qs = np.empty((steps + 1, nq))
-    dqs = np.empty((steps + 1, nq))
+    states = np.empty((steps + 1, 2 * nq))  # rows [q, dq]: the controller reads one whole
+    qs, dqs = states[:, :nq], states[:, nq:]
     true_dq = np.empty((steps + 1, nq))
     taus = np.zeros((steps + 1, params.n - 1))
     yaw_prev, yaw_turns = q0[2], 0.0
     status, reason = "completed", ""
     good = 0  # samples 0 .. good - 1 are recorded whole (updated after each sample)
     bar = None
-    chain = engine.chain_dofs
+    # MuJoCo's clock adds the timestep once per engine step (from 0 after the reset), so
+    # the sampling instants are these running sums exactly and the controller can
+    # prepare its time-only terms (a call at another time would compute them alone)
+    clock = np.cumsum(np.full(steps * wheels.substeps, wheels.timestep))
+    controller.prepare(np.r_[0.0, clock[wheels.substeps - 1::wheels.substeps]][:steps])
 
     meta = {"controller": controller.name, "law": law, "engine": "mujoco",
             "cutoff_hz": cutoff, "control_dt": dt, "engine_timestep": wheels.timestep,
@@ -322,39 +333,50 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
             from tqdm import tqdm
 
             bar = tqdm(total=steps, desc="engine", unit="step", leave=False, disable=None)
+        # the engine's state through views of its arrays (as EngineModel reads it)
+        data, mj_model, mj_step = engine.data, engine.model, mujoco.mj_step
+        head = int(engine.link_bodies[0])
+        head_frame, head_position = data.xmat[head], data.xpos[head]
+        qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
+        hinges, chain = engine.hinge_qpos, engine.chain_dofs
+        motors = np.array(engine.actuated, dtype=int) - 1
+        ceiling, substeps, torque_shape = 5 * wheels.radius, wheels.substeps, (params.n - 1,)
         for k in range(steps + 1):
-            q = engine.paper_configuration()
+            q = qs[k]  # EngineModel.paper_configuration, written in place
+            yaw = math.atan2(head_frame[3], head_frame[0])
+            q[0], q[1] = head_position[0], head_position[1]
+            qpos.take(hinges, out=q[3:])
             # unwrap the heading so the filter and the reference see a continuous angle
-            jump = q[2] - yaw_prev
-            yaw_turns -= 2 * math.pi * round(jump / (2 * math.pi)) if np.isfinite(jump) else 0
-            yaw_prev = q[2]
-            q[2] += yaw_turns
-            if not (np.all(np.isfinite(q)) and engine.data.qpos[2] < 5 * wheels.radius):
+            jump = yaw - yaw_prev
+            if math.isfinite(jump):
+                yaw_turns -= 2 * math.pi * round(jump / (2 * math.pi))
+            yaw_prev = yaw
+            q[2] = yaw + yaw_turns
+            if not (np.isfinite(q).all() and qpos[2] < ceiling):
                 status = "diverged"
-                reason = f"engine state left the floor at t = {engine.data.time:.3f} s"
+                reason = f"engine state left the floor at t = {data.time:.3f} s"
                 break
-            dq = filt(q)
-            ts[k], qs[k], dqs[k] = engine.data.time, q, dq
-            true_dq[k] = engine.data.qvel[chain]
+            filt(q, dqs[k])
+            t = data.time
+            ts[k] = t
+            qvel.take(chain, out=true_dq[k])
             good = k + 1
             if k == steps:
                 break
             try:
-                tau = np.asarray(controller(np.concatenate((q, dq)), engine.data.time),
-                                 dtype=float)
+                tau = np.asarray(controller(states[k], t), dtype=float)
             except Exception as exc:
                 status = "failed"
-                reason = f"controller failed at t = {engine.data.time:.3f} s: {exc}"
+                reason = f"controller failed at t = {t:.3f} s: {exc}"
                 break
-            if tau.shape != (params.n - 1,) or not np.all(np.isfinite(tau)):
+            if tau.shape != torque_shape or not np.isfinite(tau).all():
                 status = "failed"
-                reason = (f"controller failed at t = {engine.data.time:.3f} s: torque of "
+                reason = (f"controller failed at t = {t:.3f} s: torque of "
                           f"shape {tau.shape} or not finite")
                 break
             taus[k] = tau
-            engine.apply_torque(tau)
-            for _ in range(wheels.substeps):
-                mujoco.mj_step(engine.model, engine.data)
+            tau.take(motors, out=ctrl)  # EngineModel.apply_torque
+            mj_step(mj_model, data, substeps)
             if bar is not None and k % 500 == 0:
                 bar.update(min(500, steps - bar.n))
     except KeyboardInterrupt:
