@@ -299,23 +299,26 @@ for line in sys.stdin:
 
 
 class Worker:
-    """A Python process running :data:`WORKER` with ``root`` first on its path."""
+    """A Python process running ``script`` (default :data:`WORKER`) with ``root`` first on
+    its path: one JSON request per line in, one JSON answer per line out."""
 
-    def __init__(self, root: Path) -> None:
+    def __init__(self, root: Path, script: str = WORKER) -> None:
         env = dict(os.environ, PYTHONPATH=str(root))
         self.process = subprocess.Popen(
-            [sys.executable, "-P", "-c", WORKER], stdin=subprocess.PIPE,
+            [sys.executable, "-P", "-c", script], stdin=subprocess.PIPE,
             stdout=subprocess.PIPE, text=True, env=env, cwd=tempfile.gettempdir())
 
-    def run(self, kind: str, robot: dict, t_final: float) -> dict:
+    def request(self, request: dict) -> dict:
         assert self.process.stdin is not None and self.process.stdout is not None
-        self.process.stdin.write(json.dumps({"kind": kind, "robot": robot,
-                                             "t_final": t_final}) + "\n")
+        self.process.stdin.write(json.dumps(request) + "\n")
         self.process.stdin.flush()
         answer = self.process.stdout.readline()
         if not answer:
             raise RuntimeError(f"benchmark worker exited ({self.process.wait()})")
         return json.loads(answer)
+
+    def run(self, kind: str, robot: dict, t_final: float) -> dict:
+        return self.request({"kind": kind, "robot": robot, "t_final": t_final})
 
     def close(self) -> None:
         if self.process.stdin is not None:
@@ -464,53 +467,209 @@ def bench_runs(budget: float, baseline: str | None = BASELINE) -> None:
           f"{repeat}.")
 
 
-def _timed_run(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
-    times, result = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), result
+def interleaved_calls(fns: dict[str, Callable[[], object]],
+                      rounds: int) -> dict[str, list[float]]:
+    """Seconds of one call of each function in each of ``rounds`` interleaved rounds (A B C
+    A B C ...), for calls long enough to time one by one (whole runs)."""
+    samples: dict[str, list[float]] = {name: [] for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            fn()
+            samples[name].append(time.perf_counter() - start)
+    return samples
 
 
-def bench_engine(budget: float) -> None:
-    """The 60 s MuJoCo run (control at 1 kHz, two 0.5 ms engine steps per period).
+#: Runs ``run_engine`` per request line {"cone", "t_final"} (cone null: the checkout's own
+#: default) with whatever snake_pin is first on the path (this checkout or the
+#: baseline's), using only the API both have; the friction model is identified once per
+#: cone, outside the timing. Answers {"seconds", "steps", "cone", "status"}.
+ENGINE_WORKER = r"""
+import json, sys, time
+from snake_pin.engine.model import WheelSpec
+from snake_pin.engine.run import identify_friction, run_engine
 
-    Also times MuJoCo alone: the recorded torques replayed open loop (no controller, no
-    filter), the ceiling any controller code leaves.
-    """
+identified = {}
+for line in sys.stdin:
+    request = json.loads(line)
+    wheels = WheelSpec() if request["cone"] is None else WheelSpec(cone=request["cone"])
+    if wheels.cone not in identified:
+        identified[wheels.cone] = identify_friction(wheels=wheels)
+    start = time.perf_counter()
+    run = run_engine(wheels=wheels, t_final=request["t_final"],
+                     friction=identified[wheels.cone])
+    seconds = time.perf_counter() - start
+    traj = run.trajectory
+    print(json.dumps({"seconds": seconds, "steps": len(traj) - 1, "cone": wheels.cone,
+                      "status": getattr(traj, "status", "completed")}), flush=True)
+"""
+
+#: Perturbed runs per robot and cone in the fidelity table (full, --quick).
+ENGINE_SEEDS, QUICK_ENGINE_SEEDS = 7, 3
+CONES = ("elliptic", "pyramidal")
+
+
+def bench_engine_against_baseline(quick: bool, baseline: str | None) -> None:
+    """The 60 s engine run (10 s with --quick) of this checkout against ``baseline``'s, in
+    two worker processes taking turns: each round runs each cone on the baseline, then on
+    this checkout. The first row pairs each checkout's default cone (the run
+    ``snake-pin engine`` makes)."""
+    import snake_pin
+
+    t_run, rounds = (10.0, 2) if quick else (60.0, 3)
+    root, note = (None, "no baseline asked for") if baseline is None else \
+        baseline_checkout(baseline)
+    workers = {"new": Worker(Path(snake_pin.__file__).resolve().parents[1], ENGINE_WORKER)}
+    if root is not None:
+        workers["old"] = Worker(root, ENGINE_WORKER)
+    seconds: dict[tuple[str, str], list[float]] = {}
+    default: dict[str, str] = {}
+    try:
+        for side, worker in workers.items():  # warm-up: imports, identification
+            default[side] = worker.request({"cone": None, "t_final": 0.01})["cone"]
+            for cone in CONES:
+                worker.request({"cone": cone, "t_final": 0.01})
+        for _ in range(rounds):
+            for side in ("old", "new"):
+                for cone in CONES:
+                    if side not in workers:
+                        continue
+                    answer = workers[side].request({"cone": cone, "t_final": t_run})
+                    if answer["status"] != "completed":
+                        raise RuntimeError(f"{side} {cone} run: {answer['status']}")
+                    seconds.setdefault((side, cone), []).append(answer["seconds"])
+    finally:
+        for worker in workers.values():
+            worker.close()
+    rows = []
+    pairs = [(f"default: {default['new']}", default["new"], default.get("old"))]
+    pairs += [(cone, cone, cone if "old" in workers else None) for cone in CONES]
+    for label, mine_cone, their_cone in pairs:
+        mine = seconds["new", mine_cone]
+        theirs = seconds["old", their_cone] if their_cone is not None else None
+        rows.append([label, show(spread(mine), 2), f"{t_run / statistics.median(mine):.1f}x",
+                     their_cone or "-", show(spread(theirs), 2) if theirs else "-",
+                     f"{t_run / statistics.median(theirs):.1f}x" if theirs else "-",
+                     show(ratios(theirs, mine), 2, "x") if theirs else "-"])
+    table(f"MuJoCo closed loop, {t_run:.0f} s run (velocity-level law, 1 kHz): wall time [s], "
+          f"median (10-90 %) of {rounds} interleaved rounds",
+          ["cone here", "wall [s]", "real-time factor", f"cone {baseline}",
+           f"wall {baseline} [s]", f"real-time factor {baseline}", "speed-up"], rows)
+    print(f"\nBaseline: {note}. Both checkouts run run_engine(wheels=WheelSpec(cone=...), "
+          f"t_final={t_run:g}, friction=...) in worker processes taking turns, the friction "
+          "identified beforehand (not timed); the first row pairs each checkout's default "
+          "cone (WheelSpec().cone), the run `snake-pin engine` makes, and is the headline.")
+
+
+def engine_breakdown(quick: bool) -> None:
+    """Where a control period of this checkout's engine loop goes, per cone: the whole loop
+    (run_engine), MuJoCo alone (the run's torques replayed open loop, two mj_step per
+    period) and the controller alone (the velocity-level law on the run's states); the rest
+    is the loop's own work (reading the state, the filter, checks, recording)."""
     import mujoco
 
+    from snake_pin import Snake
+    from snake_pin.control import QuasiStaticLyapunovController
     from snake_pin.engine.model import WheelSpec, build_engine_model
     from snake_pin.engine.run import identify_friction, run_engine
-    from snake_pin.experiments.engine import summarize
 
-    repeat = 1 if budget < 0.1 else 3
+    t_run, rounds = (3.0, 3) if quick else (10.0, 5)
     rows = []
-    for cone in ("elliptic", "pyramidal"):
+    for cone in CONES:
         wheels = WheelSpec(cone=cone)
         friction = identify_friction(wheels=wheels)
-        for label, params in (("60 s", SnakeParams.engine()),
-                              ("60 s, joint 5 passive", SnakeParams.engine(passive=(5,)))):
-            wall, run = _timed_run(lambda p=params, w=wheels, f=friction: run_engine(
-                p, wheels=w, t_final=60.0, friction=f), repeat)
-            traj = run.trajectory
-            engine = build_engine_model(params, wheels)
+        traj = run_engine(wheels=wheels, t_final=t_run, friction=friction).trajectory
+        engine = build_engine_model(SnakeParams.engine(), wheels)
+        states = np.hstack((traj.q, traj.dq))[:-1]
+        times = traj.t[:-1]
+        snake = Snake(traj.params)
 
-            def replay(engine=engine, traj=traj) -> None:
-                engine.set_paper_configuration(traj.q[0])
-                for tau in traj.tau[:-1]:
-                    engine.apply_torque(tau)
-                    for _ in range(engine.wheels.substeps):
-                        mujoco.mj_step(engine.model, engine.data)
+        def loop(wheels=wheels, friction=friction) -> None:
+            run_engine(wheels=wheels, t_final=t_run, friction=friction)
 
-            alone, _ = _timed_run(replay, 1)
-            relative = summarize(traj)["rms_relative"]
-            rows.append([f"{cone}, {label}", f"{traj.t_end:.1f}", f"{wall:.2f}",
-                         f"{traj.t_end / wall:.1f}x", f"{traj.t_end / alone:.1f}x",
-                         f"{100 * relative:.1f}"])
-    table("MuJoCo closed loop", ["run", "simulated [s]", "wall [s]", "real-time factor",
-                                 "MuJoCo alone", "RMS % of body"], rows)
+        def replay(engine=engine, traj=traj) -> None:
+            engine.set_paper_configuration(traj.q[0])
+            for tau in traj.tau[:-1]:
+                engine.apply_torque(tau)
+                mujoco.mj_step(engine.model, engine.data, engine.wheels.substeps)
+
+        def control(snake=snake, states=states, times=times, dt=wheels.control_dt) -> None:
+            controller = QuasiStaticLyapunovController(snake, control_dt=dt)
+            controller.prepare(times)
+            for x, t in zip(states, times.tolist(), strict=True):
+                controller(x, t)
+
+        per_step = {name: [1e6 * value / len(times) for value in values] for name, values in
+                    interleaved_calls({"loop": loop, "mujoco": replay, "controller": control},
+                                      rounds).items()}
+        glue = [a - b - c for a, b, c in zip(per_step["loop"], per_step["mujoco"],
+                                             per_step["controller"], strict=True)]
+        shares = {name: ratios(values, per_step["loop"]) for name, values in
+                  (("mujoco", per_step["mujoco"]), ("controller", per_step["controller"]),
+                   ("glue", glue))}
+        rows.append([cone, show(spread(per_step["loop"])),
+                     f"{show(spread(per_step['mujoco']))}, {100 * shares['mujoco'][0]:.0f} %",
+                     f"{show(spread(per_step['controller']))}, "
+                     f"{100 * shares['controller'][0]:.0f} %",
+                     f"{show(spread(glue))}, {100 * shares['glue'][0]:.0f} %"])
+    table(f"Engine loop of this checkout, us per control period (1 ms), median (10-90 %) of "
+          f"{rounds} interleaved rounds on {t_run:.0f} s runs, share of the loop",
+          ["cone", "whole loop", "MuJoCo alone", "controller alone", "loop's own work"], rows)
+
+
+def engine_fidelity(quick: bool) -> None:
+    """Identified friction of each cone against its contact models, and the tracking error
+    of perturbed runs (a distribution: the engine runs are chaotic)."""
+    from snake_pin.engine.model import WheelSpec
+    from snake_pin.engine.run import identify_friction
+    from snake_pin.experiments.engine import PERTURBATION, engine_draw, perturbations
+    from snake_pin.experiments.parallel import run_jobs
+
+    count, t_final = (QUICK_ENGINE_SEEDS, 20.0) if quick else (ENGINE_SEEDS, 60.0)
+    robots = (("every joint actuated", SnakeParams.engine()),
+              ("joint 5 passive", SnakeParams.engine(passive=(5,))))
+    offsets = perturbations(count, 7, PERTURBATION, seed=0)
+    identified = {cone: identify_friction(wheels=WheelSpec(cone=cone)) for cone in CONES}
+    jobs = [(engine_draw, (params, offset), {"wheels": WheelSpec(cone=cone),
+                                             "t_final": t_final, "friction": identified[cone]})
+            for cone in CONES for _, params in robots for offset in offsets]
+    runs = iter(run_jobs(jobs))
+    rows = []
+    for cone in CONES:
+        f = identified[cone]
+        cells = []
+        for _ in robots:
+            rms = [next(runs).trajectory.summary["rms_percent"] for _ in offsets]
+            cells.append(show(spread(rms), 2))
+        off_x = 100 * (f["c_x"] / f["c_x_rolling_model"] - 1)
+        off_y = 100 * (f["c_y"] / f["c_y_coulomb_model"] - 1)
+        rows.append([cone, f"{f['c_x']:.4f} ({off_x:+.1f} %)", f"{f['c_y']:.2f} ({off_y:+.2f} %)",
+                     f"{f['c_theta']:.3g}", *cells])
+    f = identified[CONES[0]]
+    table(f"Cone fidelity: identified viscous model (identify_friction) against the contact "
+          f"models, and RMS head error [% of body] over t >= 10 s of {count} runs of "
+          f"{t_final:.0f} s from perturbed postures, median (10-90 %)",
+          ["cone", "c_x [N s/m] (vs rolling)", "c_y [N s/m] (vs Coulomb)", "c_theta [N m s]",
+           *(f"RMS %, {label}" for label, _ in robots)], rows)
+    print(f"\nReferences (snake_pin.engine.run.identify_friction): c_x against the rolling "
+          f"model 2 b / r^2 = {f['c_x_rolling_model']:.4f} N s/m (axle damping b, wheel "
+          f"radius r), c_y against the Coulomb equivalent 1.5 mu m g / v0 = "
+          f"{f['c_y_coulomb_model']:.2f} N s/m (the least-squares viscous fit of a Coulomb "
+          f"deceleration from v0 = {f['speed']} m/s to rest). c_theta is the axle model "
+          "2 d^2 b / r^2 for both cones, not a fit: a link turning about its own CM rolls its "
+          "wheels, and in a coast of the whole snake that torque is swamped by the sliding "
+          "wheels' (about 1e-5 of it). Offsets of the initial joint angles: "
+          f"U(-{PERTURBATION:g}, {PERTURBATION:g}) rad, snake_pin.experiments.engine."
+          "perturbations(seed=0), the same for both cones.")
+
+
+def bench_engine(budget: float, baseline: str | None = BASELINE) -> None:
+    """The MuJoCo closed loop: this checkout's run against ``baseline``'s, where the loop's
+    time goes, and the fidelity of each friction cone."""
+    quick = budget < 0.1
+    bench_engine_against_baseline(quick, baseline)
+    engine_breakdown(quick)
+    engine_fidelity(quick)
 
 
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
@@ -524,9 +683,9 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="shorter timing batches")
     parser.add_argument("--only", default=",".join(BENCHES), help="comma-separated benches")
     parser.add_argument("--baseline", default=BASELINE,
-                        help=f"commit whose closed-loop step the runs compare to ({BASELINE})")
+                        help=f"commit the runs and the engine compare to ({BASELINE})")
     parser.add_argument("--no-baseline", action="store_true",
-                        help="skip the baseline column of the runs")
+                        help="skip the baseline columns of the runs and the engine")
     args = parser.parse_args()
     budget = 0.05 if args.quick else 0.2
     names = [n for n in args.only.split(",") if n]
@@ -538,8 +697,9 @@ def main() -> int:
     print(f"# python scripts/bench.py {' '.join(sys.argv[1:])}".rstrip())
     print(f"(load average at start: {', '.join(f'{x:.2f}' for x in os.getloadavg())})")
     for name in names:
-        if name == "runs":
-            bench_runs(budget, None if args.no_baseline else args.baseline)
+        if name in ("runs", "engine"):
+            bench = bench_runs if name == "runs" else bench_engine
+            bench(budget, None if args.no_baseline else args.baseline)
         else:
             BENCHES[name](budget)
     print(f"\n(total {time.perf_counter() - start:.1f} s; load average at the end: "
