@@ -169,6 +169,31 @@ def test_projection_tracks_from_a_hint() -> None:
     assert sine.project(near, hint=target + 0.3) == pytest.approx(target, abs=1e-9)
 
 
+def _brute_force_projection(path: Path, point: np.ndarray, lo: float, hi: float) -> float:
+    """The closest of 10^5 samples over [lo, hi], then of 4000 samples around it."""
+    s = np.linspace(lo, hi, 100_001)
+    k = int(np.argmin(np.sum((path.point(s) - point) ** 2, axis=1)))
+    fine = np.linspace(s[max(k - 1, 0)], s[min(k + 1, len(s) - 1)], 4001)
+    return float(fine[np.argmin(np.sum((path.point(fine) - point) ** 2, axis=1))])
+
+
+def test_fast_projection_equals_brute_force(path: Path, rng: np.random.Generator) -> None:
+    """Hinted (table + expansion) and global projections equal dense sampling to 1e-6."""
+    s = rng.uniform(0.1, min(path.length, 6.0) - 0.1, 8)
+    g = path.geometry(s)
+    points = g.p + rng.uniform(-0.15, 0.15, 8)[:, None] * g.normal
+    hint = s + rng.uniform(-0.2, 0.2, 8)
+    fast = path.project(points, hint=hint)
+    lo, hi = path.default_span()
+    whole = path.project(points, span=(lo, hi))
+    for k in range(8):
+        near = _brute_force_projection(path, points[k], hint[k] - 0.5, hint[k] + 0.5)
+        assert fast[k] == pytest.approx(near, abs=1e-6)
+        assert path.project(points[k], hint=hint[k]) == pytest.approx(near, abs=1e-6)
+        assert whole[k] == pytest.approx(_brute_force_projection(path, points[k], lo, hi),
+                                         abs=1e-6)
+
+
 def test_timing_ramp_is_smooth() -> None:
     """The ramp starts at rest, reaches v at T with s'' = 0 there, and s = v (t - T/2) after."""
     timing = Timing(speed=0.2, ramp=3.0, start=1.0)

@@ -287,7 +287,8 @@ def _kinematics(lever: np.ndarray, nq: int, x: np.ndarray
     p_cm = np.array([x[0] + lever @ c, x[1] + lever @ s])
     spin = lever * dtheta
     v_cm = np.array([x[nq] - spin @ s, x[nq + 1] + spin @ c])
-    return p_cm, v_cm, float(theta.mean() + math.pi), float(dtheta.mean())
+    count = len(theta)
+    return p_cm, v_cm, float(theta.sum()) / count + math.pi, float(dtheta.sum()) / count
 
 
 class ReferenceFilter:
@@ -428,6 +429,7 @@ class LOSController(Controller):
         self._offset_filter.reset(0.0)
         self._speed_filter.reset(0.0)
         self._last: dict[str, float] = {}
+        self._gait: tuple[float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
     # ---------------------------------------------------------------- the law
     def gait(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -444,10 +446,14 @@ class LOSController(Controller):
             ``alpha sin(omega t - (i - 1) delta)`` [rad] and its first two time
             derivatives.
         """
+        if self._gait is not None and self._gait[0] == t:  # asked twice per step
+            return self._gait[1]
         p = self.params
         phase = p.omega * t - self._lags
         sine = np.sin(phase)
-        return p.alpha * sine, p.alpha * p.omega * np.cos(phase), -p.alpha * p.omega**2 * sine
+        gait = (p.alpha * sine, p.alpha * p.omega * np.cos(phase), -p.alpha * p.omega**2 * sine)
+        self._gait = (t, gait)
+        return gait
 
     def guidance(self, x: np.ndarray) -> dict[str, float]:
         """Return the LOS quantities at state x.
@@ -472,7 +478,7 @@ class LOSController(Controller):
         if self._s_cm is None:
             s_cm = float(path.project(p_cm))
         else:
-            s_cm = float(path.project(p_cm, hint=self._s_cm))
+            s_cm = float(path.project(p_cm, hint=np.array([self._s_cm])))
         self._s_cm = s_cm
         x_p, y_p, gamma, _, _ = path._scalar(s_cm)
         cross = (p_cm[0] - x_p) * -math.sin(gamma) + (p_cm[1] - y_p) * math.cos(gamma)
