@@ -499,6 +499,33 @@ def _path_parameters(args: argparse.Namespace) -> dict[str, Any]:
     return params
 
 
+def _path_reference(args: argparse.Namespace, default: str | None = None) -> Any:
+    """The head reference that ``--path``/``--path-param``/``--speed`` name (simulate, engine).
+
+    ``load_path(args.path or default, ...)``; without ``--path`` and without a default,
+    None (the caller's own straight line), and ``--speed``/``--path-param`` are refused.
+    A bad path or parameter is one line (ParameterError, PathFileError: exit 2).
+    """
+    if args.path is None and default is None:
+        if args.speed is not None or args.path_param:
+            raise UsageError("arguments --speed/--path-param: apply with --path")
+        return None
+    from .paths import load_path
+
+    return load_path(args.path or default, **_path_parameters(args))
+
+
+def _path_options(parser: argparse.ArgumentParser) -> None:
+    """``--path``, ``--path-param``, ``--speed``: the options :func:`_path_reference` reads."""
+    parser.add_argument("--path", metavar="NAME|FILE",
+                        help="follow a path instead of the paper's straight line: line, "
+                        "circle, arc, lane_change, sinusoid, or a .toml/.csv path file")
+    parser.add_argument("--path-param", action="append", metavar="KEY=VALUE",
+                        help="a parameter of the path shape (e.g. radius=1.2), repeatable")
+    parser.add_argument("--speed", type=_float_in(0.0, open_low=True),
+                        help="reference speed along the path [m/s] (default 0.1)")
+
+
 def _cmd_simulate_on_path(args: argparse.Namespace, params: SnakeParams,
                           out: Path) -> _Outcome:
     """A run along ``--path`` (any controller, a user's ``module:Class`` too)."""
@@ -506,11 +533,10 @@ def _cmd_simulate_on_path(args: argparse.Namespace, params: SnakeParams,
     from .experiments.bench_control import path_metrics
     from .experiments.tracking import initial_state, tracking_friction
     from .model import Snake
-    from .paths import load_path
     from .sim import simulate
     from .viz.plots import plot_trajectory
 
-    reference = load_path(args.path or "line", **_path_parameters(args))
+    reference = _path_reference(args, "line")
     if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
         params, _ = tracking_friction(params)
     snake = Snake(params)
@@ -545,8 +571,8 @@ def _cmd_simulate_on_path(args: argparse.Namespace, params: SnakeParams,
 def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
     on_path = args.path is not None or args.controller not in ("pfl", "lyapunov")
-    if not on_path and (args.speed is not None or args.path_param):
-        raise UsageError("arguments --speed/--path-param: apply with --path")
+    if not on_path:
+        _path_reference(args)  # --speed/--path-param without a path: refused
     if args.controller not in ("pfl", "lyapunov", "los") and ":" not in args.controller:
         raise UsageError(f"argument --controller: choose pfl, lyapunov, los or "
                          f"module:Class (a Controller subclass), got {args.controller!r}")
@@ -558,10 +584,7 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
             raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
         if ":" in args.controller:
             _user_controller_class(args.controller)  # refused before any folder exists
-        if args.path is not None:
-            from .paths import load_path
-
-            load_path(args.path, **_path_parameters(args))  # a bad path: refused here
+        _path_reference(args, "line")  # a bad path: refused here, before any folder
         out = _output_folder(args.output)
         out.mkdir(parents=True, exist_ok=True)
         return _cmd_simulate_on_path(args, params, out)
@@ -606,6 +629,10 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
                          "N perturbed runs)")
     wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu, cone=args.cone)
     _check_t_final(args.t_final, wheels.control_dt)
+    reference = _path_reference(args)  # a bad path: refused here, before any folder
+    if reference is not None and args.seeds is not None:
+        raise UsageError("argument --seeds: not with --path yet (the distribution's metrics "
+                         "are the straight line's); run --path once per draw")
     out = _output_folder(args.output)
     build_engine_model(params, wheels)  # wheels that do not fit the robot: refused here
     from .engine.run import identify_friction, run_engine
@@ -617,15 +644,37 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
         return _engine_seeds(args, params, wheels, friction, out)
     try:
         run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
-                         law=args.law, progress=_progress(args))
+                         law=args.law, reference=reference, progress=_progress(args))
     except RunInterrupted as exc:
         return _interrupted_run(exc, out, "engine")
+    if reference is not None:
+        return _engine_on_path(run, reference, friction, out)
     summarize(run.trajectory)
     npz, summary_path = run.trajectory.save(out / "engine")
     figures = plot_engine(run, None, out, "engine")
     payload = {**run.trajectory.summary_dict(), "friction": friction,
                "files": [str(npz), str(summary_path), *(str(p) for p in figures.values())]}
     status, note = _run_note(run.trajectory, out)
+    return _Outcome(payload, _json_text(payload, indent=2), status, note)
+
+
+def _engine_on_path(run: Any, reference: Any, friction: dict[str, Any],
+                    out: Path) -> _Outcome:
+    """``engine --path``: the run's path metrics (as ``simulate --path``) and its figure."""
+    from .experiments.bench_control import path_metrics
+    from .model import Snake
+    from .viz.plots import plot_trajectory
+
+    traj = run.trajectory
+    metrics = path_metrics(traj.t, traj.q, traj.tau, Snake(traj.params), reference)
+    traj.summary.update({k: v for k, v in metrics.items() if not hasattr(v, "shape")})
+    traj.summary["path"] = repr(reference)
+    npz, summary_path = traj.save(out / "engine")  # data first, then the figure
+    figure = out / "engine.png"
+    plot_trajectory(traj, figure)
+    payload = {**traj.summary_dict(), "friction": friction,
+               "files": [str(npz), str(summary_path), str(figure)]}
+    status, note = _run_note(traj, out)
     return _Outcome(payload, _json_text(payload, indent=2), status, note)
 
 
@@ -878,13 +927,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the law: pfl, lyapunov, los (line-of-sight path following, "
                    "needs a path: default line) or a Controller subclass of your own, "
                    "built as Class(snake, reference)")
-    p.add_argument("--path", metavar="NAME|FILE",
-                   help="follow a path instead of the paper's straight line: line, circle, "
-                   "arc, lane_change, sinusoid, or a .toml/.csv path file")
-    p.add_argument("--path-param", action="append", metavar="KEY=VALUE",
-                   help="a parameter of the path shape (e.g. radius=1.2), repeatable")
-    p.add_argument("--speed", type=_float_in(0.0, open_low=True),
-                   help="reference speed along the path [m/s] (default 0.1)")
+    _path_options(p)
     _robot_options(p, friction=True)
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True),
                    help=f"duration [s], at most {steps * SIMULATE_DT:g} (pfl 10, lyapunov 60)")
@@ -902,8 +945,10 @@ def build_parser() -> argparse.ArgumentParser:
                        " median and 10-90 % range of each metric (RMS and max head error in "
                        "% of the body length, R min or R~ min, torque RMS). Every run is saved "
                        "(engine_seedK), the figures show the median run, engine_seeds.json "
-                       "holds the distribution.")
+                       "holds the distribution. --path NAME|FILE follows a path (as simulate "
+                       "--path; one run, with the path metrics in its summary).")
     p.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default engine")
+    _path_options(p)
     p.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
                    metavar="K", help="make joint K passive (repeatable)")
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,

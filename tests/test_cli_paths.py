@@ -78,6 +78,56 @@ def test_bad_path_and_controller_options_are_one_line(argv: list[str], fragment:
     assert not out_dir.exists()
 
 
+def test_engine_follows_the_path_it_is_given(tmp_path: Path, capsys) -> None:
+    """engine --path circle --path-param --speed runs exactly run_engine(reference=that path)."""
+    from snake_pin.engine.run import run_engine
+    from snake_pin.params import SnakeParams
+
+    code, out, err = _run(["engine", "--path", "circle", "--path-param", "radius=1.4",
+                           "--speed", "0.15", "--t-final", "0.5", "-o", str(tmp_path),
+                           "--json"], capsys)
+    assert code == 0, err
+    payload = json.loads(out)
+    assert payload["status"] == "completed" and "head_ct_rms" in payload
+    traj = Trajectory.load(tmp_path / "engine.npz")
+    reference = load_path("circle", radius=1.4, speed=0.15)
+    assert traj.meta["reference"] == repr(reference)
+    direct = run_engine(SnakeParams.engine(), t_final=0.5, reference=reference).trajectory
+    np.testing.assert_array_equal(traj.q, direct.q)
+    np.testing.assert_array_equal(traj.tau, direct.tau)
+
+
+@pytest.mark.parametrize("command", ["simulate", "engine"])
+@pytest.mark.parametrize("argv, fragment", [
+    (["--path", "circle", "--path-param", "radius=-1"], "radius must be positive"),
+    (["--path", "circle", "--path-param", "radius"], "KEY=VALUE"),
+    (["--path", "circle", "--path-param", "radius=big"], "must be a number"),
+    (["--path", "circle", "--speed", "0"], "--speed"),
+    (["--speed", "0.2"], "apply with --path"),
+    (["--path-param", "radius=1"], "apply with --path"),
+    (["--path", "missing.csv"], "missing.csv"),
+    (["--path", "spiral"], "unknown path"),
+])
+def test_simulate_and_engine_refuse_the_same_bad_paths(command: str, argv: list[str],
+                                                       fragment: str, tmp_path: Path,
+                                                       capsys) -> None:
+    """Both subcommands parse --path through one function: same one line, exit 2, no folder."""
+    out_dir = tmp_path / "never"
+    extra = ["--controller", "lyapunov"] if command == "simulate" else []
+    code, out, err = _run([command, *extra, *argv, "-o", str(out_dir)], capsys)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and fragment in err
+    assert not out_dir.exists()
+
+
+def test_engine_path_with_seeds_is_refused(tmp_path: Path, capsys) -> None:
+    """engine --path with --seeds: one line, exit 2 (the distribution is the line's)."""
+    code, out, err = _run(["engine", "--path", "circle", "--seeds", "2", "-o",
+                           str(tmp_path / "never")], capsys)
+    assert code == 2 and out == "" and "--seeds" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "never").exists()
+
+
 def test_bench_control_quick_writes_its_table(tmp_path: Path, capsys) -> None:
     """bench-control --quick on one scenario and one law writes CSV/JSON with finite rows."""
     code, out, err = _run(["bench-control", "--scenario", "line", "--controller", "lyapunov",
