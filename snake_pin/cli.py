@@ -512,7 +512,8 @@ def _path_reference(args: argparse.Namespace, default: str | None = None) -> Any
         return None
     from .paths import load_path
 
-    return load_path(args.path or default, **_path_parameters(args))
+    spec: str = args.path if args.path is not None else str(default)
+    return load_path(spec, **_path_parameters(args))
 
 
 def _path_options(parser: argparse.ArgumentParser) -> None:
