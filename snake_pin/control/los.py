@@ -478,7 +478,7 @@ class LOSController(Controller):
         if self._s_cm is None:
             s_cm = float(path.project(p_cm))
         else:
-            s_cm = float(path.project(p_cm, hint=np.array([self._s_cm])))
+            s_cm = float(path.project(p_cm[None, :], hint=np.array([self._s_cm]))[0])
         self._s_cm = s_cm
         x_p, y_p, gamma, _, _ = path._scalar(s_cm)
         cross = (p_cm[0] - x_p) * -math.sin(gamma) + (p_cm[1] - y_p) * math.cos(gamma)
