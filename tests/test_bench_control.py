@@ -150,3 +150,57 @@ def test_lyapunov_follows_the_circle(snake: Snake) -> None:
     m = bc.path_metrics(straight.t[::10], straight.q[::10], straight.tau[::10], snake,
                         bc.make_scenario("circle_1L", 1.2), criteria_dt=None)
     assert m["head_ct_rms_pct"] > 4.0
+
+
+def _engine_direct(controller: str, failed: int | None, offset: np.ndarray | None,
+                   t_final: float, start: float) -> dict:
+    """run_engine on the scenario's path, by hand, and its path metrics."""
+    from snake_pin.engine.run import run_engine
+    from snake_pin.params import SnakeParams
+
+    params = SnakeParams.engine()
+    if failed:
+        params = params.replace(passive=(failed,))
+    reference = bc.make_scenario("circle_1L", params.body_length)
+    law = {"lyapunov": "acceleration", "velocity": "velocity"}[controller]
+    traj = run_engine(params, t_final=t_final, law=law, initial_offset=offset,
+                      reference=reference).trajectory
+    every = slice(None, None, 10)
+    return bc.path_metrics(traj.t[every], traj.q[every], traj.tau[every], Snake(traj.params),
+                           reference, start=start, criteria_dt=None)
+
+
+@pytest.mark.parametrize("controller, failed, draws", [("lyapunov", 5, 1),
+                                                       ("velocity", None, 3)])
+def test_engine_cell_is_the_median_of_its_draws(controller: str, failed: int | None,
+                                                draws: int, monkeypatch) -> None:
+    """An engine cell equals run_engine on the scenario's path by hand (law, failed joint,
+    perturbed starts), each metric the median over the draws."""
+    from snake_pin.experiments.engine import PERTURBATION, perturbations
+
+    start, t_final = 0.2, 0.6  # a short window, so that short runs have metrics
+    original = bc.path_metrics
+    monkeypatch.setattr(bc, "path_metrics",
+                        lambda *a, **k: original(*a, **{**k, "start": start}))
+    row = bc.run_cell("circle_1L", controller, "engine", failed, t_final=t_final,
+                      draws=draws, criteria_dt=None)
+    assert row["status"] == "completed" and row["draws"] == draws
+    offsets = perturbations(draws, 7, PERTURBATION, seed=0) if draws > 1 else [None]
+    direct = [_engine_direct(controller, failed, o, t_final, start) for o in offsets]
+    for key in ("head_ct_rms", "head_ct_max", "head_error_rms", "cm_ct_rms", "torque_rms"):
+        assert row[key] == pytest.approx(np.median([m[key] for m in direct]), rel=1e-12)
+    spread = [m["head_ct_rms_pct"] for m in direct]
+    if draws > 1:
+        assert [row["head_ct_rms_pct_p10"], row["head_ct_rms_pct_p90"]] == pytest.approx(
+            np.percentile(spread, [10, 90]), rel=1e-12)
+    assert row["body_length"] == pytest.approx(1.408)
+
+
+def test_engine_cells_of_other_laws_are_not_applicable() -> None:
+    """PFL, LOS and user factories on the engine: a "not applicable" row, no run."""
+    for controller, factory in (("pfl", None), ("los", None),
+                                ("mine", lambda snake, ref, path: LyapunovController(snake,
+                                                                                     ref))):
+        row = bc.run_cell("line", controller, "engine", factory=factory)
+        assert row["status"] == "not applicable" and "engine" in row["reason"]
+        assert math.isnan(row["head_ct_rms"]) and row["snapshots"] == []

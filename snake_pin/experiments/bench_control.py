@@ -41,11 +41,15 @@ attribute is a head-tracking law (its time-indexed head error is reported).
 
 Models: ``viscous`` (the Table 1 robot with c_x = 0.5, c_y = 25 N s/m, i.e.
 c_y / c_x = 50, through :func:`snake_pin.sim.simulate` at 1 kHz) and ``engine`` (the
-engine robot on MuJoCo through :func:`snake_pin.engine.run.run_engine`, which builds its
-own straight reference: only the ``line`` scenario with ``lyapunov`` and ``velocity``
-runs there; other engine cells are rows with status "unsupported" until run_engine takes
-a reference). Failures: ``failed=(None, 5)`` runs each cell with every joint actuated and
-with joint 5 passive (free).
+engine robot of VI.3 on MuJoCo through :func:`snake_pin.engine.run.run_engine` with the
+scenario's path as its reference, scaled to that robot's body length: ``lyapunov`` is the
+torque-level law, ``velocity`` the velocity-level one; PFL, LOS and user controllers are
+"not applicable" there, run_engine runs the head-tracking laws only). The engine runs are
+chaotic: an engine cell is :data:`ENGINE_DRAWS` runs from initial joint angles offset by
+:func:`~snake_pin.experiments.engine.perturbations` (1e-6 rad, seed 0), each metric the
+median over them, with the 10-90 % range of the head cross-track RMS (``draws=1``: the
+unperturbed start, one draw). Failures: ``failed=(None, 5)`` runs each cell with every
+joint actuated and with joint 5 passive (free).
 
 Metrics (:func:`path_metrics`) over ``t >= 10 s`` (:data:`~snake_pin.metrics.ERROR_WINDOW`),
 on samples every 10 ms (criteria every 0.1 s): head cross-track error (distance from the
@@ -84,7 +88,8 @@ from ..sim import Trajectory, simulate
 from .parallel import run_jobs
 from .tracking import initial_state, tracking_params
 
-__all__ = ["CONTROLLERS", "FAILED_JOINT", "METRIC_FIELDS", "MODELS", "REPORT_SCENARIOS",
+__all__ = ["CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT", "METRIC_FIELDS",
+           "MODELS", "REPORT_ENGINE_SCENARIOS", "REPORT_ENGINE_T", "REPORT_SCENARIOS",
            "SCENARIOS", "SPEED",
            "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "bench_control_stage",
            "cm_positions", "make_scenario", "path_metrics", "run_benchmark", "run_cell",
@@ -157,7 +162,16 @@ CONTROLLERS: dict[str, ControllerFactory] = {
 METRIC_FIELDS = ("scenario", "controller", "model", "failed_joint", "status", "reason",
                  "t_end", "diverged_at", "head_ct_rms", "head_ct_max", "head_ct_rms_pct",
                  "head_lag_rms", "head_error_rms", "cm_ct_rms", "R_min", "R_tilde_min",
-                 "lateral_min", "torque_rms", "body_length", "wall_s")
+                 "lateral_min", "torque_rms", "body_length", "draws",
+                 "head_ct_rms_pct_p10", "head_ct_rms_pct_p90", "wall_s")
+#: Engine law of each head-tracking controller (:func:`~snake_pin.engine.run.run_engine`).
+ENGINE_LAWS = {"lyapunov": "acceleration", "velocity": "velocity"}
+#: Perturbed starts per engine cell: the engine is chaotic, its figures are medians.
+ENGINE_DRAWS = 3
+#: Duration of the report's engine rows [s] (the stage's budget: about 30 s of wall).
+REPORT_ENGINE_T = 30.0
+#: Scenarios of the report's engine rows (velocity-level law, no failure).
+REPORT_ENGINE_SCENARIOS = ("circle_1L", "lane_change")
 
 
 def make_scenario(name: str, body_length: float, speed: float = SPEED) -> PathReference:
@@ -303,30 +317,97 @@ def _row(scenario: str, controller: str, model: str, failed: int | None,
          body_length: float) -> dict[str, Any]:
     row: dict[str, Any] = dict.fromkeys(METRIC_FIELDS, math.nan)
     row.update(scenario=scenario, controller=controller, model=model,
-               failed_joint=failed or 0, status="", reason="", body_length=body_length)
+               failed_joint=failed or 0, status="", reason="", body_length=body_length,
+               draws=1)
     return row
 
 
-def _engine_trajectory(scenario: str, controller: str, failed: int | None,
-                       t_final: float) -> tuple[Trajectory | None, str]:
-    if scenario != "line" or controller not in ("lyapunov", "velocity"):
-        return None, ("not supported until run_engine takes a reference (the engine runs "
-                      "the straight line with lyapunov and velocity only)")
-    from ..engine.run import run_engine
+def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: int | None,
+                 t_final: float, factory: ControllerFactory | None,
+                 criteria_dt: float | None, draws: int,
+                 robot: SnakeParams | None) -> dict[str, Any]:
+    """An engine cell: ``draws`` perturbed starts, each metric's median over them.
 
-    params = SnakeParams.engine()
+    The draws' offsets are :func:`~snake_pin.experiments.engine.perturbations` (seed 0,
+    half-width :data:`~snake_pin.experiments.engine.PERTURBATION`); one draw is the
+    unperturbed start. The row's snapshots, head path and criteria are the median
+    draw's (by head cross-track RMS); ``head_ct_rms_pct_p10``/``p90`` give the spread.
+    """
+    from ..engine.run import identify_friction, run_engine
+    from .engine import PERTURBATION, distribution, perturbations
+
+    law = ENGINE_LAWS.get(controller)
+    if factory is not None or law is None:
+        row.update(status="not applicable",
+                   reason="the engine runs the head-tracking laws (lyapunov, velocity) only: "
+                          "run_engine has no PFL, LOS or user controller")
+        return row
+    params = robot if robot is not None else SnakeParams.engine()
     if failed:
         params = params.replace(passive=(failed,))
-    law = "acceleration" if controller == "lyapunov" else "velocity"
-    return run_engine(params, t_final=t_final, law=law).trajectory, ""
+    reference = make_scenario(scenario, params.body_length)
+    row["body_length"] = params.body_length
+    friction = identify_friction(params.replace(passive=()))
+    offsets: list[np.ndarray | None] = (
+        list(perturbations(draws, params.n - 1, PERTURBATION, seed=0)) if draws > 1 else [None])
+    runs: list[tuple[Trajectory, dict[str, Any]]] = []
+    stride = slice(None, None, _EVERY)
+    for offset in offsets:
+        traj = run_engine(params, t_final=t_final, friction=friction, law=law,
+                          initial_offset=offset, reference=reference).trajectory
+        metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
+                               Snake(traj.params), reference, criteria_dt=None)
+        runs.append((traj, metrics))
+    spread = distribution([m["head_ct_rms_pct"] for _, m in runs])
+    order = sorted(range(len(runs)), key=lambda k: (
+        not math.isfinite(runs[k][1]["head_ct_rms_pct"]), runs[k][1]["head_ct_rms_pct"]))
+    finite = [k for k in order if math.isfinite(runs[k][1]["head_ct_rms_pct"])]
+    median = finite[(len(finite) - 1) // 2] if finite else order[0]
+    traj = runs[median][0]
+    if criteria_dt is not None:
+        row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
+                                Snake(traj.params), reference, criteria_dt=criteria_dt))
+    else:
+        row.update(runs[median][1])
+    for key in ("head_ct_rms", "head_ct_max", "head_ct_rms_pct", "head_lag_rms",
+                "head_error_rms", "cm_ct_rms", "torque_rms"):
+        value = distribution([m[key] for _, m in runs])["median"]
+        row[key] = math.nan if value is None else value
+    bad = [t for t, _ in runs if t.status != "completed"]
+    status = "completed" if not bad else bad[0].status
+    reason = "" if not bad else f"{len(bad)} of {len(runs)} draws: {bad[0].reason}"
+    _finish(row, traj, status, reason)
+    row.update(draws=len(runs),
+               head_ct_rms_pct_p10=math.nan if spread["p10"] is None else spread["p10"],
+               head_ct_rms_pct_p90=math.nan if spread["p90"] is None else spread["p90"],
+               t_end=float(np.median([t.t_end for t, _ in runs])))
+    return row
+
+
+def _finish(row: dict[str, Any], traj: Trajectory, status: str, reason: str) -> None:
+    """The row's status, end time, snapshots and head path from one trajectory."""
+    diverged = status in ("diverged", "failed")
+    times = np.linspace(0.0, traj.t_end, _SNAPSHOTS)
+    idx = np.minimum(np.searchsorted(traj.t, times), len(traj) - 1)
+    row.update(status=status, reason=reason, t_end=float(traj.t_end),
+               diverged_at=float(traj.t_end) if diverged else math.nan,
+               snapshots=[(float(traj.t[k]), traj.q[k].tolist()) for k in idx],
+               head=traj.q[::100, :2].tolist())
 
 
 def run_cell(scenario: str, controller: str, model: str = "viscous",
              failed: int | None = None, *, t_final: float = 60.0,
              factory: ControllerFactory | None = None,
              criteria_dt: float | None = _CRITERIA_DT,
-             robot: SnakeParams | None = None) -> dict[str, Any]:
+             robot: SnakeParams | None = None, draws: int = ENGINE_DRAWS,
+             engine_robot: SnakeParams | None = None) -> dict[str, Any]:
     """Run one benchmark cell and return its row (see :data:`METRIC_FIELDS`).
+
+    On the engine (MuJoCo, :func:`~snake_pin.engine.run.run_engine` with the scenario as
+    its reference), ``lyapunov`` runs the torque-level law (``law="acceleration"``) and
+    ``velocity`` the velocity-level one; the cell is ``draws`` runs from perturbed
+    starts and each metric is their median (the engine is chaotic), with the 10-90 %
+    range of the head cross-track RMS. Other controllers are "not applicable" there.
 
     Parameters
     ----------
@@ -342,18 +423,22 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
         Duration [s].
     factory : callable, optional
         ``factory(snake, reference, path) -> Controller``; default the built-in one.
-    robot : SnakeParams or None, optional
-        The viscous robot (default: the Table 1 tracking robot).
     criteria_dt : float or None, optional
         Sampling of the criteria [s]; None: not computed.
+    robot : SnakeParams or None, optional
+        The viscous robot (default: the Table 1 tracking robot).
+    draws : int, optional
+        Engine cells: perturbed starts (1: the unperturbed start alone, one draw).
+    engine_robot : SnakeParams or None, optional
+        The engine robot (default: the ``engine`` preset of VI.3).
 
     Returns
     -------
     dict
         The row, plus ``series`` (criteria along the run), ``snapshots`` (a few
-        configurations with their times) and ``head`` (the head path every 0.1 s).
-        Status "not applicable" when the controller refuses the robot (PFL with a
-        passive joint), "unsupported" for engine cells the engine cannot run yet.
+        configurations with their times) and ``head`` (the head path every 0.1 s); on
+        the engine those of the median draw. Status "not applicable" when the controller
+        refuses the robot (PFL with a passive joint) or the engine cannot run it.
 
     Raises
     ------
@@ -373,34 +458,25 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     if make is None:
         raise ParameterError(f"unknown controller {controller!r} (expected one of "
                              f"{', '.join(CONTROLLERS)} or a factory)")
-    head_tracking = True
     if model == "engine":
-        traj, why = _engine_trajectory(scenario, controller, failed, t_final)
-        if traj is None:
-            row.update(status="unsupported", reason=why)
-            return row
-        snake = Snake(traj.params)
-    else:
-        snake = Snake(params)
-        try:
-            ctrl = make(snake, reference, reference.path)
-        except ParameterError as exc:
-            row.update(status="not applicable", reason=str(exc))
-            return row
-        head_tracking = hasattr(ctrl, "reference")
-        traj = simulate(snake, ctrl, initial_state(params), t_final,
-                        meta={"scenario": scenario, "controller": controller})
+        _engine_cell(row, scenario, controller, failed, t_final, factory, criteria_dt,
+                     draws, engine_robot)
+        row["wall_s"] = time.perf_counter() - wall
+        return row
+    snake = Snake(params)
+    try:
+        ctrl = make(snake, reference, reference.path)
+    except ParameterError as exc:
+        row.update(status="not applicable", reason=str(exc))
+        return row
+    traj = simulate(snake, ctrl, initial_state(params), t_final,
+                    meta={"scenario": scenario, "controller": controller})
     stride = slice(None, None, _EVERY)
-    metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
-                           reference, head_tracking=head_tracking, criteria_dt=criteria_dt)
-    row.update(metrics)
-    diverged = traj.status in ("diverged", "failed")
-    times = np.linspace(0.0, traj.t_end, _SNAPSHOTS)
-    idx = np.minimum(np.searchsorted(traj.t, times), len(traj) - 1)
-    row.update(status=traj.status, reason=traj.reason, t_end=float(traj.t_end),
-               diverged_at=float(traj.t_end) if diverged else math.nan,
-               snapshots=[(float(traj.t[k]), traj.q[k].tolist()) for k in idx],
-               head=traj.q[::100, :2].tolist(), wall_s=time.perf_counter() - wall)
+    row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
+                            reference, head_tracking=hasattr(ctrl, "reference"),
+                            criteria_dt=criteria_dt))
+    _finish(row, traj, traj.status, traj.reason)
+    row["wall_s"] = time.perf_counter() - wall
     return row
 
 
@@ -477,7 +553,8 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
                   failed: Sequence[int | None] = (None, FAILED_JOINT), *,
                   t_final: float = 60.0, quick: bool = False,
                   workers: int | None = None,
-                  robot: SnakeParams | None = None) -> BenchmarkResult:
+                  robot: SnakeParams | None = None, draws: int = ENGINE_DRAWS,
+                  engine_robot: SnakeParams | None = None) -> BenchmarkResult:
     """Run every cell of scenarios x controllers x models x failed joints.
 
     Parameters
@@ -500,6 +577,10 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     robot : SnakeParams or None, optional
         The viscous robot (default: the Table 1 tracking robot, c_y = 50 c_x). The LOS
         law's constants are identified for that robot.
+    draws : int, optional
+        Perturbed starts per engine cell (medians reported; 1: one unperturbed draw).
+    engine_robot : SnakeParams or None, optional
+        The engine robot (default: the ``engine`` preset).
 
     Returns
     -------
@@ -509,8 +590,11 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     Raises
     ------
     ParameterError
-        An unknown scenario, controller or model, or a non-positive t_final.
+        An unknown scenario, controller or model, a non-positive t_final, or draws not
+        a positive integer.
     """
+    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
+        raise ParameterError(f"draws must be a positive integer, got {draws!r}")
     if quick:
         scenarios = scenarios or ("line", "circle_1L")
         controllers = controllers or ("lyapunov", "los")
@@ -535,18 +619,22 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     wall = time.perf_counter()
     pooled = [k for k, (_, c, _, _) in enumerate(cells) if _picklable(chosen[c])]
     rows: list[dict[str, Any] | None] = [None] * len(cells)
-    jobs = [(run_cell, cells[k], {"t_final": t_final, "factory": chosen[cells[k][1]],
-                                  "robot": robot})
+    options = {"t_final": t_final, "robot": robot, "draws": draws,
+               "engine_robot": engine_robot}
+    jobs = [(run_cell, cells[k], {**options, "factory": chosen[cells[k][1]]})
             for k in pooled]
     for k, row in zip(pooled, run_jobs(jobs, workers), strict=True):
         rows[k] = row
     for k, (s, c, m, f) in enumerate(cells):
         if rows[k] is None:
-            rows[k] = run_cell(s, c, m, f, t_final=t_final, factory=chosen[c], robot=robot)
+            rows[k] = run_cell(s, c, m, f, t_final=t_final, factory=chosen[c], robot=robot,
+                               draws=draws, engine_robot=engine_robot)
     settings = {"t_final": t_final, "scenarios": names, "controllers": list(chosen),
                 "models": list(models), "failed": [f or 0 for f in failed],
                 "speed": SPEED, "window_start": ERROR_WINDOW,
                 "robot": robot.to_dict() if robot is not None else None,
+                "engine_draws": draws,
+                "engine_robot": engine_robot.to_dict() if engine_robot is not None else None,
                 "wall_s": time.perf_counter() - wall}
     return BenchmarkResult([r for r in rows if r is not None], settings)
 
@@ -602,16 +690,20 @@ def _table_figure(result: BenchmarkResult, model: str, failed: int) -> Any:
     for i, s in enumerate(scen):
         for j, c in enumerate(ctrl):
             r = next(x for x in rows if x["scenario"] == s and x["controller"] == c)
-            text = "n/a" if r["status"] in ("not applicable", "unsupported") else (
+            text = "n/a" if r["status"] == "not applicable" else (
                 f"{grid[i, j]:.1f}" if np.isfinite(grid[i, j]) else "-")
+            if r["draws"] > 1 and np.isfinite(grid[i, j]):
+                text += f"\n[{r['head_ct_rms_pct_p10']:.1f}, {r['head_ct_rms_pct_p90']:.1f}]"
             if r["status"] in ("diverged", "failed"):
                 text += f"\n({r['status']} {r['t_end']:.0f} s)"
             ax.text(j, i, text, ha="center", va="center", fontsize=8)
     ax.set_xticks(range(len(ctrl)), ctrl)
     ax.set_yticks(range(len(scen)), scen)
     where = f", joint {failed} failed" if failed else ""
+    draws = max((r["draws"] for r in rows), default=1)
+    spread = (f"\nmedian of {draws} perturbed starts [10-90 % range]" if draws > 1 else "")
     ax.set_title(f"Head cross-track RMS [% of body], {model}{where}, t >= "
-                 f"{ERROR_WINDOW:g} s", fontsize=9)
+                 f"{ERROR_WINDOW:g} s{spread}", fontsize=9)
     return fig
 
 
@@ -624,8 +716,12 @@ def _path_figure(result: BenchmarkResult, scenario: str, model: str, failed: int
             and r["failed_joint"] == failed and r["snapshots"]]
     fig, axes = plt.subplots(1, max(len(rows), 1), figsize=(3.6 * max(len(rows), 1), 3.8),
                              squeeze=False)
-    robot = result.settings.get("robot")
-    params = SnakeParams.from_dict(robot) if robot else tracking_params()
+    if model == "engine":
+        robot = result.settings.get("engine_robot")
+        params = SnakeParams.from_dict(robot) if robot else SnakeParams.engine()
+    else:
+        robot = result.settings.get("robot")
+        params = SnakeParams.from_dict(robot) if robot else tracking_params()
     if failed:
         params = params.replace(passive=(failed,))
     snake = Snake(params)
@@ -641,7 +737,9 @@ def _path_figure(result: BenchmarkResult, scenario: str, model: str, failed: int
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
         pct = row["head_ct_rms_pct"]
-        ax.set_title(f"{row['controller']}: {pct:.1f} %" if np.isfinite(pct)
+        draws = f" (median of {row['draws']} draws; this: the median one)" \
+            if row["draws"] > 1 else ""
+        ax.set_title(f"{row['controller']}: {pct:.1f} %{draws}" if np.isfinite(pct)
                      else f"{row['controller']}: {row['status']}", fontsize=9)
     fig.suptitle(f"{scenario}: path (dashed), head, body every "
                  f"{rows[0]['t_end'] / (_SNAPSHOTS - 1) if rows else 0:.0f} s", fontsize=10)
@@ -730,9 +828,13 @@ REPORT_SCENARIOS = ("line", "circle_0.5L", "circle_1L", "circle_2L", "lane_chang
 def bench_control_stage(ctx: Any) -> None:
     """The ``reproduce`` stage: the benchmark on the viscous model, its table, the claim.
 
-    Quick: line and circle 1L x lyapunov and los, 12 s, no failure. Full: every scenario
-    x every built-in controller, with and without joint 5 failed, 60 s (about 3-4
-    minutes on 2 cores).
+    Quick: line and circle 1L x lyapunov and los, 12 s, no failure, and one engine row
+    (circle 1L, velocity law, 12 s, one draw). Full: :data:`REPORT_SCENARIOS` x every
+    built-in controller, with and without joint 5 failed, 60 s (about 3-4 minutes on 2
+    cores), and the engine rows: :data:`REPORT_ENGINE_SCENARIOS` with the velocity-level
+    law on the engine robot, :data:`REPORT_ENGINE_T` s runs (shorter than 60 s to keep
+    the stage within ~30 s more wall time), each the median of :data:`ENGINE_DRAWS`
+    perturbed starts.
 
     Parameters
     ----------
@@ -741,18 +843,29 @@ def bench_control_stage(ctx: Any) -> None:
         robot ``params``, ``report`` and ``quick`` mode.
     """
     from ..params import ROBOTS
+    from .engine import engine_robot
     from .tracking import tracking_friction
 
     # a robot of one's own runs the benchmark (with the tracking friction rule of the
     # tracking stage); the presets run the Table 1 tracking robot the LOS law is tuned for
     robot = None if ctx.params.name in ROBOTS else tracking_friction(ctx.params)[0]
+    wheeled = engine_robot(ctx.params)  # the engine preset, or one's own robot on wheels
     if ctx.quick:
         result = run_benchmark(quick=True, failed=(None,), robot=robot)
+        engine = run_benchmark(scenarios=("circle_1L",), controllers=("velocity",),
+                               models=("engine",), failed=(None,), t_final=12.0, draws=1,
+                               engine_robot=wheeled)
     else:
         # The report runs the cells behind the paper's claim and the 5 % targets (circles,
-        # the lane change, the line) for every law; the sinusoid and waypoint scenarios,
-        # where LOS alone takes 1-2.5 min per run, are left to `snake-pin bench-control`.
+        # the lane change, the line) for every law; the sinusoid and waypoint scenarios
+        # (LOS about 2x a Lyapunov run there) are left to `snake-pin bench-control`.
         result = run_benchmark(scenarios=REPORT_SCENARIOS, t_final=60.0, robot=robot)
+        engine = run_benchmark(scenarios=REPORT_ENGINE_SCENARIOS, controllers=("velocity",),
+                               models=("engine",), failed=(None,), t_final=REPORT_ENGINE_T,
+                               engine_robot=wheeled)
+    result = BenchmarkResult(result.rows + engine.rows,
+                             {**result.settings, "engine_robot": wheeled.to_dict(),
+                              "engine": engine.settings})
     files = write_benchmark(result, ctx.folder)
     sec = ctx.report.section("bench_control", "Controller benchmark on paths (issue 15)")
     s = result.settings
@@ -760,20 +873,41 @@ def bench_control_stage(ctx: Any) -> None:
              f"{', '.join(s['controllers'])}; viscous Table 1 robot, c_x = 0.5, c_y = 25 N s/m "
              f"(c_y / c_x = 50); head reference along each path at {SPEED} m/s; "
              f"{s['t_final']:g} s runs, metrics over t >= {ERROR_WINDOW:g} s; "
-             f"{len(result.rows)} runs in {s['wall_s']:.0f} s wall. LOS follows the path with"
+             f"{sum(r['model'] == 'viscous' for r in result.rows)} runs in "
+             f"{s['wall_s']:.0f} s wall. LOS follows the path with"
              " its centre of mass at the gait's own speed (no timing law): its lag and time-"
              "indexed error are not what it is designed for.")
     header = ["scenario", "controller", "failed joint", "status", "head ct RMS [% L]",
               "head ct max [m]", "lag RMS [m]", "time-indexed RMS [m]", "CM ct RMS [m]",
               "R min", "R~ min", "lateral min", "torque RMS [N m]"]
-    sec.table(header, [[r["scenario"], r["controller"], r["failed_joint"] or "-",
-                        r["status"] + (f" at {r['t_end']:.1f} s"
-                                       if r["status"] in ("diverged", "failed") else ""),
-                        _fmt(r["head_ct_rms_pct"]), _fmt(r["head_ct_max"]),
-                        _fmt(r["head_lag_rms"]), _fmt(r["head_error_rms"]),
-                        _fmt(r["cm_ct_rms"]), _fmt(r["R_min"]), _fmt(r["R_tilde_min"]),
-                        _fmt(r["lateral_min"]), _fmt(r["torque_rms"])]
-                       for r in result.rows])
+
+    def cells(r: dict[str, Any]) -> list[Any]:
+        return [r["scenario"], r["controller"], r["failed_joint"] or "-",
+                r["status"] + (f" at {r['t_end']:.1f} s"
+                               if r["status"] in ("diverged", "failed") else ""),
+                _fmt(r["head_ct_rms_pct"]), _fmt(r["head_ct_max"]), _fmt(r["head_lag_rms"]),
+                _fmt(r["head_error_rms"]), _fmt(r["cm_ct_rms"]), _fmt(r["R_min"]),
+                _fmt(r["R_tilde_min"]), _fmt(r["lateral_min"]), _fmt(r["torque_rms"])]
+
+    sec.table(header, [cells(r) for r in result.rows if r["model"] == "viscous"])
+    on_engine = [r for r in result.rows if r["model"] == "engine"]
+    e = engine.settings
+    draws = (f"each figure the median of {e['engine_draws']} runs from initial joint angles "
+             "offset by up to 1e-6 rad (the engine is chaotic), head cross-track RMS 10-90 % "
+             "range in the last column" if e["engine_draws"] > 1
+             else "one draw from the unperturbed start (the engine is chaotic: one draw is "
+                  "not a distribution)")
+    sec.text(f"Engine rows (MuJoCo, {wheeled.name} robot, L = {wheeled.body_length:g} m, "
+             f"wheels with Coulomb contacts; the scenario paths scaled to its body length): "
+             f"velocity-level law, {e['t_final']:g} s runs"
+             + (f" (shorter than the viscous {s['t_final']:g} s to keep the stage's budget)"
+                if e["t_final"] < s["t_final"] else "")
+             + f", metrics over t >= {ERROR_WINDOW:g} s, {draws}; {len(on_engine)} cells "
+             f"in {e['wall_s']:.0f} s wall.")
+    sec.table([*header, "draws", "ct RMS 10-90 % [% L]"],
+              [[*cells(r), r["draws"],
+                f"{_fmt(r['head_ct_rms_pct_p10'])} - {_fmt(r['head_ct_rms_pct_p90'])}"
+                if r["draws"] > 1 else "-"] for r in on_engine])
     for name, path in files.items():
         if name.startswith("table_"):
             sec.figure(path, f"Head cross-track RMS, % of body length ({name[6:]})")
