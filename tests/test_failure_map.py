@@ -1,8 +1,7 @@
-"""Tests of snake_pin.experiments.failure_map (the report stage) and .batched_sweeps."""
+"""Tests of snake_pin.experiments.failure_map (the report stage)."""
 
 from __future__ import annotations
 
-import functools
 import json
 from pathlib import Path
 from typing import Any
@@ -13,7 +12,6 @@ import pytest
 from snake_pin import SnakeParams
 from snake_pin.exceptions import RunInterrupted
 from snake_pin.experiments import failure_map
-from snake_pin.experiments.batched_sweeps import run_tracking_batch
 from snake_pin.experiments.failure_map import (
     FULL,
     MapPlan,
@@ -23,8 +21,6 @@ from snake_pin.experiments.failure_map import (
     map_tables,
 )
 from snake_pin.experiments.reproduce import Context
-from snake_pin.experiments.tracking import run_tracking, tracking_params
-from snake_pin.metrics import head_error_summary, percent
 from snake_pin.report import Report
 from snake_pin.robot_file import load_robot
 from snake_pin.study import load_study
@@ -148,31 +144,23 @@ def test_an_interrupted_study_propagates(tmp_path: Path,
         failure_map_stage(ctx)
 
 
-def test_batched_tracking_rows_equal_the_per_run_rows(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The report's sweep (lambda 3, 7; c_y 10, 50) through one lockstep batch gives
-    run_tracking's rows (RMS, % of body, R min; max error, D min, g drift) to 1e-9 (2 s
-    runs, errors judged from 1 s in both paths)."""
-    from snake_pin.experiments import batched_sweeps, tracking
+def test_the_study_shows_its_bar_on_a_terminal_only(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """The stage leaves the study's progress bar to the terminal test (progress=None: drawn
+    on a TTY, not in a log), and passes the worker options on."""
+    import snake_pin.study
 
-    for module in (tracking, batched_sweeps):
-        monkeypatch.setattr(module, "head_error_summary",
-                            functools.partial(head_error_summary, start=1.0))
-    base = SnakeParams.table1()
-    robot = tracking_params(base)
-    sweep = [(robot, {"lam": lam, "lam_shape": lam / 2}) for lam in (3.0, 7.0)] + \
-        [(tracking_params(base, c_y=c_y), {}) for c_y in (10.0, 50.0)]
-    t_final = 2.0
-    batched = run_tracking_batch([(params, t_final, options) for params, options in sweep])
-    for (params, options), traj in zip(sweep, batched, strict=True):
-        alone = run_tracking(params, t_final=t_final, **options)
-        got, want = traj.summary, alone.summary
-        assert traj.t_end == alone.t_end == t_final and traj.status == alone.status
-        assert got["rms_head_error"] is not None
-        assert percent(got["rms_relative"]) == pytest.approx(percent(want["rms_relative"]),
-                                                             rel=1e-9)
-        for key in ("rms_head_error", "max_head_error", "R_min", "D_min"):
-            assert got[key] == pytest.approx(want[key], rel=1e-9), key
-        assert got["g_drift"] == pytest.approx(want["g_drift"], rel=1e-6, abs=1e-12)
-        assert (got["c_x"], got["c_y"], got["passive"]) == (want["c_x"], want["c_y"],
-                                                            want["passive"])
-        assert traj.meta["lam"] == alone.meta["lam"]
+    seen: dict[str, Any] = {}
+
+    def interrupted(*_args: Any, **kwargs: Any) -> Any:
+        seen.update(kwargs)
+        raise RunInterrupted("study failure_map interrupted", partial=None)
+
+    monkeypatch.setattr(snake_pin.study, "run_study", interrupted)
+    monkeypatch.setattr(failure_map, "QUICK", TINY)
+    ctx = Context(folder=tmp_path, params=SnakeParams.table1(), report=Report("test"),
+                  quick=True, options={"study_workers": 1, "study_scheduler": None})
+    with pytest.raises(RunInterrupted):
+        failure_map_stage(ctx)
+    assert "progress" in seen and seen["progress"] is None
+    assert seen["workers"] == 1 and seen["scheduler"] is None

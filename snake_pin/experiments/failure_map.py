@@ -436,8 +436,9 @@ def failure_map_stage(ctx: Any) -> None:
     study_file = failure_map_study(base, plan, ctx.folder)
     spec = load_study(study_file)
     out = ctx.folder / "failure_map"
+    # progress=None: the study's bar (runs done, failures, ETA) on a terminal only
     summary = run_study(study_file, out, workers=ctx.options.get("study_workers"),
-                        scheduler=ctx.options.get("study_scheduler"), progress=False)
+                        scheduler=ctx.options.get("study_scheduler"), progress=None)
     keys = {s.key for s in spec.scenarios}
     rows = [r for r in StudyFolder(out).read_table().to_pylist() if r["key"] in keys]
     joints = sorted({s["failed_joint"] for s in spec.scenarios})
