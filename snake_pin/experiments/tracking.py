@@ -1,8 +1,18 @@
 """Section VI.2: Lyapunov-like head tracking on the Table 1 robot (Figs. 13-17), with and
-without a passive joint, the isotropic contrast, and the lateral-constraint criterion."""
+without a passive joint, the isotropic contrast, and the lateral-constraint criterion.
+
+Owns one tracking run (:func:`run_tracking`) and its summary (:func:`tracking_summary`,
+shared with the lockstep route of :mod:`snake_pin.experiments.batched_sweeps`), the
+stage's runs (:func:`report_runs`) and the report stage (:func:`tracking_stage`), which
+hands every run to :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs` and
+writes each run's files as it finishes.
+"""
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -10,6 +20,7 @@ import numpy as np
 
 from .. import gaits
 from ..control import LyapunovController, head_first_reference
+from ..control.reference import LinearReference
 from ..integrability import conserved_quantity_along
 from ..manipulability import lateral_constraint_manipulability
 from ..metrics import (
@@ -23,10 +34,10 @@ from ..metrics import (
 from ..model import Snake
 from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory, simulate
-from .parallel import run_jobs
 
-__all__ = ["TRACKING_FRICTION", "plot_tracking", "run_tracking", "tracking_friction",
-           "tracking_params", "tracking_stage"]
+__all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "ReportRun", "initial_state",
+           "plot_tracking", "report_runs", "run_tracking", "tracking_friction", "tracking_meta",
+           "tracking_params", "tracking_stage", "tracking_summary"]
 
 #: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
 #: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
@@ -34,6 +45,8 @@ __all__ = ["TRACKING_FRICTION", "plot_tracking", "run_tracking", "tracking_frict
 TRACKING_FRICTION = {"c_x": 0.5, "c_y": 25.0}
 #: Manipulability is evaluated every this many samples (10 ms at 1 kHz).
 CRITERIA_EVERY = 10
+#: The head reference of every tracking run, as the trajectories' meta names it.
+REFERENCE = "w_r = [0.1 t, 0, pi]"
 
 
 def tracking_params(params: SnakeParams | None = None, **changes: object) -> SnakeParams:
@@ -104,6 +117,23 @@ def initial_state(params: SnakeParams) -> np.ndarray:
     return gaits.initial_state(params.n, theta_1=np.pi)
 
 
+def tracking_meta(controller: LyapunovController) -> dict[str, Any]:
+    """The entries a tracking run adds to its trajectory's meta.
+
+    Parameters
+    ----------
+    controller
+        The run's law.
+
+    Returns
+    -------
+    dict
+        ``reference`` (:data:`REFERENCE`), ``k_shape``, ``lam`` and ``lam_shape`` of the law.
+    """
+    return {"reference": REFERENCE, "k_shape": controller.k_shape, "lam": controller.lam,
+            "lam_shape": controller.lam_shape}
+
+
 def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
                  progress: bool = False, **controller_options: Any) -> Trajectory:
     """60 s of head tracking, w_r = [0.1 t, 0, pi], gains (84), control at 1 kHz.
@@ -124,17 +154,45 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     Returns
     -------
     Trajectory
-        The run; its summary has t_end, diverged, rms_head_error, max_head_error (over
-        t >= 10 s), R_min, D_min, body_length, g_drift (|g - g(0)| max) and the friction
-        used.
+        The run with :func:`tracking_summary`'s summary, head error and criteria.
     """
     params = params or tracking_params()
     snake = Snake(params)
     reference = head_first_reference()
     controller = LyapunovController(snake, reference, **controller_options)
     traj = simulate(snake, controller, initial_state(params), t_final, progress=progress,
-                    meta={"reference": "w_r = [0.1 t, 0, pi]", "k_shape": controller.k_shape,
-                          "lam": controller.lam, "lam_shape": controller.lam_shape})
+                    meta=tracking_meta(controller))
+    return tracking_summary(traj, snake, reference)
+
+
+def tracking_summary(traj: Trajectory, snake: Snake,
+                     reference: LinearReference | None = None) -> Trajectory:
+    """Add a tracking run's head error, criteria and summary to its trajectory.
+
+    The one summary of a tracking run, whichever route simulated it (:func:`run_tracking`,
+    :func:`~snake_pin.experiments.batched_sweeps.run_tracking_batch`).
+
+    Parameters
+    ----------
+    traj
+        The run (changed in place).
+    snake
+        Its robot.
+    reference
+        The head reference; None: w_r = [0.1 t, 0, pi].
+
+    Returns
+    -------
+    Trajectory
+        ``traj``, with ``signals["head_error"]`` [m] at every sample, ``meta["criteria"]``
+        (D and R, eqs. 30 and 31, every :data:`CRITERIA_EVERY` samples; R~ with the passive
+        joints free, eq. 42) and in its summary: the
+        controller, friction and passive joints, the head error over t >= 10 s
+        (rms_head_error, max_head_error [m], rms_relative), R_min, D_min, body_length,
+        g_drift (max |g - g(0)| of eq. 67) and the final head pose.
+    """
+    params = snake.params
+    reference = reference or head_first_reference()
     error = head_position_error(traj, reference)
     t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
     g = conserved_quantity_along(snake, traj.q, traj.dq)
@@ -251,8 +309,103 @@ def lateral_comparison(traj: Trajectory, path: Path, t_max: float = 10.0) -> dic
             "lateral_typical": float(np.median(lat))}
 
 
+@dataclass(frozen=True)
+class ReportRun:
+    """One run of the tracking stage.
+
+    Parameters
+    ----------
+    label
+        Its row label in the report.
+    params
+        The robot, friction and passive joints included.
+    t_final
+        Duration [s].
+    options
+        Options of :class:`~snake_pin.control.LyapunovController` (``lam``,
+        ``lam_shape``, ``k_shape``).
+    stem
+        File-name stem of its saved trajectory and figures; None: a sweep row (a table
+        row only).
+    animate
+        Whether it also gets a self-contained 3-D animation page.
+    """
+
+    label: str
+    params: SnakeParams
+    t_final: float
+    options: Mapping[str, float] = field(default_factory=dict)
+    stem: str | None = None
+    animate: bool = False
+
+
+def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun]:
+    """The runs of the tracking stage: four with files, then the sweep's rows.
+
+    With files: no passive joint and joint 5 passive (both animated), the isotropic
+    contrast (at most 30 s: failure and a constant g show by then) and one decay rate for
+    head and gait (lambda = mu = 1/s). The sweep: the decay rates along mu = lambda / 2
+    (lambda = 3 and 7/s) and the sideways friction (c_y = 10 and 50 N s/m, or the robot's
+    own c_y halved and doubled on every link).
+
+    Parameters
+    ----------
+    robot
+        The tracking robot (:func:`tracking_friction`), no passive joint.
+    t_final
+        Duration of the runs [s].
+    own
+        Whether ``robot`` keeps its own friction (the sweep then scales its c_y).
+
+    Returns
+    -------
+    list of ReportRun
+        The runs with files (``stem`` set) first, in report order, then the sweep.
+    """
+    c_x = robot.per_link("c_x")
+    contrast = (f"isotropic (c_x = c_y = {robot.c_x})" if robot.uniform
+                else "isotropic (c_y = c_x per link)")
+    runs = [ReportRun("no passive joint", robot, t_final, stem="tracking", animate=True),
+            ReportRun("joint 5 passive", robot.replace(passive=(5,)), t_final,
+                      stem="tracking_passive5", animate=True),
+            ReportRun(contrast, robot.replace(c_y=c_x), min(t_final, 30.0),
+                      stem="tracking_isotropic"),
+            ReportRun("one rate for head and gait (lambda = mu = 1/s)", robot, t_final,
+                      {"lam": 1.0, "lam_shape": 1.0}, stem="tracking_one_rate")]
+    runs += [ReportRun(f"lambda = {lam:g}/s, mu = {lam / 2:g}/s", robot, t_final,
+                       {"lam": lam, "lam_shape": lam / 2}) for lam in (3.0, 7.0)]
+    if own:
+        runs += [ReportRun(f"c_y x {factor:g} on every link (lambda = 10/s)",
+                           robot.replace(c_y=factor * robot.per_link("c_y")), t_final)
+                 for factor in (0.5, 2.0)]
+    else:
+        runs += [ReportRun(f"c_y = {c_y:g} N s/m (lambda = 10/s)", robot.replace(c_y=c_y),
+                           t_final) for c_y in (10.0, 50.0)]
+    return runs
+
+
+def _write_run(traj: Trajectory, stem: str, animate: bool, folder: Path) -> dict[str, Any]:
+    """Save a run with files: trajectory, animation page, figures (and Fig. 15 for the
+    run without a passive joint). Returns what the section lists."""
+    traj.save(folder / stem)
+    written: dict[str, Any] = {"page": None, "lateral": None}
+    if animate:
+        from ..viz.meshcat_view import write_html
+
+        written["page"] = write_html(traj, folder / f"{stem}.html")
+    written["figures"] = plot_tracking(traj, folder, stem)
+    if stem == "tracking":
+        written["lateral"] = lateral_comparison(traj, folder / "lateral_criterion.png")
+    return written
+
+
 def tracking_stage(ctx) -> None:
-    """Runs with and without a passive joint, the isotropic contrast, Fig. 15.
+    """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweep.
+
+    Every run of the stage (:func:`report_runs`) goes to
+    :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs` (single runs on
+    every core, or lockstep batches when there are enough runs per core); each run's files
+    are written as it finishes, while the others still run.
 
     Parameters
     ----------
@@ -260,6 +413,8 @@ def tracking_stage(ctx) -> None:
         The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
         robot, report and quick mode.
     """
+    from .batched_sweeps import iter_tracking_runs
+
     t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
     base = ctx.params.replace(passive=())
     robot, friction = tracking_friction(base)
@@ -273,53 +428,40 @@ def tracking_stage(ctx) -> None:
              "points from the head to the tail, so the head-first run along +x has theta_1 = pi:"
              f" w_r = [0.1 t, 0, pi], the arc of (82) turned by pi. The robot '{base.name}' with"
              f" {friction}.")
-    c_x = robot.per_link("c_x")
-    contrast = ((f"isotropic (c_x = c_y = {robot.c_x})" if robot.uniform
-                 else "isotropic (c_y = c_x per link)"), robot.replace(c_y=c_x))
-    # (label, file stem, robot, duration, controller options, animated page)
-    runs = [("no passive joint", "tracking", robot, t_final, {}, True),
-            ("joint 5 passive", "tracking_passive5", robot.replace(passive=(5,)),
-             t_final, {}, True),
-            # the isotropic contrast shows failure and a constant g: 30 s are enough
-            (contrast[0], "tracking_isotropic", contrast[1], min(t_final, 30.0), {}, False),
-            ("one rate for head and gait (lambda = mu = 1/s)", "tracking_one_rate",
-             robot, t_final, {"lam": 1.0, "lam_shape": 1.0}, False)]
-    # the design's tuning, table rows only: rates along mu = lambda / 2, and other c_y
-    sweep = [(f"lambda = {lam:g}/s, mu = {lam / 2:g}/s", robot,
-              {"lam": lam, "lam_shape": lam / 2}) for lam in (3.0, 7.0)]
-    if own:
-        sweep += [(f"c_y x {factor:g} on every link (lambda = 10/s)",
-                   robot.replace(c_y=factor * robot.per_link("c_y")), {})
-                  for factor in (0.5, 2.0)]
-    else:
-        sweep += [(f"c_y = {c_y:g} N s/m (lambda = 10/s)", tracking_params(base, c_y=c_y), {})
-                  for c_y in (10.0, 50.0)]
-    rows = []
-    results = run_jobs([(run_tracking, (params,), {"t_final": duration, **options})
-                        for _, _, params, duration, options, _ in runs]
-                       + [(run_tracking, (params,), {"t_final": t_final, **options})
-                          for _, params, options in sweep])
-    trajectories, swept = results[:len(runs)], results[len(runs):]
-    for (label, stem, _, _, _, animate), traj in zip(runs, trajectories, strict=True):
-        traj.save(ctx.folder / stem)
-        if animate:
-            from ..viz.meshcat_view import write_html
-
-            page = write_html(traj, ctx.folder / f"{stem}.html")
-            sec.link(page.name, f"{label}: 3-D animation (meshcat, self-contained page)")
-        figures = plot_tracking(traj, ctx.folder, stem)
-        for key, path in figures.items():
-            sec.figure(path, f"{label}: " + {"motion": "motion (Figs. 13/16)",
-                                              "criteria": "D and R (Figs. 14/17)",
-                                              "head": "head position and error"}[key])
+    runs = report_runs(robot, t_final, own)
+    results: dict[int, Trajectory] = {}
+    written: dict[int, dict[str, Any]] = {}
+    jobs = [(r.params, r.t_final, r.options) for r in runs]
+    # closing: an interrupt while a run's files are written stops the workers at once
+    with contextlib.closing(iter_tracking_runs(jobs)) as finished:
+        for index, traj in finished:
+            results[index] = traj
+            stem = runs[index].stem
+            if stem is not None:
+                written[index] = _write_run(traj, stem, runs[index].animate, ctx.folder)
+    rows, sweep_rows = [], []
+    for index, run in enumerate(runs):
+        traj = results[index]
         s = traj.summary
-        rows.append([label, s["rms_head_error"], percent(s["rms_relative"]),
+        if run.stem is None:
+            sweep_rows.append([run.label, s["rms_head_error"], percent(s["rms_relative"]),
+                               s["R_min"]])
+            sec.numbers.setdefault("sweep", {})[run.label] = traj.summary_dict()
+            continue
+        files = written[index]
+        if files["page"] is not None:
+            sec.link(files["page"].name,
+                     f"{run.label}: 3-D animation (meshcat, self-contained page)")
+        for key, path in files["figures"].items():
+            sec.figure(path, f"{run.label}: " + {"motion": "motion (Figs. 13/16)",
+                                                  "criteria": "D and R (Figs. 14/17)",
+                                                  "head": "head position and error"}[key])
+        rows.append([run.label, s["rms_head_error"], percent(s["rms_relative"]),
                      s["max_head_error"], s["R_min"], s["g_drift"]])
-        sec.numbers[stem] = traj.summary_dict()
-        ctx.options.setdefault("trajectories", {})[label] = ctx.folder / f"{stem}.npz"
-        if label == "no passive joint":
-            lateral = lateral_comparison(traj, ctx.folder / "lateral_criterion.png")
-            sec.numbers["lateral_criterion"] = lateral
+        sec.numbers[run.stem] = traj.summary_dict()
+        ctx.options.setdefault("trajectories", {})[run.label] = ctx.folder / f"{run.stem}.npz"
+        if files["lateral"] is not None:
+            sec.numbers["lateral_criterion"] = files["lateral"]
     sec.table(["run", "RMS head error [m]", "% of body", "max error [m]", "R min",
                "max |g - g(0)|"], rows)
     sec.text(f"Targets: RMS <= 5 % of the {robot.body_length:.4g} m body without a passive "
@@ -328,11 +470,6 @@ def tracking_stage(ctx) -> None:
              "The last row is the same law with one decay rate for head and gait: the head's "
              "x error then swings slowly (20-50 s) about the reference, which is why the "
              "head's rate is the faster one.")
-    sweep_rows = []
-    for (label, _, _), traj in zip(sweep, swept, strict=True):
-        s = traj.summary
-        sweep_rows.append([label, s["rms_head_error"], percent(s["rms_relative"]), s["R_min"]])
-        sec.numbers.setdefault("sweep", {})[label] = traj.summary_dict()
     sec.table(["no passive joint, varied", "RMS head error [m]", "% of body", "R min"],
               sweep_rows)
     sec.text("The decay rates along mu = lambda / 2 (the default is lambda = 10/s) and the "

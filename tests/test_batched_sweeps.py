@@ -1,0 +1,126 @@
+"""Tests of snake_pin.experiments.batched_sweeps (routes of the report's tracking runs)."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from snake_pin import ParameterError, SnakeParams
+from snake_pin.experiments import tracking
+from snake_pin.experiments.batched_sweeps import iter_tracking_runs, run_tracking_batch
+from snake_pin.experiments.tracking import report_runs, tracking_friction, tracking_params
+from snake_pin.metrics import head_error_summary, percent
+
+
+@pytest.fixture
+def short_window(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Judge head errors from 1 s, so that 2 s runs have an error window."""
+    monkeypatch.setattr(tracking, "head_error_summary",
+                        functools.partial(head_error_summary, start=1.0))
+
+
+@pytest.mark.usefixtures("short_window")
+def test_the_stage_runs_batched_give_the_per_run_rows(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The tracking stage's 8 runs (2 s) as one lockstep batch give the rows of the runs
+    one by one to 1e-9: RMS, % of body, max error, R min, D min (g drift to 1e-6)."""
+    import snake_pin.batch
+
+    batches: list[int] = []
+    original = snake_pin.batch.simulate_batch
+
+    def spy(robots: list[SnakeParams], *args: object, **kwargs: object) -> object:
+        batches.append(len(robots))
+        return original(robots, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(snake_pin.batch, "simulate_batch", spy)
+    robot, _ = tracking_friction(SnakeParams.table1())
+    runs = report_runs(robot, 2.0, own=False)
+    jobs = [(r.params, r.t_final, r.options) for r in runs]
+    batched = dict(iter_tracking_runs(jobs, workers=1, lockstep_from=1))
+    assert batches == [len(jobs)]
+    alone = dict(iter_tracking_runs(jobs, workers=1, lockstep_from=len(jobs) + 1))
+    assert batches == [len(jobs)]  # one by one: no batch
+    assert sorted(batched) == sorted(alone) == list(range(len(runs)))
+    for index, run in enumerate(runs):
+        got, want = batched[index], alone[index]
+        assert got.t_end == want.t_end == run.t_final and got.status == want.status
+        assert got.summary["rms_head_error"] is not None
+        assert percent(got.summary["rms_relative"]) == pytest.approx(
+            percent(want.summary["rms_relative"]), rel=1e-9)
+        for key in ("rms_head_error", "max_head_error", "R_min", "D_min"):
+            assert got.summary[key] == pytest.approx(want.summary[key], rel=1e-9), key
+        assert got.summary["g_drift"] == pytest.approx(want.summary["g_drift"], rel=1e-6,
+                                                       abs=1e-12)
+        for key in ("c_x", "c_y", "passive"):
+            assert got.summary[key] == want.summary[key]
+        for key in ("lam", "lam_shape", "k_shape", "reference"):
+            assert got.meta[key] == want.meta[key], key
+
+
+def test_two_workers_give_each_job_its_own_run() -> None:
+    """On 2 worker processes, by either route, the trajectory handed back for job i is
+    job i's: its c_y, its duration and its decay rate."""
+    jobs = [(tracking_params(c_y=c_y), t_final, {"lam": lam})
+            for c_y, t_final, lam in ((10.0, 0.3, 3.0), (20.0, 0.5, 5.0), (30.0, 0.2, 7.0),
+                                      (40.0, 0.4, 9.0))]
+    for lockstep_from in (1, 100):
+        seen = dict(iter_tracking_runs(jobs, workers=2, lockstep_from=lockstep_from))
+        assert sorted(seen) == [0, 1, 2, 3]
+        for index, (params, t_final, options) in enumerate(jobs):
+            traj = seen[index]
+            assert traj.params.c_y == params.c_y and traj.summary["c_y"] == params.c_y
+            assert traj.t_end == pytest.approx(t_final, abs=1e-12)
+            assert traj.meta["lam"] == options["lam"]
+
+
+def test_run_tracking_batch_equals_iter_in_one_batch() -> None:
+    """run_tracking_batch returns the runs in job order: same head error, bit for bit, as
+    the same batch through iter_tracking_runs."""
+    jobs = [(tracking_params(c_y=c_y), 0.3, {}) for c_y in (50.0, 10.0)]
+    direct = run_tracking_batch(jobs)
+    through = dict(iter_tracking_runs(jobs, workers=1, lockstep_from=1))
+    for index, traj in enumerate(direct):
+        assert traj.params.c_y == jobs[index][0].c_y
+        assert np.array_equal(traj.signals["head_error"], through[index].signals["head_error"])
+
+
+@pytest.mark.parametrize("job", [(SnakeParams.table1(), 1.0, {"gamma": 2.0}),
+                                 ("table1", 1.0, {}), (SnakeParams.table1(), 1.0)])
+def test_bad_jobs_are_refused_before_anything_runs(job: object) -> None:
+    """An unknown controller option or a malformed job is a ParameterError naming it."""
+    with pytest.raises(ParameterError, match="job 0"):
+        next(iter_tracking_runs([job]))  # type: ignore[list-item]
+    with pytest.raises(ParameterError, match="job 0"):
+        run_tracking_batch([job])  # type: ignore[list-item]
+
+
+@pytest.mark.parametrize("name", ["workers", "lockstep_from"])
+@pytest.mark.parametrize("value", [0, -1, 1.5, True])
+def test_workers_and_lockstep_from_must_be_positive_integers(name: str, value: object) -> None:
+    """workers and lockstep_from outside 1, 2, ... are refused with their name."""
+    with pytest.raises(ParameterError, match=name):
+        next(iter_tracking_runs([(tracking_params(), 0.1, {})], **{name: value}))
+
+
+def test_report_runs_vary_one_setting_each() -> None:
+    """The stage's runs: four with files, then a sweep that changes only the decay rates
+    (mu = lambda / 2) or only c_y (10 and 50, or the robot's own halved and doubled)."""
+    robot = tracking_params()
+    runs = report_runs(robot, 60.0, own=False)
+    assert [r.stem for r in runs[:4]] == ["tracking", "tracking_passive5",
+                                          "tracking_isotropic", "tracking_one_rate"]
+    assert [r.animate for r in runs] == [True, True] + [False] * 6
+    assert runs[1].params == robot.replace(passive=(5,)) and runs[2].t_final == 30.0
+    assert runs[2].params.c_y == runs[2].params.c_x
+    sweep = runs[4:]
+    assert all(r.stem is None and r.t_final == 60.0 for r in sweep)
+    assert [(r.params, dict(r.options)) for r in sweep[:2]] == [
+        (robot, {"lam": 3.0, "lam_shape": 1.5}), (robot, {"lam": 7.0, "lam_shape": 3.5})]
+    assert [(r.params, dict(r.options)) for r in sweep[2:]] == [
+        (robot.replace(c_y=10.0), {}), (robot.replace(c_y=50.0), {})]
+    mine = SnakeParams.table1(c_x=0.5, c_y=[20.0] * 10, name="mine")
+    own = report_runs(mine, 11.0, own=True)[6:]
+    assert [list(r.params.per_link("c_y")) for r in own] == [[10.0] * 10, [40.0] * 10]
+    assert own[0].params.per_link("c_x").tolist() == [0.5] * 10
