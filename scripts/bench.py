@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import io
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -630,6 +631,8 @@ def engine_fidelity(quick: bool) -> None:
               ("joint 5 passive", SnakeParams.engine(passive=(5,))))
     offsets = perturbations(count, 7, PERTURBATION, seed=0)
     identified = {cone: identify_friction(wheels=WheelSpec(cone=cone)) for cone in CONES}
+    diagonal = {cone: identify_friction(wheels=WheelSpec(cone=cone), heading=math.pi / 4)
+                for cone in CONES}
     jobs = [(engine_draw, (params, offset), {"wheels": WheelSpec(cone=cone),
                                              "t_final": t_final, "friction": identified[cone]})
             for cone in CONES for _, params in robots for offset in offsets]
@@ -643,19 +646,25 @@ def engine_fidelity(quick: bool) -> None:
             cells.append(show(spread(rms), 2))
         off_x = 100 * (f["c_x"] / f["c_x_rolling_model"] - 1)
         off_y = 100 * (f["c_y"] / f["c_y_coulomb_model"] - 1)
+        c_y_45 = diagonal[cone]["c_y"]
+        off_45 = 100 * (c_y_45 / f["c_y_coulomb_model"] - 1)
         rows.append([cone, f"{f['c_x']:.4f} ({off_x:+.1f} %)", f"{f['c_y']:.2f} ({off_y:+.2f} %)",
-                     f"{f['c_theta']:.3g}", *cells])
+                     f"{c_y_45:.2f} ({off_45:+.2f} %)", f"{f['c_theta']:.3g}", *cells])
     f = identified[CONES[0]]
     table(f"Cone fidelity: identified viscous model (identify_friction) against the contact "
           f"models, and RMS head error [% of body] over t >= 10 s of {count} runs of "
           f"{t_final:.0f} s from perturbed postures, median (10-90 %)",
-          ["cone", "c_x [N s/m] (vs rolling)", "c_y [N s/m] (vs Coulomb)", "c_theta [N m s]",
+          ["cone", "c_x [N s/m] (vs rolling)", "c_y [N s/m] (vs Coulomb)",
+           "c_y at 45 deg [N s/m] (vs Coulomb)", "c_theta [N m s]",
            *(f"RMS %, {label}" for label, _ in robots)], rows)
     print(f"\nReferences (snake_pin.engine.run.identify_friction): c_x against the rolling "
           f"model 2 b / r^2 = {f['c_x_rolling_model']:.4f} N s/m (axle damping b, wheel "
           f"radius r), c_y against the Coulomb equivalent 1.5 mu m g / v0 = "
           f"{f['c_y_coulomb_model']:.2f} N s/m (the least-squares viscous fit of a Coulomb "
-          f"deceleration from v0 = {f['speed']} m/s to rest). c_theta is the axle model "
+          f"deceleration from v0 = {f['speed']} m/s to rest). c_x and c_y: the straight "
+          "snake coasting along the world x axis (as the runs head); c_y at 45 deg: coasting "
+          "at 45 degrees to the world axes (identify_friction(heading=pi/4)), where a "
+          "faithful Coulomb contact gives the same c_y. c_theta is the axle model "
           "2 d^2 b / r^2 for both cones, not a fit: a link turning about its own CM rolls its "
           "wheels, and in a coast of the whole snake that torque is swamped by the sliding "
           "wheels' (about 1e-5 of it). Offsets of the initial joint angles: "

@@ -70,6 +70,23 @@ def test_pyramidal_cones_identify_a_looser_coulomb_equivalent() -> None:
     assert friction["c_x"] == pytest.approx(friction["c_x_rolling_model"], rel=0.1)
 
 
+def test_elliptic_cone_is_isotropic_the_pyramidal_cone_is_not() -> None:
+    """The straight snake coasting at 45 degrees to the world axes: with elliptic cones c_y
+    is the one identified along the axes (1e-6); the pyramidal cone's friction limit is a
+    square in the world's axes (|f_x| + |f_y| <= mu N), so sideways it is 15-35 % weaker
+    there (1 / sqrt 2 for hard contacts) while it matches the Coulomb model along them."""
+    along = {cone: identify_friction(wheels=WheelSpec(cone=cone))["c_y"]
+             for cone in ("elliptic", "pyramidal")}
+    diagonal = {cone: identify_friction(wheels=WheelSpec(cone=cone), heading=math.pi / 4)["c_y"]
+                for cone in ("elliptic", "pyramidal")}
+    assert diagonal["elliptic"] == pytest.approx(along["elliptic"], rel=1e-6)
+    assert 0.65 < diagonal["pyramidal"] / along["pyramidal"] < 0.85
+    assert identify_friction(heading=math.pi / 2)["c_y"] == pytest.approx(along["elliptic"],
+                                                                          rel=1e-6)
+    with pytest.raises(ParameterError, match="heading"):
+        identify_friction(heading=math.nan)
+
+
 def test_gait_servo_propels_the_engine_robot() -> None:
     """A serpenoid joint servo moves the wheeled robot head-first (> 0.5 m in 5 s)."""
     engine = build_engine_model()

@@ -25,15 +25,31 @@ top (a floor, gravity, a wheel pair per link, contacts, motors). Layout:
 Solver settings: 1 ms control period split into ``substeps`` engine steps (default 2,
 0.5 ms), implicit-fast integration, the sparse constraint Jacobian (set explicitly, see
 :data:`JACOBIAN`), elliptic friction cones with impratio 10 (stiffer, less creeping
-tangential constraints than the pyramidal default; coasting then gives the
-Coulomb-equivalent c_y to 0.1 %), condim 3 wheel contacts (sliding friction only; rolling
-about the axle is the hinge), soft contacts with solref (0.005, 1): critically damped at
-5 ms, well above the step.
+tangential constraints), condim 3 wheel contacts (sliding friction only; rolling about the
+axle is the hinge), soft contacts with solref (0.005, 1): critically damped at 5 ms, well
+above the step.
 
-``WheelSpec(cone="pyramidal")`` trades fidelity for speed: MuJoCo's step is cheaper
-still, and on MuJoCo 4.0 coasting identifies c_y 0.8 % above the Coulomb equivalent
-(elliptic: 0.04 %; c_x is 5 % under the rolling model with either cone). Its effect on
-the tracking is measured by ``scripts/bench.py --only engine``.
+The cone is chosen by the fidelity table of ``scripts/bench.py --only engine`` (MuJoCo
+4.0, 8-link ``engine`` robot; friction identified by
+:func:`~snake_pin.engine.run.identify_friction` against its references, the rolling model
+c_x = 2 b / r^2 = 0.0444 N s/m and the Coulomb equivalent c_y = 1.5 mu m g / v0 =
+61.36 N s/m; RMS head error over t >= 10 s of 7 runs of 60 s from initial joint angles
+offset by U(-1e-6, 1e-6) rad, median (10-90 %))::
+
+    cone       c_x            c_y            c_y at 45 deg  RMS %, all     RMS %, 5 passive
+    elliptic   0.0421 -5.2%   61.38 +0.04%   61.38 +0.04%   6.13 6.02-6.34  10.25 9.18-11.81
+    pyramidal  0.0420 -5.4%   61.86 +0.81%   45.58 -25.7%   5.62 5.12-5.78   8.70 8.18-10.37
+
+**Elliptic is the default**: it is the Coulomb contact the viscous model is identified
+from, at any heading. The pyramidal cone matches it only for a snake aligned with the
+world axes: its friction limit is a square in those axes (|f_x| + |f_y| <= mu N), so a
+link sliding at 45 degrees to them feels 26 % less sideways friction, and a serpentine
+gait sweeps its links through such headings; its lower tracking error is that weaker,
+heading-dependent friction, not a better model of the robot. Time of the 60 s run
+(control included, same bench run, interleaved with dc0b889's in worker processes):
+elliptic 7.6 s, 2.1x faster than dc0b889's 16.0 s (its default, elliptic on the dense
+Jacobian); pyramidal 4.9 s. ``WheelSpec(cone="pyramidal")`` remains for quick looks.
+c_theta = 2 d^2 b / r^2 (the axle model; 1.57e-4 N m s) is the same for both cones.
 """
 
 from __future__ import annotations
@@ -83,7 +99,8 @@ class WheelSpec:
     max_bend : float, optional
         Joint angle [rad] up to which wheels of neighbouring links must not overlap.
     cone : {"elliptic", "pyramidal"}, optional
-        MuJoCo friction cone; pyramidal is faster.
+        MuJoCo friction cone; elliptic is the Coulomb cone (the default, see the module
+        docstring), pyramidal is faster but its friction depends on the heading.
 
     Raises
     ------
@@ -171,6 +188,7 @@ class EngineModel:
 
     def __post_init__(self) -> None:
         self._chain_dofs = np.concatenate(([0, 1, 5], self.hinge_dof)).astype(int)
+        self._motors = np.array(self.actuated, dtype=int) - 1  # tau entries, motor order
 
     @property
     def body_mass(self) -> float:
@@ -270,7 +288,7 @@ class EngineModel:
         tau : numpy.ndarray, shape (n - 1,)
             Joint torques [N m], joint 1 first.
         """
-        self.data.ctrl[:] = [tau[k - 1] for k in self.actuated]
+        self.data.ctrl[:] = np.asarray(tau, dtype=float)[self._motors]
 
 
 def _wheel_geometry(params: SnakeParams, wheels: WheelSpec) -> np.ndarray:

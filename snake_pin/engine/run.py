@@ -88,11 +88,16 @@ class DirtyDerivative:
         return out
 
 
-def _coast(engine: EngineModel, velocity: tuple[float, float, float],
-           duration: float) -> tuple[np.ndarray, np.ndarray]:
-    """Straight snake given (vx, vy, yaw rate) in its own frame, coasting: (t, v) samples."""
-    engine.set_paper_configuration(np.zeros(engine.params.n + 2))
-    engine.data.qvel[0:2] = velocity[:2]
+def _coast(engine: EngineModel, velocity: tuple[float, float, float], duration: float,
+           heading: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Straight snake at ``heading`` given (vx, vy, yaw rate) in its own frame, coasting:
+    (t, v) samples, v the head's velocity in the snake's frame."""
+    q = np.zeros(engine.params.n + 2)
+    q[2] = heading
+    engine.set_paper_configuration(q)
+    c, s = math.cos(heading), math.sin(heading)
+    engine.data.qvel[0:2] = (c * velocity[0] - s * velocity[1],
+                             s * velocity[0] + c * velocity[1])
     engine.data.qvel[5] = velocity[2]
     # wheels spin as if rolling (no initial slip along the link)
     for b in range(engine.model.nbody):
@@ -103,10 +108,11 @@ def _coast(engine: EngineModel, velocity: tuple[float, float, float],
     mujoco.mj_forward(engine.model, engine.data)
     steps = int(duration / engine.model.opt.timestep)
     t, v = np.empty(steps), np.empty((steps, 2))
+    world = engine.data.qvel[0:2]
     for k in range(steps):
         mujoco.mj_step(engine.model, engine.data)
         t[k] = engine.data.time
-        v[k] = engine.data.qvel[0:2]
+        v[k] = (c * world[0] + s * world[1], c * world[1] - s * world[0])
     return t, v
 
 
@@ -117,7 +123,7 @@ def _viscous_fit(t: np.ndarray, v: np.ndarray, mass: float) -> float:
 
 
 def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | None = None,
-                      speed: float = 0.1) -> dict[str, Any]:
+                      speed: float = 0.1, heading: float = 0.0) -> dict[str, Any]:
     """Viscous c_x, c_y, c_theta per link fitted to the engine (see module docstring).
 
     Parameters
@@ -128,6 +134,10 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
         The wheels and contact settings (default :class:`WheelSpec`).
     speed
         The coasting speed v0 [m/s] along and across the body.
+    heading
+        The straight snake's heading [rad] while it coasts (the body's axis against the
+        world x axis). A faithful Coulomb contact gives the same fit at any heading; the
+        pyramidal cone does not (its friction limit is a square in the world's axes).
 
     Returns
     -------
@@ -146,16 +156,22 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
         wheels), c_y,i = c_y,total m_i / M (Coulomb sliding is proportional to the load a
         link puts on its wheels), c_theta,i = 2 d_i^2 b / r^2 with link i's own wheel
         offset d_i. ``c_y_coulomb_model`` is then the whole robot's (M = total mass).
+
+    Raises
+    ------
+    ParameterError
+        ``heading`` is not a finite number, or the wheels do not fit the robot.
     """
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
+    heading = finite_number(heading, "heading")
     engine = build_engine_model(params, wheels)
     b, r = wheels.rolling_damping, wheels.radius
     if params.uniform:
         mass = float(params.mass)  # type: ignore[arg-type]  # one number: equal links
-        t, v = _coast(engine, (speed, 0.0, 0.0), 2.0)
+        t, v = _coast(engine, (speed, 0.0, 0.0), 2.0, heading)
         c_x = _viscous_fit(t, v[:, 0], mass)
-        t, v = _coast(engine, (0.0, speed, 0.0), 0.2)
+        t, v = _coast(engine, (0.0, speed, 0.0), 0.2, heading)
         c_y = _viscous_fit(t, v[:, 1], mass)
         d = engine.wheel_offset
         return {"c_x": c_x, "c_y": c_y, "c_theta": 2 * d**2 * b / r**2,
@@ -163,9 +179,9 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
                 "c_y_coulomb_model": 1.5 * wheels.friction * mass * GRAVITY / speed,
                 "speed": speed}
     total = params.total_mass
-    t, v = _coast(engine, (speed, 0.0, 0.0), 2.0)
+    t, v = _coast(engine, (speed, 0.0, 0.0), 2.0, heading)
     c_x_total = _viscous_fit(t, v[:, 0], total)
-    t, v = _coast(engine, (0.0, speed, 0.0), 0.2)
+    t, v = _coast(engine, (0.0, speed, 0.0), 0.2, heading)
     c_y_total = _viscous_fit(t, v[:, 1], total)
     offsets = np.asarray(engine.wheel_offsets, dtype=float)
     return {"c_x": tuple([c_x_total / params.n] * params.n),
