@@ -176,18 +176,24 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
         self._neg_sqrt_w_u = -self._sqrt_w_u[:, None]
         self._diag_w_a = np.asfortranarray(np.diag(self._w_a))
         # time-only terms, per reference row [w_r, phi_r, w_r', phi_r', w_r'', phi_r'']:
-        # [w_r' + K_w1 w_r, phi_r,passive', phi_r,actuated']
-        law = np.zeros((3 * nq, m + k))
-        law[:3, :3] = self.k_w1.T
-        law[nq:nq + 3, :3] = np.eye(3)
-        law[nq + u[3:], np.arange(3, m)] = 1.0
-        law[nq + a, np.arange(m, m + k)] = 1.0
+        # [sqrt(W_u) (w_r' + K_w1 w_r, phi_r,passive'), W_a phi_r,actuated',
+        # phi_r,actuated'] (the weights applied here once, not per call)
+        sqrt_w = self._sqrt_w_u
+        law = np.zeros((3 * nq, m + 2 * k))
+        law[:3, :3] = self.k_w1.T * sqrt_w[:3]
+        law[nq:nq + 3, :3] = np.diag(sqrt_w[:3])
+        law[nq + u[3:], np.arange(3, m)] = sqrt_w[3:]
+        law[nq + a, np.arange(m, m + k)] = self._w_a
+        law[nq + a, np.arange(m + k, m + 2 * k)] = 1.0
+        self._k_w1_weighted = sqrt_w[:3, None] * self.k_w1  # sqrt(W_w) K_w1
+        self._joint_rates = nq + a  # indices of the actuated joints' velocities in x
         self._law_time = law
         self._m = m
         self._all_actuated = k == params.n - 1
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:
-        """Rows ``[w_r' + K_w1 w_r, phi_r,passive', phi_r,actuated']``, one per time.
+        """Rows ``[sqrt(W_u) [w_r' + K_w1 w_r, phi_r,passive'], W_a phi_r,actuated',
+        phi_r,actuated']``, one per time.
 
         Many times: the vectorised reference rows (:func:`reference_rows`) through the
         law's map; one time (a call at an unannounced time): the reference and the gait
@@ -198,11 +204,12 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
         t = float(times[0])
         w_r, dw_r, _ = self.reference(t)
         dphi_r = self.gait.derivatives(t)[1]
-        m = self._m
-        row = np.empty((1, m + len(self._a)))
-        row[0, :3] = self.k_w1 @ w_r + dw_r
-        row[0, 3:m] = dphi_r[self._u[3:] - 3]
-        row[0, m:] = dphi_r[self._a - 3]
+        m, k, sqrt_w = self._m, len(self._a), self._sqrt_w_u
+        row = np.empty((1, m + 2 * k))
+        row[0, :3] = sqrt_w[:3] * (self.k_w1 @ w_r + dw_r)
+        row[0, 3:m] = sqrt_w[3:] * dphi_r[self._u[3:] - 3]
+        row[0, m + k:] = dphi_r[self._a - 3]
+        row[0, m:m + k] = self._w_a * row[0, m + k:]
         return row
 
     def reset(self) -> None:
@@ -244,16 +251,15 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
 
     def _rate(self, x: np.ndarray, t: float) -> np.ndarray:
         """a'* at (x, t); keeps what V needs for :meth:`signals`."""
-        m = self._m
+        m, k = self._m, len(self._a)
         weighted = self._solved(x[:self.snake.nq]) * self._neg_sqrt_w_u  # sqrt(W_u) J
         time = self._time_row(t)
-        target_u = time[:m].copy()
-        target_u[:3] -= self.k_w1 @ x[:3]  # w_r' + K_w1 (w_r - w)
-        target_u *= self._sqrt_w_u
-        target_a = time[m:]
+        target_u = time[:m].copy()  # sqrt(W_u) [w_r' + K_w1 (w_r - w), phi_r,passive']
+        target_u[:3] -= self._k_w1_weighted @ x[:3]
         normal = blas.dsyrk(1.0, weighted, beta=1.0, c=self._diag_w_a, trans=1)
         rhs = weighted.T @ target_u
-        rhs += self._w_a * target_a
+        rhs += time[m:m + k]  # W_a phi_r,actuated'
+        target_a = time[m + k:]
         rate, info = lapack.dposv(normal, rhs, overwrite_a=1, overwrite_b=1)[1:]
         if info != 0:
             raise SingularPostureError(f"normal equations not positive definite (info {info})")
@@ -303,7 +309,7 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
         np.minimum(lead, max_lead, out=lead)
         np.maximum(lead, -max_lead, out=lead)
         self._reference_a = joints + lead
-        servo = rate - x[self.snake.nq + a]  # a new array: rate is kept for signals()
+        servo = rate - x[self._joint_rates]  # a new array: rate is kept for signals()
         servo *= self._k_d_a
         lead *= self._k_p_a
         lead += servo  # K_p (phi_ref - phi) + K_d (a'* - phi')
