@@ -4,13 +4,11 @@ without a passive joint, the isotropic contrast, and the lateral-constraint crit
 Owns one tracking run (:func:`run_tracking`) and its summary (:func:`tracking_summary`,
 shared with the lockstep route of :mod:`snake_pin.experiments.batched_sweeps`), the
 stage's runs (:func:`report_runs`) and the report stage (:func:`tracking_stage`), which
-hands every run to :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs` and
-writes each run's files as it finishes.
+hands every run to :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs`.
 """
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -384,28 +382,12 @@ def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun
     return runs
 
 
-def _write_run(traj: Trajectory, stem: str, animate: bool, folder: Path) -> dict[str, Any]:
-    """Save a run with files: trajectory, animation page, figures (and Fig. 15 for the
-    run without a passive joint). Returns what the section lists."""
-    traj.save(folder / stem)
-    written: dict[str, Any] = {"page": None, "lateral": None}
-    if animate:
-        from ..viz.meshcat_view import write_html
-
-        written["page"] = write_html(traj, folder / f"{stem}.html")
-    written["figures"] = plot_tracking(traj, folder, stem)
-    if stem == "tracking":
-        written["lateral"] = lateral_comparison(traj, folder / "lateral_criterion.png")
-    return written
-
-
 def tracking_stage(ctx) -> None:
     """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweep.
 
     Every run of the stage (:func:`report_runs`) goes to
     :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs` (single runs on
-    every core, or lockstep batches when there are enough runs per core); each run's files
-    are written as it finishes, while the others still run.
+    every core, or lockstep batches when there are enough runs per core).
 
     Parameters
     ----------
@@ -429,16 +411,7 @@ def tracking_stage(ctx) -> None:
              f" w_r = [0.1 t, 0, pi], the arc of (82) turned by pi. The robot '{base.name}' with"
              f" {friction}.")
     runs = report_runs(robot, t_final, own)
-    results: dict[int, Trajectory] = {}
-    written: dict[int, dict[str, Any]] = {}
-    jobs = [(r.params, r.t_final, r.options) for r in runs]
-    # closing: an interrupt while a run's files are written stops the workers at once
-    with contextlib.closing(iter_tracking_runs(jobs)) as finished:
-        for index, traj in finished:
-            results[index] = traj
-            stem = runs[index].stem
-            if stem is not None:
-                written[index] = _write_run(traj, stem, runs[index].animate, ctx.folder)
+    results = dict(iter_tracking_runs([(r.params, r.t_final, r.options) for r in runs]))
     rows, sweep_rows = [], []
     for index, run in enumerate(runs):
         traj = results[index]
@@ -448,11 +421,13 @@ def tracking_stage(ctx) -> None:
                                s["R_min"]])
             sec.numbers.setdefault("sweep", {})[run.label] = traj.summary_dict()
             continue
-        files = written[index]
-        if files["page"] is not None:
-            sec.link(files["page"].name,
-                     f"{run.label}: 3-D animation (meshcat, self-contained page)")
-        for key, path in files["figures"].items():
+        traj.save(ctx.folder / run.stem)
+        if run.animate:
+            from ..viz.meshcat_view import write_html
+
+            page = write_html(traj, ctx.folder / f"{run.stem}.html")
+            sec.link(page.name, f"{run.label}: 3-D animation (meshcat, self-contained page)")
+        for key, path in plot_tracking(traj, ctx.folder, run.stem).items():
             sec.figure(path, f"{run.label}: " + {"motion": "motion (Figs. 13/16)",
                                                   "criteria": "D and R (Figs. 14/17)",
                                                   "head": "head position and error"}[key])
@@ -460,8 +435,9 @@ def tracking_stage(ctx) -> None:
                      s["max_head_error"], s["R_min"], s["g_drift"]])
         sec.numbers[run.stem] = traj.summary_dict()
         ctx.options.setdefault("trajectories", {})[run.label] = ctx.folder / f"{run.stem}.npz"
-        if files["lateral"] is not None:
-            sec.numbers["lateral_criterion"] = files["lateral"]
+        if run.stem == "tracking":
+            lateral = lateral_comparison(traj, ctx.folder / "lateral_criterion.png")
+            sec.numbers["lateral_criterion"] = lateral
     sec.table(["run", "RMS head error [m]", "% of body", "max error [m]", "R min",
                "max |g - g(0)|"], rows)
     sec.text(f"Targets: RMS <= 5 % of the {robot.body_length:.4g} m body without a passive "
