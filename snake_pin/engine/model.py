@@ -44,8 +44,8 @@ offset by U(-1e-6, 1e-6) rad, median (10-90 %))::
 from, at any heading. The pyramidal cone matches it only for a snake aligned with the
 world axes: its friction limit is a square in those axes (|f_x| + |f_y| <= mu N), so a
 link sliding at 45 degrees to them feels 26 % less sideways friction, and a serpentine
-gait sweeps its links through such headings; its lower tracking error is that weaker,
-heading-dependent friction, not a better model of the robot. Time of the 60 s run
+gait sweeps its links through such headings; its lower tracking error comes with that
+weaker, heading-dependent friction, not with a better model of the robot. Time of the 60 s run
 (control included, same bench run, interleaved with dc0b889's in worker processes):
 elliptic 7.9 s, 2.10x (10-90 %: 2.08-2.10) faster than dc0b889's 16.7 s (its default,
 elliptic on the dense Jacobian); pyramidal 5.2 s. Of a 138 us control period (elliptic),
