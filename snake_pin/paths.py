@@ -60,9 +60,11 @@ answer, the LOS law's hot path), it searches a table of the path sampled every
 :data:`SAMPLE_STEP` or finer (built once per path, grown on demand) within
 :data:`HINT_RADIUS` of the hint and refines on the path's cubic expansion about the
 nearest sample (two Newton steps, in closed form: no call of the curve itself), which
-agrees with dense brute-force sampling to well below 1e-6 m. :func:`cross_track_error` is the signed distance (left of
-the direction of travel positive) and :func:`along_track` the arc length of the closest
-point, both vectorised.
+agrees with dense brute-force sampling to well below 1e-6 m; the LOS law's step
+(:meth:`Path._track`) also takes the closest point and its tangent angle from that
+expansion. :func:`cross_track_error` is the signed distance (left of the direction of
+travel positive) and :func:`along_track` the arc length of the closest point, both
+vectorised.
 
 Path files
 ----------
@@ -183,13 +185,14 @@ class PathPoint(NamedTuple):
 
 
 class _Samples(NamedTuple):
-    """The path sampled every ``h`` from ``s0``: points, frames, kappa, dkappa/ds, and the
-    offsets of the coarse and fine searches of :meth:`Path._project_near`."""
+    """The path sampled every ``h`` from ``s0``: points, frames, gamma, kappa, dkappa/ds,
+    and the offsets of the coarse and fine searches of :meth:`Path._project_near`."""
 
     s0: float
     h: float
     p: np.ndarray
     frame: np.ndarray
+    gamma: np.ndarray
     kappa: np.ndarray
     dkappa: np.ndarray
     coarse: np.ndarray
@@ -520,7 +523,7 @@ class Path(abc.ABC):
         # per sample [[t_x, -t_y], [t_y, t_x]]: d @ frame = [d . t, d . n]
         frame = np.stack((np.stack((tangent[:, 0], -tangent[:, 1]), -1),
                           np.stack((tangent[:, 1], tangent[:, 0]), -1)), axis=1)
-        table = _Samples(a, h, g.p, frame, g.kappa, g.dkappa,
+        table = _Samples(a, h, g.p, frame, g.gamma, g.kappa, g.dkappa,
                          stride * np.arange(-64, 65), np.arange(-stride, stride + 1))
         object.__setattr__(self, "_near_table", table)  # a cache, not a field
         return table
@@ -551,20 +554,9 @@ class Path(abc.ABC):
         k_lo = min(max(math.ceil((lo - s0) / h - 1e-9), 0), last) if lo > s0 else 0
         k_hi = max(min(math.floor((hi - s0) / h + 1e-9), last), k_lo) if hi < table.end \
             else last
-        stride = int(table.fine[-1])
         if len(points) == 1:  # one point (a controller's step): slices and floats
-            point = points[0]
-            centre = round((float(hint[0]) - s0) / h)
-            first = min(max(centre - 64 * stride, k_lo), k_hi)
-            near = table.p[first:max(min(centre + 64 * stride, k_hi), first) + 1:stride] - point
-            k = first + stride * int(np.einsum("ij,ij->i", near, near).argmin())
-            first = max(k - stride, k_lo)
-            near = table.p[first:min(k + stride, k_hi) + 1] - point
-            k = first + int(np.einsum("ij,ij->i", near, near).argmin())
-            a, b = ((point - table.p[k]) @ table.frame[k]).tolist()
-            sigma = _expansion_newton(a, b, float(table.kappa[k]), float(table.dkappa[k]), h,
-                                      _clip_float)
-            return np.array([min(max(s0 + k * h + sigma, lo), hi)])
+            return np.array([self._track_in(table, points[0], float(hint[0]), k_lo, k_hi, lo,
+                                            hi)[0]])
         rows = np.arange(len(points))
         window = np.rint((hint - s0) / h).astype(np.intp)[:, None] + table.coarse
         k_arr = window
@@ -579,6 +571,44 @@ class Path(abc.ABC):
         sigma_arr = _expansion_newton(a_arr, b_arr, table.kappa[k_arr], table.dkappa[k_arr],
                                       h, np.clip)
         return np.clip(s0 + k_arr * h + sigma_arr, lo, hi)
+
+    def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
+        """``(s, x_p, y_p, gamma)``: the closest point within :data:`HINT_RADIUS` of ``hint``.
+
+        One point, no span, no checks: the LOS law's step. ``s`` is
+        ``project((x, y), hint=hint)``; the point and its tangent angle come from the same
+        expansion (no evaluation of the curve itself); gamma is continuous like
+        :meth:`geometry`'s.
+        """
+        table = self._samples(hint - HINT_RADIUS, hint + HINT_RADIUS)
+        return self._track_in(table, np.array([x, y]), hint, 0, len(table.kappa) - 1,
+                              -math.inf, math.inf)
+
+    @staticmethod
+    def _track_in(table: _Samples, point: np.ndarray, hint: float, k_lo: int, k_hi: int,
+                  lo: float, hi: float) -> tuple[float, float, float, float]:
+        """:meth:`_project_near` for one point, on slices of the table and in floats."""
+        h, s0 = table.h, table.s0
+        stride = int(table.fine[-1])
+        centre = round((hint - s0) / h)
+        first = min(max(centre - 64 * stride, k_lo), k_hi)
+        near = table.p[first:max(min(centre + 64 * stride, k_hi), first) + 1:stride] - point
+        k = first + stride * int(np.einsum("ij,ij->i", near, near).argmin())
+        first = max(k - stride, k_lo)
+        near = table.p[first:min(k + stride, k_hi) + 1] - point
+        k = first + int(np.einsum("ij,ij->i", near, near).argmin())
+        x_k, y_k = table.p[k].tolist()
+        (t_x, _), (t_y, _) = table.frame[k].tolist()
+        kappa, dkappa = float(table.kappa[k]), float(table.dkappa[k])
+        a = (point[0] - x_k) * t_x + (point[1] - y_k) * t_y
+        b = (point[1] - y_k) * t_x - (point[0] - x_k) * t_y
+        base = s0 + k * h
+        sigma = min(max(base + _expansion_newton(a, b, kappa, dkappa, h, _clip_float), lo),
+                    hi) - base
+        along = sigma - kappa * kappa * sigma**3 / 6.0
+        side = sigma * sigma * (0.5 * kappa + dkappa * sigma / 6.0)
+        return (base + sigma, x_k + along * t_x - side * t_y, y_k + along * t_y + side * t_x,
+                float(table.gamma[k]) + sigma * (kappa + 0.5 * dkappa * sigma))
 
     def _newton(self, points: np.ndarray, s: np.ndarray, lo: float, hi: float,
                 max_step: float) -> np.ndarray:
@@ -692,6 +722,11 @@ class Line(Path):
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         return (self.start[0] + math.cos(self.direction) * s,
                 self.start[1] + math.sin(self.direction) * s, self.direction, 0.0, 0.0)
+
+    def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
+        s = (x - self.start[0]) * math.cos(self.direction) \
+            + (y - self.start[1]) * math.sin(self.direction)
+        return (s, *self._scalar(s)[:3])
 
     def project(self, points: object, *, span: tuple[float, float] | None = None,
                 hint: object = None) -> np.ndarray:
@@ -816,6 +851,10 @@ class Circle(Path):
 
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         return self._circle_scalar(s)
+
+    def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
+        s = float(self.project(np.array([x, y]), hint=hint))
+        return (s, *self._scalar(s)[:3])
 
     def default_span(self) -> tuple[float, float]:
         """Return the first lap, ``(0, 2 pi radius)``, searched by :meth:`project`.

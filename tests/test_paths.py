@@ -178,7 +178,8 @@ def _brute_force_projection(path: Path, point: np.ndarray, lo: float, hi: float)
 
 
 def test_fast_projection_equals_brute_force(path: Path, rng: np.random.Generator) -> None:
-    """Hinted (table + expansion) and global projections equal dense sampling to 1e-6."""
+    """Hinted (table + expansion) and global projections equal dense sampling to 1e-6;
+    the LOS step's point and tangent angle are the curve's at its s."""
     s = rng.uniform(0.1, min(path.length, 6.0) - 0.1, 8)
     g = path.geometry(s)
     points = g.p + rng.uniform(-0.15, 0.15, 8)[:, None] * g.normal
@@ -190,6 +191,12 @@ def test_fast_projection_equals_brute_force(path: Path, rng: np.random.Generator
         near = _brute_force_projection(path, points[k], hint[k] - 0.5, hint[k] + 0.5)
         assert fast[k] == pytest.approx(near, abs=1e-6)
         assert path.project(points[k], hint=hint[k]) == pytest.approx(near, abs=1e-6)
+        # the LOS step: the same s, and the point and tangent angle of the curve there
+        s_k, x_k, y_k, gamma_k = path._track(points[k, 0], points[k, 1], hint[k])
+        assert s_k == pytest.approx(near, abs=1e-6)
+        g_k = path.geometry(s_k)
+        assert (x_k, y_k) == pytest.approx(tuple(g_k.p), abs=1e-9)
+        assert gamma_k == pytest.approx(float(g_k.gamma), abs=1e-7)  # kappa'' sigma^3 / 6
         assert whole[k] == pytest.approx(_brute_force_projection(path, points[k], lo, hi),
                                          abs=1e-6)
 

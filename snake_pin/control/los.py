@@ -475,12 +475,12 @@ class LOSController(Controller):
         """
         p_cm, v_cm, psi, dpsi = _kinematics(self._lever, self.snake.nq, x)
         path = self.path
-        if self._s_cm is None:
+        if self._s_cm is None:  # a global search, then track the closest point
             s_cm = float(path.project(p_cm))
+            x_p, y_p, gamma, _, _ = path._scalar(s_cm)
         else:
-            s_cm = float(path.project(p_cm[None, :], hint=np.array([self._s_cm]))[0])
+            s_cm, x_p, y_p, gamma = path._track(float(p_cm[0]), float(p_cm[1]), self._s_cm)
         self._s_cm = s_cm
-        x_p, y_p, gamma, _, _ = path._scalar(s_cm)
         cross = (p_cm[0] - x_p) * -math.sin(gamma) + (p_cm[1] - y_p) * math.cos(gamma)
         v_t = float(v_cm[0] * math.cos(psi) + v_cm[1] * math.sin(psi))
         return {"e_ct": cross, "s_cm": s_cm, "theta_los": los_heading(gamma, cross,
