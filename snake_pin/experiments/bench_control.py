@@ -737,8 +737,7 @@ def _path_figure(result: BenchmarkResult, scenario: str, model: str, failed: int
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
         pct = row["head_ct_rms_pct"]
-        draws = f" (median of {row['draws']} draws; this: the median one)" \
-            if row["draws"] > 1 else ""
+        draws = f"\n(median of {row['draws']} draws, this one)" if row["draws"] > 1 else ""
         ax.set_title(f"{row['controller']}: {pct:.1f} %{draws}" if np.isfinite(pct)
                      else f"{row['controller']}: {row['status']}", fontsize=9)
     fig.suptitle(f"{scenario}: path (dashed), head, body every "
