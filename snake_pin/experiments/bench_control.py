@@ -829,11 +829,11 @@ def bench_control_stage(ctx: Any) -> None:
 
     Quick: line and circle 1L x lyapunov and los, 12 s, no failure, and one engine row
     (circle 1L, velocity law, 12 s, one draw). Full: :data:`REPORT_SCENARIOS` x every
-    built-in controller, with and without joint 5 failed, 60 s (about 3-4 minutes on 2
-    cores), and the engine rows: :data:`REPORT_ENGINE_SCENARIOS` with the velocity-level
-    law on the engine robot, :data:`REPORT_ENGINE_T` s runs (shorter than 60 s to keep
-    the stage within ~30 s more wall time), each the median of :data:`ENGINE_DRAWS`
-    perturbed starts.
+    built-in controller, with and without joint 5 failed, 60 s, and the engine rows:
+    :data:`REPORT_ENGINE_SCENARIOS` with the velocity-level law on the engine robot,
+    :data:`REPORT_ENGINE_T` s runs (shorter than 60 s to keep the stage within ~30 s more
+    wall time), each the median of :data:`ENGINE_DRAWS` perturbed starts. Measured on 2
+    cores: 142 s in all, the engine rows 14 s of it (35 s when the machine was loaded).
 
     Parameters
     ----------
