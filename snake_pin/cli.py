@@ -820,7 +820,13 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
 
 # --------------------------------------------------------------------- parser
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
-    from .experiments.bench_control import CONTROLLERS, SCENARIOS, run_benchmark, write_benchmark
+    from .experiments.bench_control import (
+        CONTROLLERS,
+        ENGINE_DRAWS,
+        SCENARIOS,
+        run_benchmark,
+        write_benchmark,
+    )
 
     _check_t_final(args.t_final, SIMULATE_DT)
     for name in args.scenario or []:
@@ -842,7 +848,8 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     result = run_benchmark(scenarios=args.scenario, controllers=controllers,
                            models=tuple(args.model or ("viscous",)),
                            failed=(None,) if args.no_failure else (None, 5),
-                           t_final=args.t_final, quick=args.quick)
+                           t_final=args.t_final, quick=args.quick,
+                           draws=args.draws or ENGINE_DRAWS)
     files = write_benchmark(result, out)
     payload = {"rows": result.table(), "files": {k: str(v) for k, v in files.items()}}
     return _Outcome(payload, f"wrote {', '.join(str(v) for v in files.values())}")
@@ -961,7 +968,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--law", choices=("velocity", "acceleration"), default="velocity",
                    help="form of the Lyapunov-like law (velocity level with servos by default)")
     p.add_argument("--cone", choices=("elliptic", "pyramidal"), default="elliptic",
-                   help="MuJoCo friction cone (pyramidal: about 2x faster, less faithful)")
+                   help="MuJoCo friction cone (default elliptic; pyramidal: faster, but its "
+                   "sideways friction depends on the heading, 26 %% weaker at 45 degrees)")
     p.add_argument("--seeds", type=_int_in(1, MAX_SEEDS), metavar="N",
                    help=f"run N times from perturbed initial postures, 1..{MAX_SEEDS}, and "
                    "report the distribution")
@@ -1025,6 +1033,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-failure", action="store_true", help="skip the runs with joint 5 failed")
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
                    help="duration of each run [s]")
+    p.add_argument("--draws", type=_int_in(1, 100), metavar="N",
+                   help="engine runs per cell from perturbed starts, 1..100 (the engine is "
+                   "chaotic: a cell reports their median and 10-90 %% range; default: "
+                   "bench_control.ENGINE_DRAWS)")
     p.add_argument("--quick", action="store_true", help="short runs of a few cells")
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")

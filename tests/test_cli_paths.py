@@ -140,6 +140,16 @@ def test_bench_control_quick_writes_its_table(tmp_path: Path, capsys) -> None:
     assert (tmp_path / "benchmark.csv").is_file()
 
 
+def test_bench_control_engine_draws_reach_the_cell(tmp_path: Path, capsys) -> None:
+    """bench-control --draws N runs N perturbed engine starts per cell (the row says so)."""
+    code, out, err = _run(["bench-control", "--model", "engine", "--scenario", "line",
+                           "--controller", "velocity", "--no-failure", "--t-final", "0.2",
+                           "--draws", "2", "-o", str(tmp_path), "--json"], capsys)
+    assert code == 0, err
+    (row,) = json.loads(out)["rows"]
+    assert (row["model"], row["draws"], row["status"]) == ("engine", 2, "completed")
+
+
 def test_study_subcommand_is_wired(tmp_path: Path, capsys) -> None:
     """`snake-pin study` refuses a bad study file in one line (exit 2) before running."""
     bad = tmp_path / "bad.toml"
