@@ -124,3 +124,26 @@ def test_report_runs_vary_one_setting_each() -> None:
     own = report_runs(mine, 11.0, own=True)[6:]
     assert [list(r.params.per_link("c_y")) for r in own] == [[10.0] * 10, [40.0] * 10]
     assert own[0].params.per_link("c_x").tolist() == [0.5] * 10
+
+
+def test_the_default_route_follows_the_studys_lockstep_rule(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """By default a worker's share goes lockstep from MIN_LOCKSTEP runs of one layout on
+    (the study's rule), below it one by one; another layout counts apart."""
+    import snake_pin.batch
+    from snake_pin.study.work import MIN_LOCKSTEP
+
+    batches: list[int] = []
+    original = snake_pin.batch.simulate_batch
+
+    def spy(robots: list[SnakeParams], *args: object, **kwargs: object) -> object:
+        batches.append(len(robots))
+        return original(robots, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(snake_pin.batch, "simulate_batch", spy)
+    job = (tracking_params(), 0.05, {})
+    other = (tracking_params(n=6), 0.05, {})
+    dict(iter_tracking_runs([job] * (MIN_LOCKSTEP - 1) + [other], workers=1))
+    assert batches == []
+    seen = dict(iter_tracking_runs([job] * MIN_LOCKSTEP + [other], workers=1))
+    assert batches == [MIN_LOCKSTEP] and seen[MIN_LOCKSTEP].params.n == 6
