@@ -7,8 +7,12 @@ commit in a subprocess) and the floor of the Pinocchio calls one step makes. The
 of a ratio are timed in interleaved rounds (A B A B ...), so that a neighbour's load hits
 both alike; each figure is the median over the rounds with its 10-90 % range.
 
-Usage: python scripts/bench.py [--quick] [--only dynamics,derivatives,manipulability,runs,engine]
-                               [--baseline COMMIT | --no-baseline]
+Usage: python scripts/bench.py [--quick]
+           [--only dynamics,derivatives,manipulability,runs,engine,reproduce]
+           [--baseline COMMIT | --no-baseline]
+
+``--only reproduce`` (not in the default set: it runs the whole report twice) times
+``snake-pin reproduce`` quiet and with the other core busy, alternately.
 """
 
 from __future__ import annotations
@@ -681,16 +685,81 @@ def bench_engine(budget: float, baseline: str | None = BASELINE) -> None:
     engine_fidelity(quick)
 
 
+#: The report's stages before issues 14 and 15 added theirs (issue 13's 150 s target).
+PAPER_STAGES = ("robot", "manipulability", "integrability", "pfl", "tracking", "engine")
+
+
+def _timed_reproduce(quick: bool) -> tuple[float, dict[str, float]]:
+    """Wall time of ``snake-pin reproduce`` in a fresh process and its stage times (from
+    its ``--verbose`` log)."""
+    import re
+    import shutil
+
+    folder = tempfile.mkdtemp(prefix="snake_pin_bench_reproduce_")
+    try:
+        command = [sys.executable, "-m", "snake_pin.cli", "reproduce", "-o", folder,
+                   "--verbose"] + (["--quick"] if quick else [])
+        start = time.perf_counter()
+        done = subprocess.run(command, capture_output=True, text=True, check=True)
+        wall = time.perf_counter() - start
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    stages = {m.group(1): float(m.group(2)) for m in
+              re.finditer(r"\] (\S+) done in ([0-9.]+) s", done.stderr)}
+    return wall, stages
+
+
+def bench_reproduce(budget: float) -> None:
+    """``snake-pin reproduce`` quiet and with the other core busy (a CPU-bound loop in
+    another process), alternately, and the busy/quiet ratio (issue 13, item 4)."""
+    quick = budget < 0.1
+    rounds = 1 if budget <= 0.2 else 2
+    walls: dict[str, list[float]] = {"quiet": [], "busy": []}
+    stages: dict[str, list[dict[str, float]]] = {"quiet": [], "busy": []}
+    for _ in range(rounds):
+        for condition in ("quiet", "busy"):
+            spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) \
+                if condition == "busy" else None
+            try:
+                wall, times = _timed_reproduce(quick)
+            finally:
+                if spinner is not None:
+                    spinner.kill()
+                    spinner.wait()
+            walls[condition].append(wall)
+            stages[condition].append(times)
+    names = list(stages["quiet"][0])
+    rows = []
+    for condition in ("quiet", "busy"):
+        per_stage = [statistics.median(t.get(name, math.nan) for t in stages[condition])
+                     for name in names]
+        paper = sum(v for name, v in zip(names, per_stage, strict=True)
+                    if name in PAPER_STAGES)
+        rows.append([condition, f"{statistics.median(walls[condition]):.1f}",
+                     f"{paper:.1f}"] + [f"{v:.1f}" for v in per_stage])
+    ratio = ratios(walls["busy"], walls["quiet"])
+    table(f"snake-pin reproduce{' --quick' if quick else ''}, wall time [s] "
+          f"(median of {rounds} alternating rounds)",
+          ["condition", "whole", "paper's stages", *names], rows)
+    print(f"\nbusy / quiet: {show(ratio, 2, 'x')}. Busy: a CPU-bound Python loop in another "
+          "process for the whole run. \"paper's stages\": "
+          f"{', '.join(PAPER_STAGES)} (issue 13's 150 s target; failure_map and "
+          "bench_control came later).")
+
+
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
                                                "derivatives": bench_derivatives,
                                                "manipulability": bench_manipulability,
-                                               "runs": bench_runs, "engine": bench_engine}
+                                               "runs": bench_runs, "engine": bench_engine,
+                                               "reproduce": bench_reproduce}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter timing batches")
-    parser.add_argument("--only", default=",".join(BENCHES), help="comma-separated benches")
+    parser.add_argument("--only", default=",".join(n for n in BENCHES if n != "reproduce"),
+                        help="comma-separated benches (default all but reproduce, which runs "
+                        "the whole report twice: quiet and with the other core busy)")
     parser.add_argument("--baseline", default=BASELINE,
                         help=f"commit the runs and the engine compare to ({BASELINE})")
     parser.add_argument("--no-baseline", action="store_true",
