@@ -57,6 +57,25 @@ def test_user_controller_class_runs_from_the_command_line(tmp_path: Path, capsys
     assert np.all(traj.tau == 0.0) and traj.meta["controller"] == "still"
 
 
+def test_readme_controller_joins_the_benchmark(tmp_path: Path, capsys, monkeypatch) -> None:
+    """The README's my_law.py, named my_law:FastHead, runs in bench-control beside the
+    built-in law with its own gains (lambda = 20/s, not 10/s: the rows differ)."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    code = readme.split("```python\n# my_law.py\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "my_law.py").write_text(code)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    sys.modules.pop("my_law", None)
+    status, out, err = _run(["bench-control", "--controller", "lyapunov", "--controller",
+                             "my_law:FastHead", "--scenario", "circle_1L", "--no-failure",
+                             "--t-final", "12", "-o", str(tmp_path / "bench"), "--json"],
+                            capsys)
+    assert status == 0, err
+    rows = {row["controller"]: row for row in json.loads(out)["rows"]}
+    assert set(rows) == {"lyapunov", "my_law:FastHead"}
+    assert all(row["status"] == "completed" for row in rows.values())
+    assert rows["lyapunov"]["torque_rms"] != rows["my_law:FastHead"]["torque_rms"]
+
+
 @pytest.mark.parametrize("argv, fragment", [
     (["--controller", "nope:Missing"], "cannot import"),
     (["--controller", "snake_pin.params:SnakeParams"], "not a snake_pin Controller"),
