@@ -631,9 +631,6 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
     wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu, cone=args.cone)
     _check_t_final(args.t_final, wheels.control_dt)
     reference = _path_reference(args)  # a bad path: refused here, before any folder
-    if reference is not None and args.seeds is not None:
-        raise UsageError("argument --seeds: not with --path yet (the distribution's metrics "
-                         "are the straight line's); run --path once per draw")
     out = _output_folder(args.output)
     build_engine_model(params, wheels)  # wheels that do not fit the robot: refused here
     from .engine.run import identify_friction, run_engine
@@ -642,7 +639,7 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
     out.mkdir(parents=True, exist_ok=True)
     friction = identify_friction(params.replace(passive=()), wheels)
     if args.seeds is not None:
-        return _engine_seeds(args, params, wheels, friction, out)
+        return _engine_seeds(args, params, wheels, friction, out, reference)
     try:
         run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
                          law=args.law, reference=reference, progress=_progress(args))
@@ -680,8 +677,11 @@ def _engine_on_path(run: Any, reference: Any, friction: dict[str, Any],
 
 
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
-                  friction: dict[str, Any], out: Path) -> _Outcome:
+                  friction: dict[str, Any], out: Path, reference: Any = None) -> _Outcome:
     """``engine --seeds N``: N runs from perturbed initial joint angles, as a distribution.
+
+    With ``--path`` every run follows that path (``reference``), and the head error of the
+    distribution is the distance to the reference's point at the same time.
 
     Every run is saved as it finishes (``engine_seedK``); the figures show the median run;
     ``engine_seeds.json`` holds the settings, every run's offset and summary, and each
@@ -701,7 +701,8 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     width = len(str(args.seeds))
     stems = [f"engine_seed{k + 1:0{width}d}" for k in range(args.seeds)]
     jobs = [(engine_draw, (params, offset), {"wheels": wheels, "t_final": args.t_final,
-                                             "friction": friction, "law": args.law})
+                                             "friction": friction, "law": args.law,
+                                             "reference": reference})
             for offset in draws.offsets]
     bar, interrupted = None, False
     if _progress(args):
@@ -723,10 +724,13 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     median = draws.median_draw()
     if median is not None:
         traj = Trajectory.load(out / f"{stems[median]}.npz")
-        files += [str(p) for p in plot_engine(traj, None, out, "engine").values()]
+        files += [str(p) for p in plot_engine(traj, None, out, "engine",
+                                              reference).values()]
     data = {"status": "interrupted" if interrupted else "completed", "robot": params.name,
             "law": args.law, "t_final": args.t_final, "friction": friction,
             **draws.to_dict()}
+    if reference is not None:
+        data["path"] = repr(reference)
     if median is not None:
         data["median_run"] = stems[median]
     table = out / "engine_seeds.json"

@@ -11,7 +11,7 @@ from .manipulability import manipulability
 from .model import Snake
 
 if TYPE_CHECKING:
-    from .control.reference import LinearReference
+    from .control.reference import HeadReference
     from .sim import Trajectory
 
 __all__ = ["ERROR_WINDOW", "criteria_along", "error_caption", "head_error_summary",
@@ -21,16 +21,16 @@ __all__ = ["ERROR_WINDOW", "criteria_along", "error_caption", "head_error_summar
 ERROR_WINDOW = 10.0
 
 
-def head_position_error(traj: Trajectory, reference: LinearReference) -> np.ndarray:
+def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarray:
     """Return the head position error ``|(x_h, y_h) - (x_h^r, y_h^r)|`` at every sample.
 
     Parameters
     ----------
     traj : Trajectory
         A finished (or stopped) run: ``traj.t`` has shape (N,), ``traj.q`` (N, n + 2).
-    reference : LinearReference
-        The head reference the run tracked; ``reference(t)[0][:2]`` is
-        ``(x_h^r, y_h^r)`` [m].
+    reference : HeadReference
+        The head reference the run tracked (a line, or a path with its timing);
+        ``reference(t)[0][:2]`` is ``(x_h^r, y_h^r)`` [m].
 
     Returns
     -------

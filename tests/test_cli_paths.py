@@ -139,12 +139,25 @@ def test_simulate_and_engine_refuse_the_same_bad_paths(command: str, argv: list[
     assert not out_dir.exists()
 
 
-def test_engine_path_with_seeds_is_refused(tmp_path: Path, capsys) -> None:
-    """engine --path with --seeds: one line, exit 2 (the distribution is the line's)."""
-    code, out, err = _run(["engine", "--path", "circle", "--seeds", "2", "-o",
-                           str(tmp_path / "never")], capsys)
-    assert code == 2 and out == "" and "--seeds" in err
-    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "never").exists()
+def test_engine_path_with_seeds_runs_each_draw_on_that_path(tmp_path: Path, capsys) -> None:
+    """engine --path circle --seeds 2: each draw is run_engine(reference=that circle,
+    initial_offset=its offset) bit for bit, and the distribution names the path."""
+    from snake_pin.engine.run import run_engine
+    from snake_pin.experiments.engine import PERTURBATION, perturbations
+    from snake_pin.params import SnakeParams
+
+    code, out, err = _run(["engine", "--path", "circle", "--seeds", "2", "--t-final", "0.3",
+                           "-o", str(tmp_path), "--json"], capsys)
+    assert code == 0, err
+    reference = load_path("circle")
+    assert json.loads(out)["path"] == repr(reference)
+    offsets = perturbations(2, 7, PERTURBATION, seed=0)
+    for k, offset in enumerate(offsets, start=1):
+        traj = Trajectory.load(tmp_path / f"engine_seed{k}.npz")
+        assert traj.meta["reference"] == repr(reference)
+        direct = run_engine(SnakeParams.engine(), t_final=0.3, reference=reference,
+                            initial_offset=offset).trajectory
+        np.testing.assert_array_equal(traj.q, direct.q)
 
 
 def test_bench_control_quick_writes_its_table(tmp_path: Path, capsys) -> None:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
+from ..control.reference import HeadReference
 from ..engine.model import WheelSpec
 from ..engine.run import EngineRun, identify_friction, run_engine
 from ..exceptions import ParameterError
@@ -65,16 +66,21 @@ METRICS: dict[str, str] = {
 }
 
 
-def summarize(traj: Trajectory, *, every: int = 10) -> dict[str, object]:
+def summarize(traj: Trajectory, *, every: int = 10,
+              reference: HeadReference | None = None) -> dict[str, object]:
     """Head errors and torques over t >= 10 s, D and R from the (estimated) state.
 
     Parameters
     ----------
     traj
-        A head-tracking run along w_r = [0.1 t, 0, pi] (engine or viscous model). Its
-        ``signals`` get ``head_error`` and its ``meta`` the ``criteria`` (t, D, R).
+        A head-tracking run (engine or viscous model). Its ``signals`` get
+        ``head_error`` and its ``meta`` the ``criteria`` (t, D, R).
     every
         D and R are evaluated at every ``every``-th sample.
+    reference
+        The head reference the run tracked (default the straight line
+        w_r = [0.1 t, 0, pi] of :func:`~snake_pin.control.head_first_reference`); the head
+        error is the distance to its point at the same time.
 
     Returns
     -------
@@ -85,8 +91,8 @@ def summarize(traj: Trajectory, *, every: int = 10) -> dict[str, object]:
         actuated joints [N m]; None for a run shorter than the window), R_min, D_min,
         body_length, passive, final_head.
     """
-    reference = head_first_reference()
-    error = head_position_error(traj, reference)
+    error = head_position_error(
+        traj, head_first_reference() if reference is None else reference)
     t_c, d, r = criteria_along(traj, every=every)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
@@ -330,7 +336,7 @@ def _cell(dist: dict[str, Any]) -> str:
 
 def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None, *,
                 wheels: WheelSpec, t_final: float, friction: dict[str, Any],
-                law: str = "velocity") -> EngineRun:
+                law: str = "velocity", reference: HeadReference | None = None) -> EngineRun:
     """One engine run from the arc of (82) with ``offset`` added to its joint angles.
 
     A job for :mod:`snake_pin.experiments.parallel` (module-level, picklable).
@@ -349,6 +355,9 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
         The identified viscous model (:func:`~snake_pin.engine.run.identify_friction`).
     law
         "velocity" or "acceleration" (see :func:`~snake_pin.engine.run.run_engine`).
+    reference
+        The head reference (default the straight line of
+        :func:`~snake_pin.control.head_first_reference`).
 
     Returns
     -------
@@ -356,8 +365,8 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
         The run, its trajectory passed through :func:`summarize`.
     """
     run = run_engine(params, wheels=wheels, t_final=t_final, friction=friction, law=law,
-                     initial_offset=offset)
-    summarize(run.trajectory)
+                     initial_offset=offset, reference=reference)
+    summarize(run.trajectory, reference=reference)
     return run
 
 
@@ -395,7 +404,7 @@ def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
 
 
 def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Path,
-                stem: str) -> dict[str, Path]:
+                stem: str, reference: HeadReference | None = None) -> dict[str, Path]:
     """Figs. 19 (head vs reference), 20 (D, R), 21 (snapshots), and the side by side.
 
     Parameters
@@ -409,6 +418,9 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
         Where the PNGs go.
     stem
         Their file-name prefix.
+    reference
+        The head reference the run tracked (default the straight line of
+        :func:`~snake_pin.control.head_first_reference`), drawn beside the head.
 
     Returns
     -------
@@ -424,8 +436,11 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
     fig, ax = plt.subplots(figsize=(8, 4))
     ax.plot(traj.t, traj.q[:, 0], "-", label="x_h")
     ax.plot(traj.t, traj.q[:, 1], "--", label="y_h")
-    ax.plot(traj.t, 0.1 * traj.t, ":", color="k", label="x_h^r")
-    ax.plot(traj.t, 0 * traj.t, ":", color="gray", label="y_h^r")
+    if reference is None:
+        reference = head_first_reference()
+    target = np.array([reference(float(t))[0][:2] for t in traj.t])
+    ax.plot(traj.t, target[:, 0], ":", color="k", label="x_h^r")
+    ax.plot(traj.t, target[:, 1], ":", color="gray", label="y_h^r")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("[m]")
     ax.legend(fontsize=8)
@@ -451,7 +466,8 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
         i = min(int(np.searchsorted(traj.t, t)), len(traj) - 1)
         draw_snake(ax, snake, traj.q[i], alpha=0.35 + 0.65 * k / 6)
     ax.plot(traj.q[:, 0], traj.q[:, 1], color="#d9541a", lw=0.8)
-    ax.plot([0, 0.1 * traj.t_end], [0, 0], "k--", lw=1)
+    ax.plot(target[:, 0], target[:, 1], "k--", lw=1)
+    ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     ax.set_title("Snapshots of the engine run (Fig. 21)", fontsize=10)
     save_figure(fig, paths["snapshots"])
@@ -461,7 +477,7 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
         fig, axes = plt.subplots(1, 2, figsize=(12, 4))
         axes[0].plot(traj.q[:, 0], traj.q[:, 1], label="MuJoCo, wheels (Coulomb)")
         axes[0].plot(twin.q[:, 0], twin.q[:, 1], label="Pinocchio, viscous (identified)")
-        axes[0].plot([0, 0.1 * traj.t_end], [0, 0], "k--", lw=1, label="reference")
+        axes[0].plot(target[:, 0], target[:, 1], "k--", lw=1, label="reference")
         axes[0].set_xlabel("x [m]")
         axes[0].set_ylabel("y [m]")
         axes[0].set_aspect("equal", adjustable="datalim")
