@@ -39,9 +39,10 @@ from ..sim import Trajectory
 from .parallel import Job, iter_jobs
 from .tracking import initial_state, run_tracking, tracking_meta, tracking_summary
 
-__all__ = ["TrackingJob", "iter_tracking_runs", "run_tracking_batch"]
+__all__ = ["iter_tracking_runs", "run_tracking_batch"]
 
-#: One run: (robot, t_final [s], LyapunovController options such as ``lam``).
+#: One run: (robot, t_final [s], LyapunovController options such as ``lam``). Not in
+#: ``__all__``: autodoc cannot document a ``tuple[...]`` alias (the functions show it).
 TrackingJob = tuple[SnakeParams, float, Mapping[str, float]]
 
 
