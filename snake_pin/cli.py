@@ -958,7 +958,9 @@ def build_parser() -> argparse.ArgumentParser:
                        "% of the body length, R min or R~ min, torque RMS). Every run is saved "
                        "(engine_seedK), the figures show the median run, engine_seeds.json "
                        "holds the distribution. --path NAME|FILE follows a path (as simulate "
-                       "--path; one run, with the path metrics in its summary).")
+                       "--path): one run with the path metrics in its summary, or with --seeds "
+                       "N draws on that path, the head error measured to the reference's "
+                       "point at the same time).")
     p.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default engine")
     _path_options(p)
     p.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],

@@ -361,6 +361,13 @@ class Path(abc.ABC):
     #: Identifier used in file names and summaries.
     name: str = "path"
 
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickle a shape by its parameters only: unpickling builds it again, tables and
+        caches included (they hold local functions, and the projection cache can be
+        large), so a path goes to worker processes whole and small."""
+        return type(self), tuple(getattr(self, f.name) for f in fields(self)  # type: ignore[arg-type]
+                                 if f.init)
+
     @property
     def length(self) -> float:
         """Length of the curve [m] (``math.inf`` if unbounded; one lap for a circle)."""

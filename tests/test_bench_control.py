@@ -196,6 +196,36 @@ def test_engine_cell_is_the_median_of_its_draws(controller: str, failed: int | N
     assert row["body_length"] == pytest.approx(1.408)
 
 
+def test_engine_cell_reports_the_draw_that_stopped(monkeypatch) -> None:
+    """One of three engine draws stopping at 0.1 s: the cell is "diverged" at 0.1 s (that
+    draw's time, not the median draw's), its reason counts it, t_end is the median."""
+    import snake_pin.engine.run as engine_run
+
+    original, calls = engine_run.run_engine, []
+
+    def third_stops(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            run = original(*args, **{**kwargs, "t_final": 0.1})
+            run.trajectory.status = "diverged"
+            run.trajectory.reason = "diverged at t = 0.1000 s: test"
+            return run
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(engine_run, "run_engine", third_stops)
+    row = bc.run_cell("line", "velocity", "engine", t_final=0.3, draws=3, criteria_dt=None)
+    assert len(calls) == 3 and row["draws"] == 3
+    assert row["status"] == "diverged" and row["reason"].startswith("1 of 3 draws: diverged")
+    assert row["diverged_at"] == pytest.approx(0.1) and row["t_end"] == pytest.approx(0.3)
+
+
+def test_cells_refuse_bad_draws() -> None:
+    """run_cell refuses draws that are not a positive integer, as run_benchmark does."""
+    for bad in (0, -3, 1.5, True):
+        with pytest.raises(ParameterError, match="draws"):
+            bc.run_cell("line", "velocity", "engine", t_final=0.1, draws=bad)
+
+
 def test_engine_cells_of_other_laws_are_not_applicable() -> None:
     """PFL, LOS and user factories on the engine: a "not applicable" row, no run."""
     for controller, factory in (("pfl", None), ("los", None),

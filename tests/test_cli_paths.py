@@ -139,17 +139,20 @@ def test_simulate_and_engine_refuse_the_same_bad_paths(command: str, argv: list[
     assert not out_dir.exists()
 
 
-def test_engine_path_with_seeds_runs_each_draw_on_that_path(tmp_path: Path, capsys) -> None:
-    """engine --path circle --seeds 2: each draw is run_engine(reference=that circle,
-    initial_offset=its offset) bit for bit, and the distribution names the path."""
+@pytest.mark.parametrize("path", ["circle", "lane_change"])
+def test_engine_path_with_seeds_runs_each_draw_on_that_path(path: str, tmp_path: Path,
+                                                            capsys) -> None:
+    """engine --path P --seeds 2 (the draws run in worker processes): each draw is
+    run_engine(reference=P, initial_offset=its offset) bit for bit, and the distribution
+    names the path."""
     from snake_pin.engine.run import run_engine
     from snake_pin.experiments.engine import PERTURBATION, perturbations
     from snake_pin.params import SnakeParams
 
-    code, out, err = _run(["engine", "--path", "circle", "--seeds", "2", "--t-final", "0.3",
+    code, out, err = _run(["engine", "--path", path, "--seeds", "2", "--t-final", "0.3",
                            "-o", str(tmp_path), "--json"], capsys)
     assert code == 0, err
-    reference = load_path("circle")
+    reference = load_path(path)
     assert json.loads(out)["path"] == repr(reference)
     offsets = perturbations(2, 7, PERTURBATION, seed=0)
     for k, offset in enumerate(offsets, start=1):

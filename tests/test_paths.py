@@ -201,6 +201,22 @@ def test_fast_projection_equals_brute_force(path: Path, rng: np.random.Generator
                                          abs=1e-6)
 
 
+def test_paths_pickle_small_and_whole(path: Path, rng: np.random.Generator) -> None:
+    """A path pickles by its parameters (small, even after projections filled its cache)
+    and the copy gives the same reference and projections (worker processes get it)."""
+    import pickle
+
+    path.project(np.array([[0.3, 0.2]]), hint=np.array([0.3]))  # fills the hinted cache
+    data = pickle.dumps(PathReference(path, Timing(speed=0.1)))
+    copy = pickle.loads(data)
+    assert len(data) < 2000
+    for t in rng.uniform(0.0, 40.0, 5):
+        for a, b in zip(PathReference(path, Timing(speed=0.1))(t), copy(t), strict=True):
+            np.testing.assert_array_equal(a, b)
+    points = rng.uniform(-1.0, 2.0, (4, 2))
+    np.testing.assert_array_equal(path.project(points), copy.path.project(points))
+
+
 def test_timing_ramp_is_smooth() -> None:
     """The ramp starts at rest, reaches v at T with s'' = 0 there, and s = v (t - T/2) after."""
     timing = Timing(speed=0.2, ramp=3.0, start=1.0)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -113,12 +115,13 @@ def test_link_without_friction_is_named() -> None:
 
 
 def _straightforward_torques(ctrl: QuasiStaticLyapunovController, states: list[np.ndarray],
-                             times: list[float]) -> list[np.ndarray]:
-    """The law evaluated directly: C(q) from FrictionModel.matrix, numpy solves, np.clip."""
+                             times: list[float]) -> tuple[list[np.ndarray], list[float]]:
+    """The law evaluated directly: C(q) from FrictionModel.matrix, numpy solves, np.clip;
+    the torques and V at each command."""
     snake = ctrl.snake
     nq, u, a = snake.nq, ctrl._u, ctrl._a
     w_u, w_a = ctrl._w_u, ctrl._w_a
-    reference_a, out = None, []
+    reference_a, out, values = None, [], []
     for x, t in zip(states, times, strict=True):
         c = snake.friction.matrix(x[:nq])
         jac = -np.linalg.solve(c[np.ix_(u, u)], c[np.ix_(u, a)])
@@ -128,6 +131,8 @@ def _straightforward_torques(ctrl: QuasiStaticLyapunovController, states: list[n
         target_a = dphi_r[a - 3]
         normal = jac.T @ np.diag(w_u) @ jac + np.diag(w_a)
         rate = np.linalg.solve(normal, jac.T @ (w_u * target_u) + w_a * target_a)
+        residual_u, residual_a = jac @ rate - target_u, rate - target_a
+        values.append(float(residual_u @ (w_u * residual_u) + residual_a @ (w_a * residual_a)))
         joints = x[a]
         if reference_a is None:
             reference_a = joints.copy()
@@ -136,7 +141,7 @@ def _straightforward_torques(ctrl: QuasiStaticLyapunovController, states: list[n
         tau = np.zeros(snake.n - 1)
         tau[a - 3] = ctrl.k_p[a - 3] * lead + ctrl.k_d[a - 3] * (rate - x[nq + a])
         out.append(tau)
-    return out
+    return out, values
 
 
 @pytest.mark.parametrize("params", [SnakeParams.engine(c_x=0.04, c_y=60.0, c_theta=1.6e-4),
@@ -156,10 +161,12 @@ def test_torque_equals_a_straightforward_evaluation(params: SnakeParams, prepare
         ctrl.prepare(np.array(times))
     states = [head_first_state(rng, snake.n, spread=0.2, joints=1.0, speed=0.3)
               for _ in times]
-    expected = _straightforward_torques(ctrl, states, times)
-    for x, t, tau in zip(states, times, expected, strict=True):
+    expected, values = _straightforward_torques(ctrl, states, times)
+    for x, t, tau, value in zip(states, times, expected, values, strict=True):
         got = ctrl(x, t)
         assert got.shape == (snake.n - 1,)
         assert np.abs(got - tau).max() <= 1e-10 * max(1.0, np.abs(tau).max())
-        assert ctrl.signals()["V"] == pytest.approx(ctrl.velocity_command(x, t)[1], rel=1e-12)
+        assert ctrl.signals()["V"] == pytest.approx(value, rel=1e-9, abs=1e-12)
     assert np.abs(np.array(expected)).max() > 0.01  # the torques are not trivially zero
+    ctrl.reset()
+    assert math.isnan(ctrl.signals()["V"])  # reset forgets the last call

@@ -223,8 +223,9 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
         return row
 
     def reset(self) -> None:
-        """Forget the integrated joint reference before a new run."""
+        """Forget the integrated joint reference and the last call before a new run."""
         self._reference_a = None
+        self._last = None
 
     def connection(self, q: np.ndarray) -> np.ndarray:
         """``J(q)`` with ``u' = J a'`` (rows: x_h, y_h, theta_1, passive phi; columns: actuated).

@@ -326,12 +326,15 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                  t_final: float, factory: ControllerFactory | None,
                  criteria_dt: float | None, draws: int,
                  robot: SnakeParams | None) -> dict[str, Any]:
-    """An engine cell: ``draws`` perturbed starts, each metric's median over them.
+    """An engine cell: ``draws`` perturbed starts, the error metrics' medians over them.
 
     The draws' offsets are :func:`~snake_pin.experiments.engine.perturbations` (seed 0,
     half-width :data:`~snake_pin.experiments.engine.PERTURBATION`); one draw is the
-    unperturbed start. The row's snapshots, head path and criteria are the median
-    draw's (by head cross-track RMS); ``head_ct_rms_pct_p10``/``p90`` give the spread.
+    unperturbed start. The head and CM errors and the torque RMS are medians over the
+    draws; the row's snapshots, head path and criteria (R, R~, lateral) are the median
+    draw's (by head cross-track RMS); ``head_ct_rms_pct_p10``/``p90`` give the spread;
+    ``t_end`` is the median end time, and when a draw stops early the status, reason and
+    ``diverged_at`` are those of the first draw to stop.
     """
     from ..engine.run import identify_friction, run_engine
     from .engine import PERTURBATION, distribution, perturbations
@@ -373,15 +376,22 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                 "head_error_rms", "cm_ct_rms", "torque_rms"):
         value = distribution([m[key] for _, m in runs])["median"]
         row[key] = math.nan if value is None else value
-    bad = [t for t, _ in runs if t.status != "completed"]
-    status = "completed" if not bad else bad[0].status
+    bad = sorted((t for t, _ in runs if t.status != "completed"), key=lambda t: t.t_end)
+    status = "completed" if not bad else bad[0].status  # the first draw to stop
     reason = "" if not bad else f"{len(bad)} of {len(runs)} draws: {bad[0].reason}"
     _finish(row, traj, status, reason)
     row.update(draws=len(runs),
                head_ct_rms_pct_p10=math.nan if spread["p10"] is None else spread["p10"],
                head_ct_rms_pct_p90=math.nan if spread["p90"] is None else spread["p90"],
-               t_end=float(np.median([t.t_end for t, _ in runs])))
+               t_end=float(np.median([t.t_end for t, _ in runs])),
+               diverged_at=float(bad[0].t_end) if bad and status in ("diverged", "failed")
+               else math.nan)
     return row
+
+
+def _check_draws(draws: object) -> None:
+    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
+        raise ParameterError(f"draws must be a positive integer, got {draws!r}")
 
 
 def _finish(row: dict[str, Any], traj: Trajectory, status: str, reason: str) -> None:
@@ -443,10 +453,12 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     Raises
     ------
     ParameterError
-        An unknown scenario, model or controller (without a ``factory``).
+        An unknown scenario, model or controller (without a ``factory``), or draws not a
+        positive integer.
     """
     if model not in MODELS:
         raise ParameterError(f"unknown model {model!r} (expected one of {', '.join(MODELS)})")
+    _check_draws(draws)
     wall = time.perf_counter()
     params = robot if robot is not None else tracking_params()
     if failed:
@@ -593,8 +605,7 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         An unknown scenario, controller or model, a non-positive t_final, or draws not
         a positive integer.
     """
-    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
-        raise ParameterError(f"draws must be a positive integer, got {draws!r}")
+    _check_draws(draws)
     if quick:
         scenarios = scenarios or ("line", "circle_1L")
         controllers = controllers or ("lyapunov", "los")
