@@ -187,7 +187,8 @@ class PFLController(_ReferenceTimeTerms, Controller):
         """``q''`` of the last call, if ``snake`` is the robot this law models.
 
         It is ``[a; H22^-1 (tau - h2 - H21 a)]`` (``w'' = a`` holds there: R > r_min was
-        checked).
+        checked). The array is the controller's own buffer, valid until its next call
+        (as :meth:`Controller.plant_acceleration` allows): copy it to keep it.
 
         Parameters
         ----------
