@@ -505,20 +505,24 @@ class Path(abc.ABC):
             .reshape(pts.shape[:-1])
 
     def _samples(self, lo: float, hi: float) -> _Samples:
-        """The path sampled over at least [lo, hi], built once and grown when asked beyond.
+        """The path sampled over at least [lo, hi], built once and moved when asked beyond.
 
         The first table covers :meth:`default_span` (and [lo, hi]); a request beyond it
-        rebuilds it wider by half its length (at least 2 m) on that side, so a point
-        moving along an unbounded path costs a rebuild now and then, not every step.
-        Spacing: :data:`SAMPLE_STEP`, or 0.05 / max |kappa| where the path bends tighter.
+        builds a new window around [lo, hi], reaching half the old window's length (at
+        least 2 m) beyond it on each side, so a point moving along an unbounded path costs
+        a rebuild now and then, not every step, and the table's size stays bounded
+        however far the point goes. Spacing: :data:`SAMPLE_STEP`, or 0.05 / max |kappa|
+        where the path bends tighter.
         """
         table: _Samples | None = self.__dict__.get("_near_table")
         if table is not None and table.s0 <= lo and table.end >= hi:
             return table
-        a, b = self.default_span() if table is None else (table.s0, table.end)
-        grow = max(2.0, 0.5 * (b - a))
-        a = min(a, lo - grow) if lo < a else a
-        b = max(b, hi + grow) if hi > b else b
+        if table is None:
+            a, b = self.default_span()
+            a, b = min(a, lo), max(b, hi)
+        else:
+            grow = max(2.0, 0.5 * (table.end - table.s0))
+            a, b = lo - grow, hi + grow
         kappa_max = float(np.max(np.abs(self._geometry(np.linspace(a, b, 4001)).kappa)))
         step = min(SAMPLE_STEP, 0.05 / kappa_max) if kappa_max > 0 else SAMPLE_STEP
         count = min(math.ceil((b - a) / step) + 1, 4_000_001)

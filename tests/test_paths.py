@@ -217,6 +217,19 @@ def test_paths_pickle_small_and_whole(path: Path, rng: np.random.Generator) -> N
     np.testing.assert_array_equal(path.project(points), copy.path.project(points))
 
 
+def test_hinted_projection_far_along_keeps_its_table_small() -> None:
+    """A hint 3 km along a sinusoid moves the sample table there (bounded size, not the
+    whole 3 km) and still finds the closest point of a point near the path there."""
+    path = PATHS["sinusoid"]
+    path.project(np.array([[0.3, 0.2]]), hint=np.array([0.3]))
+    target = path.geometry(np.array([3000.0])).p[0] + np.array([0.0, 0.05])
+    (sigma,) = path.project(target[None, :], hint=np.array([3000.2]))
+    assert len(path.__dict__["_near_table"].p) < 100_000
+    fine = np.linspace(2999.0, 3001.0, 200_001)
+    brute = fine[np.argmin(np.linalg.norm(path.geometry(fine).p - target, axis=1))]
+    assert abs(sigma - brute) < 1e-4
+
+
 def test_timing_ramp_is_smooth() -> None:
     """The ramp starts at rest, reaches v at T with s'' = 0 there, and s = v (t - T/2) after."""
     timing = Timing(speed=0.2, ramp=3.0, start=1.0)
