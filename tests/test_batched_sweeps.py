@@ -89,9 +89,10 @@ def test_run_tracking_batch_equals_iter_in_one_batch() -> None:
 @pytest.mark.parametrize("job", [(SnakeParams.table1(), 1.0, {"gamma": 2.0}),
                                  ("table1", 1.0, {}), (SnakeParams.table1(), 1.0)])
 def test_bad_jobs_are_refused_before_anything_runs(job: object) -> None:
-    """An unknown controller option or a malformed job is a ParameterError naming it."""
+    """An unknown controller option or a malformed job is a ParameterError naming it, raised
+    by the call itself (before any next())."""
     with pytest.raises(ParameterError, match="job 0"):
-        next(iter_tracking_runs([job]))  # type: ignore[list-item]
+        iter_tracking_runs([job])  # type: ignore[list-item]
     with pytest.raises(ParameterError, match="job 0"):
         run_tracking_batch([job])  # type: ignore[list-item]
 
@@ -99,9 +100,10 @@ def test_bad_jobs_are_refused_before_anything_runs(job: object) -> None:
 @pytest.mark.parametrize("name", ["workers", "lockstep_from"])
 @pytest.mark.parametrize("value", [0, -1, 1.5, True])
 def test_workers_and_lockstep_from_must_be_positive_integers(name: str, value: object) -> None:
-    """workers and lockstep_from outside 1, 2, ... are refused with their name."""
+    """workers and lockstep_from outside 1, 2, ... are refused with their name, by the
+    call itself."""
     with pytest.raises(ParameterError, match=name):
-        next(iter_tracking_runs([(tracking_params(), 0.1, {})], **{name: value}))
+        iter_tracking_runs([(tracking_params(), 0.1, {})], **{name: value})
 
 
 def test_report_runs_vary_one_setting_each() -> None:

@@ -188,6 +188,12 @@ def iter_tracking_runs(jobs: Sequence[TrackingJob], *, workers: int | None = Non
         else:
             tasks += [([i], False, (run_tracking, (jobs[i][0],),
                                     {"t_final": jobs[i][1], **jobs[i][2]})) for i in members]
+    return _finished(tasks, cores)  # the arguments are checked now, not at the first next()
+
+
+def _finished(tasks: list[tuple[list[int], bool, Job]],
+              cores: int) -> Generator[tuple[int, Trajectory], None, None]:
+    """(job index, trajectory) of the tasks as they finish (see iter_tracking_runs)."""
     # closed with this generator (an exception in the caller's loop): the pool goes too
     results = cast(Generator[tuple[int, Any], None, None],  # iter_jobs is a generator
                    iter_jobs([job for _, _, job in tasks], cores))
