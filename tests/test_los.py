@@ -224,3 +224,15 @@ def test_unknown_options_are_refused(snake: Snake) -> None:
         LOSController(snake, "circle")  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="nothing to control"):
         LOSController(Snake(SnakeParams.table1(n=3, passive=(1, 2))))
+
+
+def test_cached_gait_cannot_be_changed_by_a_caller(snake: Snake) -> None:
+    """gait(t) asked twice returns the same values even if the caller tried to modify the
+    first answer (the cached arrays are read-only)."""
+    ctrl = LOSController(snake, Line())
+    phi, _, _ = ctrl.gait(1.3)
+    with pytest.raises(ValueError):
+        phi += 1.0
+    again, _, _ = ctrl.gait(1.3)
+    np.testing.assert_array_equal(again, ctrl.params.alpha * np.sin(
+        ctrl.params.omega * 1.3 - ctrl._lags))

@@ -444,7 +444,7 @@ class LOSController(Controller):
         -------
         phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
             ``alpha sin(omega t - (i - 1) delta)`` [rad] and its first two time
-            derivatives.
+            derivatives; read-only (kept for the next call at the same time).
         """
         if self._gait is not None and self._gait[0] == t:  # asked twice per step
             return self._gait[1]
@@ -452,6 +452,8 @@ class LOSController(Controller):
         phase = p.omega * t - self._lags
         sine = np.sin(phase)
         gait = (p.alpha * sine, p.alpha * p.omega * np.cos(phase), -p.alpha * p.omega**2 * sine)
+        for part in gait:
+            part.flags.writeable = False  # a caller cannot change the cached values
         self._gait = (t, gait)
         return gait
 
