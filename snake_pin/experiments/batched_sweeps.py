@@ -145,10 +145,10 @@ def iter_tracking_runs(jobs: Sequence[TrackingJob], *, workers: int | None = Non
         Fewest runs per worker that go as a lockstep batch (default
         :data:`snake_pin.study.work.MIN_LOCKSTEP`).
 
-    Yields
-    ------
-    tuple of (int, Trajectory)
-        The job's index in ``jobs`` and its run (with
+    Returns
+    -------
+    generator of tuple of (int, Trajectory)
+        Yields the job's index in ``jobs`` and its run (with
         :func:`~snake_pin.experiments.tracking.tracking_summary`'s summary); a batch's runs
         come together when the batch is done.
 
