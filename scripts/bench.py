@@ -8,11 +8,15 @@ of a ratio are timed in interleaved rounds (A B A B ...), so that a neighbour's 
 both alike; each figure is the median over the rounds with its 10-90 % range.
 
 Usage: python scripts/bench.py [--quick]
-           [--only dynamics,derivatives,manipulability,runs,engine,reproduce]
+           [--only dynamics,derivatives,manipulability,runs,engine,sweeps,reproduce,
+                   failure_map]
            [--baseline COMMIT | --no-baseline]
 
 ``--only reproduce`` (not in the default set: it runs the whole report twice) times
-``snake-pin reproduce`` quiet and with the other core busy, alternately.
+``snake-pin reproduce`` quiet and with the other core busy, alternately; ``--only
+failure_map`` (not in the default set either) the report with and without its failure-map
+stage, back to back. ``--only sweeps`` times the tracking stage's runs in lockstep batches
+against one by one.
 """
 
 from __future__ import annotations
@@ -689,9 +693,10 @@ def bench_engine(budget: float, baseline: str | None = BASELINE) -> None:
 PAPER_STAGES = ("robot", "manipulability", "integrability", "pfl", "tracking", "engine")
 
 
-def _timed_reproduce(quick: bool) -> tuple[float, dict[str, float]]:
-    """Wall time of ``snake-pin reproduce`` in a fresh process and its stage times (from
-    its ``--verbose`` log)."""
+def _timed_reproduce(quick: bool, only: list[str] | None = None
+                     ) -> tuple[float, dict[str, float]]:
+    """Wall time of ``snake-pin reproduce`` (every stage, or those in ``only``) in a fresh
+    process and its stage times (from its ``--verbose`` log)."""
     import re
     import shutil
 
@@ -699,6 +704,8 @@ def _timed_reproduce(quick: bool) -> tuple[float, dict[str, float]]:
     try:
         command = [sys.executable, "-m", "snake_pin.cli", "reproduce", "-o", folder,
                    "--verbose"] + (["--quick"] if quick else [])
+        for stage in only or []:
+            command += ["--only", stage]
         start = time.perf_counter()
         done = subprocess.run(command, capture_output=True, text=True, check=True)
         wall = time.perf_counter() - start
@@ -747,19 +754,85 @@ def bench_reproduce(budget: float) -> None:
           "bench_control came later).")
 
 
+def bench_failure_map(budget: float) -> None:
+    """What the failure-map stage adds to ``snake-pin reproduce``: the whole report and the
+    report without that stage, back to back in alternating rounds (issue 14, item 8)."""
+    from snake_pin.experiments.reproduce import stages
+
+    quick = budget < 0.1
+    rounds = 1 if budget <= 0.2 else 2
+    without = [name for name, _ in stages() if name != "failure_map"]
+    walls: dict[str, list[float]] = {"whole report": [], "without failure_map": []}
+    map_times: list[float] = []
+    for _ in range(rounds):
+        wall, times = _timed_reproduce(quick)
+        walls["whole report"].append(wall)
+        map_times.append(times.get("failure_map", math.nan))
+        walls["without failure_map"].append(_timed_reproduce(quick, without)[0])
+    added = [a - b for a, b in zip(walls["whole report"], walls["without failure_map"],
+                                   strict=True)]
+    rows = [[name, show(spread(values))] for name, values in walls.items()]
+    rows.append(["difference", show(spread(added))])
+    rows.append(["failure_map stage (its own log)", show(spread(map_times))])
+    table(f"snake-pin reproduce{' --quick' if quick else ''} with and without the failure "
+          f"map, wall time [s] (median of {rounds} alternating rounds)", ["run", "s"], rows)
+    ratio = ratios(walls["whole report"], walls["without failure_map"])
+    print(f"\nwith / without: {show(ratio, 2, 'x')} (issue 14's limit: the stage adds at "
+          "most 120 s)")
+
+
+def bench_sweeps(budget: float) -> None:
+    """The tracking stage's runs by the two routes of ``iter_tracking_runs``: the default
+    rule (lockstep batches, one per core, when each core gets MIN_LOCKSTEP runs) against
+    every run one by one on every core, in interleaved rounds (issue 14, item 8)."""
+    from snake_pin.experiments.batched_sweeps import iter_tracking_runs
+    from snake_pin.experiments.tracking import report_runs, tracking_friction, tracking_params
+    from snake_pin.study.work import MIN_LOCKSTEP
+
+    quick = budget < 0.1
+    t_final, rounds = (3.0, 1) if quick else (20.0, 3)
+    robot, _ = tracking_friction(tracking_params())
+    jobs = [(r.params, r.t_final, r.options) for r in report_runs(robot, t_final, own=False)]
+    cores = os.cpu_count() or 1
+    routes = {"default rule": None, "one by one": len(jobs) + 1}
+    walls: dict[str, list[float]] = {name: [] for name in routes}
+    for _ in range(rounds):
+        for name, lockstep_from in routes.items():
+            start = time.perf_counter()
+            for _ in iter_tracking_runs(jobs, lockstep_from=lockstep_from):
+                pass
+            walls[name].append(time.perf_counter() - start)
+    simulated = sum(job[1] for job in jobs)
+    lockstep = len(jobs) >= MIN_LOCKSTEP * cores
+    rows = [[name + (" (lockstep)" if name == "default rule" and lockstep else ""),
+             show(spread(values), 2), f"{simulated / statistics.median(values):.1f}"]
+            for name, values in walls.items()]
+    table(f"the tracking stage's {len(jobs)} runs ({t_final:g} s each, the isotropic one "
+          f"{min(t_final, 30.0):g} s) on {cores} cores, wall time [s] (median of {rounds} "
+          "interleaved rounds)", ["route", "wall [s]", "simulated s / wall s"], rows)
+    print(f"\ndefault rule / one by one: "
+          f"{show(ratios(walls['default rule'], walls['one by one']), 2, 'x')}")
+
+
+#: The benches that run the whole report (minutes each): not in the default set.
+WHOLE_REPORT = ("reproduce", "failure_map")
+
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
                                                "derivatives": bench_derivatives,
                                                "manipulability": bench_manipulability,
                                                "runs": bench_runs, "engine": bench_engine,
-                                               "reproduce": bench_reproduce}
+                                               "sweeps": bench_sweeps,
+                                               "reproduce": bench_reproduce,
+                                               "failure_map": bench_failure_map}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter timing batches")
-    parser.add_argument("--only", default=",".join(n for n in BENCHES if n != "reproduce"),
-                        help="comma-separated benches (default all but reproduce, which runs "
-                        "the whole report twice: quiet and with the other core busy)")
+    parser.add_argument("--only", default=",".join(n for n in BENCHES if n not in WHOLE_REPORT),
+                        help="comma-separated benches (default all but reproduce and "
+                        "failure_map, which run the whole report: quiet and with the other "
+                        "core busy; with and without the failure map)")
     parser.add_argument("--baseline", default=BASELINE,
                         help=f"commit the runs and the engine compare to ({BASELINE})")
     parser.add_argument("--no-baseline", action="store_true",

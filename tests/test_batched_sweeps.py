@@ -10,7 +10,15 @@ import pytest
 from snake_pin import ParameterError, SnakeParams
 from snake_pin.experiments import tracking
 from snake_pin.experiments.batched_sweeps import iter_tracking_runs, run_tracking_batch
-from snake_pin.experiments.tracking import report_runs, tracking_friction, tracking_params
+from snake_pin.experiments.tracking import (
+    C_Y_FACTORS,
+    DECAY_RATES,
+    report_runs,
+    sweep_findings,
+    sweep_text,
+    tracking_friction,
+    tracking_params,
+)
 from snake_pin.metrics import head_error_summary, percent
 
 
@@ -107,25 +115,62 @@ def test_workers_and_lockstep_from_must_be_positive_integers(name: str, value: o
 
 
 def test_report_runs_vary_one_setting_each() -> None:
-    """The stage's runs: four with files, then a sweep that changes only the decay rates
-    (mu = lambda / 2) or only c_y (10 and 50, or the robot's own halved and doubled)."""
+    """The stage's runs: four with files, then two sweeps that change only the decay rates
+    (mu = lambda / 2) or only every link's c_y, skipping the default point (the first run)."""
     robot = tracking_params()
     runs = report_runs(robot, 60.0, own=False)
     assert [r.stem for r in runs[:4]] == ["tracking", "tracking_passive5",
                                           "tracking_isotropic", "tracking_one_rate"]
-    assert [r.animate for r in runs] == [True, True] + [False] * 6
+    assert [r.animate for r in runs] == [True, True] + [False] * (len(runs) - 2)
     assert runs[1].params == robot.replace(passive=(5,)) and runs[2].t_final == 30.0
     assert runs[2].params.c_y == runs[2].params.c_x
+    assert all(r.sweep is None for r in runs[:4])
     sweep = runs[4:]
     assert all(r.stem is None and r.t_final == 60.0 for r in sweep)
-    assert [(r.params, dict(r.options)) for r in sweep[:2]] == [
-        (robot, {"lam": 3.0, "lam_shape": 1.5}), (robot, {"lam": 7.0, "lam_shape": 3.5})]
-    assert [(r.params, dict(r.options)) for r in sweep[2:]] == [
-        (robot.replace(c_y=10.0), {}), (robot.replace(c_y=50.0), {})]
+    rates = [r for r in sweep if r.sweep is not None and r.sweep[0] == "lam"]
+    frictions = [r for r in sweep if r.sweep is not None and r.sweep[0] == "c_y"]
+    assert len(rates) + len(frictions) == len(sweep)
+    assert [(r.params, dict(r.options)) for r in rates] == [
+        (robot, {"lam": lam, "lam_shape": lam / 2}) for lam in DECAY_RATES if lam != 10.0]
+    assert [(r.params, dict(r.options)) for r in frictions] == [
+        (robot.replace(c_y=25.0 * f), {}) for f in C_Y_FACTORS if f != 1.0]
+    assert frictions[0].label == "c_y = 2.5 N s/m (c_y / c_x = 5)"
     mine = SnakeParams.table1(c_x=0.5, c_y=[20.0] * 10, name="mine")
-    own = report_runs(mine, 11.0, own=True)[6:]
-    assert [list(r.params.per_link("c_y")) for r in own] == [[10.0] * 10, [40.0] * 10]
+    own = [r for r in report_runs(mine, 11.0, own=True) if r.sweep and r.sweep[0] == "c_y"]
+    assert [r.params.per_link("c_y")[0] for r in own] == [20.0 * f for f in C_Y_FACTORS
+                                                           if f != 1.0]
     assert own[0].params.per_link("c_x").tolist() == [0.5] * 10
+    assert own[0].label == "c_y x 0.1 on every link"
+
+
+def test_the_sweeps_default_is_the_laws_default() -> None:
+    """The first run (no options) is both sweeps' default point: the law's own lambda is in
+    DECAY_RATES with mu = lambda / 2, and 1 is in C_Y_FACTORS."""
+    from snake_pin import Snake
+    from snake_pin.control import LyapunovController
+
+    law = LyapunovController(Snake(tracking_params()))
+    assert law.lam in DECAY_RATES and law.lam_shape == law.lam / 2
+    assert 1.0 in C_Y_FACTORS
+    assert list(DECAY_RATES) == sorted(DECAY_RATES)
+    assert list(C_Y_FACTORS) == sorted(C_Y_FACTORS)
+
+
+def test_sweep_findings_name_the_best_point_and_those_above_10_percent() -> None:
+    """sweep_findings: the smallest error, both ends (skipping a point without an error
+    window) and every point above 10 % or without an error; the text quotes them."""
+    curves = {"lam": [(1.0, 12.0, 0.1), (3.0, 4.0, 0.2), (10.0, 6.0, 0.3), (30.0, None, 0.0)],
+              "c_y": [(5.0, None, 0.0)]}
+    found = sweep_findings(curves)
+    lam = found["lam"]
+    assert lam is not None and found["c_y"] is None
+    assert lam["best"] == [3.0, 4.0, 0.2]
+    assert lam["first"] == [1.0, 12.0, 0.1] and lam["last"] == [10.0, 6.0, 0.3]
+    assert lam["above_10"] == [1.0, 30.0]
+    text = sweep_text(found, c_y_name="c_y / c_x")
+    assert "smallest at 3/s (4 % of the body, R min 0.2)" in text
+    assert "above 10 % at 1, 30/s" in text
+    assert "No run of the c_y / c_x sweep has an error window." in text
 
 
 def test_the_default_route_follows_the_studys_lockstep_rule(

@@ -47,6 +47,26 @@ def test_key_results_are_reported(report: Path) -> None:
     assert summary["engine"]["friction"]["c_y"] > summary["engine"]["friction"]["c_x"]
 
 
+def test_the_tracking_sweeps_are_reported_from_their_runs(report: Path) -> None:
+    """The tracking stage's sweeps: every point has its row, the figure is embedded, and the
+    findings' best point is the smallest error of that sweep's runs (the default run's
+    included)."""
+    from snake_pin.experiments.tracking import C_Y_FACTORS, DECAY_RATES
+
+    tracking = json.loads((report / "summary.json").read_text())["tracking"]
+    sweep = tracking["sweep"]
+    assert len(sweep) == len(DECAY_RATES) + len(C_Y_FACTORS) - 2  # the default is run once
+    default = 100 * tracking["tracking"]["rms_relative"]
+    rates = [100 * row["rms_relative"] for label, row in sweep.items() if "lambda" in label]
+    frictions = [100 * row["rms_relative"] for label, row in sweep.items() if "c_y" in label]
+    found = tracking["sweep_findings"]
+    assert found["lam"]["best"][1] == pytest.approx(min([*rates, default]), rel=1e-12)
+    assert found["c_y"]["best"][1] == pytest.approx(min([*frictions, default]), rel=1e-12)
+    assert found["c_y"]["first"][0] == pytest.approx(50.0 * C_Y_FACTORS[0])  # c_y / c_x
+    html = (report / "index.html").read_text()
+    assert "RMS head error against the head's decay rate" in html
+
+
 def test_engine_results_are_distributions(report: Path) -> None:
     """The engine stage reports each configuration over 3 perturbed runs (--quick): the
     median and range are those of the runs, the files are the median run's, the target is

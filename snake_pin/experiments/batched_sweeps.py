@@ -17,15 +17,16 @@ runs costs 2.9x a single run per run at B = 2, 1.6x at 4, 0.9x at 8, 0.6x at 16.
 also runs on one core where single runs fill every core, so lockstep pays only from
 :data:`snake_pin.study.work.MIN_LOCKSTEP` (8) runs per worker, the study's own rule
 (medians of 3 interleaved rounds, 2 workers, 10 s runs: 16 runs as two batches of 8 took
-0.92x the time of the runs one by one; 8 runs as two batches of 4, 1.6x). The tracking
-stage's 8 runs therefore run one by one on both cores; a sweep grown to 16 or more
-values runs as one batch per core.
+0.92x the time of the runs one by one; 24 runs as two batches of 12, 0.69x; 8 runs as
+two batches of 4, 1.53x). The tracking stage's 18 runs (four with files, the two sweeps'
+14 points) therefore run as two lockstep batches of 9 on this machine: 0.86x (0.85-0.86)
+the time of the same runs one by one (``python scripts/bench.py --only sweeps``, 20 s runs,
+3 interleaved rounds).
 """
 
 from __future__ import annotations
 
 import contextlib
-import inspect
 import os
 from collections.abc import Generator, Mapping, Sequence
 from typing import Any, cast
@@ -37,7 +38,7 @@ from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory
 from .parallel import Job, iter_jobs
-from .tracking import initial_state, run_tracking, tracking_meta, tracking_summary
+from .tracking import _DEFAULT_LAM, initial_state, run_tracking, tracking_meta, tracking_summary
 
 __all__ = ["iter_tracking_runs", "run_tracking_batch"]
 
@@ -48,8 +49,6 @@ TrackingJob = tuple[SnakeParams, float, Mapping[str, float]]
 
 #: The LyapunovController keywords a job's options may set (the numeric ones).
 _OPTIONS = frozenset({"lam", "lam_shape", "k_shape"})
-#: The controller's own default of ``lam`` (read, not copied).
-_DEFAULT_LAM: float = inspect.signature(LyapunovController).parameters["lam"].default
 
 
 def _checked(jobs: Sequence[TrackingJob]) -> list[TrackingJob]:

@@ -9,10 +9,12 @@ hands every run to :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_ru
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import inspect
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -33,8 +35,9 @@ from ..model import Snake
 from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory, simulate
 
-__all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "ReportRun", "initial_state",
-           "plot_tracking", "report_runs", "run_tracking", "tracking_friction", "tracking_meta",
+__all__ = ["CRITERIA_EVERY", "C_Y_FACTORS", "DECAY_RATES", "REFERENCE", "TRACKING_FRICTION",
+           "ReportRun", "initial_state", "plot_sweep", "plot_tracking", "report_runs",
+           "run_tracking", "sweep_findings", "sweep_text", "tracking_friction", "tracking_meta",
            "tracking_params", "tracking_stage", "tracking_summary"]
 
 #: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
@@ -45,6 +48,14 @@ TRACKING_FRICTION = {"c_x": 0.5, "c_y": 25.0}
 CRITERIA_EVERY = 10
 #: The head reference of every tracking run, as the trajectories' meta names it.
 REFERENCE = "w_r = [0.1 t, 0, pi]"
+#: The stage's decay-rate sweep: the head's rate lambda [1/s], with the gait's mu = lambda / 2
+#: (the law's default, lambda = 10/s, is the stage's first run: not run twice).
+DECAY_RATES = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0, 30.0)
+#: The stage's sideways-friction sweep: every link's c_y times these (1 is the stage's first
+#: run; with the tracking friction, c_y / c_x = 5 ... 500).
+C_Y_FACTORS = (0.1, 0.2, 0.4, 1.0, 2.0, 4.0, 10.0)
+#: The law's own default head rate lambda [1/s] (read, not copied): the sweeps' default.
+_DEFAULT_LAM: float = inspect.signature(LyapunovController).parameters["lam"].default
 
 
 def tracking_params(params: SnakeParams | None = None, **changes: object) -> SnakeParams:
@@ -323,10 +334,13 @@ class ReportRun:
         Options of :class:`~snake_pin.control.LyapunovController` (``lam``,
         ``lam_shape``, ``k_shape``).
     stem
-        File-name stem of its saved trajectory and figures; None: a sweep row (a table
-        row only).
+        File-name stem of its saved trajectory and figures; None: a sweep point (a table
+        row and a point of the sweep's figure only).
     animate
         Whether it also gets a self-contained 3-D animation page.
+    sweep
+        The sweep point it is: ``("lam", lambda)`` or ``("c_y", factor)``; None for the
+        runs with files (the first of which is the default point of both sweeps).
     """
 
     label: str
@@ -335,16 +349,18 @@ class ReportRun:
     options: Mapping[str, float] = field(default_factory=dict)
     stem: str | None = None
     animate: bool = False
+    sweep: tuple[str, float] | None = None
 
 
 def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun]:
-    """The runs of the tracking stage: four with files, then the sweep's rows.
+    """The runs of the tracking stage: four with files, then the two sweeps' points.
 
     With files: no passive joint and joint 5 passive (both animated), the isotropic
     contrast (at most 30 s: failure and a constant g show by then) and one decay rate for
-    head and gait (lambda = mu = 1/s). The sweep: the decay rates along mu = lambda / 2
-    (lambda = 3 and 7/s) and the sideways friction (c_y = 10 and 50 N s/m, or the robot's
-    own c_y halved and doubled on every link).
+    head and gait (lambda = mu = 1/s). The sweeps, each changing one setting of the first
+    run (which is their default point, not run again): the decay rates
+    :data:`DECAY_RATES` along mu = lambda / 2, and every link's c_y times
+    :data:`C_Y_FACTORS`.
 
     Parameters
     ----------
@@ -353,12 +369,14 @@ def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun
     t_final
         Duration of the runs [s].
     own
-        Whether ``robot`` keeps its own friction (the sweep then scales its c_y).
+        Whether ``robot`` keeps its own friction (the labels then give the factor on c_y,
+        not c_y itself).
 
     Returns
     -------
     list of ReportRun
-        The runs with files (``stem`` set) first, in report order, then the sweep.
+        The runs with files (``stem`` set) first, in report order, then the sweeps' points
+        (``sweep`` set), decay rates first, each sweep in increasing order.
     """
     c_x = robot.per_link("c_x")
     contrast = (f"isotropic (c_x = c_y = {robot.c_x})" if robot.uniform
@@ -371,23 +389,144 @@ def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun
             ReportRun("one rate for head and gait (lambda = mu = 1/s)", robot, t_final,
                       {"lam": 1.0, "lam_shape": 1.0}, stem="tracking_one_rate")]
     runs += [ReportRun(f"lambda = {lam:g}/s, mu = {lam / 2:g}/s", robot, t_final,
-                       {"lam": lam, "lam_shape": lam / 2}) for lam in (3.0, 7.0)]
-    if own:
-        runs += [ReportRun(f"c_y x {factor:g} on every link (lambda = 10/s)",
-                           robot.replace(c_y=factor * robot.per_link("c_y")), t_final)
-                 for factor in (0.5, 2.0)]
-    else:
-        runs += [ReportRun(f"c_y = {c_y:g} N s/m (lambda = 10/s)", robot.replace(c_y=c_y),
-                           t_final) for c_y in (10.0, 50.0)]
+                       {"lam": lam, "lam_shape": lam / 2}, sweep=("lam", lam))
+             for lam in DECAY_RATES if lam != _DEFAULT_LAM]
+    for factor in C_Y_FACTORS:
+        if factor == 1.0:
+            continue
+        params = robot.replace(c_y=factor * robot.per_link("c_y"))
+        c_y, c_x = params.per_link("c_y")[0], params.per_link("c_x")[0]
+        label = (f"c_y x {factor:g} on every link" if own or not params.uniform else
+                 f"c_y = {c_y:g} N s/m (c_y / c_x = {c_y / c_x:g})")
+        runs.append(ReportRun(label, params, t_final, sweep=("c_y", factor)))
     return runs
 
 
-def tracking_stage(ctx) -> None:
-    """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweep.
+#: One sweep point: (setting, RMS head error [% of the body] or None without an error
+#: window, R_min along the run).
+SweepPoint = tuple[float, float | None, float]
 
-    Every run of the stage (:func:`report_runs`) goes to
-    :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs` (single runs on
-    every core, or lockstep batches when there are enough runs per core).
+
+def sweep_findings(curves: Mapping[str, Sequence[SweepPoint]]
+                   ) -> dict[str, dict[str, Any] | None]:
+    """Where each sweep's head error is smallest, its two ends and its points above 10 %.
+
+    Parameters
+    ----------
+    curves
+        Per sweep (``"lam"``, ``"c_y"``): its points (setting, % of the body or None,
+        R_min), in increasing setting.
+
+    Returns
+    -------
+    dict
+        Per sweep, None when no point has an error, else ``best``, ``first`` and ``last``
+        (each [setting, %, R_min]: the smallest error and the two ends), and ``above_10``
+        (the settings whose error exceeds 10 % of the body, or has none).
+    """
+    out: dict[str, dict[str, Any] | None] = {}
+    for axis, curve in curves.items():
+        known = [point for point in curve if point[1] is not None and math.isfinite(point[1])]
+        if not known:
+            out[axis] = None
+            continue
+        best = min(known, key=lambda point: cast(float, point[1]))
+        out[axis] = {"best": list(best), "first": list(known[0]), "last": list(known[-1]),
+                     "above_10": [x for x, p, _ in curve if p is None or not p <= 10.0]}
+    return out
+
+
+def sweep_text(found: Mapping[str, Mapping[str, Any] | None], c_y_name: str) -> str:
+    """The report's sentences on the two sweeps, from :func:`sweep_findings`.
+
+    Parameters
+    ----------
+    found
+        :func:`sweep_findings`' result.
+    c_y_name
+        What the sideways-friction sweep's settings are (``"c_y / c_x"`` or ``"the factor
+        on c_y"``).
+
+    Returns
+    -------
+    str
+        One paragraph.
+    """
+    parts = []
+    for axis, name, unit in (("lam", "lambda", "/s"), ("c_y", c_y_name, "")):
+        f = found.get(axis)
+        if f is None:
+            parts.append(f"No run of the {name} sweep has an error window.")
+            continue
+        (x0, p0, r0), (x1, p1, r1), (x2, p2, r2) = f["first"], f["best"], f["last"]
+        text = (f"Along {name}, the RMS head error is smallest at {x1:g}{unit} ({p1:.2g} % of "
+                f"the body, R min {r1:.2g}), against {p0:.2g} % at {x0:g}{unit} (R min "
+                f"{r0:.2g}) and {p2:.2g} % at {x2:g}{unit} (R min {r2:.2g})")
+        above = f["above_10"]
+        parts.append(text + (f"; above 10 % at {', '.join(f'{x:g}' for x in above)}{unit}."
+                             if above else "; no point is above 10 %."))
+    return " ".join(parts)
+
+
+def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_axis: str,
+               default: Mapping[str, float]) -> Path:
+    """The sweeps' figure: RMS head error (% of the body) against each sweep's setting.
+
+    Parameters
+    ----------
+    curves
+        As for :func:`sweep_findings`.
+    path
+        The PNG to write.
+    c_y_axis
+        Label of the sideways-friction axis.
+    default
+        Each sweep's default setting (drawn as a star).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib import ticker
+
+    from ..viz.plots import save_figure
+
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.4), sharey=True)
+    for ax, (axis, label) in zip(axes, (("lam", "head decay rate lambda [1/s] (mu = lambda/2)"),
+                                        ("c_y", c_y_axis)), strict=True):
+        curve = curves.get(axis, [])
+        xs = np.array([x for x, _, _ in curve], dtype=float)
+        ys = np.array([np.nan if p is None else p for _, p, _ in curve], dtype=float)
+        ax.plot(xs, ys, "o-", color="#1f4fd1")
+        at = np.flatnonzero(xs == default.get(axis, np.nan))
+        if len(at):
+            ax.plot(xs[at], ys[at], "*", color="#d9541a", markersize=14, label="default")
+        ax.axhline(5.0, color="0.5", lw=0.8, ls="--", label="5 % target")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        for scale in (ax.xaxis, ax.yaxis):
+            scale.set_major_formatter(ticker.FormatStrFormatter("%g"))
+        ax.yaxis.set_minor_formatter(ticker.FormatStrFormatter("%g"))
+        ax.set_xlabel(label)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_ylabel("RMS head error [% of body]")
+    axes[0].legend(fontsize=8)
+    save_figure(fig, path)
+    return path
+
+
+def tracking_stage(ctx) -> None:
+    """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweeps.
+
+    Every run of the stage (:func:`report_runs`: 18) goes to
+    :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs`, which runs them as
+    one lockstep batch per core when each core gets
+    :data:`~snake_pin.study.work.MIN_LOCKSTEP` of them (on 2 cores, two batches of 9),
+    else one by one on every core. The sweeps (decay rate, sideways friction) are a table,
+    ``tracking_sweep.png`` (:func:`plot_sweep`) and sentences from the numbers
+    (:func:`sweep_findings`, :func:`sweep_text`).
 
     Parameters
     ----------
@@ -412,15 +551,20 @@ def tracking_stage(ctx) -> None:
              f" {friction}.")
     runs = report_runs(robot, t_final, own)
     results = dict(iter_tracking_runs([(r.params, r.t_final, r.options) for r in runs]))
-    rows, sweep_rows = [], []
+    rows = []
+    points: dict[str, list[tuple[float, str, Trajectory]]] = {"lam": [], "c_y": []}
     for index, run in enumerate(runs):
         traj = results[index]
         s = traj.summary
-        if run.stem is None:
-            sweep_rows.append([run.label, s["rms_head_error"], percent(s["rms_relative"]),
-                               s["R_min"]])
+        if run.stem is None:  # a sweep point (report_runs sets one of the two)
+            if run.sweep is not None:
+                points[run.sweep[0]].append((run.sweep[1], run.label, traj))
             sec.numbers.setdefault("sweep", {})[run.label] = traj.summary_dict()
             continue
+        if run.stem == "tracking":  # the default point of both sweeps
+            points["lam"].append((_DEFAULT_LAM, f"lambda = {_DEFAULT_LAM:g}/s, mu = "
+                                  f"{_DEFAULT_LAM / 2:g}/s (the default)", traj))
+            points["c_y"].append((1.0, "c_y as the runs above (the default)", traj))
         traj.save(ctx.folder / run.stem)
         if run.animate:
             from ..viz.meshcat_view import write_html
@@ -446,13 +590,29 @@ def tracking_stage(ctx) -> None:
              "The last row is the same law with one decay rate for head and gait: the head's "
              "x error then swings slowly (20-50 s) about the reference, which is why the "
              "head's rate is the faster one.")
-    sec.table(["no passive joint, varied", "RMS head error [m]", "% of body", "R min"],
-              sweep_rows)
-    sec.text("The decay rates along mu = lambda / 2 (the default is lambda = 10/s) and the "
-             "sideways friction (the default is "
-             + ("the robot's own" if own else "c_y = 25 = 50 c_x")
-             + "): the error falls as the head's rate rises, and stiffer sideways friction "
-             "tracks better.")
+    sweep_rows = []
+    for axis, title in (("lam", "decay rate"), ("c_y", "sideways friction")):
+        points[axis].sort(key=lambda point: point[0])
+        for _, label, traj in points[axis]:
+            s = traj.summary
+            sweep_rows.append([title, label, s["rms_head_error"], percent(s["rms_relative"]),
+                               s["R_min"], traj.status])
+    ratio = (None if own or not robot.uniform
+             else float(robot.per_link("c_y")[0] / robot.per_link("c_x")[0]))
+    curves = {axis: [(value * (ratio or 1.0) if axis == "c_y" else value,
+                      percent(traj.summary["rms_relative"]), traj.summary["R_min"])
+                     for value, _, traj in found] for axis, found in points.items()}
+    found = sweep_findings(curves)
+    sec.numbers["sweep_findings"] = found
+    plot_sweep(curves, ctx.folder / "tracking_sweep.png",
+               c_y_axis="c_y / c_x" if ratio else "factor on every link's c_y",
+               default={"lam": _DEFAULT_LAM, "c_y": ratio or 1.0})
+    sec.table(["no passive joint, varied", "setting", "RMS head error [m]", "% of body",
+               "R min", "status"], sweep_rows)
+    sec.figure(ctx.folder / "tracking_sweep.png",
+               "RMS head error against the head's decay rate (mu = lambda / 2) and against "
+               "the sideways friction; the star is the default")
+    sec.text(sweep_text(found, c_y_name="c_y / c_x" if ratio else "the factor on c_y"))
     sec.figure(ctx.folder / "lateral_criterion.png",
                "Fig. 15: R against the lateral-constraint criterion over [0, 10] s")
     sec.text(f"At the initial arc the lateral-constraint criterion is "
