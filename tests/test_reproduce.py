@@ -64,7 +64,7 @@ def test_the_tracking_sweeps_are_reported_from_their_runs(report: Path) -> None:
     assert found["c_y"]["best"][1] == pytest.approx(min([*frictions, default]), rel=1e-12)
     assert found["c_y"]["first"][0] == pytest.approx(50.0 * C_Y_FACTORS[0])  # c_y / c_x
     html = (report / "index.html").read_text()
-    assert "RMS head error against the head's decay rate" in html
+    assert "RMS head error against the head&#x27;s decay rate" in html
 
 
 def test_engine_results_are_distributions(report: Path) -> None:
