@@ -764,10 +764,12 @@ def bench_failure_map(budget: float) -> None:
     without = [name for name, _ in stages() if name != "failure_map"]
     walls: dict[str, list[float]] = {"whole report": [], "without failure_map": []}
     map_times: list[float] = []
+    stage_times: list[dict[str, float]] = []
     for _ in range(rounds):
         wall, times = _timed_reproduce(quick)
         walls["whole report"].append(wall)
         map_times.append(times.get("failure_map", math.nan))
+        stage_times.append(times)
         walls["without failure_map"].append(_timed_reproduce(quick, without)[0])
     added = [a - b for a, b in zip(walls["whole report"], walls["without failure_map"],
                                    strict=True)]
@@ -776,6 +778,9 @@ def bench_failure_map(budget: float) -> None:
     rows.append(["failure_map stage (its own log)", show(spread(map_times))])
     table(f"snake-pin reproduce{' --quick' if quick else ''} with and without the failure "
           f"map, wall time [s] (median of {rounds} alternating rounds)", ["run", "s"], rows)
+    print("\nstages of the whole report [s]: " + ", ".join(
+        f"{name} {statistics.median(t.get(name, math.nan) for t in stage_times):.1f}"
+        for name in stage_times[0]))
     ratio = ratios(walls["whole report"], walls["without failure_map"])
     print(f"\nwith / without: {show(ratio, 2, 'x')} (issue 14's limit: the stage adds at "
           "most 120 s)")
