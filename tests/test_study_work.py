@@ -157,3 +157,35 @@ def test_runs_per_batch_keeps_a_batch_within_the_record_budget() -> None:
     short = parse_study("[base]\nt_final = 6.0\n")
     assert runs_per_batch(list(short.scenarios)) == math.floor(
         BATCH_RECORD_BYTES / (6001 * 35 * 8))
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-6])
+def test_an_engine_run_starts_from_its_seeded_noise(monkeypatch: pytest.MonkeyPatch,
+                                                    noise: float) -> None:
+    """An engine run gets init_noise as offsets of its initial joint angles: the Gaussian
+    draw of numpy's default_rng(init_seed), each seed its own (zeros without noise)."""
+    import snake_pin.engine.run
+
+    seen: list[np.ndarray] = []
+
+    class Stop(Exception):
+        pass
+
+    def spy(*args: object, initial_offset: np.ndarray, **kwargs: object) -> None:
+        seen.append(np.array(initial_offset))
+        raise Stop
+
+    monkeypatch.setattr(work, "_engine_friction", lambda *a: {"c_x": 1.0})
+    monkeypatch.setattr(snake_pin.engine.run, "run_engine", spy)
+    spec = parse_study("[base]\nrobot = \"engine\"\nmodel = \"engine\"\ncontroller = "
+                       f"\"velocity\"\nt_final = 1.0\ninit_noise = {noise!r}\n"
+                       "[axes.init_seed]\nvalues = [3, 4]\n")
+    for scenario in spec.scenarios:
+        with pytest.raises(Stop):
+            work._simulate_engine(scenario)
+    assert len({s.key for s in spec.scenarios}) == 2
+    for scenario, offset in zip(spec.scenarios, seen, strict=True):
+        want = (np.random.default_rng(scenario["init_seed"]).normal(0.0, noise, 7) if noise
+                else np.zeros(7))
+        np.testing.assert_array_equal(offset, want)
+    assert (not np.array_equal(seen[0], seen[1])) == (noise > 0)

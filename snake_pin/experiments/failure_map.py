@@ -504,10 +504,12 @@ def failure_map_stage(ctx: Any) -> None:
              " with joint 2); a smaller heading weight K_w2,theta (45 down to 0.1) does not "
              "rescue joints 2 and 3 either (9-22 %). The law needs retuning for the friction "
              "(c_y/c_x = 10, above), not per failure. On MuJoCo (studies/"
-             "failure_map_engine.toml: the 8-link wheeled robot, velocity-level law, 100 s for "
-             "8 runs here, so not part of this stage) the failures next to the head break "
-             "tracking as well: 6.1 % without a failure, 31-37 % with joint 1 or 2 failed, 22 "
-             "% with joint 3, 7-11 % with joints 4-7. See docs/failure_map.rst.")
+             "failure_map_engine.toml: the 8-link wheeled robot, velocity-level law, each "
+             "failure from 5 starts perturbed by 1e-6 rad since the runs are chaotic; 166 s "
+             "for the 40 runs here, so not part of this stage) the failures next to the head "
+             "break tracking as well: medians 6.1 % without a failure, 32 and 38 % with joint "
+             "1 or 2 failed (23-45 % across starts), 21 % with joint 3, 5.6-10.9 % with joints "
+             "4-7. See docs/failure_map.rst.")
     sec.numbers.update({
         "plan": {"t_final": plan.t_final, "failed_joints": joints,
                  "ratios": list(plan.ratios), "c_x": map_c_x(base)},

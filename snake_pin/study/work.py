@@ -56,7 +56,7 @@ from .spec import Scenario, canonical_json
 
 __all__ = ["BATCH_RECORD_BYTES", "CRITERIA_PERIOD", "MIN_LOCKSTEP", "RunOutcome",
            "build_controller",
-           "failed_row", "initial_state", "reference", "result_row", "run_batch",
+           "failed_row", "initial_noise", "initial_state", "reference", "result_row", "run_batch",
            "runs_per_batch", "simulate_scenario", "simulate_viscous_batch"]
 
 #: Manipulability criteria are evaluated along a run every this many seconds.
@@ -295,10 +295,29 @@ def initial_state(scenario: Scenario) -> np.ndarray:
     n = scenario.params.n
     heading = reference(scenario).start[2]
     q = arc(n, scenario["init_phi"], theta_1=heading)
-    if scenario["init_noise"] > 0:
-        rng = np.random.default_rng(scenario["init_seed"])
-        q[3:] += rng.normal(0.0, scenario["init_noise"], n - 1)
+    q[3:] += initial_noise(scenario)
     return np.r_[q, np.zeros(n + 2)]
+
+
+def initial_noise(scenario: Scenario) -> np.ndarray:
+    """The offsets a run adds to its initial joint angles (either model).
+
+    Parameters
+    ----------
+    scenario
+        The run.
+
+    Returns
+    -------
+    numpy.ndarray
+        n - 1 angles [rad]: Gaussian, of standard deviation ``init_noise``, drawn from
+        ``numpy.random.default_rng(init_seed)``; zeros when ``init_noise`` is 0.
+    """
+    n = scenario.params.n
+    if scenario["init_noise"] > 0:
+        return np.random.default_rng(scenario["init_seed"]).normal(0.0, scenario["init_noise"],
+                                                                   n - 1)
+    return np.zeros(n - 1)
 
 
 def build_controller(scenario: Scenario, snake: Any) -> Any:
@@ -383,7 +402,7 @@ def _simulate_engine(scenario: Scenario) -> RunOutcome:
     start = time.perf_counter()
     law = "velocity" if scenario.controller == "velocity" else "acceleration"
     run = run_engine(scenario.params, wheels=wheels, t_final=s["t_final"], friction=friction,
-                     cutoff=s["cutoff"], law=law)
+                     cutoff=s["cutoff"], law=law, initial_offset=initial_noise(scenario))
     return RunOutcome(run.trajectory, "", time.perf_counter() - start)
 
 
