@@ -760,7 +760,7 @@ def bench_failure_map(budget: float) -> None:
     from snake_pin.experiments.reproduce import stages
 
     quick = budget < 0.1
-    rounds = 1 if budget <= 0.2 else 2
+    rounds = 1 if quick else 2
     without = [name for name, _ in stages() if name != "failure_map"]
     walls: dict[str, list[float]] = {"whole report": [], "without failure_map": []}
     map_times: list[float] = []

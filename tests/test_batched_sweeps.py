@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,8 +14,10 @@ from snake_pin.experiments.batched_sweeps import iter_tracking_runs, run_trackin
 from snake_pin.experiments.tracking import (
     C_Y_FACTORS,
     DECAY_RATES,
+    plot_sweep,
     report_runs,
     sweep_findings,
+    sweep_ratio,
     sweep_text,
     tracking_friction,
     tracking_params,
@@ -31,7 +34,7 @@ def short_window(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.usefixtures("short_window")
 def test_the_stage_runs_batched_give_the_per_run_rows(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The tracking stage's 8 runs (2 s) as one lockstep batch give the rows of the runs
+    """The tracking stage's 18 runs (2 s) as one lockstep batch give the rows of the runs
     one by one to 1e-9: RMS, % of body, max error, R min, D min (g drift to 1e-6)."""
     import snake_pin.batch
 
@@ -156,9 +159,10 @@ def test_the_sweeps_default_is_the_laws_default() -> None:
     assert list(C_Y_FACTORS) == sorted(C_Y_FACTORS)
 
 
-def test_sweep_findings_name_the_best_point_and_those_above_10_percent() -> None:
+def test_sweep_findings_name_the_best_point_and_those_off_target() -> None:
     """sweep_findings: the smallest error, both ends (skipping a point without an error
-    window) and every point above 10 % or without an error; the text quotes them."""
+    window), the points above the target and those without an error; the text quotes
+    them and does not repeat an end that is the best point."""
     curves = {"lam": [(1.0, 12.0, 0.1), (3.0, 4.0, 0.2), (10.0, 6.0, 0.3), (30.0, None, 0.0)],
               "c_y": [(5.0, None, 0.0)]}
     found = sweep_findings(curves)
@@ -166,11 +170,39 @@ def test_sweep_findings_name_the_best_point_and_those_above_10_percent() -> None
     assert lam is not None and found["c_y"] is None
     assert lam["best"] == [3.0, 4.0, 0.2]
     assert lam["first"] == [1.0, 12.0, 0.1] and lam["last"] == [10.0, 6.0, 0.3]
-    assert lam["above_10"] == [1.0, 30.0]
+    assert lam["above"] == [1.0, 10.0] and lam["no_window"] == [30.0]
     text = sweep_text(found, c_y_name="c_y / c_x")
     assert "smallest at 3/s (4 % of the body, R min 0.2)" in text
-    assert "above 10 % at 1, 30/s" in text
+    assert "against 12 % at 1/s (R min 0.1) and 6 % at 10/s (R min 0.3)" in text
+    assert "above the 5 % target at 1, 10/s." in text
+    assert "No error window (the run ended first) at 30/s." in text
     assert "No run of the c_y / c_x sweep has an error window." in text
+    ends = sweep_text(sweep_findings({"lam": [(1.0, 2.0, 0.1), (3.0, 4.0, 0.2)]}), "x")
+    assert ends.count("2 %") == 1 and "every point is within the 5 % target" in ends
+
+
+def test_plot_sweep_draws_a_sweep_without_any_error(tmp_path: Path) -> None:
+    """A sweep whose runs all ended before their error window is drawn as a note, not a
+    crash (log scales refuse empty data)."""
+    path = plot_sweep({"lam": [(1.0, None, 0.0), (10.0, None, 0.0)],
+                       "c_y": [(5.0, 3.0, 0.1), (50.0, 4.0, 0.1)]}, tmp_path / "s.png",
+                      c_y_axis="c_y / c_x", default={"lam": 10.0, "c_y": 50.0})
+    assert path.stat().st_size > 1000
+
+
+def test_the_friction_sweep_keeps_c_y_above_c_x_and_names_the_ratio() -> None:
+    """A factor that would bring c_y down to c_x or below on any link is skipped (Section V);
+    the ratio labels follow the friction, not the links' geometry."""
+    low = tracking_params(c_x=0.5, c_y=1.0)  # c_y / c_x = 2: factors below 0.5 are skipped
+    factors = [r.sweep[1] for r in report_runs(low, 1.0, own=True) if r.sweep and
+               r.sweep[0] == "c_y"]
+    assert factors == [f for f in C_Y_FACTORS if f > 0.5 and f != 1.0]
+    long_tail = SnakeParams.table1(link_length=[0.14] * 9 + [0.2], c_x=0.5, c_y=25.0)
+    assert sweep_ratio(long_tail) == 50.0
+    labels = [r.label for r in report_runs(long_tail, 1.0, own=False) if r.sweep and
+              r.sweep[0] == "c_y"]
+    assert labels[0] == "c_y = 2.5 N s/m (c_y / c_x = 5)"
+    assert sweep_ratio(SnakeParams.table1(c_x=0.5, c_y=[20.0] * 9 + [30.0])) is None
 
 
 def test_the_default_route_follows_the_studys_lockstep_rule(

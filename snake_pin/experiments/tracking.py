@@ -37,8 +37,8 @@ from ..sim import Trajectory, simulate
 
 __all__ = ["CRITERIA_EVERY", "C_Y_FACTORS", "DECAY_RATES", "REFERENCE", "TRACKING_FRICTION",
            "ReportRun", "initial_state", "plot_sweep", "plot_tracking", "report_runs",
-           "run_tracking", "sweep_findings", "sweep_text", "tracking_friction", "tracking_meta",
-           "tracking_params", "tracking_stage", "tracking_summary"]
+           "run_tracking", "sweep_findings", "sweep_ratio", "sweep_text", "tracking_friction",
+           "tracking_meta", "tracking_params", "tracking_stage", "tracking_summary"]
 
 #: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
 #: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
@@ -391,15 +391,35 @@ def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun
     runs += [ReportRun(f"lambda = {lam:g}/s, mu = {lam / 2:g}/s", robot, t_final,
                        {"lam": lam, "lam_shape": lam / 2}, sweep=("lam", lam))
              for lam in DECAY_RATES if lam != _DEFAULT_LAM]
+    ratio = None if own else sweep_ratio(robot)
     for factor in C_Y_FACTORS:
-        if factor == 1.0:
+        c_y = factor * robot.per_link("c_y")
+        if factor == 1.0 or np.any(c_y <= c_x):  # Section V: c_y > c_x on every link
             continue
-        params = robot.replace(c_y=factor * robot.per_link("c_y"))
-        c_y, c_x = params.per_link("c_y")[0], params.per_link("c_x")[0]
-        label = (f"c_y x {factor:g} on every link" if own or not params.uniform else
-                 f"c_y = {c_y:g} N s/m (c_y / c_x = {c_y / c_x:g})")
-        runs.append(ReportRun(label, params, t_final, sweep=("c_y", factor)))
+        label = (f"c_y x {factor:g} on every link" if ratio is None else
+                 f"c_y = {c_y[0]:g} N s/m (c_y / c_x = {factor * ratio:g})")
+        runs.append(ReportRun(label, robot.replace(c_y=c_y), t_final, sweep=("c_y", factor)))
     return runs
+
+
+def sweep_ratio(robot: SnakeParams) -> float | None:
+    """The c_y / c_x the sideways-friction sweep is drawn against, if there is one.
+
+    Parameters
+    ----------
+    robot
+        The tracking robot.
+
+    Returns
+    -------
+    float or None
+        c_y / c_x when every link has the same c_x and the same c_y; None otherwise (the
+        sweep is then read as a factor on every link's c_y).
+    """
+    c_x, c_y = robot.per_link("c_x"), robot.per_link("c_y")
+    if np.all(c_x == c_x[0]) and np.all(c_y == c_y[0]) and c_x[0] > 0:
+        return float(c_y[0] / c_x[0])
+    return None
 
 
 #: One sweep point: (setting, RMS head error [% of the body] or None without an error
@@ -407,22 +427,26 @@ def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun
 SweepPoint = tuple[float, float | None, float]
 
 
-def sweep_findings(curves: Mapping[str, Sequence[SweepPoint]]
+def sweep_findings(curves: Mapping[str, Sequence[SweepPoint]], target: float = 5.0
                    ) -> dict[str, dict[str, Any] | None]:
-    """Where each sweep's head error is smallest, its two ends and its points above 10 %.
+    """Where each sweep's head error is smallest, its two ends and its points off target.
 
     Parameters
     ----------
     curves
         Per sweep (``"lam"``, ``"c_y"``): its points (setting, % of the body or None,
         R_min), in increasing setting.
+    target
+        The RMS head error the runs should stay under [% of the body] (5: no passive
+        joint).
 
     Returns
     -------
     dict
         Per sweep, None when no point has an error, else ``best``, ``first`` and ``last``
-        (each [setting, %, R_min]: the smallest error and the two ends), and ``above_10``
-        (the settings whose error exceeds 10 % of the body, or has none).
+        (each [setting, %, R_min]: the smallest error and the two ends of the points with
+        an error), ``above`` (the settings whose error exceeds ``target``), ``no_window``
+        (those whose run ended before its error window: no error) and ``target``.
     """
     out: dict[str, dict[str, Any] | None] = {}
     for axis, curve in curves.items():
@@ -432,7 +456,10 @@ def sweep_findings(curves: Mapping[str, Sequence[SweepPoint]]
             continue
         best = min(known, key=lambda point: cast(float, point[1]))
         out[axis] = {"best": list(best), "first": list(known[0]), "last": list(known[-1]),
-                     "above_10": [x for x, p, _ in curve if p is None or not p <= 10.0]}
+                     "above": [x for x, p, _ in known if cast(float, p) > target],
+                     "no_window": [x for x, p, _ in curve
+                                   if p is None or not math.isfinite(p)],
+                     "target": target}
     return out
 
 
@@ -458,13 +485,19 @@ def sweep_text(found: Mapping[str, Mapping[str, Any] | None], c_y_name: str) -> 
         if f is None:
             parts.append(f"No run of the {name} sweep has an error window.")
             continue
-        (x0, p0, r0), (x1, p1, r1), (x2, p2, r2) = f["first"], f["best"], f["last"]
-        text = (f"Along {name}, the RMS head error is smallest at {x1:g}{unit} ({p1:.2g} % of "
-                f"the body, R min {r1:.2g}), against {p0:.2g} % at {x0:g}{unit} (R min "
-                f"{r0:.2g}) and {p2:.2g} % at {x2:g}{unit} (R min {r2:.2g})")
-        above = f["above_10"]
-        parts.append(text + (f"; above 10 % at {', '.join(f'{x:g}' for x in above)}{unit}."
-                             if above else "; no point is above 10 %."))
+
+        ends = [f"{p:.2g} % at {x:g}{unit} (R min {r:.2g})"
+                for x, p, r in (f["first"], f["last"]) if [x, p, r] != f["best"]]
+        text = (f"Along {name}, the RMS head error is smallest at {f['best'][0]:g}{unit} "
+                f"({f['best'][1]:.2g} % of the body, R min {f['best'][2]:.2g})"
+                + (f", against {' and '.join(ends)}" if ends else ""))
+        above = ", ".join(f"{x:g}" for x in f["above"])
+        text += (f"; above the {f['target']:g} % target at {above}{unit}." if above
+                 else f"; every point is within the {f['target']:g} % target.")
+        if f["no_window"]:
+            text += (" No error window (the run ended first) at "
+                     f"{', '.join(f'{x:g}' for x in f['no_window'])}{unit}.")
+        parts.append(text)
     return " ".join(parts)
 
 
@@ -499,6 +532,11 @@ def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_ax
         curve = curves.get(axis, [])
         xs = np.array([x for x, _, _ in curve], dtype=float)
         ys = np.array([np.nan if p is None else p for _, p, _ in curve], dtype=float)
+        ax.set_xlabel(label)
+        if not np.isfinite(ys).any():  # nothing to draw (and log scales would refuse)
+            ax.text(0.5, 0.5, "no run with an error window", ha="center", va="center",
+                    transform=ax.transAxes)
+            continue
         ax.plot(xs, ys, "o-", color="#1f4fd1")
         at = np.flatnonzero(xs == default.get(axis, np.nan))
         if len(at):
@@ -509,10 +547,12 @@ def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_ax
         for scale in (ax.xaxis, ax.yaxis):
             scale.set_major_formatter(ticker.FormatStrFormatter("%g"))
         ax.yaxis.set_minor_formatter(ticker.FormatStrFormatter("%g"))
-        ax.set_xlabel(label)
         ax.grid(alpha=0.3, which="both")
     axes[0].set_ylabel("RMS head error [% of body]")
-    axes[0].legend(fontsize=8)
+    for ax in axes:  # the legend on the first panel with something drawn
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+            break
     save_figure(fig, path)
     return path
 
@@ -597,8 +637,7 @@ def tracking_stage(ctx) -> None:
             s = traj.summary
             sweep_rows.append([title, label, s["rms_head_error"], percent(s["rms_relative"]),
                                s["R_min"], traj.status])
-    ratio = (None if own or not robot.uniform
-             else float(robot.per_link("c_y")[0] / robot.per_link("c_x")[0]))
+    ratio = None if own else sweep_ratio(robot)
     curves = {axis: [(value * (ratio or 1.0) if axis == "c_y" else value,
                       percent(traj.summary["rms_relative"]), traj.summary["R_min"])
                      for value, _, traj in found] for axis, found in points.items()}
