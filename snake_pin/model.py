@@ -667,10 +667,16 @@ class FastDynamics:
         ``evaluate(row) -> q''`` (a new array) at ``states[row]`` under :attr:`torque`.
     affine
         ``affine(x) -> (b, M)`` at the plain state ``x = [q, q']``: b = q'' at zero torque
-        (-H^-1 h) and M = H^-1, of which only the upper triangle is filled.
+        (-H^-1 h, a new array) and M = H^-1, whole (both triangles), which is
+        :attr:`inverse_mass`.
     mass_and_bias
-        ``mass_and_bias(x) -> (H, h)`` at the plain state x: H by CRBA (upper triangle
-        only) and h = Coriolis/centrifugal minus friction, as :meth:`Snake.bias`.
+        ``mass_and_bias(x) -> (H, h)`` at the plain state x: H by CRBA, whole (both
+        triangles), which is :attr:`mass`, and h = Coriolis/centrifugal minus friction, as
+        :meth:`Snake.bias`, which is :attr:`bias`.
+    mass, inverse_mass, bias
+        The arrays :attr:`mass_and_bias` and :attr:`affine` fill (views of a workspace of
+        their own, made once: a controller may keep slices of them); valid until the next
+        call, read only.
     """
 
     def __init__(self, snake: Snake, rows: int = 4) -> None:
@@ -689,8 +695,38 @@ class FastDynamics:
         own_zq, own_zv = own[:size], own[size:]
         gen = np.zeros(nq)
         torque = self.torque
-        rnea, aba, minverse = pin.rnea, pin.aba, pin.computeMinverse
-        crba, nle = pin.crba, pin.nonLinearEffects
+        rnea, aba, pin_minverse = pin.rnea, pin.aba, pin.computeMinverse
+        pin_crba, nle = pin.crba, pin.nonLinearEffects
+        # The controllers' calls run on a workspace of their own, whose M and Minv are read
+        # through views made once (Pinocchio returns copies: slicing those costs per call).
+        own_data = model.createData()
+        self.mass, self.inverse_mass = own_data.M, own_data.Minv
+        self.bias = bias = np.zeros(nq)
+        mass, inverse_mass = self.mass, self.inverse_mass
+        if _binding_mirrors(model):  # the bindings fill both triangles: nothing to do
+            def crba(model: pin.Model, data: pin.Data, q: np.ndarray,
+                     convention: pin.Convention) -> np.ndarray:
+                pin_crba(model, data, q, convention)
+                return mass
+
+            def minverse(model: pin.Model, data: pin.Data) -> np.ndarray:
+                pin_minverse(model, data)
+                return inverse_mass
+
+        else:  # a binding that fills the upper triangle only: mirror it in place
+            lower = np.tril(np.ones((nq, nq), dtype=bool), -1)
+
+            def crba(model: pin.Model, data: pin.Data, q: np.ndarray,
+                     convention: pin.Convention) -> np.ndarray:
+                pin_crba(model, data, q, convention)
+                np.copyto(mass, mass.T, where=lower)
+                return mass
+
+            def minverse(model: pin.Model, data: pin.Data) -> np.ndarray:
+                pin_minverse(model, data)
+                np.copyto(inverse_mass, inverse_mass.T, where=lower)
+                return inverse_mass
+        data = own_data
         negative, subtract, add = np.negative, np.subtract, np.add
         world = _WORLD
         if passes is None:  # long anisotropic robots: Q by numpy on [q, q'] (size == nq)
@@ -708,16 +744,16 @@ class FastDynamics:
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 q, v = x[:nq], x[nq:]
-                mass = crba(model, data, q, world)
-                return mass, subtract(nle(model, data, q, v), of_state(x), out=gen).copy()
+                crba(model, data, q, world)
+                return mass, subtract(nle(model, data, q, v), of_state(x), out=bias)
 
         else:
             roll, roll_data, zero = passes.roll, passes.roll_data, passes.zero
             lock, lock_data = passes.lock, passes.lock_data
             if lock is None:
                 def evaluate(row: int) -> np.ndarray:
-                    zq, zv, q, v, _ = views[row]
-                    subtract(torque, rnea(roll, roll_data, zq, zero, zv)[:nq], out=gen)
+                    zq, zv, q, v, _ = views[row]  # size == nq: the pass's rows are Q's
+                    subtract(torque, rnea(roll, roll_data, zq, zero, zv), out=gen)
                     return aba(model, data, q, v, gen, world)
 
                 def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -729,8 +765,8 @@ class FastDynamics:
                 def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                     q, v = x[:nq], x[nq:]
                     damping = rnea(roll, roll_data, q, zero, v)  # -Q
-                    mass = crba(model, data, q, world)
-                    return mass, add(nle(model, data, q, v), damping, out=damping)
+                    crba(model, data, q, world)
+                    return mass, add(nle(model, data, q, v), damping, out=bias)
 
             else:
                 def evaluate(row: int) -> np.ndarray:
@@ -754,8 +790,8 @@ class FastDynamics:
                     own_w[:] = 0.0
                     own_w[:] = rnea(lock, lock_data, own_zq, zero, own_zv)[nq:]
                     damping = rnea(roll, roll_data, own_zq, zero, own_zv)[:nq]  # -Q
-                    mass = crba(model, data, own_q, world)
-                    return mass, add(nle(model, data, own_q, own_v), damping, out=damping)
+                    crba(model, data, own_q, world)
+                    return mass, add(nle(model, data, own_q, own_v), damping, out=bias)
 
         self.evaluate = evaluate
         self.affine = affine
@@ -768,6 +804,20 @@ class FastDynamics:
 
 def _fast_dynamics_of(snake: Snake) -> FastDynamics:
     return snake.fast_dynamics
+
+
+def _binding_mirrors(model: pin.Model) -> bool:
+    """Whether ``pin.crba`` and ``pin.computeMinverse`` (after ABA) return H and H^-1 whole.
+
+    Pinocchio's own algorithms fill the upper triangle only; its Python bindings mirror it
+    (this one does). Checked once per robot on a configuration away from symmetries.
+    """
+    data = model.createData()
+    q = np.linspace(0.3, 0.9, model.nq)
+    mass = pin.crba(model, data, q, _WORLD)
+    pin.aba(model, data, q, q, np.zeros(model.nv), _WORLD)
+    inverse = pin.computeMinverse(model, data)
+    return bool(np.array_equal(mass, mass.T) and np.array_equal(inverse, inverse.T))
 
 
 def _vector(value: object, size: int, name: str) -> np.ndarray:

@@ -66,13 +66,15 @@ tail, so a head-first run along +x has theta_1 = pi; see :func:`head_first_refer
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
-from scipy.linalg import blas, lapack
+from scipy.linalg import lapack
 
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
-from ..model import Snake
+from ..model import FastDynamics, Snake
 from .base import Controller, TimeTerms, _ReferenceTimeTerms, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
@@ -197,13 +199,32 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
         self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
         self._law_state = law[:, 3 * nq:].copy()  # applied to [q, q', b]
         self._state_and_b = np.zeros(3 * nq)
-        self._sqrt_w = np.diag(sqrt_w)
         all_actuated = len(self._act) == n - 1
-        self._columns = slice(3, nq) if all_actuated else self._act
         self._all_actuated = all_actuated
-        self._torque_full = np.zeros(nq)  # E_a tau_a
-        self._dynamics = snake.fast_dynamics
+        self._dynamics = dynamics = snake.fast_dynamics
+        # A^T = E_a^T H^-1 (H^-1 symmetric): the actuated rows of H^-1, a contiguous view
+        # of the dynamics' H^-1 made once (filled by each affine call); W^(1/2) scales their
+        # columns, by a whole matrix of weights (numpy broadcasting costs more here)
+        self._inverse_rows = self._actuated_rows(dynamics)
+        self._sqrt_w = np.tile(sqrt_w, (len(self._act), 1))
+        self._weighted_t = np.zeros((len(self._act), nq))  # (W^(1/2) A)^T
         self._ddq: np.ndarray | None = None
+
+    def _actuated_rows(self, dynamics: FastDynamics) -> np.ndarray | None:
+        """The view of ``dynamics.inverse_mass``'s actuated rows (None with passive joints)."""
+        return dynamics.inverse_mass[3:] if self._all_actuated else None
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled: the view of H^-1 is made again on the robot's own dynamics (a pickled
+        view would be a detached copy).
+
+        Parameters
+        ----------
+        state : dict
+            The pickled attributes.
+        """
+        self.__dict__.update(state)
+        self._inverse_rows = self._actuated_rows(self._dynamics)
 
     # ------------------------------------------------------------ the law
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -273,23 +294,26 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
-        nq = self.snake.nq
-        b, minv = self._dynamics.affine(x)  # minv: upper triangle of H^-1, so minv.T's lower one
-        state_and_b = self._state_and_b  # [q, q', b] (np.dot: cheaper than @ on tiny arrays)
+        nq, dot = self.snake.nq, np.dot  # np.dot: cheaper than @ (and f2py BLAS) here
+        b, minv = self._dynamics.affine(x)  # minv: H^-1, whole
+        state_and_b = self._state_and_b  # [q, q', b]
         state_and_b[:2 * nq] = x
         state_and_b[2 * nq:] = b
-        errors = np.dot(self._law_state, state_and_b)
+        errors = dot(self._law_state, state_and_b)
         errors += self._time_row(t)  # [W^(1/2) (q''* - b); W^(1/2) [s; e]]
-        weighted = blas.dsymm(1.0, minv.T, self._sqrt_w, side=1, lower=1)[:, self._columns]
-        tau_a, info = lapack.dposv(blas.dsyrk(1.0, weighted, trans=1),
-                                   blas.dgemv(1.0, weighted, errors[:nq], trans=1))[1:]
+        rows = self._inverse_rows  # A^T
+        if rows is None:  # passive joints: A's columns are picked (a copy)
+            rows = minv[self._act]
+        weighted_t = np.multiply(rows, self._sqrt_w, out=self._weighted_t)  # (W^(1/2) A)^T
+        tau_a, info = lapack.dposv(dot(weighted_t, weighted_t.T),
+                                   dot(weighted_t, errors[:nq]))[1:]
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
-        torque_full = self._torque_full
-        torque_full[self._columns] = tau_a
-        self._ddq = blas.dsymv(1.0, minv.T, torque_full, beta=1.0, y=b, lower=1)
+        ddq = dot(tau_a, rows)  # A tau_a
+        ddq += b
+        self._ddq = ddq
         weighted_errors = errors[nq:]
-        self._last = {"V": float(np.dot(weighted_errors, weighted_errors))}
+        self._last = {"V": float(dot(weighted_errors, weighted_errors))}
         if self._all_actuated:
             return tau_a
         self._tau[self._act - 3] = tau_a
