@@ -31,7 +31,9 @@ square root of the smallest eigenvalue of H12 H12^T (LAPACK dsyev; a full SVD of
 (:class:`~snake_pin.model.FastDynamics`). The time-only parts
 of a and u are computed in blocks for the coming calls. The closed loop's q'' at the state
 is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p, which the simulator
-uses as RK4's first stage (:meth:`PFLController.plant_acceleration`).
+uses as RK4's first stage (:meth:`PFLController.plant_acceleration`); the torque is formed
+from it as tau = H21 a + H22 phi'' + h2 (= h2 + H22 w, one product with H's joint rows).
+H (whole: the bindings mirror CRBA's triangle) and h are read through views made once.
 
 Per-link robots: the law reads only the robot's own H and h (per-link lengths, masses,
 inertias, CM offsets and friction) and the climb term the per-link closed form of R, so
@@ -43,6 +45,7 @@ them; the torque scales with the robot through H, so the gains of (79) serve eve
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.linalg import blas, lapack
@@ -118,13 +121,39 @@ class PFLController(_ReferenceTimeTerms, Controller):
         self._gain = np.zeros((nq, 2 * nq))  # on x = [q, q']
         self._gain[:3, :3], self._gain[:3, nq:nq + 3] = -self.k_p, -self.k_v
         self._gain[3:, 3:nq], self._gain[3:, nq + 3:] = self.r_p, self.r_v
+        # the head's rows negated, so that one product gives [-a; u] (negation is exact)
+        self._gain[:3] *= -1.0
+        law[:3] *= -1.0
         self._law_time = law.T.copy()
         self._time_row = TimeTerms(self._time_terms)
         self._dynamics = snake.fast_dynamics
         self._ddq: np.ndarray | None = None
         self._ddq_buffer = np.zeros(nq)
-        self._stacked = np.zeros(nq)
-        self._strict_lower = np.tril(np.ones((nq, nq), dtype=bool), -1)
+        self._stacked = np.zeros(nq)  # [-a; u], then [-a; u + p]
+        self._views()
+
+    def _views(self) -> None:
+        """Views made once of the dynamics' H and h (filled by each mass_and_bias call) and
+        of the buffers: slicing per call costs more than the products that read them."""
+        mass = self._dynamics.mass.T  # H is symmetric: its C-ordered face, rows contiguous
+        bias, stacked, ddq = self._dynamics.bias, self._stacked, self._ddq_buffer
+        self._h12, self._h12_t, self._h22 = mass[:3, 3:], mass[3:, :3], mass[3:, 3:]
+        self._h_head, self._h_joints = mass[:3], mass[3:]
+        self._h1, self._h2 = bias[:3], bias[3:]
+        self._minus_a, self._u = stacked[:3], stacked[3:]
+        self._ddq_head, self._ddq_joints = ddq[:3], ddq[3:]
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled: the views are made again on the robot's own dynamics and buffers (a
+        pickled view would be a detached copy).
+
+        Parameters
+        ----------
+        state : dict
+            The pickled attributes.
+        """
+        self.__dict__.update(state)
+        self._views()
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
@@ -148,37 +177,33 @@ class PFLController(_ReferenceTimeTerms, Controller):
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
         nq, dot = self._nq, np.dot  # np.dot: cheaper than @ on these tiny arrays
-        h_mat, h_vec = self._dynamics.mass_and_bias(x)  # H: a new array, upper triangle
-        np.copyto(h_mat, h_mat.T, where=self._strict_lower)  # mirrored in place
-        h12, h22 = h_mat[:3, 3:], h_mat[3:, 3:]
-        gram = blas.dsyrk(1.0, h12)  # H12 H12^T (upper triangle)
+        self._dynamics.mass_and_bias(x)  # H (whole) and h, read through the views
+        h12_t = self._h12_t
+        gram = blas.dsyrk(1.0, self._h12)  # H12 H12^T (upper triangle)
         eigenvalues, _, info = lapack.dsyev(gram, compute_v=0)
         r = math.sqrt(max(float(eigenvalues[0]), 0.0))  # R: the smallest singular value
         if info != 0 or not r > self.r_min:
             raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
-        commands = dot(self._gain, x)
-        commands += self._time_row(t)
-        a, u = commands[:3], commands[3:]  # eqs. (71), (78)
+        stacked, minus_a, u = self._stacked, self._minus_a, self._u
+        dot(self._gain, x, out=stacked)
+        stacked += self._time_row(t)  # [-a; u], eqs. (71), (78)
         if self.climb_R:
-            u = u - self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq]) - x[nq + 3:])
-        p, info = lapack.dposv(h22, dot(h12.T, a))[1:]  # H22^-1 H21 a (H22 > 0, Prop. 1)
+            u -= self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq]) - x[nq + 3:])
+        minus_p, info = lapack.dposv(self._h22, dot(h12_t, minus_a))[1:]  # -H22^-1 H21 a
         if info != 0:
             raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-        stacked = self._stacked  # [-a, p + u]
-        np.negative(a, out=stacked[:3])
-        np.add(p, u, out=stacked[3:])
-        z = dot(h_mat[:3], stacked)
-        z -= h_vec[:3]  # -Hs a - h1 + H12 u
+        u -= minus_p  # stacked = [-a; p + u]
+        z = dot(self._h_head, stacked)
+        z -= self._h1  # -Hs a - h1 + H12 u
         solved, info = lapack.dposv(gram, z)[1:]
         if info != 0:
             raise SingularPostureError(f"H12 H12^T is not positive definite (LAPACK info {info})")
-        w = dot(h12.T, solved)  # H12^+ z
-        w -= u
-        tau = dot(h22, w)
-        tau += h_vec[3:]
-        ddq = self._ddq_buffer
-        ddq[:3] = a
-        np.subtract(w, p, out=ddq[3:])
+        ddq, ddq_joints = self._ddq_buffer, self._ddq_joints
+        dot(h12_t, solved, out=ddq_joints)  # H12^+ z
+        ddq_joints -= u  # phi'' = w - p, w = H12^+ z - u
+        np.negative(minus_a, out=self._ddq_head)  # w'' = a
+        tau = dot(self._h_joints, ddq)  # H21 a + H22 (w - p) = H22 w
+        tau += self._h2
         self._ddq = ddq
         self._last = {"R": r}
         return tau
