@@ -336,11 +336,21 @@ class Worker:
 
 
 def baseline_checkout(commit: str) -> tuple[Path | None, str]:
-    """A copy of ``commit``'s tree in the temporary folder (made once, from git), or None
-    and why not (no git, no history: the baseline column is then skipped)."""
+    """A copy of ``commit``'s tree in the temporary folder (made once per resolved commit,
+    from git), or None and why not (no git, no history: the baseline column is then
+    skipped). The copy is named after the full hash, so a moving name (HEAD, a branch)
+    never reuses another commit's tree."""
+    try:
+        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--verify",
+                                 f"{commit}^{{commit}}"], capture_output=True, check=True,
+                                text=True, timeout=60).stdout.strip()
+    except (OSError, subprocess.SubprocessError) as exc:
+        detail = getattr(exc, "stderr", "") or str(exc)
+        return None, (f"the {commit} column is skipped: git cannot resolve it "
+                      f"({str(detail).strip()[:200]})")
     target = Path(tempfile.gettempdir()) / f"snake_pin_{commit}"
     if (target / "snake_pin" / "__init__.py").is_file():
-        return target, f"{commit} from {target}"
+        return target, f"{commit[:10]} from {target}"
     try:
         archive = subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", commit],
                                  capture_output=True, check=True, timeout=120).stdout
@@ -356,7 +366,7 @@ def baseline_checkout(commit: str) -> tuple[Path | None, str]:
         detail = getattr(exc, "stderr", b"") or str(exc).encode()
         return None, (f"the {commit} column is skipped: its tree could not be extracted with "
                       f"git archive ({detail.decode(errors='replace').strip()[:200]})")
-    return target, f"{commit} from {target} (git archive)"
+    return target, f"{commit[:10]} from {target} (git archive)"
 
 
 def step_floor(snake: Snake, kind: str, states: np.ndarray,
