@@ -813,11 +813,14 @@ def _binding_mirrors(model: pin.Model) -> bool:
     (this one does). Checked once per robot on a configuration away from symmetries.
     """
     data = model.createData()
+    mass, inverse = data.M, data.Minv  # the views FastDynamics reads, not the returned copies
     q = np.linspace(0.3, 0.9, model.nq)
-    mass = pin.crba(model, data, q, _WORLD)
+    returned = pin.crba(model, data, q, _WORLD)
+    whole_mass = np.array_equal(mass, returned) and np.array_equal(mass, mass.T)
     pin.aba(model, data, q, q, np.zeros(model.nv), _WORLD)
-    inverse = pin.computeMinverse(model, data)
-    return bool(np.array_equal(mass, mass.T) and np.array_equal(inverse, inverse.T))
+    returned = pin.computeMinverse(model, data)
+    whole_inverse = np.array_equal(inverse, returned) and np.array_equal(inverse, inverse.T)
+    return bool(whole_mass and whole_inverse)
 
 
 def _vector(value: object, size: int, name: str) -> np.ndarray:
