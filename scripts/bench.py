@@ -33,8 +33,10 @@ import tarfile
 import tempfile
 import time
 import timeit
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -47,7 +49,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 # ----------------------------------------------------------------------- timing helpers
-def interleaved_samples(fns: dict[str, Callable[[], object]], *, budget: float = 0.2,
+def interleaved_samples(fns: Mapping[str, Callable[[], object]], *, budget: float = 0.2,
                         rounds: int = 9) -> dict[str, list[float]]:
     """us per call of each function in each of ``rounds`` interleaved rounds (A B C A B C
     ...), each round of each function lasting about ``budget / rounds`` seconds."""
@@ -68,7 +70,7 @@ def spread(values: list[float]) -> tuple[float, float, float]:
     return statistics.median(values), deciles[0], deciles[-1]
 
 
-def interleaved_us(fns: dict[str, Callable[[], object]], *, budget: float = 0.2,
+def interleaved_us(fns: Mapping[str, Callable[[], object]], *, budget: float = 0.2,
                    rounds: int = 9) -> dict[str, tuple[float, float, float]]:
     """Median, 10th and 90th percentile us per call of each function, timed in interleaved
     rounds (see :func:`interleaved_samples`)."""
@@ -117,13 +119,13 @@ def bench_dynamics(budget: float) -> None:
                 return np.linalg.solve(paper.inertia_matrix(params, q),
                                        e @ tau - paper.bias(params, q, dq))
 
-            pairs = {
-                "H": (lambda s=snake, q=q: s.inertia_matrix(q),
-                      lambda p=params, q=q: paper.inertia_matrix(p, q)),
-                "h": (lambda s=snake, q=q, dq=dq: s.bias(q, dq),
-                      lambda p=params, q=q, dq=dq: paper.bias(p, q, dq)),
+            pairs: dict[str, tuple[Callable[[], object], Callable[[], object]]] = {
+                "H": (partial(snake.inertia_matrix, q),
+                      partial(paper.inertia_matrix, params, q)),
+                "h": (partial(snake.bias, q, dq),
+                      partial(paper.bias, params, q, dq)),
                 "forward dynamics": (
-                    lambda s=snake, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t), closed_fd),
+                    partial(snake.forward_dynamics, q, dq, tau), closed_fd),
             }
             route = ("twin" if not snake.friction.has_wheels else "wheeled twin") \
                 if snake.friction.uses_twin else "numpy"
@@ -141,15 +143,15 @@ def bench_dynamics(budget: float) -> None:
                                    snake.generalized_torque(tau), fext)
 
                 times = interleaved_samples({
-                    "fast": lambda s=snake, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t),
+                    "fast": partial(snake.forward_dynamics, q, dq, tau),
                     "slow": fext_fd}, budget=budget)
                 rows.append([str(n), "forward dynamics against a pin.Force list", label,
                              show(spread(times["fast"])), show(spread(times["slow"])),
                              show(ratios(times["slow"], times["fast"]), unit="x")])
                 numpy_route = FrictionModel(params)
                 times = interleaved_samples({
-                    "fast": lambda f=snake.friction, q=q, dq=dq: f(q, dq),
-                    "slow": lambda f=numpy_route, q=q, dq=dq: f(q, dq)}, budget=budget)
+                    "fast": partial(snake.friction, q, dq),
+                    "slow": partial(numpy_route, q, dq)}, budget=budget)
                 rows.append([str(n), "friction Q alone: twin against numpy", label,
                              show(spread(times["fast"])), show(spread(times["slow"])),
                              show(ratios(times["slow"], times["fast"]), unit="x")])
@@ -187,7 +189,7 @@ def bench_derivatives(budget: float) -> None:
                 return pin.computeABADerivatives(s.model, s.data, q, dq, np.zeros(s.nv))
 
             times = interleaved_samples({
-                "analytical": lambda s=snake, q=q, dq=dq, t=tau: s.dynamics_derivatives(q, dq, t),
+                "analytical": partial(snake.dynamics_derivatives, q, dq, tau),
                 "central": central, "floor": floor}, budget=budget)
             rows.append([str(n), label, show(spread(times["analytical"])),
                          show(spread(times["central"]), 0),
@@ -209,7 +211,7 @@ def bench_derivatives(budget: float) -> None:
         q = np.r_[0.1, -0.2, 0.3, rng.uniform(-1, 1, 9)]
         dq, tau = rng.normal(size=12), rng.normal(size=9)
         snakes = {"uniform": Snake(uniform), "per-link": Snake(hetero)}
-        calls = {name: (lambda s=s, q=q, dq=dq, t=tau: s.forward_dynamics(q, dq, t))
+        calls = {name: partial(s.forward_dynamics, q, dq, tau)
                  for name, s in snakes.items()}
         times = interleaved_samples(calls, budget=budget)
         per_link.append([label, show(spread(times["uniform"])), show(spread(times["per-link"])),
@@ -240,10 +242,10 @@ def bench_manipulability(budget: float) -> None:
         q = np.r_[0.0, 0.0, 0.0, rng.uniform(-1, 1, n - 1)]
         phis = rng.uniform(-1.5, 1.5, (20_000, n - 1))
         times = interleaved_samples({
-            "one": lambda s=snake, q=q: manipulability(s, q),
-            "free": lambda s=snake, q=q: manipulability(s, q, free_joint=5),
-            "closed": lambda p=params, q=q: closed_form_manipulability(p, q),
-            "batch": lambda p=params, phis=phis: manipulability_R_batch(p, phis)},
+            "one": partial(manipulability, snake, q),
+            "free": partial(manipulability, snake, q, free_joint=5),
+            "closed": partial(closed_form_manipulability, params, q),
+            "batch": partial(manipulability_R_batch, params, phis)},
             budget=4 * budget, rounds=7)
         per_posture = [t / len(phis) for t in times["batch"]]
         rows.append([str(n), "D and R, one posture", show(spread(times["one"])),
@@ -263,7 +265,7 @@ def bench_manipulability(budget: float) -> None:
 # ------------------------------------------------------------------- closed-loop runs
 #: The runs: label, controller, robot (changes to tracking_params or SnakeParams.table1),
 #: t_final [s] of the full run and of the interleaved segments.
-RUNS = [
+RUNS: list[tuple[str, str, dict[str, Any], float, float]] = [
     ("Lyapunov-like, 60 s (c_y = 50 c_x)", "lyapunov", {}, 60.0, 5.0),
     ("Lyapunov-like, 60 s, joint 5 passive", "lyapunov", {"passive": [5]}, 60.0, 5.0),
     ("Lyapunov-like, 60 s, isotropic", "lyapunov", {"c_y": 0.5}, 60.0, 5.0),
@@ -437,7 +439,8 @@ def bench_runs(budget: float, baseline: str | None = BASELINE) -> None:
     try:
         for label, kind, robot, t_final, segment in RUNS:
             segment = min(segment, 2.0) if quick else segment
-            fixed = {k: tuple(v) if isinstance(v, list) else v for k, v in robot.items()}
+            fixed: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
+                                     for k, v in robot.items()}
             params = SnakeParams.table1(**fixed) if kind == "pfl" else \
                 tracking.tracking_params(**fixed)
             snake = Snake(params)

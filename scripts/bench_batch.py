@@ -78,11 +78,12 @@ def single_rate(tree: Path, t_final: float, passive: bool) -> float:
 
 def batch_runs(size: int, passive: bool):
     """Robots, controllers and initial states of ``size`` tracking runs."""
-    from snake_pin import Snake
+    from snake_pin import Snake, SnakeParams
     from snake_pin.control import LyapunovController
     from snake_pin.experiments.tracking import initial_state, tracking_params
 
-    robots, snakes = [], {}
+    robots: list[SnakeParams] = []
+    snakes: dict[SnakeParams, Snake] = {}
     for b in range(size):
         failed = (b % 10,) if passive and b % 10 else ()
         params = tracking_params(c_y=0.5 * FRICTION_RATIOS[b % len(FRICTION_RATIOS)],
@@ -126,14 +127,15 @@ def table(title: str, header: list[str], rows: list[list[str]]) -> None:
 def bench_rates(rounds: int, sizes: list[int], budget: float, passive: bool,
                 routes: list[str]) -> None:
     tree = baseline_tree()
-    cases = [("simulate @ dc0b889", None, None), ("simulate (this tree)", None, None)]
+    cases: list[tuple[str, int | None, str | None]] = [
+        ("simulate @ dc0b889", None, None), ("simulate (this tree)", None, None)]
     cases += [(f"batch B = {b}" + (f", {r}" if len(routes) > 1 else ""), b, r)
               for r in routes for b in sizes]
     samples: dict[str, list[float]] = {label: [] for label, _, _ in cases}
     single_t = 2.0 * budget
     for round_index in range(rounds):
         for label, size, route in cases:
-            if size is None:
+            if size is None or route is None:  # the single runs (a batch has both)
                 where = tree if "dc0b889" in label else REPO
                 samples[label].append(single_rate(where, single_t, passive))
             else:

@@ -76,7 +76,7 @@ def main() -> int:
         arrays[f"{name}_dq"] = traj.dq[-1]
         arrays[f"{name}_t_end"] = np.array(traj.t_end)
         print(f"{name}: t_end = {traj.t_end:.3f} s, |dq|max = {np.abs(traj.dq[-1]).max():.3g}")
-    np.savez(args.output, **arrays)
+    np.savez(args.output, **arrays)  # type: ignore[arg-type]  # a **dict might hold allow_pickle
     print(f"wrote {args.output}")
     return 0
 
