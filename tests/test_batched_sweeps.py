@@ -32,20 +32,26 @@ def short_window(monkeypatch: pytest.MonkeyPatch) -> None:
                         functools.partial(head_error_summary, start=1.0))
 
 
-@pytest.mark.usefixtures("short_window")
-def test_the_stage_runs_batched_give_the_per_run_rows(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The tracking stage's 18 runs (2 s) as one lockstep batch give the rows of the runs
-    one by one to 1e-9: RMS, % of body, max error, R min, D min (g drift to 1e-6)."""
+@pytest.fixture
+def batches(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The size of every simulate_batch call the test makes, in order (a spy)."""
     import snake_pin.batch
 
-    batches: list[int] = []
+    sizes: list[int] = []
     original = snake_pin.batch.simulate_batch
 
     def spy(robots: list[SnakeParams], *args: object, **kwargs: object) -> object:
-        batches.append(len(robots))
+        sizes.append(len(robots))
         return original(robots, *args, **kwargs)  # type: ignore[arg-type]
 
     monkeypatch.setattr(snake_pin.batch, "simulate_batch", spy)
+    return sizes
+
+
+@pytest.mark.usefixtures("short_window")
+def test_the_stage_runs_batched_give_the_per_run_rows(batches: list[int]) -> None:
+    """The tracking stage's 18 runs (2 s) as one lockstep batch give the rows of the runs
+    one by one to 1e-9: RMS, % of body, max error, R min, D min (g drift to 1e-6)."""
     robot, _ = tracking_friction(SnakeParams.table1())
     runs = report_runs(robot, 2.0, own=False)
     jobs = [(r.params, r.t_final, r.options) for r in runs]
@@ -205,21 +211,11 @@ def test_the_friction_sweep_keeps_c_y_above_c_x_and_names_the_ratio() -> None:
     assert sweep_ratio(SnakeParams.table1(c_x=0.5, c_y=[20.0] * 9 + [30.0])) is None
 
 
-def test_the_default_route_follows_the_studys_lockstep_rule(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_default_route_follows_the_studys_lockstep_rule(batches: list[int]) -> None:
     """By default a worker's share goes lockstep from MIN_LOCKSTEP runs of one layout on
     (the study's rule), below it one by one; another layout counts apart."""
-    import snake_pin.batch
     from snake_pin.study.work import MIN_LOCKSTEP
 
-    batches: list[int] = []
-    original = snake_pin.batch.simulate_batch
-
-    def spy(robots: list[SnakeParams], *args: object, **kwargs: object) -> object:
-        batches.append(len(robots))
-        return original(robots, *args, **kwargs)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(snake_pin.batch, "simulate_batch", spy)
     job = (tracking_params(), 0.05, {})
     other = (tracking_params(n=6), 0.05, {})
     dict(iter_tracking_runs([job] * (MIN_LOCKSTEP - 1) + [other], workers=1))
