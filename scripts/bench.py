@@ -8,8 +8,8 @@ of a ratio are timed in interleaved rounds (A B A B ...), so that a neighbour's 
 both alike; each figure is the median over the rounds with its 10-90 % range.
 
 Usage: python scripts/bench.py [--quick]
-           [--only dynamics,derivatives,manipulability,runs,engine,sweeps,reproduce,
-                   failure_map]
+           [--only dynamics,friction_routes,derivatives,manipulability,runs,engine,
+                   sweeps,reproduce,failure_map]
            [--baseline COMMIT | --no-baseline]
 
 ``--only reproduce`` (not in the default set: it runs the whole report twice) times
@@ -160,6 +160,41 @@ def bench_dynamics(budget: float) -> None:
            "reference / snake_pin"], rows)
     print("\nReference: the closed form (snake_pin.paper, numpy solve) unless the row names "
           "another route.")
+
+
+def bench_friction_routes(budget: float) -> None:
+    """Anisotropic friction in the closed loop: one ``FastDynamics.evaluate`` (friction and
+    ABA) with Q from the wheeled twin against Q from numpy, for several n; the crossing
+    sets ``snake_pin.friction.WHEELED_TWIN_MAX_LINKS``."""
+    from snake_pin import friction
+
+    rows = []
+    chosen = friction.WHEELED_TWIN_MAX_LINKS
+    for n in (10, 20, 30, 40, 50):
+        params = SnakeParams.table1(n=n, c_y=25.0)
+        snakes = {}
+        try:  # the route is chosen when the robot is built: build one on each
+            for route, limit in (("twin", n), ("numpy", n - 1)):
+                friction.WHEELED_TWIN_MAX_LINKS = limit
+                snakes[route] = Snake(params)
+        finally:
+            friction.WHEELED_TWIN_MAX_LINKS = chosen
+        rng = np.random.default_rng(n)
+        x = np.r_[0.1, -0.2, 0.3, rng.uniform(-1, 1, n - 1), rng.normal(size=n + 2)]
+        calls = {}
+        for route, snake in snakes.items():
+            dynamics = snake.fast_dynamics
+            dynamics.states[1, dynamics.select] = x
+            calls[route] = partial(dynamics.evaluate, 1)
+        times = interleaved_samples(calls, budget=budget)
+        rows.append([str(n), "twin" if n <= chosen else "numpy",
+                     show(spread(times["twin"]), 2), show(spread(times["numpy"]), 2),
+                     show(ratios(times["numpy"], times["twin"]), 2, "x")])
+    table("Anisotropic friction (c_y = 50 c_x) in one closed-loop evaluation, us per call, "
+          "median (10-90 %) of interleaved rounds",
+          ["n", "route used", "wheeled twin (CRBA + 2 products) [us]", "numpy [us]",
+           "numpy / twin"], rows)
+    print(f"\nWHEELED_TWIN_MAX_LINKS = {chosen}: the twin up to there, numpy beyond.")
 
 
 def bench_derivatives(budget: float) -> None:
@@ -375,19 +410,20 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray,
                taus: np.ndarray) -> Callable[[], None]:
     """A function making exactly the Pinocchio calls of one closed-loop step of
     ``simulate`` (see :class:`snake_pin.model.FastDynamics`), on the run's states in turn:
-    the controller's (Lyapunov-like: the friction passes, ABA, computeMinverse; PFL: the
-    friction passes, CRBA, nonLinearEffects), then three RK4 stages (the friction passes
-    and ABA each; the first stage comes from the controller)."""
+    the controller's (Lyapunov-like: the friction's, ABA, computeMinverse; PFL: the
+    friction's, CRBA, nonLinearEffects), then three RK4 stages (the friction's and ABA
+    each; the first stage comes from the controller). The friction's call is the damping
+    twin's RNEA (isotropic friction) or its CRBA (with wheels)."""
     import pinocchio as pin
 
     passes = snake.friction.passes
     if passes is None:
-        raise ValueError("the floor is defined for the friction passes' route")
+        raise ValueError("the floor is defined for the damping twin's route")
     model, data, nq, size = snake.model, snake.data, snake.nq, passes.size
-    lock, lock_data, roll, roll_data = passes.lock, passes.lock_data, passes.roll, \
-        passes.roll_data
-    zero, world = passes.zero, pin.Convention.WORLD
-    rnea, aba = pin.rnea, pin.aba
+    twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
+    wheels = passes.wheel_gain is not None
+    world = pin.Convention.WORLD
+    rnea, aba, crba = pin.rnea, pin.aba, pin.crba
     arguments = []
     for x, tau in zip(states, taus, strict=True):
         q_ext, v_ext = np.zeros(size), np.zeros(size)
@@ -398,14 +434,15 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray,
     cursor = iter(range(1 << 62))
     count = len(arguments)
 
-    def passes_calls(q_ext: np.ndarray, v_ext: np.ndarray) -> None:
-        if lock is not None:
-            rnea(lock, lock_data, q_ext, zero, v_ext)
-        rnea(roll, roll_data, q_ext, zero, v_ext)
+    def friction_call(q_ext: np.ndarray, v_ext: np.ndarray) -> None:
+        if wheels:
+            crba(twin, twin_data, q_ext, world)
+        else:
+            rnea(twin, twin_data, q_ext, zero, v_ext)
 
     def step() -> None:
         q_ext, v_ext, q, v, torque = arguments[next(cursor) % count]
-        passes_calls(q_ext, v_ext)
+        friction_call(q_ext, v_ext)
         if kind == "pfl":
             pin.crba(model, data, q, world)
             pin.nonLinearEffects(model, data, q, v)
@@ -413,7 +450,7 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray,
             aba(model, data, q, v, torque, world)
             pin.computeMinverse(model, data)
         for _ in range(3):
-            passes_calls(q_ext, v_ext)
+            friction_call(q_ext, v_ext)
             aba(model, data, q, v, torque, world)
 
     return step
@@ -836,6 +873,7 @@ def bench_sweeps(budget: float) -> None:
 WHOLE_REPORT = ("reproduce", "failure_map")
 
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
+                                               "friction_routes": bench_friction_routes,
                                                "derivatives": bench_derivatives,
                                                "manipulability": bench_manipulability,
                                                "runs": bench_runs, "engine": bench_engine,

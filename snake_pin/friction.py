@@ -24,14 +24,14 @@ Three routes compute the same thing:
   at -u gives Q in the chain's rows. In matrix form, with the twin's mass matrix M split
   into chain (c) and wheel (w) blocks, C = M_cc - M_cw M_ww^-1 M_wc (a Schur complement),
   and the same two passes through ``pin.computeRNEADerivatives`` give dQ/dq exactly.
-  These passes over 2n joints beat numpy only for short robots (n <= 14;
-  ``scripts/bench.py`` measures the routes), so longer anisotropic robots use numpy for Q
-  (the derivatives always use the twin).
-  The force alone (:class:`ForcePasses`, the simulator's hot path) runs on copies of the
-  twin with the wheels appended after the whole chain (RNEA, unlike CRBA and the
-  derivatives, does not need contiguous subtrees), so the chain's coordinates are one
-  slice: the extended state is ``[q, 0_w]``, ``[q', 0_w]``. The locked pass runs on a copy
-  whose wheels weigh -1, so its wheel rows are the rolling speeds -u themselves.
+  The twin over 2n joints beats numpy only for robots up to n = 32
+  (``scripts/bench.py --only friction_routes`` measures the routes), so longer
+  anisotropic robots use numpy for Q (the derivatives always use the twin).
+  The force alone (:class:`ForcePasses`, the simulator's hot path) runs on a copy of the
+  twin with the wheels appended after the whole chain, tail first (still depth-first: link
+  k's subtree is links k..n and wheels n..k), so the chain's coordinates are one slice:
+  the extended state is ``[q, 0_w]``, ``[q', 0_w]``. There one CRBA and two products apply
+  the Schur complement (the wheels' rolling speeds, then Q), cheaper than the two RNEAs.
   Every coefficient may differ from link to link: the twin's link i carries c_x,i,
   c_theta,i and a wheel of c_y,i - c_x,i.
 * :class:`FrictionModel` without a model -- vectorised numpy, O(n): with planar vectors
@@ -54,10 +54,12 @@ from .params import SnakeParams
 __all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_twin",
            "friction_forces"]
 
-#: Longest robot whose anisotropic friction force goes through the wheeled twin (two RNEAs
-#: over 2n joints); numpy's cost grows more slowly with n (about 13 us at n = 10 and 16
-#: against 9.5 and 12.5 us for the twin, 17 against 31 us at n = 50).
-WHEELED_TWIN_MAX_LINKS = 14
+#: Longest robot whose anisotropic friction force goes through the wheeled twin (one CRBA
+#: over 2n + 2 joints and two products); numpy's cost grows more slowly with n. One
+#: closed-loop evaluation (FastDynamics.evaluate) took 6.9 against 13.1 us at n = 10,
+#: 16.3 against 18.3 at n = 30 and 22.4 against 21.3 at n = 40
+#: (``python scripts/bench.py --only friction_routes``).
+WHEELED_TWIN_MAX_LINKS = 32
 
 #: Pinocchio joint index of the head link in the paper model (after base_x, base_y).
 _HEAD_JOINT = 3
@@ -119,14 +121,18 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.n
 
 
 class ForcePasses:
-    """The damping twin's passes for the force alone, on preallocated buffers (hot path).
+    """The damping twin's force alone, on preallocated buffers (hot path).
 
-    The twin's chain comes first and the n wheels (anisotropic friction only) after it, so
-    the extended configuration is ``[q, 0_w]`` (size :attr:`size`) and a state is read from
-    one slice. With wheels, the locked pass on :attr:`lock` (wheels of "mass" -1) at
-    velocity ``[q', 0_w]`` gives the wheels' rolling accelerations -u in its wheel rows; the
-    rolling pass on :attr:`roll` at ``[q', -u]`` gives C(q) q' = -Q in its first n + 2 rows.
-    Without wheels :attr:`lock` is None and one pass at ``[q']`` gives -Q.
+    The twin's chain comes first and the n wheels (anisotropic friction only) after it,
+    tail first, so the extended configuration is ``[q, 0_w]`` (size :attr:`size`), a
+    state is read from one slice, and the joints stay in depth-first order (link k's
+    subtree is ``[link k .. link n, wheel n .. wheel k]``, contiguous, as CRBA needs).
+    Without wheels one RNEA at velocity ``[q']`` gives -Q. With wheels, one CRBA gives the
+    twin's mass matrix M; with its chain (c) and wheel (w) blocks the wheels roll at
+    ``-u = -M_ww^-1 M_wc q'`` (:attr:`wheel_gain` times ``M_wc q'``; M_ww is diagonal) and
+    ``-Q = M_cc q' + M_cw (-u)``: the Schur complement of the module docstring, applied
+    by two products instead of two RNEAs (one CRBA and two products cost 4.3 us at
+    n = 10, the two RNEAs 5.7 us).
 
     Parameters
     ----------
@@ -139,26 +145,28 @@ class ForcePasses:
     ----------
     size
         n + 2 plus the number of wheels.
-    lock, lock_data
-        The locked pass's model and workspace (None without wheels).
-    roll, roll_data
-        The rolling (or only) pass's model and workspace.
+    twin, twin_data
+        The twin's model and workspace.
+    wheel_gain
+        ``-1 / (c_y - c_x)`` per wheel slot (0 where c_y = c_x; tail first), or None
+        without wheels.
     zero
         A zero velocity of the twin (RNEA's v: the twin only ever sees accelerations).
     """
 
     def __init__(self, model: pin.Model, params: SnakeParams) -> None:
-        n = params.n
         c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
         extra = c_y - c_x
         wheels = bool(np.any(extra != 0.0))
-        self.lock: pin.Model | None = _appended_twin(model, c_x, c_theta, -np.ones(n)) \
-            if wheels else None
-        self.lock_data = self.lock.createData() if self.lock is not None else None
-        self.roll = _appended_twin(model, c_x, c_theta, extra if wheels else None)
-        self.roll_data = self.roll.createData()
-        self.size = self.roll.nq
+        self.twin = _appended_twin(model, c_x, c_theta, extra if wheels else None)
+        self.twin_data = self.twin.createData()
+        self.size = self.twin.nq
         self.zero = np.zeros(self.size)
+        self.wheel_gain: np.ndarray | None = None
+        if wheels:
+            with np.errstate(divide="ignore"):
+                gain = np.where(extra != 0.0, -1.0 / extra, 0.0)
+            self.wheel_gain = gain[::-1].copy()  # the slots run tail first
         self._nq = model.nq
         self._q = np.zeros(self.size)
         self._v = np.zeros(self.size)
@@ -181,15 +189,18 @@ class ForcePasses:
         nq, q_ext, v_ext = self._nq, self._q, self._v
         q_ext[:nq] = q
         v_ext[:nq] = dq
-        if self.lock is not None:
-            v_ext[nq:] = 0.0
-            v_ext[nq:] = pin.rnea(self.lock, self.lock_data, q_ext, self.zero, v_ext)[nq:]
-        return -pin.rnea(self.roll, self.roll_data, q_ext, self.zero, v_ext)[:nq]
+        if self.wheel_gain is None:
+            return -pin.rnea(self.twin, self.twin_data, q_ext, self.zero, v_ext)
+        mass = symmetric_from_upper(pin.crba(self.twin, self.twin_data, q_ext,
+                                             pin.Convention.WORLD))
+        v_ext[nq:] = self.wheel_gain * (mass[nq:, :nq] @ dq)  # -u = -M_ww^-1 M_wc q'
+        return -(mass[:nq] @ v_ext)
 
 
 def _appended_twin(model: pin.Model, c_x: np.ndarray, c_theta: np.ndarray,
                    wheel_mass: np.ndarray | None) -> pin.Model:
-    """The damping twin with one wheel per link appended after the chain (or none)."""
+    """The damping twin with one wheel per link appended after the chain, tail first
+    (so that the joints stay in depth-first order), or none."""
     twin = pin.Model()
     twin.name = f"{model.name}_damping_passes"
     for joint in range(1, model.njoints):
@@ -202,7 +213,8 @@ def _appended_twin(model: pin.Model, c_x: np.ndarray, c_theta: np.ndarray,
                                                       np.eye(3) * float(c_theta[link])),
                                    pin.SE3.Identity())
     if wheel_mass is not None:
-        for link, mass in enumerate(wheel_mass):
+        for link in reversed(range(len(wheel_mass))):
+            mass = wheel_mass[link]
             joint = link + _HEAD_JOINT
             wheel = twin.addJoint(joint, pin.JointModelPX(),
                                   pin.SE3(np.eye(3), model.inertias[joint].lever.copy()),

@@ -20,7 +20,7 @@ the controllers' preallocated step) are the unchecked hot path.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -727,7 +727,7 @@ class FastDynamics:
                 np.copyto(inverse_mass, inverse_mass.T, where=lower)
                 return inverse_mass
         data = own_data
-        negative, subtract, add = np.negative, np.subtract, np.add
+        negative, subtract, add, dot = np.negative, np.subtract, np.add, np.dot
         world = _WORLD
         if passes is None:  # long anisotropic robots: Q by numpy on [q, q'] (size == nq)
             of_state = snake.friction.of_state
@@ -747,51 +747,60 @@ class FastDynamics:
                 crba(model, data, q, world)
                 return mass, subtract(nle(model, data, q, v), of_state(x), out=bias)
 
-        else:
-            roll, roll_data, zero = passes.roll, passes.roll_data, passes.zero
-            lock, lock_data = passes.lock, passes.lock_data
-            if lock is None:
-                def evaluate(row: int) -> np.ndarray:
-                    zq, zv, q, v, _ = views[row]  # size == nq: the pass's rows are Q's
-                    subtract(torque, rnea(roll, roll_data, zq, zero, zv), out=gen)
-                    return aba(model, data, q, v, gen, world)
+        elif passes.wheel_gain is None:  # isotropic: one RNEA of the twin gives -Q
+            twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
 
-                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    q, v = x[:nq], x[nq:]  # no wheels: the twin's state is x itself
-                    negative(rnea(roll, roll_data, q, zero, v), out=gen)
-                    b = aba(model, data, q, v, gen, world)
-                    return b, minverse(model, data)
+            def evaluate(row: int) -> np.ndarray:
+                zq, zv, q, v, _ = views[row]  # size == nq: the twin's rows are Q's
+                subtract(torque, rnea(twin, twin_data, zq, zero, zv), out=gen)
+                return aba(model, data, q, v, gen, world)
 
-                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    q, v = x[:nq], x[nq:]
-                    damping = rnea(roll, roll_data, q, zero, v)  # -Q
-                    crba(model, data, q, world)
-                    return mass, add(nle(model, data, q, v), damping, out=bias)
+            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                q, v = x[:nq], x[nq:]  # no wheels: the twin's state is x itself
+                negative(rnea(twin, twin_data, q, zero, v), out=gen)
+                b = aba(model, data, q, v, gen, world)
+                return b, minverse(model, data)
 
-            else:
-                def evaluate(row: int) -> np.ndarray:
-                    zq, zv, q, v, wheels = views[row]
-                    wheels[:] = rnea(lock, lock_data, zq, zero, zv)[nq:]  # -u: they roll
-                    subtract(torque, rnea(roll, roll_data, zq, zero, zv)[:nq], out=gen)
-                    return aba(model, data, q, v, gen, world)
+            def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                q, v = x[:nq], x[nq:]
+                damping = rnea(twin, twin_data, q, zero, v)  # -Q
+                crba(model, data, q, world)
+                return mass, add(nle(model, data, q, v), damping, out=bias)
 
-                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    own_q[:] = x[:nq]
-                    own_v[:] = x[nq:]
-                    own_w[:] = 0.0
-                    own_w[:] = rnea(lock, lock_data, own_zq, zero, own_zv)[nq:]
-                    negative(rnea(roll, roll_data, own_zq, zero, own_zv)[:nq], out=gen)
-                    b = aba(model, data, own_q, own_v, gen, world)
-                    return b, minverse(model, data)
+        else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
+            twin, twin_data, gain = passes.twin, passes.twin_data, passes.wheel_gain
+            twin_crba = _whole_crba(twin, twin_data)
+            twin_mass = twin_data.M
+            chain_rows = twin_mass[:nq]  # [M_cc, M_cw]
+            wheel_block = twin_mass[nq:, :nq]  # M_wc
+            multiply = np.multiply
+            # -Q at [zq, zv]: M_cc q' + M_cw w with the wheels rolling at
+            # w = -M_ww^-1 M_wc q' (written into zv's wheel slots), inlined below
 
-                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    own_q[:] = x[:nq]
-                    own_v[:] = x[nq:]
-                    own_w[:] = 0.0
-                    own_w[:] = rnea(lock, lock_data, own_zq, zero, own_zv)[nq:]
-                    damping = rnea(roll, roll_data, own_zq, zero, own_zv)[:nq]  # -Q
-                    crba(model, data, own_q, world)
-                    return mass, add(nle(model, data, own_q, own_v), damping, out=bias)
+            def evaluate(row: int) -> np.ndarray:
+                zq, zv, q, v, wheels = views[row]
+                twin_crba(zq)
+                multiply(dot(wheel_block, v), gain, out=wheels)
+                subtract(torque, dot(chain_rows, zv), out=gen)
+                return aba(model, data, q, v, gen, world)
+
+            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                own_q[...] = x[:nq]
+                own_v[...] = x[nq:]
+                twin_crba(own_zq)
+                multiply(dot(wheel_block, own_v), gain, out=own_w)
+                negative(dot(chain_rows, own_zv), out=gen)
+                b = aba(model, data, own_q, own_v, gen, world)
+                return b, minverse(model, data)
+
+            def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                own_q[...] = x[:nq]
+                own_v[...] = x[nq:]
+                twin_crba(own_zq)
+                multiply(dot(wheel_block, own_v), gain, out=own_w)
+                damping = dot(chain_rows, own_zv)  # -Q
+                crba(model, data, own_q, world)
+                return mass, add(nle(model, data, own_q, own_v), damping, out=bias)
 
         self.evaluate = evaluate
         self.affine = affine
@@ -804,6 +813,22 @@ class FastDynamics:
 
 def _fast_dynamics_of(snake: Snake) -> FastDynamics:
     return snake.fast_dynamics
+
+
+def _whole_crba(model: pin.Model, data: pin.Data) -> Callable[[np.ndarray], None]:
+    """``crba(q)`` filling ``data.M`` whole (both triangles) in the WORLD convention."""
+    pin_crba, mass = pin.crba, data.M
+    if _binding_mirrors(model):
+        def crba(q: np.ndarray) -> None:
+            pin_crba(model, data, q, _WORLD)
+
+    else:  # a binding that fills the upper triangle only: mirror it in place
+        lower = np.tril(np.ones(mass.shape, dtype=bool), -1)
+
+        def crba(q: np.ndarray) -> None:
+            pin_crba(model, data, q, _WORLD)
+            np.copyto(mass, mass.T, where=lower)
+    return crba
 
 
 def _binding_mirrors(model: pin.Model) -> bool:

@@ -917,6 +917,7 @@ class _FastRK4:
         self._max_speed, self._max_distance = max_speed, max_distance
         self._evaluate, self._torque, self._select = (dynamics.evaluate, dynamics.torque,
                                                       dynamics.select)
+        self._joint_torque = self._torque[3:]
         self._slopes = np.zeros((5, 2 * size))  # [Z; d1; d2; d3; d4]
         self._state = self._slopes[0]
         self._state[self._select] = x0
@@ -948,27 +949,27 @@ class _FastRK4:
         ``first`` is q'' at the current state under ``tau`` if known. Returns what is wrong
         with the new state ("" when it is within bounds, see :func:`_divergence`).
         """
-        torque, actuated = self._torque, self._actuated
+        torque, actuated = self._torque, self._actuated  # view[...] = x: the cheapest copy
         if actuated is None:
-            torque[3:] = tau
+            self._joint_torque[...] = tau
         else:
             torque[3 + actuated] = tau[actuated]
         slopes, state, evaluate, dot = self._slopes, self._state, self._evaluate, np.dot
         (row0, d0, a0), later = self._first_stage, self._later_stages
         for sub in range(self._substeps):
             if sub or first is None:
-                row0[:] = state
+                row0[...] = state
                 first = evaluate(0)
-            d0[:] = self._velocity
-            a0[:] = first
+            d0[...] = self._velocity
+            a0[...] = first
             for index, coefficients, row, velocity, acceleration, stage_velocity in later:
                 dot(coefficients, slopes, out=row)
-                acceleration[:] = evaluate(index)
-                velocity[:] = stage_velocity
+                acceleration[...] = evaluate(index)
+                velocity[...] = stage_velocity
             dot(self._final, slopes, out=self._next)
-            state[:] = self._next
+            state[...] = self._next
         if self._plain:
-            out[:] = state
+            out[...] = state
         else:
             state.take(self._select, out=out)
         # every |z| within its bound (NaN is not): compared as bytes, cheaper than .all()

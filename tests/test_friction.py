@@ -93,3 +93,40 @@ def test_long_anisotropic_robots_use_numpy() -> None:
     n = WHEELED_TWIN_MAX_LINKS + 1
     assert not Snake(SnakeParams.table1(n=n, c_y=5.0)).friction.uses_twin
     assert Snake(SnakeParams.table1(n=n)).friction.uses_twin  # isotropic: always the twin
+
+
+def test_force_passes_twin_is_depth_first(rng: np.random.Generator) -> None:
+    """The passes' twin (wheels appended tail first) has a right CRBA: its RNEA's columns."""
+    from snake_pin.friction import ForcePasses
+
+    params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.3, 4.0, 12.0, 0.3, 7.0, 0.3, 2.0, 5.0),
+                                c_theta=1e-3)
+    snake = Snake(params)
+    passes = ForcePasses(snake.model, params)
+    twin, size = passes.twin, passes.size
+    assert size == snake.nq + params.n
+    for _ in range(5):
+        q_ext = np.zeros(size)
+        q_ext[:snake.nq] = random_state(rng, params.n)[0]
+        mass = pin.crba(twin, twin.createData(), q_ext, pin.Convention.WORLD)
+        columns = np.column_stack([pin.rnea(twin, twin.createData(), q_ext, np.zeros(size), e)
+                                   for e in np.eye(size)])
+        assert np.allclose(np.triu(mass), np.triu(columns), rtol=1e-12, atol=1e-14)
+
+
+def test_links_with_isotropic_friction_among_wheeled_ones(rng: np.random.Generator) -> None:
+    """Per-link c_y equal to c_x on some links (their wheels weigh 0): the same Q."""
+    params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.3, 4.0, 12.0, 0.3, 7.0, 0.3, 2.0, 5.0),
+                                c_theta=1e-3)
+    snake = Snake(params)
+    numpy_route = FrictionModel(params)
+    assert snake.friction.has_wheels and snake.friction.passes is not None
+    for _ in range(10):
+        q, dq = random_state(rng, params.n)
+        expected = numpy_route(q, dq)
+        scale = np.abs(expected).max()
+        assert np.allclose(snake.friction(q, dq), expected, rtol=1e-12, atol=1e-13 * scale)
+        x = np.r_[q, dq]
+        b, _ = snake.fast_dynamics.affine(x)
+        assert np.allclose(b, snake.forward_dynamics(q, dq, np.zeros(params.n - 1)),
+                           rtol=1e-10, atol=1e-10)

@@ -119,7 +119,7 @@ def test_controllers_know_the_plants_acceleration(robot: str) -> None:
 
 
 @pytest.mark.parametrize("mirrors", [True, False])
-@pytest.mark.parametrize("robot", ["isotropic", "wheels", "numpy route"])
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "numpy route", "per link"])
 def test_fast_dynamics_match_the_checked_api(robot: str, mirrors: bool,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     """affine gives b = q''(tau = 0) and the whole H^-1; mass_and_bias the whole H and h.
