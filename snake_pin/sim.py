@@ -816,6 +816,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
             type(snake).state_derivative is Snake.state_derivative:
         fast = _FastRK4(snake, x, dt, substeps, max_speed, max_distance)
     xs[0] = x
+    ts[1:] = np.arange(steps) * control_dt + control_dt  # sample k + 1 at t_k + control_dt
     signals: dict[str, np.ndarray] = {}
     status, reason = "completed", ""
     good = 1  # samples 0 .. good - 1 are recorded whole; updated last, after each sample
@@ -856,9 +857,10 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                     status, reason = "failed", _failure(t, exc)
                     break
                 taus[k] = tau
+                after = xs[k + 1]
                 try:
                     if fast is not None:
-                        problem = fast.step(tau, first, xs[k + 1])
+                        problem = fast.step(tau, first, after)
                     else:
                         if method == "rk4":
                             for _ in range(substeps):
@@ -873,11 +875,10 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                     status = "diverged"
                     reason = f"diverged at t = {t + control_dt:.4f} s: {problem}"
                     break
-                ts[k + 1] = t + control_dt
                 if fast is not None:
-                    x = xs[k + 1]
+                    x = after
                 else:
-                    xs[k + 1] = x
+                    after[...] = x
                 good = k + 2
                 if bar is not None and k % 100 == 0:
                     bar.update(min(100, steps - bar.n))

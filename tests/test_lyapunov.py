@@ -50,19 +50,25 @@ def test_v_dot_matches_derivation(params: SnakeParams, rng: np.random.Generator)
         assert v_dot == pytest.approx(predicted, rel=1e-5, abs=1e-6 * abs(ctrl.lyapunov(x, t)))
 
 
-def test_least_squares_normal_equations(rng: np.random.Generator) -> None:
-    """The residual is W-orthogonal to the reachable accelerations: A^T W rho = 0."""
-    snake = Snake(tracking_params())
+@pytest.mark.parametrize("passive", [(), (1,), (9,), (1, 2, 9), (3, 5, 6)])
+def test_least_squares_normal_equations(passive: tuple, rng: np.random.Generator) -> None:
+    """The residual is W-orthogonal to the reachable accelerations: A^T W rho = 0 (A's
+    columns those of the actuated joints, wherever the passive ones sit)."""
+    snake = Snake(tracking_params(passive=passive))
     ctrl = LyapunovController(snake)
-    x, t = head_first_state(rng, snake.n), 3.0
-    tau = ctrl(x, t)
-    a, b = ctrl.affine_map(x)
-    target, _, _ = ctrl.targets(x, t)
-    weights = np.r_[np.diag(ctrl.k_w2), np.diag(ctrl.k_phi)]
-    rho = a @ tau + b - target
-    normal = a.T @ (weights * rho)
-    assert np.abs(normal).max() < 1e-8 * np.abs(a.T * weights).max() * np.abs(rho).max()
-    assert np.allclose(a @ tau + b, snake.forward_dynamics(x[:12], x[12:], tau))
+    actuated = [k - 1 for k in snake.params.actuated]
+    for _ in range(3):
+        x, t = head_first_state(rng, snake.n), rng.uniform(0, 30)
+        tau = ctrl(x, t)
+        assert not np.any(np.delete(tau, actuated))
+        a, b = ctrl.affine_map(x)
+        target, _, _ = ctrl.targets(x, t)
+        weights = np.r_[np.diag(ctrl.k_w2), np.diag(ctrl.k_phi)]
+        rho = a @ tau[actuated] + b - target
+        normal = a.T @ (weights * rho)
+        assert np.abs(normal).max() < 1e-8 * np.abs(a.T * weights).max() * np.abs(rho).max()
+        assert np.allclose(a @ tau[actuated] + b,
+                           snake.forward_dynamics(x[:12], x[12:], tau))
 
 
 def test_passive_joint_gets_no_torque(rng: np.random.Generator) -> None:

@@ -111,8 +111,9 @@ class TimeTerms:
             Times [s], shape (T,), in the order of the coming calls.
         """
         self._times = np.asarray(times, dtype=float)
+        self._time_list = self._times.tolist()  # floats: cheaper to read one by one
         self._cursor = 0
-        self._next = float(self._times[0]) if len(self._times) else None
+        self._next = self._time_list[0] if len(self._time_list) else None
         self._rows_left: list[np.ndarray] = []
 
     def __call__(self, t: float) -> np.ndarray:
@@ -122,8 +123,8 @@ class TimeTerms:
             if not self._rows_left:
                 block = self._rows(self._times[cursor - 1:cursor - 1 + _BLOCK])
                 self._rows_left = list(block[::-1])  # popped from the end, in order
-            times = self._times
-            self._next = float(times[cursor]) if cursor < len(times) else None
+            times = self._time_list
+            self._next = times[cursor] if cursor < len(times) else None
             return self._rows_left.pop()
         return self._rows(np.array([float(t)]))[0]
 

@@ -22,8 +22,9 @@ squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible).
 Evaluation (the closed loop's hot path, issue 13): b comes from one WORLD-convention ABA at
 zero torque and H^-1 from ``pin.computeMinverse`` right after it
 (:class:`~snake_pin.model.FastDynamics`); every target, s and e are one matrix product
-with the stacked references, state and b; BLAS forms W^(1/2) A and its Gram matrix from
-H^-1's upper triangle. The law also keeps q'' = A tau_a + b at its state, which the
+with the stacked state, b and the time terms; one more product of [W^(1/2) A, W^(1/2)
+(q''* - b)]^T with W^(1/2) A gives the normal equations (A^T W A and their right-hand
+side) at once. The law also keeps q'' = A tau_a + b at its state, which the
 simulator uses as RK4's first stage (:meth:`plant_acceleration`). With the
 residual rho = A tau_a + b - q''* (rho = [rho_w; rho_phi]),
 
@@ -74,7 +75,7 @@ from scipy.linalg import lapack
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
-from ..model import FastDynamics, Snake
+from ..model import Snake
 from .base import Controller, TimeTerms, _ReferenceTimeTerms, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
@@ -197,26 +198,53 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
         weights = np.sqrt(np.r_[self._k_w2_diag, self._k_phi_diag])
         law[nq:] *= weights[:, None]  # [s; e] weighted: V is their squared norm
         self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
-        self._law_state = law[:, 3 * nq:].copy()  # applied to [q, q', b]
-        self._state_and_b = np.zeros(3 * nq)
-        all_actuated = len(self._act) == n - 1
-        self._all_actuated = all_actuated
-        self._dynamics = dynamics = snake.fast_dynamics
-        # A^T = E_a^T H^-1 (H^-1 symmetric): the actuated rows of H^-1, a contiguous view
-        # of the dynamics' H^-1 made once (filled by each affine call); W^(1/2) scales their
-        # columns, by a whole matrix of weights (numpy broadcasting costs more here)
-        self._inverse_rows = self._actuated_rows(dynamics)
+        # applied to [q, q', b, time row]: the time terms enter the same product
+        self._law_state = np.hstack((law[:, 3 * nq:], np.eye(2 * nq)))
+        self._inputs = np.zeros(5 * nq)
+        m_a = len(self._act)
+        # rows: (W^(1/2) A)^T, then the errors [W^(1/2) (q''* - b); W^(1/2) [s; e]]; its
+        # first m_a + 1 rows times (W^(1/2) A) give the normal equations [A^T W A; rhs^T]
+        # in one product
+        self._stack = np.zeros((m_a + 2, nq))
+        self._normal = np.zeros((m_a + 1, m_a))
+        self._all_actuated = len(self._act) == n - 1
+        self._dynamics = snake.fast_dynamics
+        self._picked_rows = np.zeros((len(self._act), nq))
+        self._make_views()
+        # W^(1/2) scales A^T's columns, by a whole matrix of weights (numpy broadcasting
+        # costs more here)
         self._sqrt_w = np.tile(sqrt_w, (len(self._act), 1))
-        self._weighted_t = np.zeros((len(self._act), nq))  # (W^(1/2) A)^T
+        self._passive_free = self._act - 3  # tau's entries of the actuated joints
         self._ddq: np.ndarray | None = None
 
-    def _actuated_rows(self, dynamics: FastDynamics) -> np.ndarray | None:
-        """The view of ``dynamics.inverse_mass``'s actuated rows (None with passive joints)."""
-        return dynamics.inverse_mass[3:] if self._all_actuated else None
+    def _make_views(self) -> None:
+        """Views of the hot path's buffers, made once (a pickled view is a detached copy,
+        so :meth:`__setstate__` makes them again)."""
+        nq, inputs, stack, m_a = self.snake.nq, self._inputs, self._stack, len(self._act)
+        self._x_slot, self._b_slot, self._time_slot = (inputs[:2 * nq], inputs[2 * nq:3 * nq],
+                                                       inputs[3 * nq:])
+        self._weighted_t, self._augmented = stack[:m_a], stack[:m_a + 1]
+        self._errors, self._weighted_errors = stack[m_a:].reshape(-1), stack[m_a + 1]
+        self._gram, self._rhs = self._normal[:m_a], self._normal[m_a]
+        # A^T = E_a^T H^-1 (H^-1 symmetric): the actuated rows of H^-1. Every joint
+        # actuated: a contiguous view of the dynamics' H^-1 (filled by each affine call).
+        # Passive joints: a buffer filled per call from the runs of actuated rows between
+        # them (pairs of views; cheaper than fancy indexing).
+        inverse = self._dynamics.inverse_mass
+        if self._all_actuated:
+            self._inverse_rows, self._row_runs = inverse[3:], []
+        else:
+            self._inverse_rows = self._picked_rows
+            runs, start, act, picked = [], 0, self._act, self._picked_rows
+            for end in range(1, len(act) + 1):
+                if end == len(act) or act[end] != act[end - 1] + 1:
+                    runs.append((picked[start:end], inverse[act[start]:act[end - 1] + 1]))
+                    start = end
+            self._row_runs = runs
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        """Unpickled: the view of H^-1 is made again on the robot's own dynamics (a pickled
-        view would be a detached copy).
+        """Unpickled: the views of the buffers and of H^-1 are made again (on the robot's
+        own dynamics).
 
         Parameters
         ----------
@@ -224,7 +252,7 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
             The pickled attributes.
         """
         self.__dict__.update(state)
-        self._inverse_rows = self._actuated_rows(self._dynamics)
+        self._make_views()
 
     # ------------------------------------------------------------ the law
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -294,30 +322,31 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
-        nq, dot = self.snake.nq, np.dot  # np.dot: cheaper than @ (and f2py BLAS) here
-        b, minv = self._dynamics.affine(x)  # minv: H^-1, whole
-        state_and_b = self._state_and_b  # [q, q', b]
-        state_and_b[:2 * nq] = x
-        state_and_b[2 * nq:] = b
-        errors = dot(self._law_state, state_and_b)
-        errors += self._time_row(t)  # [W^(1/2) (q''* - b); W^(1/2) [s; e]]
+        dot = np.dot  # np.dot: cheaper than @ (and f2py BLAS) here; view[...] = the copies
+        b, _ = self._dynamics.affine(x)  # and H^-1, whole, read through _inverse_rows
+        self._x_slot[...] = x
+        self._b_slot[...] = b
+        self._time_slot[...] = self._time_row(t)
+        # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
+        dot(self._law_state, self._inputs, out=self._errors)
         rows = self._inverse_rows  # A^T
-        if rows is None:  # passive joints: A's columns are picked (a copy)
-            rows = minv[self._act]
+        for picked, actuated in self._row_runs:  # passive joints only
+            picked[...] = actuated
         weighted_t = np.multiply(rows, self._sqrt_w, out=self._weighted_t)  # (W^(1/2) A)^T
-        tau_a, info = lapack.dposv(dot(weighted_t, weighted_t.T),
-                                   dot(weighted_t, errors[:nq]))[1:]
+        dot(self._augmented, weighted_t.T, out=self._normal)  # [A^T W A; rhs^T]
+        _, tau_a, info = lapack.dposv(self._gram, self._rhs)  # its upper triangle
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
         ddq = dot(tau_a, rows)  # A tau_a
         ddq += b
         self._ddq = ddq
-        weighted_errors = errors[nq:]
+        weighted_errors = self._weighted_errors
         self._last = {"V": float(dot(weighted_errors, weighted_errors))}
         if self._all_actuated:
             return tau_a
-        self._tau[self._act - 3] = tau_a
-        return self._tau.copy()
+        tau = self._tau.copy()
+        tau[self._passive_free] = tau_a
+        return tau
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
         """``q'' = A tau_a + b`` of the last call, if ``snake`` is the robot this law models.
