@@ -189,13 +189,13 @@ class PFLController(_ReferenceTimeTerms, Controller):
         stacked += self._time_row(t)  # [-a; u], eqs. (71), (78)
         if self.climb_R:
             u -= self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq]) - x[nq + 3:])
-        minus_p, info = lapack.dposv(self._h22, dot(h12_t, minus_a))[1:]  # -H22^-1 H21 a
+        _, minus_p, info = lapack.dposv(self._h22, dot(h12_t, minus_a))  # -H22^-1 H21 a
         if info != 0:
             raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
         u -= minus_p  # stacked = [-a; p + u]
         z = dot(self._h_head, stacked)
         z -= self._h1  # -Hs a - h1 + H12 u
-        solved, info = lapack.dposv(gram, z)[1:]
+        _, solved, info = lapack.dposv(gram, z)
         if info != 0:
             raise SingularPostureError(f"H12 H12^T is not positive definite (LAPACK info {info})")
         ddq, ddq_joints = self._ddq_buffer, self._ddq_joints
