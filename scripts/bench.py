@@ -406,14 +406,16 @@ def baseline_checkout(commit: str) -> tuple[Path | None, str]:
     return target, f"{commit[:10]} from {target} (git archive)"
 
 
-def step_floor(snake: Snake, kind: str, states: np.ndarray,
-               taus: np.ndarray) -> Callable[[], None]:
+def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
+               products: bool = False) -> Callable[[], None]:
     """A function making exactly the Pinocchio calls of one closed-loop step of
     ``simulate`` (see :class:`snake_pin.model.FastDynamics`), on the run's states in turn:
     the controller's (Lyapunov-like: the friction's, ABA, computeMinverse; PFL: the
     friction's, CRBA, nonLinearEffects), then three RK4 stages (the friction's and ABA
     each; the first stage comes from the controller). The friction's call is the damping
-    twin's RNEA (isotropic friction) or its CRBA (with wheels)."""
+    twin's RNEA (isotropic friction) or its CRBA (with wheels). With ``products``, each
+    CRBA of the twin is followed by the two products that turn it into Q (the wheels'
+    rolling speeds, then the force: the Schur complement), as the step makes them."""
     import pinocchio as pin
 
     passes = snake.friction.passes
@@ -434,15 +436,26 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray,
     cursor = iter(range(1 << 62))
     count = len(arguments)
 
-    def friction_call(q_ext: np.ndarray, v_ext: np.ndarray) -> None:
+    mass, gain, dot, multiply = twin_data.M.T, passes.wheel_gain, np.dot, np.multiply
+    chain_rows, wheel_rows = mass[:nq], mass[nq:]
+    wheel_slots = [v_ext[nq:] for _, v_ext, *_ in arguments]
+
+    def friction_call(q_ext: np.ndarray, v_ext: np.ndarray, slots: np.ndarray) -> None:
         if wheels:
             crba(twin, twin_data, q_ext, world)
+            if products:
+                # the same work as the step's (whose stage rows come with the slots zeroed;
+                # here they keep the last speeds, which changes the values, not the cost)
+                multiply(dot(wheel_rows, v_ext), gain, out=slots)
+                dot(chain_rows, v_ext)
         else:
             rnea(twin, twin_data, q_ext, zero, v_ext)
 
     def step() -> None:
-        q_ext, v_ext, q, v, torque = arguments[next(cursor) % count]
-        friction_call(q_ext, v_ext)
+        index = next(cursor) % count
+        q_ext, v_ext, q, v, torque = arguments[index]
+        slots = wheel_slots[index]
+        friction_call(q_ext, v_ext, slots)
         if kind == "pfl":
             pin.crba(model, data, q, world)
             pin.nonLinearEffects(model, data, q, v)
@@ -450,7 +463,7 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray,
             aba(model, data, q, v, torque, world)
             pin.computeMinverse(model, data)
         for _ in range(3):
-            friction_call(q_ext, v_ext)
+            friction_call(q_ext, v_ext, slots)
             aba(model, data, q, v, torque, world)
 
     return step
@@ -491,11 +504,14 @@ def bench_runs(budget: float, baseline: str | None = BASELINE) -> None:
             assert traj is not None
             wall = statistics.median(walls)
             pick = slice(None, None, max(1, len(traj) // 64))
-            floor = step_floor(snake, kind, np.hstack((traj.q, traj.dq))[pick], traj.tau[pick])
+            states = np.hstack((traj.q, traj.dq))[pick]
+            floor = step_floor(snake, kind, states, traj.tau[pick])
+            with_products = step_floor(snake, kind, states, traj.tau[pick], products=True) \
+                if snake.friction.has_wheels else None
             for worker in (new, old):  # warm-up: imports, first allocations
                 if worker is not None:
                     worker.run(kind, robot, 0.01)
-            us_new, us_old, us_floor = [], [], []
+            us_new, us_old, us_floor, us_products = [], [], [], []
             for _ in range(rounds):
                 if old is not None:
                     answer = old.run(kind, robot, segment)
@@ -504,13 +520,17 @@ def bench_runs(budget: float, baseline: str | None = BASELINE) -> None:
                 us_new.append(answer["seconds"] / answer["steps"] * 1e6)
                 number = max(1, int(budget / max(timeit.timeit(floor, number=3) / 3, 1e-7)))
                 us_floor.append(timeit.timeit(floor, number=number) / number * 1e6)
+                if with_products is not None:
+                    us_products.append(timeit.timeit(with_products, number=number)
+                                       / number * 1e6)
             if traj.t_end < t_final - 1e-9:
                 label = f"{label} (ends at {traj.t_end:.2f} s: {traj.status})"
             rows.append([label, f"{wall:.2f}", f"{traj.t_end / wall:.1f}x",
                          show(spread(us_new)),
                          show(spread(us_old)) if us_old else "-",
                          show(ratios(us_old, us_new), 2, "x") if us_old else "-",
-                         show(spread(us_floor)), show(ratios(us_new, us_floor), 2, "x")])
+                         show(spread(us_floor)), show(ratios(us_new, us_floor), 2, "x"),
+                         show(ratios(us_new, us_products), 2, "x") if us_products else "-"])
     finally:
         new.close()
         if old is not None:
@@ -518,10 +538,12 @@ def bench_runs(budget: float, baseline: str | None = BASELINE) -> None:
     table(f"Closed-loop runs at 1 kHz (simulate only), us per step: median (10-90 %) of "
           f"{rounds} interleaved rounds",
           ["run", "wall [s]", "real-time factor", "us/step new", f"us/step {baseline}",
-           "speed-up", "floor us/step", "new/floor"], rows)
+           "speed-up", "floor us/step", "new/floor", "new/(floor + products)"], rows)
     print(f"\nBaseline: {note}. Segments of at most 5 s (2 s with --quick) are run "
           "alternately by the two checkouts in worker processes; the floor (the Pinocchio "
-          "calls one step makes, on the run's states) is timed here in the same rounds. "
+          "calls one step makes, on the run's states) is timed here in the same rounds; "
+          "with anisotropic friction also the floor plus the two products per twin CRBA "
+          "that make Q from it (the last column). "
           "Wall time and real-time factor: the whole run in this process, median of "
           f"{repeat}.")
 

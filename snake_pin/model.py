@@ -770,25 +770,28 @@ class FastDynamics:
         else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
             twin, twin_data, gain = passes.twin, passes.twin_data, passes.wheel_gain
             twin_crba = _whole_crba(twin, twin_data)
-            twin_mass = twin_data.M
-            chain_rows = twin_mass[:nq]  # [M_cc, M_cw]
-            wheel_block = twin_mass[nq:, :nq]  # M_wc
+            # M is symmetric and Pinocchio stores it column-major: the rows of its
+            # transpose are M's rows, contiguous (BLAS reads them without a copy)
+            twin_mass = twin_data.M.T
+            chain_rows, wheel_rows = twin_mass[:nq], twin_mass[nq:]  # [M_cc, M_cw], [M_wc, M_ww]
             multiply = np.multiply
             # -Q at [zq, zv]: M_cc q' + M_cw w with the wheels rolling at
-            # w = -M_ww^-1 M_wc q' (written into zv's wheel slots), inlined below
+            # w = -M_ww^-1 M_wc q' (written into zv's wheel slots, which are 0 until then,
+            # so that M_wc q' is the wheel rows times the whole zv), inlined below
 
             def evaluate(row: int) -> np.ndarray:
                 zq, zv, q, v, wheels = views[row]
                 twin_crba(zq)
-                multiply(dot(wheel_block, v), gain, out=wheels)
+                multiply(dot(wheel_rows, zv), gain, out=wheels)
                 subtract(torque, dot(chain_rows, zv), out=gen)
                 return aba(model, data, q, v, gen, world)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 own_q[...] = x[:nq]
                 own_v[...] = x[nq:]
+                own_w[...] = 0.0
                 twin_crba(own_zq)
-                multiply(dot(wheel_block, own_v), gain, out=own_w)
+                multiply(dot(wheel_rows, own_zv), gain, out=own_w)
                 negative(dot(chain_rows, own_zv), out=gen)
                 b = aba(model, data, own_q, own_v, gen, world)
                 return b, minverse(model, data)
@@ -796,8 +799,9 @@ class FastDynamics:
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 own_q[...] = x[:nq]
                 own_v[...] = x[nq:]
+                own_w[...] = 0.0
                 twin_crba(own_zq)
-                multiply(dot(wheel_block, own_v), gain, out=own_w)
+                multiply(dot(wheel_rows, own_zv), gain, out=own_w)
                 damping = dot(chain_rows, own_zv)  # -Q
                 crba(model, data, own_q, world)
                 return mass, add(nle(model, data, own_q, own_v), damping, out=bias)

@@ -129,6 +129,7 @@ class PFLController(_ReferenceTimeTerms, Controller):
         self._dynamics = snake.fast_dynamics
         self._ddq: np.ndarray | None = None
         self._ddq_buffer = np.zeros(nq)
+        self._h12 = np.zeros((3, n - 1), order="F")
         self._stacked = np.zeros(nq)  # [-a; u], then [-a; u + p]
         self._views()
 
@@ -137,7 +138,10 @@ class PFLController(_ReferenceTimeTerms, Controller):
         of the buffers: slicing per call costs more than the products that read them."""
         mass = self._dynamics.mass.T  # H is symmetric: its C-ordered face, rows contiguous
         bias, stacked, ddq = self._dynamics.bias, self._stacked, self._ddq_buffer
-        self._h12, self._h12_t, self._h22 = mass[:3, 3:], mass[3:, :3], mass[3:, 3:]
+        # H12 is copied per call into a Fortran-ordered buffer: BLAS then reads it, and
+        # its transpose H21 (C-ordered), without copies of its own
+        self._h12_block, self._h22 = mass[:3, 3:], mass[3:, 3:]
+        self._h12_t = self._h12.T
         self._h_head, self._h_joints = mass[:3], mass[3:]
         self._h1, self._h2 = bias[:3], bias[3:]
         self._minus_a, self._u = stacked[:3], stacked[3:]
@@ -178,6 +182,7 @@ class PFLController(_ReferenceTimeTerms, Controller):
         self._ddq = None
         nq, dot = self._nq, np.dot  # np.dot: cheaper than @ on these tiny arrays
         self._dynamics.mass_and_bias(x)  # H (whole) and h, read through the views
+        self._h12[...] = self._h12_block
         h12_t = self._h12_t
         gram = blas.dsyrk(1.0, self._h12)  # H12 H12^T (upper triangle)
         eigenvalues, _, info = lapack.dsyev(gram, compute_v=0)
