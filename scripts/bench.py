@@ -170,7 +170,7 @@ def bench_friction_routes(budget: float) -> None:
 
     rows = []
     chosen = friction.WHEELED_TWIN_MAX_LINKS
-    for n in (10, 20, 30, 40, 50):
+    for n in (10, 20, 30, 32, 34, 36, 40, 50):
         params = SnakeParams.table1(n=n, c_y=25.0)
         snakes = {}
         try:  # the route is chosen when the robot is built: build one on each
@@ -185,6 +185,8 @@ def bench_friction_routes(budget: float) -> None:
         for route, snake in snakes.items():
             dynamics = snake.fast_dynamics
             dynamics.states[1, dynamics.select] = x
+            # evaluate(1) over and over: the row's wheel slots keep the last rolling speeds
+            # (the step rewrites the row first), which changes the values, not the cost
             calls[route] = partial(dynamics.evaluate, 1)
         times = interleaved_samples(calls, budget=budget)
         rows.append([str(n), "twin" if n <= chosen else "numpy",

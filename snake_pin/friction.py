@@ -24,7 +24,7 @@ Three routes compute the same thing:
   at -u gives Q in the chain's rows. In matrix form, with the twin's mass matrix M split
   into chain (c) and wheel (w) blocks, C = M_cc - M_cw M_ww^-1 M_wc (a Schur complement),
   and the same two passes through ``pin.computeRNEADerivatives`` give dQ/dq exactly.
-  The twin over 2n joints beats numpy only for robots up to n = 32
+  The twin over 2n + 2 joints beats numpy only for robots up to n = 40
   (``scripts/bench.py --only friction_routes`` measures the routes), so longer
   anisotropic robots use numpy for Q (the derivatives always use the twin).
   The force alone (:class:`ForcePasses`, the simulator's hot path) runs on a copy of the
@@ -56,10 +56,10 @@ __all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_tw
 
 #: Longest robot whose anisotropic friction force goes through the wheeled twin (one CRBA
 #: over 2n + 2 joints and two products); numpy's cost grows more slowly with n. One
-#: closed-loop evaluation (FastDynamics.evaluate) took 6.9 against 13.1 us at n = 10,
-#: 16.3 against 18.3 at n = 30 and 22.4 against 21.3 at n = 40
-#: (``python scripts/bench.py --only friction_routes``).
-WHEELED_TWIN_MAX_LINKS = 32
+#: closed-loop evaluation (FastDynamics.evaluate) took 6.5 against 13.3 us at n = 10,
+#: 15.5 against 18.9 at n = 30, 21.2 against 21.8 at n = 40 and 27.9 against 25.3 at
+#: n = 50 (``python scripts/bench.py --only friction_routes``).
+WHEELED_TWIN_MAX_LINKS = 40
 
 #: Pinocchio joint index of the head link in the paper model (after base_x, base_y).
 _HEAD_JOINT = 3
@@ -131,8 +131,7 @@ class ForcePasses:
     twin's mass matrix M; with its chain (c) and wheel (w) blocks the wheels roll at
     ``-u = -M_ww^-1 M_wc q'`` (:attr:`wheel_gain` times ``M_wc q'``; M_ww is diagonal) and
     ``-Q = M_cc q' + M_cw (-u)``: the Schur complement of the module docstring, applied
-    by two products instead of two RNEAs (one CRBA and two products cost 4.3 us at
-    n = 10, the two RNEAs 5.7 us).
+    by two products instead of two RNEAs (a locked and a rolling pass), which cost more.
 
     Parameters
     ----------
@@ -164,8 +163,10 @@ class ForcePasses:
         self.zero = np.zeros(self.size)
         self.wheel_gain: np.ndarray | None = None
         if wheels:
-            with np.errstate(divide="ignore"):
-                gain = np.where(extra != 0.0, -1.0 / extra, 0.0)
+            # a wheel too light to invert (below the smallest normal float, 1/extra would
+            # overflow) adds no damping worth the name: it stays still (gain 0)
+            with np.errstate(divide="ignore", over="ignore"):
+                gain = np.where(np.abs(extra) >= np.finfo(float).tiny, -1.0 / extra, 0.0)
             self.wheel_gain = gain[::-1].copy()  # the slots run tail first
         self._nq = model.nq
         self._q = np.zeros(self.size)
@@ -254,8 +255,8 @@ class FrictionModel:
             self._wheels = len(self._wheel_v) > 0
             self._zero = np.zeros(self._twin.nv)
             extra = params.per_link("c_y") - params.per_link("c_x")
-            with np.errstate(divide="ignore"):
-                self._roll = np.where(extra != 0.0, -1.0 / extra, 0.0)
+            with np.errstate(divide="ignore", over="ignore"):  # as ForcePasses.wheel_gain
+                self._roll = np.where(np.abs(extra) >= np.finfo(float).tiny, -1.0 / extra, 0.0)
             self._force_on_twin = not self._wheels or n <= WHEELED_TWIN_MAX_LINKS
             if self._force_on_twin:
                 self.passes = ForcePasses(model, params)

@@ -822,7 +822,7 @@ def _fast_dynamics_of(snake: Snake) -> FastDynamics:
 def _whole_crba(model: pin.Model, data: pin.Data) -> Callable[[np.ndarray], None]:
     """``crba(q)`` filling ``data.M`` whole (both triangles) in the WORLD convention."""
     pin_crba, mass = pin.crba, data.M
-    if _binding_mirrors(model):
+    if _crba_mirrors(model):
         def crba(q: np.ndarray) -> None:
             pin_crba(model, data, q, _WORLD)
 
@@ -842,14 +842,22 @@ def _binding_mirrors(model: pin.Model) -> bool:
     (this one does). Checked once per robot on a configuration away from symmetries.
     """
     data = model.createData()
-    mass, inverse = data.M, data.Minv  # the views FastDynamics reads, not the returned copies
+    inverse = data.Minv  # the view FastDynamics reads, not the returned copy
     q = np.linspace(0.3, 0.9, model.nq)
-    returned = pin.crba(model, data, q, _WORLD)
-    whole_mass = np.array_equal(mass, returned) and np.array_equal(mass, mass.T)
     pin.aba(model, data, q, q, np.zeros(model.nv), _WORLD)
     returned = pin.computeMinverse(model, data)
     whole_inverse = np.array_equal(inverse, returned) and np.array_equal(inverse, inverse.T)
-    return bool(whole_mass and whole_inverse)
+    return bool(_crba_mirrors(model) and whole_inverse)
+
+
+def _crba_mirrors(model: pin.Model) -> bool:
+    """Whether ``pin.crba`` fills ``data.M`` whole (both triangles); see
+    :func:`_binding_mirrors`. Alone for the damping twin, whose ABA may be singular (a
+    wheel of zero "mass" where c_y = c_x on some links)."""
+    data = model.createData()
+    mass = data.M  # the view FastDynamics reads, not the returned copy
+    returned = pin.crba(model, data, np.linspace(0.3, 0.9, model.nq), _WORLD)
+    return bool(np.array_equal(mass, returned) and np.array_equal(mass, mass.T))
 
 
 def _vector(value: object, size: int, name: str) -> np.ndarray:

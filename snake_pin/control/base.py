@@ -111,20 +111,24 @@ class TimeTerms:
             Times [s], shape (T,), in the order of the coming calls.
         """
         self._times = np.asarray(times, dtype=float)
-        self._time_list = self._times.tolist()  # floats: cheaper to read one by one
         self._cursor = 0
-        self._next = self._time_list[0] if len(self._time_list) else None
+        self._next = float(self._times[0]) if len(self._times) else None
         self._rows_left: list[np.ndarray] = []
+        # the announced times after the current one, up to the next block's first, as
+        # floats popped from the end (cheaper to read one by one than the array)
+        self._times_left: list[float] = []
 
     def __call__(self, t: float) -> np.ndarray:
         """The row at time t (read only)."""
         if t == self._next:
             cursor = self._cursor = self._cursor + 1
             if not self._rows_left:
-                block = self._rows(self._times[cursor - 1:cursor - 1 + _BLOCK])
+                times = self._times
+                block = self._rows(times[cursor - 1:cursor - 1 + _BLOCK])
                 self._rows_left = list(block[::-1])  # popped from the end, in order
-            times = self._time_list
-            self._next = times[cursor] if cursor < len(times) else None
+                self._times_left = times[cursor:cursor + _BLOCK].tolist()[::-1]
+            times_left = self._times_left
+            self._next = times_left.pop() if times_left else None
             return self._rows_left.pop()
         return self._rows(np.array([float(t)]))[0]
 

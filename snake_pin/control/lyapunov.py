@@ -214,7 +214,7 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
         # W^(1/2) scales A^T's columns, by a whole matrix of weights (numpy broadcasting
         # costs more here)
         self._sqrt_w = np.tile(sqrt_w, (len(self._act), 1))
-        self._passive_free = self._act - 3  # tau's entries of the actuated joints
+        self._actuated_entries = self._act - 3  # tau's entries of the actuated joints
         self._ddq: np.ndarray | None = None
 
     def _make_views(self) -> None:
@@ -345,7 +345,7 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
         if self._all_actuated:
             return tau_a
         tau = self._tau.copy()
-        tau[self._passive_free] = tau_a
+        tau[self._actuated_entries] = tau_a
         return tau
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
