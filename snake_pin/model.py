@@ -786,23 +786,22 @@ class FastDynamics:
                 subtract(torque, dot(chain_rows, zv), out=gen)
                 return aba(model, data, q, v, gen, world)
 
-            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            def own_damping(x: np.ndarray) -> np.ndarray:
+                """-Q at the plain state x = [q, q'], on the own buffers."""
                 own_q[...] = x[:nq]
                 own_v[...] = x[nq:]
                 own_w[...] = 0.0
                 twin_crba(own_zq)
                 multiply(dot(wheel_rows, own_zv), gain, out=own_w)
-                negative(dot(chain_rows, own_zv), out=gen)
+                return dot(chain_rows, own_zv)
+
+            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                negative(own_damping(x), out=gen)
                 b = aba(model, data, own_q, own_v, gen, world)
                 return b, minverse(model, data)
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                own_q[...] = x[:nq]
-                own_v[...] = x[nq:]
-                own_w[...] = 0.0
-                twin_crba(own_zq)
-                multiply(dot(wheel_rows, own_zv), gain, out=own_w)
-                damping = dot(chain_rows, own_zv)  # -Q
+                damping = own_damping(x)  # -Q
                 crba(model, data, own_q, world)
                 return mass, add(nle(model, data, own_q, own_v), damping, out=bias)
 
