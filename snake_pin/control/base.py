@@ -208,6 +208,26 @@ class OpenLoop(Controller):
         return np.asarray(self.schedule(t), dtype=float)
 
 
+class _ViewsMadeOnce:
+    """A law whose hot path reads views made once (of its buffers and of the robot's
+    ``FastDynamics``) in :meth:`_make_views`; a pickled view is a detached copy, so they
+    are made again on unpickling."""
+
+    def _make_views(self) -> None:
+        raise NotImplementedError
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled: the views are made again on the robot's own dynamics and buffers.
+
+        Parameters
+        ----------
+        state : dict
+            The pickled attributes.
+        """
+        self.__dict__.update(state)
+        self._make_views()
+
+
 class _ReferenceTimeTerms:
     """The time-only terms of a law that follows ``self.reference`` with ``self.gait``.
 

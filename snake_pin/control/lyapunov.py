@@ -67,8 +67,6 @@ tail, so a head-first run along +x has theta_1 = pi; see :func:`head_first_refer
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from scipy.linalg import lapack
 
@@ -76,7 +74,7 @@ from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
-from .base import Controller, TimeTerms, _ReferenceTimeTerms, gait_for
+from .base import Controller, TimeTerms, _ReferenceTimeTerms, _ViewsMadeOnce, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
@@ -100,7 +98,7 @@ def head_first_reference(speed: float = 0.1) -> LinearReference:
     return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, np.pi))
 
 
-class LyapunovController(_ReferenceTimeTerms, Controller):
+class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
     """Head tracking that reduces V of (83) by weighted least squares on q''.
 
     Parameters
@@ -242,19 +240,6 @@ class LyapunovController(_ReferenceTimeTerms, Controller):
                     start = end
             self._row_runs = runs
 
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        """Unpickled: the views of the buffers and of H^-1 are made again (on the robot's
-        own dynamics).
-
-        Parameters
-        ----------
-        state : dict
-            The pickled attributes.
-        """
-        self.__dict__.update(state)
-        self._make_views()
-
-    # ------------------------------------------------------------ the law
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).
 

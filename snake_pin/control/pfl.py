@@ -45,7 +45,6 @@ them; the torque scales with the robot through H, so the gains of (79) serve eve
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from scipy.linalg import blas, lapack
@@ -55,14 +54,14 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import manipulability_R_batch
 from ..model import Snake
-from .base import Controller, TimeTerms, _ReferenceTimeTerms, gait_for
+from .base import Controller, TimeTerms, _ReferenceTimeTerms, _ViewsMadeOnce, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
 __all__ = ["PFLController"]
 
 
-class PFLController(_ReferenceTimeTerms, Controller):
+class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
     """Head PFL controller of Section VI.1.
 
     Parameters
@@ -131,9 +130,9 @@ class PFLController(_ReferenceTimeTerms, Controller):
         self._ddq_buffer = np.zeros(nq)
         self._h12 = np.zeros((3, n - 1), order="F")
         self._stacked = np.zeros(nq)  # [-a; u], then [-a; u + p]
-        self._views()
+        self._make_views()
 
-    def _views(self) -> None:
+    def _make_views(self) -> None:
         """Views made once of the dynamics' H and h (filled by each mass_and_bias call) and
         of the buffers: slicing per call costs more than the products that read them."""
         mass = self._dynamics.mass.T  # H is symmetric: its C-ordered face, rows contiguous
@@ -146,18 +145,6 @@ class PFLController(_ReferenceTimeTerms, Controller):
         self._h1, self._h2 = bias[:3], bias[3:]
         self._minus_a, self._u = stacked[:3], stacked[3:]
         self._ddq_head, self._ddq_joints = ddq[:3], ddq[3:]
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        """Unpickled: the views are made again on the robot's own dynamics and buffers (a
-        pickled view would be a detached copy).
-
-        Parameters
-        ----------
-        state : dict
-            The pickled attributes.
-        """
-        self.__dict__.update(state)
-        self._views()
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
