@@ -696,31 +696,21 @@ class FastDynamics:
         gen = np.zeros(nq)
         torque = self.torque
         rnea, aba, pin_minverse = pin.rnea, pin.aba, pin.computeMinverse
-        pin_crba, nle = pin.crba, pin.nonLinearEffects
+        nle = pin.nonLinearEffects
         # The controllers' calls run on a workspace of their own, whose M and Minv are read
         # through views made once (Pinocchio returns copies: slicing those costs per call).
         own_data = model.createData()
         self.mass, self.inverse_mass = own_data.M, own_data.Minv
         self.bias = bias = np.zeros(nq)
         mass, inverse_mass = self.mass, self.inverse_mass
+        crba = _whole_crba(model, own_data)  # crba(q): H into mass, both triangles
         if _binding_mirrors(model):  # the bindings fill both triangles: nothing to do
-            def crba(model: pin.Model, data: pin.Data, q: np.ndarray,
-                     convention: pin.Convention) -> np.ndarray:
-                pin_crba(model, data, q, convention)
-                return mass
-
             def minverse(model: pin.Model, data: pin.Data) -> np.ndarray:
                 pin_minverse(model, data)
                 return inverse_mass
 
         else:  # a binding that fills the upper triangle only: mirror it in place
             lower = np.tril(np.ones((nq, nq), dtype=bool), -1)
-
-            def crba(model: pin.Model, data: pin.Data, q: np.ndarray,
-                     convention: pin.Convention) -> np.ndarray:
-                pin_crba(model, data, q, convention)
-                np.copyto(mass, mass.T, where=lower)
-                return mass
 
             def minverse(model: pin.Model, data: pin.Data) -> np.ndarray:
                 pin_minverse(model, data)
@@ -744,7 +734,7 @@ class FastDynamics:
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 q, v = x[:nq], x[nq:]
-                crba(model, data, q, world)
+                crba(q)
                 return mass, subtract(nle(model, data, q, v), of_state(x), out=bias)
 
         elif passes.wheel_gain is None:  # isotropic: one RNEA of the twin gives -Q
@@ -764,7 +754,7 @@ class FastDynamics:
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 q, v = x[:nq], x[nq:]
                 damping = rnea(twin, twin_data, q, zero, v)  # -Q
-                crba(model, data, q, world)
+                crba(q)
                 return mass, add(nle(model, data, q, v), damping, out=bias)
 
         else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
@@ -802,7 +792,7 @@ class FastDynamics:
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 damping = own_damping(x)  # -Q
-                crba(model, data, own_q, world)
+                crba(own_q)
                 return mass, add(nle(model, data, own_q, own_v), damping, out=bias)
 
         self.evaluate = evaluate
