@@ -425,7 +425,7 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
         raise ValueError("the floor is defined for the damping twin's route")
     model, data, nq, size = snake.model, snake.data, snake.nq, passes.size
     twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
-    wheels = passes.wheel_gain is not None
+    wheels = passes.has_wheels
     world = pin.Convention.WORLD
     rnea, aba, crba = pin.rnea, pin.aba, pin.crba
     arguments = []
@@ -438,17 +438,16 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
     cursor = iter(range(1 << 62))
     count = len(arguments)
 
-    mass, gain, dot, multiply = twin_data.M.T, passes.wheel_gain, np.dot, np.multiply
-    chain_rows, wheel_rows = mass[:nq], mass[nq:]
-    wheel_slots = [v_ext[nq:] for _, v_ext, *_ in arguments]
+    mass, dot = twin_data.M.T, np.dot
+    chain_rows, rolling = mass[:nq], mass[nq:, :nq]
+    wheel_slots = [(v_ext[:nq], v_ext[nq:]) for _, v_ext, *_ in arguments]
 
-    def friction_call(q_ext: np.ndarray, v_ext: np.ndarray, slots: np.ndarray) -> None:
+    def friction_call(q_ext: np.ndarray, v_ext: np.ndarray,
+                      slots: tuple[np.ndarray, np.ndarray]) -> None:
         if wheels:
             crba(twin, twin_data, q_ext, world)
-            if products:
-                # the same work as the step's (whose stage rows come with the slots zeroed;
-                # here they keep the last speeds, which changes the values, not the cost)
-                multiply(dot(wheel_rows, v_ext), gain, out=slots)
+            if products:  # the same work as the step's: the rolling speeds, then -Q
+                dot(rolling, slots[0], out=slots[1])
                 dot(chain_rows, v_ext)
         else:
             rnea(twin, twin_data, q_ext, zero, v_ext)

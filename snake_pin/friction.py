@@ -27,13 +27,21 @@ Three routes compute the same thing:
   The twin over 2n + 2 joints beats numpy only for robots up to n = 40
   (``scripts/bench.py --only friction_routes`` measures the routes), so longer
   anisotropic robots use numpy for Q (the derivatives always use the twin).
-  The force alone (:class:`ForcePasses`, the simulator's hot path) runs on a copy of the
-  twin with the wheels appended after the whole chain, tail first (still depth-first: link
-  k's subtree is links k..n and wheels n..k), so the chain's coordinates are one slice:
-  the extended state is ``[q, 0_w]``, ``[q', 0_w]``. There one CRBA and two products apply
-  the Schur complement (the wheels' rolling speeds, then Q), cheaper than the two RNEAs.
-  Every coefficient may differ from link to link: the twin's link i carries c_x,i,
-  c_theta,i and a wheel of c_y,i - c_x,i.
+  The force alone (:class:`ForcePasses`, the simulator's hot path) runs on another twin,
+  built so that the Schur complement costs two products and nothing else. Its wheels are
+  appended after the whole chain, tail first (still depth-first: link k's subtree is links
+  k..n and wheels n..k), so the chain's coordinates are one slice: the extended state is
+  ``[q, 0_w]``, ``[q', 0_w]``. Link i carries the larger of c_x,i and c_y,i
+  isotropically, and its wheel takes the difference back: "mass" -|c_y,i - c_x,i| sliding
+  along the direction of the larger coefficient (a wheel sliding sideways leaves its
+  negative mass acting along the link: c_y - (c_y - c_x) = c_x there). The wheel's
+  coordinate is the angle of a revolute joint whose pivot sits 1/sqrt|c_y,i - c_x,i| from
+  the CM, so that at angle 0 (where the wheels always are) the CM slides at that lever
+  times the joint's rate and M_ww = -|c_y - c_x| / |c_y - c_x| = -1: the wheels roll at
+  exactly ``M_wc q'``, and one CRBA and two products give Q (the rolling speeds, then
+  ``-Q = M_cc q' + M_cw (M_wc q')``), cheaper than two RNEAs.
+  Every coefficient may differ from link to link: in the derivatives' twin link i
+  carries c_x,i, c_theta,i and a wheel of c_y,i - c_x,i.
 * :class:`FrictionModel` without a model -- vectorised numpy, O(n): with planar vectors
   written as complex numbers, e_i = exp(j theta_i) and the CM velocity z_i = x_i' + j y_i',
   the world force on link i is ``F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i)``,
@@ -44,6 +52,8 @@ Tests check the routes against each other and against eq. (11).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pinocchio as pin
@@ -128,10 +138,10 @@ class ForcePasses:
     state is read from one slice, and the joints stay in depth-first order (link k's
     subtree is ``[link k .. link n, wheel n .. wheel k]``, contiguous, as CRBA needs).
     Without wheels one RNEA at velocity ``[q']`` gives -Q. With wheels, one CRBA gives the
-    twin's mass matrix M; with its chain (c) and wheel (w) blocks the wheels roll at
-    ``-u = -M_ww^-1 M_wc q'`` (:attr:`wheel_gain` times ``M_wc q'``; M_ww is diagonal) and
-    ``-Q = M_cc q' + M_cw (-u)``: the Schur complement of the module docstring, applied
-    by two products instead of two RNEAs (a locked and a rolling pass), which cost more.
+    twin's mass matrix M, whose wheel block M_ww is -1 (the module docstring): with its
+    chain (c) and wheel (w) blocks the wheels roll at ``w = -M_ww^-1 M_wc q' = M_wc q'``
+    and ``-Q = M_cc q' + M_cw w``, the Schur complement applied by two products and
+    nothing else (two RNEAs, a locked and a rolling pass, cost more).
 
     Parameters
     ----------
@@ -146,28 +156,19 @@ class ForcePasses:
         n + 2 plus the number of wheels.
     twin, twin_data
         The twin's model and workspace.
-    wheel_gain
-        ``-1 / (c_y - c_x)`` per wheel slot (0 where c_y = c_x; tail first), or None
-        without wheels.
+    has_wheels
+        Whether the twin carries wheels (some c_y,i != c_x,i).
     zero
         A zero velocity of the twin (RNEA's v: the twin only ever sees accelerations).
     """
 
     def __init__(self, model: pin.Model, params: SnakeParams) -> None:
         c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
-        extra = c_y - c_x
-        wheels = bool(np.any(extra != 0.0))
-        self.twin = _appended_twin(model, c_x, c_theta, extra if wheels else None)
+        self.has_wheels = bool(np.any(c_y != c_x))
+        self.twin = _appended_twin(model, c_x, c_y, c_theta, self.has_wheels)
         self.twin_data = self.twin.createData()
         self.size = self.twin.nq
         self.zero = np.zeros(self.size)
-        self.wheel_gain: np.ndarray | None = None
-        if wheels:
-            # a wheel too light to invert (below the smallest normal float, 1/extra would
-            # overflow) adds no damping worth the name: it stays still (gain 0)
-            with np.errstate(divide="ignore", over="ignore"):
-                gain = np.where(np.abs(extra) >= np.finfo(float).tiny, -1.0 / extra, 0.0)
-            self.wheel_gain = gain[::-1].copy()  # the slots run tail first
         self._nq = model.nq
         self._q = np.zeros(self.size)
         self._v = np.zeros(self.size)
@@ -190,38 +191,48 @@ class ForcePasses:
         nq, q_ext, v_ext = self._nq, self._q, self._v
         q_ext[:nq] = q
         v_ext[:nq] = dq
-        if self.wheel_gain is None:
+        if not self.has_wheels:
             return -pin.rnea(self.twin, self.twin_data, q_ext, self.zero, v_ext)
         mass = symmetric_from_upper(pin.crba(self.twin, self.twin_data, q_ext,
                                              pin.Convention.WORLD))
-        v_ext[nq:] = self.wheel_gain * (mass[nq:, :nq] @ dq)  # -u = -M_ww^-1 M_wc q'
+        v_ext[nq:] = mass[nq:, :nq] @ dq  # the wheels roll at M_wc q' (M_ww = -1)
         return -(mass[:nq] @ v_ext)
 
 
-def _appended_twin(model: pin.Model, c_x: np.ndarray, c_theta: np.ndarray,
-                   wheel_mass: np.ndarray | None) -> pin.Model:
-    """The damping twin with one wheel per link appended after the chain, tail first
-    (so that the joints stay in depth-first order), or none."""
+def _appended_twin(model: pin.Model, c_x: np.ndarray, c_y: np.ndarray, c_theta: np.ndarray,
+                   wheels: bool) -> pin.Model:
+    """The hot path's damping twin: links of the larger of c_x and c_y, each with a wheel
+    that takes the difference back with M_ww = -1, appended after the chain, tail first
+    (so that the joints stay in depth-first order), or no wheels (module docstring)."""
     twin = pin.Model()
     twin.name = f"{model.name}_damping_passes"
+    larger = np.maximum(c_x, c_y) if wheels else c_x
     for joint in range(1, model.njoints):
         index = twin.addJoint(model.parents[joint], model.joints[joint],
                               model.jointPlacements[joint], model.names[joint])
         link = joint - _HEAD_JOINT
         if link >= 0:
-            twin.appendBodyToJoint(index, pin.Inertia(float(c_x[link]),
+            twin.appendBodyToJoint(index, pin.Inertia(float(larger[link]),
                                                       model.inertias[joint].lever.copy(),
                                                       np.eye(3) * float(c_theta[link])),
                                    pin.SE3.Identity())
-    if wheel_mass is not None:
-        for link in reversed(range(len(wheel_mass))):
-            mass = wheel_mass[link]
+    if wheels:
+        for link in reversed(range(len(c_x))):
             joint = link + _HEAD_JOINT
-            wheel = twin.addJoint(joint, pin.JointModelPX(),
-                                  pin.SE3(np.eye(3), model.inertias[joint].lever.copy()),
+            cm = model.inertias[joint].lever.copy()
+            difference = abs(float(c_y[link] - c_x[link]))
+            # a wheel too light to give a finite lever (below the smallest normal float)
+            # adds no damping worth the name: it weighs 0 (its rows and columns vanish)
+            mass = -difference if difference >= np.finfo(float).tiny else 0.0
+            lever = 1.0 / math.sqrt(difference) if mass else 1.0
+            # the CM slides sideways (pivot behind it along the link) where c_y > c_x, and
+            # along the link (pivot beside it) where c_x > c_y
+            arm = np.array([lever, 0.0, 0.0] if c_y[link] > c_x[link] else [0.0, lever, 0.0])
+            wheel = twin.addJoint(joint, pin.JointModelRZ(), pin.SE3(np.eye(3), cm - arm),
                                   f"wheel_{link + 1}")
-            twin.appendBodyToJoint(wheel, pin.Inertia(float(mass), np.zeros(3),
-                                                      np.zeros((3, 3))), pin.SE3.Identity())
+            # set, not appended: appendBodyToJoint divides by max(total mass, eps) and so
+            # throws a negative mass's centre far away
+            twin.inertias[wheel] = pin.Inertia(mass, arm, np.zeros((3, 3)))
     twin.gravity = pin.Motion.Zero()
     return twin
 
@@ -255,7 +266,9 @@ class FrictionModel:
             self._wheels = len(self._wheel_v) > 0
             self._zero = np.zeros(self._twin.nv)
             extra = params.per_link("c_y") - params.per_link("c_x")
-            with np.errstate(divide="ignore", over="ignore"):  # as ForcePasses.wheel_gain
+            # a wheel too light to invert (below the smallest normal float, 1/extra would
+            # overflow) adds no damping worth the name: it stays still (gain 0)
+            with np.errstate(divide="ignore", over="ignore"):
                 self._roll = np.where(np.abs(extra) >= np.finfo(float).tiny, -1.0 / extra, 0.0)
             self._force_on_twin = not self._wheels or n <= WHEELED_TWIN_MAX_LINKS
             if self._force_on_twin:

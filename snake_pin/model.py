@@ -644,10 +644,10 @@ class FastDynamics:
     (:class:`~snake_pin.friction.ForcePasses`): ``z = [q, 0_w, q', 0_w]``, 2 :attr:`size`
     long, where the w slots are the wheels of anisotropic friction (none for isotropic
     friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. Evaluating
-    a row uses its wheel-velocity slots as scratch, so write the whole row before the next
-    evaluation. Every ABA is in Pinocchio's WORLD convention: faster than LOCAL here, and
-    the one after which the two-argument ``pin.computeMinverse`` is right (after a LOCAL
-    ABA it silently returns a wrong matrix).
+    a row writes the wheels' rolling speeds into its wheel-velocity slots; its
+    wheel-position slots must stay 0. Every ABA is in Pinocchio's WORLD convention: faster
+    than LOCAL here, and the one after which the two-argument ``pin.computeMinverse`` is
+    right (after a LOCAL ABA it silently returns a wrong matrix).
 
     Parameters
     ----------
@@ -737,7 +737,7 @@ class FastDynamics:
                 crba(q)
                 return mass, subtract(nle(model, data, q, v), of_state(x), out=bias)
 
-        elif passes.wheel_gain is None:  # isotropic: one RNEA of the twin gives -Q
+        elif not passes.has_wheels:  # isotropic: one RNEA of the twin gives -Q
             twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
 
             def evaluate(row: int) -> np.ndarray:
@@ -758,21 +758,20 @@ class FastDynamics:
                 return mass, add(nle(model, data, q, v), damping, out=bias)
 
         else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
-            twin, twin_data, gain = passes.twin, passes.twin_data, passes.wheel_gain
+            twin, twin_data = passes.twin, passes.twin_data
             twin_crba = _whole_crba(twin, twin_data)
             # M is symmetric and Pinocchio stores it column-major: the rows of its
-            # transpose are M's rows, contiguous (BLAS reads them without a copy)
+            # transpose are M's rows, contiguous (BLAS reads them, and the row-strided
+            # block M_wc, without a copy)
             twin_mass = twin_data.M.T
-            chain_rows, wheel_rows = twin_mass[:nq], twin_mass[nq:]  # [M_cc, M_cw], [M_wc, M_ww]
-            multiply = np.multiply
-            # -Q at [zq, zv]: M_cc q' + M_cw w with the wheels rolling at
-            # w = -M_ww^-1 M_wc q' (written into zv's wheel slots, which are 0 until then,
-            # so that M_wc q' is the wheel rows times the whole zv), inlined below
+            chain_rows, rolling = twin_mass[:nq], twin_mass[nq:, :nq]  # [M_cc, M_cw], M_wc
+            # -Q at [zq, zv]: M_cc q' + M_cw w with the wheels rolling at w = M_wc q'
+            # (M_ww = -1, see ForcePasses; w is written into zv's wheel slots), inlined below
 
             def evaluate(row: int) -> np.ndarray:
                 zq, zv, q, v, wheels = views[row]
                 twin_crba(zq)
-                multiply(dot(wheel_rows, zv), gain, out=wheels)
+                dot(rolling, v, out=wheels)
                 subtract(torque, dot(chain_rows, zv), out=gen)
                 return aba(model, data, q, v, gen, world)
 
@@ -780,9 +779,8 @@ class FastDynamics:
                 """-Q at the plain state x = [q, q'], on the own buffers."""
                 own_q[...] = x[:nq]
                 own_v[...] = x[nq:]
-                own_w[...] = 0.0
                 twin_crba(own_zq)
-                multiply(dot(wheel_rows, own_zv), gain, out=own_w)
+                dot(rolling, own_v, out=own_w)
                 return dot(chain_rows, own_zv)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

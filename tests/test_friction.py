@@ -114,6 +114,23 @@ def test_force_passes_twin_is_depth_first(rng: np.random.Generator) -> None:
         assert np.allclose(np.triu(mass), np.triu(columns), rtol=1e-12, atol=1e-14)
 
 
+def test_force_passes_wheels_weigh_minus_one(rng: np.random.Generator) -> None:
+    """The passes' wheel block M_ww is -I at any posture, for c_y above and below c_x."""
+    from snake_pin.friction import ForcePasses
+
+    params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.1, 4.0, 1e-6, 0.3, 7.0, 0.3, 2.0, 5.0),
+                                c_theta=1e-3)
+    snake = Snake(params)
+    passes = ForcePasses(snake.model, params)
+    rolling = np.array([float(c != 0.3) for c in params.per_link("c_y")])[::-1]
+    for _ in range(5):
+        q_ext = np.zeros(passes.size)
+        q_ext[:snake.nq] = random_state(rng, params.n)[0]
+        mass = pin.crba(passes.twin, passes.twin.createData(), q_ext, pin.Convention.WORLD)
+        block = mass[snake.nq:, snake.nq:]
+        assert np.allclose(block, -np.diag(rolling), rtol=0.0, atol=1e-12)
+
+
 def test_links_with_isotropic_friction_among_wheeled_ones(rng: np.random.Generator) -> None:
     """Per-link c_y equal to c_x on some links (their wheels weigh 0): the same Q."""
     params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.3, 4.0, 12.0, 0.3, 7.0, 0.3, 2.0, 5.0),
