@@ -439,24 +439,23 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
     count = len(arguments)
 
     mass, dot = twin_data.M.T, np.dot
-    chain_rows, rolling = mass[:nq], mass[nq:, :nq]
-    wheel_slots = [(v_ext[:nq], v_ext[nq:]) for _, v_ext, *_ in arguments]
+    chain_rows, wheel_rows = mass[:nq], mass[nq:]
+    rolled = np.zeros(size)
+    rolled_v, rolled_w = rolled[:nq], rolled[nq:]
 
-    def friction_call(q_ext: np.ndarray, v_ext: np.ndarray,
-                      slots: tuple[np.ndarray, np.ndarray]) -> None:
+    def friction_call(q_ext: np.ndarray, v_ext: np.ndarray, v: np.ndarray) -> None:
         if wheels:
             crba(twin, twin_data, q_ext, world)
             if products:  # the same work as the step's: the rolling speeds, then -Q
-                dot(rolling, slots[0], out=slots[1])
-                dot(chain_rows, v_ext)
+                rolled_v[...] = v
+                dot(wheel_rows, v_ext, out=rolled_w)
+                dot(chain_rows, rolled)
         else:
             rnea(twin, twin_data, q_ext, zero, v_ext)
 
     def step() -> None:
-        index = next(cursor) % count
-        q_ext, v_ext, q, v, torque = arguments[index]
-        slots = wheel_slots[index]
-        friction_call(q_ext, v_ext, slots)
+        q_ext, v_ext, q, v, torque = arguments[next(cursor) % count]
+        friction_call(q_ext, v_ext, v)
         if kind == "pfl":
             pin.crba(model, data, q, world)
             pin.nonLinearEffects(model, data, q, v)
@@ -464,7 +463,7 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
             aba(model, data, q, v, torque, world)
             pin.computeMinverse(model, data)
         for _ in range(3):
-            friction_call(q_ext, v_ext, slots)
+            friction_call(q_ext, v_ext, v)
             aba(model, data, q, v, torque, world)
 
     return step

@@ -643,11 +643,11 @@ class FastDynamics:
     States are the rows of :attr:`states`, laid out as the friction passes read them
     (:class:`~snake_pin.friction.ForcePasses`): ``z = [q, 0_w, q', 0_w]``, 2 :attr:`size`
     long, where the w slots are the wheels of anisotropic friction (none for isotropic
-    friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. Evaluating
-    a row writes the wheels' rolling speeds into its wheel-velocity slots; its
-    wheel-position slots must stay 0. Every ABA is in Pinocchio's WORLD convention: faster
-    than LOCAL here, and the one after which the two-argument ``pin.computeMinverse`` is
-    right (after a LOCAL ABA it silently returns a wrong matrix).
+    friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. The w slots
+    must stay 0 (evaluating a row only reads it). Every ABA is in Pinocchio's WORLD
+    convention: faster than LOCAL here, and the one after which the two-argument
+    ``pin.computeMinverse`` is right (after a LOCAL ABA it silently returns a wrong
+    matrix).
 
     Parameters
     ----------
@@ -688,10 +688,9 @@ class FastDynamics:
         self.states = np.zeros((rows, 2 * size))
         self.torque = np.zeros(nq)
         self.select = np.r_[np.arange(nq), size + np.arange(nq)]
-        views = [(row[:size], row[size:], row[:nq], row[size:size + nq], row[size + nq:])
-                 for row in self.states]
+        views = [(row[:size], row[size:], row[:nq], row[size:size + nq]) for row in self.states]
         own = np.zeros(2 * size)  # affine's own state, so that it never clobbers a stage
-        own_q, own_v, own_w = own[:nq], own[size:size + nq], own[size + nq:]
+        own_q, own_v = own[:nq], own[size:size + nq]
         own_zq, own_zv = own[:size], own[size:]
         gen = np.zeros(nq)
         torque = self.torque
@@ -725,7 +724,7 @@ class FastDynamics:
 
             def evaluate(row: int) -> np.ndarray:
                 add(torque, of_state(states[row]), out=gen)
-                _, _, q, v, _ = views[row]
+                _, _, q, v = views[row]
                 return aba(model, data, q, v, gen, world)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -741,7 +740,7 @@ class FastDynamics:
             twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
 
             def evaluate(row: int) -> np.ndarray:
-                zq, zv, q, v, _ = views[row]  # size == nq: the twin's rows are Q's
+                zq, zv, q, v = views[row]  # size == nq: the twin's rows are Q's
                 subtract(torque, rnea(twin, twin_data, zq, zero, zv), out=gen)
                 return aba(model, data, q, v, gen, world)
 
@@ -764,15 +763,20 @@ class FastDynamics:
             # transpose are M's rows, contiguous (BLAS reads them, and the row-strided
             # block M_wc, without a copy)
             twin_mass = twin_data.M.T
-            chain_rows, rolling = twin_mass[:nq], twin_mass[nq:, :nq]  # [M_cc, M_cw], M_wc
-            # -Q at [zq, zv]: M_cc q' + M_cw w with the wheels rolling at w = M_wc q'
-            # (M_ww = -1, see ForcePasses; w is written into zv's wheel slots), inlined below
+            chain_rows, wheel_rows = twin_mass[:nq], twin_mass[nq:]  # [M_cc, M_cw], [M_wc, M_ww]
+            # -Q at [zq, zv]: [M_cc, M_cw] [q'; w] with the wheels rolling at w = M_wc q'
+            # (M_ww = -1, see ForcePasses): the wheel rows times zv, whose wheel slots are
+            # 0, written into a buffer of its own (BLAS reads neither a strided block nor
+            # an output inside its input without a copy), inlined below
+            rolled = np.zeros(size)  # [q', w]
+            rolled_v, rolled_w = rolled[:nq], rolled[nq:]
 
             def evaluate(row: int) -> np.ndarray:
-                zq, zv, q, v, wheels = views[row]
+                zq, zv, q, v = views[row]
                 twin_crba(zq)
-                dot(rolling, v, out=wheels)
-                subtract(torque, dot(chain_rows, zv), out=gen)
+                rolled_v[...] = v
+                dot(wheel_rows, zv, out=rolled_w)
+                subtract(torque, dot(chain_rows, rolled), out=gen)
                 return aba(model, data, q, v, gen, world)
 
             def own_damping(x: np.ndarray) -> np.ndarray:
@@ -780,8 +784,9 @@ class FastDynamics:
                 own_q[...] = x[:nq]
                 own_v[...] = x[nq:]
                 twin_crba(own_zq)
-                dot(rolling, own_v, out=own_w)
-                return dot(chain_rows, own_zv)
+                rolled_v[...] = own_v
+                dot(wheel_rows, own_zv, out=rolled_w)
+                return dot(chain_rows, rolled)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 negative(own_damping(x), out=gen)
