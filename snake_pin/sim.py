@@ -941,8 +941,9 @@ class _FastRK4:
         self._magnitude = np.zeros(2 * size)
         self._within = np.zeros(2 * size, dtype=bool)
         self._all_within = np.ones(2 * size, dtype=bool).tobytes()
-        actuated = np.array([k - 1 for k in snake.params.actuated], dtype=int)
-        self._actuated = None if len(actuated) == snake.n - 1 else actuated
+        # E tau: a passive joint's entry times 0 (the torque is finite: checked before)
+        actuated = [float(k in snake.params.actuated) for k in range(1, snake.n)]
+        self._actuated = None if all(actuated) else np.array(actuated)
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray) -> str:
         """Advance one control period under ``tau``; write [q, q'] into ``out``.
@@ -950,11 +951,11 @@ class _FastRK4:
         ``first`` is q'' at the current state under ``tau`` if known. Returns what is wrong
         with the new state ("" when it is within bounds, see :func:`_divergence`).
         """
-        torque, actuated = self._torque, self._actuated  # view[...] = x: the cheapest copy
+        actuated = self._actuated  # view[...] = x: the cheapest copy
         if actuated is None:
             self._joint_torque[...] = tau
         else:
-            torque[3 + actuated] = tau[actuated]
+            np.multiply(tau, actuated, out=self._joint_torque)
         slopes, state, evaluate, dot = self._slopes, self._state, self._evaluate, np.dot
         (row0, d0, a0), later = self._first_stage, self._later_stages
         for sub in range(self._substeps):

@@ -156,7 +156,6 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self.k_shape = finite_number(default_shape if k_shape is None else k_shape, "k_shape",
                                      non_negative=True)
         self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
-        self._tau = np.zeros(n - 1)
         self._last: dict[str, float] = {}
         self._build_law()
         self._time_row = TimeTerms(self._time_terms)
@@ -196,49 +195,41 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         weights = np.sqrt(np.r_[self._k_w2_diag, self._k_phi_diag])
         law[nq:] *= weights[:, None]  # [s; e] weighted: V is their squared norm
         self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
+        # A passive joint keeps its row of H^-1 (A^T's rows are all the joints'), weighted
+        # by 0, and one more column of the stack holds a 1 in its row: its equation in
+        # A^T W A tau = rhs is then tau_j = 0, exactly, and the actuated torques are those
+        # of the reduced system. Each error row is padded with a 0 in those columns.
+        passive = [k - 1 for k in snake.params.passive]  # tau's entries
+        width = nq + len(passive)
         # applied to [q, q', b, time row]: the time terms enter the same product
-        self._law_state = np.hstack((law[:, 3 * nq:], np.eye(2 * nq)))
+        state = np.hstack((law[:, 3 * nq:], np.eye(2 * nq)))
+        self._law_state = np.zeros((2 * width, 5 * nq))
+        self._law_state[:nq], self._law_state[width:width + nq] = state[:nq], state[nq:]
         self._inputs = np.zeros(5 * nq)
-        m_a = len(self._act)
-        # rows: (W^(1/2) A)^T, then the errors [W^(1/2) (q''* - b); W^(1/2) [s; e]]; its
-        # first m_a + 1 rows times (W^(1/2) A) give the normal equations [A^T W A; rhs^T]
-        # in one product
-        self._stack = np.zeros((m_a + 2, nq))
-        self._normal = np.zeros((m_a + 1, m_a))
-        self._all_actuated = len(self._act) == n - 1
+        # rows: (W^(1/2) A)^T, then the errors [W^(1/2) (q''* - b); W^(1/2) [s; e]]; times
+        # its own transpose it gives A^T W A, the right-hand side and V in one product
+        self._stack = np.zeros((m + 2, width))
+        self._stack[passive, nq + np.arange(len(passive))] = 1.0
+        self._normal = np.zeros((m + 2, m + 2))
         self._dynamics = snake.fast_dynamics
-        self._picked_rows = np.zeros((len(self._act), nq))
         self._make_views()
         # W^(1/2) scales A^T's columns, by a whole matrix of weights (numpy broadcasting
-        # costs more here)
-        self._sqrt_w = np.tile(sqrt_w, (len(self._act), 1))
-        self._actuated_entries = self._act - 3  # tau's entries of the actuated joints
+        # costs more here); a passive joint's row weighs 0
+        self._sqrt_w = np.tile(sqrt_w, (m, 1))
+        self._sqrt_w[passive] = 0.0
         self._ddq: np.ndarray | None = None
 
     def _make_views(self) -> None:
         """Views of the hot path's buffers, made once (a pickled view is a detached copy,
         so :meth:`__setstate__` makes them again)."""
-        nq, inputs, stack, m_a = self.snake.nq, self._inputs, self._stack, len(self._act)
+        nq, inputs, stack, m = self.snake.nq, self._inputs, self._stack, self.snake.n - 1
         self._x_slot, self._b_slot, self._time_slot = (inputs[:2 * nq], inputs[2 * nq:3 * nq],
                                                        inputs[3 * nq:])
-        self._weighted_t, self._augmented = stack[:m_a], stack[:m_a + 1]
-        self._errors, self._weighted_errors = stack[m_a:].reshape(-1), stack[m_a + 1]
-        self._gram, self._rhs = self._normal[:m_a], self._normal[m_a]
-        # A^T = E_a^T H^-1 (H^-1 symmetric): the actuated rows of H^-1. Every joint
-        # actuated: a contiguous view of the dynamics' H^-1 (filled by each affine call).
-        # Passive joints: a buffer filled per call from the runs of actuated rows between
-        # them (pairs of views; cheaper than fancy indexing).
-        inverse = self._dynamics.inverse_mass
-        if self._all_actuated:
-            self._inverse_rows, self._row_runs = inverse[3:], []
-        else:
-            self._inverse_rows = self._picked_rows
-            runs, start, act, picked = [], 0, self._act, self._picked_rows
-            for end in range(1, len(act) + 1):
-                if end == len(act) or act[end] != act[end - 1] + 1:
-                    runs.append((picked[start:end], inverse[act[start]:act[end - 1] + 1]))
-                    start = end
-            self._row_runs = runs
+        self._weighted_t, self._errors = stack[:m, :nq], stack[m:].reshape(-1)
+        self._gram, self._rhs = self._normal[:m, :m], self._normal[m, :m]
+        # A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a contiguous view of
+        # the dynamics' H^-1 (filled by each affine call)
+        self._inverse_rows = self._dynamics.inverse_mass[3:]
 
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).
@@ -314,23 +305,18 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self._time_slot[...] = self._time_row(t)
         # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
         dot(self._law_state, self._inputs, out=self._errors)
-        rows = self._inverse_rows  # A^T
-        for picked, actuated in self._row_runs:  # passive joints only
-            picked[...] = actuated
-        weighted_t = np.multiply(rows, self._sqrt_w, out=self._weighted_t)  # (W^(1/2) A)^T
-        dot(self._augmented, weighted_t.T, out=self._normal)  # [A^T W A; rhs^T]
-        _, tau_a, info = lapack.dposv(self._gram, self._rhs)  # its upper triangle
+        rows = self._inverse_rows  # A^T, passive joints' rows included
+        np.multiply(rows, self._sqrt_w, out=self._weighted_t)  # (W^(1/2) A)^T
+        stack = self._stack
+        normal = dot(stack, stack.T, out=self._normal)  # [A^T W A, rhs, V] (module doc)
+        _, tau, info = lapack.dposv(self._gram, self._rhs)  # its upper triangle
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
-        ddq = dot(tau_a, rows)  # A tau_a
+        ddq = dot(tau, rows)  # A tau_a (a passive joint's tau is 0)
         ddq += b
         self._ddq = ddq
-        weighted_errors = self._weighted_errors
-        self._last = {"V": float(dot(weighted_errors, weighted_errors))}
-        if self._all_actuated:
-            return tau_a
-        tau = self._tau.copy()
-        tau[self._actuated_entries] = tau_a
+        last = len(normal) - 1
+        self._last = {"V": normal.item(last, last)}
         return tau
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
