@@ -810,11 +810,12 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
 
     # The fast RK4 (same stages and hold, preallocated; see _FastRK4) needs the robot's own
     # dynamics: a plant that replaces state_derivative keeps the plain step.
-    check_torque = _TorqueCheck(n_tau)
+    check_torque, torque_shape = _TorqueCheck(n_tau), (n_tau,)
     fast = None
     if method == "rk4" and isinstance(snake, Snake) and \
             type(snake).state_derivative is Snake.state_derivative:
         fast = _FastRK4(snake, x, dt, substeps, max_speed, max_distance)
+    unchecked = fast is not None and fast.checks_torque  # the torque: checked by the step
     xs[0] = x
     ts[1:] = np.arange(steps) * control_dt + control_dt  # sample k + 1 at t_k + control_dt
     signals: dict[str, np.ndarray] = {}
@@ -843,10 +844,16 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
             for k in range(steps if status == "completed" else 0):
                 t = k * control_dt
                 try:
-                    tau, problem = check_torque(ctrl(x, t))
-                    if tau is None:
-                        status, reason = "failed", f"{problem} at t = {t:.4f} s"
-                        break
+                    raw = ctrl(x, t)
+                    if unchecked and type(raw) is np.ndarray and raw.dtype is _FLOAT \
+                            and raw.shape == torque_shape:
+                        tau = raw  # whether it is finite: checked with the new state
+                    else:
+                        tau, problem = check_torque(raw)
+                        if tau is None:
+                            status, reason = "failed", f"{problem} at t = {t:.4f} s"
+                            break
+                    known = len(signals)
                     for name, value in ctrl.signals().items():
                         series = signals.get(name)
                         if series is None:
@@ -872,6 +879,16 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                     problem = f"the dynamics failed ({type(exc).__name__}: " \
                               f"{_one_line(str(exc))})"
                 if problem:
+                    if unchecked and not np.isfinite(tau).all():
+                        # as if checked before the step: no torque, no signals at t
+                        taus[k] = 0.0
+                        for name in list(signals)[known:]:
+                            del signals[name]
+                        for series in signals.values():
+                            series[k] = np.nan
+                        status = "failed"
+                        reason = f"controller returned a non-finite torque at t = {t:.4f} s"
+                        break
                     status = "diverged"
                     reason = f"diverged at t = {t + control_dt:.4f} s: {problem}"
                     break
@@ -922,7 +939,9 @@ class _FastRK4:
         self._slopes = np.zeros((5, 2 * size))  # [Z; d1; d2; d3; d4]
         self._state = self._slopes[0]
         self._state[self._select] = x0
-        self._next = np.zeros(2 * size)
+        # the new state goes right before the torque: one pass checks both (see step)
+        self._checked = dynamics.checked
+        self._next = self._checked[:2 * size]
         # per stage: its coefficient row, its state (a row of the dynamics' buffer), and
         # where its slope goes in Y: q' (the stage state's velocity) and q''
         coefficients = [np.array(row) for row in (
@@ -935,21 +954,28 @@ class _FastRK4:
         self._final = np.array((1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))
         self._velocity = self._state[size:size + nq]
         self._plain = size == nq  # no wheel slots: the layout is [q, q'] itself
-        self._limits = np.full(2 * size, np.inf)
+        # bounds of |z|, then of |E tau|: the largest float (false for inf and NaN)
+        self._limits = np.full(2 * size + nq, np.finfo(float).max)
+        self._limits[2:size] = np.inf
         self._limits[:2] = max_distance
+        self._limits[size:2 * size] = np.inf
         self._limits[size:size + nq] = max_speed
-        self._magnitude = np.zeros(2 * size)
-        self._within = np.zeros(2 * size, dtype=bool)
-        self._all_within = np.ones(2 * size, dtype=bool).tobytes()
-        # E tau: a passive joint's entry times 0 (the torque is finite: checked before)
+        self._magnitude = np.zeros(2 * size + nq)
+        self._within = np.zeros(2 * size + nq, dtype=bool)
+        self._all_within = np.ones(2 * size + nq, dtype=bool).tobytes()
+        # E tau: a passive joint's entry times 0 (the torque is finite: checked before,
+        # inf times 0 would warn); with every joint actuated, tau itself, checked after
         actuated = [float(k in snake.params.actuated) for k in range(1, snake.n)]
         self._actuated = None if all(actuated) else np.array(actuated)
+        #: Whether the step checks that the torque is finite (with the new state).
+        self.checks_torque = self._actuated is None
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray) -> str:
         """Advance one control period under ``tau``; write [q, q'] into ``out``.
 
-        ``first`` is q'' at the current state under ``tau`` if known. Returns what is wrong
-        with the new state ("" when it is within bounds, see :func:`_divergence`).
+        ``first`` is q'' at the current state under ``tau`` if known; ``tau`` need not be
+        finite when :attr:`checks_torque`. Returns what is wrong with the new state or the
+        torque ("" when both are within bounds, see :func:`_divergence`).
         """
         actuated = self._actuated  # view[...] = x: the cheapest copy
         if actuated is None:
@@ -974,12 +1000,14 @@ class _FastRK4:
             out[...] = state
         else:
             state.take(self._select, out=out)
-        # every |z| within its bound (NaN is not): compared as bytes, cheaper than .all()
-        within = np.less_equal(np.abs(state, out=self._magnitude), self._limits,
+        # every |z| and |E tau| within its bound (NaN is not), in one pass over the new
+        # state and the torque: compared as bytes, cheaper than .all()
+        within = np.less_equal(np.abs(self._checked, out=self._magnitude), self._limits,
                                out=self._within)
         if within.tobytes() == self._all_within:
             return ""
-        return _divergence(out, self._nq, self._max_speed, self._max_distance)
+        return _divergence(out, self._nq, self._max_speed, self._max_distance) or \
+            "the torque is not finite"
 
 
 def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,

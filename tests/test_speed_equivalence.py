@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from snake_pin import OpenLoop, Snake, SnakeParams, simulate
-from snake_pin.control import LyapunovController, PFLController
+from snake_pin.control import Controller, LyapunovController, PFLController
 from snake_pin.experiments.tracking import initial_state, tracking_params
 from snake_pin.friction import WHEELED_TWIN_MAX_LINKS
 
@@ -99,6 +100,47 @@ def test_fast_step_diverges_where_the_plain_step_does() -> None:
                      initial_state(params), 1.0, max_speed=20.0) for cls in (Snake, _PlainSnake)]
     assert runs[0].status == runs[1].status == "diverged"
     assert runs[0].reason == runs[1].reason and len(runs[0]) == len(runs[1]) > 50
+
+
+class _TurnsBad(Controller):
+    """Finite torques with a signal "a", then from t = 0.02 s ``bad`` at ``entry`` and a
+    new signal "b"."""
+
+    name = "turns_bad"
+
+    def __init__(self, bad: float, entry: int) -> None:
+        self.bad, self.entry, self._t = bad, entry, 0.0
+
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        self._t = t
+        tau = 0.01 * np.sin(2 * t + np.arange(9))
+        if t >= 0.02 - 1e-12:
+            tau[self.entry] = self.bad
+        return tau
+
+    def signals(self) -> dict[str, float]:
+        return {"a": self._t, **({"b": 1.0} if self._t >= 0.02 - 1e-12 else {})}
+
+
+@pytest.mark.parametrize(("bad", "entry", "passive", "max_speed"), [
+    (np.nan, 0, (), 1e3), (np.inf, 3, (), math.inf), (-np.inf, 8, (), 1e3),
+    (np.nan, 4, (5,), 1e3), (np.inf, 4, (5,), math.inf)])
+def test_fast_step_refuses_a_torque_where_the_plain_step_does(
+        bad: float, entry: int, passive: tuple, max_speed: float) -> None:
+    """A non-finite torque (a passive joint's included) fails the run at its sample on both
+    paths alike: the same reason, samples, torques and signals (none from that call)."""
+    params = tracking_params(passive=passive)
+    runs = [simulate(cls(params), _TurnsBad(bad, entry), initial_state(params), 0.05,
+                     max_speed=max_speed) for cls in (Snake, _PlainSnake)]
+    fast, plain = runs
+    assert fast.status == plain.status == "failed" and len(fast) == len(plain) == 21
+    assert fast.reason == plain.reason == \
+        "controller returned a non-finite torque at t = 0.0200 s"
+    assert np.array_equal(fast.tau, plain.tau) and not fast.tau[-1].any()
+    assert set(fast.signals) == set(plain.signals) == {"a"}
+    assert np.array_equal(fast.signals["a"], plain.signals["a"], equal_nan=True)
+    assert np.isnan(fast.signals["a"][-1])
+    assert np.abs(fast.q - plain.q).max() < 1e-12
 
 
 @pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "numpy route"])
