@@ -963,12 +963,20 @@ class _FastRK4:
         self._magnitude = np.zeros(2 * size + nq)
         self._within = np.zeros(2 * size + nq, dtype=bool)
         self._all_within = np.ones(2 * size + nq, dtype=bool).tobytes()
-        # E tau: a passive joint's entry times 0 (the torque is finite: checked before,
-        # inf times 0 would warn); with every joint actuated, tau itself, checked after
-        actuated = [float(k in snake.params.actuated) for k in range(1, snake.n)]
-        self._actuated = None if all(actuated) else np.array(actuated)
+        # E tau: tau itself with every joint actuated; else a passive joint's entry scaled
+        # by 2^-2100, which is 0 for every finite float and keeps inf and NaN (so that
+        # the check after the step still sees them) with no warning, as long as numpy
+        # ignores underflow (its default); otherwise the torque is checked before the
+        # step and a passive entry times 0 (inf times 0 would warn)
+        actuated = [k in snake.params.actuated for k in range(1, snake.n)]
+        self._shifts = self._mask = None
+        if not all(actuated):
+            if np.geterr()["under"] == "ignore":
+                self._shifts = np.array([0 if a else -2100 for a in actuated], dtype=np.intc)
+            else:
+                self._mask = np.array(actuated, dtype=float)
         #: Whether the step checks that the torque is finite (with the new state).
-        self.checks_torque = self._actuated is None
+        self.checks_torque = self._mask is None
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray) -> str:
         """Advance one control period under ``tau``; write [q, q'] into ``out``.
@@ -977,11 +985,12 @@ class _FastRK4:
         finite when :attr:`checks_torque`. Returns what is wrong with the new state or the
         torque ("" when both are within bounds, see :func:`_divergence`).
         """
-        actuated = self._actuated  # view[...] = x: the cheapest copy
-        if actuated is None:
-            self._joint_torque[...] = tau
+        if self._shifts is not None:
+            np.ldexp(tau, self._shifts, out=self._joint_torque)
+        elif self._mask is not None:
+            np.multiply(tau, self._mask, out=self._joint_torque)
         else:
-            np.multiply(tau, actuated, out=self._joint_torque)
+            self._joint_torque[...] = tau  # view[...] = x: the cheapest copy
         slopes, state, evaluate, dot = self._slopes, self._state, self._evaluate, np.dot
         (row0, d0, a0), later = self._first_stage, self._later_stages
         for sub in range(self._substeps):

@@ -124,7 +124,7 @@ class _TurnsBad(Controller):
 
 @pytest.mark.parametrize(("bad", "entry", "passive", "max_speed"), [
     (np.nan, 0, (), 1e3), (np.inf, 3, (), math.inf), (-np.inf, 8, (), 1e3),
-    (np.nan, 4, (5,), 1e3), (np.inf, 4, (5,), math.inf)])
+    (np.nan, 4, (5,), 1e3), (np.inf, 4, (5,), math.inf), (-np.inf, 4, (5,), 1e3)])
 def test_fast_step_refuses_a_torque_where_the_plain_step_does(
         bad: float, entry: int, passive: tuple, max_speed: float) -> None:
     """A non-finite torque (a passive joint's included) fails the run at its sample on both
@@ -141,6 +141,22 @@ def test_fast_step_refuses_a_torque_where_the_plain_step_does(
     assert np.array_equal(fast.signals["a"], plain.signals["a"], equal_nan=True)
     assert np.isnan(fast.signals["a"][-1])
     assert np.abs(fast.q - plain.q).max() < 1e-12
+
+
+def test_passive_torque_under_strict_floating_point_errors() -> None:
+    """With numpy raising on underflow (the passive joints' 2^-2100 scaling would), the
+    fast step checks the torque first instead: the same run, the same refusal."""
+    params = tracking_params(passive=(5,))
+    runs = {}
+    for strict in (False, True):
+        with np.errstate(under="raise" if strict else "ignore"):
+            snake = Snake(params)
+            runs[strict] = [simulate(snake, controller, initial_state(params), 0.05)
+                            for controller in (LyapunovController(snake), _TurnsBad(np.inf, 4))]
+    for loose, strict in zip(runs[False], runs[True], strict=True):
+        assert loose.status == strict.status and loose.reason == strict.reason
+        assert np.array_equal(loose.q, strict.q) and np.array_equal(loose.tau, strict.tau)
+    assert runs[True][0].status == "completed" and runs[True][1].status == "failed"
 
 
 @pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "numpy route"])
