@@ -849,10 +849,11 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                             and raw.shape == torque_shape:
                         tau = raw  # whether it is finite: checked with the new state
                     else:
-                        tau, problem = check_torque(raw)
-                        if tau is None:
+                        checked, problem = check_torque(raw)
+                        if checked is None:
                             status, reason = "failed", f"{problem} at t = {t:.4f} s"
                             break
+                        tau = checked
                     known = len(signals)
                     for name, value in ctrl.signals().items():
                         series = signals.get(name)
