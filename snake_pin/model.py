@@ -722,13 +722,14 @@ class FastDynamics:
                 return inverse_mass
         data = own_data
         negative, subtract, add, dot = np.negative, np.subtract, np.add, np.dot
+        # outputs are passed by position below: numpy parses an out= keyword for some 40 ns
         world = _WORLD
         if passes is None:  # long anisotropic robots: Q by numpy on [q, q'] (size == nq)
             of_state = snake.friction.of_state
             states = self.states
 
             def evaluate(row: int) -> np.ndarray:
-                add(torque, of_state(states[row]), out=gen)
+                add(torque, of_state(states[row]), gen)
                 _, _, q, v = views[row]
                 return aba(model, data, q, v, gen, world)
 
@@ -739,19 +740,19 @@ class FastDynamics:
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 q, v = x[:nq], x[nq:]
                 crba(q)
-                return mass, subtract(nle(model, data, q, v), of_state(x), out=bias)
+                return mass, subtract(nle(model, data, q, v), of_state(x), bias)
 
         elif not passes.has_wheels:  # isotropic: one RNEA of the twin gives -Q
             twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
 
             def evaluate(row: int) -> np.ndarray:
                 zq, zv, q, v = views[row]  # size == nq: the twin's rows are Q's
-                subtract(torque, rnea(twin, twin_data, zq, zero, zv), out=gen)
+                subtract(torque, rnea(twin, twin_data, zq, zero, zv), gen)
                 return aba(model, data, q, v, gen, world)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 q, v = x[:nq], x[nq:]  # no wheels: the twin's state is x itself
-                negative(rnea(twin, twin_data, q, zero, v), out=gen)
+                negative(rnea(twin, twin_data, q, zero, v), gen)
                 b = aba(model, data, q, v, gen, world)
                 return b, minverse(model, data)
 
@@ -759,7 +760,7 @@ class FastDynamics:
                 q, v = x[:nq], x[nq:]
                 damping = rnea(twin, twin_data, q, zero, v)  # -Q
                 crba(q)
-                return mass, add(nle(model, data, q, v), damping, out=bias)
+                return mass, add(nle(model, data, q, v), damping, bias)
 
         else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
             twin, twin_data = passes.twin, passes.twin_data
@@ -780,8 +781,8 @@ class FastDynamics:
                 zq, zv, q, v = views[row]
                 twin_crba(zq)
                 rolled_v[...] = v
-                dot(wheel_rows, zv, out=rolled_w)
-                subtract(torque, dot(chain_rows, rolled), out=gen)
+                dot(wheel_rows, zv, rolled_w)
+                subtract(torque, dot(chain_rows, rolled), gen)
                 return aba(model, data, q, v, gen, world)
 
             def own_damping(x: np.ndarray) -> np.ndarray:
@@ -790,18 +791,18 @@ class FastDynamics:
                 own_v[...] = x[nq:]
                 twin_crba(own_zq)
                 rolled_v[...] = own_v
-                dot(wheel_rows, own_zv, out=rolled_w)
+                dot(wheel_rows, own_zv, rolled_w)
                 return dot(chain_rows, rolled)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                negative(own_damping(x), out=gen)
+                negative(own_damping(x), gen)
                 b = aba(model, data, own_q, own_v, gen, world)
                 return b, minverse(model, data)
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 damping = own_damping(x)  # -Q
                 crba(own_q)
-                return mass, add(nle(model, data, own_q, own_v), damping, out=bias)
+                return mass, add(nle(model, data, own_q, own_v), damping, bias)
 
         self.evaluate = evaluate
         self.affine = affine

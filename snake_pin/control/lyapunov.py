@@ -22,10 +22,14 @@ squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible).
 Evaluation (the closed loop's hot path, issue 13): b comes from one WORLD-convention ABA at
 zero torque and H^-1 from ``pin.computeMinverse`` right after it
 (:class:`~snake_pin.model.FastDynamics`); every target, s and e are one matrix product
-with the stacked state, b and the time terms; one more product of [W^(1/2) A, W^(1/2)
-(q''* - b)]^T with W^(1/2) A gives the normal equations (A^T W A and their right-hand
-side) at once. The law also keeps q'' = A tau_a + b at its state, which the
-simulator uses as RK4's first stage (:meth:`plant_acceleration`). With the
+with the stacked state, b and the time terms; the stack S = [W^(1/2) A, W^(1/2)
+(q''* - b), W^(1/2) [s; e]]^T times its own transpose gives the normal equations (A^T W A
+and their right-hand side) and V at once. A passive joint keeps its row of A^T = E^T H^-1
+with weight 0 and a 1 in a column of its own, so its normal equation reads tau_j = 0
+(exactly: its row and column of A^T W A are zero but for that 1) and the actuated torques
+are those of the reduced system, with no copies or fancy indexing. The law also keeps
+q'' = A tau_a + b at its state, which the simulator uses as RK4's first stage
+(:meth:`plant_acceleration`). With the
 residual rho = A tau_a + b - q''* (rho = [rho_w; rho_phi]),
 
     V' = -2 lam ||s||^2_{K_w2} - 2 mu ||e||^2_{K_phi} - 2 [s; e]^T W rho
@@ -298,17 +302,19 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
-        dot = np.dot  # np.dot: cheaper than @ (and f2py BLAS) here; view[...] = the copies
+        # np.dot: cheaper than @ (and f2py BLAS) here; view[...] = the copies; outputs by
+        # position (numpy parses an out= keyword for some 40 ns)
+        dot = np.dot
         b, _ = self._dynamics.affine(x)  # and H^-1, whole, read through _inverse_rows
         self._x_slot[...] = x
         self._b_slot[...] = b
         self._time_slot[...] = self._time_row(t)
         # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-        dot(self._law_state, self._inputs, out=self._errors)
+        dot(self._law_state, self._inputs, self._errors)
         rows = self._inverse_rows  # A^T, passive joints' rows included
-        np.multiply(rows, self._sqrt_w, out=self._weighted_t)  # (W^(1/2) A)^T
+        np.multiply(rows, self._sqrt_w, self._weighted_t)  # (W^(1/2) A)^T
         stack = self._stack
-        normal = dot(stack, stack.T, out=self._normal)  # [A^T W A, rhs, V] (module doc)
+        normal = dot(stack, stack.T, self._normal)  # [A^T W A, rhs, V] (module doc)
         _, tau, info = lapack.dposv(self._gram, self._rhs)  # its upper triangle
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")

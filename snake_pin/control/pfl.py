@@ -167,7 +167,9 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         self._ddq = None
-        nq, dot = self._nq, np.dot  # np.dot: cheaper than @ on these tiny arrays
+        # np.dot: cheaper than @ on these tiny arrays; outputs by position (numpy parses
+        # an out= keyword for some 40 ns)
+        nq, dot = self._nq, np.dot
         self._dynamics.mass_and_bias(x)  # H (whole) and h, read through the views
         self._h12[...] = self._h12_block
         h12_t = self._h12_t
@@ -177,7 +179,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         if info != 0 or not r > self.r_min:
             raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
         stacked, minus_a, u = self._stacked, self._minus_a, self._u
-        dot(self._gain, x, out=stacked)
+        dot(self._gain, x, stacked)
         stacked += self._time_row(t)  # [-a; u], eqs. (71), (78)
         if self.climb_R:
             u -= self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq]) - x[nq + 3:])
@@ -191,9 +193,9 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         if info != 0:
             raise SingularPostureError(f"H12 H12^T is not positive definite (LAPACK info {info})")
         ddq, ddq_joints = self._ddq_buffer, self._ddq_joints
-        dot(h12_t, solved, out=ddq_joints)  # H12^+ z
+        dot(h12_t, solved, ddq_joints)  # H12^+ z
         ddq_joints -= u  # phi'' = w - p, w = H12^+ z - u
-        np.negative(minus_a, out=self._ddq_head)  # w'' = a
+        np.negative(minus_a, self._ddq_head)  # w'' = a
         tau = dot(self._h_joints, ddq)  # H21 a + H22 (w - p) = H22 w
         tau += self._h2
         self._ddq = ddq
