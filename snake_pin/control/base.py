@@ -209,12 +209,32 @@ class OpenLoop(Controller):
 
 
 class _ViewsMadeOnce:
-    """A law whose hot path reads views made once (of its buffers and of the robot's
-    ``FastDynamics``) in :meth:`_make_views`; a pickled view is a detached copy, so they
-    are made again on unpickling."""
+    """A law whose hot path is a closure over views made once (of its buffers and of the
+    robot's ``FastDynamics``): :meth:`_make_views` makes it and keeps it in ``_hot``,
+    which a call of the law calls (closure variables are cheaper to read than
+    attributes). A pickled view is a detached copy and a closure does not pickle, so
+    both are made again on unpickling."""
+
+    _hot: Callable[[np.ndarray, float], np.ndarray]
 
     def _make_views(self) -> None:
         raise NotImplementedError
+
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Joint torques (length n - 1) at state ``x`` and time ``t``."""
+        return self._hot(x, t)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The attributes to pickle: all but the hot path's closure.
+
+        Returns
+        -------
+        dict
+            The attributes.
+        """
+        state = self.__dict__.copy()
+        state.pop("_hot", None)
+        return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Unpickled: the views are made again on the robot's own dynamics and buffers.

@@ -160,9 +160,11 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self.k_shape = finite_number(default_shape if k_shape is None else k_shape, "k_shape",
                                      non_negative=True)
         self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
-        self._last: dict[str, float] = {}
-        self._build_law()
+        # the last call's q'' (None after a failed call) and signals, kept by the hot path
+        self._outputs: list = [None, {}]
         self._time_row = TimeTerms(self._time_terms)
+        self._build_law()
+        self._make_views()
 
     def _build_law(self) -> None:
         """Constant matrices of the hot path (see the module docstring)."""
@@ -216,24 +218,48 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self._stack[passive, nq + np.arange(len(passive))] = 1.0
         self._normal = np.zeros((m + 2, m + 2))
         self._dynamics = snake.fast_dynamics
-        self._make_views()
         # W^(1/2) scales A^T's columns, by a whole matrix of weights (numpy broadcasting
         # costs more here); a passive joint's row weighs 0
         self._sqrt_w = np.tile(sqrt_w, (m, 1))
         self._sqrt_w[passive] = 0.0
-        self._ddq: np.ndarray | None = None
 
     def _make_views(self) -> None:
-        """Views of the hot path's buffers, made once (a pickled view is a detached copy,
-        so :meth:`__setstate__` makes them again)."""
-        nq, inputs, stack, m = self.snake.nq, self._inputs, self._stack, self.snake.n - 1
-        self._x_slot, self._b_slot, self._time_slot = (inputs[:2 * nq], inputs[2 * nq:3 * nq],
-                                                       inputs[3 * nq:])
-        self._weighted_t, self._errors = stack[:m, :nq], stack[m:].reshape(-1)
-        self._gram, self._rhs = self._normal[:m, :m], self._normal[m, :m]
+        """The hot path (:meth:`__call__`): a closure over views of its buffers, made once
+        (see :class:`~snake_pin.control.base._ViewsMadeOnce`)."""
+        nq, m = self.snake.nq, self.snake.n - 1
+        inputs, stack, normal, outputs = self._inputs, self._stack, self._normal, self._outputs
+        x_slot, b_slot, time_slot = inputs[:2 * nq], inputs[2 * nq:3 * nq], inputs[3 * nq:]
+        weighted_t, errors, stack_t = stack[:m, :nq], stack[m:].reshape(-1), stack.T
+        gram, rhs, last = normal[:m, :m], normal[m, :m], m + 1
         # A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a contiguous view of
         # the dynamics' H^-1 (filled by each affine call)
-        self._inverse_rows = self._dynamics.inverse_mass[3:]
+        rows = self._dynamics.inverse_mass[3:]
+        affine, time_row, law_state, sqrt_w = (self._dynamics.affine, self._time_row,
+                                               self._law_state, self._sqrt_w)
+        # np.dot: cheaper than @ (and f2py BLAS) here; view[...] = the copies; outputs by
+        # position (numpy parses an out= keyword for some 40 ns)
+        dot, multiply, dposv = np.dot, np.multiply, lapack.dposv
+
+        def hot(x: np.ndarray, t: float) -> np.ndarray:
+            outputs[0] = None
+            b, _ = affine(x)  # and H^-1, whole, read through rows
+            x_slot[...] = x
+            b_slot[...] = b
+            time_slot[...] = time_row(t)
+            # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
+            dot(law_state, inputs, errors)
+            multiply(rows, sqrt_w, weighted_t)  # (W^(1/2) A)^T, passive joints' rows 0
+            dot(stack, stack_t, normal)  # [A^T W A, rhs, V] (module docstring)
+            _, tau, info = dposv(gram, rhs)  # its upper triangle
+            if info != 0:
+                raise SingularPostureError(
+                    f"A^T W A is not positive definite (LAPACK info {info})")
+            ddq = dot(tau, rows)  # A tau_a (a passive joint's tau is 0)
+            ddq += b
+            outputs[0], outputs[1] = ddq, {"V": normal.item(last, last)}
+            return tau
+
+        self._hot = hot
 
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).
@@ -300,31 +326,6 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         _, s, e = self.targets(x, t)
         return float(s @ self.k_w2 @ s + e @ self.k_phi @ e)
 
-    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        self._ddq = None
-        # np.dot: cheaper than @ (and f2py BLAS) here; view[...] = the copies; outputs by
-        # position (numpy parses an out= keyword for some 40 ns)
-        dot = np.dot
-        b, _ = self._dynamics.affine(x)  # and H^-1, whole, read through _inverse_rows
-        self._x_slot[...] = x
-        self._b_slot[...] = b
-        self._time_slot[...] = self._time_row(t)
-        # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-        dot(self._law_state, self._inputs, self._errors)
-        rows = self._inverse_rows  # A^T, passive joints' rows included
-        np.multiply(rows, self._sqrt_w, self._weighted_t)  # (W^(1/2) A)^T
-        stack = self._stack
-        normal = dot(stack, stack.T, self._normal)  # [A^T W A, rhs, V] (module doc)
-        _, tau, info = lapack.dposv(self._gram, self._rhs)  # its upper triangle
-        if info != 0:
-            raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
-        ddq = dot(tau, rows)  # A tau_a (a passive joint's tau is 0)
-        ddq += b
-        self._ddq = ddq
-        last = len(normal) - 1
-        self._last = {"V": normal.item(last, last)}
-        return tau
-
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
         """``q'' = A tau_a + b`` of the last call, if ``snake`` is the robot this law models.
 
@@ -338,7 +339,7 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         numpy.ndarray or None
             ``q''`` (length n + 2), or None for another plant.
         """
-        return self._ddq if snake is self.snake else None
+        return self._outputs[0] if snake is self.snake else None
 
     def signals(self) -> dict[str, float]:
         """Diagnostics of the last call.
@@ -348,4 +349,4 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         dict of str to float
             ``V``: eq. (83) at the state and time of the last call.
         """
-        return self._last
+        return self._outputs[1]

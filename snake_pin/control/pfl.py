@@ -109,7 +109,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self.r_min = finite_number(r_min, "r_min", non_negative=True)
         self.climb_R = finite_number(climb_R, "climb_R", non_negative=True)
         self.climb_damping = finite_number(climb_damping, "climb_damping", positive=True)
-        self._last: dict[str, float] = {}
+        # the last call's q'' (None after a failed call) and signals, kept by the hot path
+        self._outputs: list = [None, {}]
         self._nq = nq = snake.nq
         # [a; u] = (time terms) + gain @ x, from (71) and (78) without the climb term
         m = n - 1
@@ -126,25 +127,66 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self._law_time = law.T.copy()
         self._time_row = TimeTerms(self._time_terms)
         self._dynamics = snake.fast_dynamics
-        self._ddq: np.ndarray | None = None
         self._ddq_buffer = np.zeros(nq)
         self._h12 = np.zeros((3, n - 1), order="F")
         self._stacked = np.zeros(nq)  # [-a; u], then [-a; u + p]
         self._make_views()
 
     def _make_views(self) -> None:
-        """Views made once of the dynamics' H and h (filled by each mass_and_bias call) and
-        of the buffers: slicing per call costs more than the products that read them."""
-        mass = self._dynamics.mass.T  # H is symmetric: its C-ordered face, rows contiguous
-        bias, stacked, ddq = self._dynamics.bias, self._stacked, self._ddq_buffer
+        """The hot path (:meth:`__call__`): a closure over views made once of the dynamics'
+        H and h (filled by each mass_and_bias call) and of the buffers (see
+        :class:`~snake_pin.control.base._ViewsMadeOnce`)."""
+        nq, dynamics, outputs = self._nq, self._dynamics, self._outputs
+        mass = dynamics.mass.T  # H is symmetric: its C-ordered face, rows contiguous
+        bias, stacked, ddq = dynamics.bias, self._stacked, self._ddq_buffer
         # H12 is copied per call into a Fortran-ordered buffer: BLAS then reads it, and
         # its transpose H21 (C-ordered), without copies of its own
-        self._h12_block, self._h22 = mass[:3, 3:], mass[3:, 3:]
-        self._h12_t = self._h12.T
-        self._h_head, self._h_joints = mass[:3], mass[3:]
-        self._h1, self._h2 = bias[:3], bias[3:]
-        self._minus_a, self._u = stacked[:3], stacked[3:]
-        self._ddq_head, self._ddq_joints = ddq[:3], ddq[3:]
+        h12, h12_block, h22 = self._h12, mass[:3, 3:], mass[3:, 3:]
+        h12_t, h_head, h_joints = h12.T, mass[:3], mass[3:]
+        h1, h2 = bias[:3], bias[3:]
+        minus_a, u = stacked[:3], stacked[3:]
+        ddq_head, ddq_joints = ddq[:3], ddq[3:]
+        mass_and_bias, gain, time_row = dynamics.mass_and_bias, self._gain, self._time_row
+        # np.dot: cheaper than @ on these tiny arrays; outputs by position (numpy parses
+        # an out= keyword for some 40 ns)
+        dot, add, subtract, negative, sqrt = np.dot, np.add, np.subtract, np.negative, math.sqrt
+        dsyrk, dsyev, dposv = blas.dsyrk, lapack.dsyev, lapack.dposv
+        law = self  # r_min and the climb's settings are read per call, as attributes
+
+        def hot(x: np.ndarray, t: float) -> np.ndarray:
+            outputs[0] = None
+            mass_and_bias(x)  # H (whole) and h, read through the views
+            h12[...] = h12_block
+            gram = dsyrk(1.0, h12)  # H12 H12^T (upper triangle)
+            eigenvalues, _, info = dsyev(gram, compute_v=0)
+            r = sqrt(max(float(eigenvalues[0]), 0.0))  # R: the smallest singular value
+            r_min = law.r_min
+            if info != 0 or not r > r_min:
+                raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
+            dot(gain, x, stacked)
+            add(stacked, time_row(t), stacked)  # [-a; u], eqs. (71), (78)
+            if law.climb_R:
+                subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
+                                                 - x[nq + 3:]), u)
+            _, minus_p, info = dposv(h22, dot(h12_t, minus_a))  # -H22^-1 H21 a
+            if info != 0:
+                raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
+            subtract(u, minus_p, u)  # stacked = [-a; p + u]
+            z = dot(h_head, stacked)
+            z -= h1  # -Hs a - h1 + H12 u
+            _, solved, info = dposv(gram, z)
+            if info != 0:
+                raise SingularPostureError(
+                    f"H12 H12^T is not positive definite (LAPACK info {info})")
+            dot(h12_t, solved, ddq_joints)  # H12^+ z
+            subtract(ddq_joints, u, ddq_joints)  # phi'' = w - p, w = H12^+ z - u
+            negative(minus_a, ddq_head)  # w'' = a
+            tau = dot(h_joints, ddq)  # H21 a + H22 (w - p) = H22 w
+            tau += h2
+            outputs[0], outputs[1] = ddq, {"R": r}
+            return tau
+
+        self._hot = hot
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
@@ -165,43 +207,6 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         nq = self._nq
         return ddw_r + self.k_v @ (dw_r - x[nq:nq + 3]) + self.k_p @ (w_r - x[:3])
 
-    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        self._ddq = None
-        # np.dot: cheaper than @ on these tiny arrays; outputs by position (numpy parses
-        # an out= keyword for some 40 ns)
-        nq, dot = self._nq, np.dot
-        self._dynamics.mass_and_bias(x)  # H (whole) and h, read through the views
-        self._h12[...] = self._h12_block
-        h12_t = self._h12_t
-        gram = blas.dsyrk(1.0, self._h12)  # H12 H12^T (upper triangle)
-        eigenvalues, _, info = lapack.dsyev(gram, compute_v=0)
-        r = math.sqrt(max(float(eigenvalues[0]), 0.0))  # R: the smallest singular value
-        if info != 0 or not r > self.r_min:
-            raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
-        stacked, minus_a, u = self._stacked, self._minus_a, self._u
-        dot(self._gain, x, stacked)
-        stacked += self._time_row(t)  # [-a; u], eqs. (71), (78)
-        if self.climb_R:
-            u -= self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq]) - x[nq + 3:])
-        _, minus_p, info = lapack.dposv(self._h22, dot(h12_t, minus_a))  # -H22^-1 H21 a
-        if info != 0:
-            raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-        u -= minus_p  # stacked = [-a; p + u]
-        z = dot(self._h_head, stacked)
-        z -= self._h1  # -Hs a - h1 + H12 u
-        _, solved, info = lapack.dposv(gram, z)
-        if info != 0:
-            raise SingularPostureError(f"H12 H12^T is not positive definite (LAPACK info {info})")
-        ddq, ddq_joints = self._ddq_buffer, self._ddq_joints
-        dot(h12_t, solved, ddq_joints)  # H12^+ z
-        ddq_joints -= u  # phi'' = w - p, w = H12^+ z - u
-        np.negative(minus_a, self._ddq_head)  # w'' = a
-        tau = dot(self._h_joints, ddq)  # H21 a + H22 (w - p) = H22 w
-        tau += self._h2
-        self._ddq = ddq
-        self._last = {"R": r}
-        return tau
-
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
         """``q''`` of the last call, if ``snake`` is the robot this law models.
 
@@ -219,7 +224,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         numpy.ndarray or None
             ``q''`` (length n + 2), or None for another plant.
         """
-        return self._ddq if snake is self.snake else None
+        return self._outputs[0] if snake is self.snake else None
 
     def _grad_log_r(self, phi: np.ndarray, step: float = 1e-6) -> np.ndarray:
         """Central-difference gradient of log R over phi (one batched evaluation)."""
@@ -236,4 +241,4 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         dict of str to float
             ``R``: the head's manipulability at the last call.
         """
-        return self._last
+        return self._outputs[1]
