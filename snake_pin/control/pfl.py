@@ -26,8 +26,9 @@ Evaluation (the closed loop's hot path, issue 13). Expanding the law,
 
 the same torque with one Cholesky solve of a vector (p = H22^-1 H21 a) instead of a matrix,
 H12^+ z = H12^T (H12 H12^T)^-1 z (R > 0: full row rank) by a 3 x 3 Cholesky solve, R as the
-square root of the smallest eigenvalue of H12 H12^T (LAPACK dsyev; a full SVD of H12 costs
-4x more), and H and h from one CRBA, one RNEA and the friction passes
+square root of the smallest eigenvalue of H12 H12^T (the cubic's closed form,
+:func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`, LAPACK's dsyev where two eigenvalues
+nearly coincide; a full SVD of H12 costs 4x more), and H and h from one CRBA, one RNEA and the friction passes
 (:class:`~snake_pin.model.FastDynamics`). The time-only parts
 of a and u are computed in blocks for the coming calls. The closed loop's q'' at the state
 is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p, which the simulator
@@ -49,6 +50,7 @@ import math
 import numpy as np
 from scipy.linalg import blas, lapack
 
+from .._symmetric import smallest_eigenvalue_3x3
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
@@ -150,7 +152,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         # np.dot: cheaper than @ on these tiny arrays; outputs by position (numpy parses
         # an out= keyword for some 40 ns)
         dot, add, subtract, negative, sqrt = np.dot, np.add, np.subtract, np.negative, math.sqrt
-        dsyrk, dsyev, dposv = blas.dsyrk, lapack.dsyev, lapack.dposv
+        dsyrk, dposv, smallest = blas.dsyrk, lapack.dposv, smallest_eigenvalue_3x3
         law = self  # r_min and the climb's settings are read per call, as attributes
 
         def hot(x: np.ndarray, t: float) -> np.ndarray:
@@ -158,10 +160,9 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             mass_and_bias(x)  # H (whole) and h, read through the views
             h12[...] = h12_block
             gram = dsyrk(1.0, h12)  # H12 H12^T (upper triangle)
-            eigenvalues, _, info = dsyev(gram, compute_v=0)
-            r = sqrt(max(float(eigenvalues[0]), 0.0))  # R: the smallest singular value
+            r = sqrt(max(smallest(gram), 0.0))  # R: H12's smallest singular value
             r_min = law.r_min
-            if info != 0 or not r > r_min:
+            if not r > r_min:
                 raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
             dot(gain, x, stacked)
             add(stacked, time_row(t), stacked)  # [-a; u], eqs. (71), (78)
