@@ -681,6 +681,10 @@ class FastDynamics:
         The arrays :attr:`mass_and_bias` and :attr:`affine` fill (views of a workspace of
         their own, made once: a controller may keep slices of them); valid until the next
         call, read only.
+    augmented
+        ``[H | h]`` (n + 2 rows, n + 3 columns), also filled by :attr:`mass_and_bias`
+        (:attr:`bias` is its last column): one product with a row of it and
+        ``[v; 1]`` gives ``H v + h`` (read only).
     """
 
     def __init__(self, snake: Snake, rows: int = 4) -> None:
@@ -705,8 +709,10 @@ class FastDynamics:
         # through views made once (Pinocchio returns copies: slicing those costs per call).
         own_data = model.createData()
         self.mass, self.inverse_mass = own_data.M, own_data.Minv
-        self.bias = bias = np.zeros(nq)
+        self.augmented = np.zeros((nq, nq + 1))
+        self.bias = bias = self.augmented[:, nq]
         mass, inverse_mass = self.mass, self.inverse_mass
+        augmented_mass, mass_rows = self.augmented[:, :nq], mass.T  # H symmetric: rows
         crba = _whole_crba(model, own_data)  # crba(q): H into mass, both triangles
         if _binding_mirrors(model):  # the bindings fill both triangles: nothing to do
             def minverse(model: pin.Model, data: pin.Data) -> np.ndarray:
@@ -740,6 +746,7 @@ class FastDynamics:
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 q, v = x[:nq], x[nq:]
                 crba(q)
+                augmented_mass[...] = mass_rows
                 return mass, subtract(nle(model, data, q, v), of_state(x), bias)
 
         elif not passes.has_wheels:  # isotropic: one RNEA of the twin gives -Q
@@ -760,6 +767,7 @@ class FastDynamics:
                 q, v = x[:nq], x[nq:]
                 damping = rnea(twin, twin_data, q, zero, v)  # -Q
                 crba(q)
+                augmented_mass[...] = mass_rows
                 return mass, add(nle(model, data, q, v), damping, bias)
 
         else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
@@ -802,6 +810,7 @@ class FastDynamics:
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 damping = own_damping(x)  # -Q
                 crba(own_q)
+                augmented_mass[...] = mass_rows
                 return mass, add(nle(model, data, own_q, own_v), damping, bias)
 
         self.evaluate = evaluate

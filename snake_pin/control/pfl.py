@@ -28,8 +28,9 @@ the same torque with one Cholesky solve of a vector (p = H22^-1 H21 a) instead o
 H12^+ z = H12^T (H12 H12^T)^-1 z (R > 0: full row rank) by a 3 x 3 Cholesky solve, R as the
 square root of the smallest eigenvalue of H12 H12^T (the cubic's closed form,
 :func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`, LAPACK's dsyev where two eigenvalues
-nearly coincide; a full SVD of H12 costs 4x more), and H and h from one CRBA, one RNEA and the friction passes
-(:class:`~snake_pin.model.FastDynamics`). The time-only parts
+nearly coincide; a full SVD of H12 costs 4x more), and H and h from one CRBA, one RNEA
+and the friction passes (:class:`~snake_pin.model.FastDynamics`; h as the last column of
+``[H | h]``, so that the products with H's head and joint rows add it). The time-only parts
 of a and u are computed in blocks for the coming calls. The closed loop's q'' at the state
 is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p, which the simulator
 uses as RK4's first stage (:meth:`PFLController.plant_acceleration`); the torque is formed
@@ -129,9 +130,11 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self._law_time = law.T.copy()
         self._time_row = TimeTerms(self._time_terms)
         self._dynamics = snake.fast_dynamics
-        self._ddq_buffer = np.zeros(nq)
+        # [w''; phi''; 1] and [-a; u (then u + p); -1]: one product with a block of rows
+        # of [H | h] then gives H v + h or H v - h
+        self._ddq_buffer = np.r_[np.zeros(nq), 1.0]
         self._h12 = np.zeros((3, n - 1), order="F")
-        self._stacked = np.zeros(nq)  # [-a; u], then [-a; u + p]
+        self._stacked = np.r_[np.zeros(nq), -1.0]
         self._make_views()
 
     def _make_views(self) -> None:
@@ -139,15 +142,14 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         H and h (filled by each mass_and_bias call) and of the buffers (see
         :class:`~snake_pin.control.base._ViewsMadeOnce`)."""
         nq, dynamics, outputs = self._nq, self._dynamics, self._outputs
-        mass = dynamics.mass.T  # H is symmetric: its C-ordered face, rows contiguous
-        bias, stacked, ddq = dynamics.bias, self._stacked, self._ddq_buffer
+        augmented = dynamics.augmented  # [H | h], rows contiguous
+        stacked, padded = self._stacked, self._ddq_buffer
         # H12 is copied per call into a Fortran-ordered buffer: BLAS then reads it, and
         # its transpose H21 (C-ordered), without copies of its own
-        h12, h12_block, h22 = self._h12, mass[:3, 3:], mass[3:, 3:]
-        h12_t, h_head, h_joints = h12.T, mass[:3], mass[3:]
-        h1, h2 = bias[:3], bias[3:]
-        minus_a, u = stacked[:3], stacked[3:]
-        ddq_head, ddq_joints = ddq[:3], ddq[3:]
+        h12, h12_block, h22 = self._h12, augmented[:3, 3:nq], augmented[3:, 3:nq]
+        h12_t, h_head, h_joints = h12.T, augmented[:3], augmented[3:]
+        state_terms, minus_a, u = stacked[:nq], stacked[:3], stacked[3:nq]
+        ddq, ddq_head, ddq_joints = padded[:nq], padded[:3], padded[3:nq]
         mass_and_bias, gain, time_row = dynamics.mass_and_bias, self._gain, self._time_row
         # np.dot: cheaper than @ on these tiny arrays; outputs by position (numpy parses
         # an out= keyword for some 40 ns)
@@ -164,8 +166,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             r_min = law.r_min
             if not r > r_min:
                 raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
-            dot(gain, x, stacked)
-            add(stacked, time_row(t), stacked)  # [-a; u], eqs. (71), (78)
+            dot(gain, x, state_terms)
+            add(state_terms, time_row(t), state_terms)  # [-a; u], eqs. (71), (78)
             if law.climb_R:
                 subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
                                                  - x[nq + 3:]), u)
@@ -173,8 +175,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             if info != 0:
                 raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
             subtract(u, minus_p, u)  # stacked = [-a; p + u]
-            z = dot(h_head, stacked)
-            z -= h1  # -Hs a - h1 + H12 u
+            z = dot(h_head, stacked)  # -H11 a + H12 u - h1
             _, solved, info = dposv(gram, z)
             if info != 0:
                 raise SingularPostureError(
@@ -182,8 +183,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             dot(h12_t, solved, ddq_joints)  # H12^+ z
             subtract(ddq_joints, u, ddq_joints)  # phi'' = w - p, w = H12^+ z - u
             negative(minus_a, ddq_head)  # w'' = a
-            tau = dot(h_joints, ddq)  # H21 a + H22 (w - p) = H22 w
-            tau += h2
+            tau = dot(h_joints, padded)  # H21 a + H22 (w - p) + h2 = H22 w + h2
             outputs[0], outputs[1] = ddq, {"R": r}
             return tau
 
