@@ -34,12 +34,13 @@ Three routes compute the same thing:
   ``[q, 0_w]``, ``[q', 0_w]``. Link i carries the larger of c_x,i and c_y,i
   isotropically, and its wheel takes the difference back: "mass" -|c_y,i - c_x,i| sliding
   along the direction of the larger coefficient (a wheel sliding sideways leaves its
-  negative mass acting along the link: c_y - (c_y - c_x) = c_x there). The wheel's
-  coordinate is the angle of a revolute joint whose pivot sits 1/sqrt|c_y,i - c_x,i| from
-  the CM, so that at angle 0 (where the wheels always are) the CM slides at that lever
-  times the joint's rate and M_ww = -|c_y - c_x| / |c_y - c_x| = -1: the wheels roll at
-  exactly ``M_wc q'``, and one CRBA and two products give Q (the rolling speeds, then
-  ``-Q = M_cc q' + M_cw (M_wc q')``), cheaper than two RNEAs.
+  negative mass acting along the link: c_y - (c_y - c_x) = c_x there). The wheel is a
+  prismatic joint at the CM whose axis is 1/sqrt|c_y,i - c_x,i| long (Pinocchio keeps a
+  prismatic axis as given), so the CM slides at that factor times the joint's rate and
+  M_ww = -|c_y - c_x| / |c_y - c_x| = -1: the wheels roll at exactly ``M_wc q'``, and one
+  CRBA and two products give Q (the rolling speeds, then ``-Q = M_cc q' + M_cw (M_wc
+  q')``), cheaper than two RNEAs. (Should a Pinocchio normalise the axis, the wheel turns
+  on a lever of that length instead: the same matrix, less exact far from the origin.)
   Every coefficient may differ from link to link: in the derivatives' twin link i
   carries c_x,i, c_theta,i and a wheel of c_y,i - c_x,i.
 * :class:`FrictionModel` without a model -- vectorised numpy, O(n): with planar vectors
@@ -53,6 +54,7 @@ Tests check the routes against each other and against eq. (11).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -217,6 +219,7 @@ def _appended_twin(model: pin.Model, c_x: np.ndarray, c_y: np.ndarray, c_theta: 
                                                       np.eye(3) * float(c_theta[link])),
                                    pin.SE3.Identity())
     if wheels:
+        scaled_axis = _scaled_axis_kept()
         for link in reversed(range(len(c_x))):
             joint = link + _HEAD_JOINT
             cm = model.inertias[joint].lever.copy()
@@ -225,16 +228,37 @@ def _appended_twin(model: pin.Model, c_x: np.ndarray, c_y: np.ndarray, c_theta: 
             # adds no damping worth the name: it weighs 0 (its rows and columns vanish)
             mass = -difference if difference >= np.finfo(float).tiny else 0.0
             lever = 1.0 / math.sqrt(difference) if mass else 1.0
-            # the CM slides sideways (pivot behind it along the link) where c_y > c_x, and
-            # along the link (pivot beside it) where c_x > c_y
-            arm = np.array([lever, 0.0, 0.0] if c_y[link] > c_x[link] else [0.0, lever, 0.0])
-            wheel = twin.addJoint(joint, pin.JointModelRZ(), pin.SE3(np.eye(3), cm - arm),
+            # the CM slides sideways where c_y > c_x and along the link where c_x > c_y,
+            # at `lever` times the wheel's rate
+            axis = np.array([0.0, 1.0, 0.0] if c_y[link] > c_x[link] else [1.0, 0.0, 0.0])
+            if scaled_axis:  # a prismatic joint at the CM along lever * axis
+                wheel_joint, placement, centre = (pin.JointModelPrismaticUnaligned(lever * axis),
+                                                  cm, np.zeros(3))
+            else:  # a revolute joint whose pivot is `lever` away from the CM
+                arm = lever * np.cross(axis, [0.0, 0.0, 1.0])
+                wheel_joint, placement, centre = pin.JointModelRZ(), cm - arm, arm
+            wheel = twin.addJoint(joint, wheel_joint, pin.SE3(np.eye(3), placement),
                                   f"wheel_{link + 1}")
             # set, not appended: appendBodyToJoint divides by max(total mass, eps) and so
             # throws a negative mass's centre far away
-            twin.inertias[wheel] = pin.Inertia(mass, arm, np.zeros((3, 3)))
+            twin.inertias[wheel] = pin.Inertia(mass, centre, np.zeros((3, 3)))
     twin.gravity = pin.Motion.Zero()
     return twin
+
+
+@functools.cache
+def _scaled_axis_kept() -> bool:
+    """Whether Pinocchio keeps a prismatic joint's axis as given (4.1 does not normalise
+    it): then a wheel slides at the CM itself along a scaled axis, its centre of mass is
+    the link's to the last bit, and a link of zero total "mass" (c_x or c_y = 0) stays
+    exact far from the origin. Otherwise (a Pinocchio that normalises) the wheel turns on
+    a lever, whose centre of mass differs from the link's by rounding."""
+    probe = pin.Model()
+    joint = probe.addJoint(0, pin.JointModelPrismaticUnaligned(np.array([0.0, 2.0, 0.0])),
+                           pin.SE3.Identity(), "probe")
+    probe.inertias[joint] = pin.Inertia(-0.25, np.zeros(3), np.zeros((3, 3)))
+    mass = pin.crba(probe, probe.createData(), np.zeros(1), pin.Convention.WORLD)
+    return bool(mass[0, 0] == -1.0)
 
 
 class FrictionModel:

@@ -114,21 +114,49 @@ def test_force_passes_twin_is_depth_first(rng: np.random.Generator) -> None:
         assert np.allclose(np.triu(mass), np.triu(columns), rtol=1e-12, atol=1e-14)
 
 
-def test_force_passes_wheels_weigh_minus_one(rng: np.random.Generator) -> None:
-    """The passes' wheel block M_ww is -I at any posture, for c_y above and below c_x."""
-    from snake_pin.friction import ForcePasses
+@pytest.mark.parametrize("scaled_axis", [True, False], ids=["prismatic", "lever"])
+def test_force_passes_wheels_weigh_minus_one(scaled_axis: bool, rng: np.random.Generator,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """The passes' wheel block M_ww is -I at any posture, for c_y above and below c_x, and
+    Q is numpy's, on a scaled prismatic axis and on the lever (a Pinocchio that normalises
+    axes)."""
+    from snake_pin import friction
 
+    monkeypatch.setattr(friction, "_scaled_axis_kept", lambda: scaled_axis)
     params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.1, 4.0, 1e-6, 0.3, 7.0, 0.3, 2.0, 5.0),
                                 c_theta=1e-3)
     snake = Snake(params)
-    passes = ForcePasses(snake.model, params)
+    passes = friction.ForcePasses(snake.model, params)
+    numpy_route = FrictionModel(params)
     rolling = np.array([float(c != 0.3) for c in params.per_link("c_y")])[::-1]
     for _ in range(5):
+        q, dq = random_state(rng, params.n)
         q_ext = np.zeros(passes.size)
-        q_ext[:snake.nq] = random_state(rng, params.n)[0]
+        q_ext[:snake.nq] = q
         mass = pin.crba(passes.twin, passes.twin.createData(), q_ext, pin.Convention.WORLD)
         block = mass[snake.nq:, snake.nq:]
         assert np.allclose(block, -np.diag(rolling), rtol=0.0, atol=1e-12)
+        expected = numpy_route(q, dq)
+        assert np.allclose(passes.force(q, dq), expected, rtol=1e-12,
+                           atol=1e-13 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize(("c_x", "c_y"), [(0.0, 25.0), (25.0, 0.0), (0.5, 5.0)])
+def test_force_passes_far_from_the_origin(c_x: float, c_y: float,
+                                          rng: np.random.Generator) -> None:
+    """999 m from the origin Q is still numpy's to 1e-11, also where a link's smaller
+    coefficient is 0 (link and wheel weigh 0 together; measured 1e-12; a wheel on a lever
+    was 1e-8 off there)."""
+    from snake_pin.friction import ForcePasses
+
+    params = SnakeParams.table1(c_x=c_x, c_y=c_y, c_theta=1e-3)
+    passes = ForcePasses(Snake(params).model, params)
+    numpy_route = FrictionModel(params)
+    for _ in range(10):
+        q, dq = random_state(rng, params.n)
+        q[:2] += 999.0
+        expected = numpy_route(q, dq)
+        assert np.abs(passes.force(q, dq) - expected).max() < 1e-11 * np.abs(expected).max()
 
 
 def test_links_with_isotropic_friction_among_wheeled_ones(rng: np.random.Generator) -> None:
