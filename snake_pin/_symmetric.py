@@ -12,9 +12,15 @@ from scipy.linalg import lapack
 
 __all__ = ["smallest_eigenvalue_3x3", "symmetric_from_upper"]
 
-#: Beyond this |cos(3 phi)| two eigenvalues nearly coincide, where acos loses digits.
-_NEAR_DOUBLE = 1.0 - 1e-4
+#: Beyond this |cos(3 phi)| two eigenvalues nearly coincide, where acos loses digits
+#: (it amplifies rounding by 1 / sqrt(1 - cos^2), at most 7 within it).
+_NEAR_DOUBLE = 0.99
+#: Below this fraction of the largest eigenvalue the smallest is left to LAPACK, which
+#: resolves it a few times better (a near-singular posture: R near r_min).
+_SMALL = 1e-8
 _TWO_THIRDS_PI = 2.0 * math.pi / 3.0
+#: A spread p^2 below this (p^3 would underflow) is left to LAPACK.
+_TINY_SPREAD = 1e-200
 
 
 @lru_cache(maxsize=32)
@@ -48,9 +54,11 @@ def smallest_eigenvalue_3x3(upper: np.ndarray) -> float:
     The trigonometric closed form of the characteristic cubic: with q = tr(G)/3,
     p^2 = ||G - q I||_F^2 / 6 and cos(3 phi) = det(G - q I) / (2 p^3), the eigenvalues are
     q + 2 p cos(phi + 2 pi k / 3), the smallest at k = 1 (phi in [0, pi/3]). Its error is
-    about 1e-15 of the largest eigenvalue, as LAPACK's, except where two eigenvalues nearly
-    coincide (|cos(3 phi)| near 1, where acos loses half the digits): there it is LAPACK's
-    ``dsyev``. Twice as fast as ``dsyev`` alone through scipy.
+    at most some 20 rounding units of the largest eigenvalue (LAPACK's: a few). LAPACK's
+    ``dsyev`` takes over where that matters or the form loses digits: two eigenvalues
+    nearly coincide (|cos(3 phi)| > 0.99, where acos amplifies rounding), the smallest is
+    below 1e-8 of the largest (near-singular), or the spread p is too small to divide by.
+    Twice as fast as ``dsyev`` alone through scipy.
 
     Parameters
     ----------
@@ -66,11 +74,15 @@ def smallest_eigenvalue_3x3(upper: np.ndarray) -> float:
     q = (a + d + f) / 3.0
     aq, dq, fq = a - q, d - q, f - q
     p2 = (aq * aq + dq * dq + fq * fq + 2.0 * (b * b + c * c + e * e)) / 6.0
-    if p2 == 0.0:  # G = q I
-        return q
-    p = math.sqrt(p2)
-    r = (aq * (dq * fq - e * e) - b * (b * fq - e * c) + c * (b * e - dq * c)) / (2.0 * p2 * p)
-    if not abs(r) <= _NEAR_DOUBLE:  # near a double eigenvalue (or NaN): LAPACK
-        eigenvalues, _, _ = lapack.dsyev(np.asarray(upper, dtype=float), compute_v=0)
-        return float(eigenvalues[0])
-    return q + 2.0 * p * math.cos(math.acos(r) / 3.0 + _TWO_THIRDS_PI)
+    if p2 > _TINY_SPREAD:
+        p = math.sqrt(p2)
+        r = (aq * (dq * fq - e * e) - b * (b * fq - e * c) + c * (b * e - dq * c)) / \
+            (2.0 * p2 * p)
+        if abs(r) <= _NEAR_DOUBLE:
+            smallest = q + 2.0 * p * math.cos(math.acos(r) / 3.0 + _TWO_THIRDS_PI)
+            if smallest >= _SMALL * (q + 2.0 * p):  # q + 2p bounds the largest
+                return smallest
+    if not math.isfinite(q + p2):  # NaN or inf: LAPACK would refuse it
+        return math.nan
+    eigenvalues, _, _ = lapack.dsyev(np.asarray(upper, dtype=float), compute_v=0)
+    return float(eigenvalues[0])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.linalg import blas
+from scipy.linalg import blas, lapack
 
 from snake_pin._symmetric import smallest_eigenvalue_3x3, symmetric_from_upper
 
@@ -12,11 +12,13 @@ from snake_pin._symmetric import smallest_eigenvalue_3x3, symmetric_from_upper
 def _upper_gram(rng: np.random.Generator, kind: str) -> np.ndarray:
     """An upper triangle of a 3x3 Gram matrix H12 H12^T (dsyrk, as PFL makes it), or of a
     matrix with chosen eigenvalues, of the given kind."""
-    if kind in ("double_bottom", "double_top", "exact_double"):
+    if kind in ("double_bottom", "double_top", "exact_double", "two_small"):
         q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
         lams = np.sort(rng.uniform(0.1, 10.0, 3))
         if kind == "double_top":
             lams[2] = lams[1] * (1 + 1e-9 * rng.uniform())
+        elif kind == "two_small":  # near a singular posture: two small, one large
+            lams[:2] = np.sort(10.0 ** rng.uniform(-9, -2, 2))
         else:
             lams[1] = lams[0] * (1 + (0.0 if kind == "exact_double" else 1e-9 * rng.uniform()))
         return np.triu(q @ np.diag(lams) @ q.T)
@@ -29,14 +31,18 @@ def _upper_gram(rng: np.random.Generator, kind: str) -> np.ndarray:
 
 
 @pytest.mark.parametrize("kind", ["random", "near_singular", "scaled", "double_bottom",
-                                  "double_top", "exact_double"])
+                                  "double_top", "exact_double", "two_small"])
 def test_smallest_eigenvalue_3x3_against_lapack(kind: str, rng: np.random.Generator) -> None:
-    """The closed form (or its LAPACK fallback near double roots) is numpy's eigvalsh to
-    1e-14 of the largest eigenvalue; without the fallback near-double bottoms were 7e-9 off."""
+    """The closed form (or LAPACK where it would lose digits) is numpy's eigvalsh to 1e-14
+    of the largest eigenvalue (without the fallback near-double bottoms were 7e-9 off), and
+    LAPACK's own dsyev below 1e-8 of it (near-singular postures: R's check as before)."""
     for _ in range(500):
         upper = _upper_gram(rng, kind)
         expected = np.linalg.eigvalsh(symmetric_from_upper(upper))
-        assert abs(smallest_eigenvalue_3x3(upper) - expected[0]) <= 1e-14 * expected[-1]
+        smallest = smallest_eigenvalue_3x3(upper)
+        assert abs(smallest - expected[0]) <= 1e-14 * expected[-1]
+        if expected[0] < 0.5e-8 * expected[-1]:
+            assert smallest == lapack.dsyev(upper, compute_v=0)[0][0]
 
 
 def test_smallest_eigenvalue_3x3_special_matrices() -> None:
@@ -46,6 +52,11 @@ def test_smallest_eigenvalue_3x3_special_matrices() -> None:
     assert smallest_eigenvalue_3x3(np.diag([1.0, 3.0, 3.0])) == pytest.approx(1.0, abs=1e-15)
     assert smallest_eigenvalue_3x3(np.zeros((3, 3))) == 0.0
     assert np.isnan(smallest_eigenvalue_3x3(np.full((3, 3), np.nan)))
+    # spreads too small for p^3: LAPACK
+    assert smallest_eigenvalue_3x3(np.diag([3.0, 2.0, 1.0]) * 1e-200) == 1e-200
+    nearly_isotropic = np.eye(3)
+    nearly_isotropic[0, 1] = 1e-110
+    assert smallest_eigenvalue_3x3(nearly_isotropic) == pytest.approx(1.0, abs=1e-15)
 
 
 def test_symmetric_from_upper_mirrors_and_keeps_the_input(rng: np.random.Generator) -> None:
