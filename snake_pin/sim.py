@@ -815,13 +815,25 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     if method == "rk4" and isinstance(snake, Snake) and \
             type(snake).state_derivative is Snake.state_derivative:
         fast = _FastRK4(snake, x, dt, substeps, max_speed, max_distance)
-    unchecked = fast is not None and fast.checks_torque  # the torque: checked by the step
+    # the fast step checks whether the torque is finite, with the new state; a non-finite
+    # one is then refused as if it had been checked first: no torque, no signals at t
+    late_check = fast is not None
     xs[0] = x
     ts[1:] = np.arange(steps) * control_dt + control_dt  # sample k + 1 at t_k + control_dt
     signals: dict[str, np.ndarray] = {}
     status, reason = "completed", ""
     good = 1  # samples 0 .. good - 1 are recorded whole; updated last, after each sample
     bar = None
+
+    def refuse(k: int, t: float, known: int) -> str:
+        """The reason for a non-finite torque at sample k, its torque and signals undone
+        (``known``: how many signals there were before the call)."""
+        taus[k] = 0.0
+        for name in list(signals)[known:]:
+            del signals[name]
+        for series in signals.values():
+            series[k] = np.nan
+        return f"controller returned a non-finite torque at t = {t:.4f} s"
 
     def collect(run_status: str, run_reason: str) -> Trajectory:
         return Trajectory(t=ts[:good].copy(), q=xs[:good, :nq].copy(),
@@ -843,9 +855,10 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         with _thread_pools().limit(limits=1):
             for k in range(steps if status == "completed" else 0):
                 t = k * control_dt
+                tau, known = None, len(signals)
                 try:
                     raw = ctrl(x, t)
-                    if unchecked and type(raw) is np.ndarray and raw.dtype is _FLOAT \
+                    if late_check and type(raw) is np.ndarray and raw.dtype is _FLOAT \
                             and raw.shape == torque_shape:
                         tau = raw  # whether it is finite: checked with the new state
                     else:
@@ -854,7 +867,6 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                             status, reason = "failed", f"{problem} at t = {t:.4f} s"
                             break
                         tau = checked
-                    known = len(signals)
                     for name, value in ctrl.signals().items():
                         series = signals.get(name)
                         if series is None:
@@ -862,7 +874,10 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                         series[k] = value
                     first = ctrl.plant_acceleration(snake) if fast is not None else None
                 except Exception as exc:
-                    status, reason = "failed", _failure(t, exc)
+                    if tau is not None and not np.isfinite(tau).all():
+                        status, reason = "failed", refuse(k, t, known)
+                    else:
+                        status, reason = "failed", _failure(t, exc)
                     break
                 taus[k] = tau
                 after = xs[k + 1]
@@ -880,15 +895,8 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                     problem = f"the dynamics failed ({type(exc).__name__}: " \
                               f"{_one_line(str(exc))})"
                 if problem:
-                    if unchecked and not np.isfinite(tau).all():
-                        # as if checked before the step: no torque, no signals at t
-                        taus[k] = 0.0
-                        for name in list(signals)[known:]:
-                            del signals[name]
-                        for series in signals.values():
-                            series[k] = np.nan
-                        status = "failed"
-                        reason = f"controller returned a non-finite torque at t = {t:.4f} s"
+                    if late_check and not np.isfinite(tau).all():
+                        status, reason = "failed", refuse(k, t, known)
                         break
                     status = "diverged"
                     reason = f"diverged at t = {t + control_dt:.4f} s: {problem}"
@@ -955,37 +963,28 @@ class _FastRK4:
         self._final = np.array((1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))
         self._velocity = self._state[size:size + nq]
         self._plain = size == nq  # no wheel slots: the layout is [q, q'] itself
-        # bounds of |z|, then of |E tau|: the largest float (false for inf and NaN)
-        self._limits = np.full(2 * size + nq, np.finfo(float).max)
+        # bounds of |z|, then of |E tau| and |tau|: the largest float (false for inf, NaN)
+        self._limits = np.full(len(self._checked), np.finfo(float).max)
         self._limits[2:size] = np.inf
         self._limits[:2] = max_distance
         self._limits[size:2 * size] = np.inf
         self._limits[size:size + nq] = max_speed
-        self._magnitude = np.zeros(2 * size + nq)
-        self._within = np.zeros(2 * size + nq, dtype=bool)
-        self._all_within = np.ones(2 * size + nq, dtype=bool).tobytes()
-        # E tau: tau itself with every joint actuated; else a passive joint's entry scaled
-        # by 2^-2100, which is 0 for every finite float and keeps inf and NaN (so that
-        # the check after the step still sees them) with no warning, as long as numpy
-        # ignores underflow (its default); otherwise the torque is checked before the
-        # step and a passive entry times 0 (inf times 0 would warn)
+        self._magnitude = np.zeros(len(self._checked))
+        self._within = np.zeros(len(self._checked), dtype=bool)
+        self._all_within = np.ones(len(self._checked), dtype=bool).tobytes()
+        # E tau: tau itself with every joint actuated; else tau's actuated entries only
+        # (copied where the mask says, no arithmetic: no floating-point flag whatever
+        # numpy's error settings), and tau whole beside it, for the check
         actuated = [k in snake.params.actuated for k in range(1, snake.n)]
-        self._shifts = self._mask = None
-        if not all(actuated):
-            if np.geterr()["under"] == "ignore":
-                self._shifts = np.array([0 if a else -2100 for a in actuated], dtype=np.intc)
-            else:
-                self._mask = np.array(actuated, dtype=float)
-        #: Whether the step checks that the torque is finite (with the new state).
-        self.checks_torque = self._mask is None
-
+        self._actuated = None if all(actuated) else np.array(actuated)
+        self._given = self._checked[2 * size + nq:]
         self.step = self._make_step()
 
     def _make_step(self) -> Callable[[np.ndarray, np.ndarray | None, np.ndarray], str]:
         """:attr:`step`, with everything it reads in its closure (cheaper than attributes),
         its three later stages unrolled and every output passed by position (numpy parses
         ``out=`` keywords for some 40 ns a call)."""
-        shifts, mask, joint_torque = self._shifts, self._mask, self._joint_torque
+        actuated, given, joint_torque = self._actuated, self._given, self._joint_torque
         slopes, state, evaluate, dot = self._slopes, self._state, self._evaluate, np.dot
         row0, d0, a0 = self._first_stage
         (c1, r1, v1, a1, s1), (c2, r2, v2, a2, s2), (c3, r3, v3, a3, s3) = (
@@ -994,22 +993,21 @@ class _FastRK4:
         plain, select, checked = self._plain, self._select, self._checked
         magnitude, limits, within, all_within = (self._magnitude, self._limits, self._within,
                                                  self._all_within)
-        less_equal, absolute, ldexp, multiply = np.less_equal, np.absolute, np.ldexp, np.multiply
+        less_equal, absolute, copyto = np.less_equal, np.absolute, np.copyto
         nq, max_speed, max_distance = self._nq, self._max_speed, self._max_distance
 
         def step(tau: np.ndarray, first: np.ndarray | None, out: np.ndarray) -> str:
             """Advance one control period under ``tau``; write [q, q'] into ``out``.
 
             ``first`` is q'' at the current state under ``tau`` if known; ``tau`` need not
-            be finite when :attr:`checks_torque`. Returns what is wrong with the new state
-            or the torque ("" when both are within bounds, see :func:`_divergence`).
+            be finite. Returns what is wrong with the new state or the torque ("" when
+            both are within bounds, see :func:`_divergence`).
             """
-            if shifts is not None:
-                ldexp(tau, shifts, joint_torque)
-            elif mask is not None:
-                multiply(tau, mask, joint_torque)
-            else:
+            if actuated is None:
                 joint_torque[...] = tau  # view[...] = x: the cheapest copy
+            else:
+                given[...] = tau
+                copyto(joint_torque, tau, where=actuated)  # passive rows stay 0
             for sub in range(substeps):
                 if sub or first is None:
                     row0[...] = state

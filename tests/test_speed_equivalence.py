@@ -143,20 +143,47 @@ def test_fast_step_refuses_a_torque_where_the_plain_step_does(
     assert np.abs(fast.q - plain.q).max() < 1e-12
 
 
-def test_passive_torque_under_strict_floating_point_errors() -> None:
-    """With numpy raising on underflow (the passive joints' 2^-2100 scaling would), the
-    fast step checks the torque first instead: the same run, the same refusal."""
-    params = tracking_params(passive=(5,))
-    runs = {}
-    for strict in (False, True):
-        with np.errstate(under="raise" if strict else "ignore"):
-            snake = Snake(params)
-            runs[strict] = [simulate(snake, controller, initial_state(params), 0.05)
-                            for controller in (LyapunovController(snake), _TurnsBad(np.inf, 4))]
-    for loose, strict in zip(runs[False], runs[True], strict=True):
-        assert loose.status == strict.status and loose.reason == strict.reason
-        assert np.array_equal(loose.q, strict.q) and np.array_equal(loose.tau, strict.tau)
-    assert runs[True][0].status == "completed" and runs[True][1].status == "failed"
+class _StrictTurnsBad(_TurnsBad):
+    """:class:`_TurnsBad` that has numpy raise on every floating-point error from its first
+    call on, and whose signals and q'' refuse a non-finite torque of its own."""
+
+    name = "strict_turns_bad"
+
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        np.seterr(all="raise")
+        self._tau = super().__call__(x, t)
+        return self._tau
+
+    def signals(self) -> dict[str, float]:
+        if not np.isfinite(self._tau).all():
+            raise ValueError("no signals for a non-finite torque")
+        return super().signals()
+
+    def plant_acceleration(self, snake: object) -> np.ndarray | None:
+        if not np.isfinite(self._tau).all():
+            raise ValueError("no q'' for a non-finite torque")
+        return None
+
+
+@pytest.mark.parametrize(("bad", "passive"), [(np.inf, (5,)), (np.nan, (5,)), (-np.inf, ())])
+def test_bad_torque_refused_first_whatever_the_controller_does(bad: float,
+                                                               passive: tuple) -> None:
+    """A controller that sets numpy's errors to raise mid-run and whose signals fail on its
+    own non-finite torque: the fast path still names the torque, as the plain one does."""
+    params = tracking_params(passive=passive)
+    runs = []
+    for cls in (Snake, _PlainSnake):
+        previous = np.geterr()
+        try:
+            runs.append(simulate(cls(params), _StrictTurnsBad(bad, 4), initial_state(params),
+                                 0.05))
+        finally:
+            np.seterr(**previous)
+    fast, plain = runs
+    assert fast.status == plain.status == "failed" and len(fast) == len(plain) == 21
+    assert fast.reason == plain.reason == \
+        "controller returned a non-finite torque at t = 0.0200 s"
+    assert np.array_equal(fast.tau, plain.tau) and set(fast.signals) == set(plain.signals)
 
 
 @pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "numpy route"])
@@ -289,3 +316,19 @@ def test_robots_and_controllers_still_pickle_after_a_run() -> None:
         assert copy.snake is not snake and copy._dynamics is copy.snake.fast_dynamics
         after = simulate(copy.snake, copy, initial_state(params), 0.02)
         assert np.array_equal(before.q, after.q) and np.array_equal(before.tau, after.tau)
+
+
+def test_a_shallow_copy_keeps_its_own_last_call(rng: np.random.Generator) -> None:
+    """copy.copy of a law: calling the copy leaves the original's signals alone (and the
+    Lyapunov-like law's q''; PFL's q'' is a buffer that shallow copies share, as before)."""
+    import copy
+
+    snake = Snake(tracking_params())
+    for law in (LyapunovController(snake), PFLController(snake)):
+        law(head_first_state(rng, snake.n), 1.0)
+        signals, ddq = dict(law.signals()), law.plant_acceleration(snake).copy()
+        twin = copy.copy(law)
+        twin(head_first_state(rng, snake.n), 2.0)
+        assert law.signals() == signals and twin.signals() != signals
+        if isinstance(law, LyapunovController):
+            assert np.array_equal(law.plant_acceleration(snake), ddq)

@@ -237,7 +237,8 @@ class _ViewsMadeOnce:
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        """Unpickled: the views are made again on the robot's own dynamics and buffers.
+        """Unpickled (or copied): the views are made again on the robot's own dynamics and
+        buffers; the last call's q'' and signals stay with the original.
 
         Parameters
         ----------
@@ -245,6 +246,8 @@ class _ViewsMadeOnce:
             The pickled attributes.
         """
         self.__dict__.update(state)
+        if "_outputs" in state:
+            self._outputs: list[Any] = [None, {}]
         self._make_views()
 
 
