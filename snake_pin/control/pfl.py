@@ -121,16 +121,13 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         law[:3, :3], law[:3, nq:nq + 3], law[:3, 2 * nq:2 * nq + 3] = self.k_p, self.k_v, np.eye(3)
         law[3:, 3:nq], law[3:, nq + 3:2 * nq] = -self.r_p, -self.r_v
         law[3:, 2 * nq + 3:] = -np.eye(m)
-        self._gain = np.zeros((nq, 2 * nq))  # on x = [q, q'], then [x, time row]
+        self._gain = np.zeros((nq, 2 * nq))  # on x = [q, q']
         self._gain[:3, :3], self._gain[:3, nq:nq + 3] = -self.k_p, -self.k_v
         self._gain[3:, 3:nq], self._gain[3:, nq + 3:] = self.r_p, self.r_v
         # the head's rows negated, so that one product gives [-a; u] (negation is exact)
         self._gain[:3] *= -1.0
         law[:3] *= -1.0
         self._law_time = law.T.copy()
-        # applied to [x, time row]: the time terms enter the same product
-        self._gain = np.hstack((self._gain, np.eye(nq)))
-        self._inputs = np.zeros(3 * nq)
         self._time_row = TimeTerms(self._time_terms)
         self._dynamics = snake.fast_dynamics
         # [w''; phi''; 1] and [-a; u (then u + p); -1]: one product with a block of rows
@@ -154,11 +151,9 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         state_terms, minus_a, u = stacked[:nq], stacked[:3], stacked[3:nq]
         ddq, ddq_head, ddq_joints = padded[:nq], padded[:3], padded[3:nq]
         mass_and_bias, gain, time_row = dynamics.mass_and_bias, self._gain, self._time_row
-        inputs = self._inputs
-        x_slot, time_slot = inputs[:2 * nq], inputs[2 * nq:]
         # np.dot: cheaper than @ on these tiny arrays; outputs by position (numpy parses
         # an out= keyword for some 40 ns)
-        dot, subtract, negative, sqrt = np.dot, np.subtract, np.negative, math.sqrt
+        dot, add, subtract, negative, sqrt = np.dot, np.add, np.subtract, np.negative, math.sqrt
         dsyrk, dposv, smallest = blas.dsyrk, lapack.dposv, smallest_eigenvalue_3x3
         law = self  # r_min and the climb's settings are read per call, as attributes
 
@@ -171,9 +166,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             r_min = law.r_min
             if not r > r_min:
                 raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
-            x_slot[...] = x
-            time_slot[...] = time_row(t)
-            dot(gain, inputs, state_terms)  # [-a; u], eqs. (71), (78)
+            dot(gain, x, state_terms)
+            add(state_terms, time_row(t), state_terms)  # [-a; u], eqs. (71), (78)
             if law.climb_R:
                 subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
                                                  - x[nq + 3:]), u)
