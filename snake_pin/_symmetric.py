@@ -12,12 +12,14 @@ from scipy.linalg import lapack
 
 __all__ = ["smallest_eigenvalue_3x3", "symmetric_from_upper"]
 
-#: Beyond this |cos(3 phi)| two eigenvalues nearly coincide, where acos loses digits
-#: (it amplifies rounding by 1 / sqrt(1 - cos^2), at most 7 within it).
-_NEAR_DOUBLE = 0.99
+#: Beyond this |cos(3 phi)| two eigenvalues nearly coincide, where acos loses digits (it
+#: amplifies rounding by 1 / sqrt(1 - cos^2), at most 700 within it). PFL's Gram matrices
+#: sit at 1 - 1e-3 (median) to 1 - 1.5e-5: their two small eigenvalues are close next to
+#: the largest.
+_NEAR_DOUBLE = 1.0 - 1e-6
 #: Below this fraction of the largest eigenvalue the smallest is left to LAPACK, which
-#: resolves it a few times better (a near-singular posture: R near r_min).
-_SMALL = 1e-8
+#: resolves it better (a near-singular posture: R near r_min). PFL's: 4e-4 to 1e-3.
+_SMALL = 1e-6
 _TWO_THIRDS_PI = 2.0 * math.pi / 3.0
 #: A spread p^2 below this (p^3 would underflow) is left to LAPACK.
 _TINY_SPREAD = 1e-200
@@ -53,12 +55,13 @@ def smallest_eigenvalue_3x3(upper: np.ndarray) -> float:
 
     The trigonometric closed form of the characteristic cubic: with q = tr(G)/3,
     p^2 = ||G - q I||_F^2 / 6 and cos(3 phi) = det(G - q I) / (2 p^3), the eigenvalues are
-    q + 2 p cos(phi + 2 pi k / 3), the smallest at k = 1 (phi in [0, pi/3]). Its error is
-    at most some 20 rounding units of the largest eigenvalue (LAPACK's: a few). LAPACK's
-    ``dsyev`` takes over where that matters or the form loses digits: two eigenvalues
-    nearly coincide (|cos(3 phi)| > 0.99, where acos amplifies rounding), the smallest is
-    below 1e-8 of the largest (near-singular), or the spread p is too small to divide by.
-    Twice as fast as ``dsyev`` alone through scipy.
+    q + 2 p cos(phi + 2 pi k / 3), the smallest at k = 1 (phi in [0, pi/3]). Its error is a
+    few rounding units of the largest eigenvalue, up to some 700 where two eigenvalues come
+    close (acos amplifies rounding there), against a few for LAPACK: 1e-13 of the largest
+    at most, 1e-7 of the smallest. LAPACK's ``dsyev`` takes over where the form would lose
+    more: two eigenvalues nearly coincide (|cos(3 phi)| > 1 - 1e-6), the smallest is below
+    1e-6 of the largest (near-singular: PFL's check of R against r_min stays LAPACK's), or
+    the spread p is too small to divide by. Twice as fast as ``dsyev`` through scipy.
 
     Parameters
     ----------

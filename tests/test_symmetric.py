@@ -33,15 +33,15 @@ def _upper_gram(rng: np.random.Generator, kind: str) -> np.ndarray:
 @pytest.mark.parametrize("kind", ["random", "near_singular", "scaled", "double_bottom",
                                   "double_top", "exact_double", "two_small"])
 def test_smallest_eigenvalue_3x3_against_lapack(kind: str, rng: np.random.Generator) -> None:
-    """The closed form (or LAPACK where it would lose digits) is numpy's eigvalsh to 1e-14
+    """The closed form (or LAPACK where it would lose digits) is numpy's eigvalsh to 1e-13
     of the largest eigenvalue (without the fallback near-double bottoms were 7e-9 off), and
-    LAPACK's own dsyev below 1e-8 of it (near-singular postures: R's check as before)."""
+    LAPACK's own dsyev below 1e-6 of it (near-singular postures: R's check as before)."""
     for _ in range(500):
         upper = _upper_gram(rng, kind)
         expected = np.linalg.eigvalsh(symmetric_from_upper(upper))
         smallest = smallest_eigenvalue_3x3(upper)
-        assert abs(smallest - expected[0]) <= 1e-14 * expected[-1]
-        if expected[0] < 0.5e-8 * expected[-1]:
+        assert abs(smallest - expected[0]) <= 1e-13 * expected[-1]
+        if expected[0] < 0.5e-6 * expected[-1]:
             assert smallest == lapack.dsyev(upper, compute_v=0)[0][0]
 
 
