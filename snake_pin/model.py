@@ -664,9 +664,9 @@ class FastDynamics:
         E tau (length n + 2; passive rows stay 0), written by the caller, used by
         :attr:`evaluate`.
     checked
-        ``[free (2 size) | torque (n + 2) | free (n - 1)]``: :attr:`torque` between room
-        for the caller's new state and for the torques it was given, so that one pass over
-        it checks all three.
+        The buffer whose tail is :attr:`torque` (length 2 size + n + 2); its head is free
+        for the caller's new state, so that one pass over it checks the state and the
+        torque it was reached with.
     evaluate
         ``evaluate(row) -> q''`` (a new array) at ``states[row]`` under :attr:`torque`.
     affine
@@ -694,8 +694,8 @@ class FastDynamics:
         size = passes.size if passes is not None else nq
         self.size = size
         self.states = np.zeros((rows, 2 * size))
-        self.checked = np.zeros(2 * size + nq + snake.n - 1)
-        self.torque = self.checked[2 * size:2 * size + nq]
+        self.checked = np.zeros(2 * size + nq)
+        self.torque = self.checked[2 * size:]
         self.select = np.r_[np.arange(nq), size + np.arange(nq)]
         views = [(row[:size], row[size:], row[:nq], row[size:size + nq]) for row in self.states]
         own = np.zeros(2 * size)  # affine's own state, so that it never clobbers a stage

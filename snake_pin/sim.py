@@ -963,7 +963,7 @@ class _FastRK4:
         self._final = np.array((1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))
         self._velocity = self._state[size:size + nq]
         self._plain = size == nq  # no wheel slots: the layout is [q, q'] itself
-        # bounds of |z|, then of |E tau| and |tau|: the largest float (false for inf, NaN)
+        # bounds of |z|, then of |E tau|: the largest float (false for inf and NaN)
         self._limits = np.full(len(self._checked), np.finfo(float).max)
         self._limits[2:size] = np.inf
         self._limits[:2] = max_distance
@@ -972,19 +972,17 @@ class _FastRK4:
         self._magnitude = np.zeros(len(self._checked))
         self._within = np.zeros(len(self._checked), dtype=bool)
         self._all_within = np.ones(len(self._checked), dtype=bool).tobytes()
-        # E tau: tau itself with every joint actuated; else tau's actuated entries only
-        # (copied where the mask says, no arithmetic: no floating-point flag whatever
-        # numpy's error settings), and tau whole beside it, for the check
-        actuated = [k in snake.params.actuated for k in range(1, snake.n)]
-        self._actuated = None if all(actuated) else np.array(actuated)
-        self._given = self._checked[2 * size + nq:]
+        # E tau: tau copied whole, then a passive joint's entry checked (a non-finite one
+        # ends the step before it starts) and set to 0: no arithmetic, so no
+        # floating-point flag whatever numpy's error settings
+        self._passive = tuple(k - 1 for k in snake.params.passive)
         self.step = self._make_step()
 
     def _make_step(self) -> Callable[[np.ndarray, np.ndarray | None, np.ndarray], str]:
         """:attr:`step`, with everything it reads in its closure (cheaper than attributes),
         its three later stages unrolled and every output passed by position (numpy parses
         ``out=`` keywords for some 40 ns a call)."""
-        actuated, given, joint_torque = self._actuated, self._given, self._joint_torque
+        passive, joint_torque, isfinite = self._passive, self._joint_torque, math.isfinite
         slopes, state, evaluate, dot = self._slopes, self._state, self._evaluate, np.dot
         row0, d0, a0 = self._first_stage
         (c1, r1, v1, a1, s1), (c2, r2, v2, a2, s2), (c3, r3, v3, a3, s3) = (
@@ -993,7 +991,7 @@ class _FastRK4:
         plain, select, checked = self._plain, self._select, self._checked
         magnitude, limits, within, all_within = (self._magnitude, self._limits, self._within,
                                                  self._all_within)
-        less_equal, absolute, copyto = np.less_equal, np.absolute, np.copyto
+        less_equal, absolute = np.less_equal, np.absolute
         nq, max_speed, max_distance = self._nq, self._max_speed, self._max_distance
 
         def step(tau: np.ndarray, first: np.ndarray | None, out: np.ndarray) -> str:
@@ -1003,11 +1001,11 @@ class _FastRK4:
             be finite. Returns what is wrong with the new state or the torque ("" when
             both are within bounds, see :func:`_divergence`).
             """
-            if actuated is None:
-                joint_torque[...] = tau  # view[...] = x: the cheapest copy
-            else:
-                given[...] = tau
-                copyto(joint_torque, tau, where=actuated)  # passive rows stay 0
+            joint_torque[...] = tau  # view[...] = x: the cheapest copy
+            for joint in passive:
+                if not isfinite(joint_torque[joint]):
+                    return "the torque is not finite"  # nothing stepped
+                joint_torque[joint] = 0.0
             for sub in range(substeps):
                 if sub or first is None:
                     row0[...] = state
