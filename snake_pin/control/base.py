@@ -208,7 +208,7 @@ class OpenLoop(Controller):
         return np.asarray(self.schedule(t), dtype=float)
 
 
-class _ViewsMadeOnce:
+class _ViewsMadeOnce(abc.ABC):
     """A law whose hot path is a closure over views made once (of its buffers and of the
     robot's ``FastDynamics``): :meth:`_make_views` makes it and keeps it in ``_hot``,
     which a call of the law calls (closure variables are cheaper to read than
@@ -217,8 +217,9 @@ class _ViewsMadeOnce:
 
     _hot: Callable[[np.ndarray, float], np.ndarray]
 
+    @abc.abstractmethod
     def _make_views(self) -> None:
-        raise NotImplementedError
+        """Make the views and the hot path's closure, and keep the closure in ``_hot``."""
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques (length n - 1) at state ``x`` and time ``t``."""
