@@ -420,6 +420,8 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
     rolling speeds, then the force: the Schur complement), as the step makes them."""
     import pinocchio as pin
 
+    from snake_pin._blas import dgemv
+
     passes = snake.friction.passes
     if passes is None:
         raise ValueError("the floor is defined for the damping twin's route")
@@ -438,9 +440,9 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
     cursor = iter(range(1 << 62))
     count = len(arguments)
 
-    mass, dot = twin_data.M.T, np.dot
-    chain_rows, wheel_rows = mass[:nq], mass[nq:]
-    rolled = np.zeros(size)
+    mass = twin_data.M  # column-major and symmetric: its columns are its rows
+    chain_columns, wheel_columns = mass[:, :nq], mass[:, nq:]
+    rolled, damping = np.zeros(size), np.zeros(nq)
     rolled_v, rolled_w = rolled[:nq], rolled[nq:]
 
     def friction_call(q_ext: np.ndarray, v_ext: np.ndarray, v: np.ndarray) -> None:
@@ -448,8 +450,8 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
             crba(twin, twin_data, q_ext, world)
             if products:  # the same work as the step's: the rolling speeds, then -Q
                 rolled_v[...] = v
-                dot(wheel_rows, v_ext, out=rolled_w)
-                dot(chain_rows, rolled)
+                dgemv(1.0, wheel_columns, v_ext, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
+                dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)
         else:
             rnea(twin, twin_data, q_ext, zero, v_ext)
 

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ._blas import dgemv
 from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
 from .exceptions import ConfigurationError
@@ -701,7 +702,7 @@ class FastDynamics:
         own = np.zeros(2 * size)  # affine's own state, so that it never clobbers a stage
         own_q, own_v = own[:nq], own[size:size + nq]
         own_zq, own_zv = own[:size], own[size:]
-        gen = np.zeros(nq)
+        gen, damping = np.zeros(nq), np.zeros(nq)
         torque = self.torque
         rnea, aba, pin_minverse = pin.rnea, pin.aba, pin.computeMinverse
         nle = pin.nonLinearEffects
@@ -727,7 +728,7 @@ class FastDynamics:
                 np.copyto(inverse_mass, inverse_mass.T, where=lower)
                 return inverse_mass
         data = own_data
-        negative, subtract, add, dot = np.negative, np.subtract, np.add, np.dot
+        negative, subtract, add = np.negative, np.subtract, np.add
         # outputs are passed by position below: numpy parses an out= keyword for some 40 ns
         world = _WORLD
         if passes is None:  # long anisotropic robots: Q by numpy on [q, q'] (size == nq)
@@ -773,15 +774,13 @@ class FastDynamics:
         else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
             twin, twin_data = passes.twin, passes.twin_data
             twin_crba = _whole_crba(twin, twin_data)
-            # M is symmetric and Pinocchio stores it column-major: the rows of its
-            # transpose are M's rows, contiguous (BLAS reads them, and the row-strided
-            # block M_wc, without a copy)
-            twin_mass = twin_data.M.T
-            chain_rows, wheel_rows = twin_mass[:nq], twin_mass[nq:]  # [M_cc, M_cw], [M_wc, M_ww]
             # -Q at [zq, zv]: [M_cc, M_cw] [q'; w] with the wheels rolling at w = M_wc q'
             # (M_ww = -1, see ForcePasses): the wheel rows times zv, whose wheel slots are
-            # 0, written into a buffer of its own (BLAS reads neither a strided block nor
-            # an output inside its input without a copy), inlined below
+            # 0, written into a buffer of its own, then E tau + Q in place on a copy of
+            # E tau. Both products are BLAS's dgemv on M's columns (Fortran-ordered, and
+            # M is symmetric: columns are rows), called in place (see _blas)
+            twin_mass = twin_data.M
+            chain_columns, wheel_columns = twin_mass[:, :nq], twin_mass[:, nq:]
             rolled = np.zeros(size)  # [q', w]
             rolled_v, rolled_w = rolled[:nq], rolled[nq:]
 
@@ -789,26 +788,28 @@ class FastDynamics:
                 zq, zv, q, v = views[row]
                 twin_crba(zq)
                 rolled_v[...] = v
-                dot(wheel_rows, zv, rolled_w)
-                subtract(torque, dot(chain_rows, rolled), gen)
+                dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
+                gen[...] = torque
+                dgemv(-1.0, chain_columns, rolled, 1.0, gen, 0, 1, 0, 1, 1, 1)
                 return aba(model, data, q, v, gen, world)
 
-            def own_damping(x: np.ndarray) -> np.ndarray:
-                """-Q at the plain state x = [q, q'], on the own buffers."""
+            def own_damping(x: np.ndarray) -> None:
+                """-Q at the plain state x = [q, q'] into damping, on the own buffers."""
                 own_q[...] = x[:nq]
                 own_v[...] = x[nq:]
                 twin_crba(own_zq)
                 rolled_v[...] = own_v
-                dot(wheel_rows, own_zv, rolled_w)
-                return dot(chain_rows, rolled)
+                dgemv(1.0, wheel_columns, own_zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
+                dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                negative(own_damping(x), gen)
+                own_damping(x)
+                negative(damping, gen)
                 b = aba(model, data, own_q, own_v, gen, world)
                 return b, minverse(model, data)
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                damping = own_damping(x)  # -Q
+                own_damping(x)  # -Q
                 crba(own_q)
                 augmented_mass[...] = mass_rows
                 return mass, add(nle(model, data, own_q, own_v), damping, bias)

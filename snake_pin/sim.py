@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
+from ._blas import dgemv
 from ._io import atomic_group
 from .control.base import Controller
 from .exceptions import (
@@ -983,7 +984,8 @@ class _FastRK4:
         its three later stages unrolled and every output passed by position (numpy parses
         ``out=`` keywords for some 40 ns a call)."""
         passive, joint_torque, isfinite = self._passive, self._joint_torque, math.isfinite
-        slopes, state, evaluate, dot = self._slopes, self._state, self._evaluate, np.dot
+        state, evaluate = self._state, self._evaluate
+        slopes = self._slopes.T  # Fortran-ordered: Y^T c by dgemv, in place (see _blas)
         row0, d0, a0 = self._first_stage
         (c1, r1, v1, a1, s1), (c2, r2, v2, a2, s2), (c3, r3, v3, a3, s3) = (
             stage[1:] for stage in self._later_stages)
@@ -1012,16 +1014,16 @@ class _FastRK4:
                     first = evaluate(0)
                 d0[...] = velocity
                 a0[...] = first
-                dot(c1, slopes, r1)
+                dgemv(1.0, slopes, c1, 0.0, r1, 0, 1, 0, 1, 0, 1)
                 a1[...] = evaluate(1)
                 v1[...] = s1
-                dot(c2, slopes, r2)
+                dgemv(1.0, slopes, c2, 0.0, r2, 0, 1, 0, 1, 0, 1)
                 a2[...] = evaluate(2)
                 v2[...] = s2
-                dot(c3, slopes, r3)
+                dgemv(1.0, slopes, c3, 0.0, r3, 0, 1, 0, 1, 0, 1)
                 a3[...] = evaluate(3)
                 v3[...] = s3
-                dot(final, slopes, new)
+                dgemv(1.0, slopes, final, 0.0, new, 0, 1, 0, 1, 0, 1)
                 state[...] = new
             if plain:
                 out[...] = state

@@ -35,11 +35,16 @@ def _upper_gram(rng: np.random.Generator, kind: str) -> np.ndarray:
 def test_smallest_eigenvalue_3x3_against_lapack(kind: str, rng: np.random.Generator) -> None:
     """The closed form (or LAPACK where it would lose digits) is numpy's eigvalsh to 1e-13
     of the largest eigenvalue (without the fallback near-double bottoms were 7e-9 off), and
-    LAPACK's own dsyev below 1e-6 of it (near-singular postures: R's check as before)."""
+    LAPACK's own dsyev below 1e-6 of it (near-singular postures: R's check as before),
+    whatever the strict lower triangle holds (PFL's buffer keeps a Cholesky factor there)."""
+    lower = np.tril_indices(3, -1)
     for _ in range(500):
         upper = _upper_gram(rng, kind)
         expected = np.linalg.eigvalsh(symmetric_from_upper(upper))
         smallest = smallest_eigenvalue_3x3(upper)
+        stale = upper.copy(order="F")
+        stale[lower] = 1e3 * rng.normal(size=3)
+        assert smallest_eigenvalue_3x3(stale) == smallest
         assert abs(smallest - expected[0]) <= 1e-13 * expected[-1]
         if expected[0] < 0.5e-6 * expected[-1]:
             assert smallest == lapack.dsyev(upper, compute_v=0)[0][0]

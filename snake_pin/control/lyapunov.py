@@ -72,8 +72,8 @@ tail, so a head-first run along +x has theta_1 = pi; see :func:`head_first_refer
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import lapack
 
+from .._blas import dgemv, dposv, dsyrk
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
@@ -83,7 +83,6 @@ from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
 __all__ = ["LyapunovController", "head_first_reference"]
-
 
 
 def head_first_reference(speed: float = 0.1) -> LinearReference:
@@ -216,7 +215,6 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         # its own transpose it gives A^T W A, the right-hand side and V in one product
         self._stack = np.zeros((m + 2, width))
         self._stack[passive, nq + np.arange(len(passive))] = 1.0
-        self._normal = np.zeros((m + 2, m + 2))
         self._dynamics = snake.fast_dynamics
         # W^(1/2) scales A^T's columns, by a whole matrix of weights (numpy broadcasting
         # costs more here); a passive joint's row weighs 0
@@ -227,18 +225,22 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         """The hot path (:meth:`__call__`): a closure over views of its buffers, made once
         (see :class:`~snake_pin.control.base._ViewsMadeOnce`)."""
         nq, m = self.snake.nq, self.snake.n - 1
-        inputs, stack, normal, outputs = self._inputs, self._stack, self._normal, self._outputs
+        inputs, stack, outputs = self._inputs, self._stack, self._outputs
         x_slot, b_slot, time_slot = inputs[:2 * nq], inputs[2 * nq:3 * nq], inputs[3 * nq:]
-        weighted_t, errors, stack_t = stack[:m, :nq], stack[m:].reshape(-1), stack.T
-        gram, rhs, last = normal[:m, :m], normal[m, :m], m + 1
+        weighted_t, errors = stack[:m, :nq], stack[m:].reshape(-1)
+        # BLAS and LAPACK run in place on Fortran-ordered buffers of the closure's own (see
+        # snake_pin._blas): [A^T W A, rhs, V] = stack stack^T (upper triangle), and its
+        # A^T W A block copied whole for the solve
+        normal, gram = np.zeros((m + 2, m + 2), order="F"), np.zeros((m, m), order="F")
+        stack_columns, law_columns = stack.T, self._law_state.T
+        gram_block, rhs, last = normal[:m, :m], normal[:m, m], m + 1
         # A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a contiguous view of
-        # the dynamics' H^-1 (filled by each affine call)
-        rows = self._dynamics.inverse_mass[3:]
-        affine, time_row, law_state, sqrt_w = (self._dynamics.affine, self._time_row,
-                                               self._law_state, self._sqrt_w)
-        # np.dot: cheaper than @ (and f2py BLAS) here; view[...] = the copies; outputs by
-        # position (numpy parses an out= keyword for some 40 ns)
-        dot, multiply, dposv = np.dot, np.multiply, lapack.dposv
+        # the dynamics' H^-1 (filled by each affine call); its joints' columns, A, are
+        # contiguous in Pinocchio's column-major storage
+        inverse_mass = self._dynamics.inverse_mass
+        rows, joint_columns = inverse_mass[3:], inverse_mass[:, 3:]
+        affine, time_row, sqrt_w = self._dynamics.affine, self._time_row, self._sqrt_w
+        multiply = np.multiply
 
         def hot(x: np.ndarray, t: float) -> np.ndarray:
             outputs[0] = None
@@ -247,15 +249,17 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             b_slot[...] = b
             time_slot[...] = time_row(t)
             # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-            dot(law_state, inputs, errors)
+            dgemv(1.0, law_columns, inputs, 0.0, errors, 0, 1, 0, 1, 1, 1)
             multiply(rows, sqrt_w, weighted_t)  # (W^(1/2) A)^T, passive joints' rows 0
-            dot(stack, stack_t, normal)  # [A^T W A, rhs, V] (module docstring)
-            _, tau, info = dposv(gram, rhs)  # its upper triangle
+            dsyrk(1.0, stack_columns, 0.0, normal, 1, 0, 1)  # [A^T W A, rhs, V]
+            gram[...] = gram_block
+            tau = rhs.copy()
+            info = dposv(gram, tau, 0, 1, 1)[2]  # its upper triangle; tau in place
             if info != 0:
                 raise SingularPostureError(
                     f"A^T W A is not positive definite (LAPACK info {info})")
-            ddq = dot(tau, rows)  # A tau_a (a passive joint's tau is 0)
-            ddq += b
+            ddq = b.copy()
+            dgemv(1.0, joint_columns, tau, 1.0, ddq, 0, 1, 0, 1, 0, 1)  # b + A tau_a
             outputs[0], outputs[1] = ddq, {"V": normal.item(last, last)}
             return tau
 

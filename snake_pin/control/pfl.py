@@ -49,8 +49,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import blas, lapack
 
+from .._blas import dgemv, dposv, dsyrk
 from .._symmetric import smallest_eigenvalue_3x3
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
@@ -133,7 +133,6 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         # [w''; phi''; 1] and [-a; u (then u + p); -1]: one product with a block of rows
         # of [H | h] then gives H v + h or H v - h
         self._ddq_buffer = np.r_[np.zeros(nq), 1.0]
-        self._h12 = np.zeros((3, n - 1), order="F")
         self._stacked = np.r_[np.zeros(nq), -1.0]
         self._make_views()
 
@@ -142,49 +141,54 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         H and h (filled by each mass_and_bias call) and of the buffers (see
         :class:`~snake_pin.control.base._ViewsMadeOnce`)."""
         nq, dynamics, outputs = self._nq, self._dynamics, self._outputs
+        m = nq - 3
         augmented = dynamics.augmented  # [H | h], rows contiguous
+        columns = augmented.T  # Fortran-ordered: its columns are [H | h]'s rows
         stacked, padded = self._stacked, self._ddq_buffer
-        # H12 is copied per call into a Fortran-ordered buffer: BLAS then reads it, and
-        # its transpose H21 (C-ordered), without copies of its own
-        h12, h12_block, h22 = self._h12, augmented[:3, 3:nq], augmented[3:, 3:nq]
-        h12_t, h_head, h_joints = h12.T, augmented[:3], augmented[3:]
+        # BLAS and LAPACK run in place on Fortran-ordered buffers of the closure's own (see
+        # snake_pin._blas): H12 and H22 are copied into them per call
+        h12, h22 = np.zeros((3, m), order="F"), np.zeros((m, m), order="F")
+        gram, p_rhs, z = np.zeros((3, 3), order="F"), np.zeros(m), np.zeros(3)
+        gain_columns = self._gain.T  # Fortran-ordered
+        h12_block, h22_block = augmented[:3, 3:nq], augmented[3:, 3:nq]
+        head_columns, joint_columns = columns[:, :3], columns[:, 3:]
         state_terms, minus_a, u = stacked[:nq], stacked[:3], stacked[3:nq]
         ddq, ddq_head, ddq_joints = padded[:nq], padded[:3], padded[3:nq]
-        mass_and_bias, gain, time_row = dynamics.mass_and_bias, self._gain, self._time_row
-        # np.dot: cheaper than @ on these tiny arrays; outputs by position (numpy parses
-        # an out= keyword for some 40 ns)
-        dot, add, subtract, negative, sqrt = np.dot, np.add, np.subtract, np.negative, math.sqrt
-        dsyrk, dposv, smallest = blas.dsyrk, lapack.dposv, smallest_eigenvalue_3x3
+        mass_and_bias, time_row = dynamics.mass_and_bias, self._time_row
+        subtract, negative, sqrt = np.subtract, np.negative, math.sqrt
+        smallest = smallest_eigenvalue_3x3
         law = self  # r_min and the climb's settings are read per call, as attributes
 
         def hot(x: np.ndarray, t: float) -> np.ndarray:
             outputs[0] = None
             mass_and_bias(x)  # H (whole) and h, read through the views
             h12[...] = h12_block
-            gram = dsyrk(1.0, h12)  # H12 H12^T (upper triangle)
+            dsyrk(1.0, h12, 0.0, gram, 0, 0, 1)  # H12 H12^T (upper triangle)
             r = sqrt(max(smallest(gram), 0.0))  # R: H12's smallest singular value
             r_min = law.r_min
             if not r > r_min:
                 raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
-            dot(gain, x, state_terms)
-            add(state_terms, time_row(t), state_terms)  # [-a; u], eqs. (71), (78)
+            state_terms[...] = time_row(t)
+            dgemv(1.0, gain_columns, x, 1.0, state_terms, 0, 1, 0, 1, 1, 1)  # [-a; u] (71, 78)
             if law.climb_R:
                 subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
                                                  - x[nq + 3:]), u)
-            _, minus_p, info = dposv(h22, dot(h12_t, minus_a))  # -H22^-1 H21 a
+            dgemv(1.0, h12, minus_a, 0.0, p_rhs, 0, 1, 0, 1, 1, 1)  # -H21 a
+            h22[...] = h22_block
+            minus_p, info = dposv(h22, p_rhs, 0, 1, 1)[1:]  # -H22^-1 H21 a
             if info != 0:
                 raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
             subtract(u, minus_p, u)  # stacked = [-a; p + u]
-            z = dot(h_head, stacked)  # -H11 a + H12 u - h1
-            _, solved, info = dposv(gram, z)
+            dgemv(1.0, head_columns, stacked, 0.0, z, 0, 1, 0, 1, 1, 1)  # -H11 a + H12 u - h1
+            solved, info = dposv(gram, z, 0, 1, 1)[1:]
             if info != 0:
                 raise SingularPostureError(
                     f"H12 H12^T is not positive definite (LAPACK info {info})")
-            dot(h12_t, solved, ddq_joints)  # H12^+ z
+            dgemv(1.0, h12, solved, 0.0, ddq_joints, 0, 1, 0, 1, 1, 1)  # H12^+ z
             subtract(ddq_joints, u, ddq_joints)  # phi'' = w - p, w = H12^+ z - u
             negative(minus_a, ddq_head)  # w'' = a
-            tau = dot(h_joints, padded)  # H21 a + H22 (w - p) + h2 = H22 w + h2
-            outputs[0], outputs[1] = ddq, {"R": r}
+            tau = dgemv(1.0, joint_columns, padded, 0.0, None, 0, 1, 0, 1, 1)
+            outputs[0], outputs[1] = ddq, {"R": r}  # tau = H21 a + H22 (w - p) + h2
             return tau
 
         self._hot = hot

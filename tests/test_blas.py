@@ -1,0 +1,48 @@
+"""In-place BLAS and LAPACK calls: the probe that guards their argument orders."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.linalg import blas, lapack
+
+from snake_pin import _blas
+
+
+def test_in_place_calls_hold_on_this_scipy() -> None:
+    """scipy's wrappers take the hot path's positional, in-place arguments."""
+    assert _blas.in_place_calls_hold()
+
+
+def test_dgemv_folds_beta_and_transposes_like_numpy() -> None:
+    """dgemv on a C matrix's transpose gives numpy's product plus beta y, in y itself."""
+    rng = np.random.default_rng(0)
+    c_ordered, x, y = rng.normal(size=(4, 7)), rng.normal(size=7), rng.normal(size=4)
+    expected = c_ordered @ x - y
+    _blas.dgemv(1.0, c_ordered.T, x, -1.0, y, 0, 1, 0, 1, 1, 1)
+    np.testing.assert_allclose(y, expected, rtol=1e-13, atol=1e-14)
+
+
+def _copying_dgemv(alpha, a, x, beta, y, offx, incx, offy, incy, trans, overwrite_y):
+    """A dgemv that returns its result instead of writing it into y."""
+    return blas.dgemv(alpha, a, x, beta, y.copy(), offx, incx, offy, incy, trans, 1)
+
+
+def _copying_dposv(a, b, lower, overwrite_a, overwrite_b):
+    """A dposv that leaves b alone and returns the solution in a new array."""
+    return lapack.dposv(a, b, lower, overwrite_a, 0)
+
+
+def _lower_dsyrk(alpha, a, beta, c, trans, lower, overwrite_c):
+    """A dsyrk whose wrapper would read the triangle flag the other way round."""
+    return blas.dsyrk(alpha, a, beta, c, trans, 1 - lower, overwrite_c)
+
+
+@pytest.mark.parametrize(("name", "stand_in"), [("dgemv", _copying_dgemv),
+                                                 ("dposv", _copying_dposv),
+                                                 ("dsyrk", _lower_dsyrk)])
+def test_probe_catches_a_changed_wrapper(monkeypatch, name, stand_in) -> None:
+    """A wrapper that copies instead of working in place, or fills the other triangle,
+    fails the probe."""
+    monkeypatch.setattr(_blas, name, stand_in)
+    assert not _blas.in_place_calls_hold()
