@@ -681,11 +681,9 @@ class FastDynamics:
     mass, inverse_mass, bias
         The arrays :attr:`mass_and_bias` and :attr:`affine` fill (views of a workspace of
         their own, made once: a controller may keep slices of them); valid until the next
-        call, read only.
-    augmented
-        ``[H | h]`` (n + 2 rows, n + 3 columns), also filled by :attr:`mass_and_bias`
-        (:attr:`bias` is its last column): one product with a row of it and
-        ``[v; 1]`` gives ``H v + h`` (read only).
+        call, read only. :attr:`mass` and :attr:`inverse_mass` are Pinocchio's, stored
+        column-major (Fortran-ordered), so that their columns (= rows) go to BLAS without
+        a copy.
     """
 
     def __init__(self, snake: Snake, rows: int = 4) -> None:
@@ -704,30 +702,16 @@ class FastDynamics:
         own_zq, own_zv = own[:size], own[size:]
         gen, damping = np.zeros(nq), np.zeros(nq)
         torque = self.torque
-        rnea, aba, pin_minverse = pin.rnea, pin.aba, pin.computeMinverse
-        nle = pin.nonLinearEffects
+        rnea, aba, nle = pin.rnea, pin.aba, pin.nonLinearEffects
         # The controllers' calls run on a workspace of their own, whose M and Minv are read
         # through views made once (Pinocchio returns copies: slicing those costs per call).
-        own_data = model.createData()
-        self.mass, self.inverse_mass = own_data.M, own_data.Minv
-        self.augmented = np.zeros((nq, nq + 1))
-        self.bias = bias = self.augmented[:, nq]
-        mass, inverse_mass = self.mass, self.inverse_mass
-        augmented_mass, mass_rows = self.augmented[:, :nq], mass.T  # H symmetric: rows
-        crba = _whole_crba(model, own_data)  # crba(q): H into mass, both triangles
-        if _binding_mirrors(model):  # the bindings fill both triangles: nothing to do
-            def minverse(model: pin.Model, data: pin.Data) -> np.ndarray:
-                pin_minverse(model, data)
-                return inverse_mass
-
-        else:  # a binding that fills the upper triangle only: mirror it in place
-            lower = np.tril(np.ones((nq, nq), dtype=bool), -1)
-
-            def minverse(model: pin.Model, data: pin.Data) -> np.ndarray:
-                pin_minverse(model, data)
-                np.copyto(inverse_mass, inverse_mass.T, where=lower)
-                return inverse_mass
-        data = own_data
+        data = model.createData()
+        self.mass, self.inverse_mass = mass, inverse_mass = data.M, data.Minv
+        self.bias = bias = np.zeros(nq)
+        # crba and minverse fill H and H^-1 whole: Pinocchio's own functions where its
+        # bindings mirror the triangle they compute (these do), else wrappers that mirror
+        crba = _whole(pin.crba, mass, _crba_mirrors(model))
+        minverse = _whole(pin.computeMinverse, inverse_mass, _binding_mirrors(model))
         negative, subtract, add = np.negative, np.subtract, np.add
         # outputs are passed by position below: numpy parses an out= keyword for some 40 ns
         world = _WORLD
@@ -742,12 +726,12 @@ class FastDynamics:
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 b = aba(model, data, x[:nq], x[nq:], of_state(x), world)
-                return b, minverse(model, data)
+                minverse(model, data)
+                return b, inverse_mass
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 q, v = x[:nq], x[nq:]
-                crba(q)
-                augmented_mass[...] = mass_rows
+                crba(model, data, q, world)
                 return mass, subtract(nle(model, data, q, v), of_state(x), bias)
 
         elif not passes.has_wheels:  # isotropic: one RNEA of the twin gives -Q
@@ -762,56 +746,58 @@ class FastDynamics:
                 q, v = x[:nq], x[nq:]  # no wheels: the twin's state is x itself
                 negative(rnea(twin, twin_data, q, zero, v), gen)
                 b = aba(model, data, q, v, gen, world)
-                return b, minverse(model, data)
+                minverse(model, data)
+                return b, inverse_mass
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 q, v = x[:nq], x[nq:]
-                damping = rnea(twin, twin_data, q, zero, v)  # -Q
-                crba(q)
-                augmented_mass[...] = mass_rows
-                return mass, add(nle(model, data, q, v), damping, bias)
+                minus_q = rnea(twin, twin_data, q, zero, v)
+                crba(model, data, q, world)
+                return mass, add(nle(model, data, q, v), minus_q, bias)
 
         else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
             twin, twin_data = passes.twin, passes.twin_data
-            twin_crba = _whole_crba(twin, twin_data)
+            twin_mass = twin_data.M
+            twin_crba = _whole(pin.crba, twin_mass, _crba_mirrors(twin))
             # -Q at [zq, zv]: [M_cc, M_cw] [q'; w] with the wheels rolling at w = M_wc q'
             # (M_ww = -1, see ForcePasses): the wheel rows times zv, whose wheel slots are
             # 0, written into a buffer of its own, then E tau + Q in place on a copy of
             # E tau. Both products are BLAS's dgemv on M's columns (Fortran-ordered, and
-            # M is symmetric: columns are rows), called in place (see _blas)
-            twin_mass = twin_data.M
+            # M is symmetric: columns are rows), called in place (see _blas). The own
+            # state's copies and these products are written out in affine and
+            # mass_and_bias too: a shared helper costs a call each
             chain_columns, wheel_columns = twin_mass[:, :nq], twin_mass[:, nq:]
             rolled = np.zeros(size)  # [q', w]
             rolled_v, rolled_w = rolled[:nq], rolled[nq:]
 
             def evaluate(row: int) -> np.ndarray:
                 zq, zv, q, v = views[row]
-                twin_crba(zq)
+                twin_crba(twin, twin_data, zq, world)
                 rolled_v[...] = v
                 dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
                 gen[...] = torque
                 dgemv(-1.0, chain_columns, rolled, 1.0, gen, 0, 1, 0, 1, 1, 1)
                 return aba(model, data, q, v, gen, world)
 
-            def own_damping(x: np.ndarray) -> None:
-                """-Q at the plain state x = [q, q'] into damping, on the own buffers."""
+            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 own_q[...] = x[:nq]
                 own_v[...] = x[nq:]
-                twin_crba(own_zq)
+                twin_crba(twin, twin_data, own_zq, world)
                 rolled_v[...] = own_v
                 dgemv(1.0, wheel_columns, own_zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
-                dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)
-
-            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                own_damping(x)
-                negative(damping, gen)
+                dgemv(-1.0, chain_columns, rolled, 0.0, gen, 0, 1, 0, 1, 1, 1)  # Q
                 b = aba(model, data, own_q, own_v, gen, world)
-                return b, minverse(model, data)
+                minverse(model, data)
+                return b, inverse_mass
 
             def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                own_damping(x)  # -Q
-                crba(own_q)
-                augmented_mass[...] = mass_rows
+                own_q[...] = x[:nq]
+                own_v[...] = x[nq:]
+                twin_crba(twin, twin_data, own_zq, world)
+                rolled_v[...] = own_v
+                dgemv(1.0, wheel_columns, own_zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
+                dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)  # -Q
+                crba(model, data, own_q, world)
                 return mass, add(nle(model, data, own_q, own_v), damping, bias)
 
         self.evaluate = evaluate
@@ -827,20 +813,21 @@ def _fast_dynamics_of(snake: Snake) -> FastDynamics:
     return snake.fast_dynamics
 
 
-def _whole_crba(model: pin.Model, data: pin.Data) -> Callable[[np.ndarray], None]:
-    """``crba(q)`` filling ``data.M`` whole (both triangles) in the WORLD convention."""
-    pin_crba, mass = pin.crba, data.M
-    if _crba_mirrors(model):
-        def crba(q: np.ndarray) -> None:
-            pin_crba(model, data, q, _WORLD)
+def _whole(algorithm: Callable[..., Any], matrix: np.ndarray,
+           mirrors: bool) -> Callable[..., Any]:
+    """``algorithm`` (``pin.crba`` or ``pin.computeMinverse``) itself when the bindings
+    return ``matrix`` (the view of the Data's M or Minv) whole, else a wrapper of the same
+    signature that mirrors its upper triangle into the lower one in place."""
+    if mirrors:
+        return algorithm
+    lower = np.tril(np.ones(matrix.shape, dtype=bool), -1)
 
-    else:  # a binding that fills the upper triangle only: mirror it in place
-        lower = np.tril(np.ones(mass.shape, dtype=bool), -1)
+    def whole(*arguments: Any) -> np.ndarray:
+        algorithm(*arguments)
+        np.copyto(matrix, matrix.T, where=lower)
+        return matrix
 
-        def crba(q: np.ndarray) -> None:
-            pin_crba(model, data, q, _WORLD)
-            np.copyto(mass, mass.T, where=lower)
-    return crba
+    return whole
 
 
 def _binding_mirrors(model: pin.Model) -> bool:

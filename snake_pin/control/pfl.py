@@ -29,8 +29,8 @@ H12^+ z = H12^T (H12 H12^T)^-1 z (R > 0: full row rank) by a 3 x 3 Cholesky solv
 square root of the smallest eigenvalue of H12 H12^T (the cubic's closed form,
 :func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`, LAPACK's dsyev where two eigenvalues
 nearly coincide; a full SVD of H12 costs 4x more), and H and h from one CRBA, one RNEA
-and the friction passes (:class:`~snake_pin.model.FastDynamics`; h as the last column of
-``[H | h]``, so that the products with H's head and joint rows add it). The time-only parts
+and the friction passes (:class:`~snake_pin.model.FastDynamics`; the products with H's
+head and joint rows add h1 and h2 as BLAS's beta term, :mod:`snake_pin._blas`). The time-only parts
 of a and u are computed in blocks for the coming calls. The closed loop's q'' at the state
 is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p, which the simulator
 uses as RK4's first stage (:meth:`PFLController.plant_acceleration`); the torque is formed
@@ -130,10 +130,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self._law_time = law.T.copy()
         self._time_row = TimeTerms(self._time_terms)
         self._dynamics = snake.fast_dynamics
-        # [w''; phi''; 1] and [-a; u (then u + p); -1]: one product with a block of rows
-        # of [H | h] then gives H v + h or H v - h
-        self._ddq_buffer = np.r_[np.zeros(nq), 1.0]
-        self._stacked = np.r_[np.zeros(nq), -1.0]
+        # q'' = [w''; phi''] and [-a; u (then u + p)]
+        self._ddq, self._stacked = np.zeros(nq), np.zeros(nq)
         self._make_views()
 
     def _make_views(self) -> None:
@@ -142,18 +140,19 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         :class:`~snake_pin.control.base._ViewsMadeOnce`)."""
         nq, dynamics, outputs = self._nq, self._dynamics, self._outputs
         m = nq - 3
-        augmented = dynamics.augmented  # [H | h], rows contiguous
-        columns = augmented.T  # Fortran-ordered: its columns are [H | h]'s rows
-        stacked, padded = self._stacked, self._ddq_buffer
+        mass, bias = dynamics.mass, dynamics.bias  # H (Fortran-ordered, whole) and h
+        stacked, ddq = self._stacked, self._ddq
         # BLAS and LAPACK run in place on Fortran-ordered buffers of the closure's own (see
-        # snake_pin._blas): H12 and H22 are copied into them per call
+        # snake_pin._blas): H12 and H22 are copied into them per call; H's columns are its
+        # rows (symmetric)
         h12, h22 = np.zeros((3, m), order="F"), np.zeros((m, m), order="F")
         gram, p_rhs, z = np.zeros((3, 3), order="F"), np.zeros(m), np.zeros(3)
         gain_columns = self._gain.T  # Fortran-ordered
-        h12_block, h22_block = augmented[:3, 3:nq], augmented[3:, 3:nq]
-        head_columns, joint_columns = columns[:, :3], columns[:, 3:]
-        state_terms, minus_a, u = stacked[:nq], stacked[:3], stacked[3:nq]
-        ddq, ddq_head, ddq_joints = padded[:nq], padded[:3], padded[3:nq]
+        h12_block, h22_block = mass[:3, 3:], mass[3:, 3:]
+        head_columns, joint_columns = mass[:, :3], mass[:, 3:]
+        h_head, h_joints = bias[:3], bias[3:]
+        minus_a, u = stacked[:3], stacked[3:]
+        ddq_head, ddq_joints = ddq[:3], ddq[3:]
         mass_and_bias, time_row = dynamics.mass_and_bias, self._time_row
         subtract, negative, sqrt = np.subtract, np.negative, math.sqrt
         smallest = smallest_eigenvalue_3x3
@@ -168,8 +167,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             r_min = law.r_min
             if not r > r_min:
                 raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
-            state_terms[...] = time_row(t)
-            dgemv(1.0, gain_columns, x, 1.0, state_terms, 0, 1, 0, 1, 1, 1)  # [-a; u] (71, 78)
+            stacked[...] = time_row(t)
+            dgemv(1.0, gain_columns, x, 1.0, stacked, 0, 1, 0, 1, 1, 1)  # [-a; u] (71, 78)
             if law.climb_R:
                 subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
                                                  - x[nq + 3:]), u)
@@ -179,7 +178,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             if info != 0:
                 raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
             subtract(u, minus_p, u)  # stacked = [-a; p + u]
-            dgemv(1.0, head_columns, stacked, 0.0, z, 0, 1, 0, 1, 1, 1)  # -H11 a + H12 u - h1
+            z[...] = h_head
+            dgemv(1.0, head_columns, stacked, -1.0, z, 0, 1, 0, 1, 1, 1)  # -H11 a + H12 u - h1
             solved, info = dposv(gram, z, 0, 1, 1)[1:]
             if info != 0:
                 raise SingularPostureError(
@@ -187,8 +187,9 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             dgemv(1.0, h12, solved, 0.0, ddq_joints, 0, 1, 0, 1, 1, 1)  # H12^+ z
             subtract(ddq_joints, u, ddq_joints)  # phi'' = w - p, w = H12^+ z - u
             negative(minus_a, ddq_head)  # w'' = a
-            tau = dgemv(1.0, joint_columns, padded, 0.0, None, 0, 1, 0, 1, 1)
-            outputs[0], outputs[1] = ddq, {"R": r}  # tau = H21 a + H22 (w - p) + h2
+            tau = h_joints.copy()
+            dgemv(1.0, joint_columns, ddq, 1.0, tau, 0, 1, 0, 1, 1, 1)  # H21 a + H22 phi''+ h2
+            outputs[0], outputs[1] = ddq, {"R": r}
             return tau
 
         self._hot = hot
