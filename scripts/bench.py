@@ -185,8 +185,7 @@ def bench_friction_routes(budget: float) -> None:
         for route, snake in snakes.items():
             dynamics = snake.fast_dynamics
             dynamics.states[1, dynamics.select] = x
-            # evaluate(1) over and over: the row's wheel slots keep the last rolling speeds
-            # (the step rewrites the row first), which changes the values, not the cost
+            dynamics.slopes[2, :snake.nq] = x[snake.nq:]  # the stage's q', as RK4 writes it
             calls[route] = partial(dynamics.evaluate, 1)
         times = interleaved_samples(calls, budget=budget)
         rows.append([str(n), "twin" if n <= chosen else "numpy",

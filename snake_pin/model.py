@@ -644,8 +644,12 @@ class FastDynamics:
     States are the rows of :attr:`states`, laid out as the friction passes read them
     (:class:`~snake_pin.friction.ForcePasses`): ``z = [q, 0_w, q', 0_w]``, 2 :attr:`size`
     long, where the w slots are the wheels of anisotropic friction (none for isotropic
-    friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. The w slots
-    must stay 0 (evaluating a row only reads it). Every ABA is in Pinocchio's WORLD
+    friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. The caller
+    writes a state whole (w slots 0) and also its q' into the same row of :attr:`slopes`
+    (RK4's tableau, whose slope rows hold ``[q', 0_w, q'', 0_w]``) before evaluating it:
+    with wheels, that ``[q', 0_w]`` gives their rolling speeds, which go into the state's
+    wheel velocity slots (so evaluating a row twice gives the same q''). Every ABA is in
+    Pinocchio's WORLD
     convention: faster than LOCAL here, and the one after which the two-argument
     ``pin.computeMinverse`` is right (after a LOCAL ABA it silently returns a wrong
     matrix).
@@ -661,6 +665,10 @@ class FastDynamics:
     ----------
     states
         (rows, 2 size) stage states, written by the caller.
+    slopes
+        (rows + 1, 2 size) RK4's tableau ``[Z; d_1; ...]``: the step's state, then per
+        stage i its slope in row i + 1, whose first half (q', wheel slots 0) the caller
+        writes before evaluating ``states[i]``.
     torque
         E tau (length n + 2; passive rows stay 0), written by the caller, used by
         :attr:`evaluate`.
@@ -669,7 +677,8 @@ class FastDynamics:
         for the caller's new state, so that one pass over it checks the state and the
         torque it was reached with.
     evaluate
-        ``evaluate(row) -> q''`` (a new array) at ``states[row]`` under :attr:`torque`.
+        ``evaluate(row) -> q''`` (a new array) at ``states[row]`` (q' also in
+        ``slopes[row + 1]``) under :attr:`torque`.
     affine
         ``affine(x) -> (b, M)`` at the plain state ``x = [q, q']``: b = q'' at zero torque
         (-H^-1 h, a new array) and M = H^-1, whole (both triangles), which is
@@ -693,10 +702,14 @@ class FastDynamics:
         size = passes.size if passes is not None else nq
         self.size = size
         self.states = np.zeros((rows, 2 * size))
+        self.slopes = np.zeros((rows + 1, 2 * size))
         self.checked = np.zeros(2 * size + nq)
         self.torque = self.checked[2 * size:]
         self.select = np.r_[np.arange(nq), size + np.arange(nq)]
-        views = [(row[:size], row[size:], row[:nq], row[size:size + nq]) for row in self.states]
+        # per row: [q, 0_w], [q', 0_w], q, q', the wheels' slots of [q', 0_w], and
+        # [q', 0_w] in the row's slope (see evaluate)
+        views = [(row[:size], row[size:], row[:nq], row[size:size + nq], row[size + nq:],
+                  rate[:size]) for row, rate in zip(self.states, self.slopes[1:], strict=True)]
         own = np.zeros(2 * size)  # affine's own state, so that it never clobbers a stage
         own_q, own_v = own[:nq], own[size:size + nq]
         own_zq, own_zv = own[:size], own[size:]
@@ -721,7 +734,7 @@ class FastDynamics:
 
             def evaluate(row: int) -> np.ndarray:
                 add(torque, of_state(states[row]), gen)
-                _, _, q, v = views[row]
+                _, _, q, v, _, _ = views[row]
                 return aba(model, data, q, v, gen, world)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -738,7 +751,7 @@ class FastDynamics:
             twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
 
             def evaluate(row: int) -> np.ndarray:
-                zq, zv, q, v = views[row]  # size == nq: the twin's rows are Q's
+                zq, zv, q, v, _, _ = views[row]  # size == nq: the twin's rows are Q's
                 subtract(torque, rnea(twin, twin_data, zq, zero, zv), gen)
                 return aba(model, data, q, v, gen, world)
 
@@ -760,23 +773,22 @@ class FastDynamics:
             twin_mass = twin_data.M
             twin_crba = _whole(pin.crba, twin_mass, _crba_mirrors(twin))
             # -Q at [zq, zv]: [M_cc, M_cw] [q'; w] with the wheels rolling at w = M_wc q'
-            # (M_ww = -1, see ForcePasses): the wheel rows times zv, whose wheel slots are
-            # 0, written into a buffer of its own, then E tau + Q in place on a copy of
-            # E tau. Both products are BLAS's dgemv on M's columns (Fortran-ordered, and
-            # M is symmetric: columns are rows), called in place (see _blas). The own
-            # state's copies and these products are written out in affine and
-            # mass_and_bias too: a shared helper costs a call each
+            # (M_ww = -1, see ForcePasses): the wheel rows times [q'; 0_w] (the stage's
+            # slope row holds it: no copy), written into the state's wheel slots, then
+            # E tau + Q in place on a copy of E tau. Both products are BLAS's dgemv on M's
+            # columns (Fortran-ordered, and M is symmetric: columns are rows), called in
+            # place (see _blas). The own state's copies and these products are written
+            # out in affine and mass_and_bias too: a shared helper costs a call each
             chain_columns, wheel_columns = twin_mass[:, :nq], twin_mass[:, nq:]
-            rolled = np.zeros(size)  # [q', w]
+            rolled = np.zeros(size)  # [q', w] of the own state
             rolled_v, rolled_w = rolled[:nq], rolled[nq:]
 
             def evaluate(row: int) -> np.ndarray:
-                zq, zv, q, v = views[row]
+                zq, zv, q, v, rolling, rate = views[row]
                 twin_crba(twin, twin_data, zq, world)
-                rolled_v[...] = v
-                dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
+                dgemv(1.0, wheel_columns, rate, 0.0, rolling, 0, 1, 0, 1, 1, 1)
                 gen[...] = torque
-                dgemv(-1.0, chain_columns, rolled, 1.0, gen, 0, 1, 0, 1, 1, 1)
+                dgemv(-1.0, chain_columns, zv, 1.0, gen, 0, 1, 0, 1, 1, 1)
                 return aba(model, data, q, v, gen, world)
 
             def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -946,7 +946,10 @@ class _FastRK4:
         self._evaluate, self._torque, self._select = (dynamics.evaluate, dynamics.torque,
                                                       dynamics.select)
         self._joint_torque = self._torque[3:]
-        self._slopes = np.zeros((5, 2 * size))  # [Z; d1; d2; d3; d4]
+        # [Z; d1; d2; d3; d4], zeroed: a stage's product weighs the later slopes by 0, which
+        # a NaN left there by an earlier run would still turn into NaN
+        self._slopes = dynamics.slopes
+        self._slopes[...] = 0.0
         self._state = self._slopes[0]
         self._state[self._select] = x0
         # the new state goes right before the torque: one pass checks both (see step)
@@ -1009,20 +1012,20 @@ class _FastRK4:
                     return "the torque is not finite"  # nothing stepped
                 joint_torque[joint] = 0.0
             for sub in range(substeps):
+                d0[...] = velocity  # each stage's q' in its slope first (see FastDynamics)
                 if sub or first is None:
                     row0[...] = state
                     first = evaluate(0)
-                d0[...] = velocity
                 a0[...] = first
                 dgemv(1.0, slopes, c1, 0.0, r1, 0, 1, 0, 1, 0, 1)
-                a1[...] = evaluate(1)
                 v1[...] = s1
+                a1[...] = evaluate(1)
                 dgemv(1.0, slopes, c2, 0.0, r2, 0, 1, 0, 1, 0, 1)
-                a2[...] = evaluate(2)
                 v2[...] = s2
+                a2[...] = evaluate(2)
                 dgemv(1.0, slopes, c3, 0.0, r3, 0, 1, 0, 1, 0, 1)
-                a3[...] = evaluate(3)
                 v3[...] = s3
+                a3[...] = evaluate(3)
                 dgemv(1.0, slopes, final, 0.0, new, 0, 1, 0, 1, 0, 1)
                 state[...] = new
             if plain:

@@ -143,6 +143,20 @@ def test_fast_step_refuses_a_torque_where_the_plain_step_does(
     assert np.abs(fast.q - plain.q).max() < 1e-12
 
 
+@pytest.mark.parametrize("robot", ["isotropic", "wheels"])
+def test_a_run_after_a_blown_up_run_of_the_same_robot_is_untouched(robot: str) -> None:
+    """The robot's RK4 tableau is shared by its runs: a non-finite torque's NaN left in it
+    does not reach the next run (equal to the run on a fresh robot)."""
+    params = _robots()[robot]
+    used = Snake(params)
+    blown = simulate(used, _TurnsBad(np.inf, 3), initial_state(params), 0.05)
+    assert blown.status == "failed" and np.isnan(used.fast_dynamics.slopes).any()
+    runs = [simulate(snake, LyapunovController(snake), initial_state(params), 0.05)
+            for snake in (used, Snake(params))]
+    assert runs[0].status == runs[1].status == "completed"
+    assert np.array_equal(runs[0].q, runs[1].q) and np.array_equal(runs[0].dq, runs[1].dq)
+
+
 class _StrictTurnsBad(_TurnsBad):
     """:class:`_TurnsBad` that has numpy raise on every floating-point error from its first
     call on, and whose signals and q'' refuse a non-finite torque of its own."""
