@@ -50,7 +50,7 @@ from threadpoolctl import ThreadpoolController
 
 from ._blas import dgemv
 from ._io import atomic_group
-from .control.base import Controller
+from .control.base import Controller, sampler
 from .exceptions import (
     ConfigurationError,
     ParameterError,
@@ -853,12 +853,15 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         except Exception as exc:
             status, reason = "failed", _failure(0.0, exc)
         # one BLAS thread for the run's tiny matrices, entered once (not per step)
+        # the controller's methods, found once
+        call, signals_of, plant_acceleration = sampler(ctrl), ctrl.signals, \
+            ctrl.plant_acceleration
         with _thread_pools().limit(limits=1):
             for k in range(steps if status == "completed" else 0):
                 t = k * control_dt
                 tau, known = None, len(signals)
                 try:
-                    raw = ctrl(x, t)
+                    raw = call(x, t)
                     if late_check and type(raw) is np.ndarray and raw.dtype is _FLOAT \
                             and raw.shape == torque_shape:
                         tau = raw  # whether it is finite: checked with the new state
@@ -868,12 +871,12 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                             status, reason = "failed", f"{problem} at t = {t:.4f} s"
                             break
                         tau = checked
-                    for name, value in ctrl.signals().items():
+                    for name, value in signals_of().items():
                         series = signals.get(name)
                         if series is None:
                             series = signals[name] = np.full(steps + 1, np.nan)
                         series[k] = value
-                    first = ctrl.plant_acceleration(snake) if fast is not None else None
+                    first = plant_acceleration(snake) if fast is not None else None
                 except Exception as exc:
                     if tau is not None and not np.isfinite(tau).all():
                         status, reason = "failed", refuse(k, t, known)

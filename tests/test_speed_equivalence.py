@@ -346,3 +346,21 @@ def test_a_shallow_copy_keeps_its_own_last_call(rng: np.random.Generator) -> Non
         assert law.signals() == signals and twin.signals() != signals
         if isinstance(law, LyapunovController):
             assert np.array_equal(law.plant_acceleration(snake), ddq)
+
+
+def test_sampler_skips_only_a_call_that_merely_forwards(rng: np.random.Generator) -> None:
+    """A law's sampler is its hot closure (same torque); a subclass's own __call__ is kept."""
+    from snake_pin.control.base import sampler
+
+    class Scaled(LyapunovController):
+        def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+            return 2.0 * super().__call__(x, t)
+
+    params = tracking_params()
+    snake = Snake(params)
+    x = head_first_state(rng, snake.n)
+    law, scaled = LyapunovController(snake), Scaled(snake)
+    assert sampler(law) is law._hot and np.array_equal(sampler(law)(x, 0.1), law(x, 0.1))
+    assert sampler(scaled) is scaled
+    run = simulate(snake, scaled, initial_state(params), 0.02)
+    assert np.allclose(run.tau[0], 2.0 * law(initial_state(params), 0.0), rtol=1e-12)

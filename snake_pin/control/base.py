@@ -18,7 +18,7 @@ from ..exceptions import ParameterError
 from ..gaits import Serpenoid
 from .reference import LinearReference
 
-__all__ = ["Controller", "OpenLoop", "TimeTerms", "gait_for", "reference_rows"]
+__all__ = ["Controller", "OpenLoop", "TimeTerms", "gait_for", "reference_rows", "sampler"]
 
 #: Time-only terms are computed for this many coming calls at once (see TimeTerms).
 _BLOCK = 1024
@@ -111,7 +111,7 @@ class TimeTerms:
             Times [s], shape (T,), in the order of the coming calls.
         """
         self._times = np.asarray(times, dtype=float)
-        self._cursor = 0
+        self._start = 0  # where the next block starts
         self._next = float(self._times[0]) if len(self._times) else None
         self._rows_left: list[np.ndarray] = []
         # the announced times after the current one, up to the next block's first, as
@@ -121,15 +121,16 @@ class TimeTerms:
     def __call__(self, t: float) -> np.ndarray:
         """The row at time t (read only)."""
         if t == self._next:
-            cursor = self._cursor = self._cursor + 1
-            if not self._rows_left:
-                times = self._times
-                block = self._rows(times[cursor - 1:cursor - 1 + _BLOCK])
-                self._rows_left = list(block[::-1])  # popped from the end, in order
-                self._times_left = times[cursor:cursor + _BLOCK].tolist()[::-1]
+            rows_left = self._rows_left
+            if not rows_left:  # t is times[start]: the block from there
+                start, times = self._start, self._times
+                block = self._rows(times[start:start + _BLOCK])
+                rows_left = self._rows_left = list(block[::-1])  # popped from the end
+                self._times_left = times[start + 1:start + 1 + _BLOCK].tolist()[::-1]
+                self._start = start + _BLOCK
             times_left = self._times_left
             self._next = times_left.pop() if times_left else None
-            return self._rows_left.pop()
+            return rows_left.pop()
         return self._rows(np.array([float(t)]))[0]
 
 
@@ -250,6 +251,27 @@ class _ViewsMadeOnce(abc.ABC):
         if "_outputs" in state:
             self._outputs: list[Any] = [None, {}]
         self._make_views()
+
+
+def sampler(controller: Controller) -> Callable[[np.ndarray, float], np.ndarray]:
+    """What a run calls at each sample: the controller, or, where calling it would only
+    forward to its hot path's closure (:class:`_ViewsMadeOnce`), that closure (one
+    Python call fewer per sample).
+
+    Parameters
+    ----------
+    controller : Controller
+        The controller, reset and prepared for the run.
+
+    Returns
+    -------
+    callable
+        ``f(x, t) -> tau``, equal to calling the controller.
+    """
+    if isinstance(controller, _ViewsMadeOnce) and \
+            type(controller).__call__ is _ViewsMadeOnce.__call__:
+        return controller._hot
+    return controller
 
 
 class _ReferenceTimeTerms:

@@ -174,18 +174,18 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                                                  - x[nq + 3:]), u)
             dgemv(1.0, h12, minus_a, 0.0, p_rhs, 0, 1, 0, 1, 1, 1)  # -H21 a
             h22[...] = h22_block
-            minus_p, info = dposv(h22, p_rhs, 0, 1, 1)[1:]  # -H22^-1 H21 a
+            info = dposv(h22, p_rhs, 0, 1, 1)[2]  # -p = -H22^-1 H21 a, in p_rhs
             if info != 0:
                 raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-            subtract(u, minus_p, u)  # stacked = [-a; p + u]
+            subtract(u, p_rhs, u)  # stacked = [-a; p + u]
             z[...] = h_head
             dgemv(1.0, head_columns, stacked, -1.0, z, 0, 1, 0, 1, 1, 1)  # -H11 a + H12 u - h1
-            solved, info = dposv(gram, z, 0, 1, 1)[1:]
+            info = dposv(gram, z, 0, 1, 1)[2]  # (H12 H12^T)^-1 z, in z
             if info != 0:
                 raise SingularPostureError(
                     f"H12 H12^T is not positive definite (LAPACK info {info})")
-            dgemv(1.0, h12, solved, 0.0, ddq_joints, 0, 1, 0, 1, 1, 1)  # H12^+ z
-            subtract(ddq_joints, u, ddq_joints)  # phi'' = w - p, w = H12^+ z - u
+            ddq_joints[...] = u
+            dgemv(1.0, h12, z, -1.0, ddq_joints, 0, 1, 0, 1, 1, 1)  # H12^+ z - (u + p)
             negative(minus_a, ddq_head)  # w'' = a
             tau = h_joints.copy()
             dgemv(1.0, joint_columns, ddq, 1.0, tau, 0, 1, 0, 1, 1, 1)  # H21 a + H22 phi''+ h2
