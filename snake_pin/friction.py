@@ -68,7 +68,7 @@ __all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_tw
 
 #: Longest robot whose anisotropic friction force goes through the wheeled twin (one CRBA
 #: over 2n + 2 joints and two products); numpy's cost grows more slowly with n. One
-#: closed-loop evaluation (FastDynamics.evaluate) took 5.9 against 11.9 us at n = 10,
+#: closed-loop evaluation (a FastDynamics evaluator) took 5.9 against 11.9 us at n = 10,
 #: 14.2 against 16.9 at n = 30, 19.5 against 19.5 at n = 40 and 25.0 against 22.0 at
 #: n = 50 (``python scripts/bench.py --only friction_routes``).
 WHEELED_TWIN_MAX_LINKS = 40

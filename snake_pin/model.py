@@ -645,10 +645,10 @@ class FastDynamics:
     (:class:`~snake_pin.friction.ForcePasses`): ``z = [q, 0_w, q', 0_w]``, 2 :attr:`size`
     long, where the w slots are the wheels of anisotropic friction (none for isotropic
     friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. The caller
-    writes a state whole (w slots 0) and also its q' into the same row of :attr:`slopes`
-    (RK4's tableau, whose slope rows hold ``[q', 0_w, q'', 0_w]``) before evaluating it:
-    with wheels, that ``[q', 0_w]`` gives their rolling speeds, which go into the state's
-    wheel velocity slots (so evaluating a row twice gives the same q''). Every ABA is in
+    writes a stage state whole (w slots 0) and also its q' into the next row of
+    :attr:`slopes` (RK4's tableau, whose slope rows hold ``[q', 0_w, q'', 0_w]``) before
+    evaluating it: with wheels, that ``[q', 0_w]`` gives their rolling speeds, which go into
+    the state's wheel velocity slots (so evaluating a row twice gives the same q''). Every ABA is in
     Pinocchio's WORLD
     convention: faster than LOCAL here, and the one after which the two-argument
     ``pin.computeMinverse`` is right (after a LOCAL ABA it silently returns a wrong
@@ -676,9 +676,9 @@ class FastDynamics:
         The buffer whose tail is :attr:`torque` (length 2 size + n + 2); its head is free
         for the caller's new state, so that one pass over it checks the state and the
         torque it was reached with.
-    evaluate
-        ``evaluate(row) -> q''`` (a new array) at ``states[row]`` (q' also in
-        ``slopes[row + 1]``) under :attr:`torque`.
+    evaluators
+        ``evaluators[row]() -> q''`` (a new array) at ``states[row]`` (q' also in
+        ``slopes[row + 1]``) under :attr:`torque`: one closure per row, over its views.
     affine
         ``affine(x) -> (b, M)`` at the plain state ``x = [q, q']``: b = q'' at zero torque
         (-H^-1 h, a new array) and M = H^-1, whole (both triangles), which is
@@ -687,6 +687,9 @@ class FastDynamics:
         ``mass_and_bias(x) -> (H, h)`` at the plain state x: H by CRBA, whole (both
         triangles), which is :attr:`mass`, and h = Coriolis/centrifugal minus friction, as
         :meth:`Snake.bias`, which is :attr:`bias`.
+    affine_of_step, mass_and_bias_of_step
+        The same calls at RK4's state Z, ``slopes[0]``, read in place: for the simulator,
+        which keeps Z equal to the x it calls a law with (``x`` is not read).
     mass, inverse_mass, bias
         The arrays :attr:`mass_and_bias` and :attr:`affine` fill (views of a workspace of
         their own, made once: a controller may keep slices of them); valid until the next
@@ -706,13 +709,6 @@ class FastDynamics:
         self.checked = np.zeros(2 * size + nq)
         self.torque = self.checked[2 * size:]
         self.select = np.r_[np.arange(nq), size + np.arange(nq)]
-        # per row: [q, 0_w], [q', 0_w], q, q', the wheels' slots of [q', 0_w], and
-        # [q', 0_w] in the row's slope (see evaluate)
-        views = [(row[:size], row[size:], row[:nq], row[size:size + nq], row[size + nq:],
-                  rate[:size]) for row, rate in zip(self.states, self.slopes[1:], strict=True)]
-        own = np.zeros(2 * size)  # affine's own state, so that it never clobbers a stage
-        own_q, own_v = own[:nq], own[size:size + nq]
-        own_zq, own_zv = own[:size], own[size:]
         gen, damping = np.zeros(nq), np.zeros(nq)
         torque = self.torque
         rnea, aba, nle = pin.rnea, pin.aba, pin.nonLinearEffects
@@ -728,93 +724,141 @@ class FastDynamics:
         negative, subtract, add = np.negative, np.subtract, np.add
         # outputs are passed by position below: numpy parses an out= keyword for some 40 ns
         world = _WORLD
+
+        def views(z: np.ndarray) -> tuple[np.ndarray, ...]:
+            """[q, 0_w], [q', 0_w], q and q' of a state z (views made once)."""
+            return z[:size], z[size:], z[:nq], z[size:size + nq]
+
+        # Each call below is made by a factory over the views of the state it reads: a
+        # stage (evaluate), the plain calls' own state, or RK4's state Z (slopes[0])
         if passes is None:  # long anisotropic robots: Q by numpy on [q, q'] (size == nq)
             of_state = snake.friction.of_state
-            states = self.states
 
-            def evaluate(row: int) -> np.ndarray:
-                add(torque, of_state(states[row]), gen)
-                _, _, q, v, _, _ = views[row]
-                return aba(model, data, q, v, gen, world)
+            def evaluate_at(z: np.ndarray, rate: np.ndarray) -> Callable[[], np.ndarray]:
+                _, _, q, v = views(z)
 
-            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                b = aba(model, data, x[:nq], x[nq:], of_state(x), world)
-                minverse(model, data)
-                return b, inverse_mass
+                def evaluate() -> np.ndarray:
+                    add(torque, of_state(z), gen)
+                    return aba(model, data, q, v, gen, world)
+                return evaluate
 
-            def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                q, v = x[:nq], x[nq:]
-                crba(model, data, q, world)
-                return mass, subtract(nle(model, data, q, v), of_state(x), bias)
+            def affine_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
+                _, _, q, v = views(z)
+
+                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    b = aba(model, data, q, v, of_state(z), world)
+                    minverse(model, data)
+                    return b, inverse_mass
+                return affine
+
+            def mass_and_bias_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
+                _, _, q, v = views(z)
+
+                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    crba(model, data, q, world)
+                    return mass, subtract(nle(model, data, q, v), of_state(z), bias)
+                return mass_and_bias
 
         elif not passes.has_wheels:  # isotropic: one RNEA of the twin gives -Q
             twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
 
-            def evaluate(row: int) -> np.ndarray:
-                zq, zv, q, v, _, _ = views[row]  # size == nq: the twin's rows are Q's
-                subtract(torque, rnea(twin, twin_data, zq, zero, zv), gen)
-                return aba(model, data, q, v, gen, world)
+            def evaluate_at(z: np.ndarray, rate: np.ndarray) -> Callable[[], np.ndarray]:
+                zq, zv, q, v = views(z)  # size == nq: the twin's rows are Q's
 
-            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                q, v = x[:nq], x[nq:]  # no wheels: the twin's state is x itself
-                negative(rnea(twin, twin_data, q, zero, v), gen)
-                b = aba(model, data, q, v, gen, world)
-                minverse(model, data)
-                return b, inverse_mass
+                def evaluate() -> np.ndarray:
+                    subtract(torque, rnea(twin, twin_data, zq, zero, zv), gen)
+                    return aba(model, data, q, v, gen, world)
+                return evaluate
 
-            def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                q, v = x[:nq], x[nq:]
-                minus_q = rnea(twin, twin_data, q, zero, v)
-                crba(model, data, q, world)
-                return mass, add(nle(model, data, q, v), minus_q, bias)
+            def affine_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
+                zq, zv, q, v = views(z)
+
+                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    negative(rnea(twin, twin_data, zq, zero, zv), gen)
+                    b = aba(model, data, q, v, gen, world)
+                    minverse(model, data)
+                    return b, inverse_mass
+                return affine
+
+            def mass_and_bias_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
+                zq, zv, q, v = views(z)
+
+                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    minus_q = rnea(twin, twin_data, zq, zero, zv)
+                    crba(model, data, q, world)
+                    return mass, add(nle(model, data, q, v), minus_q, bias)
+                return mass_and_bias
 
         else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
             twin, twin_data = passes.twin, passes.twin_data
             twin_mass = twin_data.M
             twin_crba = _whole(pin.crba, twin_mass, _crba_mirrors(twin))
             # -Q at [zq, zv]: [M_cc, M_cw] [q'; w] with the wheels rolling at w = M_wc q'
-            # (M_ww = -1, see ForcePasses): the wheel rows times [q'; 0_w] (the stage's
-            # slope row holds it: no copy), written into the state's wheel slots, then
-            # E tau + Q in place on a copy of E tau. Both products are BLAS's dgemv on M's
-            # columns (Fortran-ordered, and M is symmetric: columns are rows), called in
-            # place (see _blas). The own state's copies and these products are written
-            # out in affine and mass_and_bias too: a shared helper costs a call each
+            # (M_ww = -1, see ForcePasses), by BLAS's dgemv on M's columns (Fortran-
+            # ordered, and M is symmetric: columns are rows), in place (see _blas). A stage
+            # reads [q'; 0_w] from its slope row and writes w into its own wheel slots
+            # (no copy), then E tau + Q on a copy of E tau; the other states keep their
+            # wheel slots 0 (Z is a row of RK4's tableau) and roll in a buffer of their own
             chain_columns, wheel_columns = twin_mass[:, :nq], twin_mass[:, nq:]
-            rolled = np.zeros(size)  # [q', w] of the own state
+            rolled = np.zeros(size)  # [q', w]
             rolled_v, rolled_w = rolled[:nq], rolled[nq:]
 
-            def evaluate(row: int) -> np.ndarray:
-                zq, zv, q, v, rolling, rate = views[row]
-                twin_crba(twin, twin_data, zq, world)
-                dgemv(1.0, wheel_columns, rate, 0.0, rolling, 0, 1, 0, 1, 1, 1)
-                gen[...] = torque
-                dgemv(-1.0, chain_columns, zv, 1.0, gen, 0, 1, 0, 1, 1, 1)
-                return aba(model, data, q, v, gen, world)
+            def evaluate_at(z: np.ndarray, rate: np.ndarray) -> Callable[[], np.ndarray]:
+                zq, zv, q, v = views(z)
+                rolling = zv[nq:]
 
-            def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                own_q[...] = x[:nq]
-                own_v[...] = x[nq:]
-                twin_crba(twin, twin_data, own_zq, world)
-                rolled_v[...] = own_v
-                dgemv(1.0, wheel_columns, own_zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
-                dgemv(-1.0, chain_columns, rolled, 0.0, gen, 0, 1, 0, 1, 1, 1)  # Q
-                b = aba(model, data, own_q, own_v, gen, world)
-                minverse(model, data)
-                return b, inverse_mass
+                def evaluate() -> np.ndarray:
+                    twin_crba(twin, twin_data, zq, world)
+                    dgemv(1.0, wheel_columns, rate, 0.0, rolling, 0, 1, 0, 1, 1, 1)
+                    gen[...] = torque
+                    dgemv(-1.0, chain_columns, zv, 1.0, gen, 0, 1, 0, 1, 1, 1)
+                    return aba(model, data, q, v, gen, world)
+                return evaluate
 
-            def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                own_q[...] = x[:nq]
-                own_v[...] = x[nq:]
-                twin_crba(twin, twin_data, own_zq, world)
-                rolled_v[...] = own_v
-                dgemv(1.0, wheel_columns, own_zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
-                dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)  # -Q
-                crba(model, data, own_q, world)
-                return mass, add(nle(model, data, own_q, own_v), damping, bias)
+            def affine_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
+                zq, zv, q, v = views(z)
 
-        self.evaluate = evaluate
-        self.affine = affine
-        self.mass_and_bias = mass_and_bias
+                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    twin_crba(twin, twin_data, zq, world)
+                    rolled_v[...] = v
+                    dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
+                    dgemv(-1.0, chain_columns, rolled, 0.0, gen, 0, 1, 0, 1, 1, 1)  # Q
+                    b = aba(model, data, q, v, gen, world)
+                    minverse(model, data)
+                    return b, inverse_mass
+                return affine
+
+            def mass_and_bias_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
+                zq, zv, q, v = views(z)
+
+                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    twin_crba(twin, twin_data, zq, world)
+                    rolled_v[...] = v
+                    dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
+                    dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)  # -Q
+                    crba(model, data, q, world)
+                    return mass, add(nle(model, data, q, v), damping, bias)
+                return mass_and_bias
+
+        self.evaluators = [evaluate_at(row, rate[:size])
+                           for row, rate in zip(self.states, self.slopes[1:], strict=True)]
+        own = np.zeros(2 * size)  # the plain calls' own state, so that they never clobber
+        own_q, own_v = own[:nq], own[size:size + nq]  # a stage or Z
+        own_affine, own_mass_and_bias = affine_at(own), mass_and_bias_at(own)
+
+        def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            own_q[...] = x[:nq]
+            own_v[...] = x[nq:]
+            return own_affine(x)
+
+        def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            own_q[...] = x[:nq]
+            own_v[...] = x[nq:]
+            return own_mass_and_bias(x)
+
+        self.affine, self.mass_and_bias = affine, mass_and_bias
+        step = self.slopes[0]
+        self.affine_of_step, self.mass_and_bias_of_step = affine_at(step), mass_and_bias_at(step)
 
     def __reduce__(self) -> tuple[Any, tuple[Snake]]:
         """Pickled as its robot's (the closures are rebuilt by the robot on use)."""

@@ -854,8 +854,8 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
             status, reason = "failed", _failure(0.0, exc)
         # one BLAS thread for the run's tiny matrices, entered once (not per step)
         # the controller's methods, found once
-        call, signals_of, plant_acceleration = sampler(ctrl), ctrl.signals, \
-            ctrl.plant_acceleration
+        call = sampler(ctrl, snake.fast_dynamics if fast is not None else None)
+        signals_of, plant_acceleration = ctrl.signals, ctrl.plant_acceleration
         with _thread_pools().limit(limits=1):
             for k in range(steps if status == "completed" else 0):
                 t = k * control_dt
@@ -946,8 +946,8 @@ class _FastRK4:
         nq, size = snake.nq, dynamics.size
         self._nq, self._substeps = nq, substeps
         self._max_speed, self._max_distance = max_speed, max_distance
-        self._evaluate, self._torque, self._select = (dynamics.evaluate, dynamics.torque,
-                                                      dynamics.select)
+        self._evaluators, self._torque, self._select = (dynamics.evaluators, dynamics.torque,
+                                                        dynamics.select)
         self._joint_torque = self._torque[3:]
         # [Z; d1; d2; d3; d4], zeroed: a stage's product weighs the later slopes by 0, which
         # a NaN left there by an earlier run would still turn into NaN
@@ -990,7 +990,8 @@ class _FastRK4:
         its three later stages unrolled and every output passed by position (numpy parses
         ``out=`` keywords for some 40 ns a call)."""
         passive, joint_torque, isfinite = self._passive, self._joint_torque, math.isfinite
-        state, evaluate = self._state, self._evaluate
+        state = self._state
+        evaluate0, evaluate1, evaluate2, evaluate3 = self._evaluators
         slopes = self._slopes.T  # Fortran-ordered: Y^T c by dgemv, in place (see _blas)
         row0, d0, a0 = self._first_stage
         (c1, r1, v1, a1, s1), (c2, r2, v2, a2, s2), (c3, r3, v3, a3, s3) = (
@@ -1018,17 +1019,17 @@ class _FastRK4:
                 d0[...] = velocity  # each stage's q' in its slope first (see FastDynamics)
                 if sub or first is None:
                     row0[...] = state
-                    first = evaluate(0)
+                    first = evaluate0()
                 a0[...] = first
                 dgemv(1.0, slopes, c1, 0.0, r1, 0, 1, 0, 1, 0, 1)
                 v1[...] = s1
-                a1[...] = evaluate(1)
+                a1[...] = evaluate1()
                 dgemv(1.0, slopes, c2, 0.0, r2, 0, 1, 0, 1, 0, 1)
                 v2[...] = s2
-                a2[...] = evaluate(2)
+                a2[...] = evaluate2()
                 dgemv(1.0, slopes, c3, 0.0, r3, 0, 1, 0, 1, 0, 1)
                 v3[...] = s3
-                a3[...] = evaluate(3)
+                a3[...] = evaluate3()
                 dgemv(1.0, slopes, final, 0.0, new, 0, 1, 0, 1, 0, 1)
                 state[...] = new
             if plain:

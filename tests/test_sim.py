@@ -12,6 +12,7 @@ import signal
 import struct
 import sys
 import termios
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -249,15 +250,19 @@ def test_interrupt_anywhere_in_the_dynamics(table1: Snake, at: int) -> None:
 def test_interrupt_anywhere_in_the_fast_step(at: int) -> None:
     """Ctrl-C inside any stage of the robot's own (fast) RK4 keeps the samples before it."""
     snake = Snake(SnakeParams.table1())
-    evaluate, calls = snake.fast_dynamics.evaluate, []
+    evaluators, calls = snake.fast_dynamics.evaluators, []
 
-    def interrupted(row: int) -> np.ndarray:
-        calls.append(row)
-        if len(calls) == at:
-            raise KeyboardInterrupt
-        return evaluate(row)
+    def interrupted(row: int) -> Callable[[], np.ndarray]:
+        evaluate = evaluators[row]
 
-    snake.fast_dynamics.evaluate = interrupted
+        def stage() -> np.ndarray:
+            calls.append(row)
+            if len(calls) == at:
+                raise KeyboardInterrupt
+            return evaluate()
+        return stage
+
+    snake.fast_dynamics.evaluators = [interrupted(row) for row in range(4)]
     with pytest.raises(RunInterrupted) as info:
         simulate(snake, _wave(10), _x0(10), 0.02)
     partial = info.value.partial

@@ -361,6 +361,23 @@ def test_sampler_skips_only_a_call_that_merely_forwards(rng: np.random.Generator
     x = head_first_state(rng, snake.n)
     law, scaled = LyapunovController(snake), Scaled(snake)
     assert sampler(law) is law._hot and np.array_equal(sampler(law)(x, 0.1), law(x, 0.1))
-    assert sampler(scaled) is scaled
+    assert sampler(law, snake.fast_dynamics) is law._hot_of_step
+    assert sampler(law, Snake(params).fast_dynamics) is law._hot  # another robot's Z
+    assert sampler(scaled) is scaled and sampler(scaled, snake.fast_dynamics) is scaled
     run = simulate(snake, scaled, initial_state(params), 0.02)
     assert np.allclose(run.tau[0], 2.0 * law(initial_state(params), 0.0), rtol=1e-12)
+
+
+@pytest.mark.parametrize("law", [LyapunovController, PFLController])
+def test_a_law_on_another_robot_object_reads_its_own_state(law: type) -> None:
+    """A law whose model is another Snake object (same robot) is not handed the plant's
+    RK4 state: its run is the run of a law on the plant itself (to rounding: the plant
+    then evaluates RK4's first stage itself)."""
+    params = tracking_params() if law is LyapunovController else SnakeParams.table1(c_y=5.0)
+    plant = Snake(params)
+    x0 = initial_state(params) if law is LyapunovController else \
+        np.r_[0.0, 0.0, 0.0, np.full(params.n - 1, np.pi / 6), np.zeros(params.n + 2)]
+    runs = [simulate(plant, law(model), x0, 0.2) for model in (plant, Snake(params))]
+    assert runs[0].status == runs[1].status == "completed"
+    assert np.allclose(runs[0].q, runs[1].q, rtol=0.0, atol=1e-12)
+    assert np.abs(runs[0].tau - runs[1].tau).max() <= 1e-9 * np.abs(runs[1].tau).max()

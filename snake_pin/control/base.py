@@ -217,10 +217,14 @@ class _ViewsMadeOnce(abc.ABC):
     both are made again on unpickling."""
 
     _hot: Callable[[np.ndarray, float], np.ndarray]
+    #: The same law, reading x from its robot's RK4 state Z in place (see :func:`sampler`).
+    _hot_of_step: Callable[[np.ndarray, float], np.ndarray]
+    _dynamics: Any  # the robot's FastDynamics
 
     @abc.abstractmethod
     def _make_views(self) -> None:
-        """Make the views and the hot path's closure, and keep the closure in ``_hot``."""
+        """Make the views and the hot path's closures, and keep them in ``_hot`` and
+        ``_hot_of_step``."""
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques (length n - 1) at state ``x`` and time ``t``."""
@@ -236,6 +240,7 @@ class _ViewsMadeOnce(abc.ABC):
         """
         state = self.__dict__.copy()
         state.pop("_hot", None)
+        state.pop("_hot_of_step", None)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -253,15 +258,20 @@ class _ViewsMadeOnce(abc.ABC):
         self._make_views()
 
 
-def sampler(controller: Controller) -> Callable[[np.ndarray, float], np.ndarray]:
+def sampler(controller: Controller,
+            dynamics: object = None) -> Callable[[np.ndarray, float], np.ndarray]:
     """What a run calls at each sample: the controller, or, where calling it would only
     forward to its hot path's closure (:class:`_ViewsMadeOnce`), that closure (one
-    Python call fewer per sample).
+    Python call fewer per sample). When the run steps with the ``FastDynamics`` the law
+    itself uses, the closure reads the state from RK4's state Z instead of copying x (the
+    run keeps them equal).
 
     Parameters
     ----------
     controller : Controller
         The controller, reset and prepared for the run.
+    dynamics : FastDynamics, optional
+        The plant's fast dynamics when the run steps with them (else None).
 
     Returns
     -------
@@ -270,7 +280,9 @@ def sampler(controller: Controller) -> Callable[[np.ndarray, float], np.ndarray]
     """
     if isinstance(controller, _ViewsMadeOnce) and \
             type(controller).__call__ is _ViewsMadeOnce.__call__:
-        return controller._hot
+        # on the plant's own fast RK4, x is its state Z: the law reads it in place
+        return controller._hot_of_step if controller._dynamics is dynamics else \
+            controller._hot
     return controller
 
 

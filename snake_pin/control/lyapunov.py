@@ -71,6 +71,9 @@ tail, so a head-first run along +x has theta_1 = pi; see :func:`head_first_refer
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 
 from .._blas import dgemv, dposv, dsyrk
@@ -239,31 +242,37 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         # contiguous in Pinocchio's column-major storage
         inverse_mass = self._dynamics.inverse_mass
         rows, joint_columns = inverse_mass[3:], inverse_mass[:, 3:]
-        affine, time_row, sqrt_w = self._dynamics.affine, self._time_row, self._sqrt_w
+        time_row, sqrt_w = self._time_row, self._sqrt_w
         multiply = np.multiply
 
-        def hot(x: np.ndarray, t: float) -> np.ndarray:
-            outputs[0] = None
-            b, _ = affine(x)  # and H^-1, whole, read through rows
-            x_slot[...] = x
-            b_slot[...] = b
-            time_slot[...] = time_row(t)
-            # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-            dgemv(1.0, law_columns, inputs, 0.0, errors, 0, 1, 0, 1, 1, 1)
-            multiply(rows, sqrt_w, weighted_t)  # (W^(1/2) A)^T, passive joints' rows 0
-            dsyrk(1.0, stack_columns, 0.0, normal, 1, 0, 1)  # [A^T W A, rhs, V]
-            gram[...] = gram_block
-            tau = rhs.copy()
-            info = dposv(gram, tau, 0, 1, 1)[2]  # its upper triangle; tau in place
-            if info != 0:
-                raise SingularPostureError(
-                    f"A^T W A is not positive definite (LAPACK info {info})")
-            ddq = b.copy()
-            dgemv(1.0, joint_columns, tau, 1.0, ddq, 0, 1, 0, 1, 0, 1)  # b + A tau_a
-            outputs[0], outputs[1] = ddq, {"V": normal.item(last, last)}
-            return tau
+        def make(affine: Callable[[np.ndarray], Any]) -> Callable[..., np.ndarray]:
+            """The law over b and H^-1 from ``affine`` (at x, or at RK4's state Z)."""
 
-        self._hot = hot
+            def hot(x: np.ndarray, t: float) -> np.ndarray:
+                outputs[0] = None
+                b, _ = affine(x)  # and H^-1, whole, read through rows
+                x_slot[...] = x
+                b_slot[...] = b
+                time_slot[...] = time_row(t)
+                # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
+                dgemv(1.0, law_columns, inputs, 0.0, errors, 0, 1, 0, 1, 1, 1)
+                multiply(rows, sqrt_w, weighted_t)  # (W^(1/2) A)^T, passive joints' rows 0
+                dsyrk(1.0, stack_columns, 0.0, normal, 1, 0, 1)  # [A^T W A, rhs, V]
+                gram[...] = gram_block
+                tau = rhs.copy()
+                info = dposv(gram, tau, 0, 1, 1)[2]  # its upper triangle; tau in place
+                if info != 0:
+                    raise SingularPostureError(
+                        f"A^T W A is not positive definite (LAPACK info {info})")
+                ddq = b.copy()
+                dgemv(1.0, joint_columns, tau, 1.0, ddq, 0, 1, 0, 1, 0, 1)  # b + A tau_a
+                outputs[0], outputs[1] = ddq, {"V": normal.item(last, last)}
+                return tau
+
+            return hot
+
+        self._hot = make(self._dynamics.affine)
+        self._hot_of_step = make(self._dynamics.affine_of_step)
 
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).

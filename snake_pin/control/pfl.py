@@ -47,6 +47,8 @@ them; the torque scales with the robot through H, so the gains of (79) serve eve
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -153,46 +155,52 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         h_head, h_joints = bias[:3], bias[3:]
         minus_a, u = stacked[:3], stacked[3:]
         ddq_head, ddq_joints = ddq[:3], ddq[3:]
-        mass_and_bias, time_row = dynamics.mass_and_bias, self._time_row
+        time_row = self._time_row
         subtract, negative, sqrt = np.subtract, np.negative, math.sqrt
         smallest = smallest_eigenvalue_3x3
         law = self  # r_min and the climb's settings are read per call, as attributes
 
-        def hot(x: np.ndarray, t: float) -> np.ndarray:
-            outputs[0] = None
-            mass_and_bias(x)  # H (whole) and h, read through the views
-            h12[...] = h12_block
-            dsyrk(1.0, h12, 0.0, gram, 0, 0, 1)  # H12 H12^T (upper triangle)
-            r = sqrt(max(smallest(gram), 0.0))  # R: H12's smallest singular value
-            r_min = law.r_min
-            if not r > r_min:
-                raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
-            stacked[...] = time_row(t)
-            dgemv(1.0, gain_columns, x, 1.0, stacked, 0, 1, 0, 1, 1, 1)  # [-a; u] (71, 78)
-            if law.climb_R:
-                subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
-                                                 - x[nq + 3:]), u)
-            dgemv(1.0, h12, minus_a, 0.0, p_rhs, 0, 1, 0, 1, 1, 1)  # -H21 a
-            h22[...] = h22_block
-            info = dposv(h22, p_rhs, 0, 1, 1)[2]  # -p = -H22^-1 H21 a, in p_rhs
-            if info != 0:
-                raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-            subtract(u, p_rhs, u)  # stacked = [-a; p + u]
-            z[...] = h_head
-            dgemv(1.0, head_columns, stacked, -1.0, z, 0, 1, 0, 1, 1, 1)  # -H11 a + H12 u - h1
-            info = dposv(gram, z, 0, 1, 1)[2]  # (H12 H12^T)^-1 z, in z
-            if info != 0:
-                raise SingularPostureError(
-                    f"H12 H12^T is not positive definite (LAPACK info {info})")
-            ddq_joints[...] = u
-            dgemv(1.0, h12, z, -1.0, ddq_joints, 0, 1, 0, 1, 1, 1)  # H12^+ z - (u + p)
-            negative(minus_a, ddq_head)  # w'' = a
-            tau = h_joints.copy()
-            dgemv(1.0, joint_columns, ddq, 1.0, tau, 0, 1, 0, 1, 1, 1)  # H21 a + H22 phi''+ h2
-            outputs[0], outputs[1] = ddq, {"R": r}
-            return tau
+        def make(mass_and_bias: Callable[[np.ndarray], Any]) -> Callable[..., np.ndarray]:
+            """The law over H and h from ``mass_and_bias`` (at x, or at RK4's state Z)."""
 
-        self._hot = hot
+            def hot(x: np.ndarray, t: float) -> np.ndarray:
+                outputs[0] = None
+                mass_and_bias(x)  # H (whole) and h, read through the views
+                h12[...] = h12_block
+                dsyrk(1.0, h12, 0.0, gram, 0, 0, 1)  # H12 H12^T (upper triangle)
+                r = sqrt(max(smallest(gram), 0.0))  # R: H12's smallest singular value
+                r_min = law.r_min
+                if not r > r_min:
+                    raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
+                stacked[...] = time_row(t)
+                dgemv(1.0, gain_columns, x, 1.0, stacked, 0, 1, 0, 1, 1, 1)  # [-a; u] (71, 78)
+                if law.climb_R:
+                    subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
+                                                     - x[nq + 3:]), u)
+                dgemv(1.0, h12, minus_a, 0.0, p_rhs, 0, 1, 0, 1, 1, 1)  # -H21 a
+                h22[...] = h22_block
+                info = dposv(h22, p_rhs, 0, 1, 1)[2]  # -p = -H22^-1 H21 a, in p_rhs
+                if info != 0:
+                    raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
+                subtract(u, p_rhs, u)  # stacked = [-a; p + u]
+                z[...] = h_head
+                dgemv(1.0, head_columns, stacked, -1.0, z, 0, 1, 0, 1, 1, 1)  # -H11 a + H12 u - h1
+                info = dposv(gram, z, 0, 1, 1)[2]  # (H12 H12^T)^-1 z, in z
+                if info != 0:
+                    raise SingularPostureError(
+                        f"H12 H12^T is not positive definite (LAPACK info {info})")
+                ddq_joints[...] = u
+                dgemv(1.0, h12, z, -1.0, ddq_joints, 0, 1, 0, 1, 1, 1)  # H12^+ z - (u + p)
+                negative(minus_a, ddq_head)  # w'' = a
+                tau = h_joints.copy()
+                dgemv(1.0, joint_columns, ddq, 1.0, tau, 0, 1, 0, 1, 1, 1)  # H21 a + H22 phi''+ h2
+                outputs[0], outputs[1] = ddq, {"R": r}
+                return tau
+
+            return hot
+
+        self._hot = make(dynamics.mass_and_bias)
+        self._hot_of_step = make(dynamics.mass_and_bias_of_step)
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
