@@ -264,9 +264,9 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                 if info != 0:
                     raise SingularPostureError(
                         f"A^T W A is not positive definite (LAPACK info {info})")
-                ddq = b.copy()
-                dgemv(1.0, joint_columns, tau, 1.0, ddq, 0, 1, 0, 1, 0, 1)  # b + A tau_a
-                outputs[0], outputs[1] = ddq, {"V": normal.item(last, last)}
+                # q'' = b + A tau_a, in b (a new array of aba's)
+                dgemv(1.0, joint_columns, tau, 1.0, b, 0, 1, 0, 1, 0, 1)
+                outputs[0], outputs[1] = b, {"V": normal.item(last, last)}
                 return tau
 
             return hot

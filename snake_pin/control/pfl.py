@@ -133,7 +133,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self._time_row = TimeTerms(self._time_terms)
         self._dynamics = snake.fast_dynamics
         # q'' = [w''; phi''] and [-a; u (then u + p)]
-        self._ddq, self._stacked = np.zeros(nq), np.zeros(nq)
+        self._stacked = np.zeros(nq)  # [-a; u], then [-a; u + p], then q'' = [a; phi'']
         self._make_views()
 
     def _make_views(self) -> None:
@@ -143,7 +143,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         nq, dynamics, outputs = self._nq, self._dynamics, self._outputs
         m = nq - 3
         mass, bias = dynamics.mass, dynamics.bias  # H (Fortran-ordered, whole) and h
-        stacked, ddq = self._stacked, self._ddq
+        stacked = self._stacked
         # BLAS and LAPACK run in place on Fortran-ordered buffers of the closure's own (see
         # snake_pin._blas): H12 and H22 are copied into them per call; H's columns are its
         # rows (symmetric)
@@ -154,7 +154,6 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         head_columns, joint_columns = mass[:, :3], mass[:, 3:]
         h_head, h_joints = bias[:3], bias[3:]
         minus_a, u = stacked[:3], stacked[3:]
-        ddq_head, ddq_joints = ddq[:3], ddq[3:]
         time_row = self._time_row
         subtract, negative, sqrt = np.subtract, np.negative, math.sqrt
         smallest = smallest_eigenvalue_3x3
@@ -189,12 +188,12 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                 if info != 0:
                     raise SingularPostureError(
                         f"H12 H12^T is not positive definite (LAPACK info {info})")
-                ddq_joints[...] = u
-                dgemv(1.0, h12, z, -1.0, ddq_joints, 0, 1, 0, 1, 1, 1)  # H12^+ z - (u + p)
-                negative(minus_a, ddq_head)  # w'' = a
+                dgemv(1.0, h12, z, -1.0, u, 0, 1, 0, 1, 1, 1)  # phi'' = H12^+ z - (u + p)
+                negative(minus_a, minus_a)  # w'' = a: stacked is q'' now
                 tau = h_joints.copy()
-                dgemv(1.0, joint_columns, ddq, 1.0, tau, 0, 1, 0, 1, 1, 1)  # H21 a + H22 phi''+ h2
-                outputs[0], outputs[1] = ddq, {"R": r}
+                # H21 a + H22 phi'' + h2
+                dgemv(1.0, joint_columns, stacked, 1.0, tau, 0, 1, 0, 1, 1, 1)
+                outputs[0], outputs[1] = stacked, {"R": r}
                 return tau
 
             return hot
