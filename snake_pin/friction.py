@@ -68,8 +68,8 @@ __all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_tw
 
 #: Longest robot whose anisotropic friction force goes through the wheeled twin (one CRBA
 #: over 2n + 2 joints and two products); numpy's cost grows more slowly with n. One
-#: closed-loop evaluation (a FastDynamics evaluator) took 5.9 against 11.9 us at n = 10,
-#: 14.2 against 16.9 at n = 30, 19.5 against 19.5 at n = 40 and 25.0 against 22.0 at
+#: closed-loop evaluation (a FastDynamics evaluator) took 5.6 against 13.2 us at n = 10,
+#: 14.6 against 18.5 at n = 30, 20.0 against 21.3 at n = 40 and 26.7 against 25.0 at
 #: n = 50 (``python scripts/bench.py --only friction_routes``).
 WHEELED_TWIN_MAX_LINKS = 40
 

@@ -852,10 +852,10 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
             ctrl.prepare(np.arange(steps) * control_dt)  # the loop's t = k * control_dt
         except Exception as exc:
             status, reason = "failed", _failure(0.0, exc)
-        # one BLAS thread for the run's tiny matrices, entered once (not per step)
         # the controller's methods, found once
         call = sampler(ctrl, snake.fast_dynamics if fast is not None else None)
         signals_of, plant_acceleration = ctrl.signals, ctrl.plant_acceleration
+        # one BLAS thread for the run's tiny matrices, entered once (not per step)
         with _thread_pools().limit(limits=1):
             for k in range(steps if status == "completed" else 0):
                 t = k * control_dt

@@ -27,10 +27,12 @@ with the stacked state, b and the time terms; the stack S = [W^(1/2) A, W^(1/2)
 and their right-hand side) and V at once. A passive joint keeps its row of A^T = E^T H^-1
 with weight 0 and a 1 in a column of its own, so its normal equation reads tau_j = 0
 (exactly: its row and column of A^T W A are zero but for that 1) and the actuated torques
-are those of the reduced system, with no copies or fancy indexing. The law also keeps
-q'' = A tau_a + b at its state, which the simulator uses as RK4's first stage
-(:meth:`plant_acceleration`). With the
-residual rho = A tau_a + b - q''* (rho = [rho_w; rho_phi]),
+are those of the reduced system, with no copies or fancy indexing. The products, the
+normal equations (dsyrk) and the solve (dposv) are BLAS and LAPACK called in place
+(:mod:`snake_pin._blas`); in a run on its own robot the law reads the state from RK4's
+in place (:func:`~snake_pin.control.base.sampler`). The law also keeps q'' = A tau_a + b
+at its state, which the simulator uses as RK4's first stage (:meth:`plant_acceleration`).
+With the residual rho = A tau_a + b - q''* (rho = [rho_w; rho_phi]),
 
     V' = -2 lam ||s||^2_{K_w2} - 2 mu ||e||^2_{K_phi} - 2 [s; e]^T W rho
          - 2 k_s e^T K_phi (phi_r - phi).

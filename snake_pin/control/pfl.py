@@ -30,12 +30,14 @@ square root of the smallest eigenvalue of H12 H12^T (the cubic's closed form,
 :func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`, LAPACK's dsyev where two eigenvalues
 nearly coincide; a full SVD of H12 costs 4x more), and H and h from one CRBA, one RNEA
 and the friction passes (:class:`~snake_pin.model.FastDynamics`; the products with H's
-head and joint rows add h1 and h2 as BLAS's beta term, :mod:`snake_pin._blas`). The time-only parts
-of a and u are computed in blocks for the coming calls. The closed loop's q'' at the state
-is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p, which the simulator
-uses as RK4's first stage (:meth:`PFLController.plant_acceleration`); the torque is formed
-from it as tau = H21 a + H22 phi'' + h2 (= h2 + H22 w, one product with H's joint rows).
-H (whole: the bindings mirror CRBA's triangle) and h are read through views made once.
+head and joint rows add h1 and h2 as BLAS's beta term, :mod:`snake_pin._blas`). The
+time-only parts of a and u are computed in blocks for the coming calls. The closed loop's
+q'' at the state is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p,
+which the simulator uses as RK4's first stage (:meth:`PFLController.plant_acceleration`);
+the torque is formed from it as tau = H21 a + H22 phi'' + h2 (= h2 + H22 w, one product
+with H's joint rows). H (whole: the bindings mirror CRBA's triangle) and h are read
+through views made once; in a run on its own robot, at RK4's state in place
+(:func:`~snake_pin.control.base.sampler`).
 
 Per-link robots: the law reads only the robot's own H and h (per-link lengths, masses,
 inertias, CM offsets and friction) and the climb term the per-link closed form of R, so
@@ -132,8 +134,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self._law_time = law.T.copy()
         self._time_row = TimeTerms(self._time_terms)
         self._dynamics = snake.fast_dynamics
-        # q'' = [w''; phi''] and [-a; u (then u + p)]
-        self._stacked = np.zeros(nq)  # [-a; u], then [-a; u + p], then q'' = [a; phi'']
+        # [-a; u], then [-a; u + p], then the call's q'' = [w''; phi''] = [a; phi'']
+        self._stacked = np.zeros(nq)
         self._make_views()
 
     def _make_views(self) -> None:
