@@ -163,7 +163,7 @@ def bench_dynamics(budget: float) -> None:
 
 
 def bench_friction_routes(budget: float) -> None:
-    """Anisotropic friction in the closed loop: one ``FastDynamics.evaluators[1]()`` (friction and
+    """Anisotropic friction in the closed loop: one stage evaluation of an RK4 tableau (friction and
     ABA) with Q from the wheeled twin against Q from numpy, for several n; the crossing
     sets ``snake_pin.friction.WHEELED_TWIN_MAX_LINKS``."""
     from snake_pin import friction
@@ -185,8 +185,9 @@ def bench_friction_routes(budget: float) -> None:
         for route, snake in snakes.items():
             dynamics = snake.fast_dynamics
             dynamics.states[1, dynamics.select] = x
-            dynamics.slopes[2, :snake.nq] = x[snake.nq:]  # the stage's q', as RK4 writes it
-            calls[route] = dynamics.evaluators[1]
+            tableau = dynamics.tableau()
+            tableau.slopes[2, :snake.nq] = x[snake.nq:]  # the stage's q', as RK4 writes it
+            calls[route] = tableau.evaluators[1]
         times = interleaved_samples(calls, budget=budget)
         rows.append([str(n), "twin" if n <= chosen else "numpy",
                      show(spread(times["twin"]), 2), show(spread(times["numpy"]), 2),

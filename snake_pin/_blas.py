@@ -12,9 +12,10 @@ step; scratch timings on this machine, us per call):
   for ``dgemv``, which also folds a following addition into its ``beta``).
 
 A C-ordered matrix is passed as its transpose (``a.T`` is Fortran-ordered) with the
-``trans`` flag set accordingly; symmetric matrices (H, H^-1 and the twin's M, which
-Pinocchio stores column-major) are read by columns. The wrappers' argument orders, as
-called here:
+``trans`` flag set accordingly; of the symmetric matrices, H and the twin's M (which
+Pinocchio stores column-major) are read by columns, H^-1 (stored row-major) by rows.
+Outputs are written with beta = 0 over whatever a buffer held (a NaN from a run that blew
+up included), as BLAS specifies. The wrappers' argument orders, as called here:
 
 * ``dgemv(alpha, a, x, beta, y, offx, incx, offy, incy, trans, overwrite_y)``:
   y = alpha op(a) x + beta y, op(a) = a (trans 0) or a^T (trans 1);
@@ -53,20 +54,24 @@ def in_place_calls_hold() -> bool:
     rng = np.random.default_rng(5)
     a = np.asfortranarray(rng.normal(size=(5, 3)))
     x3, x5 = rng.normal(size=3), rng.normal(size=5)
-    y5, y3 = rng.normal(size=5), rng.normal(size=3)
+    y5, y3, stale = rng.normal(size=5), rng.normal(size=3), np.full(5, np.nan)
     expected_n, expected_t = 2.0 * a @ x3 + 0.5 * y5, -(a.T @ x5) + y3
     dgemv(2.0, a, x3, 0.5, y5, 0, 1, 0, 1, 0, 1)
     dgemv(-1.0, a, x5, 1.0, y3, 0, 1, 0, 1, 1, 1)
-    gram = np.zeros((3, 3), order="F")
+    dgemv(1.0, a, x3, 0.0, stale, 0, 1, 0, 1, 0, 1)  # beta = 0: the NaN is not read
+    gram, outer = np.zeros((3, 3), order="F"), np.full((5, 5), np.nan, order="F")
     dsyrk(1.0, a, 0.0, gram, 1, 0, 1)
-    upper = np.triu_indices(3)
-    syrk_ok = np.allclose(gram[upper], (a.T @ a)[upper], rtol=1e-12, atol=0.0)
+    dsyrk(1.0, a, 0.0, outer, 0, 0, 1)
+    upper3, upper5 = np.triu_indices(3), np.triu_indices(5)
+    syrk_ok = np.allclose(gram[upper3], (a.T @ a)[upper3], rtol=1e-12, atol=0.0) and \
+        np.allclose(outer[upper5], (a @ a.T)[upper5], rtol=1e-12, atol=1e-14)
     spd = a.T @ a + np.eye(3)
     matrix, rhs = np.asfortranarray(spd), rng.normal(size=3)
     solution = np.linalg.solve(spd, rhs)
     _, returned, info = dposv(matrix, rhs, 0, 1, 1)
     return bool(np.allclose(y5, expected_n, rtol=1e-12, atol=1e-14)
-                and np.allclose(y3, expected_t, rtol=1e-12, atol=1e-14) and syrk_ok
+                and np.allclose(y3, expected_t, rtol=1e-12, atol=1e-14)
+                and np.allclose(stale, a @ x3, rtol=1e-12, atol=1e-14) and syrk_ok
                 and info == 0 and np.shares_memory(returned, rhs)
                 and np.allclose(rhs, solution, rtol=1e-10, atol=0.0))
 

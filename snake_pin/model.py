@@ -36,7 +36,8 @@ from .friction import FrictionModel
 from .params import SnakeParams
 from .urdf import urdf_string
 
-__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "FastDynamics", "Snake", "paper_model"]
+__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "FastDynamics", "RK4Tableau", "Snake",
+           "paper_model"]
 
 #: Names of the three root joints, in order: they carry x_h, y_h and theta_1.
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
@@ -644,13 +645,15 @@ class FastDynamics:
     States are the rows of :attr:`states`, laid out as the friction passes read them
     (:class:`~snake_pin.friction.ForcePasses`): ``z = [q, 0_w, q', 0_w]``, 2 :attr:`size`
     long, where the w slots are the wheels of anisotropic friction (none for isotropic
-    friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. The caller
-    writes a stage state whole (w slots 0) and also its q' into the next row of
-    :attr:`slopes` (RK4's tableau, whose slope rows hold ``[q', 0_w, q'', 0_w]``) before
-    evaluating it: with wheels, that ``[q', 0_w]`` gives their rolling speeds, which go into
-    the state's wheel velocity slots (so evaluating a row twice gives the same q''). Every ABA is in
-    Pinocchio's WORLD
-    convention: faster than LOCAL here, and the one after which the two-argument
+    friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. A run
+    steps with a :class:`RK4Tableau` of its own (:meth:`tableau`): it writes a stage state
+    whole (w slots 0) and also its q' into the stage's slope row before evaluating it: with
+    wheels, that ``[q', 0_w]`` gives their rolling speeds, which go into the state's wheel
+    velocity slots (so evaluating a row twice gives the same q''). The stage states, the
+    torque and the workspace are shared by the robot's runs and calls, and written before
+    each use; a run's state between its steps lives in its own tableau, so runs of one
+    robot may nest (a controller that simulates its robot). Every ABA is in Pinocchio's
+    WORLD convention: faster than LOCAL here, and the one after which the two-argument
     ``pin.computeMinverse`` is right (after a LOCAL ABA it silently returns a wrong
     matrix).
 
@@ -665,20 +668,13 @@ class FastDynamics:
     ----------
     states
         (rows, 2 size) stage states, written by the caller.
-    slopes
-        (rows + 1, 2 size) RK4's tableau ``[Z; d_1; ...]``: the step's state, then per
-        stage i its slope in row i + 1, whose first half (q', wheel slots 0) the caller
-        writes before evaluating ``states[i]``.
     torque
-        E tau (length n + 2; passive rows stay 0), written by the caller, used by
-        :attr:`evaluate`.
+        E tau (length n + 2; passive rows stay 0), written by the caller, used by the
+        tableaux' evaluators.
     checked
         The buffer whose tail is :attr:`torque` (length 2 size + n + 2); its head is free
         for the caller's new state, so that one pass over it checks the state and the
         torque it was reached with.
-    evaluators
-        ``evaluators[row]() -> q''`` (a new array) at ``states[row]`` (q' also in
-        ``slopes[row + 1]``) under :attr:`torque`: one closure per row, over its views.
     affine
         ``affine(x) -> (b, M)`` at the plain state ``x = [q, q']``: b = q'' at zero torque
         (-H^-1 h, a new array) and M = H^-1, whole (both triangles), which is
@@ -687,15 +683,12 @@ class FastDynamics:
         ``mass_and_bias(x) -> (H, h)`` at the plain state x: H by CRBA, whole (both
         triangles), which is :attr:`mass`, and h = Coriolis/centrifugal minus friction, as
         :meth:`Snake.bias`, which is :attr:`bias`.
-    affine_of_step, mass_and_bias_of_step
-        The same calls at RK4's state Z, ``slopes[0]``, read in place: for the simulator,
-        which keeps Z equal to the x it calls a law with (``x`` is not read).
     mass, inverse_mass, bias
         The arrays :attr:`mass_and_bias` and :attr:`affine` fill (views of a workspace of
         their own, made once: a controller may keep slices of them); valid until the next
-        call, read only. :attr:`mass` and :attr:`inverse_mass` are Pinocchio's, stored
-        column-major (Fortran-ordered), so that their columns (= rows) go to BLAS without
-        a copy.
+        call, read only. They are Pinocchio's: :attr:`mass` is stored column-major
+        (Fortran-ordered), :attr:`inverse_mass` row-major; both are symmetric, so BLAS
+        reads their rows or columns without a copy.
     """
 
     def __init__(self, snake: Snake, rows: int = 4) -> None:
@@ -705,7 +698,6 @@ class FastDynamics:
         size = passes.size if passes is not None else nq
         self.size = size
         self.states = np.zeros((rows, 2 * size))
-        self.slopes = np.zeros((rows + 1, 2 * size))
         self.checked = np.zeros(2 * size + nq)
         self.torque = self.checked[2 * size:]
         self.select = np.r_[np.arange(nq), size + np.arange(nq)]
@@ -840,10 +832,10 @@ class FastDynamics:
                     return mass, add(nle(model, data, q, v), damping, bias)
                 return mass_and_bias
 
-        self.evaluators = [evaluate_at(row, rate[:size])
-                           for row, rate in zip(self.states, self.slopes[1:], strict=True)]
+        self._evaluate_at, self._affine_at, self._mass_and_bias_at = (
+            evaluate_at, affine_at, mass_and_bias_at)
         own = np.zeros(2 * size)  # the plain calls' own state, so that they never clobber
-        own_q, own_v = own[:nq], own[size:size + nq]  # a stage or Z
+        own_q, own_v = own[:nq], own[size:size + nq]  # a stage or a run's state
         own_affine, own_mass_and_bias = affine_at(own), mass_and_bias_at(own)
 
         def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -857,12 +849,54 @@ class FastDynamics:
             return own_mass_and_bias(x)
 
         self.affine, self.mass_and_bias = affine, mass_and_bias
-        step = self.slopes[0]
-        self.affine_of_step, self.mass_and_bias_of_step = affine_at(step), mass_and_bias_at(step)
+
+    def tableau(self) -> RK4Tableau:
+        """A new RK4 tableau on this robot, for one run (see :class:`RK4Tableau`).
+
+        Returns
+        -------
+        RK4Tableau
+            Zeroed, with its evaluators and its calls at its state Z.
+        """
+        size, rows = self.size, len(self.states)
+        slopes = np.zeros((rows + 1, 2 * size))
+        step = slopes[0]
+        return RK4Tableau(
+            dynamics=self, slopes=slopes,
+            evaluators=[self._evaluate_at(row, rate[:size])
+                        for row, rate in zip(self.states, slopes[1:], strict=True)],
+            affine=self._affine_at(step), mass_and_bias=self._mass_and_bias_at(step))
 
     def __reduce__(self) -> tuple[Any, tuple[Snake]]:
         """Pickled as its robot's (the closures are rebuilt by the robot on use)."""
         return _fast_dynamics_of, (self._snake,)
+
+
+@dataclass(frozen=True, eq=False)
+class RK4Tableau:
+    """One run's RK4 tableau on a robot's :class:`FastDynamics` (:meth:`FastDynamics.tableau`).
+
+    Parameters
+    ----------
+    dynamics : FastDynamics
+        The robot's fast dynamics.
+    slopes : numpy.ndarray
+        (rows + 1, 2 size): ``[Z; d_1; ...]``, the run's state Z (layout of
+        :attr:`FastDynamics.states`) and per stage i its slope ``[q', 0_w, q'', 0_w]`` in
+        row i + 1, whose first half the run writes before evaluating stage i.
+    evaluators : list of callable
+        ``evaluators[i]() -> q''`` (a new array) at ``dynamics.states[i]`` under
+        ``dynamics.torque``: one closure per stage, over its views.
+    affine, mass_and_bias : callable
+        :attr:`FastDynamics.affine` and :attr:`FastDynamics.mass_and_bias` at Z, read in
+        place (their argument is not read): for a law in the run, whose x is Z.
+    """
+
+    dynamics: FastDynamics
+    slopes: np.ndarray
+    evaluators: list[Callable[[], np.ndarray]]
+    affine: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    mass_and_bias: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 def _fast_dynamics_of(snake: Snake) -> FastDynamics:

@@ -50,7 +50,7 @@ from threadpoolctl import ThreadpoolController
 
 from ._blas import dgemv
 from ._io import atomic_group
-from .control.base import Controller, sampler
+from .control.base import Controller, _sampler
 from .exceptions import (
     ConfigurationError,
     ParameterError,
@@ -853,7 +853,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         except Exception as exc:
             status, reason = "failed", _failure(0.0, exc)
         # the controller's methods, found once
-        call = sampler(ctrl, snake.fast_dynamics if fast is not None else None)
+        call = _sampler(ctrl, fast.tableau if fast is not None else None)
         signals_of, plant_acceleration = ctrl.signals, ctrl.plant_acceleration
         # one BLAS thread for the run's tiny matrices, entered once (not per step)
         with _thread_pools().limit(limits=1):
@@ -932,7 +932,8 @@ class _FastRK4:
     """RK4 with the torque held, as :func:`_rk4_step`, on preallocated buffers (hot path).
 
     The same stages and weights: with the step's state Z and the stage slopes d1..d4 as
-    the rows of one array Y = [Z; d1; d2; d3; d4], each stage state is one product of a
+    the rows of one array Y = [Z; d1; d2; d3; d4] (the run's own
+    :class:`~snake_pin.model.RK4Tableau`), each stage state is one product of a
     coefficient row with Y (Z + h/2 d1, Z + h/2 d2, Z + h d3, and the new state
     Z + h/6 (d1 + 2 d2 + 2 d3 + d4)), written straight into the rows of the robot's
     :class:`~snake_pin.model.FastDynamics` (its layout [q, 0_w, q', 0_w]). The first stage
@@ -946,13 +947,13 @@ class _FastRK4:
         nq, size = snake.nq, dynamics.size
         self._nq, self._substeps = nq, substeps
         self._max_speed, self._max_distance = max_speed, max_distance
-        self._evaluators, self._torque, self._select = (dynamics.evaluators, dynamics.torque,
-                                                        dynamics.select)
+        # the run's own tableau [Z; d1; d2; d3; d4] (a run nested in a controller's call
+        # has its own), its stage evaluators and its calls at Z for the law
+        self.tableau = dynamics.tableau()
+        self._evaluators, self._torque, self._select = (self.tableau.evaluators,
+                                                        dynamics.torque, dynamics.select)
         self._joint_torque = self._torque[3:]
-        # [Z; d1; d2; d3; d4], zeroed: a stage's product weighs the later slopes by 0, which
-        # a NaN left there by an earlier run would still turn into NaN
-        self._slopes = dynamics.slopes
-        self._slopes[...] = 0.0
+        self._slopes = self.tableau.slopes
         self._state = self._slopes[0]
         self._state[self._select] = x0
         # the new state goes right before the torque: one pass checks both (see step)

@@ -28,6 +28,13 @@ def _copying_dgemv(alpha, a, x, beta, y, offx, incx, offy, incy, trans, overwrit
     return blas.dgemv(alpha, a, x, beta, y.copy(), offx, incx, offy, incy, trans, 1)
 
 
+def _nan_reading_dgemv(alpha, a, x, beta, y, offx, incx, offy, incy, trans, overwrite_y):
+    """A dgemv that reads y even when beta is 0 (0 * NaN stays NaN)."""
+    with np.errstate(invalid="ignore"):
+        y[...] = alpha * ((a.T if trans else a) @ x) + beta * y
+    return y
+
+
 def _copying_dposv(a, b, lower, overwrite_a, overwrite_b):
     """A dposv that leaves b alone and returns the solution in a new array."""
     return lapack.dposv(a, b, lower, overwrite_a, 0)
@@ -39,10 +46,11 @@ def _lower_dsyrk(alpha, a, beta, c, trans, lower, overwrite_c):
 
 
 @pytest.mark.parametrize(("name", "stand_in"), [("dgemv", _copying_dgemv),
+                                                 ("dgemv", _nan_reading_dgemv),
                                                  ("dposv", _copying_dposv),
                                                  ("dsyrk", _lower_dsyrk)])
 def test_probe_catches_a_changed_wrapper(monkeypatch, name, stand_in) -> None:
-    """A wrapper that copies instead of working in place, or fills the other triangle,
-    fails the probe."""
+    """A wrapper that copies instead of working in place, reads y at beta = 0 or fills the
+    other triangle, fails the probe."""
     monkeypatch.setattr(_blas, name, stand_in)
     assert not _blas.in_place_calls_hold()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import json
 import math
@@ -33,6 +34,7 @@ from snake_pin import (
 )
 from snake_pin.control import Controller
 from snake_pin.exceptions import RunInterrupted
+from snake_pin.model import RK4Tableau
 
 
 def _x0(n: int) -> np.ndarray:
@@ -250,11 +252,10 @@ def test_interrupt_anywhere_in_the_dynamics(table1: Snake, at: int) -> None:
 def test_interrupt_anywhere_in_the_fast_step(at: int) -> None:
     """Ctrl-C inside any stage of the robot's own (fast) RK4 keeps the samples before it."""
     snake = Snake(SnakeParams.table1())
-    evaluators, calls = snake.fast_dynamics.evaluators, []
+    dynamics, calls = snake.fast_dynamics, []
+    tableau = dynamics.tableau
 
-    def interrupted(row: int) -> Callable[[], np.ndarray]:
-        evaluate = evaluators[row]
-
+    def interrupted(row: int, evaluate: Callable[[], np.ndarray]) -> Callable[[], np.ndarray]:
         def stage() -> np.ndarray:
             calls.append(row)
             if len(calls) == at:
@@ -262,7 +263,12 @@ def test_interrupt_anywhere_in_the_fast_step(at: int) -> None:
             return evaluate()
         return stage
 
-    snake.fast_dynamics.evaluators = [interrupted(row) for row in range(4)]
+    def counted() -> RK4Tableau:
+        made = tableau()
+        return dataclasses.replace(made, evaluators=[
+            interrupted(row, evaluate) for row, evaluate in enumerate(made.evaluators)])
+
+    dynamics.tableau = counted
     with pytest.raises(RunInterrupted) as info:
         simulate(snake, _wave(10), _x0(10), 0.02)
     partial = info.value.partial

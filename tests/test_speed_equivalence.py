@@ -145,16 +145,45 @@ def test_fast_step_refuses_a_torque_where_the_plain_step_does(
 
 @pytest.mark.parametrize("robot", ["isotropic", "wheels"])
 def test_a_run_after_a_blown_up_run_of_the_same_robot_is_untouched(robot: str) -> None:
-    """The robot's RK4 tableau is shared by its runs: a non-finite torque's NaN left in it
-    does not reach the next run (equal to the run on a fresh robot)."""
+    """The robot's stage states and workspace are shared by its runs: what a non-finite
+    torque left there does not reach the next run (equal to the run on a fresh robot)."""
     params = _robots()[robot]
     used = Snake(params)
     blown = simulate(used, _TurnsBad(np.inf, 3), initial_state(params), 0.05)
-    assert blown.status == "failed" and np.isnan(used.fast_dynamics.slopes).any()
+    assert blown.status == "failed" and np.isnan(used.fast_dynamics.states).any()
     runs = [simulate(snake, LyapunovController(snake), initial_state(params), 0.05)
             for snake in (used, Snake(params))]
     assert runs[0].status == runs[1].status == "completed"
     assert np.array_equal(runs[0].q, runs[1].q) and np.array_equal(runs[0].dq, runs[1].dq)
+
+
+class _Predicting(LyapunovController):
+    """The law, coasting its own robot for 3 ms before every 10th sample (a run nested in
+    the run), and for 10 ms in ``prepare`` from a shifted start."""
+
+    def prepare(self, times: np.ndarray) -> None:
+        super().prepare(times)
+        shifted = initial_state(self.snake.params) + 0.05
+        simulate(self.snake, OpenLoop(lambda t: np.zeros(self.snake.n - 1)), shifted, 0.01)
+        super().prepare(times)
+
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        if round(t * 1000) % 10 == 0:
+            simulate(self.snake, OpenLoop(lambda s: np.zeros(self.snake.n - 1)), x, 0.003)
+        return super().__call__(x, t)
+
+
+@pytest.mark.parametrize("robot", ["isotropic", "wheels"])
+def test_runs_of_one_robot_nest(robot: str) -> None:
+    """A controller that simulates its own robot (in prepare and in its calls) does not
+    disturb the run it is in: the same run as on another robot object."""
+    params = _robots()[robot]
+    plant = Snake(params)
+    nested = simulate(plant, _Predicting(plant), initial_state(params), 0.1)
+    apart = simulate(plant, _Predicting(Snake(params)), initial_state(params), 0.1)
+    assert nested.status == apart.status == "completed"
+    assert np.abs(nested.q - apart.q).max() < 1e-12
+    assert np.abs(nested.tau - apart.tau).max() <= 1e-9 * np.abs(apart.tau).max()
 
 
 class _StrictTurnsBad(_TurnsBad):
@@ -349,8 +378,9 @@ def test_a_shallow_copy_keeps_its_own_last_call(rng: np.random.Generator) -> Non
 
 
 def test_sampler_skips_only_a_call_that_merely_forwards(rng: np.random.Generator) -> None:
-    """A law's sampler is its hot closure (same torque); a subclass's own __call__ is kept."""
-    from snake_pin.control.base import sampler
+    """A law's sampler is its hot closure (same torque), made over the run's tableau when
+    the run steps with the law's own robot; a subclass's own __call__ is kept."""
+    from snake_pin.control.base import _sampler
 
     class Scaled(LyapunovController):
         def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
@@ -360,12 +390,31 @@ def test_sampler_skips_only_a_call_that_merely_forwards(rng: np.random.Generator
     snake = Snake(params)
     x = head_first_state(rng, snake.n)
     law, scaled = LyapunovController(snake), Scaled(snake)
-    assert sampler(law) is law._hot and np.array_equal(sampler(law)(x, 0.1), law(x, 0.1))
-    assert sampler(law, snake.fast_dynamics) is law._hot_of_step
-    assert sampler(law, Snake(params).fast_dynamics) is law._hot  # another robot's Z
-    assert sampler(scaled) is scaled and sampler(scaled, snake.fast_dynamics) is scaled
+    tableau = snake.fast_dynamics.tableau()
+    tableau.slopes[0, snake.fast_dynamics.select] = x  # Z = x, as in a run
+    assert _sampler(law) is law._hot and np.array_equal(_sampler(law)(x, 0.1), law(x, 0.1))
+    at_z = _sampler(law, tableau)
+    assert at_z is not law._hot and np.allclose(at_z(x, 0.1), law(x, 0.1), rtol=1e-12)
+    assert _sampler(law, Snake(params).fast_dynamics.tableau()) is law._hot  # another robot
+    assert _sampler(scaled) is scaled and _sampler(scaled, tableau) is scaled
     run = simulate(snake, scaled, initial_state(params), 0.02)
     assert np.allclose(run.tau[0], 2.0 * law(initial_state(params), 0.0), rtol=1e-12)
+
+
+def test_a_subclass_wrapping_the_hot_path_is_called() -> None:
+    """A law whose subclass wraps the closure its call runs gets that closure in a run."""
+
+    class Clipped(LyapunovController):
+        def _make_views(self) -> None:
+            super()._make_views()
+            hot = self._hot
+            self._hot = lambda x, t: np.clip(hot(x, t), -0.005, 0.005)
+
+    params = tracking_params()
+    snake = Snake(params)
+    run = simulate(snake, Clipped(snake), initial_state(params), 0.02)
+    assert np.abs(run.tau).max() <= 0.005
+    assert np.abs(LyapunovController(snake)(initial_state(params), 0.0)).max() > 0.005
 
 
 @pytest.mark.parametrize("law", [LyapunovController, PFLController])

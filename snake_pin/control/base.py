@@ -18,7 +18,7 @@ from ..exceptions import ParameterError
 from ..gaits import Serpenoid
 from .reference import LinearReference
 
-__all__ = ["Controller", "OpenLoop", "TimeTerms", "gait_for", "reference_rows", "sampler"]
+__all__ = ["Controller", "OpenLoop", "TimeTerms", "gait_for", "reference_rows"]
 
 #: Time-only terms are computed for this many coming calls at once (see TimeTerms).
 _BLOCK = 1024
@@ -217,14 +217,17 @@ class _ViewsMadeOnce(abc.ABC):
     both are made again on unpickling."""
 
     _hot: Callable[[np.ndarray, float], np.ndarray]
-    #: The same law, reading x from its robot's RK4 state Z in place (see :func:`sampler`).
-    _hot_of_step: Callable[[np.ndarray, float], np.ndarray]
+    #: ``(make, hot)``: the factory of the hot path over a set of dynamics calls (the
+    #: robot's FastDynamics, or a run's RK4Tableau: see :func:`_sampler`) and the ``_hot``
+    #: it made.
+    _made: tuple[Callable[[Any], Callable[[np.ndarray, float], np.ndarray]],
+                 Callable[[np.ndarray, float], np.ndarray]]
     _dynamics: Any  # the robot's FastDynamics
 
     @abc.abstractmethod
     def _make_views(self) -> None:
-        """Make the views and the hot path's closures, and keep them in ``_hot`` and
-        ``_hot_of_step``."""
+        """Make the views and the hot path's closure, and keep it in ``_hot`` (and its
+        factory in ``_made``)."""
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques (length n - 1) at state ``x`` and time ``t``."""
@@ -240,7 +243,7 @@ class _ViewsMadeOnce(abc.ABC):
         """
         state = self.__dict__.copy()
         state.pop("_hot", None)
-        state.pop("_hot_of_step", None)
+        state.pop("_made", None)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -258,32 +261,38 @@ class _ViewsMadeOnce(abc.ABC):
         self._make_views()
 
 
-def sampler(controller: Controller,
-            dynamics: object = None) -> Callable[[np.ndarray, float], np.ndarray]:
+def _sampler(controller: Controller,
+             tableau: Any = None) -> Callable[[np.ndarray, float], np.ndarray]:
     """What a run calls at each sample: the controller, or, where calling it would only
     forward to its hot path's closure (:class:`_ViewsMadeOnce`), that closure (one
-    Python call fewer per sample). When the run steps with the ``FastDynamics`` the law
-    itself uses, the closure reads the state from RK4's state Z instead of copying x (the
-    run keeps them equal).
+    Python call fewer per sample).
+
+    When the run steps with ``tableau`` (a :class:`~snake_pin.model.RK4Tableau` on the
+    robot the law models, its own for this run), the closure is made for the run over the
+    tableau's calls, which read the state from its Z in place instead of copying x into
+    the dynamics' own buffer. It equals calling the controller only while x is Z: use it
+    in that run only.
 
     Parameters
     ----------
     controller : Controller
         The controller, reset and prepared for the run.
-    dynamics : FastDynamics, optional
-        The plant's fast dynamics when the run steps with them (else None).
+    tableau : RK4Tableau, optional
+        The run's tableau when it steps with the robot's fast dynamics (else None).
 
     Returns
     -------
     callable
-        ``f(x, t) -> tau``, equal to calling the controller.
+        ``f(x, t) -> tau``.
     """
-    if isinstance(controller, _ViewsMadeOnce) and \
-            type(controller).__call__ is _ViewsMadeOnce.__call__:
-        # on the plant's own fast RK4, x is its state Z: the law reads it in place
-        return controller._hot_of_step if controller._dynamics is dynamics else \
-            controller._hot
-    return controller
+    if not (isinstance(controller, _ViewsMadeOnce)
+            and type(controller).__call__ is _ViewsMadeOnce.__call__):
+        return controller
+    make, made = getattr(controller, "_made", (None, None))
+    if controller._hot is made and tableau is not None and \
+            tableau.dynamics is controller._dynamics:
+        return make(tableau)  # type: ignore[misc]
+    return controller._hot  # also a hot path a subclass made or wrapped itself
 
 
 class _ReferenceTimeTerms:

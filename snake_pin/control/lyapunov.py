@@ -240,15 +240,17 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         stack_columns, law_columns = stack.T, self._law_state.T
         gram_block, rhs, last = normal[:m, :m], normal[:m, m], m + 1
         # A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a contiguous view of
-        # the dynamics' H^-1 (filled by each affine call); its joints' columns, A, are
-        # contiguous in Pinocchio's column-major storage
-        inverse_mass = self._dynamics.inverse_mass
-        rows, joint_columns = inverse_mass[3:], inverse_mass[:, 3:]
+        # the dynamics' H^-1 (filled by each affine call; Pinocchio stores it row-major),
+        # and A = rows.T, Fortran-ordered for dgemv
+        rows = self._dynamics.inverse_mass[3:]
+        joint_columns = rows.T
         time_row, sqrt_w = self._time_row, self._sqrt_w
         multiply = np.multiply
 
-        def make(affine: Callable[[np.ndarray], Any]) -> Callable[..., np.ndarray]:
-            """The law over b and H^-1 from ``affine`` (at x, or at RK4's state Z)."""
+        def make(calls: Any) -> Callable[[np.ndarray, float], np.ndarray]:
+            """The law over b and H^-1 from ``calls.affine``: the robot's own, at x
+            (FastDynamics), or a run's at its state Z (RK4Tableau, see sampler)."""
+            affine = calls.affine
 
             def hot(x: np.ndarray, t: float) -> np.ndarray:
                 outputs[0] = None
@@ -273,8 +275,8 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
 
             return hot
 
-        self._hot = make(self._dynamics.affine)
-        self._hot_of_step = make(self._dynamics.affine_of_step)
+        self._hot = make(self._dynamics)
+        self._made = (make, self._hot)
 
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).

@@ -161,8 +161,10 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         smallest = smallest_eigenvalue_3x3
         law = self  # r_min and the climb's settings are read per call, as attributes
 
-        def make(mass_and_bias: Callable[[np.ndarray], Any]) -> Callable[..., np.ndarray]:
-            """The law over H and h from ``mass_and_bias`` (at x, or at RK4's state Z)."""
+        def make(calls: Any) -> Callable[[np.ndarray, float], np.ndarray]:
+            """The law over H and h from ``calls.mass_and_bias``: the robot's own, at x
+            (FastDynamics), or a run's at its state Z (RK4Tableau, see sampler)."""
+            mass_and_bias = calls.mass_and_bias
 
             def hot(x: np.ndarray, t: float) -> np.ndarray:
                 outputs[0] = None
@@ -200,8 +202,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
 
             return hot
 
-        self._hot = make(dynamics.mass_and_bias)
-        self._hot_of_step = make(dynamics.mass_and_bias_of_step)
+        self._hot = make(dynamics)
+        self._made = (make, self._hot)
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
