@@ -722,7 +722,9 @@ class FastDynamics:
             return z[:size], z[size:], z[:nq], z[size:size + nq]
 
         # Each call below is made by a factory over the views of the state it reads: a
-        # stage (evaluate), the plain calls' own state, or RK4's state Z (slopes[0])
+        # stage (its evaluator), the plain calls' own state, or a run's state Z (the first
+        # row of its RK4Tableau). The routes' factories repeat their skeleton on purpose:
+        # a shared helper would cost a Python call per evaluation
         if passes is None:  # long anisotropic robots: Q by numpy on [q, q'] (size == nq)
             of_state = snake.friction.of_state
 
