@@ -1,6 +1,7 @@
-"""File output that is whole or absent: stage a temporary sibling, fsync, rename, fsync the folder.
+"""Files in and out: whole-or-absent writes, and bounded reads that never block.
 
-Every file snake_pin writes goes through this module. What it promises:
+Every file snake_pin writes goes through this module, and every file it reads is opened
+by :func:`open_regular_file` (or :func:`read_regular_file`). What it promises:
 
 - **Whole or absent.** A file is written to a temporary sibling in the same folder, flushed
   and ``fsync``-ed, then renamed onto its name (``os.replace``, atomic on POSIX), and the
@@ -20,8 +21,21 @@ Every file snake_pin writes goes through this module. What it promises:
 - **Sets of files.** :func:`atomic_group` stages several files and renames them into place
   only when its block succeeds: data files first, then figures, each kind in the order
   written. See :func:`atomic_group` for exactly what a reader can see meanwhile.
+- **Reads are bounded and never hang.** :func:`open_regular_file` refuses anything but a
+  regular file (a FIFO, socket, device or folder) before reading a byte: the name is
+  stat-ed first, then opened with ``O_NONBLOCK`` and the descriptor fstat-ed again (the
+  name may have changed in between), so a FIFO never blocks the reader. A file larger
+  than the caller's bound is refused from its size, before it is read.
+- **TOML is bounded before it is parsed.** :func:`parse_toml` scans the text for nesting
+  (arrays, inline tables and dotted keys inside each other, at most
+  :data:`MAX_TOML_DEPTH` levels) before :mod:`tomllib` sees it: tomllib recurses once per
+  nested array or inline table, and its time and memory grow with the square of a dotted
+  key's length.
 
-Errors are ``OSError`` naming the file the caller asked for, never a temporary name.
+Errors of writes are ``OSError`` naming the file the caller asked for, never a temporary
+name. Errors of reads are built by the caller's ``error`` function from one line that
+does not name the file (the caller prefixes it), so each loader raises its own
+:class:`~snake_pin.exceptions.SnakePinError` subclass.
 """
 
 from __future__ import annotations
@@ -30,16 +44,19 @@ import contextlib
 import errno
 import os
 import re
+import stat
 import tempfile
 import threading
+import tomllib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, NoReturn
+from typing import IO, Any, BinaryIO, NoReturn
 
 from .exceptions import ParameterError
 
 __all__ = [
+    "MAX_TOML_DEPTH",
     "TEMP_MARKER",
     "AtomicGroup",
     "atomic_group",
@@ -48,6 +65,11 @@ __all__ = [
     "atomic_writer",
     "clean_stale_temporaries",
     "current_umask",
+    "decode_utf8",
+    "open_regular_file",
+    "parse_toml",
+    "read_regular_file",
+    "toml_nesting_problem",
 ]
 
 #: The marker every temporary name carries: ``.NAME.snake_pin-PID-XXXXXXXX.tmp``.
@@ -56,6 +78,10 @@ _TEMP_NAME = re.compile(r"\..*\.snake_pin-(\d+)-\w+\.tmp", re.DOTALL)
 #: Characters of the target's name kept in a temporary name (NAME_MAX is 255 bytes).
 _NAME_KEPT = 64
 _UMASK_LOCK = threading.Lock()
+#: Deepest nesting a TOML file snake_pin reads may have: arrays and inline tables inside
+#: each other, each adding one level plus the dots of the key it is the value of; a key's
+#: own dots count too (``a.b.c = 1`` nests two tables: 2 levels). snake_pin's files need 3.
+MAX_TOML_DEPTH = 32
 
 
 def current_umask() -> int:
@@ -446,3 +472,253 @@ def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object
     """
     with atomic_writer(path) as handle:
         save(handle)
+
+
+# --------------------------------------------------------------------------- reading
+_FILE_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
+               (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
+               (stat.S_ISBLK, "a block device"))
+
+
+def _not_regular(mode: int) -> str:
+    """What a non-regular file is, in words."""
+    return next((name for test, name in _FILE_KINDS if test(mode)), "not a regular file")
+
+
+def _refusal(exc: OSError | ValueError, kind: str) -> str:
+    """One line for an error of the operating system while opening or reading."""
+    if isinstance(exc, FileNotFoundError):
+        return f"no such {kind}"
+    if isinstance(exc, IsADirectoryError):
+        return f"is a folder, not a {kind}"
+    reason = (exc.strerror if isinstance(exc, OSError) else None) or str(exc)
+    return f"cannot read it ({reason})"
+
+
+def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
+                      error: Callable[[str], Exception]) -> BinaryIO:
+    """Open ``path`` for binary reading if it is a regular file of at most ``limit`` bytes.
+
+    Never blocks and never reads a byte of anything else: the name is stat-ed (following
+    symbolic links) and refused unless it is a regular file; it is then opened with
+    ``O_NONBLOCK`` (so a FIFO put in its place meanwhile does not block either) and the
+    open descriptor is fstat-ed and checked again, size included.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    limit : int
+        Largest size accepted [bytes].
+    kind : str
+        What the file should be, for messages (``"robot file"``, ``"URDF"``, ...).
+    error : callable
+        Builds the exception to raise from one line that does not name the file, e.g.
+        ``"is a FIFO, not a regular file: not a URDF"``; the caller prefixes the name.
+
+    Returns
+    -------
+    BinaryIO
+        The open file (blocking mode), positioned at its start; close it (``with``).
+
+    Raises
+    ------
+    Exception
+        ``error(message)``: no such file, a folder, a FIFO/socket/device, larger than
+        ``limit``, unreadable (permissions, ...), or ``path`` is not a path.
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise error(f"not a file path: {type(path).__name__}")
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
+        raise error(_refusal(exc, kind)) from None
+    if stat.S_ISDIR(mode):
+        raise error(f"is a folder, not a {kind}")
+    if not stat.S_ISREG(mode):
+        raise error(f"is {_not_regular(mode)}, not a regular file: not a {kind}")
+    flags = (os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0)
+             | getattr(os, "O_CLOEXEC", 0))
+    try:
+        fd = os.open(path, flags)
+    except (OSError, ValueError) as exc:
+        raise error(_refusal(exc, kind)) from None
+    try:
+        info = os.fstat(fd)
+    except OSError as exc:
+        os.close(fd)
+        raise error(_refusal(exc, kind)) from None
+    problem = ""
+    if not stat.S_ISREG(info.st_mode):
+        problem = f"is {_not_regular(info.st_mode)}, not a regular file: not a {kind}"
+    elif info.st_size > limit:
+        problem = f"is larger than {limit} bytes ({info.st_size} bytes): not a {kind}"
+    if problem:
+        os.close(fd)
+        raise error(problem)
+    try:
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException as exc:
+        os.close(fd)
+        if isinstance(exc, OSError):
+            raise error(_refusal(exc, kind)) from None
+        raise
+
+
+def read_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
+                      error: Callable[[str], Exception]) -> bytes:
+    """The bytes of ``path``, opened by :func:`open_regular_file` (at most ``limit``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    limit : int
+        Largest size accepted [bytes] (checked on its size, and again on what is read,
+        in case it grew meanwhile).
+    kind : str
+        What the file should be, for messages.
+    error : callable
+        Builds the exception to raise from one line (see :func:`open_regular_file`).
+
+    Returns
+    -------
+    bytes
+        The content.
+
+    Raises
+    ------
+    Exception
+        ``error(message)``, as :func:`open_regular_file`, or when reading fails.
+    """
+    with open_regular_file(path, limit=limit, kind=kind, error=error) as handle:
+        try:
+            data = handle.read(limit + 1)
+        except OSError as exc:
+            raise error(_refusal(exc, kind)) from None
+    if len(data) > limit:
+        raise error(f"is larger than {limit} bytes: not a {kind}")
+    return data
+
+
+def decode_utf8(data: bytes, *, error: Callable[[str], Exception]) -> str:
+    """``data`` decoded as UTF-8, or ``error("not UTF-8 text (... at byte N)")``.
+
+    Parameters
+    ----------
+    data : bytes
+        A file's content.
+    error : callable
+        Builds the exception to raise from one line.
+
+    Returns
+    -------
+    str
+        The text.
+
+    Raises
+    ------
+    Exception
+        ``error(message)`` when ``data`` is not UTF-8.
+    """
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+
+
+# Strings (skipped whole; multi-line ones may end in up to two more quotes) and comments,
+# then what counts: brackets, dots and separators. A quote that starts no complete string
+# ends the scan: tomllib stops with an error at that string too.
+_TOML_TOKEN = re.compile(
+    r'(?P<skip>"""(?:[^"\\]|\\.|"(?!""))*"""(?:"{1,2})?'
+    r"|'''(?:[^']|'(?!''))*'''(?:'{1,2})?"
+    r'|"(?:[^"\\\n]|\\[^\n])*"'
+    r"|'[^'\n]*'"
+    r"|#[^\n]*)"
+    r"|(?P<open>[\[{])|(?P<close>[\]}])|(?P<dot>\.)|(?P<reset>[,\n])|(?P<stop>[\"'])",
+    re.DOTALL)
+
+
+def toml_nesting_problem(text: str, max_depth: int = MAX_TOML_DEPTH) -> str | None:
+    """Why ``text`` nests deeper than ``max_depth`` levels, or None; one linear scan.
+
+    Levels are those :data:`MAX_TOML_DEPTH` describes: an array or inline table adds one
+    plus the dots of its key; a dotted key adds its dots. Strings and comments are
+    skipped; nothing is parsed. The count may exceed the document's depth by one (the dot
+    of a float value) and may fall short of it by the dots of a table header, which are
+    bounded on their own.
+
+    Parameters
+    ----------
+    text : str
+        TOML text.
+    max_depth : int, optional
+        The deepest nesting accepted.
+
+    Returns
+    -------
+    str or None
+        ``"nested deeper than N levels (...) at line L"``, or None within the bound.
+    """
+    stack: list[int] = []
+    level = dots = 0
+    for match in _TOML_TOKEN.finditer(text):
+        group = match.lastgroup
+        if group == "skip":
+            continue
+        if group == "open":
+            stack.append(dots + 1)
+            level += dots + 1
+            dots = 0
+        elif group == "close":
+            if stack:
+                level -= stack.pop()
+            dots = 0
+        elif group == "dot":
+            dots += 1
+        elif group == "reset":
+            dots = 0
+        else:  # an unterminated string: tomllib refuses the text there
+            return None
+        if level + dots > max_depth:
+            line = text.count("\n", 0, match.start()) + 1
+            return (f"nested deeper than {max_depth} levels (arrays, inline tables and "
+                    f"dotted keys inside each other) at line {line}")
+    return None
+
+
+def parse_toml(text: str, *, error: Callable[[str], Exception],
+               max_depth: int = MAX_TOML_DEPTH) -> dict[str, Any]:
+    """Parse TOML text after bounding its nesting (:func:`toml_nesting_problem`).
+
+    Parameters
+    ----------
+    text : str
+        The text (its size bounded by the caller: the scan and the parse are linear in it).
+    error : callable
+        Builds the exception to raise from one line that does not name the file.
+    max_depth : int, optional
+        The deepest nesting accepted (:data:`MAX_TOML_DEPTH`).
+
+    Returns
+    -------
+    dict
+        The document.
+
+    Raises
+    ------
+    Exception
+        ``error("not valid TOML: ...")`` or ``error("nested deeper than ...")``.
+    """
+    problem = toml_nesting_problem(text, max_depth)
+    if problem is not None:
+        raise error(problem)
+    try:
+        return tomllib.loads(text)
+    except (ValueError, RecursionError) as exc:  # TOMLDecodeError, an over-long integer
+        reason = " ".join(str(exc).split())
+        if len(reason) > 200:
+            reason = reason[:197] + "..."
+        raise error(f"not valid TOML: {reason}") from None

@@ -10,8 +10,9 @@ import subprocess
 import sys
 import tempfile
 import textwrap
+import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -20,12 +21,18 @@ from hypothesis import strategies as st
 
 from snake_pin import _io
 from snake_pin._io import (
+    MAX_TOML_DEPTH,
     TEMP_MARKER,
     atomic_group,
     atomic_save,
     atomic_write_bytes,
     clean_stale_temporaries,
     current_umask,
+    decode_utf8,
+    open_regular_file,
+    parse_toml,
+    read_regular_file,
+    toml_nesting_problem,
 )
 from snake_pin.exceptions import ParameterError
 
@@ -279,3 +286,146 @@ def test_long_names_fit(tmp_path: Path) -> None:
     name = "n" * 251 + ".npz"
     atomic_write_bytes(tmp_path / name, b"x")
     assert [p.name for p in tmp_path.iterdir()] == [name]
+
+
+# --------------------------------------------------------------------------- reading
+class _Refused(ParameterError):
+    """The error the reading tests ask the helpers to raise."""
+
+
+def _refused(message: str) -> _Refused:
+    return _Refused(f"the file: {message}")
+
+
+def _read(path: object, limit: int = 1 << 10) -> bytes:
+    return read_regular_file(path, limit=limit, kind="test file",  # type: ignore[arg-type]
+                             error=_refused)
+
+
+def _refusal(call: Callable[[], object]) -> str:
+    """The one-line message ``call`` raises; a call that blocks (a FIFO opened) fails."""
+    outcome: list[BaseException | object] = []
+    worker = threading.Thread(target=lambda: outcome.append(_catch(call)), daemon=True)
+    worker.start()
+    worker.join(60)
+    assert not worker.is_alive(), "the reader blocked"
+    error = outcome[0]
+    assert isinstance(error, _Refused), error
+    assert "\n" not in str(error)
+    return str(error)
+
+
+def _catch(call: Callable[[], object]) -> BaseException | object:
+    try:
+        return call()
+    except BaseException as exc:  # returned to the test thread
+        return exc
+
+
+def test_regular_files_are_read_whole(tmp_path: Path) -> None:
+    """A regular file (directly or through a symlink) within the bound is read whole."""
+    (tmp_path / "a").write_bytes(b"x" * 1024)
+    (tmp_path / "link").symlink_to(tmp_path / "a")
+    assert _read(tmp_path / "a") == b"x" * 1024
+    assert _read(str(tmp_path / "link")) == b"x" * 1024
+
+
+def test_a_fifo_is_refused_without_blocking(tmp_path: Path) -> None:
+    """A FIFO, or a symlink to one, is refused at once: nothing waits for a writer."""
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "link").symlink_to(tmp_path / "fifo")
+    for name in ("fifo", "link"):
+        message = _refusal(lambda name=name: _read(tmp_path / name))
+        assert message == "the file: is a FIFO, not a regular file: not a test file"
+
+
+def test_a_fifo_swapped_in_after_the_stat_is_refused(tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """The opened descriptor is checked again: a FIFO put in place after the stat neither
+    blocks nor is read."""
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "plain").write_bytes(b"x")
+    real_stat = os.stat
+    monkeypatch.setattr(os, "stat", lambda path, *a, **k: real_stat(tmp_path / "plain"))
+    assert "is a FIFO" in _refusal(lambda: _read(tmp_path / "fifo"))
+
+
+def test_other_non_regular_files_and_bad_names_are_refused(tmp_path: Path) -> None:
+    """Folders, devices, missing files, NUL bytes and non-paths each give one line."""
+    assert _refusal(lambda: _read(tmp_path)) == "the file: is a folder, not a test file"
+    assert "a character device" in _refusal(lambda: _read("/dev/zero"))
+    assert _refusal(lambda: _read(tmp_path / "none")) == "the file: no such test file"
+    assert "cannot read it" in _refusal(lambda: _read("a\x00b"))
+    assert "not a file path" in _refusal(lambda: _read(0))  # never stat-ed as a descriptor
+
+
+def test_the_size_bound_is_checked_before_reading(tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """A file beyond the bound is refused from its size: not a byte of it is read."""
+    big = tmp_path / "big"
+    with open(big, "wb") as handle:
+        handle.truncate(1 << 40)  # sparse: 1 TiB, never read
+    reads: list[int] = []
+    real_read = os.read
+    monkeypatch.setattr(os, "read", lambda fd, n: reads.append(n) or real_read(fd, n))
+    assert "is larger than 1024 bytes (1099511627776 bytes)" in _refusal(lambda: _read(big))
+    assert reads == []
+    (tmp_path / "edge").write_bytes(b"y" * 1024)
+    assert _read(tmp_path / "edge") == b"y" * 1024
+
+
+def test_open_regular_file_gives_a_blocking_handle_at_the_start(tmp_path: Path) -> None:
+    """The handle is an ordinary blocking binary file (what pyarrow or zipfile expect)."""
+    (tmp_path / "a").write_bytes(b"abc")
+    with open_regular_file(tmp_path / "a", limit=3, kind="part", error=_refused) as handle:
+        assert os.get_blocking(handle.fileno()) and handle.read() == b"abc"
+
+
+def test_decode_utf8_names_the_byte() -> None:
+    """Bytes that are not UTF-8 give one line with the offending byte's position."""
+    assert decode_utf8("é".encode(), error=_refused) == "é"
+    with pytest.raises(_Refused, match=r"not UTF-8 text \(invalid start byte at byte 2\)"):
+        decode_utf8(b"ab\xff", error=_refused)
+
+
+@pytest.mark.parametrize("text", [
+    "x = " + "[" * 100_000,
+    "x = " + "[" * 100_000 + "]" * 100_000,
+    "x = " + "{a = " * 100_000 + "1" + "}" * 100_000,
+    "a" + ".a" * 100_000 + " = 1",
+    "[" + "a." * 100_000 + "a]\n",
+    "[[" + "a." * 100_000 + "a]]\n",
+    "x = [{" + "a." * 20 + "b = [[" + "{c." * 20,
+])
+def test_deep_toml_is_refused_before_tomllib(text: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Deep arrays, inline tables and dotted keys are refused by the scan: tomllib (which
+    recurses on the first two and is quadratic in the third) never sees them."""
+    monkeypatch.setattr(_io.tomllib, "loads", lambda text: pytest.fail("tomllib was called"))
+    with pytest.raises(_Refused, match=f"nested deeper than {MAX_TOML_DEPTH} levels"):
+        parse_toml(text, error=_refused)
+
+
+def test_nesting_is_counted_outside_strings_and_comments_only() -> None:
+    """Brackets and dots inside strings of every kind and comments do not count; the
+    bound itself is accepted and parsed."""
+    deep = "[" * 40
+    text = (f'a = "{deep}"\nb = \'{deep}\'\nc = """\n{deep}\n"""\nd = \'\'\'{deep}\'\'\'\n'
+            f'e = """x""""\n# {deep}\nf = "\\"{deep}"\n"g.{"." * 40}" = 1\n'
+            f'h = [1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5, 8.5, 9.5, 10.5, 11.5, 12.5, 13.5, 14.5, '
+            f'15.5, 16.5, 17.5, 18.5, 19.5, 20.5, 21.5, 22.5, 23.5, 24.5, 25.5, 26.5, 27.5, '
+            f'28.5, 29.5, 30.5, 31.5, 32.5, 33.5]\n')
+    doc = parse_toml(text, error=_refused)
+    assert doc["a"] == doc["b"] == deep and doc["e"] == 'x"' and len(doc["h"]) == 33
+    at_bound = "x = " + "[" * MAX_TOML_DEPTH + "]" * MAX_TOML_DEPTH
+    assert toml_nesting_problem(at_bound) is None
+    assert toml_nesting_problem("x = " + "[" * (MAX_TOML_DEPTH + 1)) is not None
+    assert toml_nesting_problem("a" + ".a" * MAX_TOML_DEPTH + " = 1") is None
+    assert toml_nesting_problem("a" + ".a" * (MAX_TOML_DEPTH + 1) + " = 1") is not None
+
+
+def test_invalid_toml_is_one_line_of_the_callers_error() -> None:
+    """Syntax errors and integers beyond Python's digit limit are the caller's error."""
+    for text in ("x = = 1", "x = " + "9" * 5000, 'x = "unterminated [[[[[['):
+        with pytest.raises(_Refused, match=r"^the file: not valid TOML: ") as exc:
+            parse_toml(text, error=_refused)
+        assert "\n" not in str(exc.value)
