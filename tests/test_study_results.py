@@ -221,3 +221,177 @@ def test_figures_label_the_axes_in_words_and_show_c_y_as_the_friction_ratio(
     assert all(image.imread(p).shape[0] > 100 for p, _ in figures)
     assert "c_y/c_x" in figures[0][1] and "failed joint" in figures[0][1]
     assert "grey" in figures[1][1] and "grey" not in figures[0][1]
+
+
+# ------------------------------------------------------------ folder safety
+def _prepared(tmp_path: Path) -> tuple[StudyFolder, object]:
+    spec = parse_study(STUDY)
+    folder = StudyFolder(tmp_path / "out")
+    with folder.locked(spec):
+        pass
+    return folder, spec
+
+
+def test_a_symbolic_link_as_the_folder_or_its_runs_is_refused(tmp_path: Path) -> None:
+    """DIR or DIR/runs as a link to another folder: one line, nothing written there."""
+    folder, spec = _prepared(tmp_path)
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (tmp_path / "link").symlink_to(outside)
+    with pytest.raises(StudyError, match="is a symbolic link") as info:
+        StudyFolder(tmp_path / "link").prepare(spec)
+    assert "\n" not in str(info.value)
+    (folder.runs).rmdir()
+    folder.runs.symlink_to(outside)
+    for action in (lambda: folder.check(spec), lambda: folder.prepare(spec),
+                   folder.done_keys,
+                   lambda: folder.write_batch([spec.scenarios[0].key],
+                                              _rows(spec, spec.scenarios[:1]))):
+        with pytest.raises(StudyError, match="runs is a symbolic link"):
+            action()
+    assert list(outside.iterdir()) == []
+
+
+def test_a_linked_lock_or_identity_is_not_followed(tmp_path: Path) -> None:
+    """DIR/.lock linked to a missing file is refused without creating it; a linked
+    study.json is not read."""
+    folder, spec = _prepared(tmp_path)
+    target = tmp_path / "victim"
+    (folder.path / ".lock").unlink()
+    (folder.path / ".lock").symlink_to(target)
+    with pytest.raises(StudyError, match="lock"):
+        folder.prepare(spec)
+    assert not target.exists() and folder._lock is None
+    (folder.path / ".lock").unlink()
+    real = tmp_path / "identity.json"
+    (folder.path / "study.json").rename(real)
+    (folder.path / "study.json").symlink_to(real)
+    with pytest.raises(StudyError, match="not a readable study identity"):
+        folder.check(spec)
+
+
+def test_a_folder_that_cannot_be_written_fails_before_any_run(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Writing probed for real: a folder under a file, or one whose writes fail (as on a
+    read-only filesystem), is refused by prepare() in one line, before any cluster starts."""
+    import errno
+    import tempfile
+
+    from snake_pin.study import runner
+
+    spec = parse_study(STUDY)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(StudyError, match="cannot create the folder"):
+        StudyFolder(tmp_path / "file" / "out").prepare(spec)
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY)
+
+    def read_only(*_args: object, **_kwargs: object) -> None:
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    def no_cluster(*_args: object, **_kwargs: object) -> None:
+        raise AssertionError("a cluster was started")
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    monkeypatch.setattr(runner, "_client", no_cluster)
+    with pytest.raises(StudyError, match=r"cannot write here \(Read-only file system") as info:
+        runner.run_study(study, tmp_path / "ro")
+    assert "\n" not in str(info.value)
+    assert not (tmp_path / "ro" / "study.json").exists()
+
+
+def _write_part(folder: StudyFolder, name: str, table: object) -> Path:
+    path = folder.runs / name
+    pq.write_table(table, path)
+    return path
+
+
+def test_a_part_file_missing_columns_or_with_bad_rows_is_refused_not_counted(
+        tmp_path: Path) -> None:
+    """Parts with only `key`, a wrong column type, a null key or an unknown status are
+    refused by done_keys, read_table and the page, each naming the file; a good part is
+    read."""
+    import pyarrow as pa
+
+    folder, spec = _prepared(tmp_path)
+    first = spec.scenarios[:2]
+    good = rows_table(_rows(spec, first))
+    folder.write_batch([s.key for s in first], _rows(spec, first))
+    assert folder.done_keys() == {s.key for s in first}
+    key = spec.scenarios[2].key
+    status_at = SCHEMA.get_field_index("status")
+    bad = {
+        "batch-key-only.parquet": (pa.table({"key": [key]}), "columns missing"),
+        "batch-int-status.parquet": (good.set_column(status_at, "status", pa.array([1, 2])),
+                                     "column status is int64"),
+        "batch-null-key.parquet": (good.set_column(SCHEMA.get_field_index("key"), "key",
+                                                   pa.array([None, key], pa.string())),
+                                   "no key"),
+        "batch-bad-status.parquet": (good.set_column(status_at, "status",
+                                                     pa.array(["ok", "done"])), "status"),
+    }
+    summary = StudySummary(name="unit", study_hash=spec.study_hash, folder=str(folder.path))
+    for name, (table, problem) in bad.items():
+        path = _write_part(folder, name, table)
+        for read in (folder.done_keys, folder.read_table,
+                     lambda: write_index(folder, spec, summary)):
+            with pytest.raises(StudyError, match=re.escape(problem)) as info:
+                read()
+            assert str(path) in str(info.value) and "\n" not in str(info.value)
+        path.unlink()
+    assert folder.done_keys() == {s.key for s in first}
+    assert folder.read_table(["key", "c_y"]).num_rows == 2
+
+
+def test_part_files_that_are_not_regular_files_are_refused(tmp_path: Path) -> None:
+    """A FIFO (never opened: it would block), a folder or a link named *.parquet in runs/
+    is refused with its name."""
+    import os
+
+    folder, spec = _prepared(tmp_path)
+    real = tmp_path / "elsewhere.parquet"
+    pq.write_table(rows_table(_rows(spec, spec.scenarios[:1])), real)
+    makers = {"batch-fifo.parquet": os.mkfifo, "batch-dir.parquet": os.mkdir,
+              "batch-link.parquet": lambda p: os.symlink(real, p)}
+    for name, make in makers.items():
+        path = folder.runs / name
+        make(path)
+        with pytest.raises(StudyError, match="not a regular file") as info:
+            folder.done_keys()
+        assert str(path) in str(info.value)
+        os.rmdir(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+    assert folder.done_keys() == set()
+
+
+# ------------------------------------------------------------------ categories
+def _tick_labels(axis: object) -> list[str]:
+    return [t.get_text() for t in axis.get_ticklabels()]
+
+
+def test_categorical_axes_are_drawn_as_categories() -> None:
+    """The failed joint and the controller get one tick per value labelled with it (also in
+    a heatmap); a real-valued axis stays to scale (its points at c_y/c_x)."""
+    from snake_pin.study.report import _figure_objects, is_categorical
+
+    assert is_categorical("failed_joint", [0, 5, 9]) and is_categorical("controller", ["a"])
+    assert not is_categorical("c_y", [10.0, 25.0])
+    joints = parse_study("[base]\nt_final = 0.5\n[axes.failed_joint]\nvalues = [0, 5, 9]\n"
+                         "[axes.init_seed]\nvalues = [1, 2]\n")
+    controllers = parse_study("[base]\nt_final = 0.5\n[axes.controller]\n"
+                              "values = [\"lyapunov\", \"velocity\"]\n")
+    for spec, name, labels in ((joints, "failed_joint", ["0", "5", "9"]),
+                               (controllers, "controller", ["lyapunov", "velocity"])):
+        figures = _figure_objects("lines", [name], spec, _rows(spec, spec.scenarios))
+        assert len(figures) == 2
+        for _, _, fig in figures:
+            ax = fig.axes[0]
+            assert _tick_labels(ax.xaxis) == labels
+            assert list(ax.get_xticks()) == list(range(len(labels)))
+    spec = parse_study(STUDY)
+    for _, _, fig in _figure_objects("heatmap", ["c_y", "failed_joint"], spec,
+                                     _rows(spec, spec.scenarios)):
+        assert _tick_labels(fig.axes[0].yaxis) == ["0", "5"]
+    ratio = parse_study("[base]\nt_final = 0.5\nc_x = 0.5\n[axes.c_y]\n"
+                        "values = [10.0, 25.0, 40.0]\n")
+    _, _, fig = _figure_objects("lines", ["c_y"], ratio, _rows(ratio, ratio.scenarios))[0]
+    assert list(fig.axes[0].lines[0].get_xdata()) == [20.0, 50.0, 80.0]

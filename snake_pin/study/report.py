@@ -15,7 +15,11 @@ other grid axes:
 - none: histograms of the metrics over all runs.
 
 Axes are labelled in words (:data:`AXIS_LABELS`); an axis over ``c_y`` in a study whose
-runs share one uniform ``c_x`` is shown as the friction ratio ``c_y/c_x``.
+runs share one uniform ``c_x`` is shown as the friction ratio ``c_y/c_x``. Only axes over
+real-valued settings are drawn to scale; a categorical axis (a setting that is not a real
+number: the failed joint, a seed, the controller, the robot, the friction cone, ...) is
+drawn as categories, one evenly spaced tick per value labelled with the value
+(:func:`is_categorical`), as are both axes of a heatmap.
 :func:`save_figures` writes the same figures as PNG files (the report stage of the
 actuator-failure map uses it).
 
@@ -41,11 +45,11 @@ import numpy as np
 
 from .._io import atomic_group, atomic_write_bytes
 from .results import RUNS, StudyFolder
-from .spec import StudySpec
+from .spec import SETTINGS, StudySpec
 from .summary import StudySummary
 
 __all__ = ["AXIS_LABELS", "LOG_SPAN", "MAX_TABLE_ROWS", "METRICS", "axis_label", "figure_plan",
-           "save_figures", "write_index"]
+           "is_categorical", "save_figures", "write_index"]
 
 #: Most rows in the page's table (all runs are in the Parquet dataset anyway).
 MAX_TABLE_ROWS = 2000
@@ -221,6 +225,29 @@ def axis_label(spec: StudySpec, name: str) -> tuple[str, Any]:
     return AXIS_LABELS.get(name, name), lambda v: v
 
 
+def is_categorical(name: str, values: Sequence[Any]) -> bool:
+    """Whether a figure draws the axis over setting ``name`` as categories.
+
+    Parameters
+    ----------
+    name
+        The setting.
+    values
+        The axis's values.
+
+    Returns
+    -------
+    bool
+        True unless the setting is real-valued (kind ``float``) and every value is a
+        finite number: integer settings are indices or seeds (the failed joint, the
+        noise seed), text settings are names (controller, robot, cone, ...).
+    """
+    setting = SETTINGS.get(name)
+    if setting is None or setting.kind != "float":
+        return True
+    return not all(_finite(v) and not isinstance(v, bool) for v in values)
+
+
 def _figure_objects(kind: str, plotted: list[str], spec: StudySpec,
                     rows: Sequence[dict[str, Any]]) -> list[tuple[str, str, Any]]:
     """(metric, caption, matplotlib Figure) of each figure."""
@@ -308,7 +335,7 @@ def _heatmap(fig: Any, ax: Any, plotted: list[str], spec: StudySpec,
 def _lines(ax: Any, name: str, spec: StudySpec, xs: list[Any], rows: Sequence[dict[str, Any]],
            metric: str, label: str, log: bool) -> str:
     x_label, x_shown = axis_label(spec, name)
-    numeric = all(_finite(v) for v in xs)
+    numeric = not is_categorical(name, xs)
     positions = [float(x_shown(v)) for v in xs] if numeric else list(range(len(xs)))
     med, low, high = [], [], []
     for v in xs:
@@ -324,7 +351,8 @@ def _lines(ax: Any, name: str, spec: StudySpec, xs: list[Any], rows: Sequence[di
     ax.fill_between(positions, low, high, color="#4a7bd1", alpha=0.25, label="10-90 %")
     ax.plot(positions, med, "o-", color="#1f4fd1", label="median")
     if not numeric:
-        ax.set_xticks(positions, [_tick(v) for v in xs])
+        ax.set_xticks(positions, [_tick(x_shown(v)) for v in xs])
+        ax.set_xlim(-0.5, len(xs) - 0.5)
     if log:
         ax.set_yscale("log")
     ax.set_xlabel(x_label)

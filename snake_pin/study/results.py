@@ -16,8 +16,18 @@ are hidden (``.name...tmp``), and Parquet readers skip hidden files.
 
 A folder belongs to one study: :meth:`StudyFolder.check` refuses a folder whose
 ``study.json`` holds another study hash, or a non-empty folder that is not a study folder.
+A study writes only inside its folder: ``DIR`` itself, ``DIR/runs``, ``DIR/.lock`` and
+``DIR/study.json`` must not be symbolic links, and :meth:`StudyFolder.prepare` writes a
+probe file in ``DIR`` and ``DIR/runs`` before any run, so a folder where writing fails
+(read-only, full, ...) is refused at once.
+
 Finished runs are found by their keys (:meth:`StudyFolder.done_keys`), so re-running a
-study runs only the missing ones, whatever batches the earlier runs were grouped in.
+study runs only the missing ones, whatever batches the earlier runs were grouped in. Every
+batch file is read through one check (:meth:`StudyFolder.read_table` and
+:meth:`~StudyFolder.done_keys` alike): a regular file (not a link, folder or device),
+readable Parquet, with every column of :data:`SCHEMA` in a compatible type, a key and a
+known status on every row; any other is refused with one line naming it (remove it to
+run its runs again), never counted as done.
 """
 
 from __future__ import annotations
@@ -27,11 +37,14 @@ import fcntl
 import hashlib
 import json
 import os
+import stat
+import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from .._io import atomic_save, atomic_write_bytes
@@ -128,18 +141,21 @@ class StudyFolder:
         Raises
         ------
         StudyError
-            ``DIR`` is a file; holds another study (its study.json hash differs); is not
-            empty and not a study folder; or its study.json is unreadable.
+            ``DIR`` is a file or a symbolic link; holds another study (its study.json hash
+            differs); is not empty and not a study folder; its study.json is unreadable;
+            or its ``runs`` is a symbolic link or not a folder.
         """
         shown = _shown(self.path)
+        if self.path.is_symlink():
+            raise StudyError(f"{shown} is a symbolic link; give the folder itself (a study "
+                             "writes only inside its own folder)")
         if not self.path.exists():
-            if self.path.is_symlink():
-                raise StudyError(f"{shown}: a broken symbolic link, not a folder")
             return
         if not self.path.is_dir():
             raise StudyError(f"{shown} exists and is not a folder")
+        self._check_runs()
         identity = self.path / _IDENTITY
-        if not identity.exists():
+        if not os.path.lexists(identity):
             visible = [e for e in os.listdir(self.path) if not e.startswith(".")]
             if visible:
                 raise StudyError(f"{shown} is not empty and holds no study (no {_IDENTITY}); "
@@ -153,6 +169,14 @@ class StudyFolder:
             raise StudyError(f"{shown} holds a different study ({stored.get('name')!r}, hash "
                              f"{str(stored.get('study_hash'))[:12]}; this one "
                              f"{spec.study_hash[:12]}); use another folder")
+
+    def _check_runs(self) -> None:
+        """Refuse a ``runs`` that is a symbolic link or not a folder."""
+        if self.runs.is_symlink():
+            raise StudyError(f"{_shown(self.runs)} is a symbolic link; a study writes only "
+                             "inside its own folder (remove the link)")
+        if self.runs.exists() and not self.runs.is_dir():
+            raise StudyError(f"{_shown(self.runs)} exists and is not a folder")
 
     def identity(self) -> dict[str, Any]:
         """The stored ``study.json``.
@@ -169,7 +193,7 @@ class StudyFolder:
         """
         file = self.path / _IDENTITY
         try:
-            with open(file, "rb") as handle:
+            with _open_regular(file) as handle:
                 data = json.loads(handle.read(1 << 24))
         except (OSError, ValueError) as exc:
             raise StudyError(f"{_shown(file)} is not a readable study identity: "
@@ -189,17 +213,12 @@ class StudyFolder:
         Raises
         ------
         StudyError
-            A batch file that Parquet cannot read (name it; remove it to re-run its runs).
+            A batch file that is not usable (see :meth:`read_table`), named; its runs are
+            not counted (remove it to run them again).
         """
         keys: set[str] = set()
         for file in self.batch_files():
-            try:
-                column = pq.read_table(file, columns=["key"]).column("key")
-            except (OSError, pa.ArrowException, KeyError) as exc:
-                raise StudyError(f"{_shown(file)} is not a readable batch file "
-                                 f"({_one_line(str(exc))}); remove it to run its runs "
-                                 "again") from None
-            keys.update(column.to_pylist())
+            keys.update(_read_batch(file, ["key"]).column("key").to_pylist())
         return keys
 
     def batch_files(self) -> list[Path]:
@@ -208,16 +227,33 @@ class StudyFolder:
         Returns
         -------
         list of Path
-            The files of ``runs/``.
+            The ``*.parquet`` entries of ``runs/``.
+
+        Raises
+        ------
+        StudyError
+            ``runs`` is a symbolic link, or one of its ``*.parquet`` entries is not a
+            regular file (a symbolic link, a folder, a device, ...).
         """
+        self._check_runs()
         if not self.runs.is_dir():
             return []
-        return sorted(p for p in self.runs.iterdir()
-                      if p.suffix == ".parquet" and not p.name.startswith(".") and p.is_file())
+        files = []
+        for entry in os.scandir(self.runs):
+            if not entry.name.endswith(".parquet") or entry.name.startswith("."):
+                continue
+            if not entry.is_file(follow_symlinks=False):
+                raise StudyError(f"{_shown(entry.path)} is not a regular file (a link, folder "
+                                 "or device); remove it to run its runs again")
+            files.append(Path(entry.path))
+        return sorted(files)
 
     # ------------------------------------------------------------- writing
     def prepare(self, spec: StudySpec) -> None:
         """Create the folder, take its lock, check it again and write ``study.json`` (if new).
+
+        Writing is tried for real (a probe file in the folder and in ``runs/``, removed at
+        once), so a folder where writing fails is refused here, before any run.
 
         Parameters
         ----------
@@ -227,25 +263,49 @@ class StudyFolder:
         Raises
         ------
         StudyError
-            Another process holds the folder's lock (a study is running there), or
+            The folder cannot be created or written; its ``.lock`` is a symbolic link;
+            another process holds the folder's lock (a study is running there); or
             :meth:`check` fails under the lock.
         """
-        self.path.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.path / ".lock", os.O_RDWR | os.O_CREAT, 0o666)
+        shown = _shown(self.path)
+        self.check(spec)
         try:
+            self.path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise StudyError(f"{shown}: cannot create the folder "
+                             f"({exc.strerror or exc})") from None
+        try:
+            fd = os.open(self.path / ".lock", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW
+                         | os.O_NONBLOCK, 0o666)
+        except OSError as exc:
+            raise StudyError(f"{_shown(self.path / '.lock')}: cannot open the study's lock "
+                             f"({exc.strerror or exc}; a symbolic link is refused)") from None
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise StudyError(f"{_shown(self.path / '.lock')} is not a regular file")
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
-            raise StudyError(f"{_shown(self.path)}: another study run is writing to this "
+            raise StudyError(f"{shown}: another study run is writing to this "
                              "folder") from None
+        except BaseException:
+            os.close(fd)
+            raise
         self._lock = fd
         try:
             self.check(spec)  # again, under the lock: another run may have started here
+            _probe_writable(self.path)
             if not (self.path / _IDENTITY).exists():
                 payload = {"format": _FORMAT, **spec.to_dict()}
-                atomic_write_bytes(self.path / _IDENTITY, (json.dumps(
+                _write_or_refuse(self.path / _IDENTITY, (json.dumps(
                     payload, indent=2, allow_nan=False) + "\n").encode())
-            self.runs.mkdir(exist_ok=True)
+            try:
+                self.runs.mkdir(exist_ok=True)
+            except OSError as exc:
+                raise StudyError(f"{_shown(self.runs)}: cannot create the folder "
+                                 f"({exc.strerror or exc})") from None
+            self._check_runs()
+            _probe_writable(self.runs)
         except BaseException:
             self.release()
             raise
@@ -294,6 +354,7 @@ class StudyFolder:
             The file written.
         """
         table = rows_table(rows)
+        self._check_runs()
         path = self.runs / batch_name(keys)
         atomic_save(path, lambda handle: pq.write_table(table, handle))
         return path
@@ -309,15 +370,108 @@ class StudyFolder:
         Returns
         -------
         pyarrow.Table
-            The rows of every batch file.
+            The rows of every batch file, with the types of :data:`SCHEMA`.
+
+        Raises
+        ------
+        StudyError
+            A batch file is not a regular file, not readable Parquet, lacks a column of
+            :data:`SCHEMA` or holds it in an incompatible type, or has a row without a key
+            or with an unknown status; the message names it.
         """
+        names = list(columns) if columns is not None else list(SCHEMA.names)
         files = self.batch_files()
         if not files:
-            return SCHEMA.empty_table() if columns is None else \
-                SCHEMA.empty_table().select(list(columns))
-        tables = [pq.read_table(f, columns=list(columns) if columns else None,
-                                schema=SCHEMA) for f in files]
-        return pa.concat_tables(tables)
+            return SCHEMA.empty_table().select(names)
+        return pa.concat_tables([_read_batch(f, names) for f in files])
+
+
+def _read_batch(file: Path, columns: Sequence[str]) -> pa.Table:
+    """``columns`` of one batch file, checked (see :meth:`StudyFolder.read_table`)."""
+    def refuse(problem: str) -> StudyError:
+        return StudyError(f"{_shown(file)} is not a usable batch file ({problem}); remove "
+                          "it to run its runs again")
+
+    try:
+        with _open_regular(file) as handle:
+            parquet = pq.ParquetFile(handle)
+            schema = parquet.schema_arrow
+            missing = [n for n in SCHEMA.names if n not in schema.names]
+            if missing:
+                shown = ", ".join(missing[:4]) + (", ..." if len(missing) > 4 else "")
+                raise refuse(f"{len(missing)} columns missing: {shown}")
+            for name in SCHEMA.names:
+                found, expected = schema.field(name).type, SCHEMA.field(name).type
+                if not _compatible(found, expected):
+                    raise refuse(f"column {name} is {found}, not {expected}")
+            wanted = list(dict.fromkeys([*columns, "key", "status"]))
+            table = parquet.read(columns=wanted)
+    except StudyError:
+        raise
+    except (OSError, ValueError, pa.ArrowException) as exc:
+        raise refuse(_one_line(str(exc)) or type(exc).__name__) from None
+    if table.column("key").null_count:
+        raise refuse("a row has no key")
+    if table.column("status").null_count:
+        raise refuse("a row has no status")
+    try:
+        table = table.select(wanted).cast(pa.schema([SCHEMA.field(n) for n in wanted]))
+    except (ValueError, pa.ArrowException) as exc:
+        raise refuse(_one_line(str(exc))) from None
+    if not pc.all(pc.is_in(table.column("status"), value_set=pa.array(STATUSES))).as_py():
+        raise refuse(f"a row's status is not one of {', '.join(STATUSES)}")
+    return table.select(list(columns))
+
+
+def _compatible(found: pa.DataType, expected: pa.DataType) -> bool:
+    """Whether a column of type ``found`` reads as ``expected`` without reinterpretation."""
+    if found == expected or pa.types.is_null(found):
+        return True
+    if pa.types.is_string(expected):
+        return pa.types.is_string(found) or pa.types.is_large_string(found)
+    if pa.types.is_integer(expected):
+        return pa.types.is_integer(found)
+    if pa.types.is_floating(expected):
+        return pa.types.is_floating(found) or pa.types.is_integer(found)
+    return False
+
+
+@contextlib.contextmanager
+def _open_regular(path: Path) -> Iterator[Any]:
+    """``path`` open for binary reading: a regular file, not through a symbolic link."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(f"{_shown(path)}: not a regular file")
+        handle = os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+    with handle:
+        yield handle
+
+
+def _probe_writable(folder: Path) -> None:
+    """Write, sync and remove a hidden probe file in ``folder``, or raise a StudyError."""
+    try:
+        fd, name = tempfile.mkstemp(dir=folder, prefix=".write-probe-", suffix=".tmp")
+        try:
+            os.write(fd, b"snake-pin")
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+            with contextlib.suppress(OSError):
+                os.unlink(name)
+    except OSError as exc:
+        raise StudyError(f"{_shown(folder)}: cannot write here ({exc.strerror or exc})") \
+            from None
+
+
+def _write_or_refuse(path: Path, data: bytes) -> None:
+    try:
+        atomic_write_bytes(path, data)
+    except OSError as exc:
+        raise StudyError(f"{_shown(path)}: cannot write ({exc.strerror or exc})") from None
 
 
 def _shown(path: object) -> str:
