@@ -14,11 +14,29 @@ if TYPE_CHECKING:
     from .control.reference import HeadReference
     from .sim import Trajectory
 
-__all__ = ["ERROR_WINDOW", "criteria_along", "error_caption", "head_error_summary",
-           "head_position_error", "percent", "window"]
+__all__ = ["ERROR_WINDOW", "applied", "criteria_along", "default_error_window", "error_caption",
+           "head_error_summary", "head_position_error", "percent", "window", "window_note"]
 
-#: Head errors are judged over t >= this [s], after the start-up (the issues' window).
+#: Head errors are judged over t >= this [s] in runs of at least twice its length, after
+#: the start-up; shorter runs are judged over their second half (:func:`default_error_window`).
 ERROR_WINDOW = 10.0
+
+
+def default_error_window(t_final: float) -> float:
+    """Return the default start of the head-error window for a run of ``t_final`` seconds.
+
+    Parameters
+    ----------
+    t_final : float
+        The run's duration [s].
+
+    Returns
+    -------
+    float
+        ``min(ERROR_WINDOW, t_final / 2)`` [s]: 10 s for runs of 20 s or more, else the
+        run's second half, so that every run has a window.
+    """
+    return min(ERROR_WINDOW, 0.5 * float(t_final))
 
 
 def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarray:
@@ -42,8 +60,8 @@ def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarra
 
 
 def head_error_summary(traj: Trajectory, error: np.ndarray,
-                       start: float = ERROR_WINDOW) -> dict[str, float | None]:
-    """Return the RMS and max head error over ``t >= start`` and the relative RMS.
+                       start: float | None = None) -> dict[str, float | None]:
+    """Return the RMS and max head error over ``t >= start``, absolute and relative.
 
     The body length is the sum of the link lengths (``params.body_length``: per-link
     robots are judged against their own length, a long head included).
@@ -54,21 +72,56 @@ def head_error_summary(traj: Trajectory, error: np.ndarray,
         A finished (or stopped) run: ``traj.t`` has shape (N,), ``traj.q`` (N, n + 2).
     error : numpy.ndarray, shape (N,)
         Head error at every sample [m] (:func:`head_position_error`).
-    start : float, optional
-        Start of the judged window [s]; :data:`ERROR_WINDOW` by default.
+    start : float or None, optional
+        Start of the judged window [s]; None: :func:`default_error_window` of the run's
+        last sample time.
 
     Returns
     -------
     dict of str to float or None
-        ``rms_head_error`` [m], ``max_head_error`` [m] and ``rms_relative`` (RMS over
-        the body length, a fraction); all three None when the run ends before ``start``.
+        ``error_window`` (the start [s]), ``rms_head_error`` and ``max_head_error`` [m],
+        ``rms_head_error_pct`` and ``max_head_error_pct`` (% of the body length) and
+        ``rms_relative`` (RMS over the body length, a fraction); all but ``error_window``
+        None when no sample lies in the window (:func:`window_note` says so in words).
     """
+    start = default_error_window(traj.t_end) if start is None else float(start)
     late = window(traj, start)
     if not late.any():
-        return {"rms_head_error": None, "max_head_error": None, "rms_relative": None}
+        return {"error_window": start, "rms_head_error": None, "max_head_error": None,
+                "rms_head_error_pct": None, "max_head_error_pct": None,
+                "rms_relative": None}
     rms = float(np.sqrt(np.mean(error[late] ** 2)))
-    return {"rms_head_error": rms, "max_head_error": float(error[late].max()),
-            "rms_relative": rms / traj.params.body_length}
+    peak = float(error[late].max())
+    body = traj.params.body_length
+    return {"error_window": start, "rms_head_error": rms, "max_head_error": peak,
+            "rms_head_error_pct": 100.0 * rms / body, "max_head_error_pct": 100.0 * peak / body,
+            "rms_relative": rms / body}
+
+
+def window_note(summary: Mapping[str, object]) -> str:
+    """Return one line saying that a run's head-error window is empty, or "".
+
+    Parameters
+    ----------
+    summary : Mapping of str to object
+        A run summary with ``error_window``, ``rms_head_error`` and ``t_end`` (as
+        ``Trajectory.summary_dict()`` gives them after :func:`head_error_summary`).
+
+    Returns
+    -------
+    str
+        ``"no samples in the head-error window t >= 20 s (the run ends at 3 s): the
+        head-error metrics are null"``, or "" when the window has samples (or the summary
+        has no head-error metrics).
+    """
+    start = summary.get("error_window")
+    if start is None or "rms_head_error" not in summary \
+            or summary.get("rms_head_error") is not None:
+        return ""
+    end = summary.get("t_end")
+    ends = f" (the run ends at {float(cast(float, end)):g} s)" if end is not None else ""
+    return (f"no samples in the head-error window t >= {float(cast(float, start)):g} s{ends}: "
+            "the head-error metrics are null")
 
 
 def percent(fraction: float | None) -> float | None:
@@ -99,14 +152,16 @@ def error_caption(summary: Mapping[str, object]) -> str:
     Returns
     -------
     str
-        ``"RMS error over t >= 10 s: 0.012 m (1.0 % of the body)"``, or a line saying
-        the run was too short for the window.
+        ``"RMS error over t >= 10 s: 0.012 m (1.0 % of the body)"`` (the window's start
+        from ``error_window``, :data:`ERROR_WINDOW` if absent), or a line saying the
+        window holds no sample.
     """
+    start = float(cast(float, summary.get("error_window", ERROR_WINDOW)))
     rms = summary.get("rms_head_error")
     if rms is None:
-        return f"run shorter than {ERROR_WINDOW:.0f} s: no RMS error window"
+        return f"no samples in the error window t >= {start:g} s: no RMS error"
     relative = cast(float, summary["rms_relative"])
-    return (f"RMS error over t >= {ERROR_WINDOW:.0f} s: {cast(float, rms):.3f} m "
+    return (f"RMS error over t >= {start:g} s: {cast(float, rms):.3f} m "
             f"({100 * float(relative):.1f} % of the body)")
 
 
@@ -138,6 +193,30 @@ def criteria_along(traj: Trajectory, *, every: int = 1,
         res = manipulability(snake, traj.q[k], free_joint=free_joint)
         d[out], r[out] = res.D, res.R
     return traj.t[idx], d, r
+
+
+def applied(traj: Trajectory) -> np.ndarray:
+    """Return the mask of the samples whose torque was applied.
+
+    A run records one torque per sample, held until the next; the last sample's torque
+    was never applied (recorded as zero) unless the run diverged, where it is the torque
+    held while the state blew up.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A finished (or stopped) run: ``traj.tau`` has shape (N, n - 1).
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (N,)
+        True where ``traj.tau`` was applied: every sample of a diverged run, every sample
+        but the last otherwise.
+    """
+    mask = np.ones(len(traj), dtype=bool)
+    if traj.status != "diverged" and mask.size:
+        mask[-1] = False
+    return mask
 
 
 def window(traj: Trajectory, start: float, stop: float | None = None) -> np.ndarray:

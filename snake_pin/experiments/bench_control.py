@@ -1,4 +1,4 @@
-"""The controller benchmark on paths (issue 15): scenarios x controllers x models x failures.
+"""The controller benchmark on paths: scenarios x controllers x models x failures.
 
 This module owns the benchmark: its scenarios (:data:`SCENARIOS`), its built-in controller
 factories (:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), running the
@@ -51,13 +51,13 @@ median over them, with the 10-90 % range of the head cross-track RMS (``draws=1`
 unperturbed start, one draw). Failures: ``failed=(None, 5)`` runs each cell with every
 joint actuated and with joint 5 passive (free).
 
-Metrics (:func:`path_metrics`) over ``t >= 10 s`` (:data:`~snake_pin.metrics.ERROR_WINDOW`),
-on samples every 10 ms (criteria every 0.1 s): head cross-track error (distance from the
-path) RMS and max, also in % of the body length; head along-path lag ``s_r(t) - s_h``
-RMS (for circles wrapped to the nearest lap); time-indexed head error
-``|p_h - p_r(t)|`` RMS (head-tracking laws only); CM cross-track RMS; R_min, R~_min
-(joint 5 free) and the lateral-constraint criterion's minimum; torque RMS; the status
-and the time a run diverged.
+Metrics (:func:`path_metrics`) over ``t >= error_window`` (default 10 s, or the second
+half of runs shorter than 20 s: :func:`~snake_pin.metrics.default_error_window`), on samples
+every 10 ms (criteria every 0.1 s): head cross-track error (distance from the path) RMS and
+max, also in % of the body length; head along-path lag ``s_r(t) - s_h`` RMS (for circles
+wrapped to the nearest lap); time-indexed head error ``|p_h - p_r(t)|`` RMS (head-tracking
+laws only); CM cross-track RMS; R_min, R~_min (joint 5 free) and the lateral-constraint
+criterion's minimum; torque RMS; the status and the time a run diverged.
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ from .._io import atomic_group
 from ..control import Controller
 from ..exceptions import ParameterError
 from ..manipulability import lateral_constraint_manipulability, manipulability
-from ..metrics import ERROR_WINDOW
+from ..metrics import ERROR_WINDOW, default_error_window
 from ..model import Snake
 from ..params import SnakeParams
 from ..paths import Circle, LaneChange, Line, PathReference, Sinusoid, Timing, Waypoints
@@ -89,14 +89,16 @@ from .parallel import run_jobs
 from .tracking import initial_state, tracking_params
 
 __all__ = ["CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT", "METRIC_FIELDS",
-           "MODELS", "REPORT_ENGINE_SCENARIOS", "REPORT_ENGINE_T", "REPORT_SCENARIOS",
-           "SCENARIOS", "SPEED",
+           "MODELS", "QUICK_T_FINAL", "REPORT_ENGINE_SCENARIOS", "REPORT_ENGINE_T",
+           "REPORT_SCENARIOS", "SCENARIOS", "SPEED",
            "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "bench_control_stage",
            "cm_positions", "make_scenario", "path_metrics", "run_benchmark", "run_cell",
            "write_benchmark"]
 
 #: Reference speed along every path [m/s] (the paper's 0.1 m/s).
 SPEED = 0.1
+#: The longest run of the quick benchmark [s] (``quick=True``).
+QUICK_T_FINAL = 12.0
 #: The joint that fails (becomes passive) in the failed-joint runs, 1-based.
 FAILED_JOINT = 5
 #: The waypoints scenario's points [m]: a gentle S-curve over 7.5 m, first leg along +x.
@@ -268,9 +270,9 @@ def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
     dict
         ``head_ct_rms``, ``head_ct_max``, ``head_ct_rms_pct`` [m, m, % of body],
         ``head_lag_rms`` [m], ``head_error_rms`` [m], ``cm_ct_rms`` [m], ``R_min``,
-        ``R_tilde_min``, ``lateral_min``, ``torque_rms`` [N m], and ``series``: the
-        criteria along the run (``t``, ``R``, ``R_tilde``, ``lateral``). NaN where the
-        window is empty.
+        ``R_tilde_min``, ``lateral_min``, ``D_min``, ``torque_rms`` [N m], and ``series``:
+        the criteria along the run (``t``, ``R``, ``R_tilde``, ``lateral``, ``D``). NaN
+        where the window is empty.
     """
     path, body = reference.path, snake.params.body_length
     mask = t >= start - 1e-9
@@ -297,16 +299,19 @@ def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
         if head_tracking:
             out["head_error_rms"] = _rms(np.linalg.norm(head - reference.at(tw)[0][:, :2],
                                                         axis=1))
-    series: dict[str, list[float]] = {"t": [], "R": [], "R_tilde": [], "lateral": []}
+    series: dict[str, list[float]] = {"t": [], "R": [], "R_tilde": [], "lateral": [], "D": []}
     if criteria_dt is not None and len(t):
         times = np.arange(0.0, t[-1] + 1e-9, criteria_dt)
         idx = np.unique(np.minimum(np.searchsorted(t, times - 1e-9), len(t) - 1))
         for k in idx:
+            criteria = manipulability(snake, q[k])
             series["t"].append(float(t[k]))
-            series["R"].append(manipulability(snake, q[k]).R)
+            series["R"].append(criteria.R)
+            series["D"].append(criteria.D)
             series["R_tilde"].append(manipulability(snake, q[k], free_joint=free_joint).R)
             series["lateral"].append(lateral_constraint_manipulability(snake, q[k]).D)
-    for key, name in (("R", "R_min"), ("R_tilde", "R_tilde_min"), ("lateral", "lateral_min")):
+    for key, name in (("R", "R_min"), ("R_tilde", "R_tilde_min"), ("lateral", "lateral_min"),
+                      ("D", "D_min")):
         out[name] = float(np.min(series[key])) if series[key] else math.nan
     out["series"] = series
     return out
@@ -325,7 +330,7 @@ def _row(scenario: str, controller: str, model: str, failed: int | None,
 def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: int | None,
                  t_final: float, factory: ControllerFactory | None,
                  criteria_dt: float | None, draws: int,
-                 robot: SnakeParams | None) -> dict[str, Any]:
+                 robot: SnakeParams | None, start: float) -> dict[str, Any]:
     """An engine cell: ``draws`` perturbed starts, the error metrics' medians over them.
 
     The draws' offsets are :func:`~snake_pin.experiments.engine.perturbations` (seed 0,
@@ -359,7 +364,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
         traj = run_engine(params, t_final=t_final, friction=friction, law=law,
                           initial_offset=offset, reference=reference).trajectory
         metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
-                               Snake(traj.params), reference, criteria_dt=None)
+                               Snake(traj.params), reference, start=start, criteria_dt=None)
         runs.append((traj, metrics))
     spread = distribution([m["head_ct_rms_pct"] for _, m in runs])
     order = sorted(range(len(runs)), key=lambda k: (
@@ -369,7 +374,8 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
     traj = runs[median][0]
     if criteria_dt is not None:
         row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
-                                Snake(traj.params), reference, criteria_dt=criteria_dt))
+                                Snake(traj.params), reference, start=start,
+                                criteria_dt=criteria_dt))
     else:
         row.update(runs[median][1])
     for key in ("head_ct_rms", "head_ct_max", "head_ct_rms_pct", "head_lag_rms",
@@ -410,7 +416,8 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
              factory: ControllerFactory | None = None,
              criteria_dt: float | None = _CRITERIA_DT,
              robot: SnakeParams | None = None, draws: int = ENGINE_DRAWS,
-             engine_robot: SnakeParams | None = None) -> dict[str, Any]:
+             engine_robot: SnakeParams | None = None,
+             error_window: float | None = None) -> dict[str, Any]:
     """Run one benchmark cell and return its row (see :data:`METRIC_FIELDS`).
 
     On the engine (MuJoCo, :func:`~snake_pin.engine.run.run_engine` with the scenario as
@@ -441,6 +448,9 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
         Engine cells: perturbed starts (1: the unperturbed start alone, one draw).
     engine_robot : SnakeParams or None, optional
         The engine robot (default: the ``engine`` preset of VI.3).
+    error_window : float or None, optional
+        Start of the metrics' window [s] (None:
+        :func:`~snake_pin.metrics.default_error_window` of ``t_final``).
 
     Returns
     -------
@@ -459,6 +469,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     if model not in MODELS:
         raise ParameterError(f"unknown model {model!r} (expected one of {', '.join(MODELS)})")
     _check_draws(draws)
+    start = default_error_window(t_final) if error_window is None else float(error_window)
     wall = time.perf_counter()
     params = robot if robot is not None else tracking_params()
     if failed:
@@ -472,7 +483,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
                              f"{', '.join(CONTROLLERS)} or a factory)")
     if model == "engine":
         _engine_cell(row, scenario, controller, failed, t_final, factory, criteria_dt,
-                     draws, engine_robot)
+                     draws, engine_robot, start)
         row["wall_s"] = time.perf_counter() - wall
         return row
     snake = Snake(params)
@@ -486,7 +497,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     stride = slice(None, None, _EVERY)
     row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
                             reference, head_tracking=hasattr(ctrl, "reference"),
-                            criteria_dt=criteria_dt))
+                            start=start, criteria_dt=criteria_dt))
     _finish(row, traj, traj.status, traj.reason)
     row["wall_s"] = time.perf_counter() - wall
     return row
@@ -566,7 +577,8 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
                   t_final: float = 60.0, quick: bool = False,
                   workers: int | None = None,
                   robot: SnakeParams | None = None, draws: int = ENGINE_DRAWS,
-                  engine_robot: SnakeParams | None = None) -> BenchmarkResult:
+                  engine_robot: SnakeParams | None = None,
+                  error_window: float | None = None) -> BenchmarkResult:
     """Run every cell of scenarios x controllers x models x failed joints.
 
     Parameters
@@ -593,6 +605,10 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         Perturbed starts per engine cell (medians reported; 1: one unperturbed draw).
     engine_robot : SnakeParams or None, optional
         The engine robot (default: the ``engine`` preset).
+    error_window : float or None, optional
+        Start of the metrics' window [s], in [0, t_final) (None:
+        :func:`~snake_pin.metrics.default_error_window` of ``t_final``); in the settings
+        as ``window_start``.
 
     Returns
     -------
@@ -602,14 +618,14 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     Raises
     ------
     ParameterError
-        An unknown scenario, controller or model, a non-positive t_final, or draws not
-        a positive integer.
+        An unknown scenario, controller or model, a non-positive t_final, an error
+        window outside [0, t_final), or draws not a positive integer.
     """
     _check_draws(draws)
     if quick:
         scenarios = scenarios or ("line", "circle_1L")
         controllers = controllers or ("lyapunov", "los")
-        t_final = min(t_final, 12.0)
+        t_final = min(t_final, QUICK_T_FINAL)
     names = list(scenarios or SCENARIOS)
     for name in names:
         make_scenario(name, 1.0)
@@ -626,12 +642,18 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
                                  f"{', '.join(MODELS)})")
     if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > 0):
         raise ParameterError(f"t_final must be a positive number, got {t_final!r}")
+    if error_window is None:
+        error_window = default_error_window(t_final)
+    elif not (isinstance(error_window, (int, float)) and not isinstance(error_window, bool)
+              and math.isfinite(error_window) and 0.0 <= error_window < t_final):
+        raise ParameterError(f"error_window must lie in [0, t_final = {t_final:g}) s, "
+                             f"got {error_window!r}")
     cells = [(s, c, m, f) for m in models for f in failed for s in names for c in chosen]
     wall = time.perf_counter()
     pooled = [k for k, (_, c, _, _) in enumerate(cells) if _picklable(chosen[c])]
     rows: list[dict[str, Any] | None] = [None] * len(cells)
     options = {"t_final": t_final, "robot": robot, "draws": draws,
-               "engine_robot": engine_robot}
+               "engine_robot": engine_robot, "error_window": error_window}
     jobs = [(run_cell, cells[k], {**options, "factory": chosen[cells[k][1]]})
             for k in pooled]
     for k, row in zip(pooled, run_jobs(jobs, workers), strict=True):
@@ -639,10 +661,11 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     for k, (s, c, m, f) in enumerate(cells):
         if rows[k] is None:
             rows[k] = run_cell(s, c, m, f, t_final=t_final, factory=chosen[c], robot=robot,
-                               draws=draws, engine_robot=engine_robot)
+                               draws=draws, engine_robot=engine_robot,
+                               error_window=error_window)
     settings = {"t_final": t_final, "scenarios": names, "controllers": list(chosen),
                 "models": list(models), "failed": [f or 0 for f in failed],
-                "speed": SPEED, "window_start": ERROR_WINDOW,
+                "speed": SPEED, "window_start": float(error_window),
                 "robot": robot.to_dict() if robot is not None else None,
                 "engine_draws": draws,
                 "engine_robot": engine_robot.to_dict() if engine_robot is not None else None,
@@ -713,8 +736,9 @@ def _table_figure(result: BenchmarkResult, model: str, failed: int) -> Any:
     where = f", joint {failed} failed" if failed else ""
     draws = max((r["draws"] for r in rows), default=1)
     spread = (f"\nmedian of {draws} perturbed starts [10-90 % range]" if draws > 1 else "")
+    start = result.settings.get("window_start", ERROR_WINDOW)
     ax.set_title(f"Head cross-track RMS [% of body], {model}{where}, t >= "
-                 f"{ERROR_WINDOW:g} s{spread}", fontsize=9)
+                 f"{start:g} s{spread}", fontsize=9)
     return fig
 
 
@@ -877,12 +901,12 @@ def bench_control_stage(ctx: Any) -> None:
                              {**result.settings, "engine_robot": wheeled.to_dict(),
                               "engine": engine.settings})
     files = write_benchmark(result, ctx.folder)
-    sec = ctx.report.section("bench_control", "Controller benchmark on paths (issue 15)")
+    sec = ctx.report.section("bench_control", "Controller benchmark on paths")
     s = result.settings
     sec.text(f"Scenarios {', '.join(s['scenarios'])}; controllers "
              f"{', '.join(s['controllers'])}; viscous Table 1 robot, c_x = 0.5, c_y = 25 N s/m "
              f"(c_y / c_x = 50); head reference along each path at {SPEED} m/s; "
-             f"{s['t_final']:g} s runs, metrics over t >= {ERROR_WINDOW:g} s; "
+             f"{s['t_final']:g} s runs, metrics over t >= {s['window_start']:g} s; "
              f"{sum(r['model'] == 'viscous' for r in result.rows)} runs in "
              f"{s['wall_s']:.0f} s wall. LOS follows the path with"
              " its centre of mass at the gait's own speed (no timing law): its lag and time-"
@@ -912,7 +936,7 @@ def bench_control_stage(ctx: Any) -> None:
              f"velocity-level law, {e['t_final']:g} s runs"
              + (f" (shorter than the viscous {s['t_final']:g} s to keep the stage's budget)"
                 if e["t_final"] < s["t_final"] else "")
-             + f", metrics over t >= {ERROR_WINDOW:g} s, {draws}; {len(on_engine)} cells "
+             + f", metrics over t >= {e['window_start']:g} s, {draws}; {len(on_engine)} cells "
              f"in {e['wall_s']:.0f} s wall.")
     sec.table([*header, "draws", "ct RMS 10-90 % [% L]"],
               [[*cells(r), r["draws"],
@@ -929,13 +953,13 @@ def bench_control_stage(ctx: Any) -> None:
         if name.startswith("claim_"):
             row = result.cell(name[6:], "lyapunov")
             t_c = np.asarray(row["series"]["t"])
-            late = np.asarray(row["series"]["lateral"])[t_c >= ERROR_WINDOW]
+            late = np.asarray(row["series"]["lateral"])[t_c >= s["window_start"]]
             late_min = float(late.min()) if late.size else math.nan
             claims.append(f"{row['scenario']}: head cross-track RMS "
                           f"{row['head_ct_rms_pct']:.1f} % of the body (target 5 %), "
                           f"R >= {row['R_min']:.2e}, lateral-constraint criterion "
                           f"{row['lateral_min']:.1e} at the start arc and >= {late_min:.2g} "
-                          f"for t >= {ERROR_WINDOW:g} s")
+                          f"for t >= {s['window_start']:g} s")
             sec.figure(path, f"{name[6:]}: R and the lateral-constraint criterion along the run")
     if claims:
         sec.text("The paper's claim on curved paths (Lyapunov-like law, no failure): "

@@ -28,8 +28,9 @@ from ..engine.run import EngineRun, identify_friction, run_engine
 from ..exceptions import ParameterError
 from ..gaits import initial_state
 from ..metrics import (
-    ERROR_WINDOW,
+    applied,
     criteria_along,
+    default_error_window,
     error_caption,
     head_error_summary,
     head_position_error,
@@ -56,8 +57,9 @@ DRAWS, QUICK_DRAWS, VISCOUS_DRAWS = 11, 3, 3
 #: about the offset (1e-6 .. 1e-5), a chaotic one by percents.
 SENSITIVE = 1e-3
 #: The metrics reported as distributions (summary keys of :func:`summarize`), with their
-#: labels. Head errors and torques are taken over t >= 10 s (:data:`ERROR_WINDOW`); R is
-#: R~ (the passive joint free) on a robot with a passive joint.
+#: labels. Head errors and torques are taken over t >= the error window (10 s, or the
+#: second half of a run shorter than 20 s, :func:`~snake_pin.metrics.default_error_window`);
+#: R is R~ (the passive joint free) on a robot with a passive joint.
 METRICS: dict[str, str] = {
     "rms_percent": "RMS head error [% of body]",
     "max_percent": "max head error [% of body]",
@@ -67,8 +69,9 @@ METRICS: dict[str, str] = {
 
 
 def summarize(traj: Trajectory, *, every: int = 10,
-              reference: HeadReference | None = None) -> dict[str, object]:
-    """Head errors and torques over t >= 10 s, D and R from the (estimated) state.
+              reference: HeadReference | None = None,
+              start: float | None = None) -> dict[str, object]:
+    """Head errors and torques over t >= ``start``, D and R from the (estimated) state.
 
     Parameters
     ----------
@@ -81,14 +84,18 @@ def summarize(traj: Trajectory, *, every: int = 10,
         The head reference the run tracked (default the straight line
         w_r = [0.1 t, 0, pi] of :func:`~snake_pin.control.head_first_reference`); the head
         error is the distance to its point at the same time.
+    start
+        Start of the window of head errors and torques [s]; None: 10 s, or the second
+        half of a run shorter than 20 s (:func:`~snake_pin.metrics.default_error_window`).
 
     Returns
     -------
     dict
-        ``traj.summary``, updated with rms_head_error, max_head_error [m], rms_relative
-        (fraction of the body length), the metrics of :data:`METRICS` (``rms_percent``,
-        ``max_percent``: % of the body length; ``torque_rms``: RMS over the samples and
-        actuated joints [N m]; None for a run shorter than the window), R_min, D_min,
+        ``traj.summary``, updated with error_window, rms_head_error, max_head_error [m],
+        rms_head_error_pct, max_head_error_pct, rms_relative (fraction of the body
+        length), the metrics of :data:`METRICS` (``rms_percent``, ``max_percent``: % of
+        the body length; ``torque_rms``: RMS over the window's applied torques of the
+        actuated joints [N m]; None when the window holds no sample), R_min, D_min,
         body_length, passive, final_head.
     """
     error = head_position_error(
@@ -96,8 +103,8 @@ def summarize(traj: Trajectory, *, every: int = 10,
     t_c, d, r = criteria_along(traj, every=every)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
-    errors = head_error_summary(traj, error)
-    late = window(traj, ERROR_WINDOW)
+    errors = head_error_summary(traj, error, start=start)
+    late = window(traj, float(errors["error_window"] or 0.0)) & applied(traj)
     actuated = np.array([k - 1 for k in traj.params.actuated], dtype=int)
     torque = (float(np.sqrt(np.mean(traj.tau[np.ix_(late, actuated)] ** 2)))
               if late.any() and actuated.size else None)
@@ -336,7 +343,8 @@ def _cell(dist: dict[str, Any]) -> str:
 
 def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None, *,
                 wheels: WheelSpec, t_final: float, friction: dict[str, Any],
-                law: str = "velocity", reference: HeadReference | None = None) -> EngineRun:
+                law: str = "velocity", reference: HeadReference | None = None,
+                error_window: float | None = None) -> EngineRun:
     """One engine run from the arc of (82) with ``offset`` added to its joint angles.
 
     A job for :mod:`snake_pin.experiments.parallel` (module-level, picklable).
@@ -358,6 +366,8 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
     reference
         The head reference (default the straight line of
         :func:`~snake_pin.control.head_first_reference`).
+    error_window
+        Start of the head-error window [s] (None: :func:`summarize`'s default).
 
     Returns
     -------
@@ -366,12 +376,13 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
     """
     run = run_engine(params, wheels=wheels, t_final=t_final, friction=friction, law=law,
                      initial_offset=offset, reference=reference)
-    summarize(run.trajectory, reference=reference)
+    summarize(run.trajectory, reference=reference, start=error_window)
     return run
 
 
 def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
-                 offset: Sequence[float] | np.ndarray | None = None) -> Trajectory:
+                 offset: Sequence[float] | np.ndarray | None = None,
+                 error_window: float | None = None) -> Trajectory:
     """The same controller on the viscous Pinocchio model of the same robot.
 
     Parameters
@@ -386,6 +397,8 @@ def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
     offset
         n - 1 offsets of the initial joint angles [rad] (default none): the run starts
         from the engine runs' arc of (82), head first.
+    error_window
+        Start of the head-error window [s] (None: :func:`summarize`'s default).
 
     Returns
     -------
@@ -399,7 +412,7 @@ def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
     if offset is not None:
         x0[3:params.n + 2] += np.asarray(offset, dtype=float)
     traj = simulate(snake, controller, x0, t_final)
-    summarize(traj)
+    summarize(traj, start=error_window)
     return traj
 
 
@@ -600,12 +613,15 @@ def engine_stage(ctx: Any) -> None:
     configs = [("velocity law, no passive joint", base, "engine"),
                (f"velocity law, joint {joint} passive", base.replace(passive=(joint,)),
                 f"engine_passive{joint}")]
-    options = {"wheels": wheels, "t_final": t_final, "friction": friction}
+    error_window = default_error_window(t_final)
+    options = {"wheels": wheels, "t_final": t_final, "friction": friction,
+               "error_window": error_window}
     jobs: list[tuple[Any, tuple[Any, ...], dict[str, Any]]] = [
         (engine_draw, (params, offset), options)
         for _, params, _ in configs for offset in offsets]
-    jobs.append((viscous_twin, (model_params, t_final), {}))
-    jobs += [(viscous_twin, (model_params, t_final), {"offset": offset})
+    jobs.append((viscous_twin, (model_params, t_final), {"error_window": error_window}))
+    jobs += [(viscous_twin, (model_params, t_final), {"offset": offset,
+                                                      "error_window": error_window})
              for offset in viscous_offsets]
     jobs.append((engine_draw, (base, None), {**options, "t_final": min(t_final, 20.0),
                                              "law": "acceleration"}))
@@ -644,8 +660,8 @@ def engine_stage(ctx: Any) -> None:
              f"[-{PERTURBATION:g}, {PERTURBATION:g}] rad (seed 0; the same offsets for both "
              "configurations), and each metric is given as the median [10 %, 90 %] over the "
              "runs (percentiles interpolated linearly). Figures and files show the median run "
-             f"by RMS error. Head errors and torques over t >= {ERROR_WINDOW:.0f} s; torque "
-             "RMS over the samples and the actuated joints.")
+             f"by RMS error. Head errors and torques over t >= {error_window:g} s; torque "
+             "RMS over the applied torques of the actuated joints.")
     sec.table(["run", "runs", *METRICS.values()], dist_rows)
 
     single_rows = []
@@ -690,7 +706,7 @@ def engine_stage(ctx: Any) -> None:
         f"{label}: median {rms:.3g} % ({'met' if rms <= 10.0 else 'missed'})"
         if rms is not None else f"{label}: no error window" for label, rms in target_rows)
     sec.text(f"Target: RMS <= 10 % of the {base.body_length:.4g} m body over t >= "
-             f"{ERROR_WINDOW:.0f} s, judged on the median of the runs, R never zero. {verdicts}."
+             f"{error_window:g} s, judged on the median of the runs, R never zero. {verdicts}."
              " The torque-level law does not track on the engine: it chooses torques from the "
              "accelerations its viscous model predicts, which sticking wheels (Coulomb "
              "friction below mu N) do not produce, and wheels of neighbouring links collide "

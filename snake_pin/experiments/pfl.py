@@ -11,7 +11,7 @@ import numpy as np
 from .. import gaits
 from ..control import LinearReference, PFLController
 from ..integrability import conserved_quantity_along
-from ..metrics import criteria_along, head_position_error
+from ..metrics import applied, criteria_along, head_error_summary, head_position_error
 from ..model import Snake
 from ..params import SnakeParams
 from ..sim import Trajectory, simulate
@@ -92,12 +92,15 @@ class PFLRun:
 
 
 def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R: float = 0.0,
-            control_dt: float = 1e-3, progress: bool = False) -> PFLRun:
+            control_dt: float = 1e-3, error_window: float | None = None,
+            progress: bool = False) -> PFLRun:
     """Run Section VI.1 (gains 79, reference 80, serpenoid 81, initial state 82).
 
     The summary has t_end, diverged, breakdown_time, t_R_min, R_min, g_drift_max and
     head_error_max, all taken before the breakdown (||tau|| above
-    :func:`breakdown_threshold`, in the summary as breakdown_threshold).
+    :func:`breakdown_threshold`, in the summary as breakdown_threshold), and the head
+    error over ``t >= error_window`` of :func:`~snake_pin.metrics.head_error_summary`
+    (error_window, rms_head_error, max_head_error, their _pct, rms_relative).
 
     Parameters
     ----------
@@ -109,6 +112,9 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
         Gain of the singularity-aware use of the redundancy (0: the paper's law).
     control_dt
         Control period and RK4 step [s].
+    error_window
+        Start of the head-error window [s] (None: 10 s, or the second half of a run
+        shorter than 20 s).
     progress
         Show a progress bar on stderr when it is a terminal.
 
@@ -138,6 +144,8 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
     k_peak = int(np.argmax(r[before]))
     k_dip = k_peak + int(np.argmin(r[k_peak:breakdown + 1]))
     error = head_position_error(traj, reference)
+    errors = head_error_summary(traj, error) if error_window is None \
+        else head_error_summary(traj, error, start=error_window)
     traj.signals.update({"D": d, "R": r, "tau_norm": tau_norm, "g_x": g[:, 0], "g_y": g[:, 1],
                          "head_error": error})
     traj.summary.update({
@@ -150,6 +158,7 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
         "D_min": float(d[before].min()),
         "g_drift_max": float(np.abs(g[before] - g[0]).max()),
         "head_error_max": float(error[before].max()),
+        **errors,
         "body_length": params.body_length,
     })
     return PFLRun(traj, d, r, g, breakdown)
@@ -199,8 +208,9 @@ def plot_pfl(run: PFLRun, folder: Path, stem: str) -> dict[str, Path]:
     fig.suptitle("Manipulability criteria along the PFL run (Fig. 10a)", fontsize=10)
     save_figure(fig, paths["criteria"])
 
+    held = applied(traj)  # the last sample's torque of a run that did not diverge: never applied
     fig, ax = plt.subplots(figsize=(8, 3.8))
-    ax.semilogy(t, traj.signals["tau_norm"] + 1e-12, color="k", label="||tau|| [N m]")
+    ax.semilogy(t[held], traj.signals["tau_norm"][held], color="k", label="||tau|| [N m]")
     ax.axhline(s["breakdown_threshold"], color="firebrick", lw=0.8)
     mark(ax)
     ax.set_xlabel("t [s]")
@@ -250,9 +260,9 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
 
     fig, axes = plt.subplots(2, 1, figsize=(8.5, 6), sharex=True)
     for label, run in runs.items():
-        t = run.trajectory.t
+        t, held = run.trajectory.t, applied(run.trajectory)
         axes[0].plot(t, run.R, label=label)
-        axes[1].semilogy(t, run.trajectory.signals["tau_norm"] + 1e-12, label=label)
+        axes[1].semilogy(t[held], run.trajectory.signals["tau_norm"][held], label=label)
     axes[0].set_ylabel("R")
     axes[1].set_ylabel("||tau|| [N m]")
     axes[1].set_ylim(1e-3, 1e3)

@@ -144,6 +144,7 @@ def tracking_meta(controller: LyapunovController) -> dict[str, Any]:
 
 
 def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
+                 error_window: float | None = None,
                  progress: bool = False, **controller_options: Any) -> Trajectory:
     """60 s of head tracking, w_r = [0.1 t, 0, pi], gains (84), control at 1 kHz.
 
@@ -154,6 +155,9 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
         default; default: Table 1 with it).
     t_final
         Duration [s].
+    error_window
+        Start of the head-error window [s] (None: 10 s, or the second half of a run
+        shorter than 20 s).
     progress
         Show a progress bar on stderr when it is a terminal.
     **controller_options
@@ -171,11 +175,12 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     controller = LyapunovController(snake, reference, **controller_options)
     traj = simulate(snake, controller, initial_state(params), t_final, progress=progress,
                     meta=tracking_meta(controller))
-    return tracking_summary(traj, snake, reference)
+    return tracking_summary(traj, snake, reference, start=error_window)
 
 
 def tracking_summary(traj: Trajectory, snake: Snake,
-                     reference: LinearReference | None = None) -> Trajectory:
+                     reference: LinearReference | None = None, *,
+                     start: float | None = None) -> Trajectory:
     """Add a tracking run's head error, criteria and summary to its trajectory.
 
     The one summary of a tracking run, whichever route simulated it (:func:`run_tracking`,
@@ -189,6 +194,10 @@ def tracking_summary(traj: Trajectory, snake: Snake,
         Its robot.
     reference
         The head reference; None: w_r = [0.1 t, 0, pi].
+    start
+        Start of the head-error window [s]; None: the default of
+        :func:`~snake_pin.metrics.head_error_summary` (10 s, or the second half of a
+        run shorter than 20 s).
 
     Returns
     -------
@@ -196,8 +205,9 @@ def tracking_summary(traj: Trajectory, snake: Snake,
         ``traj``, with ``signals["head_error"]`` [m] at every sample, ``meta["criteria"]``
         (D and R, eqs. 30 and 31, every :data:`CRITERIA_EVERY` samples; R~ with the passive
         joints free, eq. 42) and in its summary: the
-        controller, friction and passive joints, the head error over t >= 10 s
-        (rms_head_error, max_head_error [m], rms_relative), R_min, D_min, body_length,
+        controller, friction and passive joints, the head error over t >= ``start``
+        (error_window, rms_head_error, max_head_error [m], their _pct, rms_relative),
+        R_min, D_min, body_length,
         g_drift (max |g - g(0)| of eq. 67) and the final head pose.
     """
     params = snake.params
@@ -207,9 +217,11 @@ def tracking_summary(traj: Trajectory, snake: Snake,
     g = conserved_quantity_along(snake, traj.q, traj.dq)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
+    errors = head_error_summary(traj, error) if start is None \
+        else head_error_summary(traj, error, start=start)
     traj.summary.update({
         "controller": "lyapunov", "c_x": params.c_x, "c_y": params.c_y,
-        "passive": list(params.passive), **head_error_summary(traj, error),
+        "passive": list(params.passive), **errors,
         "R_min": float(r.min()), "D_min": float(d.min()),
         "body_length": params.body_length,
         "g_drift": float(np.abs(g - g[0]).max()),
@@ -280,7 +292,7 @@ def plot_tracking(traj: Trajectory, folder: Path, stem: str) -> dict[str, Path]:
     axes[0].legend(fontsize=8)
     axes[0].set_ylabel("[m]")
     axes[1].plot(traj.t, traj.signals["head_error"], color="firebrick")
-    axes[1].axvspan(0, ERROR_WINDOW, color="0.9")
+    axes[1].axvspan(0, traj.summary.get("error_window", ERROR_WINDOW), color="0.9")
     axes[1].set_ylabel("head error [m]")
     axes[1].set_xlabel("t [s]")
     for ax in axes:
