@@ -164,7 +164,9 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     free_joint
         Joint(s) without an actuator (D~ and R~ of eq. 42).
     points
-        Number of parameter values, 2 .. :data:`MAX_POINTS`.
+        Number of parameter values, 2 .. :data:`MAX_POINTS`. When the range holds 0 (the
+        straight posture, singular: R = 0) strictly inside and the even grid misses it,
+        0 is inserted (``points + 1`` values): a sweep always sees the singular point.
     bounds
         The parameter range (default: the family's range in :data:`FAMILIES`).
     progress
@@ -194,7 +196,8 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     free = tuple(sorted(set(snake.params.passive) | set(_free_tuple(free_joint))))
     label, default, _ = FAMILIES[family]
     low, high = bounds or default
-    values = np.linspace(low, high, int(points))
+    values = _with_zero(np.linspace(low, high, int(points)))
+    requested, points = int(points), len(values)
     d, r = np.empty(points), np.empty(points)
     kept = free[0] if len(free) == 1 else (free or None)
     iterator = range(points)
@@ -213,11 +216,23 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
                 done = i + 1
     except KeyboardInterrupt as exc:
         partial = Sweep(family, label, values[:done], d[:done], r[:done], kept,
-                        snake.params.name, meta={"points_requested": int(points)},
+                        snake.params.name, meta={"points_requested": requested},
                         status="interrupted")
         raise RunInterrupted(f"sweep {family} interrupted after {done} of {points} postures",
                              partial=partial) from exc
     return Sweep(family, label, values, d, r, kept, snake.params.name)
+
+
+def _with_zero(values: np.ndarray) -> np.ndarray:
+    """``values`` (ascending) with the value nearest 0 set to exactly 0 when it is 0 up to
+    rounding, or 0 inserted when the grid straddles 0 without it."""
+    if not values[0] < 0.0 < values[-1]:
+        return values
+    nearest = int(np.argmin(np.abs(values)))
+    if abs(values[nearest]) <= 1e-12 * (values[-1] - values[0]):
+        values[nearest] = 0.0
+        return values
+    return np.insert(values, int(np.searchsorted(values, 0.0)), 0.0)
 
 
 @dataclass
