@@ -1,5 +1,5 @@
 """How the report's tracking runs are executed: single runs on every core, or lockstep
-batches (issue 14, item 8).
+batches.
 
 A tracking job is what :func:`~snake_pin.experiments.tracking.run_tracking` takes:
 (robot, duration, controller options). :func:`run_tracking_batch` steps jobs of one robot

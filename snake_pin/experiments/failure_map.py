@@ -1,4 +1,4 @@
-"""The actuator-failure map as a report stage (issue 14, item 7; the paper's future work).
+"""The actuator-failure map as a report stage (the paper's future work).
 
 :func:`failure_map_stage` runs the map as a study (:func:`snake_pin.study.run_study`, on a
 local Dask cluster of one worker per core, the runs in lockstep batches) and writes into
@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,7 +90,7 @@ class MapPlan:
     error_window: float | None = None
 
 
-#: The map of issue 14, item 7.
+#: The full map: 60 s runs, every joint failed in turn, four friction ratios.
 FULL = MapPlan(60.0, None, (10.0, 25.0, 50.0, 100.0))
 #: ``reproduce --quick``: just past the 10 s error window, 5 failed joints x 2 ratios.
 QUICK = MapPlan(11.0, (0, 1, 2, 5, 9), (10.0, 50.0))
@@ -136,7 +137,7 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
                    f"{', '.join(f'{r:g}' for r in plan.ratios)} (c_x = {c_x:g} N s/m).")
     window = "" if plan.error_window is None else \
         f"error_window = {_number(plan.error_window)}\n"
-    text = ("# The actuator-failure map (issue 14, item 7), written by snake-pin reproduce.\n"
+    text = ("# The actuator-failure map, written by snake-pin reproduce.\n"
             "[study]\n"
             'name = "failure_map"\n'
             f"description = {json.dumps(description)}\n\n"
@@ -423,6 +424,11 @@ def _plot_series(series: list[tuple[str, dict[str, Any]]], ratio: float, path: P
 
 
 # -------------------------------------------------------------------- stage
+def _singular_workers(scheduler: str) -> str:
+    """The study's scheduler in words, in the singular for one worker ("local (1 worker)")."""
+    return re.sub(r"\b1 workers\b", "1 worker", scheduler)
+
+
 def failure_map_stage(ctx: Any) -> None:
     """The actuator-failure map: study, heatmaps, tables, series along the run, findings.
 
@@ -451,21 +457,23 @@ def failure_map_stage(ctx: Any) -> None:
     tables = map_tables(rows, joints, plan.ratios)
     paragraphs, numbers = findings(tables, joints, plan.ratios)
 
-    sec = ctx.report.section("failure_map", "Actuator-failure map (issue 14; the paper's "
-                                            "future work)")
+    sec = ctx.report.section("failure_map", "Actuator-failure map (the paper's future "
+                                            "work)")
     own = "" if _is_table1(base) else f" (robot '{base.name}', its passive joints cleared)"
     sec.text(f"The Lyapunov-like law of VI.2 (gains (84), lambda = 10/s, mu = 5/s, k_shape "
              f"0.3 with a failed joint) on the {base.n}-link robot{own} for {plan.t_final:g} "
              "s, head-first along w_r = [0.1 t, 0, pi], with no failed joint (0) and each "
              f"single failed joint k (its actuator gives no torque), against c_y/c_x = "
              f"{', '.join(f'{r:g}' for r in plan.ratios)} with c_x = {map_c_x(base):g} N s/m. "
-             f"{summary.runs} runs as a study ({summary.scheduler}, lockstep batches): "
+             f"{summary.runs} runs as a study ({_singular_workers(summary.scheduler)}, "
+             "lockstep batches): "
              f"failure_map.toml, results in failure_map/ (Parquet: "
              "pandas.read_parquet('failure_map/runs')).")
     for path, caption in save_figures(spec, rows, ctx.folder, "failure_map"):
         sec.figure(path, caption)
     header = ["failed joint"] + [f"c_y/c_x = {r:g}" for r in plan.ratios]
-    for metric, title in (("rms_head_error_pct", "RMS head error [% of body], t >= 10 s"),
+    start = spec.scenarios[0]["error_window"] if spec.scenarios else 10.0
+    for metric, title in (("rms_head_error_pct", f"RMS head error [% of body], t >= {start:g} s"),
                           ("R_tilde_min", "R~ min along the run")):
         table = []
         for joint in joints:

@@ -129,7 +129,8 @@ def draw_singular(search: SingularSearch, path: str | os.PathLike[str] | None,
     postures = [(f"straight: R = 0 exactly{free}", straight(search.params.n))]
     for fam in search.families[:limit]:
         postures.append((f"{'straight' if fam.straight else 'non-straight'}, R = {fam.R:.1e}"
-                         f" ({fam.members} starts)", np.r_[0.0, 0.0, 0.0, fam.phi]))
+                         f" ({fam.members} start{'' if fam.members == 1 else 's'})",
+                         np.r_[0.0, 0.0, 0.0, fam.phi]))
     return plot_postures(snake, postures, path, frames=False,
                          title=f"Singular postures found (|phi_i| <= {search.bound:.2f}){free}")
 
@@ -157,7 +158,8 @@ def manipulability_stage(ctx: Context) -> None:
             result = sweep(snake, family, free_joint=free, points=points)
             paths = write_sweep(result, folder)
             figure_no = {"arc": (2, 3), "alpha": (4, 8), "ts": (5, 9)}[family][free is not None]
-            sec.figure(paths["png"], f"Fig. {figure_no}: {description}"
+            shown = description.split(" (Fig")[0]  # the figure numbers are the caption's
+            sec.figure(paths["png"], f"Fig. {figure_no}: {shown}"
                        + (f", joint {free} free" if free else ""))
             nonzero = result.values != 0
             rows.append([family, free or "-", result.zeros().tolist(),

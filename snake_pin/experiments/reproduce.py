@@ -159,7 +159,8 @@ def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams
 
 
 def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: bool = False,
-              only: list[str] | None = None, log: Callable[[str], None] = print) -> Path:
+              only: list[str] | None = None, log: Callable[[str], None] = print,
+              log_done: bool = True) -> Path:
     """Run the stages (all, or those named in ``only``) and put the report in ``folder``.
 
     Parameters
@@ -174,7 +175,10 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
     only
         Stage names to run (default all).
     log
-        Called with one line as each stage starts and ends.
+        Called with one line as each stage starts (``[2/8] manipulability ...``) and,
+        with ``log_done``, as it ends (``[2/8] manipulability done in 12.3 s``).
+    log_done
+        Also log each stage's end (False: one line per stage).
 
     Returns
     -------
@@ -222,7 +226,8 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
                 start = time.perf_counter()
                 fn(ctx)
                 timings[name] = time.perf_counter() - start
-                log(f"[{index}/{len(chosen)}] {name} done in {timings[name]:.1f} s")
+                if log_done:
+                    log(f"[{index}/{len(chosen)}] {name} done in {timings[name]:.1f} s")
             current = ""
             _timing(report, timings)
             report.write(staging)

@@ -62,5 +62,13 @@ def info(params: SnakeParams, snake: Snake | None = None) -> dict[str, object]:
 
 
 def info_rows(params: SnakeParams, snake: Snake) -> list[list[object]]:
-    """Rows of the parameter table."""
-    return [[k, v if not isinstance(v, list) else str(v)] for k, v in info(params, snake).items()]
+    """Rows of the parameter table: lists as plain text, the passive joints as a list of
+    joints or "none"."""
+    rows: list[list[object]] = []
+    for key, value in info(params, snake).items():
+        if key == "passive":
+            value = ", ".join(map(str, params.passive)) or "none"
+        elif isinstance(value, list):
+            value = ", ".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in value)
+        rows.append([key, value])
+    return rows
