@@ -7,7 +7,11 @@ subcommand keeps (README, "Security and robustness"):
   wrong one ends as one line on stderr naming it, exit status 2;
 - every option a command accepts is honoured or refused, never silently ignored;
 - ``--json`` prints exactly one RFC 8259 object on stdout (NaN and infinities as null)
-  and nothing else goes to stdout meanwhile;
+  and nothing else goes to stdout meanwhile; without it stdout gets plain text (plain
+  numbers, no Python or NumPy reprs);
+- a run (simulate, engine) reports the same summary keys (:data:`SUMMARY_KEYS`) with or
+  without ``--path``; time series go to files (npz, CSV), never to stdout; head errors are
+  judged over ``t >= --error-window``, whose default exists for any run length;
 - SIGTERM and SIGHUP act like Ctrl-C for the duration of a command: a run stops, writes
   what it computed (marked interrupted), says so in one line and exits with status 130.
 """
@@ -18,6 +22,7 @@ import argparse
 import contextlib
 import ctypes
 import math
+import numbers
 import os
 import re
 import signal
@@ -25,7 +30,7 @@ import socket
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
@@ -35,8 +40,8 @@ from . import __version__
 from .exceptions import RunInterrupted, SnakePinError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
-__all__ = ["EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "build_parser", "main",
-           "parse_angle"]
+__all__ = ["EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "SUMMARY_KEYS",
+           "build_parser", "main", "parse_angle"]
 
 #: Exit statuses (also in ``snake-pin --help``).
 EXIT_OK = 0
@@ -58,6 +63,14 @@ MAX_MU = 10.0
 #: the largest offset of the initial joint angles [rad] (a perturbation, not a new posture).
 MAX_SEEDS = 100
 MAX_PERTURBATION = 0.1
+#: The keys of a run's summary (simulate, engine), printed as text without --json and held
+#: by the --json object, whether or not --path is given (errors in m and % of the body
+#: length, over t >= error_window [s]).
+SUMMARY_KEYS = ("robot", "n", "controller", "reference", "status", "reason", "t_end",
+                "error_window", "rms_head_error", "max_head_error", "rms_head_error_pct",
+                "max_head_error_pct", "R_min", "D_min")
+_ERROR_WINDOW_HELP = ("judge head errors over t >= SECONDS (default: 10 s, or the second half "
+                      "of a run shorter than 20 s; in the summary as error_window)")
 
 _EPILOG = """\
 exit status:
@@ -208,8 +221,12 @@ _ROBOT_HELP = ("a preset (" + ", ".join(ROBOTS) + "), a .toml robot file or a .u
                "(shipped robots also by file name, e.g. camera_head_snake.toml)")
 
 
-def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = False) -> None:
-    parser.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default table1")
+def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = True,
+                   default: str = "table1") -> None:
+    """The robot options of every subcommand that takes a robot (:func:`_params` reads them):
+    --robot, --n, --passive and, unless the command sets friction itself (``engine``
+    identifies it from its wheels), --cx, --cy, --ctheta."""
+    parser.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default {default}")
     parser.add_argument("--n", type=_int_in(2, MAX_LINKS),
                         help=f"number of links, 2..{MAX_LINKS} (overrides the preset)")
     parser.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
@@ -237,7 +254,7 @@ def _params(args: argparse.Namespace, default: str = "table1") -> SnakeParams:
     for k in getattr(args, "passive", None) or []:
         if not 1 <= k <= n - 1:
             raise UsageError(f"argument --passive: joint {k} is outside 1..{n - 1} "
-                             f"for a {n}-link robot")
+                             f"for the {n}-link robot")
     changes: dict[str, Any] = {}
     if getattr(args, "n", None) is not None:
         changes["n"] = args.n
@@ -255,7 +272,7 @@ def _free_joints(args: argparse.Namespace, params: SnakeParams) -> int | tuple[i
     if args.free_joint is not None:
         if not 1 <= args.free_joint <= params.n - 1:
             raise UsageError(f"argument --free-joint: joint {args.free_joint} is outside "
-                             f"1..{params.n - 1} for a {params.n}-link robot")
+                             f"1..{params.n - 1} for the {params.n}-link robot")
         free.add(args.free_joint)
     if not free:
         return None
@@ -299,7 +316,7 @@ def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
         return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
     npz, summary = traj.save(out / stem)
     payload = {**traj.summary_dict(), "files": [str(npz), str(summary)]}
-    return _Outcome(payload, _json_text(payload, indent=2), EXIT_INTERRUPTED,
+    return _Outcome(payload, _summary_text(payload), EXIT_INTERRUPTED,
                     f"{exc}; partial run saved to {npz} (status interrupted)")
 
 
@@ -307,6 +324,92 @@ def _json_text(value: Any, indent: int | None = None) -> str:
     from ._json import json_text
 
     return json_text(value, indent=indent)
+
+
+def _plain(value: Any) -> str:
+    """A value as plain text: numbers with 6 significant digits (no NumPy reprs), None as
+    "none", lists as [a, b, ...], an empty string as "-"."""
+    if value is None:
+        return "none"
+    if isinstance(value, str):
+        return value or "-"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real):
+        return f"{float(value):.6g}"
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{k}: {_plain(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, Iterable):
+        return "[" + ", ".join(_plain(v) for v in value) + "]"
+    return str(value)
+
+
+def _summary_text(payload: Mapping[str, Any]) -> str:
+    """The text form of a run's summary: one line per key of :data:`SUMMARY_KEYS`, then
+    the files written."""
+    width = max(len(key) for key in SUMMARY_KEYS)
+    lines = [f"{key:>{width}}: {_plain(payload.get(key))}" for key in SUMMARY_KEYS]
+    files = payload.get("files") or []
+    lines.append(f"{'files':>{width}}: " + (f"\n{'':>{width}}  ".join(map(str, files))
+                                            or "none"))
+    return "\n".join(lines)
+
+
+def _error_window(args: argparse.Namespace, t_final: float) -> float:
+    """The start of the head-error window: ``--error-window``, which must lie below the
+    run's duration, or :func:`snake_pin.metrics.default_error_window`."""
+    from .metrics import default_error_window
+
+    if args.error_window is None:
+        return default_error_window(t_final)
+    if args.error_window >= t_final:
+        raise UsageError(f"argument --error-window: must be below the run's duration "
+                         f"({t_final:g} s), got {args.error_window:g}")
+    return float(args.error_window)
+
+
+#: What the head follows without --path (the summary's ``reference``).
+_LINE_PFL = "line w_r = [0.1 t, 0, 0]"
+_LINE_HEAD_FIRST = "line w_r = [0.1 t, 0, pi]"
+
+
+def _path_text(args: argparse.Namespace) -> str:
+    """``--path`` and its settings in words (the summary's ``reference``)."""
+    settings = _path_parameters(args)
+    speed = settings.pop("speed", 0.1)
+    shown = ", ".join(f"{key}={value:g}" for key, value in settings.items())
+    return (f"path {args.path if args.path is not None else 'line'}"
+            + (f" ({shown})" if shown else "") + f" at {speed:g} m/s")
+
+
+def _criteria_csv(traj: Any, path: Path) -> Path | None:
+    """Write the criteria series of ``traj.meta["criteria"]`` (t and each criterion) as CSV,
+    whole or not at all; None when the run has none."""
+    from ._io import atomic_write_bytes
+
+    series = traj.meta.get("criteria")
+    if not isinstance(series, Mapping) or not series.get("t"):
+        return None
+    names = [k for k, v in series.items() if len(v) == len(series["t"])]
+    rows = [",".join(names)]
+    rows += [",".join(repr(float(series[k][i])) for k in names)
+             for i in range(len(series["t"]))]
+    atomic_write_bytes(path, ("\n".join(rows) + "\n").encode())
+    return path
+
+
+def _run_outcome(traj: Any, out: Path, files: Sequence[Path | str],
+                 extra: Mapping[str, Any] | None = None) -> _Outcome:
+    """A finished run's outcome: its summary (+ ``extra`` and the files) as JSON payload and
+    text, status 3 for a diverged or failed run, and a note when the error window is empty."""
+    from .metrics import window_note
+
+    payload = {**traj.summary_dict(), **(extra or {}), "files": [str(f) for f in files]}
+    status, note = _run_note(traj, out)
+    note = "; ".join(part for part in (note, window_note(payload)) if part)
+    return _Outcome(payload, _summary_text(payload), status, note)
 
 
 # ----------------------------------------------------------------- subcommands
@@ -321,17 +424,20 @@ def _cmd_generate(args: argparse.Namespace) -> _Outcome:
 
     out.parent.mkdir(parents=True, exist_ok=True)
     write_urdf(params, out)
+    passive = ", ".join(map(str, params.passive)) or "none"
     return _Outcome({"urdf": str(out), "robot": params.name, "n": params.n,
                      "passive": list(params.passive)},
                     f"wrote {out} (robot {params.name}, {params.n} links, passive joints: "
-                    f"{list(params.passive) or 'none'})")
+                    f"{passive})")
 
 
 def _cmd_info(args: argparse.Namespace) -> _Outcome:
     from .experiments.robot import info
 
-    data = info(_params(args))
-    return _Outcome(data, "\n".join(f"{k:>13}: {v}" for k, v in data.items()))
+    params = _params(args)
+    data = info(params)
+    shown = {**data, "passive": ", ".join(map(str, params.passive)) or "none"}
+    return _Outcome(data, "\n".join(f"{k:>13}: {_plain(v)}" for k, v in shown.items()))
 
 
 _SHAPE_OPTIONS = {"phi0": "arc", "alpha": "serpenoid", "ts": "serpenoid", "q": "q"}
@@ -387,13 +493,26 @@ def _cmd_manip(args: argparse.Namespace) -> _Outcome:
                          heading=not args.no_heading)
     tilde = "~" if free else ""
     return _Outcome(res.to_dict(),
-                    f"D{tilde} = {res.D:.6g}\nR{tilde} = {res.R:.6g}\nsigma = {res.sigma}\n"
-                    f"lambda = {res.lambda_}")
+                    f"D{tilde} = {res.D:.6g}\nR{tilde} = {res.R:.6g}\n"
+                    f"sigma = {_plain(res.sigma)}\nlambda = {_plain(res.lambda_)}")
+
+
+def _sweep_range(args: argparse.Namespace) -> tuple[float, float] | None:
+    """``--range LOW HIGH`` (finite, LOW < HIGH, within +-MAX_COORDINATE), or None."""
+    if args.range is None:
+        return None
+    low, high = args.range
+    if not low < high:
+        raise UsageError(f"argument --range: LOW must be below HIGH, got {low:g} {high:g}")
+    if max(abs(low), abs(high)) > MAX_COORDINATE:
+        raise UsageError(f"argument --range: values must lie within +-{MAX_COORDINATE:g}")
+    return float(low), float(high)
 
 
 def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
     free = _free_joints(args, params)
+    bounds = _sweep_range(args)
     out = _output_folder(args.output)
     from .experiments.manipulability import write_sweep
     from .manipulability import task_split
@@ -405,32 +524,39 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
     out.mkdir(parents=True, exist_ok=True)
     try:
         result = sweep(snake, args.family, free_joint=free, points=args.points,
-                       progress=_progress(args))
+                       bounds=bounds, progress=_progress(args))
     except RunInterrupted as exc:
         partial = exc.partial
         if partial is None or not len(partial.values):
             return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
         paths = write_sweep(partial, out)
         payload = {**partial.to_dict(), "files": {k: str(v) for k, v in paths.items()}}
-        return _Outcome(payload, f"wrote {', '.join(map(str, paths.values()))}",
+        return _Outcome(payload, f"wrote {', '.join(map(str, paths.values()))}\n"
+                        f"{len(partial.values)} of {args.points} postures (interrupted)",
                         EXIT_INTERRUPTED, f"{exc}; partial sweep saved to {paths['json']} "
                                           "(status interrupted)")
     paths = write_sweep(result, out)
     zeros = result.zeros().tolist()
+    low, high = float(result.values[0]), float(result.values[-1])
     payload = {"family": args.family, "free_joint": result.to_dict()["free_joint"],
-               "status": result.status, "zeros": zeros, "R_min": float(result.R.min()),
-               "D_min": float(result.D.min()),
+               "status": result.status, "range": [low, high], "points": len(result.values),
+               "zeros": zeros, "R_min": float(result.R.min()), "D_min": float(result.D.min()),
                "files": {k: str(v) for k, v in paths.items()}}
-    return _Outcome(payload, f"wrote {', '.join(str(p) for p in paths.values())}; "
-                             f"R = 0 at {result.label} = {zeros}")
+    name = result.label.split(" [")[0]
+    found = f"R = 0 at {name} = {_plain(zeros)}" if zeros else \
+        f"R > 0 everywhere (smallest {float(result.R.min()):.6g})"
+    return _Outcome(payload, f"wrote {', '.join(str(p) for p in paths.values())}\n"
+                             f"{len(result.values)} postures, {name} from {low:.6g} to "
+                             f"{high:.6g}: {found}")
 
 
 def _singular_text(search: Any) -> str:
     lines = [f"{len(search.families)} famil{'y' if len(search.families) == 1 else 'ies'} "
              f"with R <= {search.threshold:.3g} (typical R {search.R_typical:.3g}), "
-             f"from {search.starts} starts:"]
+             f"from {search.starts} start{'' if search.starts == 1 else 's'}:"]
     lines += [f"  {'straight' if f.straight else 'non-straight'} x{f.members}: "
-              f"R = {f.R:.3g}, phi = {[round(x, 3) for x in f.phi]}" for f in search.families]
+              f"R = {f.R:.3g}, phi = [{', '.join(f'{float(x):.3f}' for x in f.phi)}]"
+              for f in search.families]
     return "\n".join(lines)
 
 
@@ -531,11 +657,9 @@ def _cmd_simulate_on_path(args: argparse.Namespace, params: SnakeParams,
                           out: Path) -> _Outcome:
     """A run along ``--path`` (any controller, a user's ``module:Class`` too)."""
     from .control import LOSController, LyapunovController, PFLController
-    from .experiments.bench_control import path_metrics
     from .experiments.tracking import initial_state, tracking_friction
     from .model import Snake
     from .sim import simulate
-    from .viz.plots import plot_trajectory
 
     reference = _path_reference(args, "line")
     if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
@@ -552,21 +676,55 @@ def _cmd_simulate_on_path(args: argparse.Namespace, params: SnakeParams,
         controller = _user_controller_class(kind)(snake, reference)
     stem = "run" if ":" in kind else kind
     t_final = args.t_final or 60.0
+    start = _error_window(args, t_final)
     try:
         traj = simulate(snake, controller, initial_state(params), t_final,
                         progress=_progress(args), meta={"path": repr(reference)})
     except RunInterrupted as exc:
         return _interrupted_run(exc, out, stem)
-    metrics = path_metrics(traj.t, traj.q, traj.tau, snake, reference,
-                           head_tracking=kind != "los")
-    traj.summary.update({k: v for k, v in metrics.items() if not hasattr(v, "shape")})
-    npz, summary_path = traj.save(out / stem)  # data first, then the figure
-    figure = out / f"{stem}.png"
+    _path_summary(traj, reference, start, head_tracking=kind != "los")
+    traj.summary.update(controller=kind, reference=_path_text(args))
+    return _save_path_run(traj, reference, out, stem)
+
+
+def _path_summary(traj: Any, reference: Any, start: float, *,
+                  head_tracking: bool = True) -> None:
+    """Fill a path run's summary: the head error to the reference's point at the same time
+    (:func:`snake_pin.metrics.head_error_summary`), the path metrics of
+    :func:`snake_pin.experiments.bench_control.path_metrics` (cross-track, lag, criteria)
+    and its criteria series in ``traj.meta["criteria"]`` (not in the summary)."""
+    import numpy as np
+
+    from .experiments.bench_control import path_metrics
+    from .metrics import head_error_summary
+    from .model import Snake
+
+    error = np.linalg.norm(traj.q[:, :2] - reference.at(traj.t)[0][:, :2], axis=1)
+    metrics = path_metrics(traj.t, traj.q, traj.tau, Snake(traj.params), reference,
+                           head_tracking=head_tracking, start=start)
+    traj.signals["head_error"] = error
+    traj.meta["criteria"] = metrics.pop("series")
+    traj.summary.update({**metrics, **head_error_summary(traj, error, start=start),
+                         "body_length": traj.params.body_length,
+                         "passive": list(traj.params.passive)})
+
+
+def _save_path_run(traj: Any, reference: Any, out: Path, stem: str,
+                   extra: Mapping[str, Any] | None = None) -> _Outcome:
+    """Save a path run (npz + JSON, criteria CSV) and its figures: the time series and the
+    head against the path in the plane."""
+    from .viz.plots import plot_head_path, plot_trajectory
+
+    npz, summary_path = traj.save(out / stem)  # data first, then the figures
+    files: list[Path] = [npz, summary_path]
+    table = _criteria_csv(traj, out / f"{stem}_criteria.csv")
+    if table is not None:
+        files.append(table)
+    figure, xy = out / f"{stem}.png", out / f"{stem}_path.png"
     plot_trajectory(traj, figure)
-    payload = traj.summary_dict()
-    payload["files"] = [str(npz), str(summary_path), str(figure)]
-    status, note = _run_note(traj, out)
-    return _Outcome(payload, _json_text(payload, indent=2), status, note)
+    plot_head_path(traj, reference.at(traj.t)[0][:, :2], xy,
+                   title=f"Head against its reference: {traj.summary.get('reference', 'the path')}")
+    return _run_outcome(traj, out, [*files, figure, xy], extra)
 
 
 def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
@@ -581,6 +739,7 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
         if args.controller != "pfl" and args.climb_r is not None:
             raise UsageError("argument --climb-r: applies to --controller pfl only")
         _check_t_final(args.t_final, SIMULATE_DT)
+        _error_window(args, args.t_final or 60.0)
         if args.controller == "pfl" and params.passive:
             raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
         if ":" in args.controller:
@@ -594,6 +753,8 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     if args.controller != "pfl" and args.climb_r is not None:
         raise UsageError("argument --climb-r: applies to --controller pfl only")
     _check_t_final(args.t_final, SIMULATE_DT)
+    t_final = args.t_final or (10.0 if args.controller == "pfl" else 60.0)
+    start = _error_window(args, t_final)
     out = _output_folder(args.output)
     out.mkdir(parents=True, exist_ok=True)
     stem = "pfl" if args.controller == "pfl" else "lyapunov"
@@ -601,24 +762,29 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
         if args.controller == "pfl":
             from .experiments.pfl import plot_pfl, run_pfl
 
-            run = run_pfl(params, t_final=args.t_final or 10.0, climb_R=args.climb_r or 0.0,
-                          control_dt=SIMULATE_DT, progress=_progress(args))
+            run = run_pfl(params, t_final=t_final, climb_R=args.climb_r or 0.0,
+                          control_dt=SIMULATE_DT, error_window=start,
+                          progress=_progress(args))
             traj = run.trajectory
+            traj.summary["reference"] = _LINE_PFL
         else:
             from .experiments.tracking import plot_tracking, run_tracking, tracking_friction
 
             if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
                 params, _ = tracking_friction(params)
-            traj = run_tracking(params, t_final=args.t_final or 60.0, progress=_progress(args))
+            traj = run_tracking(params, t_final=t_final, error_window=start,
+                                progress=_progress(args))
+            traj.summary["reference"] = _LINE_HEAD_FIRST
     except RunInterrupted as exc:
         return _interrupted_run(exc, out, stem)
     npz, summary_path = traj.save(out / stem)  # data first, then the figures
+    files: list[Path] = [npz, summary_path]
+    table = _criteria_csv(traj, out / f"{stem}_criteria.csv")
+    if table is not None:
+        files.append(table)
     figures = plot_pfl(run, out, stem) if args.controller == "pfl" \
         else plot_tracking(traj, out, stem)
-    payload = traj.summary_dict()
-    payload["files"] = [str(npz), str(summary_path), *(str(p) for p in figures.values())]
-    status, note = _run_note(traj, out)
-    return _Outcome(payload, _json_text(payload, indent=2), status, note)
+    return _run_outcome(traj, out, [*files, *figures.values()])
 
 
 def _cmd_engine(args: argparse.Namespace) -> _Outcome:
@@ -630,6 +796,7 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
                          "N perturbed runs)")
     wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu, cone=args.cone)
     _check_t_final(args.t_final, wheels.control_dt)
+    start = _error_window(args, args.t_final)
     reference = _path_reference(args)  # a bad path: refused here, before any folder
     out = _output_folder(args.output)
     build_engine_model(params, wheels)  # wheels that do not fit the robot: refused here
@@ -639,45 +806,33 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
     out.mkdir(parents=True, exist_ok=True)
     friction = identify_friction(params.replace(passive=()), wheels)
     if args.seeds is not None:
-        return _engine_seeds(args, params, wheels, friction, out, reference)
+        return _engine_seeds(args, params, wheels, friction, out, reference, start)
     try:
         run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
                          law=args.law, reference=reference, progress=_progress(args))
     except RunInterrupted as exc:
         return _interrupted_run(exc, out, "engine")
-    if reference is not None:
-        return _engine_on_path(run, reference, friction, out)
-    summarize(run.trajectory)
-    npz, summary_path = run.trajectory.save(out / "engine")
-    figures = plot_engine(run, None, out, "engine")
-    payload = {**run.trajectory.summary_dict(), "friction": friction,
-               "files": [str(npz), str(summary_path), *(str(p) for p in figures.values())]}
-    status, note = _run_note(run.trajectory, out)
-    return _Outcome(payload, _json_text(payload, indent=2), status, note)
-
-
-def _engine_on_path(run: Any, reference: Any, friction: dict[str, Any],
-                    out: Path) -> _Outcome:
-    """``engine --path``: the run's path metrics (as ``simulate --path``) and its figure."""
-    from .experiments.bench_control import path_metrics
-    from .model import Snake
-    from .viz.plots import plot_trajectory
-
     traj = run.trajectory
-    metrics = path_metrics(traj.t, traj.q, traj.tau, Snake(traj.params), reference)
-    traj.summary.update({k: v for k, v in metrics.items() if not hasattr(v, "shape")})
-    traj.summary["path"] = repr(reference)
-    npz, summary_path = traj.save(out / "engine")  # data first, then the figure
-    figure = out / "engine.png"
-    plot_trajectory(traj, figure)
-    payload = {**traj.summary_dict(), "friction": friction,
-               "files": [str(npz), str(summary_path), str(figure)]}
-    status, note = _run_note(traj, out)
-    return _Outcome(payload, _json_text(payload, indent=2), status, note)
+    traj.summary["controller"] = f"lyapunov ({args.law} law)"
+    if reference is not None:
+        summarize(traj, reference=reference, start=start)
+        _path_summary(traj, reference, start)
+        traj.summary.update(path=repr(reference), reference=_path_text(args))
+        return _save_path_run(traj, reference, out, "engine", {"friction": friction})
+    summarize(traj, start=start)
+    traj.summary["reference"] = _LINE_HEAD_FIRST
+    npz, summary_path = traj.save(out / "engine")
+    files: list[Path] = [npz, summary_path]
+    table = _criteria_csv(traj, out / "engine_criteria.csv")
+    if table is not None:
+        files.append(table)
+    figures = plot_engine(run, None, out, "engine")
+    return _run_outcome(traj, out, [*files, *figures.values()], {"friction": friction})
 
 
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
-                  friction: dict[str, Any], out: Path, reference: Any = None) -> _Outcome:
+                  friction: dict[str, Any], out: Path, reference: Any = None,
+                  start: float | None = None) -> _Outcome:
     """``engine --seeds N``: N runs from perturbed initial joint angles, as a distribution.
 
     With ``--path`` every run follows that path (``reference``), and the head error of the
@@ -702,7 +857,7 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     stems = [f"engine_seed{k + 1:0{width}d}" for k in range(args.seeds)]
     jobs = [(engine_draw, (params, offset), {"wheels": wheels, "t_final": args.t_final,
                                              "friction": friction, "law": args.law,
-                                             "reference": reference})
+                                             "reference": reference, "error_window": start})
             for offset in draws.offsets]
     bar, interrupted = None, False
     if _progress(args):
@@ -727,8 +882,8 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
         files += [str(p) for p in plot_engine(traj, None, out, "engine",
                                               reference).values()]
     data = {"status": "interrupted" if interrupted else "completed", "robot": params.name,
-            "law": args.law, "t_final": args.t_final, "friction": friction,
-            **draws.to_dict()}
+            "law": args.law, "t_final": args.t_final, "error_window": start,
+            "friction": friction, **draws.to_dict()}
     if reference is not None:
         data["path"] = repr(reference)
     if median is not None:
@@ -816,9 +971,9 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
                              f"cannot honour {', '.join(flags[k] for k in refused)}; leave "
                              "them out or choose stages with --only")
     out = _output_folder(args.output)
-    log = (lambda line: print(line, file=sys.stderr, flush=True)) \
-        if (args.verbose or sys.stderr.isatty()) else (lambda line: None)
-    index = reproduce(out, params, quick=args.quick, only=args.only, log=log)
+    index = reproduce(out, params, quick=args.quick, only=args.only,
+                      log=lambda line: _say(f"reproduce {line}"),
+                      log_done=args.verbose or sys.stderr.isatty())
     return _Outcome({"index": str(index)}, f"report: {index}")
 
 
@@ -833,6 +988,10 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     )
 
     _check_t_final(args.t_final, SIMULATE_DT)
+    from .experiments.bench_control import QUICK_T_FINAL
+
+    start = _error_window(args, min(args.t_final, QUICK_T_FINAL) if args.quick
+                          else args.t_final)
     for name in args.scenario or []:
         if name not in SCENARIOS:
             raise UsageError(f"argument --scenario: unknown {name!r}; choose from "
@@ -852,11 +1011,13 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     result = run_benchmark(scenarios=args.scenario, controllers=controllers,
                            models=tuple(args.model or ("viscous",)),
                            failed=(None,) if args.no_failure else (None, 5),
-                           t_final=args.t_final, quick=args.quick,
+                           t_final=args.t_final, quick=args.quick, error_window=start,
                            draws=args.draws or ENGINE_DRAWS)
     files = write_benchmark(result, out)
-    payload = {"rows": result.table(), "files": {k: str(v) for k, v in files.items()}}
-    return _Outcome(payload, f"wrote {', '.join(str(v) for v in files.values())}")
+    payload = {"error_window": start, "rows": result.table(),
+               "files": {k: str(v) for k, v in files.items()}}
+    return _Outcome(payload, f"wrote {', '.join(str(v) for v in files.values())}\n"
+                             f"{len(result.rows)} runs, path metrics over t >= {start:g} s")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -887,7 +1048,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_generate)
 
     p = sub.add_parser("info", help="parameters and model sizes of a robot")
-    _robot_options(p, friction=True)
+    _robot_options(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_info)
 
@@ -916,7 +1077,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
                    help="joint K is free (beside any --passive joints)")
     p.add_argument("--points", type=_int_in(2, MAX_POINTS), default=201,
-                   help=f"postures along the family, 2..{MAX_POINTS}")
+                   help=f"postures along the family, 2..{MAX_POINTS} (0, the straight "
+                   "posture, is added when the range holds it and the grid misses it)")
+    p.add_argument("--range", type=parse_angle, nargs=2, metavar=("LOW", "HIGH"),
+                   help="the swept parameter's range, LOW < HIGH (angles may be written "
+                   "pi/5; default: arc -pi/5..pi/5, alpha 0..pi/2, ts 0..2)")
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_sweep)
@@ -940,9 +1105,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "needs a path: default line) or a Controller subclass of your own, "
                    "built as Class(snake, reference)")
     _path_options(p)
-    _robot_options(p, friction=True)
+    _robot_options(p)
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True),
                    help=f"duration [s], at most {steps * SIMULATE_DT:g} (pfl 10, lyapunov 60)")
+    p.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
+                   help=_ERROR_WINDOW_HELP)
     p.add_argument("--climb-r", type=_float_in(0.0),
                    help="PFL only: gain of the singularity-aware redundancy term (default 0)")
     p.add_argument("-o", "--output", required=True, help="output folder")
@@ -961,12 +1128,12 @@ def build_parser() -> argparse.ArgumentParser:
                        "--path): one run with the path metrics in its summary, or with --seeds "
                        "N draws on that path, the head error measured to the reference's "
                        "point at the same time).")
-    p.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default engine")
+    _robot_options(p, friction=False, default="engine")  # friction: identified from wheels
     _path_options(p)
-    p.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
-                   metavar="K", help="make joint K passive (repeatable)")
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
                    help=f"duration [s], at most {steps * SIMULATE_DT:g}")
+    p.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
+                   help=_ERROR_WINDOW_HELP)
     p.add_argument("--wheel-radius", type=_float_in(0.0, MAX_WHEEL_RADIUS, open_low=True),
                    default=0.03, help=f"[m], at most {MAX_WHEEL_RADIUS:g}")
     p.add_argument("--mu", type=_float_in(0.0, MAX_MU, open_low=True), default=1.0,
@@ -1013,12 +1180,13 @@ def build_parser() -> argparse.ArgumentParser:
                        "else c_x = 0.5, c_y = 25 N s/m; engine puts the robot itself on wheels "
                        "and identifies its friction. With a preset, the engine stage runs the "
                        "8-link engine robot of VI.3.")
-    _robot_options(p, friction=True)
+    _robot_options(p)
     p.add_argument("-o", "--output", default="results", help="output folder")
     p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")
     p.add_argument("--only", action="append", metavar="STAGE", help="run only this stage")
     p.add_argument("--verbose", action="store_true",
-                   help="log the stages on stderr even when it is not a terminal")
+                   help="log each stage's end (with its wall time) beside its start on "
+                   "stderr even when it is not a terminal (one line per stage otherwise)")
     p.set_defaults(func=_cmd_reproduce)
 
     from .study import add_study_parser
@@ -1038,7 +1206,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="plant (repeatable; default viscous)")
     p.add_argument("--no-failure", action="store_true", help="skip the runs with joint 5 failed")
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
-                   help="duration of each run [s]")
+                   help="duration of each run [s] (--quick: at most 12)")
+    p.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
+                   help="judge the path metrics over t >= SECONDS (default: 10 s, or the "
+                   "second half of runs shorter than 20 s; in the settings as window_start)")
     p.add_argument("--draws", type=_int_in(1, 100), metavar="N",
                    help="engine runs per cell from perturbed starts, 1..100 (the engine is "
                    "chaotic: a cell reports their median and 10-90 %% range; default: "

@@ -32,6 +32,16 @@ def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]
     ["manip", "--n", "3"],
     ["sweep", "spiral", "-o", "out"],
     ["sweep", "arc", "--points", "1", "-o", "out"],
+    ["sweep", "arc", "--range", "0.5", "-0.3", "-o", "out"],
+    ["sweep", "arc", "--range", "0.2", "0.2", "-o", "out"],
+    ["sweep", "ts", "--range", "nan", "1", "-o", "out"],
+    ["sweep", "ts", "--range", "0", "inf", "-o", "out"],
+    ["sweep", "alpha", "--range", "0", "-o", "out"],
+    ["simulate", "--controller", "lyapunov", "--t-final", "2", "--error-window", "2",
+     "-o", "out"],
+    ["simulate", "--controller", "pfl", "--error-window", "-1", "-o", "out"],
+    ["engine", "--t-final", "1", "--error-window", "5", "-o", "out"],
+    ["bench-control", "--quick", "--error-window", "12", "-o", "out"],
     ["singular", "--starts", "0"],
     ["singular", "--bound", "7"],
     ["engine", "--cone", "square", "-o", "out"],
@@ -69,10 +79,12 @@ def test_generate_writes_urdf(capsys: pytest.CaptureFixture[str], tmp_path: Path
 
 
 def test_reproduce_writes_report(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    """reproduce --only robot --verbose logs the stage, writes index.html (figures embedded)
-    and summary.json, and leaves no staging folder."""
+    """reproduce --only robot --verbose logs the stage's start and end, writes index.html
+    (figures embedded) and summary.json, and leaves no staging folder."""
     code, _, err = _run(capsys, "reproduce", "--only", "robot", "--verbose", "-o", str(tmp_path))
-    assert code == 0 and "[1/1] robot" in err
+    lines = err.splitlines()
+    assert code == 0 and len(lines) == 2 and "[1/1] robot ..." in lines[0]
+    assert "[1/1] robot done in" in lines[1]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
     html = (tmp_path / "index.html").read_text()
     assert "data:image/png;base64," in html
@@ -206,14 +218,78 @@ def test_engine_json_with_pyramidal_cones(capsys: pytest.CaptureFixture[str],
     assert (tmp_path / "engine.npz").is_file()
 
 
-def test_simulate_shorter_than_the_error_window(capsys: pytest.CaptureFixture[str],
-                                                tmp_path: Path) -> None:
-    """A 2 s tracking run (before the 10 s window) reports no RMS instead of failing."""
-    code, out, _ = _run(capsys, "simulate", "--controller", "lyapunov", "--t-final", "2",
-                        "-o", str(tmp_path), "--json")
+def _window_rms(npz: Path, start: float) -> tuple[float, float]:
+    """RMS and max of the saved run's head error over t >= start."""
+    import numpy as np
+
+    from snake_pin.sim import Trajectory
+
+    traj = Trajectory.load(npz)
+    error = traj.signals["head_error"][traj.t >= start]
+    return float(np.sqrt(np.mean(error**2))), float(error.max())
+
+
+@pytest.mark.parametrize(("controller", "extra", "window"), [
+    ("lyapunov", [], 1.0),                          # default: half of a 2 s run
+    ("lyapunov", ["--error-window", "0.5"], 0.5),
+    ("pfl", [], 1.0),
+    ("pfl", ["--error-window", "1.5"], 1.5),
+])
+def test_short_runs_judge_head_errors_over_the_error_window(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, controller: str,
+        extra: list[str], window: float) -> None:
+    """A 2 s run (shorter than the 10 s window) reports head errors over t >= error_window:
+    half the run by default, --error-window when given; the numbers are the saved head
+    error's RMS and max over that window, also in % of the body; the window is in the
+    summary and the text."""
+    code, out, err = _run(capsys, "simulate", "--controller", controller, "--t-final", "2",
+                          *extra, "-o", str(tmp_path), "--json")
     data = json.loads(out)
-    assert code == 0 and data["t_end"] == pytest.approx(2.0)
-    assert data["rms_head_error"] is None and data["rms_relative"] is None
+    assert code == 0 and err == "" and data["error_window"] == window
+    rms, peak = _window_rms(tmp_path / f"{controller}.npz", window)
+    assert data["rms_head_error"] == pytest.approx(rms, rel=1e-12)
+    assert data["max_head_error"] == pytest.approx(peak, rel=1e-12)
+    assert data["rms_head_error_pct"] == pytest.approx(100 * rms / 1.2, rel=1e-12)
+    assert data["max_head_error_pct"] == pytest.approx(100 * peak / 1.2, rel=1e-12)
+    code, out, _ = _run(capsys, "simulate", "--controller", controller, "--t-final", "2",
+                        *extra, "-o", str(tmp_path))
+    assert code == 0 and f"error_window: {window:g}\n" in out
+
+
+@pytest.mark.parametrize("command", ["simulate", "engine", "bench-control"])
+def test_help_states_the_error_window_and_its_default(capsys: pytest.CaptureFixture[str],
+                                                      command: str) -> None:
+    """Every command that reports head errors takes --error-window and its help states the
+    default (10 s, or the second half of shorter runs)."""
+    code, out, _ = _run(capsys, command, "--help")
+    text = " ".join(out.split())
+    assert code == 0 and "--error-window SECONDS" in text
+    assert "default: 10 s, or the second half of" in text
+
+
+def test_an_empty_error_window_is_said_in_the_note(capsys: pytest.CaptureFixture[str],
+                                                   tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run that stops before its error window starts: the metrics are null and the
+    stderr note says the window is empty (never silently null)."""
+    import numpy as np
+
+    from snake_pin.control import LyapunovController
+
+    step = LyapunovController.__call__
+
+    def fails_late(self: LyapunovController, x: np.ndarray, t: float) -> np.ndarray:
+        return np.full(self.snake.n - 1, np.nan) if t >= 0.2 else step(self, x, t)
+
+    monkeypatch.setattr(LyapunovController, "__call__", fails_late)
+    code, out, err = _run(capsys, "simulate", "--controller", "lyapunov", "--t-final", "2",
+                          "-o", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 3 and data["status"] == "failed" and data["t_end"] < 1.0
+    assert data["error_window"] == 1.0 and data["rms_head_error"] is None
+    line = err.strip()
+    assert len(line.splitlines()) == 1
+    assert "no samples in the head-error window t >= 1 s" in line and "null" in line
 
 
 # ---------------------------------------------------------------- robot files
@@ -377,7 +453,9 @@ def test_engine_seeds_reports_the_distribution(capsys: pytest.CaptureFixture[str
     assert dist["median"] == pytest.approx(np.median(r_min), rel=1e-15)
     assert dist["p10"] == pytest.approx(np.percentile(r_min, 10), rel=1e-15)
     assert dist["p90"] == pytest.approx(np.percentile(r_min, 90), rel=1e-15)
-    assert data["median_run"] == "engine_seed1"  # no RMS before t = 10 s: the first run
+    rms = [run["summary"]["rms_percent"] for run in data["runs"]]  # over t >= 0.15 s
+    assert data["error_window"] == pytest.approx(0.15) and None not in rms
+    assert data["median_run"] == f"engine_seed{rms.index(sorted(rms)[1]) + 1}"
     assert all((tmp_path / f"engine_seed{k}.npz").is_file() for k in (1, 2, 3))
     assert (tmp_path / "engine_head.png").is_file()
     again = run_engine(t_final=0.3, initial_offset=offsets[1]).trajectory
@@ -385,3 +463,149 @@ def test_engine_seeds_reports_the_distribution(capsys: pytest.CaptureFixture[str
     code, out, _ = _run(capsys, "engine", "--seeds", "1", "--t-final", "0.3", "-o",
                         str(tmp_path / "text"))
     assert code == 0 and "R min" in out and "median" in out
+
+
+# ------------------------------------------------------------------- summaries and text
+def _text_keys(out: str) -> list[str]:
+    """The keys of a text summary: the word before ':' on each line that has one."""
+    return [line.split(":", 1)[0].strip() for line in out.splitlines()
+            if ":" in line and not line.startswith(" " * 20)]
+
+
+def _no_series(value: object) -> bool:
+    """Whether a JSON value holds no time series (no list longer than 20 entries)."""
+    if isinstance(value, list):
+        return len(value) <= 20 and all(_no_series(v) for v in value)
+    if isinstance(value, dict):
+        return all(_no_series(v) for v in value.values())
+    return True
+
+
+@pytest.mark.parametrize("controller", ["lyapunov", "pfl"])
+def test_run_summaries_have_the_same_keys_with_or_without_path(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, controller: str) -> None:
+    """simulate prints the same summary keys (SUMMARY_KEYS) with and without --path, in
+    text and in JSON; no time series reaches stdout (they are in the npz and CSV)."""
+    from snake_pin.cli import SUMMARY_KEYS
+
+    texts, payloads = [], []
+    for extra in ([], ["--path", "circle"]):
+        out_dir = tmp_path / ("path" if extra else "line")
+        argv = ["simulate", "--controller", controller, "--t-final", "0.4", *extra,
+                "-o", str(out_dir)]
+        code, out, _ = _run(capsys, *argv)
+        assert code == 0 and len(out) < 2000
+        texts.append(out)
+        code, out, _ = _run(capsys, *argv, "--json")
+        data = json.loads(out)
+        assert code == 0 and set(SUMMARY_KEYS) <= set(data) and _no_series(data)
+        assert data["rms_head_error"] is not None and data["error_window"] == 0.2
+        payloads.append(data)
+    assert _text_keys(texts[0]) == _text_keys(texts[1]) == [*SUMMARY_KEYS, "files"]
+    assert payloads[1]["reference"].startswith("path circle")
+    csv = Path(next(f for f in payloads[1]["files"] if f.endswith("_criteria.csv")))
+    header, *rows = csv.read_text().splitlines()
+    assert header.split(",")[:2] == ["t", "R"] and len(rows) == 5  # every 0.1 s of 0.4 s
+
+
+@pytest.mark.parametrize("argv", [
+    ["manip", "--phi0", "pi/10"],
+    ["manip", "--shape", "serpenoid", "--free-joint", "5"],
+    ["singular", "--starts", "4"],
+    ["info", "--robot", "camera_head_snake.toml"],
+    ["info", "--passive", "3"],
+    ["sweep", "arc", "--points", "6", "-o", "{out}"],
+    ["generate", "--cx", "0.3", "-o", "{out}/x.urdf"],
+    ["simulate", "--controller", "pfl", "--t-final", "0.2", "-o", "{out}"],
+])
+def test_text_outputs_have_plain_numbers(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                         argv: list[str]) -> None:
+    """Without --json, stdout holds plain text: no NumPy or Python reprs of numbers."""
+    code, out, _ = _run(capsys, *(a.replace("{out}", str(tmp_path)) for a in argv))
+    assert code == 0 and out.strip()
+    for bad in ("np.", "float64", "array(", "[]"):
+        assert bad not in out, (bad, out)
+
+
+def test_sweep_of_an_even_grid_names_the_singular_zero(capsys: pytest.CaptureFixture[str],
+                                                      tmp_path: Path) -> None:
+    """sweep arc --points 60 (an even grid over -pi/5..pi/5) sweeps phi0 = 0 too and reports
+    R = 0 there; --range sets the swept range."""
+    code, out, _ = _run(capsys, "sweep", "arc", "--points", "60", "-o", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 0 and data["zeros"] == [0.0] and data["points"] == 61
+    code, out, _ = _run(capsys, "sweep", "arc", "--points", "60", "-o", str(tmp_path))
+    assert code == 0 and "R = 0 at phi0 = [0]" in out
+    code, out, _ = _run(capsys, "sweep", "arc", "--points", "4", "--range", "-0.3", "pi/10",
+                        "-o", str(tmp_path / "range"), "--json")
+    data = json.loads(out)
+    saved = json.loads(Path(data["files"]["json"]).read_text())
+    assert code == 0 and data["range"] == pytest.approx([-0.3, math.pi / 10])
+    assert saved["values"][0] == -0.3 and 0.0 in saved["values"] and len(saved["values"]) == 5
+
+
+def _robot_flags(parser: object) -> dict[str, set[str]]:
+    """Subcommand -> its robot options (of --robot, --n, --passive, --cx, --cy, --ctheta)."""
+    import argparse
+
+    robot = {"--robot", "--n", "--passive", "--cx", "--cy", "--ctheta"}
+    assert isinstance(parser, argparse.ArgumentParser)
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return {name: {o for a in p._actions for o in a.option_strings} & robot
+            for name, p in sub.choices.items()}
+
+
+def test_every_command_that_takes_a_robot_takes_every_robot_option() -> None:
+    """generate, info, manip, sweep, singular, simulate and reproduce take the same robot
+    options; engine all but the friction it identifies from its wheels."""
+    from snake_pin.cli import build_parser
+
+    flags = _robot_flags(build_parser())
+    full = {"--robot", "--n", "--passive", "--cx", "--cy", "--ctheta"}
+    for name in ("generate", "info", "manip", "sweep", "singular", "simulate", "reproduce"):
+        assert flags[name] == full, name
+    assert flags["engine"] == {"--robot", "--n", "--passive"}
+
+
+def test_generate_honours_the_friction_options(capsys: pytest.CaptureFixture[str],
+                                               tmp_path: Path) -> None:
+    """generate --cx/--cy/--ctheta/--n: the URDF reads back with that friction and n."""
+    from snake_pin.robot_file import load_robot
+
+    out_file = tmp_path / "robot.urdf"
+    code, _, _ = _run(capsys, "generate", "--n", "7", "--cx", "0.3", "--cy", "2.5",
+                      "--ctheta", "1e-4", "-o", str(out_file))
+    robot = load_robot(out_file)
+    assert code == 0 and robot.n == 7
+    assert (robot.c_x, robot.c_y, robot.c_theta) == (0.3, 2.5, 1e-4)
+
+
+def test_joint_errors_name_the_robot_in_plain_english(capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    """A joint out of range on the 8-link engine robot: one line, no "a 8-link"."""
+    code, _, err = _run(capsys, "manip", "--robot", "engine", "--passive", "8")
+    assert code == 2 and "outside 1..7 for the 8-link robot" in err and "a 8" not in err
+
+
+def test_reproduce_logs_one_line_per_stage_when_stderr_is_not_a_terminal(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """reproduce with stderr not a terminal (captured): one line per stage on stderr, as the
+    stage starts, in order; stdout names the report."""
+    import importlib
+
+    import snake_pin.experiments as experiments
+
+    reproduce = importlib.import_module("snake_pin.experiments.reproduce")  # not the function
+
+    def stage(ctx: object) -> None:
+        pass
+
+    fake = [("robot", stage), ("manipulability", stage), ("pfl", stage)]
+    monkeypatch.setattr(reproduce, "stages", lambda: fake)
+    monkeypatch.setattr(experiments, "stages", lambda: fake)
+    code, out, err = _run(capsys, "reproduce", "-o", str(tmp_path))
+    assert code == 0 and out.startswith("report: ")
+    assert err.splitlines() == ["snake-pin: reproduce [1/3] robot ...",
+                                "snake-pin: reproduce [2/3] manipulability ...",
+                                "snake-pin: reproduce [3/3] pfl ..."]

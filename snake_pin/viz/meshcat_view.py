@@ -28,6 +28,7 @@ What this module promises:
 from __future__ import annotations
 
 import atexit
+import errno
 import os
 import re
 import selectors
@@ -61,13 +62,24 @@ HOST = "127.0.0.1"
 
 def port_is_free(port: int) -> bool:
     """Whether 127.0.0.1:port can be bound now."""
+    return _port_problem(port) is None
+
+
+def _port_problem(port: int) -> str | None:
+    """Why 127.0.0.1:port cannot be bound now (in words), or None when it can."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             probe.bind((HOST, port))
-        except OSError:
-            return False
-    return True
+        except PermissionError:
+            return (f"port {port} on {HOST}: permission denied (ports below 1024 need "
+                    "privileges; choose one from 1024 up)" if port < 1024
+                    else f"port {port} on {HOST}: permission denied")
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                return f"port {port} on {HOST} is already in use"
+            return f"port {port} on {HOST} cannot be bound: {exc.strerror or exc}"
+    return None
 
 
 def _read_urls(proc: subprocess.Popen[bytes], timeout: float) -> dict[str, str] | None:
@@ -118,15 +130,17 @@ def start_server(port: int | None = None, timeout: float = 20.0
     Raises
     ------
     ParameterError
-        If ``port`` is outside 1..65535 or already in use on 127.0.0.1.
+        If ``port`` is outside 1..65535, or cannot be bound on 127.0.0.1 (in use, or
+        permission denied: ports below 1024 need privileges), saying which.
     SnakePinError
         If the server does not start.
     """
     if port is not None:
         if not 1 <= port <= 65535:
             raise ParameterError(f"port must lie in 1..65535, got {port}")
-        if not port_is_free(port):
-            raise ParameterError(f"port {port} on {HOST} is already in use")
+        problem = _port_problem(port)
+        if problem is not None:
+            raise ParameterError(problem)
     cmd = [sys.executable, "-u", "-m", "snake_pin.viz.meshcat_server", "--stdin-eof", "--quiet"]
     if threading.current_thread() is threading.main_thread():
         # PR_SET_PDEATHSIG follows the thread that started the child: only from the main one

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from ..model import Snake
     from ..sim import Trajectory
 
-__all__ = ["draw_snake", "plot_postures", "plot_trajectory", "save_figure"]
+__all__ = ["draw_snake", "plot_head_path", "plot_postures", "plot_trajectory", "save_figure"]
 
 BODY_COLOR = "#228b22"
 HEAD_COLOR = "#d9541a"
@@ -152,6 +152,9 @@ def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
 def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None) -> plt.Figure:
     """Plot the head pose, the joint angles and the torque norm of a run over time.
 
+    The torque panel shows the torques that were applied (the last sample's torque of a
+    run that did not diverge never was: it is left out, not drawn as zero).
+
     Parameters
     ----------
     traj : Trajectory
@@ -172,13 +175,70 @@ def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None
     axes[0].legend(loc="best", fontsize=8)
     axes[1].plot(traj.t, traj.q[:, 3:], lw=0.8)
     axes[1].set_ylabel("phi [rad]")
-    axes[2].semilogy(traj.t, np.linalg.norm(traj.tau, axis=1) + 1e-12)
+    from ..metrics import applied
+
+    held = applied(traj)
+    norm = np.linalg.norm(traj.tau[held], axis=1)
+    if np.any(norm > 0):  # log scale; exact zeros are left out, not drawn at a floor
+        axes[2].semilogy(traj.t[held], norm)
+    else:
+        axes[2].plot(traj.t[held], norm)
     axes[2].set_ylabel("||tau|| [N m]")
     axes[2].set_xlabel("t [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
     if traj.diverged:
         fig.suptitle(traj.reason, fontsize=9, color="firebrick")
+    return save_figure(fig, path)
+
+
+def plot_head_path(traj: Trajectory, reference: np.ndarray,
+                   path: str | os.PathLike[str] | None = None, *, snapshots: int = 5,
+                   title: str | None = None) -> plt.Figure:
+    """Plot the head against its reference in the plane (x-y), with body snapshots.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The run.
+    reference : numpy.ndarray, shape (N, 2)
+        The reference head position ``(x_h^r, y_h^r)`` [m] at every sample time of
+        ``traj``.
+    path : str or os.PathLike or None, optional
+        PNG file to write (whole or not at all; the figure is then closed); None keeps
+        the figure open and writes nothing.
+    snapshots : int, optional
+        Bodies drawn at evenly spaced times, the first and last included.
+    title : str or None, optional
+        The axes' title (a diverged run's reason is added).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One panel, equal axes, x and y in m.
+    """
+    from ..model import Snake
+
+    reference = np.asarray(reference, dtype=float)
+    fig, ax = plt.subplots(figsize=(8, 6), layout="constrained")
+    ax.plot(reference[:, 0], reference[:, 1], "k--", lw=1, label="reference")
+    ax.plot(traj.q[:, 0], traj.q[:, 1], color=HEAD_COLOR, lw=1.2, label="head")
+    if len(traj):
+        snake = Snake(traj.params)
+        for k, t in enumerate(np.linspace(traj.t[0], traj.t_end, max(snapshots, 1))):
+            i = min(int(np.searchsorted(traj.t, t)), len(traj) - 1)
+            draw_snake(ax, snake, traj.q[i], alpha=0.3 + 0.7 * k / max(snapshots - 1, 1))
+        ax.plot(reference[-1, 0], reference[-1, 1], "s", color="k", ms=5,
+                label=f"reference at t = {traj.t_end:.3g} s")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
+    text = title or "Head and reference"
+    if traj.diverged:
+        text += f"\n{traj.reason}"
+    ax.set_title(text, fontsize=10, color="firebrick" if traj.diverged else "black")
     return save_figure(fig, path)
 
 
