@@ -61,6 +61,10 @@ import numpy as np
 import pinocchio as pin
 
 from ._symmetric import symmetric_from_upper
+from ._validation import as_vector
+from .exceptions import ParameterError
+from .gaits import _brief
+from .paper import _check_params
 from .params import SnakeParams
 
 __all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_twin",
@@ -75,6 +79,34 @@ WHEELED_TWIN_MAX_LINKS = 40
 
 #: Pinocchio joint index of the head link in the paper model (after base_x, base_y).
 _HEAD_JOINT = 3
+
+
+def _check_model(value: object, name: str = "model") -> pin.Model:
+    """``value`` if it is a ``pinocchio.Model``, else ParameterError naming ``name``."""
+    if not isinstance(value, pin.Model):
+        raise ParameterError(f"{name} must be a pinocchio.Model, got {_brief(value)}")
+    return value
+
+
+def _check_data(value: object, model: pin.Model, name: str = "data") -> pin.Data:
+    """``value`` if it is a ``pinocchio.Data`` of ``model``'s size, else ParameterError."""
+    if not isinstance(value, pin.Data):
+        raise ParameterError(f"{name} must be a pinocchio.Data, got {_brief(value)}")
+    if len(value.oMi) != model.njoints:
+        raise ParameterError(f"{name} has {len(value.oMi)} joints, the model "
+                             f"{model.njoints}: use model.createData()")
+    return value
+
+
+def _paper_model_of(model: object, params: object) -> tuple[pin.Model, SnakeParams]:
+    """``model`` and ``params`` checked: a Pinocchio model with the joints of the paper model
+    of ``params`` (:func:`snake_pin.model.paper_model`)."""
+    checked = _check_params(params)
+    pinocchio_model = _check_model(model)
+    if pinocchio_model.njoints != checked.n + _HEAD_JOINT or pinocchio_model.nv != checked.n + 2:
+        raise ParameterError(f"model must be the paper model of a {checked.n}-link snake, "
+                             f"got {pinocchio_model.njoints} joints")
+    return pinocchio_model, checked
 
 
 def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.ndarray,
@@ -98,11 +130,13 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.n
     twin, chain, wheels
         The twin model, the twin's velocity indices of the snake's n + 2 coordinates, and
         those of the n wheels (empty without wheels). Every joint here has nq = nv = 1.
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams, or ``model`` is not its paper model.
     """
-    n = params.n
-    if model.njoints != n + _HEAD_JOINT:
-        raise ValueError(f"expected the paper model of a {n}-link snake, got {model.njoints} "
-                         "joints")
+    model, params = _paper_model_of(model, params)
     c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
     extra = c_y - c_x
     with_wheels = bool(np.any(extra != 0.0))
@@ -152,6 +186,11 @@ class ForcePasses:
     params : SnakeParams
         The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
 
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams, or ``model`` is not its paper model.
+
     Attributes
     ----------
     size
@@ -165,6 +204,7 @@ class ForcePasses:
     """
 
     def __init__(self, model: pin.Model, params: SnakeParams) -> None:
+        model, params = _paper_model_of(model, params)
         c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
         self.has_wheels = bool(np.any(c_y != c_x))
         self.twin = _appended_twin(model, c_x, c_y, c_theta, self.has_wheels)
@@ -274,9 +314,17 @@ class FrictionModel:
         isotropic, and from the wheeled twin when it is not and n <=
         :data:`WHEELED_TWIN_MAX_LINKS`; otherwise from vectorised numpy. Derivatives
         (:meth:`derivatives`) need the model.
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams, or ``model`` is neither None nor its paper model.
     """
 
     def __init__(self, params: SnakeParams, model: pin.Model | None = None) -> None:
+        params = _check_params(params)
+        if model is not None:
+            model, params = _paper_model_of(model, params)
         n = params.n
         self._twin: pin.Model | None = None
         self._wheels = False
@@ -423,11 +471,12 @@ class FrictionModel:
 
         Raises
         ------
-        ValueError
+        ParameterError
             The friction model was built without the snake's Pinocchio model.
         """
         if self._twin is None:
-            raise ValueError("friction derivatives need the snake's Pinocchio model")
+            raise ParameterError("friction derivatives need the snake's Pinocchio model: "
+                                 "build the FrictionModel with model=")
         twin, data, zero, chain = self._twin, self._twin_data, self._zero, self._chain
         q_ext, a_ext = self._extend(q), np.zeros(twin.nv)
         a_ext[chain] = dq
@@ -500,7 +549,19 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
     -------
     pinocchio.StdVec_Force
         One spatial force per joint (zero on the joints before the first link).
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams, ``model`` is not its paper model, or ``data``
+        is not the model's.
+    ConfigurationError
+        ``q`` or ``dq`` does not have n + 2 finite entries.
     """
+    model, params = _paper_model_of(model, params)
+    _check_data(data, model)
+    q = as_vector(q, params.n + 2, "q")
+    dq = as_vector(dq, params.n + 2, "dq")
     c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
     offsets = params.com_offsets
     pin.forwardKinematics(model, data, q, dq)

@@ -8,21 +8,77 @@ numbers: head position [m], head angle [rad], joint angles [rad]); states are
 from __future__ import annotations
 
 import math
+import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
 from ._validation import finite_number
-from .exceptions import ParameterError
+from .exceptions import ConfigurationError, ParameterError
 
 __all__ = ["Serpenoid", "arc", "configuration", "initial_state", "straight"]
 
 
+#: Keyword arguments of the head pose (``**head`` of the posture functions).
+_HEAD = ("x_h", "y_h", "theta_1")
+
+
+def _brief(value: object) -> str:
+    """``value`` for a one-line message: the repr of a short scalar or text, else its type."""
+    if value is None or isinstance(value, (bool, int, float, str, np.generic)):
+        text = repr(value)
+        if len(text) <= 40 and "\n" not in text:
+            return text
+    return f"a {type(value).__name__}"
+
+
+def _integer(value: object, name: str, *, low: int | None = None,
+             high: int | None = None) -> int:
+    """``value`` as an int in ``low..high`` (a bool is refused), or ParameterError."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise ParameterError(f"{name} must be an integer, got {_brief(value)}")
+    number = int(value)
+    if (low is not None and number < low) or (high is not None and number > high):
+        span = (f"be >= {low}" if high is None else f"be <= {high}" if low is None
+                else f"lie in {low}..{high}")
+        raise ParameterError(f"{name} must {span}, got {number}")
+    return number
+
+
+def _flag(value: object, name: str) -> bool:
+    """``value`` as a bool: True or False only (not 0/1, not text), or ParameterError."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(f"{name} must be True or False, got {_brief(value)}")
+    return bool(value)
+
+
 def _check_n(n: int) -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-        raise ParameterError(f"n must be an integer >= 2, got {n!r}")
-    return int(n)
+    return _integer(n, "n", low=2)
+
+
+def _head(head: Mapping[str, object]) -> dict[str, float]:
+    """The head pose keywords, each a finite number; unknown keywords are refused."""
+    unknown = sorted(set(head) - set(_HEAD))
+    if unknown:
+        raise ParameterError(f"unknown head pose argument {unknown[0]!r} "
+                             f"(expected {', '.join(_HEAD)})")
+    return {key: finite_number(value, key) for key, value in head.items()}
+
+
+def _angles(phi: object) -> np.ndarray:
+    """``phi`` as a non-empty finite float vector (any length), or ConfigurationError."""
+    try:
+        angles = np.asarray(phi, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError("phi must be a vector of joint angles (numbers)") from exc
+    if angles.ndim != 1 or angles.size == 0:
+        raise ConfigurationError(f"phi must be a non-empty vector of joint angles, "
+                                 f"got shape {angles.shape}")
+    if not np.all(np.isfinite(angles)):
+        raise ConfigurationError("phi has non-finite entries")
+    return angles
 
 
 def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
@@ -42,8 +98,16 @@ def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
     -------
     numpy.ndarray, shape (n + 2,)
         ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+
+    Raises
+    ------
+    ConfigurationError
+        If ``phi`` is not a non-empty vector of finite numbers.
+    ParameterError
+        If a head coordinate is not a finite number.
     """
-    return np.r_[x_h, y_h, theta_1, np.asarray(phi, dtype=float)]
+    head = _head({"x_h": x_h, "y_h": y_h, "theta_1": theta_1})
+    return np.r_[head["x_h"], head["y_h"], head["theta_1"], _angles(phi)]
 
 
 def straight(n: int, **head: float) -> np.ndarray:
@@ -64,9 +128,10 @@ def straight(n: int, **head: float) -> np.ndarray:
     Raises
     ------
     ParameterError
-        If ``n`` is not an integer >= 2.
+        If ``n`` is not an integer >= 2, or a head keyword is unknown or not a finite
+        number.
     """
-    return configuration(np.zeros(_check_n(n) - 1), **head)
+    return configuration(np.zeros(_check_n(n) - 1), **_head(head))
 
 
 def arc(n: int, phi0: float, **head: float) -> np.ndarray:
@@ -91,10 +156,12 @@ def arc(n: int, phi0: float, **head: float) -> np.ndarray:
     Raises
     ------
     ParameterError
-        If ``n`` is not an integer >= 2 or ``phi0`` is not a finite number.
+        If ``n`` is not an integer >= 2, ``phi0`` is not a finite number, or a head
+        keyword is unknown or not a finite number.
     """
+    count = _check_n(n) - 1
     phi0 = finite_number(phi0, "phi0")
-    return configuration(np.full(_check_n(n) - 1, phi0), **head)
+    return configuration(np.full(count, phi0), **_head(head))
 
 
 @dataclass(frozen=True)
@@ -231,8 +298,13 @@ class Serpenoid:
         -------
         numpy.ndarray, shape (n + 2,)
             ``q = [x_h, y_h, theta_1, phi_1(t) .. phi_{n-1}(t)]``.
+
+        Raises
+        ------
+        ParameterError
+            If a head keyword is unknown or not a finite number.
         """
-        return configuration(self.angles(t), **head)
+        return configuration(self.angles(t), **_head(head))
 
 
 def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
@@ -256,6 +328,6 @@ def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
     Raises
     ------
     ParameterError
-        If ``n`` is not an integer >= 2.
+        If ``n`` is not an integer >= 2 or ``theta_1`` is not a finite number.
     """
     return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(_check_n(n) + 2)]

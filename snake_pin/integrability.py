@@ -34,8 +34,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import paper
-from .exceptions import ParameterError
-from .model import Snake
+from ._validation import finite_number
+from .exceptions import ConfigurationError, ParameterError
+from .gaits import _brief, _integer
+from .model import Snake, _check_snake
 
 __all__ = [
     "Involutivity",
@@ -87,6 +89,19 @@ class PartialIntegrability:
         return self.cyclic and self.gradient
 
 
+def _point(z: object) -> np.ndarray:
+    """``z`` as a non-empty finite float vector, or ConfigurationError."""
+    try:
+        point = np.asarray(z, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"z must be a vector of numbers, got {_brief(z)}") from exc
+    if isinstance(z, (bool, np.bool_)) or point.ndim != 1 or point.size == 0:
+        raise ConfigurationError(f"z must be a non-empty vector, got {_brief(z)}")
+    if not np.all(np.isfinite(point)):
+        raise ConfigurationError("z has non-finite entries")
+    return point
+
+
 def _friction_matrix(snake: Snake, q: np.ndarray) -> np.ndarray:
     """C(q) from the friction map: Q(q, dq) = -C(q) dq, column by column."""
     eye = np.eye(snake.nv)
@@ -124,10 +139,15 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
     Raises
     ------
     ParameterError
-        If ``k`` is not 1, 2 or 3.
+        If ``snake`` is not a Snake, ``k`` is not 1, 2 or 3, ``samples`` not a positive
+        integer, ``seed`` not a non-negative integer or ``tolerance`` not a positive
+        number.
     """
-    if k not in (1, 2, 3):
-        raise ParameterError(f"k must be 1, 2 or 3, got {k}")
+    _check_snake(snake)
+    k = _integer(k, "k", low=1, high=3)
+    samples = _integer(samples, "samples", low=1)
+    seed = _integer(seed, "seed", low=0)
+    tolerance = finite_number(tolerance, "tolerance", positive=True)
     rng = np.random.default_rng(seed)
     nv = snake.nv
     cyclic, gradient = 0.0, 0.0
@@ -179,7 +199,11 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
     ------
     ConfigurationError
         If ``q`` or ``q0`` does not have n + 2 finite entries.
+    ParameterError
+        If ``snake`` is not a Snake or ``nodes`` is not a positive integer.
     """
+    _check_snake(snake)
+    nodes = _integer(nodes, "nodes", low=1)
     q = snake.check_q(q)
     q0 = np.zeros(snake.nq) if q0 is None else snake.check_q(q0, "q0")
     s, w = np.polynomial.legendre.leggauss(nodes)
@@ -214,8 +238,10 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
     ConfigurationError
         If ``q`` or ``dq`` does not have n + 2 finite entries.
     ParameterError
-        If the robot's friction is not isotropic (g2 is undefined).
+        If ``snake`` is not a Snake, or its friction is not isotropic (g2 is undefined).
     """
+    _check_snake(snake)
+    q, dq = snake.check_q(q), snake.check_dq(dq)
     return snake.inertia_matrix(q)[:2] @ dq + paper.g2(snake.params, q)
 
 
@@ -277,8 +303,26 @@ def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
     float
         ``max abs(A [X_i, X_j]) / max abs(A)`` over all pairs i < j; near the
         central-difference noise when the distribution is involutive.
+
+    Raises
+    ------
+    ConfigurationError
+        If ``z`` is not a non-empty vector of finite numbers.
+    ParameterError
+        If ``forms`` is not callable or does not return a finite (r, d) array at ``z``,
+        or ``step`` is not a positive number.
     """
+    if not callable(forms):
+        raise ParameterError(f"forms must be a callable z -> A(z), got {_brief(forms)}")
+    z = _point(z)
+    step = finite_number(step, "step", positive=True)
     d = z.size
+    try:
+        shape = np.shape(forms(z))
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"forms(z) must return an (r, {d}) array: {exc}") from exc
+    if len(shape) != 2 or shape[1] != d:
+        raise ParameterError(f"forms(z) must return an (r, {d}) array, got shape {shape}")
 
     def fields(point: np.ndarray) -> np.ndarray:
         a = forms(point)
@@ -348,8 +392,12 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
     Raises
     ------
     ParameterError
-        If the robot's friction is not isotropic.
+        If ``snake`` is not a Snake, its friction is not isotropic, ``samples`` is not a
+        positive integer or ``seed`` not a non-negative integer.
     """
+    _check_snake(snake)
+    samples = _integer(samples, "samples", low=1)
+    seed = _integer(seed, "seed", low=0)
     if not snake.params.isotropic:
         raise ParameterError("Theorem 3 applies to the partial integral, which needs c_x = c_y")
     rng = np.random.default_rng(seed)

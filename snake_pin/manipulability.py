@@ -31,12 +31,12 @@ numbers [m, m, rad, rad...]).
 
 from __future__ import annotations
 
+import numbers
 import sys
 import types
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, cast
 
 import numpy as np
 import pinocchio as pin
@@ -44,9 +44,12 @@ from numpy.typing import ArrayLike
 from scipy.linalg import lapack
 
 from ._symmetric import symmetric_from_upper
+from ._validation import as_vector
 from .exceptions import ConfigurationError, ParameterError
-from .model import Snake
-from .paper import k_matrix
+from .friction import _check_data, _check_model
+from .gaits import _brief, _flag, _integer
+from .model import Snake, _check_snake
+from .paper import _check_params, k_matrix
 from .params import SnakeParams
 
 __all__ = [
@@ -122,22 +125,41 @@ def task_split(n: int, free_joint: int | Sequence[int] | None = None,
     Raises
     ------
     ParameterError
-        If a free joint is outside 1..n - 1, or n is too small for the task (n >= 4
-        plus one link per free joint).
+        If ``n`` is not an integer, a free joint is not an integer in 1..n - 1,
+        ``heading`` is not a bool, or n is too small for the task (n >= 4 plus one link
+        per free joint).
     """
-    task, actuated, _ = _split(n, _free_tuple(n, free_joint), bool(heading))
+    n = _integer(n, "n", low=2)
+    task, actuated, _ = _split(n, _free_tuple(n, free_joint), _flag(heading, "heading"))
     return task, actuated
 
 
+def _integers(value: object, name: str) -> list[int]:
+    """``value`` as a list of ints: a sequence (not text, not a mapping) of integers."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Iterable):
+        raise ParameterError(f"{name} must be a sequence of integers, got {_brief(value)}")
+    items = list(value)
+    for item in items:
+        if isinstance(item, (bool, np.bool_)) or not isinstance(item, numbers.Integral):
+            raise ParameterError(f"{name} must hold integers, got {_brief(item)}")
+    return [int(item) for item in items]
+
+
 def _free_tuple(n: int, free_joint: int | Sequence[int] | None) -> tuple[int, ...]:
+    """The free joints (1-based, sorted, distinct) of an n-link robot, or ParameterError."""
     if free_joint is None:
         return ()
-    free: list[Any] = ([free_joint] if np.isscalar(free_joint)
-                       else list(cast(Iterable[Any], free_joint)))
+    if isinstance(free_joint, numbers.Integral) and not isinstance(free_joint,
+                                                                   (bool, np.bool_)):
+        free = [int(free_joint)]
+    elif isinstance(free_joint, np.ndarray) and free_joint.ndim == 0:
+        free = _integers([free_joint.item()], "free_joint")
+    else:
+        free = _integers(free_joint, "free_joint")
     for k in free:
-        if isinstance(k, (bool, np.bool_)) or int(k) != k or not 1 <= int(k) <= n - 1:
+        if not 1 <= k <= n - 1:
             raise ParameterError(f"free joint {k} is outside 1..{n - 1}")
-    return tuple(sorted({int(k) for k in free}))
+    return tuple(sorted(set(free)))
 
 
 @lru_cache(maxsize=256)
@@ -214,13 +236,16 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
     ConfigurationError
         If ``q`` does not have n + 2 finite entries.
     ParameterError
-        If a free joint is outside 1..n - 1, or the robot has too few links for the
+        If ``snake`` is not a Snake, a free joint is not an integer in 1..n - 1,
+        ``heading`` or ``blocks`` is not a bool, or the robot has too few links for the
         task (n >= 4 plus one per free or passive joint).
     """
+    _check_snake(snake)
     q = snake.check_q(q).copy()
     q[:3] = 0.0  # D, R are invariant under rigid motions: remove them exactly
     free = tuple(snake.params.passive) + _free_tuple(snake.n, free_joint)
-    task, act, flat = _split(snake.n, tuple(sorted(set(free))), bool(heading))
+    heading, blocks = _flag(heading, "heading"), _flag(blocks, "blocks")
+    task, act, flat = _split(snake.n, tuple(sorted(set(free))), heading)
     # Upper triangles straight from Pinocchio (``flat`` only reads that triangle).
     h = pin.crba(snake.model, snake.data, q, pin.Convention.WORLD)
     h_inv = pin.computeMinverse(snake.model, snake.data, q)
@@ -274,7 +299,8 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
         Which rows of the task Jacobian to keep: indices, or a name of :data:`TASK_ROWS`
         (``"planar"`` keeps x, y and yaw). A planar robot's frame task must keep only its
         planar rows, or the rows it cannot move pad the singular values with zeros and D
-        is always 0. Default: all rows.
+        is always 0. Default: all rows. Only with a ``task`` (without one there are no
+        task rows to choose, and ``rows`` is refused).
 
     Returns
     -------
@@ -288,14 +314,16 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
         If ``q`` does not have ``model.nq`` finite entries, or the task Jacobian is not a
         finite ``m x nv`` matrix.
     ParameterError
-        If an unactuated index is outside 0..nv - 1, nothing is actuated, a fully
-        actuated model has no task, the frame does not exist, or ``rows`` is invalid.
+        If ``model`` or ``data`` is not a Pinocchio model or its data, an unactuated
+        index is not an integer in 0..nv - 1, nothing is actuated, a fully actuated model
+        has no task, the frame does not exist, ``rows`` is invalid, or ``rows`` is given
+        without a ``task``.
     """
-    q = np.asarray(q, dtype=float).reshape(-1)
-    if q.size != model.nq or not np.all(np.isfinite(q)):
-        raise ConfigurationError(f"q must have {model.nq} finite entries")
+    model = _check_model(model)
+    _check_data(data, model)
+    q = as_vector(q, model.nq, "q")
     nv = model.nv
-    unact = np.array(sorted({int(i) for i in unactuated}), dtype=int)
+    unact = np.array(sorted(set(_integers(unactuated, "unactuated"))), dtype=int)
     if unact.size and (unact.min() < 0 or unact.max() >= nv):
         raise ParameterError(f"unactuated indices must lie in 0..{nv - 1}")
     act = np.array([i for i in range(nv) if i not in set(unact.tolist())], dtype=int)
@@ -303,18 +331,26 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
         raise ParameterError("at least one coordinate must be actuated")
     h = symmetric_from_upper(pin.crba(model, data, q, pin.Convention.WORLD))
     h_inv = symmetric_from_upper(pin.computeMinverse(model, data, q))
+    if task is None and rows is not None:
+        raise ParameterError("rows selects rows of a task: give task= (a Jacobian or a "
+                             "frame name) or leave rows out")
     if task is None:
         if unact.size == 0:
             raise ParameterError("a fully actuated model needs a task (Jacobian or frame)")
         return _evaluate(h, h_inv, unact, act, _upper_flat(unact, act, nv), blocks=False)
     if isinstance(task, str):
         if not model.existFrame(task):
-            raise ParameterError(f"no frame named {task!r} in the model")
+            raise ParameterError(f"task names no frame of the model: {task!r}")
         jac = pin.computeFrameJacobian(model, data, q, model.getFrameId(task),
                                        pin.LOCAL_WORLD_ALIGNED)
     else:
-        jac = np.asarray(task, dtype=float)
-        if jac.ndim != 2 or jac.shape[1] != nv or not np.all(np.isfinite(jac)):
+        try:
+            jac = np.asarray(task, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ConfigurationError(f"task must be a frame name or a finite m x {nv} "
+                                     f"Jacobian, got {_brief(task)}") from exc
+        if isinstance(task, (bool, np.bool_)) or jac.ndim != 2 or jac.shape[1] != nv \
+                or not np.all(np.isfinite(jac)):
             raise ConfigurationError(f"task Jacobian must be a finite m x {nv} matrix")
     jac = jac[_task_rows(rows, jac.shape[0])]
     sigma = _singular_values(jac @ h_inv[:, act], jac.shape[0])
@@ -357,16 +393,33 @@ def manipulability_R_batch(params: SnakeParams, phi: ArrayLike, *,
     Raises
     ------
     ConfigurationError
-        If ``phi`` does not have n - 1 columns.
+        If ``phi`` is not finite numbers with n - 1 columns.
     ParameterError
-        If the free joint is outside 1..n - 1 or the robot has too few links.
+        If ``params`` is not a SnakeParams, the free joint is not an integer in
+        1..n - 1, ``heading`` is not a bool, or the robot has too few links.
     """
-    phi = np.atleast_2d(np.asarray(phi, dtype=float))
-    n = params.n
-    if phi.ndim != 2 or phi.shape[1] != n - 1:
-        raise ConfigurationError(f"phi must have {n - 1} columns")
+    n = _check_params(params).n
+    try:
+        angles = np.asarray(phi, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"phi must be numbers with {n - 1} columns, "
+                                 f"got {_brief(phi)}") from exc
+    angles = np.atleast_2d(angles)
+    if isinstance(phi, (bool, np.bool_)) or angles.ndim != 2 or angles.shape[1] != n - 1:
+        raise ConfigurationError(f"phi must have {n - 1} columns, got shape {angles.shape}")
+    if not np.all(np.isfinite(angles)):
+        raise ConfigurationError("phi has non-finite entries")
     free = tuple(sorted(set(params.passive) | set(_free_tuple(n, free_joint))))
-    task, act = task_split(n, free, heading)
+    return _r_batch(params, angles, free, _flag(heading, "heading"))
+
+
+def _r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
+             heading: bool) -> np.ndarray:
+    """:func:`manipulability_R_batch` of checked arguments: ``phi`` (B, n - 1) floats and
+    ``free`` the sorted free joints, passive ones included (the hot path of the searches
+    and of PFL's climb term)."""
+    n = params.n
+    task, act, _ = _split(n, free, heading)
     m = params.masses
     k = k_matrix(params)
     mk = m[:, None] * k
@@ -400,13 +453,15 @@ def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
             raise ParameterError(f"unknown task rows {rows!r}; choose one of "
                                  f"{', '.join(TASK_ROWS)} or give indices")
         chosen = list(TASK_ROWS[rows])
+    elif isinstance(rows, (bytes, Mapping)) or not isinstance(rows, Iterable):
+        raise ParameterError(f"task rows must be a name or indices, got {_brief(rows)}")
     else:
         chosen = list(rows)
     if not chosen or len(set(chosen)) != len(chosen) or any(
             isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 0 <= r < size
             for r in chosen):
         raise ParameterError(f"task rows must be distinct indices in 0..{size - 1}, "
-                             f"got {rows!r}")
+                             f"got {_brief(rows) if not isinstance(rows, list) else rows}")
     return chosen
 
 
@@ -445,13 +500,16 @@ def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
     ConfigurationError
         If ``q`` does not have n + 2 finite entries.
     ParameterError
-        If ``constrained`` is empty or names a link outside 1..n.
+        If ``snake`` is not a Snake, or ``constrained`` is empty or names a link outside
+        1..n (or not by an integer).
     """
+    _check_snake(snake)
     q = snake.check_q(q)
     n = snake.n
-    links = list(range(2, n + 1)) if constrained is None else sorted({int(k) for k in constrained})
+    links = (list(range(2, n + 1)) if constrained is None
+             else sorted(set(_integers(constrained, "constrained"))))
     if not links or links[0] < 1 or links[-1] > n:
-        raise ParameterError(f"constrained links must lie in 1..{n}")
+        raise ParameterError(f"constrained links must be given and lie in 1..{n}")
     model, data = snake.model, snake.data
     pin.computeJointJacobians(model, data, q)
     offsets = snake.params.com_offsets

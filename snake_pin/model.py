@@ -31,8 +31,10 @@ import pinocchio as pin
 from ._blas import dgemv
 from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
-from .exceptions import ConfigurationError
+from .exceptions import ConfigurationError, ParameterError
 from .friction import FrictionModel
+from .gaits import _brief, _integer
+from .paper import _check_params
 from .params import SnakeParams
 from .urdf import urdf_string
 
@@ -63,7 +65,13 @@ def paper_model(params: SnakeParams) -> pin.Model:
     -------
     pinocchio.Model
         The model, with nq = nv = n + 2.
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams.
     """
+    _check_params(params)
     fixed = pin.buildModelFromXML(urdf_string(params, floating_base=False))
     model = pin.Model()
     model.name = fixed.name
@@ -664,6 +672,11 @@ class FastDynamics:
     rows : int, optional
         Number of stage states (rows of :attr:`states`; 4 for RK4).
 
+    Raises
+    ------
+    ParameterError
+        ``snake`` is not a Snake, or ``rows`` is not a positive integer.
+
     Attributes
     ----------
     states
@@ -692,6 +705,8 @@ class FastDynamics:
     """
 
     def __init__(self, snake: Snake, rows: int = 4) -> None:
+        _check_snake(snake)
+        rows = _integer(rows, "rows", low=1)
         self._snake = snake
         model, data, nq = snake.model, snake.data, snake.nq
         passes = snake.friction.passes
@@ -945,6 +960,13 @@ def _crba_mirrors(model: pin.Model) -> bool:
     mass = data.M  # the view FastDynamics reads, not the returned copy
     returned = pin.crba(model, data, np.linspace(0.3, 0.9, model.nq), _WORLD)
     return bool(np.array_equal(mass, returned) and np.array_equal(mass, mass.T))
+
+
+def _check_snake(value: object, name: str = "snake") -> Snake:
+    """``value`` if it is a :class:`Snake`, else ParameterError naming ``name``."""
+    if not isinstance(value, Snake):
+        raise ParameterError(f"{name} must be a Snake, got {_brief(value)}")
+    return value
 
 
 def _vector(value: object, size: int, name: str) -> np.ndarray:

@@ -51,7 +51,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._validation import as_vector
-from .exceptions import ParameterError
+from .exceptions import ConfigurationError, ParameterError
+from .gaits import _brief, _integer
 from .params import SnakeParams
 
 __all__ = [
@@ -72,6 +73,25 @@ __all__ = [
 ]
 
 
+def _check_params(value: object, name: str = "params") -> SnakeParams:
+    """``value`` if it is a :class:`~snake_pin.params.SnakeParams`, else ParameterError."""
+    if not isinstance(value, SnakeParams):
+        raise ParameterError(f"{name} must be a SnakeParams, got {_brief(value)}")
+    return value
+
+
+def _theta(params: object, theta: object) -> tuple[SnakeParams, np.ndarray]:
+    """``params`` checked and ``theta`` as its n finite link angles."""
+    checked = _check_params(params)
+    return checked, as_vector(theta, checked.n, "theta")
+
+
+def _q(params: object, q: object, name: str = "q") -> tuple[SnakeParams, np.ndarray]:
+    """``params`` checked and ``q`` as its n + 2 finite coordinates."""
+    checked = _check_params(params)
+    return checked, as_vector(q, checked.n + 2, name)
+
+
 def k_matrix(params: SnakeParams) -> np.ndarray:
     """Return K of eq. (4), per link: ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i), else 0.
 
@@ -88,7 +108,13 @@ def k_matrix(params: SnakeParams) -> np.ndarray:
     -------
     numpy.ndarray, shape (n, n)
         Lower-triangular K [m].
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams.
     """
+    _check_params(params)
     lengths = params.link_lengths
     k = np.tril(np.broadcast_to(lengths, (params.n, params.n)), -1)
     k[np.diag_indices(params.n)] = params.com_offsets
@@ -107,7 +133,13 @@ def l_matrix(n: int) -> np.ndarray:
     -------
     numpy.ndarray, shape (n, n)
         Ones on and below the diagonal, zeros above.
+
+    Raises
+    ------
+    ParameterError
+        ``n`` is not an integer >= 2.
     """
+    n = _integer(n, "n", low=2)
     return np.tril(np.ones((n, n)))
 
 
@@ -123,7 +155,13 @@ def jacobian_q(n: int) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         The constant Jacobian from paper coordinates to ``[x_h, y_h, theta_1 .. theta_n]``.
+
+    Raises
+    ------
+    ParameterError
+        ``n`` is not an integer >= 2.
     """
+    n = _integer(n, "n", low=2)
     out = np.zeros((n + 2, n + 2))
     out[:2, :2] = np.eye(2)
     out[2:, 2:] = l_matrix(n)
@@ -135,15 +173,34 @@ def link_angles(q: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    q : numpy.ndarray, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...];
-        not validated (the public functions validate it first).
+    q : array_like, shape (n + 2,)
+        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...]
+        (n >= 2).
 
     Returns
     -------
     numpy.ndarray, shape (n,)
         theta_1 .. theta_n [rad], head first.
+
+    Raises
+    ------
+    ConfigurationError
+        ``q`` is not a vector of at least 4 finite numbers.
     """
+    try:
+        vector = np.asarray(q, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError("q must be a vector of numbers") from exc
+    if vector.ndim != 1 or vector.size < 4:
+        raise ConfigurationError(f"q must be a vector of n + 2 >= 4 numbers, "
+                                 f"got shape {vector.shape}")
+    if not np.all(np.isfinite(vector)):
+        raise ConfigurationError("q has non-finite entries")
+    return _link_angles(vector)
+
+
+def _link_angles(q: np.ndarray) -> np.ndarray:
+    """:func:`link_angles` of a checked q."""
     return q[2] + np.concatenate([[0.0], np.cumsum(q[3:])])
 
 
@@ -162,7 +219,15 @@ def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.
     jx, jy : numpy.ndarray, shape (n, n + 2)
         Rows i map ``q-bar' = [x_h', y_h', theta']`` to link i's CM velocity along the
         world x and y axes [m/s].
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams.
+    ConfigurationError
+        ``theta`` is not a vector of n finite angles.
     """
+    params, theta = _theta(params, theta)
     n = params.n
     k = k_matrix(params)
     jx = np.hstack([np.ones((n, 1)), np.zeros((n, 1)), -k @ np.diag(np.sin(theta))])
@@ -186,7 +251,15 @@ def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         Symmetric positive definite H-bar [kg, kg m, kg m^2 blocks].
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams.
+    ConfigurationError
+        ``theta`` is not a vector of n finite angles.
     """
+    params, theta = _theta(params, theta)
     jx, jy = jacobian_xy(params, theta)
     m = params.masses[:, None]
     j_bar = np.diag(np.r_[0.0, 0.0, params.inertias])
@@ -215,10 +288,12 @@ def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
     ------
     ConfigurationError
         If ``q`` does not have n + 2 finite entries.
+    ParameterError
+        ``params`` is not a SnakeParams.
     """
-    q = as_vector(q, params.n + 2, "q")
+    params, q = _q(params, q)
     jq = jacobian_q(params.n)
-    return jq.T @ inertia_matrix_bar(params, link_angles(q)) @ jq
+    return jq.T @ inertia_matrix_bar(params, _link_angles(q)) @ jq
 
 
 def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
@@ -239,7 +314,15 @@ def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         W-bar; the Coriolis term is ``W-bar (q-bar')^2`` (elementwise square).
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams.
+    ConfigurationError
+        ``theta`` is not a vector of n finite angles.
     """
+    params, theta = _theta(params, theta)
     n = params.n
     k = k_matrix(params)
     m = params.masses[:, None]
@@ -272,12 +355,14 @@ def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     ------
     ConfigurationError
         If ``q`` or ``dq`` does not have n + 2 finite entries.
+    ParameterError
+        ``params`` is not a SnakeParams.
     """
-    q = as_vector(q, params.n + 2, "q")
+    params, q = _q(params, q)
     dq = as_vector(dq, params.n + 2, "dq")
     jq = jacobian_q(params.n)
     dq_bar = jq @ dq
-    return jq.T @ w_matrix_bar(params, link_angles(q)) @ (dq_bar * dq_bar)
+    return jq.T @ w_matrix_bar(params, _link_angles(q)) @ (dq_bar * dq_bar)
 
 
 def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
@@ -294,7 +379,15 @@ def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         Symmetric positive semi-definite C-bar in q-bar coordinates.
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams.
+    ConfigurationError
+        ``theta`` is not a vector of n finite angles.
     """
+    params, theta = _theta(params, theta)
     c, s = np.cos(theta), np.sin(theta)
     cx, cy = params.per_link("c_x"), params.per_link("c_y")
     middle = np.block([[np.diag(cx * c**2 + cy * s**2), np.diag((cx - cy) * s * c)],
@@ -327,10 +420,12 @@ def friction_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
     ------
     ConfigurationError
         If ``q`` does not have n + 2 finite entries.
+    ParameterError
+        ``params`` is not a SnakeParams.
     """
-    q = as_vector(q, params.n + 2, "q")
+    params, q = _q(params, q)
     jq = jacobian_q(params.n)
-    return jq.T @ friction_matrix_bar(params, link_angles(q)) @ jq
+    return jq.T @ friction_matrix_bar(params, _link_angles(q)) @ jq
 
 
 def actuation_matrix(n: int) -> np.ndarray:
@@ -345,7 +440,13 @@ def actuation_matrix(n: int) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n - 1)
         Maps the joint torques tau to generalised forces (every joint actuated).
+
+    Raises
+    ------
+    ParameterError
+        ``n`` is not an integer >= 2.
     """
+    n = _integer(n, "n", low=2)
     return np.vstack([np.zeros((3, n - 1)), np.eye(n - 1)])
 
 
@@ -373,8 +474,11 @@ def bias(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     ------
     ConfigurationError
         If ``q`` or ``dq`` does not have n + 2 finite entries.
+    ParameterError
+        ``params`` is not a SnakeParams.
     """
-    return coriolis(params, q, dq) + friction_matrix(params, q) @ np.asarray(dq, float)
+    coriolis_term = coriolis(params, q, dq)  # checks params, q and dq
+    return coriolis_term + friction_matrix(params, q) @ as_vector(dq, params.n + 2, "dq")
 
 
 def g2(params: SnakeParams, q: np.ndarray) -> np.ndarray:
@@ -404,11 +508,11 @@ def g2(params: SnakeParams, q: np.ndarray) -> np.ndarray:
     ParameterError
         If the robot's friction is not isotropic.
     """
-    q = as_vector(q, params.n + 2, "q")
+    params, q = _q(params, q)
     if not params.isotropic:
         raise ParameterError("g_2 of eq. (67) needs isotropic friction (c_x = c_y on every link)")
     c = params.per_link("c_x")
-    theta = link_angles(q)
+    theta = _link_angles(q)
     k = k_matrix(params)
     x = q[0] + k @ np.cos(theta)
     y = q[1] + k @ np.sin(theta)

@@ -49,6 +49,8 @@ import pinocchio as pin
 from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
 from .exceptions import ParameterError
+from .friction import _check_data, _check_model
+from .gaits import _brief, _integer
 
 __all__ = [
     "PlanarLayout",
@@ -86,6 +88,12 @@ class PlanarLayout:
         True for joints stored as (cos, sin) (``continuous`` in the URDF).
     signs : numpy.ndarray of float, shape (n - 1,)
         s_i: +1 for a joint about +z, -1 about -z (``q_i = s_i phi_i``).
+
+    Raises
+    ------
+    ParameterError
+        A size is not an integer (n >= 2, nv = n + 2, nq >= nv + 1), or an array does
+        not hold n - 1 entries of its kind (indices within nq, signs +-1).
     """
 
     n: int
@@ -94,6 +102,22 @@ class PlanarLayout:
     idx_q: np.ndarray
     unbounded: np.ndarray
     signs: np.ndarray
+
+    def __post_init__(self) -> None:
+        n = _integer(self.n, "n", low=2)
+        nv = _integer(self.nv, "nv", low=n + 2, high=n + 2)
+        nq = _integer(self.nq, "nq", low=nv + 1)
+        for name, kind in (("idx_q", "i"), ("unbounded", "b"), ("signs", "f")):
+            value = getattr(self, name)
+            if not isinstance(value, np.ndarray) or value.shape != (n - 1,) \
+                    or value.dtype.kind != kind:
+                what = {"i": "integers", "b": "bools", "f": "floats"}[kind]
+                raise ParameterError(f"{name} must be a numpy array of {n - 1} {what}, "
+                                     f"got {_brief(value)}")
+        if np.any((self.idx_q < 0) | (self.idx_q >= nq)):
+            raise ParameterError(f"idx_q must index the {nq} planar coordinates")
+        if not np.all(np.abs(self.signs) == 1.0):
+            raise ParameterError("signs must be +1 or -1")
 
 
 def _axis_sign(joint: pin.JointModel, name: str) -> tuple[float, bool]:
@@ -130,8 +154,10 @@ def planar_layout(model: pin.Model) -> PlanarLayout:
     ParameterError
         Naming the joint that is not as expected: the first joint must be
         ``JointModelPlanar`` at the origin, each other a revolute joint about +-z whose
-        parent is the previous joint and whose placement does not rotate.
+        parent is the previous joint and whose placement does not rotate; or ``model`` is
+        not a ``pinocchio.Model``.
     """
+    _check_model(model)
     if model.njoints < 3:
         raise ParameterError(f"a snake model needs a planar joint and at least one "
                              f"revolute joint, got {model.njoints - 1} joint(s)")
@@ -160,7 +186,12 @@ def planar_layout(model: pin.Model) -> PlanarLayout:
 
 
 def _layout(model: pin.Model | PlanarLayout) -> PlanarLayout:
-    return model if isinstance(model, PlanarLayout) else planar_layout(model)
+    if isinstance(model, PlanarLayout):
+        return model
+    if not isinstance(model, pin.Model):
+        raise ParameterError(f"model must be a pinocchio.Model or a PlanarLayout, "
+                             f"got {_brief(model)}")
+    return planar_layout(model)
 
 
 def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
@@ -422,11 +453,13 @@ def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarr
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`), or
+        ``data`` is not a ``pinocchio.Data`` of it.
     ConfigurationError
         If a vector has the wrong size or non-finite entries.
     """
     layout = planar_layout(model)
+    _check_data(data, model)
     q_planar, v_planar = paper_to_planar(layout, q, dq)
     mass = symmetric_from_upper(pin.crba(model, data, q_planar))
     bias = pin.nonLinearEffects(model, data, q_planar, v_planar)

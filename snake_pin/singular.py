@@ -26,7 +26,6 @@ iteration instead of 7-9 us when the other core of a 2-core machine was busy.
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -34,8 +33,11 @@ import numpy as np
 from scipy.optimize import minimize
 from threadpoolctl import threadpool_limits
 
+from ._validation import finite_number
 from .exceptions import ParameterError, RunInterrupted
-from .manipulability import manipulability_R_batch, task_split
+from .gaits import _flag, _integer
+from .manipulability import _free_tuple, _r_batch, task_split
+from .paper import _check_params
 from .params import SnakeParams
 
 __all__ = ["MAX_SEED", "MAX_STARTS", "SingularFamily", "SingularSearch",
@@ -201,28 +203,27 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
         On Ctrl-C (or SIGTERM turned into KeyboardInterrupt) after at least one start:
         ``partial`` is the search over the starts finished so far.
     ParameterError
-        ``starts``, ``seed`` or ``bound`` out of range, free joints that leave no task,
-        or a robot whose R is zero everywhere.
+        ``params`` is not a SnakeParams; ``starts``, ``seed``, ``bound`` or ``relative``
+        not a number in its range (the first two integers); ``progress`` not a bool; free
+        joints that are not integers in 1..n - 1 or leave no task; or a robot whose R is
+        zero everywhere.
     """
-    for name, value in (("starts", starts), ("seed", seed)):
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-            raise ParameterError(f"{name} must be an integer, got {value!r}")
-    if not 1 <= starts <= MAX_STARTS:
-        raise ParameterError(f"starts must lie in 1..{MAX_STARTS}, got {starts}")
-    if not 0 <= seed <= MAX_SEED:
-        raise ParameterError(f"seed must lie in 0..{MAX_SEED}, got {seed}")
-    if not 0 < bound <= np.pi:  # also refuses NaN
+    _check_params(params)
+    starts = _integer(starts, "starts", low=1, high=MAX_STARTS)
+    seed = _integer(seed, "seed", low=0, high=MAX_SEED)
+    bound = finite_number(bound, "bound")
+    if not 0 < bound <= np.pi:
         raise ParameterError(f"bound must lie in (0, pi], got {bound}")
-    task_split(params.n, free_joint)  # validates the free joints
-    given = [] if free_joint is None else np.atleast_1d(free_joint).astype(int).tolist()
-    free = sorted(set(params.passive) | set(given))
+    relative = finite_number(relative, "relative", non_negative=True)
+    progress = _flag(progress, "progress")
+    free = sorted(set(params.passive) | set(_free_tuple(params.n, free_joint)))
     free_joint = (free[0] if len(free) == 1 else tuple(free)) if free else None
     task_split(params.n, free_joint)  # n large enough for all of them
+    free_all = tuple(free)
     with threadpool_limits(limits=1):  # tiny matrices: one BLAS thread (module doc)
         dim = params.n - 1
         rng = np.random.default_rng(seed)
-        typical = manipulability_R_batch(params, rng.uniform(-bound, bound, (2000, dim)),
-                                         free_joint=free_joint)
+        typical = _r_batch(params, rng.uniform(-bound, bound, (2000, dim)), free_all, True)
         scale = float(np.median(typical))
         if not scale > 0:
             raise ParameterError(
@@ -233,7 +234,7 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
         offsets = np.vstack([np.zeros(dim), step * np.eye(dim), -step * np.eye(dim)])
 
         def objective(phi: np.ndarray) -> tuple[float, np.ndarray]:
-            r = manipulability_R_batch(params, phi[None, :] + offsets, free_joint=free_joint)
+            r = _r_batch(params, phi[None, :] + offsets, free_all, True)
             f = (r / scale) ** 2
             return float(f[0]), (f[1:dim + 1] - f[dim + 1:]) / (2 * step)
 

@@ -75,7 +75,7 @@ from scipy.linalg import lapack
 
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
-from ..manipulability import manipulability_R_batch
+from ..manipulability import _r_batch
 from ..paper import k_matrix
 from ..params import SnakeParams
 from .base import Controller
@@ -1094,7 +1094,8 @@ class BatchedPFL(_Vectorised):
         """Central-difference gradient of log R over phi for each row (one batched call)."""
         m, dim = phi.shape
         probes = phi[:, None, :] + np.vstack([step * np.eye(dim), -step * np.eye(dim)])[None]
-        r = manipulability_R_batch(self._params, probes.reshape(-1, dim)).reshape(m, 2 * dim)
+        # unchecked: a diverging run's NaN stays in its own row (PFL: no passive joint)
+        r = _r_batch(self._params, probes.reshape(-1, dim), (), True).reshape(m, 2 * dim)
         return (np.log(r[:, :dim]) - np.log(r[:, dim:])) / (2 * step)
 
 

@@ -59,7 +59,7 @@ from .._symmetric import smallest_eigenvalue_3x3
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
-from ..manipulability import manipulability_R_batch
+from ..manipulability import _r_batch
 from ..model import Snake
 from .base import Controller, TimeTerms, _ReferenceTimeTerms, _ViewsMadeOnce, gait_for
 from .gains import gain_matrix
@@ -247,7 +247,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         """Central-difference gradient of log R over phi (one batched evaluation)."""
         dim = len(phi)
         probes = phi[None, :] + np.vstack([step * np.eye(dim), -step * np.eye(dim)])
-        r = manipulability_R_batch(self.snake.params, probes)
+        r = _r_batch(self.snake.params, probes, (), True)  # PFL: no passive joint
         return (np.log(r[:dim]) - np.log(r[dim:])) / (2 * step)
 
     def signals(self) -> dict[str, float]:
