@@ -24,10 +24,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ._validation import finite_number
 from .exceptions import ParameterError, RunInterrupted
-from .gaits import Serpenoid, arc
+from .gaits import Serpenoid, _brief, _flag, _integer, arc
 from .manipulability import manipulability, manipulability_R_batch, task_split
-from .model import Snake
+from .model import Snake, _check_snake
 
 __all__ = ["FAMILIES", "MAX_POINTS", "RMap", "Sweep", "r_map", "sweep"]
 
@@ -141,6 +142,17 @@ def _finite_or_none(values: np.ndarray) -> list[float | None]:
     return [v if math.isfinite(v) else None for v in values.tolist()]
 
 
+def _bounds(bounds: object) -> tuple[float, float]:
+    """``bounds`` as (low, high), two finite numbers with low < high, or ParameterError."""
+    if isinstance(bounds, (str, bytes)) or not isinstance(bounds, (Sequence, np.ndarray)) \
+            or len(bounds) != 2:
+        raise ParameterError(f"bounds must be (low, high), got {_brief(bounds)}")
+    low, high = (finite_number(value, "bounds") for value in bounds)
+    if not low < high:
+        raise ParameterError(f"bounds must have low < high, got ({low:g}, {high:g})")
+    return low, high
+
+
 def _free_tuple(free_joint: FreeJoints) -> tuple[int, ...]:
     if free_joint is None:
         return ()
@@ -183,19 +195,21 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
         On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the sweep
         of the values computed so far, with ``status == "interrupted"``.
     ParameterError
-        An unknown family, ``points`` not an integer in 2 .. :data:`MAX_POINTS`, or free
-        joints that leave the task no actuated joint.
+        ``snake`` not a Snake, an unknown family, ``points`` not an integer in
+        2 .. :data:`MAX_POINTS`, ``bounds`` not two finite numbers low < high,
+        ``progress`` not a bool, or free joints that are not integers in 1..n - 1 or leave
+        the task no actuated joint.
     """
-    if family not in FAMILIES:
-        raise ParameterError(f"unknown family {family!r}; choose one of {', '.join(FAMILIES)}")
-    if isinstance(points, bool) or not isinstance(points, numbers.Integral):
-        raise ParameterError(f"points must be an integer, got {points!r}")
-    if not 2 <= points <= MAX_POINTS:
-        raise ParameterError(f"points must lie in 2..{MAX_POINTS}, got {points}")
+    _check_snake(snake)
+    if not isinstance(family, str) or family not in FAMILIES:
+        raise ParameterError(f"unknown family {_brief(family)}; choose one of "
+                             f"{', '.join(FAMILIES)}")
+    points = _integer(points, "points", low=2, high=MAX_POINTS)
+    progress = _flag(progress, "progress")
     task_split(snake.n, free_joint)  # validate before any output (progress bar)
     free = tuple(sorted(set(snake.params.passive) | set(_free_tuple(free_joint))))
     label, default, _ = FAMILIES[family]
-    low, high = bounds or default
+    low, high = default if bounds is None else _bounds(bounds)
     values = _with_zero(np.linspace(low, high, int(points)))
     requested, points = int(points), len(values)
     d, r = np.empty(points), np.empty(points)
@@ -274,7 +288,20 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
     -------
     RMap
         R over the grid.
+
+    Raises
+    ------
+    ParameterError
+        ``snake`` not a Snake, a grid size not an integer in 1 .. :data:`MAX_POINTS`, an
+        upper end not a positive number, or a free joint that is not an integer in
+        1..n - 1 or leaves the task no actuated joint.
     """
+    _check_snake(snake)
+    alpha_points = _integer(alpha_points, "alpha_points", low=1, high=MAX_POINTS)
+    ts_points = _integer(ts_points, "ts_points", low=1, high=MAX_POINTS)
+    alpha_max = finite_number(alpha_max, "alpha_max", positive=True)
+    ts_max = finite_number(ts_max, "ts_max", positive=True)
+    task_split(snake.n, free_joint)  # before the grid is made
     alpha = np.linspace(0.0, alpha_max, alpha_points)
     ts = np.linspace(0.0, ts_max, ts_points)
     n = snake.n
