@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import io
 import os
 import re
 import stat
@@ -51,7 +52,7 @@ import tomllib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, BinaryIO, NoReturn
+from typing import IO, Any, NoReturn
 
 from .exceptions import ParameterError
 
@@ -496,7 +497,7 @@ def _refusal(exc: OSError | ValueError, kind: str) -> str:
 
 
 def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
-                      error: Callable[[str], Exception]) -> BinaryIO:
+                      error: Callable[[str], Exception]) -> io.BufferedReader:
     """Open ``path`` for binary reading if it is a regular file of at most ``limit`` bytes.
 
     Never blocks and never reads a byte of anything else: the name is stat-ed (following
@@ -518,7 +519,7 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
 
     Returns
     -------
-    BinaryIO
+    io.BufferedReader
         The open file (blocking mode), positioned at its start; close it (``with``).
 
     Raises

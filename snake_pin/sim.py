@@ -258,16 +258,22 @@ class Trajectory:
         Raises
         ------
         TrajectoryFileError
-            One line naming the file: missing, not a trajectory, truncated, corrupt,
-            inconsistent, non-finite, or declaring arrays beyond :data:`MAX_ARRAY_BYTES`
-            (each) or :data:`MAX_TOTAL_BYTES` (together).
+            One line naming the file: missing, not a regular file (a FIFO is refused
+            unopened), larger than twice :data:`MAX_TOTAL_BYTES` (refused unread), not a
+            trajectory, truncated, corrupt, inconsistent, non-finite, or declaring arrays
+            beyond :data:`MAX_ARRAY_BYTES` (each) or :data:`MAX_TOTAL_BYTES` (together).
         ParameterError
             ``signals`` is not True, False or names.
         """
+        from ._io import open_regular_file
+
         wanted = _wanted_signals(signals)
         file = _resolve(path)
+        raw = open_regular_file(
+            file, limit=2 * MAX_TOTAL_BYTES, kind="snake_pin trajectory",
+            error=lambda message: TrajectoryFileError(f"{_shown(file)}: {_one_line(message)}"))
         try:
-            with open(file, "rb") as raw:
+            with raw:
                 if os.fstat(raw.fileno()).st_size == 0:
                     raise _Refused("the file is empty")
                 return _read(cls, raw, wanted)

@@ -5,8 +5,10 @@ from __future__ import annotations
 import io
 import json
 import math
+import os
 import stat
 import struct
+import threading
 import tracemalloc
 import zipfile
 import zlib
@@ -25,10 +27,11 @@ from snake_pin import (
     Snake,
     Trajectory,
     TrajectoryFileError,
+    sim,
     simulate,
 )
 from snake_pin._io import TEMP_MARKER
-from snake_pin.sim import MAX_ARRAY_BYTES
+from snake_pin.sim import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES
 
 _FUZZ = settings(max_examples=80, deadline=None,
                  suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -501,3 +504,45 @@ def test_an_array_longer_than_its_header_says(original: Trajectory, tmp_path: Pa
     refused, peak = _peak_bytes(lambda: Trajectory.load(path))
     assert isinstance(refused, TrajectoryFileError) and "beyond its declared shape" in str(refused)
     assert peak < 16 * 2**20
+
+
+# ---------------------------------------------------------------- what is opened at all
+def _refused_at_once(path: Path) -> str:
+    """``_refused(path)`` from a thread: a load that blocks (a FIFO opened) fails."""
+    outcome: list[str | BaseException] = []
+
+    def run() -> None:
+        try:
+            outcome.append(_refused(path))
+        except BaseException as exc:  # handed to the test thread
+            outcome.append(exc)
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    worker.join(60)
+    assert not worker.is_alive(), "Trajectory.load blocked"
+    assert isinstance(outcome[0], str), outcome[0]
+    return outcome[0]
+
+
+def test_a_fifo_is_refused_without_blocking(tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """A FIFO named as a trajectory (or put in place after the name was checked) is
+    refused at once, never opened for a blocking read."""
+    fifo = tmp_path / "run.npz"
+    os.mkfifo(fifo)
+    assert "is not a regular file" in _refused_at_once(fifo)
+    assert "no trajectory file" in _refused_at_once(tmp_path / "run")
+    monkeypatch.setattr(sim, "_resolve", lambda path: Path(path))
+    assert _refused_at_once(fifo) == \
+        f"{fifo}: is a FIFO, not a regular file: not a snake_pin trajectory"
+
+
+def test_a_file_beyond_the_size_bound_is_refused_unread(tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A file larger than twice MAX_TOTAL_BYTES is refused from its size: no zip is read."""
+    huge = tmp_path / "huge.npz"
+    with open(huge, "wb") as handle:
+        handle.truncate(2 * MAX_TOTAL_BYTES + 1)  # sparse: nothing written
+    monkeypatch.setattr(zipfile, "ZipFile", lambda *a, **k: pytest.fail("read as a zip"))
+    assert f"is larger than {2 * MAX_TOTAL_BYTES} bytes" in _refused(huge)
