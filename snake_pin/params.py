@@ -6,6 +6,12 @@ field whose values are all equal collapses to the number, so two descriptions of
 same robot compare equal. Code that works for any robot reads the per-link arrays
 (:meth:`SnakeParams.per_link`, :attr:`~SnakeParams.link_lengths`, ...); the scalar fields
 stay scalars only on uniform robots (:attr:`~SnakeParams.uniform`).
+
+Every value must be physically meaningful, not just finite and of the right sign: each
+per-link field lies in its range of :data:`FIELD_RANGES` (friction may also be exactly
+0; a centre of mass lies on its link). The ranges span every snake robot built, from
+millimetre ones to vehicles, with room on both sides; values beyond them (1e-300 kg,
+1e300 m) overflow or underflow the dynamics while a run still "completes".
 """
 
 from __future__ import annotations
@@ -21,7 +27,8 @@ import numpy as np
 
 from .exceptions import ParameterError
 
-__all__ = ["LINK_FIELDS", "MAX_LINKS", "ROBOTS", "PerLink", "SnakeParams"]
+__all__ = ["FIELD_RANGES", "FRICTION_RANGE", "INERTIA_RANGE", "LENGTH_RANGE", "LINK_FIELDS",
+           "MASS_RANGE", "MAX_LINKS", "ROBOTS", "PerLink", "SnakeParams"]
 
 #: Largest number of links a robot may have (model, closed form and batch paths are
 #: O(n^2) to O(n^3) in memory; 200 links keep every path well under 1 GiB).
@@ -35,6 +42,24 @@ LINK_FIELDS: dict[str, bool] = {
     "link_length": False, "mass": False, "inertia": False, "com_offset": True,
     "c_x": True, "c_y": True, "c_theta": True,
 }
+
+#: Link lengths 2l_i [m]: 0.1 mm to 100 m.
+LENGTH_RANGE = (1e-4, 1e2)
+#: Link masses m_i [kg]: 1 mg to 10 t.
+MASS_RANGE = (1e-6, 1e4)
+#: Yaw inertias J_i [kg m^2]: a 1 mg rod 0.1 mm long (8e-16) to a 10 t link 100 m long
+#: (8e6), each end widened a little.
+INERTIA_RANGE = (1e-16, 1e7)
+#: Positive viscous friction coefficients: c_x, c_y [N s/m] and c_theta [N m s]; 0 is
+#: also accepted (no friction), anything between 0 and the low end is not.
+FRICTION_RANGE = (1e-12, 1e6)
+#: The range of each per-link field that has one (com_offset lies in [0, 2l_i] instead).
+FIELD_RANGES: dict[str, tuple[float, float]] = {
+    "link_length": LENGTH_RANGE, "mass": MASS_RANGE, "inertia": INERTIA_RANGE,
+    "c_x": FRICTION_RANGE, "c_y": FRICTION_RANGE, "c_theta": FRICTION_RANGE,
+}
+_UNITS = {"link_length": "m", "mass": "kg", "inertia": "kg m^2", "com_offset": "m",
+          "c_x": "N s/m", "c_y": "N s/m", "c_theta": "N m s"}
 
 
 def _is_number(value: object) -> bool:
@@ -66,6 +91,11 @@ def _per_link(value: object, key: str, n: int, *, zero_ok: bool) -> PerLink:
         if x < 0.0 or (x == 0.0 and not zero_ok):
             bound = "non-negative" if zero_ok else "positive"
             raise ParameterError(f"{where} must be {bound}, got {x:g}")
+        low, high = FIELD_RANGES.get(key, (0.0, math.inf))
+        if x != 0.0 and not low <= x <= high:
+            zero = "0 or " if zero_ok else ""
+            raise ParameterError(f"{where} must be {zero}in [{low:g}, {high:g}] {_UNITS[key]} "
+                                 f"(physically meaningful), got {x:g}")
     if scalar or all(x == values[0] for x in values):
         return values[0]
     return tuple(values)
@@ -83,15 +113,19 @@ class SnakeParams:
     n : int
         Number of links, ``2 <= n <= MAX_LINKS`` (:data:`MAX_LINKS`).
     link_length : float or sequence of n floats
-        Full link length 2l_i [m] (joint i sits at x = 2l_i of link i); > 0.
+        Full link length 2l_i [m] (joint i sits at x = 2l_i of link i); in
+        :data:`LENGTH_RANGE` (1e-4 to 1e2 m).
     mass : float or sequence of n floats
-        Link mass m_i [kg]; > 0.
+        Link mass m_i [kg]; in :data:`MASS_RANGE` (1e-6 to 1e4 kg).
     inertia : float or sequence of n floats
-        Link moment of inertia about its centre of mass, J_i [kg m^2]; > 0.
+        Link moment of inertia about its centre of mass, J_i [kg m^2]; in
+        :data:`INERTIA_RANGE` (1e-16 to 1e7 kg m^2).
     c_x, c_y : float or sequence of n floats
-        Viscous friction along / across link i [N s/m] (eqs. 10-12); >= 0.
+        Viscous friction along / across link i [N s/m] (eqs. 10-12); 0 or in
+        :data:`FRICTION_RANGE` (1e-12 to 1e6).
     c_theta : float or sequence of n floats
-        Rotational viscous friction of link i [N m s] (eq. 13); >= 0.
+        Rotational viscous friction of link i [N m s] (eq. 13); 0 or in
+        :data:`FRICTION_RANGE`.
     passive : sequence of int
         1-based indices of joints without an actuator (free joints, Section III.2), each
         in 1..n - 1; stored sorted and without repeats.

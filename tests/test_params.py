@@ -3,10 +3,19 @@
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
 from snake_pin import ParameterError, SnakeParams, SnakePinError
+from snake_pin.params import (
+    FIELD_RANGES,
+    FRICTION_RANGE,
+    INERTIA_RANGE,
+    LENGTH_RANGE,
+    LINK_FIELDS,
+    MASS_RANGE,
+)
 
 
 def test_table1_preset_matches_design() -> None:
@@ -58,3 +67,45 @@ def test_unknown_preset() -> None:
     """An unknown preset name is a ParameterError that lists the choices."""
     with pytest.raises(ParameterError, match="table1"):
         SnakeParams.preset("python")
+
+
+@pytest.mark.parametrize("key", sorted(FIELD_RANGES))
+@pytest.mark.parametrize("value", [1e-300, 1e300])
+def test_physically_meaningless_values_are_refused(key: str, value: float) -> None:
+    """1e-300 and 1e300 of any length, mass, inertia or friction are refused, naming the
+    field (and the link when the value is per link)."""
+    low, high = FIELD_RANGES[key]
+    bounds = re.escape(f"in [{low:g}, {high:g}]")
+    with pytest.raises(ParameterError, match=rf"^{key} must be (0 or )?{bounds}"):
+        SnakeParams.table1(**{key: value})
+    per_link = [getattr(SnakeParams.table1(), key)] * 10
+    per_link[6] = value
+    got = re.escape(f"got {value:g}")
+    with pytest.raises(ParameterError, match=rf"^link 7: {key} must be .*{got}$"):
+        SnakeParams.table1(**{key: per_link})
+
+
+@pytest.mark.parametrize("key", sorted(FIELD_RANGES))
+def test_each_range_is_closed_and_nothing_beyond_it_passes(key: str) -> None:
+    """The ends of each range are accepted, values just beyond them refused; friction
+    may be exactly 0, geometry and mass may not."""
+    low, high = FIELD_RANGES[key]
+    changes = {"com_offset": None} if key == "link_length" else {}
+    for ok in (low, high):
+        assert SnakeParams.table1(**{key: ok}, **changes).per_link(key)[0] == ok
+    for bad in (low * 0.999, high * 1.001):
+        with pytest.raises(ParameterError, match="physically meaningful"):
+            SnakeParams.table1(**{key: bad})
+    if LINK_FIELDS[key]:
+        assert SnakeParams.table1(**{key: 0.0}).per_link(key)[0] == 0.0
+    else:
+        with pytest.raises(ParameterError, match="must be positive"):
+            SnakeParams.table1(**{key: 0.0})
+
+
+def test_the_ranges_are_the_documented_ones() -> None:
+    """Lengths 0.1 mm-100 m, masses 1 mg-10 t, inertias 1e-16-1e7 kg m^2, friction
+    1e-12-1e6 (or 0): the constants the docs state."""
+    assert (LENGTH_RANGE, MASS_RANGE, INERTIA_RANGE, FRICTION_RANGE) == (
+        (1e-4, 1e2), (1e-6, 1e4), (1e-16, 1e7), (1e-12, 1e6))
+    assert set(FIELD_RANGES) == set(LINK_FIELDS) - {"com_offset"}
