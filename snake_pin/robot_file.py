@@ -48,9 +48,11 @@ URDF's zero-effort marks, and each friction coefficient comes from the robot fil
 ``[friction]``, else the URDF's own ``<snake_pin>`` element, else zero, in that order.
 
 No other keys are accepted (a misspelt key is an error, not a silent default). Values are
-checked before the robot is built: types (a string mass), signs, finiteness, per-link
-arrays of different lengths, ``n`` against the arrays. Robot files are at most
-:data:`MAX_ROBOT_FILE_BYTES` long and UTF-8.
+checked before the robot is built: types (a string mass), signs, finiteness, physical
+ranges (:data:`snake_pin.params.FIELD_RANGES`), per-link arrays of different lengths,
+``n`` against the arrays. Robot files are regular files (a FIFO or a device is refused
+unread) at most :data:`MAX_ROBOT_FILE_BYTES` long, UTF-8, and nested at most
+:data:`snake_pin._io.MAX_TOML_DEPTH` levels (checked before the TOML is parsed).
 
 URDF import
 -----------
@@ -99,8 +101,11 @@ by :mod:`snake_pin.urdf` or not. What is accepted, and how it maps onto ``SnakeP
   (a preset's name gets ``_urdf`` appended, never passing for the preset).
 
 Joint damping and Coulomb friction (``<dynamics>``), joint limits and geometry other than
-the last link's are ignored. URDF files are at most :data:`MAX_URDF_BYTES` long; a
-document type declaration (DTD, entities) is refused.
+the last link's are ignored. URDF files are regular files at most :data:`MAX_URDF_BYTES`
+long; a document type declaration (DTD, entities) is refused. Before any XML is parsed, a
+scan of the bytes counts the ``<link>`` elements (at most :data:`MAX_URDF_LINKS`) and the
+revolute and continuous joints (at most ``MAX_LINKS - 1``, a chain of
+:data:`~snake_pin.params.MAX_LINKS` links): a file beyond either is refused unparsed.
 
 Shipped robots
 --------------
@@ -117,7 +122,6 @@ import math
 import numbers
 import os
 import re
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -125,7 +129,7 @@ from typing import Any
 
 import numpy as np
 
-from ._io import atomic_write_bytes
+from ._io import atomic_write_bytes, decode_utf8, parse_toml, read_regular_file
 from .exceptions import ParameterError, RobotFileError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
@@ -134,6 +138,7 @@ __all__ = [
     "GEOMETRY_TOLERANCE",
     "MAX_ROBOT_FILE_BYTES",
     "MAX_URDF_BYTES",
+    "MAX_URDF_LINKS",
     "load_robot",
     "read_robot_file",
     "read_urdf",
@@ -146,6 +151,9 @@ __all__ = [
 MAX_ROBOT_FILE_BYTES = 1 << 20
 #: Largest URDF read [bytes].
 MAX_URDF_BYTES = 16 << 20
+#: Most ``<link>`` elements a URDF may have, counted on its bytes before it is parsed: a
+#: chain of MAX_LINKS bodies, each with up to three links fixed onto it, and a base.
+MAX_URDF_LINKS = 4 * MAX_LINKS + 1
 #: Relative tolerance (times the link length) on URDF geometry that must be exactly planar.
 GEOMETRY_TOLERANCE = 1e-6
 #: The friction coefficients, in the order they are written.
@@ -158,6 +166,11 @@ _MOVABLE = ("revolute", "continuous")
 _BASE_JOINTS = ("planar", "floating", "fixed")
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 _REPR_CHARS = 60
+#: A ``<link>`` element's start tag; a movable joint's start tag (attributes in any order,
+#: at most 2000 characters before ``type``, so a file of unclosed tags stays linear).
+_LINK_TAG = re.compile(rb"<link[\s/>]")
+_MOVABLE_TAG = re.compile(
+    rb"<joint[\s][^<>]{0,2000}?\btype\s*=\s*[\"'](?:revolute|continuous)[\"']")
 
 
 # --------------------------------------------------------------------------- helpers
@@ -167,26 +180,16 @@ def _short(value: object) -> str:
     return text if len(text) <= _REPR_CHARS else text[:_REPR_CHARS - 3] + "..."
 
 
-def _error(path: str | os.PathLike[str], message: str) -> RobotFileError:
+def _error(path: object, message: str) -> RobotFileError:
     """A RobotFileError ``"FILE: message"`` on one line."""
-    return RobotFileError(" ".join(f"{os.fspath(path)}: {message}".split()))
+    name = os.fspath(path) if isinstance(path, (str, os.PathLike)) else _short(path)
+    return RobotFileError(" ".join(f"{os.fsdecode(name)}: {message}".split()))
 
 
 def _read_limited(path: str | os.PathLike[str], limit: int, kind: str) -> bytes:
-    """The bytes of ``path`` (at most ``limit``), or RobotFileError naming the file."""
-    target = Path(path)
-    try:
-        if not target.exists():
-            raise _error(path, f"no such {kind}")
-        if target.is_dir():
-            raise _error(path, f"is a folder, not a {kind}")
-        with open(target, "rb") as handle:
-            data = handle.read(limit + 1)
-    except OSError as exc:
-        raise _error(path, f"cannot read it ({exc.strerror or exc})") from exc
-    if len(data) > limit:
-        raise _error(path, f"is larger than {limit} bytes: not a {kind}")
-    return data
+    """The bytes of ``path`` (a regular file of at most ``limit``), or RobotFileError."""
+    return read_regular_file(path, limit=limit, kind=kind,
+                             error=lambda message: _error(path, message))
 
 
 def _is_number(value: object) -> bool:
@@ -223,15 +226,11 @@ def _sanitise_name(name: str, fallback: str) -> str:
 
 # ----------------------------------------------------------------------- TOML reading
 def _parse_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
+    def error(message: str) -> RobotFileError:
+        return _error(path, message)
+
     data = _read_limited(path, MAX_ROBOT_FILE_BYTES, "robot file")
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise _error(path, f"not a TOML robot file (not UTF-8 text at byte {exc.start})") from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise _error(path, f"not valid TOML: {exc}") from None
+    return parse_toml(decode_utf8(data, error=error), error=error)
 
 
 def _check_keys(path: str | os.PathLike[str], table: Mapping[str, Any], allowed: tuple[str, ...],
@@ -487,6 +486,17 @@ def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
 
 
 # ------------------------------------------------------------------------ URDF reading
+def _count_elements(path: str | os.PathLike[str], data: bytes) -> None:
+    """Refuse a URDF with too many links or movable joints from a scan of its bytes."""
+    for pattern, most, what in (
+            (_LINK_TAG, MAX_URDF_LINKS, "<link> elements"),
+            (_MOVABLE_TAG, MAX_LINKS - 1, f"revolute or continuous joints (a snake has at "
+                                          f"most {MAX_LINKS} links)")):
+        for count, _ in enumerate(pattern.finditer(data), start=1):
+            if count > most:
+                raise _error(path, f"has more than {most} {what}; refused before parsing")
+
+
 def _parse_xml(path: str | os.PathLike[str], data: bytes) -> Any:
     """The ``<robot>`` element of ``data`` (no DTD, no entities, no network)."""
     from lxml import etree
@@ -829,6 +839,7 @@ def read_urdf(path: str | os.PathLike[str],
         ``friction`` itself is malformed (an unknown key, a negative value).
     """
     data = _read_limited(path, MAX_URDF_BYTES, "URDF")
+    _count_elements(path, data)
     root = _parse_xml(path, data)
     bodies, _ = _chain(path, _yourdfpy_robot(path, root))
     chain = [body.link for body in bodies]

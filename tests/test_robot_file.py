@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import shutil
+import threading
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -645,3 +647,139 @@ def test_write_refuses_bad_paths(tmp_path: Path) -> None:
     with pytest.raises(ParameterError, match="SnakeParams"):
         write_robot_file({"n": 3}, tmp_path / "robot.toml")  # type: ignore[arg-type]
     assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------- bounded, physical input
+def _refused_at_once(call: Callable[[], object]) -> RobotFileError:
+    """The RobotFileError ``call`` raises, from a thread: a reader that blocks fails."""
+    outcome: list[BaseException | None] = [None]
+
+    def run() -> None:
+        try:
+            call()
+        except BaseException as exc:  # handed to the test thread
+            outcome[0] = exc
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    worker.join(60)
+    assert not worker.is_alive(), "the reader blocked"
+    assert isinstance(outcome[0], RobotFileError), outcome[0]
+    return outcome[0]
+
+
+@pytest.mark.parametrize("name", ["robot.toml", "robot.urdf"])
+def test_a_fifo_is_refused_without_blocking(name: str, tmp_path: Path) -> None:
+    """A FIFO named as a robot file or a URDF (directly, by load_robot, or through a
+    robot file's urdf =) is refused at once in one line naming it."""
+    fifo = tmp_path / name
+    os.mkfifo(fifo)
+    for call in (lambda: load_robot(fifo), lambda: load_robot(str(fifo))):
+        error = _refused_at_once(call)
+        assert str(error) == f"{fifo}: is a FIFO, not a regular file: not a " \
+            f"{'URDF' if name.endswith('.urdf') else 'robot file'}"
+    if name.endswith(".urdf"):
+        outer = _write(tmp_path, f'name = "s"\nurdf = "{name}"\n')
+        error = _refused_at_once(lambda: read_robot_file(outer))
+        assert str(error).startswith(f"{outer}: urdf = 'robot.urdf': ") and "FIFO" in str(error)
+
+
+@pytest.mark.parametrize("nesting", [
+    "x = " + "[" * 100_000 + "]" * 100_000,
+    "x = " + "{a = " * 100_000 + "1" + "}" * 100_000,
+    "[links]\n" + "a." * 100_000 + "mass = 1\n",
+])
+def test_deep_toml_is_refused_before_parsing(nesting: str, tmp_path: Path,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """10^5 nested arrays, inline tables or dotted keys are one line, not a RecursionError
+    (tomllib is never called on them)."""
+    import snake_pin._io
+
+    monkeypatch.setattr(snake_pin._io.tomllib, "loads", lambda text: pytest.fail("parsed"))
+    path = _write(tmp_path, 'name = "deep"\n' + nesting)
+    with pytest.raises(RobotFileError, match="nested deeper than 32 levels") as exc:
+        read_robot_file(path)
+    _one_line_naming(exc, path)
+
+
+@pytest.mark.parametrize(("field", "value"), [
+    ("link_length", "1e-300"), ("link_length", "1e300"), ("link_length", "[0.1, 0.1, 200.0]"),
+    ("mass", "1e-300"), ("mass", "[0.1, 1e300, 0.1]"), ("inertia", "1e-300"),
+    ("inertia", "1e300"),
+])
+def test_physically_meaningless_links_are_refused(field: str, value: str,
+                                                  tmp_path: Path) -> None:
+    """Lengths, masses and inertias beyond their physical ranges are one line naming the
+    file and the field (and the link of a per-link value)."""
+    links = {"link_length": "0.1", "mass": "0.1", "inertia": "1e-4", field: value}
+    path = _write(tmp_path, 'name = "t"\nn = 3\n[links]\n'
+                  + "".join(f"{k} = {v}\n" for k, v in links.items()))
+    with pytest.raises(RobotFileError, match="physically meaningful") as exc:
+        read_robot_file(path)
+    _one_line_naming(exc, path, field, *(["link "] if value.startswith("[") else []))
+
+
+@pytest.mark.parametrize("friction", ["c_x = 1e-300", "c_y = 1e300", "c_theta = [0, 0, 1e-200]"])
+def test_physically_meaningless_friction_is_refused(friction: str, tmp_path: Path) -> None:
+    """Friction is 0 or within FRICTION_RANGE; the error names the file and the field."""
+    path = _write(tmp_path, 'name = "t"\nn = 3\n[links]\nlink_length = 0.1\nmass = 0.1\n'
+                  f"inertia = 1e-4\n[friction]\n{friction}\n")
+    with pytest.raises(RobotFileError, match="physically meaningful") as exc:
+        read_robot_file(path)
+    _one_line_naming(exc, path, friction.split()[0])
+
+
+def test_a_urdf_with_a_meaningless_inertia_names_the_link(tmp_path: Path) -> None:
+    """A URDF link of inertia 1e-300 is refused naming the file and the URDF link."""
+    text = urdf_string(SnakeParams.table1(n=3)).replace('izz="0.00022"', 'izz="1e-300"', 1)
+    assert 'izz="1e-300"' in text
+    path = tmp_path / "tiny.urdf"
+    path.write_text(text)
+    with pytest.raises(RobotFileError, match="physically meaningful") as exc:
+        read_urdf(path)
+    _one_line_naming(exc, path, "link 1 ('link_1'): inertia")
+
+
+def _chain_urdf(links: int, joint: str = "revolute") -> bytes:
+    """A URDF of ``links`` bare links joined in a chain (about 105 bytes a link)."""
+    parts = ['<?xml version="1.0"?>\n<robot name="long">\n']
+    for i in range(links):
+        parts.append(f'<link name="l{i}"/>\n')
+        if i + 1 < links:
+            parts.append(f'<joint name="j{i}" type="{joint}"><parent link="l{i}"/>'
+                         f'<child link="l{i + 1}"/></joint>\n')
+    return ("".join(parts) + "</robot>\n").encode()
+
+
+@pytest.mark.parametrize(("links", "joint", "expected"), [
+    (100_000, "revolute", "has more than 801 <link> elements"),
+    (300, "continuous", "has more than 199 revolute or continuous joints"),
+])
+def test_a_urdf_beyond_the_link_limit_is_refused_unparsed(
+        links: int, joint: str, expected: str, tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A URDF of 10^5 links (10 MB), or of 300 movable joints, is refused from a count of
+    its bytes: no XML parser runs."""
+    import snake_pin.robot_file as robot_file
+
+    monkeypatch.setattr(robot_file, "_parse_xml", lambda *a: pytest.fail("XML parsed"))
+    path = tmp_path / "long.urdf"
+    path.write_bytes(_chain_urdf(links, joint))
+    with pytest.raises(RobotFileError, match=expected) as exc:
+        read_urdf(path)
+    _one_line_naming(exc, path, "refused before parsing")
+
+
+def test_the_link_count_ignores_other_tags_and_fixed_joints(tmp_path: Path) -> None:
+    """<link_friction> elements, parent/child links and fixed joints are not counted: our
+    200-link URDF (the limit) and one with 200 fixed sensor links still load."""
+    params = SnakeParams.table1(n=200)
+    path = tmp_path / "max.urdf"
+    write_urdf(params, path)
+    assert read_urdf(path) == params
+    text = path.read_text()
+    sensors = "".join(f'<link name="s{i}"/><joint name="f{i}" type="fixed">'
+                      f'<parent link="link_{i + 1}"/><child link="s{i}"/></joint>\n'
+                      for i in range(200))
+    path.write_text(text.replace("</robot>", sensors + "</robot>"))
+    assert read_urdf(path) == params
