@@ -81,11 +81,23 @@ Path files
 
 - CSV: waypoints, two columns x, y, one point a line, an optional header line.
 
+Path files are regular files (a FIFO or a device is refused unread) of at most
+:data:`MAX_PATH_FILE_BYTES`; a TOML one is nested at most
+:data:`snake_pin._io.MAX_TOML_DEPTH` levels, checked before it is parsed.
+
+Every number must be physically meaningful, in files and in code alike: coordinates and
+lengths (waypoints, start points, centres, origins, radii, offsets, amplitudes,
+wavelengths, lead-ins, the timing's start) lie within +-:data:`MAX_COORDINATE`, positive
+lengths (radius, wavelength, a lane change's length) are at least :data:`MIN_LENGTH`,
+angles (directions, start angles, an arc's sweep) lie within +-:data:`MAX_ANGLE` and the
+timing's speed is at most :data:`MAX_PATH_SPEED`; beyond them the geometry overflows or
+underflows (a waypoint at 1e160 m, a wavelength of 1e-300 m) instead of failing.
+
 Every problem (fewer than two waypoints, coincident consecutive waypoints, a non-positive
-radius, length, wavelength or speed, a non-finite number, an unknown key or shape, a file
-that does not parse) is one :class:`PathFileError` line naming the file and the field,
-or a :class:`~snake_pin.exceptions.ParameterError` naming the parameter when no file is
-involved. ``PathFileError`` is a ``ParameterError``.
+radius, length, wavelength or speed, a non-finite number or one beyond its bound, an
+unknown key or shape, a file that does not parse) is one :class:`PathFileError` line
+naming the file and the field, or a :class:`~snake_pin.exceptions.ParameterError` naming
+the parameter when no file is involved. ``PathFileError`` is a ``ParameterError``.
 """
 
 from __future__ import annotations
@@ -97,7 +109,6 @@ import io
 import math
 import numbers
 import os
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from pathlib import Path as FilePath
@@ -108,14 +119,19 @@ from numpy.polynomial import Polynomial
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
+from ._io import decode_utf8, parse_toml, read_regular_file
 from ._validation import finite_number
 from .exceptions import ParameterError, PathFileError
 
 __all__ = [
     "DEFAULT_EXTENT",
     "HINT_RADIUS",
+    "MAX_ANGLE",
+    "MAX_COORDINATE",
     "MAX_PATH_FILE_BYTES",
+    "MAX_PATH_SPEED",
     "MAX_WAYPOINTS",
+    "MIN_LENGTH",
     "PATH_NAMES",
     "SAMPLE_STEP",
     "Arc",
@@ -142,6 +158,15 @@ DEFAULT_EXTENT = 20.0
 MAX_PATH_FILE_BYTES = 4 << 20
 #: Most waypoints one path may have.
 MAX_WAYPOINTS = 100_000
+#: Largest coordinate or length of a path, in absolute value [m] (1000 km).
+MAX_COORDINATE = 1e6
+#: Smallest positive length of a path: radius, wavelength, a lane change's length [m].
+MIN_LENGTH = 1e-6
+#: Largest angle of a path, in absolute value: directions, start angles, an arc's sweep
+#: [rad] (about 160 turns).
+MAX_ANGLE = 1e3
+#: Largest speed along a path [m/s].
+MAX_PATH_SPEED = 1e3
 #: How far from its hint a hinted projection looks for the closest point [m].
 HINT_RADIUS = 0.5
 #: Largest spacing of the samples behind the hinted projection [m].
@@ -217,11 +242,30 @@ def _number(value: object, name: str, *, positive: bool = False,
     return finite_number(value, name, positive=positive, non_negative=non_negative)
 
 
+def _length(value: object, name: str, *, positive: bool = False,
+            non_negative: bool = False) -> float:
+    """A coordinate or length [m] within +-MAX_COORDINATE (>= MIN_LENGTH if positive)."""
+    x = _number(value, name, positive=positive, non_negative=non_negative)
+    if abs(x) > MAX_COORDINATE:
+        raise ParameterError(f"{name} must lie within +-{MAX_COORDINATE:g} m, got {x:g}")
+    if positive and x < MIN_LENGTH:
+        raise ParameterError(f"{name} must be at least {MIN_LENGTH:g} m, got {x:g}")
+    return x
+
+
+def _angle(value: object, name: str, *, positive: bool = False) -> float:
+    """An angle [rad] within +-MAX_ANGLE."""
+    x = _number(value, name, positive=positive)
+    if abs(x) > MAX_ANGLE:
+        raise ParameterError(f"{name} must lie within +-{MAX_ANGLE:g} rad, got {x:g}")
+    return x
+
+
 def _point(value: object, name: str) -> tuple[float, float]:
-    """A finite 2-vector [x, y] or one ParameterError line."""
+    """A finite 2-vector [x, y] within +-MAX_COORDINATE or one ParameterError line."""
     if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
         raise ParameterError(f"{name} must be a point [x, y], got {_short(value)}")
-    return (_number(value[0], f"{name}[0]"), _number(value[1], f"{name}[1]"))
+    return (_length(value[0], f"{name}[0]"), _length(value[1], f"{name}[1]"))
 
 
 def _flag(value: object, name: str) -> bool:
@@ -722,7 +766,7 @@ class Line(Path):
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "start", _point(self.start, "start"))
-        object.__setattr__(self, "direction", _number(self.direction, "direction"))
+        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
         c, d = math.cos(self.direction), math.sin(self.direction)
@@ -777,7 +821,7 @@ def _circle_defaults(radius: float, centre: object, start_angle: object,
     if start_angle is None:
         start = -side * _HALF_PI if centre is None else 0.0
     else:
-        start = _number(start_angle, "start_angle")
+        start = _angle(start_angle, "start_angle")
     if centre is None:
         # the start point is at the origin: centre = -radius [cos start, sin start]
         centre_xy = (-radius * math.cos(start), -radius * math.sin(start))
@@ -822,7 +866,7 @@ class Circle(Path):
     name = "circle"
 
     def __post_init__(self) -> None:
-        radius = _number(self.radius, "radius", positive=True)
+        radius = _length(self.radius, "radius", positive=True)
         clockwise = _flag(self.clockwise, "clockwise")
         centre, start = _circle_defaults(radius, self.centre, self.start_angle, clockwise)
         object.__setattr__(self, "radius", radius)
@@ -947,7 +991,7 @@ class Arc(_Finite, Circle):
 
     def __post_init__(self) -> None:
         Circle.__post_init__(self)
-        object.__setattr__(self, "angle", _number(self.angle, "angle", positive=True))
+        object.__setattr__(self, "angle", _angle(self.angle, "angle", positive=True))
 
     @property
     def length(self) -> float:
@@ -1073,11 +1117,11 @@ class LaneChange(_GraphCurve):
     _P = Polynomial([0, 0, 0, 0, 35, -84, 70, -20])
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "offset", _number(self.offset, "offset"))
-        object.__setattr__(self, "length_x", _number(self.length_x, "length", positive=True))
-        object.__setattr__(self, "start", _number(self.start, "start", non_negative=True))
+        object.__setattr__(self, "offset", _length(self.offset, "offset"))
+        object.__setattr__(self, "length_x", _length(self.length_x, "length", positive=True))
+        object.__setattr__(self, "start", _length(self.start, "start", non_negative=True))
         object.__setattr__(self, "origin", _point(self.origin, "origin"))
-        object.__setattr__(self, "direction", _number(self.direction, "direction"))
+        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
         scale = self.offset / self.length_x
         polys = [self._P]
         for _ in range(3):
@@ -1166,11 +1210,11 @@ class Sinusoid(_GraphCurve):
     name = "sinusoid"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "amplitude", _number(self.amplitude, "amplitude"))
+        object.__setattr__(self, "amplitude", _length(self.amplitude, "amplitude"))
         object.__setattr__(self, "wavelength",
-                           _number(self.wavelength, "wavelength", positive=True))
+                           _length(self.wavelength, "wavelength", positive=True))
         object.__setattr__(self, "origin", _point(self.origin, "origin"))
-        object.__setattr__(self, "direction", _number(self.direction, "direction"))
+        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
         k = 2.0 * math.pi / self.wavelength
         slope = self.amplitude * k
         table = _ArcLength(lambda x: np.sqrt(1.0 + (slope * np.cos(k * x)) ** 2),
@@ -1317,6 +1361,11 @@ def _waypoints(points: object) -> np.ndarray:
     bad = ~np.all(np.isfinite(pts), axis=1)
     if bad.any():
         raise ParameterError(f"points: waypoint {int(np.argmax(bad)) + 1} is not finite")
+    far = np.any(np.abs(pts) > MAX_COORDINATE, axis=1)
+    if far.any():
+        k = int(np.argmax(far))
+        raise ParameterError(f"points: waypoint {k + 1} ({pts[k, 0]:g}, {pts[k, 1]:g}) lies "
+                             f"beyond +-{MAX_COORDINATE:g} m")
     chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     tol = 1e-9 * max(1.0, float(np.abs(pts).max()))
     if np.any(chords <= tol):
@@ -1356,9 +1405,12 @@ class Timing:
     start: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "speed", _number(self.speed, "speed", positive=True))
+        speed = _number(self.speed, "speed", positive=True)
+        if speed > MAX_PATH_SPEED:
+            raise ParameterError(f"speed must be at most {MAX_PATH_SPEED:g} m/s, got {speed:g}")
+        object.__setattr__(self, "speed", speed)
         object.__setattr__(self, "ramp", _number(self.ramp, "ramp", non_negative=True))
-        object.__setattr__(self, "start", _number(self.start, "start"))
+        object.__setattr__(self, "start", _length(self.start, "start"))
 
     def __call__(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (s, s', s'') at time(s) t.
@@ -1642,29 +1694,15 @@ def _file_error(path: str | os.PathLike[str], message: str) -> PathFileError:
 
 
 def _read_file(path: str | os.PathLike[str]) -> str:
-    target = FilePath(path)
-    try:
-        if not target.exists():
-            raise _file_error(path, "no such path file")
-        if target.is_dir():
-            raise _file_error(path, "is a folder, not a path file")
-        with open(target, "rb") as handle:
-            data = handle.read(MAX_PATH_FILE_BYTES + 1)
-    except OSError as exc:
-        raise _file_error(path, f"cannot read it ({exc.strerror or exc})") from exc
-    if len(data) > MAX_PATH_FILE_BYTES:
-        raise _file_error(path, f"is larger than {MAX_PATH_FILE_BYTES} bytes: not a path file")
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise _file_error(path, f"not a text file (not UTF-8 at byte {exc.start})") from None
+    def error(message: str) -> PathFileError:
+        return _file_error(path, message)
+
+    data = read_regular_file(path, limit=MAX_PATH_FILE_BYTES, kind="path file", error=error)
+    return decode_utf8(data, error=error)
 
 
 def _parse_toml(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise _file_error(path, f"not valid TOML: {exc}") from None
+    doc = parse_toml(text, error=lambda message: _file_error(path, message))
     kind = doc.pop("type", None)
     if kind is None:
         raise _file_error(path, f"type is required (one of {', '.join(PATH_NAMES)})")

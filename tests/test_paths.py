@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+import threading
 from pathlib import Path as FilePath
 
 import numpy as np
@@ -300,6 +302,19 @@ BAD_FILES = {
     "columns.csv": ("0,0,0\n1,1,1\n", "expected two columns"),
     "nan.csv": ("0,0\nnan,1\n", "waypoint 2: not finite"),
     "binary.csv": (b"\xff\xfe\x00", "not UTF-8"),
+    "far_point.toml": ('type = "waypoints"\npoints = [[0, 0], [1e160, 0], [2e160, 1]]\n',
+                       "points: waypoint 2 (1e+160, 0) lies beyond +-1e+06 m"),
+    "far_point.csv": ("x,y\n0,0\n1,1\n2,-1e7\n", "points: waypoint 3 (2, -1e+07) lies beyond"),
+    "deep_points.toml": ('type = "waypoints"\npoints = ' + "[" * 100_000 + "]" * 100_000,
+                         "nested deeper than 32 levels"),
+    "deep_table.toml": ('type = "line"\nstart = ' + "{a = " * 100_000 + "1" + "}" * 100_000,
+                        "nested deeper than 32 levels"),
+    "dotted.toml": ('type = "line"\n' + "a." * 100_000 + "a = 1\n",
+                    "nested deeper than 32 levels"),
+    "tiny_radius.toml": ('type = "circle"\nradius = 1e-300\n', "radius must be at least 1e-06 m"),
+    "far_origin.toml": ('type = "sinusoid"\norigin = [0, 1e300]\n',
+                        "origin[1] must lie within +-1e+06 m"),
+    "fast.toml": ('type = "line"\nspeed = 1e300\n', "speed must be at most 1000 m/s"),
 }
 
 
@@ -336,6 +351,8 @@ def test_missing_and_unsupported_files(tmp_path: FilePath) -> None:
     ({"points": [(0, 0)]}, "at least two waypoints"),
     ({"points": [(0, 0), (0, 0)]}, "coincide"),
     ({"points": [(0, 0), (1, float("nan"))]}, "not finite"),
+    ({"points": [(0, 0), (1e160, 0), (2e160, 1)]}, r"waypoint 2 \(1e\+160, 0\) lies beyond"),
+    ({"points": [(0, 0), (1, -1.5e6)]}, r"waypoint 2 \(1, -1.5e\+06\) lies beyond"),
 ])
 def test_bad_waypoints(kwargs: dict[str, object], expected: str) -> None:
     """Waypoints built in Python are checked like files' (one ParameterError line)."""
@@ -351,8 +368,50 @@ def test_bad_waypoints(kwargs: dict[str, object], expected: str) -> None:
     (lambda: Sinusoid(wavelength=0.0), "wavelength must be positive"),
     (lambda: LaneChange(length_x=-1.0), "length must be positive"),
     (lambda: Line(start=(0.0,)), "start must be a point"),
+    (lambda: Line(direction=1e300), "direction must lie within"),
+    (lambda: Circle(centre=(2e6, 0.0)), r"centre\[0\] must lie within \+-1e\+06 m"),
+    (lambda: Circle(start_angle=-1e4), "start_angle must lie within"),
+    (lambda: Arc(angle=1e300), "angle must lie within"),
+    (lambda: Sinusoid(wavelength=1e-300), "wavelength must be at least 1e-06 m"),
+    (lambda: Sinusoid(amplitude=1e300), "amplitude must lie within"),
+    (lambda: LaneChange(length_x=1e-300), "length must be at least"),
+    (lambda: LaneChange(offset=-1e300), "offset must lie within"),
+    (lambda: Timing(speed=1e300), "speed must be at most"),
+    (lambda: Timing(start=1e300), "start must lie within"),
 ])
 def test_bad_parameters(build: object, expected: str) -> None:
     """Out-of-domain shape and timing parameters are one ParameterError naming them."""
     with pytest.raises(ParameterError, match=expected):
         build()  # type: ignore[operator]
+
+
+def test_parameters_at_their_bounds_give_finite_references() -> None:
+    """Values at the bounds themselves are accepted and give a finite reference."""
+    for path in (Waypoints(points=[(-1e6, -1e6), (1e6, 1e6), (1e6, -1e6)]),
+                 Circle(radius=1e-6, centre=(1e6, -1e6)), Arc(radius=1e6, angle=1e3),
+                 Sinusoid(amplitude=1e-6, wavelength=1e6, direction=-1e3),
+                 LaneChange(offset=1e6, length_x=1e6, start=1e6)):
+        reference = PathReference(path, Timing(speed=1e3, start=-1e6))
+        for t in (0.0, 1.0, 1e3):
+            assert all(np.isfinite(part).all() for part in reference(t)), (path, t)
+
+
+@pytest.mark.parametrize("name", ["points.csv", "points.toml"])
+def test_a_fifo_is_refused_without_blocking(tmp_path: FilePath, name: str) -> None:
+    """A FIFO given as a path file is refused at once, in one line naming it."""
+    fifo = tmp_path / name
+    os.mkfifo(fifo)
+    outcome: list[BaseException | None] = [None]
+
+    def run() -> None:
+        try:
+            load_path(fifo)
+        except BaseException as exc:  # handed to the test thread
+            outcome[0] = exc
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    worker.join(60)
+    assert not worker.is_alive(), "load_path blocked on a FIFO"
+    assert isinstance(outcome[0], PathFileError)
+    assert str(outcome[0]) == f"{fifo}: is a FIFO, not a regular file: not a path file"
