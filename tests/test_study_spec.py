@@ -6,6 +6,7 @@ import math
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -98,6 +99,14 @@ BAD = {
     "pfl with a failed joint": ("[base]\ncontroller = \"pfl\"\n[axes.failed_joint]\n"
                                 "values = [0, 3]", "controller pfl needs every joint actuated"),
     "missing robot file": ("[base]\nrobot = \"nowhere.toml\"", "[base] robot 'nowhere.toml'"),
+    "deep arrays": ("[axes.c_y]\nvalues = " + "[" * 100_000 + "]" * 100_000,
+                    "nested deeper than 32 levels (arrays, inline tables and dotted keys "
+                    "inside each other) at line 2"),
+    "deep inline tables": ("[axes]\nc_y = " + "{v=" * 100_000 + "1" + "}" * 100_000,
+                           "nested deeper than 32 levels"),
+    "long dotted key": ("[axes]\n" + "c_y." * 100_000 + "values = [1.0]\n",
+                        "nested deeper than 32 levels"),
+    "over-long integer": ("[base]\nfailed_joint = " + "9" * 5000, "not valid TOML"),
 }
 
 
@@ -233,14 +242,18 @@ def _changed(value: object, setting: str) -> object:
 
 @pytest.mark.parametrize("controller", ["lyapunov", "velocity", "pfl"])
 def test_run_key_changes_with_every_setting_and_the_robot(controller: str) -> None:
-    """Changing any one setting, or any robot parameter, gives another key."""
+    """Changing any one setting, or any robot parameter, gives another key; the robot's
+    spelling alone (its content unchanged) does not."""
     scenario = parse_study(QUICK + f"controller = \"{controller}\"\n").scenarios[0]
     settings = dict(scenario.settings)
     keys = {scenario.key}
     for name, value in settings.items():
+        if name == "robot":
+            continue
         keys.add(run_key({**settings, name: _changed(value, name)}, scenario.params))
         assert len(keys) == 2, name
         keys.discard(next(k for k in keys if k != scenario.key))
+    assert run_key({**settings, "robot": "./table1.toml"}, scenario.params) == scenario.key
     for field, value in (("mass", 0.2), ("inertia", 3e-4), ("c_theta", 1e-4),
                          ("link_length", 0.13), ("passive", (2,))):
         assert run_key(settings, scenario.params.replace(**{field: value})) != scenario.key
@@ -274,3 +287,60 @@ def test_robot_files_are_read_beside_the_study_and_their_content_keys_the_run(
     with pytest.raises(StudyError, match=r"failed_joint 6 is outside 0\.\.5"):
         load_study(_write(tmp_path, "[base]\nrobot = \"robots/six.toml\"\n"
                           "[axes.failed_joint]\nvalues = [6]\n", "bad.toml"))
+
+
+def test_a_fifo_is_refused_without_blocking(tmp_path: Path) -> None:
+    """A FIFO given as the study file is refused at once, in one line naming it."""
+    fifo = tmp_path / "study.toml"
+    os.mkfifo(fifo)
+    outcome: list[BaseException | None] = [None]
+
+    def run() -> None:
+        try:
+            load_study(fifo)
+        except BaseException as exc:  # handed to the test thread
+            outcome[0] = exc
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    worker.join(60)
+    assert not worker.is_alive(), "load_study blocked on a FIFO"
+    assert isinstance(outcome[0], StudyError)
+    assert str(outcome[0]) == f"{fifo}: is a FIFO, not a regular file: not a study file"
+
+
+def test_one_robot_file_named_many_ways_is_one_robot(tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """Relative, dotted, absolute, symlinked and copied spellings of one robot file give
+    the same runs, keys and study hash; two of them on one axis are refused as one run."""
+    robots = tmp_path / "robots"
+    robots.mkdir()
+    write_robot_file(SnakeParams(n=6, name="six"), robots / "a.toml")
+    (tmp_path / "link.toml").symlink_to(robots / "a.toml")
+    (tmp_path / "copy.toml").write_bytes((robots / "a.toml").read_bytes())
+    monkeypatch.chdir(tmp_path)
+    tail = "t_final = 0.5\n[axes.failed_joint]\nvalues = [0, 2]\n"
+    spellings = ["robots/a.toml", "./robots/../robots/a.toml", str(robots / "a.toml"),
+                 "link.toml", "copy.toml"]
+    specs = [load_study(_write(tmp_path, f"[base]\nrobot = {name!r}\n" + tail, f"s{i}.toml"))
+             for i, name in enumerate(spellings)]
+    keys = {tuple(s.key for s in spec.scenarios) for spec in specs}
+    assert len(keys) == 1 and len(next(iter(keys))) == 2
+    assert len({spec.study_hash for spec in specs}) == 1
+    message = _refused(tmp_path, f"[base]\n{tail.split(chr(10))[0]}\n[axes.robot]\n"
+                       f"values = ['robots/a.toml', './robots/../robots/a.toml']\n")
+    assert ("[axes.robot] robot './robots/../robots/a.toml' is the same robot as "
+            "'robots/a.toml'") in message
+    write_robot_file(SnakeParams(n=6, name="six", mass=0.3), tmp_path / "copy.toml")
+    other = load_study(_write(tmp_path, "[base]\nrobot = 'copy.toml'\n" + tail, "o.toml"))
+    assert other.study_hash != specs[0].study_hash
+
+
+def test_a_physically_meaningless_robot_file_names_the_study_robot_and_field(
+        tmp_path: Path) -> None:
+    """A robot file with a 1e-300 kg link fails the study in one line naming the study
+    file, the robot and the field."""
+    (tmp_path / "tiny.toml").write_text('name = "tiny"\nn = 3\n[links]\nlink_length = 0.1\n'
+                                        "mass = [0.1, 1e-300, 0.1]\ninertia = 1e-4\n")
+    message = _refused(tmp_path, "[base]\nrobot = \"tiny.toml\"\n")
+    assert "[base] robot 'tiny.toml'" in message and "link 2: mass must be in" in message

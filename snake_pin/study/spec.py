@@ -53,10 +53,18 @@ that do not load, and more than :data:`MAX_RUNS` runs.
 **Keys.** Each run is keyed by :func:`run_key`: the SHA-256 of a canonical JSON text
 (sorted keys, no spaces, floats as Python's shortest round-trip ``repr``, -0.0 written as
 0.0) of its full normalised settings (defaults filled in, every setting that applies to
-its model and controller) and of its resolved robot (:meth:`SnakeParams.to_dict`: a robot
-file's content, not its name, counts). The study's identity, :attr:`StudySpec.study_hash`,
-hashes the sorted run keys: two study files that expand to the same runs are the same
-study, whatever their layout, name or batch size.
+its model and controller) except ``robot``, and of its resolved robot
+(:meth:`SnakeParams.to_dict`). The robot counts by its content, never by how it was
+named: a robot file given as ``robots/a.toml``, ``./robots/../robots/a.toml``, an
+absolute path or a symbolic link to it is one robot and gives the same keys, and two
+values of a ``robot`` axis that load the same robot are refused as one run given twice.
+The study's identity, :attr:`StudySpec.study_hash`, hashes the sorted run keys: two study
+files that expand to the same runs are the same study, whatever their layout, name,
+batch size or spelling of robot files.
+
+**Files.** A study file is a regular file (a FIFO or a device is refused unread) of at
+most :data:`MAX_STUDY_BYTES`, UTF-8, nested at most :data:`snake_pin._io.MAX_TOML_DEPTH`
+levels (checked before the TOML is parsed).
 """
 
 from __future__ import annotations
@@ -68,7 +76,6 @@ import json
 import math
 import os
 import reprlib
-import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -76,6 +83,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import decode_utf8, parse_toml, read_regular_file
 from ..exceptions import SnakePinError
 from ..metrics import ERROR_WINDOW
 from ..params import SnakeParams
@@ -113,8 +121,8 @@ DEFAULT_BATCH = 256
 MAX_STUDY_BYTES = 1 << 20
 #: Seeds (of random axes and of the initial-posture noise) lie in 0..MAX_SEED.
 MAX_SEED = 2**32 - 1
-#: Version of the key's canonical form; part of every key.
-KEY_FORMAT = 1
+#: Version of the key's canonical form; part of every key (2: the robot by content only).
+KEY_FORMAT = 2
 #: Engine control period [s] (``WheelSpec().control_dt``), for the t_final bound.
 ENGINE_CONTROL_DT = 1e-3
 MODELS = ("viscous", "engine")
@@ -462,7 +470,8 @@ def run_key(settings: Mapping[str, Any], params: SnakeParams) -> str:
     Parameters
     ----------
     settings
-        The run's normalised settings.
+        The run's normalised settings; ``robot`` (how the robot was named) is left out:
+        the robot counts by its content, ``params``.
     params
         The robot it simulates.
 
@@ -471,7 +480,8 @@ def run_key(settings: Mapping[str, Any], params: SnakeParams) -> str:
     str
         64 hexadecimal characters.
     """
-    text = canonical_json({"format": KEY_FORMAT, "settings": dict(settings),
+    named = {name: value for name, value in settings.items() if name != "robot"}
+    text = canonical_json({"format": KEY_FORMAT, "settings": named,
                            "robot": params.to_dict()})
     return hashlib.sha256(text.encode("ascii")).hexdigest()
 
@@ -514,23 +524,9 @@ def load_study(path: str | os.PathLike[str]) -> StudySpec:
         file = Path(path)
     except TypeError:
         raise StudyError(f"study file must be a path, got {_short(path)}") from None
-    shown = _shown(file)
-    try:
-        if not file.is_file():
-            raise StudyError(f"{shown}: no such study file" if not file.exists()
-                             else f"{shown}: not a regular file")
-        with open(file, "rb") as handle:
-            data = handle.read(MAX_STUDY_BYTES + 1)
-    except OSError as exc:
-        raise StudyError(f"{shown}: cannot read the study file: "
-                         f"{exc.strerror or exc}") from None
-    if len(data) > MAX_STUDY_BYTES:
-        raise StudyError(f"{shown}: larger than {MAX_STUDY_BYTES // 1024} KiB; not a study file")
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise StudyError(f"{shown}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    return parse_study(text, file)
+    where = _Where(_shown(file))
+    data = read_regular_file(file, limit=MAX_STUDY_BYTES, kind="study file", error=where.error)
+    return parse_study(decode_utf8(data, error=where.error), file)
 
 
 def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpec:
@@ -555,10 +551,11 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
     """
     file = Path(path)
     where = _Where(_shown(file))
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise where.error(f"not valid TOML: {_one_line(str(exc))}") from None
+    if not isinstance(text, str):
+        raise where.error(f"study text must be a string, got {_kind_name(text)}")
+    if len(text) > MAX_STUDY_BYTES:
+        raise where.error(f"is larger than {MAX_STUDY_BYTES} characters: not a study file")
+    doc = parse_toml(text, error=where.error)
     _check_keys(where, "", doc, _TABLES, "table")
     study = _table(where, doc, "study")
     _check_keys(where, "[study]", study, _STUDY_KEYS, "key")
@@ -833,15 +830,20 @@ def _robots(where: _Where, file: Path, base: Mapping[str, Any], axes: Sequence[A
 
     names: Iterable[str] = next((a.values for a in axes if a.setting == "robot"),
                                 (base.get("robot", SETTINGS["robot"].default),))
-    robots = {}
+    robots: dict[str, SnakeParams] = {}
     for name in names:
         local = file.parent / name
         spec = str(local) if not os.path.isabs(name) and local.exists() else name
         try:
-            robots[name] = load_robot(spec)
+            robot = load_robot(spec)
         except SnakePinError as exc:
             raise where.error(f"{place('robot')} robot {_short(name)}: "
                               f"{_one_line(str(exc))}") from None
+        same = next((other for other, known in robots.items() if known == robot), None)
+        if same is not None:
+            raise where.error(f"{place('robot')} robot {_short(name)} is the same robot as "
+                              f"{_short(same)} (the same file or content): one run, give it once")
+        robots[name] = robot
     return robots
 
 
