@@ -5,10 +5,12 @@
     add_study_parser(sub, outcome=_Outcome)
 
 ``outcome`` is the CLI's result type (called with ``payload``, ``text``, ``status`` and
-``note``). The handler keeps the CLI's contract: a bad study file, output folder or
-scheduler address is a :class:`~snake_pin.study.errors.StudyError` (one line, exit 2,
-nothing run); an interrupted study returns ``interrupted_status`` with the partial
-summary; a study whose runs were lost with a worker returns ``failed_status``.
+``note``). The handler keeps the CLI's contract: a bad study file, output folder,
+scheduler address (or one that does not complete Dask's handshake within
+``--connect-timeout``) or security file is a :class:`~snake_pin.study.errors.StudyError`
+(one line, exit 2, nothing run, nothing created for a scheduler); an interrupted study
+returns ``interrupted_status`` with the partial summary; a study whose runs were lost with
+a worker returns ``failed_status``.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any
 
 from ..exceptions import RunInterrupted
 from .errors import StudyError
-from .runner import MAX_WORKERS, run_study
+from .runner import CONNECT_TIMEOUT, MAX_CONNECT_TIMEOUT, MAX_WORKERS, run_study
 
 __all__ = ["add_study_parser"]
 
@@ -29,7 +31,12 @@ Run every run a study file describes (a base scenario and axes: grids and seeded
 samples over its settings) on Dask, one Parquet row per run in DIR/runs, the page in
 DIR/index.html and the summary in DIR/summary.json. Runs already recorded in DIR are not
 run again: after an interrupt, run the same command to finish. By default a local cluster
-of one worker process per core, on 127.0.0.1 only."""
+of one worker process per core, on 127.0.0.1 only, every connection TLS with credentials
+made for this run (another local user cannot connect to it). --scheduler uses an existing
+cluster: a tls:// scheduler takes its credentials from --security FILE (a YAML file of
+Dask config: distributed.comm.tls.ca-file, client.cert, client.key) or from Dask's own
+config; the address must complete Dask's handshake within --connect-timeout seconds,
+checked before DIR is created."""
 
 
 def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int = 130,
@@ -57,10 +64,21 @@ def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int =
     p.add_argument("-o", "--output", required=True, metavar="DIR",
                    help="output folder (re-run the same command to finish an interrupted study)")
     p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="tcp://HOST:PORT of an existing Dask scheduler (default: a local "
-                   "cluster on 127.0.0.1)")
+                   help="tcp://HOST:PORT or tls://HOST:PORT of an existing Dask scheduler "
+                   "(default: a local cluster on 127.0.0.1, authenticated by TLS)")
+    p.add_argument("--security", metavar="FILE",
+                   help="with --scheduler: the cluster's TLS credentials, a YAML file of "
+                   "Dask config (distributed.comm.tls.ca-file, client.cert, client.key; "
+                   "default: Dask's own config)")
+    p.add_argument("--connect-timeout", type=_seconds, default=CONNECT_TIMEOUT,
+                   metavar="SECONDS",
+                   help="longest wait for the scheduler to complete Dask's handshake "
+                   f"(default {CONNECT_TIMEOUT:g})")
     p.add_argument("--workers", type=_workers, metavar="N",
                    help=f"local worker processes, 1..{MAX_WORKERS} (default: one per core)")
+    p.add_argument("--dashboard", action="store_true",
+                   help="serve the local cluster's Dask dashboard on 127.0.0.1 (a random "
+                   "port, printed on stderr); off by default")
     p.add_argument("--verbose", action="store_true",
                    help="log on stderr even when it is not a terminal")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -80,6 +98,18 @@ def _workers(text: str) -> int:
     return value
 
 
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") \
+            from None
+    if not 0 < value <= MAX_CONNECT_TIMEOUT:  # NaN fails too
+        raise argparse.ArgumentTypeError(f"must lie in (0, {MAX_CONNECT_TIMEOUT:g}], got "
+                                         f"{text}")
+    return value
+
+
 def _log(message: str) -> None:
     print(f"snake-pin: {message}", file=sys.stderr, flush=True)
 
@@ -89,11 +119,18 @@ def _cmd_study(args: argparse.Namespace, *, outcome: Any, interrupted_status: in
     if args.scheduler is not None and args.workers is not None:
         raise StudyError("argument --workers: applies to the local cluster, not with "
                          "--scheduler")
-    verbose = bool(args.verbose) or sys.stderr.isatty()
+    if args.scheduler is not None and args.dashboard:
+        raise StudyError("argument --dashboard: applies to the local cluster, not with "
+                         "--scheduler")
+    if args.scheduler is None and args.security is not None:
+        raise StudyError("argument --security: applies with --scheduler (the local cluster "
+                         "makes its own credentials)")
+    verbose = bool(args.verbose) or bool(args.dashboard) or sys.stderr.isatty()
     try:
         summary = run_study(args.study, args.output, scheduler=args.scheduler,
-                            workers=args.workers, progress=None,
-                            log=_log if verbose else None)
+                            workers=args.workers, security=args.security,
+                            connect_timeout=args.connect_timeout, dashboard=args.dashboard,
+                            progress=None, log=_log if verbose else None)
     except RunInterrupted as exc:
         partial = exc.partial
         return outcome(payload=partial.to_dict(), text=partial.text(),

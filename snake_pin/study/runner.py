@@ -1,19 +1,31 @@
 """Running a study on Dask: batches of runs as tasks, rows written as they arrive, resumable.
 
 :func:`run_study` validates everything first (the study file, the output folder, the
-scheduler address), then runs the missing runs only:
+scheduler address and its Dask handshake), then prepares the folder (checking that it can
+write there), then runs the missing runs only:
 
 - **Cluster.** By default a :class:`distributed.LocalCluster` of ``workers`` processes
-  (default: one per core) with one thread each, everything bound to 127.0.0.1: the
-  scheduler, the workers, their nannies, and the scheduler's HTTP endpoint on a random
-  loopback port (no dashboard). Workers start with ``OMP_WAIT_POLICY=PASSIVE`` and Dask's
-  one-thread BLAS/OpenMP environment, and each task limits thread pools again with
-  threadpoolctl (OpenMP's spinning wait and multi-threaded BLAS on tiny matrices are many
-  times slower when another core is busy).
-  ``scheduler="tcp://HOST:PORT"`` uses an existing cluster instead; it is first reached
-  with a plain TCP connection of at most :data:`CONNECT_TIMEOUT` seconds, so an
-  unreachable address fails before anything runs.
-  Its workers need the same snake_pin installed, and should be started with
+  (default: one per core) with one thread each, everything bound to 127.0.0.1, and
+  **authenticated**: every connection (client, scheduler, workers, nannies) is TLS
+  (``tls://``) with mutual certificates made for this invocation by
+  :meth:`distributed.security.Security.temporary` (kept in memory, handed to the workers
+  by their nannies), so another local user, who can reach 127.0.0.1 but does not hold
+  them, is refused before any message is read. The HTTP servers (scheduler and workers)
+  serve no route and answer 403 to a Host header other than 127.0.0.1 or localhost;
+  ``dashboard=True`` serves the scheduler's Dask dashboard there (a random port on
+  127.0.0.1, logged). Workers start with ``OMP_WAIT_POLICY=PASSIVE`` and Dask's one-thread
+  BLAS/OpenMP environment, and each task limits thread pools again with threadpoolctl
+  (OpenMP's spinning wait and multi-threaded BLAS on tiny matrices are many times slower
+  when another core is busy).
+- **Existing cluster.** ``scheduler="tcp://HOST:PORT"`` or ``"tls://HOST:PORT"`` uses a
+  running cluster instead, with ``security`` (a :class:`distributed.security.Security`,
+  or a YAML file of Dask config read by :func:`load_security`; by default Dask's own
+  config, ``distributed.comm.tls.*``). :func:`check_scheduler` first completes Dask's
+  handshake with it and asks its identity, all within ``connect_timeout`` seconds
+  (default :data:`CONNECT_TIMEOUT`) on a deadline of its own: an address that refuses,
+  never answers, answers something else than Dask, resets the connection, wants TLS (or
+  other credentials) or is not a scheduler fails with one line before any file or folder
+  is created. Its workers need the same snake_pin installed, and should be started with
   ``OMP_WAIT_POLICY=PASSIVE`` in their environment (OpenMP reads it when Pinocchio is
   loaded, before any task runs; threadpoolctl still limits the thread counts per task).
 - **Tasks.** Viscous-model runs go in lockstep batches of one robot layout and time step,
@@ -41,6 +53,8 @@ import logging
 import math
 import os
 import socket
+import stat
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
@@ -49,30 +63,42 @@ from urllib.parse import urlsplit
 from ..batch import LAYOUT_FIELDS, layout_key
 from ..exceptions import RunInterrupted
 from .errors import StudyError
-from .results import StudyFolder
+from .results import StudyFolder, _one_line, _shown
 from .spec import Scenario, StudySpec, load_study
 from .summary import StudySummary
 
-__all__ = ["CONNECT_TIMEOUT", "LAYOUT_FIELDS", "MAX_WORKERS", "check_scheduler", "plan_batches",
-           "run_study"]
+__all__ = ["CONNECT_TIMEOUT", "LAYOUT_FIELDS", "LOCAL_HOSTS", "MAX_CONNECT_TIMEOUT",
+           "MAX_WORKERS", "check_scheduler", "load_security", "plan_batches", "run_study"]
 
-#: Longest wait for a scheduler address to accept a TCP connection [s].
-CONNECT_TIMEOUT = 3.0
+#: Default longest wait for a scheduler to complete Dask's handshake [s].
+CONNECT_TIMEOUT = 10.0
+#: Largest ``connect_timeout`` accepted [s].
+MAX_CONNECT_TIMEOUT = 600.0
 #: Most local worker processes.
 MAX_WORKERS = 256
+#: Host headers the local cluster's HTTP servers answer (any other: 403).
+LOCAL_HOSTS = ("127.0.0.1", "localhost")
 #: Environment of the local cluster's workers, on top of Dask's one-thread BLAS defaults.
 WORKER_ENV = {"OMP_WAIT_POLICY": "PASSIVE", "OMP_NUM_THREADS": "1",
               "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 _CLOSE_TIMEOUT = 20
 #: On an interrupt, a local worker still running a batch is killed after 0.8 this [s].
 _KILL_TIMEOUT = 1.0
+#: Largest security file read [bytes].
+_MAX_SECURITY_BYTES = 1 << 20
+#: Dask config keys a security file may set, under ``distributed.comm``.
+_TLS_KEYS = ("require-encryption", "tls.ca-file", "tls.ciphers", "tls.min-version",
+             "tls.max-version", "tls.client.cert", "tls.client.key", "tls.scheduler.cert",
+             "tls.scheduler.key", "tls.worker.cert", "tls.worker.key")
 
 BatchFunction = Callable[[Sequence[Scenario]], list[dict[str, Any]]]
 
 
 def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
               scheduler: str | None = None, workers: int | None = None,
-              progress: bool | None = None, log: Callable[[str], None] | None = None,
+              security: Any = None, connect_timeout: float = CONNECT_TIMEOUT,
+              dashboard: bool = False, progress: bool | None = None,
+              log: Callable[[str], None] | None = None,
               batch_function: BatchFunction | None = None) -> StudySummary:
     """Run the study of ``spec_path`` into ``out_dir`` (only the runs not yet recorded).
 
@@ -83,10 +109,22 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     out_dir
         Its folder (:mod:`snake_pin.study.results`); created if missing.
     scheduler
-        Address of an existing Dask scheduler (``tcp://host:port``); None starts a local
-        cluster on 127.0.0.1.
+        Address of an existing Dask scheduler (``tcp://host:port`` or ``tls://host:port``);
+        None starts a local cluster on 127.0.0.1, authenticated by TLS credentials made for
+        this call.
     workers
         Local worker processes (default: one per core); refused with ``scheduler``.
+    security
+        With ``scheduler``: its cluster's credentials, a
+        :class:`distributed.security.Security` or the path of a YAML file of Dask config
+        (:func:`load_security`); None: Dask's own config (``distributed.comm.tls.*``).
+        Refused without ``scheduler`` (the local cluster makes its own).
+    connect_timeout
+        Longest wait [s] for the scheduler to complete Dask's handshake (0 <
+        ``connect_timeout`` <= :data:`MAX_CONNECT_TIMEOUT`).
+    dashboard
+        Serve the local cluster's Dask dashboard on 127.0.0.1 (a random port, given to
+        ``log``); refused with ``scheduler``.
     progress
         A tqdm bar (runs done, failures, ETA) on stderr, drawn only on a terminal;
         False: none.
@@ -104,8 +142,11 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     Raises
     ------
     StudyError
-        Before anything runs: a bad study file, a folder holding another study, an
-        unreachable scheduler, a bad ``workers``.
+        Before anything runs: a bad study file; a folder that holds another study, is or
+        holds a symbolic link where the study writes, or cannot be written; a scheduler
+        that is unreachable or does not complete Dask's handshake in time (nothing is
+        created then); bad ``workers``, ``security``, ``connect_timeout`` or
+        ``dashboard``.
     RunInterrupted
         On KeyboardInterrupt; ``partial`` is the summary (status ``interrupted``).
     """
@@ -114,7 +155,19 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     folder = StudyFolder(out_dir)
     folder.check(spec)
     workers = _check_workers(workers, scheduler)
-    address = check_scheduler(scheduler) if scheduler is not None else None
+    timeout = _check_timeout(connect_timeout)
+    credentials = None
+    if scheduler is not None:
+        if dashboard:
+            raise StudyError("dashboard applies to the local cluster; the scheduler's "
+                             "cluster has its own")
+        credentials = _security(security)
+        address = check_scheduler(scheduler, security=credentials, timeout=timeout)
+    elif security is not None:
+        raise StudyError("security applies to a given scheduler; the local cluster makes "
+                         "its own TLS credentials")
+    else:
+        address = None
     say = log or (lambda _message: None)
     if batch_function is None:
         from .work import run_batch
@@ -130,7 +183,8 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         summary.skipped = len(spec.scenarios) - len(pending)
         try:
             if pending:
-                with _client(address, workers) as client:
+                with _client(address, workers, security=credentials, timeout=timeout,
+                             dashboard=bool(dashboard), log=say) as client:
                     slots = _slots(client) if address else workers
                     batches = plan_batches(pending, spec.batch_size, slots)
                     say(f"study {spec.name}: {len(spec.scenarios)} runs, {summary.skipped} "
@@ -301,44 +355,305 @@ def plan_batches(scenarios: Sequence[Scenario], batch_size: int,
     return batches
 
 
-def check_scheduler(address: str) -> str:
-    """``address`` as ``tcp://host:port`` once a TCP connection to it succeeds.
+def check_scheduler(address: str, *, security: Any = None,
+                    timeout: float = CONNECT_TIMEOUT) -> str:
+    """``address`` normalised, once the scheduler there has completed Dask's handshake.
+
+    A plain TCP connection first (a refused or unreachable address fails at once), then
+    Dask's own connection (TLS for ``tls://``), its handshake and an identity request, all
+    on a deadline of ``timeout`` seconds that does not rely on Dask's own timeouts (a
+    server that accepts connections but never answers is abandoned when it passes).
 
     Parameters
     ----------
     address
-        ``tcp://HOST:PORT`` or ``HOST:PORT``.
+        ``tcp://HOST:PORT``, ``tls://HOST:PORT`` or ``HOST:PORT`` (tcp).
+    security
+        The cluster's credentials: a :class:`distributed.security.Security`, the path of a
+        YAML file of Dask config (:func:`load_security`), or None (Dask's own config).
+    timeout
+        Longest wait [s] (0 < ``timeout`` <= :data:`MAX_CONNECT_TIMEOUT`).
 
     Returns
     -------
     str
-        The address as ``tcp://host:port`` (IPv6 hosts in brackets).
+        The address as ``SCHEME://host:port`` (IPv6 hosts in brackets).
 
     Raises
     ------
     StudyError
-        Not a ``[tcp://]host:port`` address, or nothing accepts a connection there within
-        :data:`CONNECT_TIMEOUT` seconds.
+        Not a ``[tcp|tls://]host:port`` address; a ``tls://`` address without
+        credentials, or a ``tcp://`` one with settings that require encryption; nothing
+        accepts a connection there; the server does not complete Dask's handshake within
+        ``timeout`` (silent, garbage, reset, a TLS server reached over ``tcp://``,
+        credentials it refuses); or it is not a scheduler.
     """
+    text, scheme, host, port = _parse_address(address)
+    timeout = _check_timeout(timeout)
+    credentials = _security(security)
+    shown = f"[{host}]" if ":" in host else host
+    normal = f"{scheme}://{shown}:{port}"
+    if scheme == "tls":
+        _check_credentials(text, credentials)
+    elif credentials.require_encryption:
+        raise StudyError(f"scheduler {text}: the security settings require encryption; give "
+                         f"the scheduler's tls:// address")
+    deadline = time.monotonic() + timeout
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except ConnectionResetError:
+        raise StudyError(f"scheduler {text} did not complete Dask's handshake (it reset the "
+                         "connection)") from None
+    except OSError as exc:
+        reason = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise StudyError(f"scheduler {text} is unreachable ({reason} within "
+                         f"{timeout:g} s)") from None
+    try:
+        identity = _handshake(normal, credentials, max(0.05, deadline - time.monotonic()))
+    except Exception as exc:  # whatever a foreign server's bytes make the reader raise
+        raise StudyError(_handshake_failure(text, scheme, host, port, exc, timeout,
+                                            deadline)) from None
+    kind = identity.get("type") if isinstance(identity, dict) else None
+    if kind != "Scheduler":
+        raise StudyError(f"scheduler {text} answered Dask's handshake but is "
+                         f"{'a ' + _one_line(str(kind), 40) if kind else 'no Dask server'}, "
+                         "not a scheduler")
+    return normal
+
+
+def load_security(path: str | os.PathLike[str]) -> Any:
+    """A Dask cluster's credentials from a YAML file of Dask config.
+
+    The file is Dask config, as in ``~/.config/dask/*.yaml``; its ``distributed.comm``
+    TLS settings are read (other settings are ignored), at least the client's::
+
+        distributed:
+          comm:
+            require-encryption: true      # optional
+            tls:
+              ca-file: /path/to/ca.pem
+              client:
+                cert: /path/to/client.pem
+                key: /path/to/client-key.pem   # optional if the key is in cert
+
+    (also ``ciphers``, ``min-version``, ``max-version``; the ``scheduler`` and
+    ``worker`` entries are accepted and unused). File paths are read as Dask reads them
+    (relative to the working folder).
+
+    Parameters
+    ----------
+    path
+        The file (a regular file of at most 1 MiB).
+
+    Returns
+    -------
+    distributed.security.Security
+        The credentials, for :func:`run_study` or :func:`check_scheduler`.
+
+    Raises
+    ------
+    StudyError
+        The file is missing, not a regular file, too large or not YAML; holds no
+        ``distributed.comm.tls`` setting, an unknown one, or a value of the wrong type.
+    """
+    import dask
+    import dask.config
+    from distributed.security import Security
+
+    shown = _shown(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        try:
+            info = os.fstat(fd)
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        raise StudyError(f"security file {shown}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise StudyError(f"security file {shown} is not a regular file")
+    if info.st_size > _MAX_SECURITY_BYTES:
+        raise StudyError(f"security file {shown} is larger than "
+                         f"{_MAX_SECURITY_BYTES >> 20} MiB")
+    try:
+        loaded = list(dask.config.collect_yaml([os.fspath(path)]))
+    except Exception as exc:  # yaml's errors, wrapped by Dask into a multi-line ValueError
+        raise StudyError(f"security file {shown} is not YAML Dask config: "
+                         f"{_one_line(str(exc).split('message:')[-1])}") from None
+    data = loaded[0] if loaded else None
+    if data is None:
+        raise StudyError(f"security file {shown} is empty or unreadable")
+    settings = _tls_settings(data, shown)
+    try:
+        with dask.config.set({f"distributed.comm.{k}": v for k, v in settings.items()}):
+            return Security()
+    except (ValueError, TypeError) as exc:
+        raise StudyError(f"security file {shown}: {_one_line(str(exc))}") from None
+
+
+def _tls_settings(data: Any, shown: str) -> dict[str, Any]:
+    """The ``distributed.comm`` TLS leaves of a Dask config document, dotted, checked."""
+    comm = _child(_child(data, "distributed"), "comm")
+    found: dict[str, Any] = {}
+
+    def walk(node: Any, prefix: str) -> None:
+        for key, value in node.items():
+            name = f"{prefix}{str(key).replace('_', '-')}"
+            if isinstance(value, dict):
+                walk(value, name + ".")
+            elif name in _TLS_KEYS:
+                kind = bool if name == "require-encryption" else \
+                    (float, int) if name.endswith("-version") else str
+                if value is not None and (not isinstance(value, kind) or (
+                        kind is not bool and isinstance(value, bool))):
+                    raise StudyError(f"security file {shown}: distributed.comm.{name} has "
+                                     f"the wrong type ({type(value).__name__})")
+                found[name] = value
+            elif name.startswith("tls.") or name == "require-encryption":
+                raise StudyError(f"security file {shown}: unknown setting "
+                                 f"distributed.comm.{_one_line(name, 80)}")
+
+    if isinstance(comm, dict):
+        walk(comm, "")
+    if not any(k.startswith("tls.") and v for k, v in found.items()):
+        raise StudyError(f"security file {shown} sets no distributed.comm.tls setting "
+                         "(ca-file, client.cert, client.key)")
+    return found
+
+
+def _child(node: Any, key: str) -> Any:
+    return node.get(key) if isinstance(node, dict) else None
+
+
+def _security(security: Any) -> Any:
+    """``security`` as a :class:`distributed.security.Security` (None: Dask's config)."""
+    from distributed.security import Security
+
+    if isinstance(security, Security):
+        return security
+    if isinstance(security, (str, os.PathLike)):
+        return load_security(security)
+    if security is not None:
+        raise StudyError("security must be a distributed.security.Security or the path of "
+                         f"a YAML file of Dask config, got {type(security).__name__}")
+    try:
+        return Security()
+    except (ValueError, TypeError) as exc:
+        raise StudyError(f"Dask's distributed.comm.tls config: {_one_line(str(exc))}") from None
+
+
+def _check_credentials(text: str, security: Any) -> None:
+    """Refuse a tls:// address without client credentials, or with unloadable ones."""
+    if not (security.tls_ca_file and security.tls_client_cert):
+        raise StudyError(f"scheduler {text} needs its cluster's TLS credentials: give a "
+                         "security file (--security FILE: Dask config with "
+                         "distributed.comm.tls.ca-file, client.cert and client.key) or set "
+                         "them in Dask's config")
+    try:
+        security.get_connection_args("client")
+    except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError
+        raise StudyError(f"scheduler {text}: the TLS credentials cannot be loaded "
+                         f"({_one_line(str(exc))})") from None
+
+
+def _parse_address(address: Any) -> tuple[str, str, str, int]:
+    """(text, scheme, host, port) of ``[tcp|tls://]host:port``, or a StudyError."""
+    expected = "scheduler address must be tcp://HOST:PORT or tls://HOST:PORT"
     if not isinstance(address, str) or not address.strip():
-        raise StudyError(f"scheduler address must be tcp://HOST:PORT, got {address!r}")
+        raise StudyError(f"{expected}, got {address!r}")
     text = address.strip()
     parts = urlsplit(text if "://" in text else f"tcp://{text}")
     try:
         host, port = parts.hostname, parts.port
     except ValueError:
         host, port = None, None
-    if parts.scheme != "tcp" or not host or port is None or parts.path not in ("", "/"):
-        raise StudyError(f"scheduler address must be tcp://HOST:PORT, got {text!r}")
+    if parts.scheme not in ("tcp", "tls") or not host or port is None or \
+            parts.path not in ("", "/") or parts.query or parts.fragment:
+        raise StudyError(f"{expected}, got {text!r}")
+    return text, parts.scheme, host, port
+
+
+def _check_timeout(value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            not math.isfinite(value) or not 0 < value <= MAX_CONNECT_TIMEOUT:
+        raise StudyError(f"connect_timeout must be a number of seconds in (0, "
+                         f"{MAX_CONNECT_TIMEOUT:g}], got {value!r}")
+    return float(value)
+
+
+def _handshake(address: str, security: Any, timeout: float) -> Any:
+    """Dask's connection and handshake to ``address``, then its identity, within ``timeout``.
+
+    Runs in a thread of its own with its own event loop, joined for ``timeout`` plus a
+    second at most: whatever the connection does, this returns or raises by then.
+    """
+    import asyncio
+
+    from distributed.comm import connect
+
+    args = security.get_connection_args("client")
+
+    async def exchange() -> Any:
+        comm = await connect(address, timeout=timeout, **args)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    outcome: dict[str, Any] = {}
+
+    def target() -> None:
+        try:
+            outcome["identity"] = asyncio.run(asyncio.wait_for(exchange(), timeout))
+        except BaseException as exc:  # handed to the caller's thread
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=target, name="snake-pin-scheduler-check", daemon=True)
+    thread.start()
+    thread.join(timeout + 1.0)
+    if "identity" in outcome:
+        return outcome["identity"]
+    error = outcome.get("error")
+    if error is None or isinstance(error, asyncio.CancelledError):
+        raise TimeoutError
+    raise error
+
+
+def _handshake_failure(text: str, scheme: str, host: str, port: int, exc: BaseException,
+                       timeout: float, deadline: float) -> str:
+    """One line saying why Dask's handshake with ``text`` failed (and what to give)."""
+    silent = isinstance(exc, TimeoutError) or "Timed out" in str(exc)
+    if scheme == "tcp" and not silent and _speaks_tls(host, port, deadline):
+        return (f"scheduler {text} speaks TLS: give tls://{host}:{port} and its cluster's "
+                "credentials (--security FILE, or Dask's distributed.comm.tls config)")
+    if scheme == "tls" and "certificate" in str(exc).lower():
+        return (f"scheduler {text} refused these TLS credentials (give its cluster's: "
+                f"--security FILE): {_one_line(str(exc), 120)}")
+    reason = f"no answer within {timeout:g} s" if silent else \
+        f"{type(exc).__name__}: {_one_line(str(exc), 120) or 'no detail'}"
+    hint = ("; is it a tcp:// scheduler?" if scheme == "tls" and silent else "")
+    return f"scheduler {text} did not complete Dask's handshake ({reason}){hint}"
+
+
+def _speaks_tls(host: str, port: int, deadline: float) -> bool:
+    """Whether the server at host:port answers a TLS handshake (before ``deadline``)."""
+    import ssl
+
+    left = min(2.0, deadline - time.monotonic())
+    if left <= 0.05:
+        return False
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    context.check_hostname = False
+    context.verify_mode = ssl.CERT_NONE
     try:
-        with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT):
-            pass
-    except OSError as exc:
-        reason = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
-        raise StudyError(f"scheduler {text} is unreachable ({reason} within "
-                         f"{CONNECT_TIMEOUT:g} s)") from None
-    shown = f"[{host}]" if ":" in host else host
-    return f"tcp://{shown}:{port}"
+        with socket.create_connection((host, port), timeout=left) as raw, \
+                context.wrap_socket(raw, server_hostname=None):
+            return True
+    except ssl.SSLError as exc:  # an alert is TLS speaking; "wrong version number" is not
+        return "ALERT" in str(exc).upper()
+    except OSError:
+        return False
 
 
 def _check_workers(workers: int | None, scheduler: str | None) -> int:
@@ -360,36 +675,61 @@ def _slots(client: Any) -> int:
 
 
 @contextlib.contextmanager
-def _client(address: str | None, workers: int) -> Iterator[Any]:
-    """A Dask client: of the scheduler at ``address``, or of a new local cluster (closed,
-    with its worker processes, when the block ends however it ends)."""
-    from distributed import Client, LocalCluster
+def _client(address: str | None, workers: int, *, security: Any = None,
+            timeout: float = CONNECT_TIMEOUT, dashboard: bool = False,
+            log: Callable[[str], None] | None = None) -> Iterator[Any]:
+    """A Dask client: of the scheduler at ``address`` (with ``security``), or of a new
+    local cluster (:func:`_local_cluster`, closed with its worker processes when the block
+    ends however it ends)."""
+    from distributed import Client
 
     if address is not None:
         try:
-            client = Client(address, timeout=f"{3 * CONNECT_TIMEOUT:g}s",
+            client = Client(address, security=security, timeout=f"{timeout:g}s",
                             set_as_default=False)
-        except (OSError, TimeoutError) as exc:
+        except Exception as exc:  # the scheduler went away since check_scheduler
             raise StudyError(f"scheduler {address}: no Dask scheduler answered "
-                             f"({' '.join(str(exc).split())})") from None
+                             f"({_one_line(str(exc))})") from None
         try:
             yield client
         finally:
             with contextlib.suppress(Exception):
                 client.close(timeout=_CLOSE_TIMEOUT)
         return
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           host="127.0.0.1", dashboard_address=None,
-                           scheduler_kwargs={"dashboard": False,
-                                             "dashboard_address": "127.0.0.1:0"},
-                           silence_logs=logging.ERROR, env=dict(WORKER_ENV))
-    try:
-        client = Client(cluster, set_as_default=False)
+    with _local_cluster(workers, dashboard=dashboard, log=log) as cluster:
+        client = Client(cluster, security=cluster.security, set_as_default=False)
         try:
             yield client
         finally:
             with contextlib.suppress(Exception):
                 client.close(timeout=_CLOSE_TIMEOUT)
+
+
+@contextlib.contextmanager
+def _local_cluster(workers: int, *, dashboard: bool = False,
+                   log: Callable[[str], None] | None = None) -> Iterator[Any]:
+    """The study's local cluster: ``workers`` processes on 127.0.0.1, every connection TLS
+    with credentials made here (``cluster.security``); HTTP servers with no route (the
+    scheduler's dashboard with ``dashboard``) answering local Host headers only."""
+    import dask
+    from distributed import LocalCluster
+    from distributed.security import Security
+
+    security = Security.temporary()
+    routes = list(dask.config.get("distributed.scheduler.http.routes")) if dashboard else []
+    with dask.config.set({"distributed.scheduler.http.routes": routes,
+                          "distributed.worker.http.routes": []}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", protocol="tls://", security=security,
+                               dashboard_address=None,
+                               scheduler_kwargs={"dashboard": bool(dashboard),
+                                                 "dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR, env=dict(WORKER_ENV))
+    try:
+        _guard_hosts(cluster.scheduler)
+        if dashboard and log is not None:
+            log(f"dashboard: {_dashboard_link(cluster.scheduler)}")
+        yield cluster
     except BaseException:
         # interrupted: stop the workers without waiting for their running batch (a nanny
         # otherwise waits 4 s for it before killing the process)
@@ -399,6 +739,35 @@ def _client(address: str | None, workers: int) -> Iterator[Any]:
     finally:
         with contextlib.suppress(Exception):
             cluster.close(timeout=_CLOSE_TIMEOUT)
+
+
+def _dashboard_link(scheduler: Any) -> str:
+    import importlib.util
+
+    port = scheduler.services["dashboard"].port
+    if importlib.util.find_spec("bokeh") is None:
+        return (f"http://127.0.0.1:{port}/info/main/workers.html (Dask's info pages; "
+                "install bokeh for the full dashboard)")
+    return f"http://127.0.0.1:{port}/status"
+
+
+def _guard_hosts(server: Any) -> None:
+    """Make ``server``'s HTTP server answer 403 to a Host header outside
+    :data:`LOCAL_HOSTS` (a page of another site that resolves its name to 127.0.0.1
+    cannot read it)."""
+    from tornado import web
+
+    app = getattr(server, "http_application", None)
+    if app is None:
+        return
+    find = app.find_handler
+
+    def find_handler(request: Any, **kwargs: Any) -> Any:
+        if getattr(request, "host_name", None) not in LOCAL_HOSTS:
+            return app.get_handler_delegate(request, web.ErrorHandler, {"status_code": 403})
+        return find(request, **kwargs)
+
+    app.find_handler = find_handler
 
 
 async def _close_nannies(nannies: Sequence[Any], timeout: float) -> None:
