@@ -27,6 +27,7 @@ from threadpoolctl import threadpool_limits
 from ._validation import finite_number
 from .exceptions import ParameterError, RunInterrupted
 from .gaits import Serpenoid, _brief, _flag, _integer, arc
+from .manipulability import _free_tuple as _free_joints
 from .manipulability import manipulability, manipulability_R_batch, task_split
 from .model import Snake, _check_snake
 
@@ -207,7 +208,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     points = _integer(points, "points", low=2, high=MAX_POINTS)
     progress = _flag(progress, "progress")
     task_split(snake.n, free_joint)  # validate before any output (progress bar)
-    free = tuple(sorted(set(snake.params.passive) | set(_free_tuple(free_joint))))
+    free = tuple(sorted(set(snake.params.passive) | set(_free_joints(snake.n, free_joint))))
     label, default, _ = FAMILIES[family]
     low, high = default if bounds is None else _bounds(bounds)
     values = _with_zero(np.linspace(low, high, int(points)))
