@@ -247,6 +247,22 @@ def test_the_cli_bounds_the_handshake_and_creates_nothing(tmp_path: Path, capsys
     assert not out.exists()
 
 
+def test_a_scheduler_that_goes_silent_after_the_check_is_given_up(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """If the server stops speaking Dask between the check and the client (here: the check
+    is skipped), the client is abandoned on its own deadline with one line, not a hang."""
+    from snake_pin.study import runner
+
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY)
+    monkeypatch.setattr(runner, "check_scheduler", lambda address, **_: address)
+    with _server("silent") as address:
+        error = _refused(lambda: run_study(study, tmp_path / "out", scheduler=address,
+                                           connect_timeout=0.5), 10)
+    assert isinstance(error, StudyError) and "no Dask scheduler answered" in str(error)
+    assert "\n" not in str(error)
+
+
 # ------------------------------------------------------------------ options
 def test_security_options_are_checked_before_anything_is_created(tmp_path: Path) -> None:
     """A tls:// address without credentials, tcp:// with settings requiring encryption,

@@ -684,12 +684,26 @@ def _client(address: str | None, workers: int, *, security: Any = None,
     from distributed import Client
 
     if address is not None:
-        try:
-            client = Client(address, security=security, timeout=f"{timeout:g}s",
-                            set_as_default=False)
-        except Exception as exc:  # the scheduler went away since check_scheduler
-            raise StudyError(f"scheduler {address}: no Dask scheduler answered "
-                             f"({_one_line(str(exc))})") from None
+        # on a deadline of its own: a Client to a server that accepts connections but
+        # never speaks Dask waits past its timeout (the server may have changed since
+        # check_scheduler)
+        made: dict[str, Any] = {}
+
+        def connect() -> None:
+            try:
+                made["client"] = Client(address, security=security, timeout=f"{timeout:g}s",
+                                        set_as_default=False)
+            except Exception as exc:
+                made["error"] = exc
+
+        thread = threading.Thread(target=connect, name="snake-pin-client", daemon=True)
+        thread.start()
+        thread.join(timeout + 2.0)
+        if "client" not in made:
+            reason = _one_line(str(made["error"])) if "error" in made else \
+                f"no answer within {timeout:g} s"
+            raise StudyError(f"scheduler {address}: no Dask scheduler answered ({reason})")
+        client = made["client"]
         try:
             yield client
         finally:
