@@ -3,7 +3,8 @@
 - :mod:`~snake_pin.study.spec`: the study file (base scenario, axes), validation, run keys;
 - :mod:`~snake_pin.study.work`: the unit of work (a batch of runs -> result rows), with
   the hook where the lockstep batched simulator plugs in;
-- :mod:`~snake_pin.study.runner`: execution on a Dask cluster, resuming, interrupts;
+- :mod:`~snake_pin.study.runner`: execution on a Dask cluster (TLS-authenticated locally;
+  a given scheduler checked by Dask's handshake on a deadline), resuming, interrupts;
 - :mod:`~snake_pin.study.results`: the output folder and its Parquet dataset;
 - :mod:`~snake_pin.study.summary`, :mod:`~snake_pin.study.report`: the summary and the page;
 - :mod:`~snake_pin.study.command`: the ``snake-pin study`` subcommand.
