@@ -63,8 +63,7 @@ import pinocchio as pin
 from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
 from .exceptions import ParameterError
-from .gaits import _brief
-from .paper import _check_params
+from .paper import _brief, _check_params
 from .params import SnakeParams
 
 __all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_twin",

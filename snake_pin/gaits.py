@@ -8,7 +8,6 @@ numbers: head position [m], head angle [rad], joint angles [rad]); states are
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -17,41 +16,13 @@ import numpy as np
 
 from ._validation import finite_number
 from .exceptions import ConfigurationError, ParameterError
+from .paper import _integer
 
 __all__ = ["Serpenoid", "arc", "configuration", "initial_state", "straight"]
 
 
 #: Keyword arguments of the head pose (``**head`` of the posture functions).
 _HEAD = ("x_h", "y_h", "theta_1")
-
-
-def _brief(value: object) -> str:
-    """``value`` for a one-line message: the repr of a short scalar or text, else its type."""
-    if value is None or isinstance(value, (bool, int, float, str, np.generic)):
-        text = repr(value)
-        if len(text) <= 40 and "\n" not in text:
-            return text
-    return f"a {type(value).__name__}"
-
-
-def _integer(value: object, name: str, *, low: int | None = None,
-             high: int | None = None) -> int:
-    """``value`` as an int in ``low..high`` (a bool is refused), or ParameterError."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
-        raise ParameterError(f"{name} must be an integer, got {_brief(value)}")
-    number = int(value)
-    if (low is not None and number < low) or (high is not None and number > high):
-        span = (f"be >= {low}" if high is None else f"be <= {high}" if low is None
-                else f"lie in {low}..{high}")
-        raise ParameterError(f"{name} must {span}, got {number}")
-    return number
-
-
-def _flag(value: object, name: str) -> bool:
-    """``value`` as a bool: True or False only (not 0/1, not text), or ParameterError."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise ParameterError(f"{name} must be True or False, got {_brief(value)}")
-    return bool(value)
 
 
 def _check_n(n: int) -> int:

@@ -36,8 +36,8 @@ import numpy as np
 from . import paper
 from ._validation import finite_number
 from .exceptions import ConfigurationError, ParameterError
-from .gaits import _brief, _integer
 from .model import Snake, _check_snake
+from .paper import _brief, _integer
 
 __all__ = [
     "Involutivity",

@@ -47,9 +47,8 @@ from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
 from .exceptions import ConfigurationError, ParameterError
 from .friction import _check_data, _check_model
-from .gaits import _brief, _flag, _integer
 from .model import Snake, _check_snake
-from .paper import _check_params, k_matrix
+from .paper import _brief, _check_params, _flag, _integer, k_matrix
 from .params import SnakeParams
 
 __all__ = [

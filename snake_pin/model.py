@@ -33,8 +33,7 @@ from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
 from .exceptions import ConfigurationError, ParameterError
 from .friction import FrictionModel
-from .gaits import _brief, _integer
-from .paper import _check_params
+from .paper import _brief, _check_params, _integer
 from .params import SnakeParams
 from .urdf import urdf_string
 

@@ -48,11 +48,12 @@ of this derivation, on random states of random heterogeneous robots.
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from ._validation import as_vector
 from .exceptions import ConfigurationError, ParameterError
-from .gaits import _brief, _integer
 from .params import SnakeParams
 
 __all__ = [
@@ -71,6 +72,37 @@ __all__ = [
     "link_angles",
     "w_matrix_bar",
 ]
+
+
+# Argument checks shared by the package's public functions (beside _validation's;
+# here because this is the lowest module that needs them).
+def _brief(value: object) -> str:
+    """``value`` for a one-line message: the repr of a short scalar or text, else its type."""
+    if value is None or isinstance(value, (bool, int, float, str, np.generic)):
+        text = repr(value)
+        if len(text) <= 40 and "\n" not in text:
+            return text
+    return f"a {type(value).__name__}"
+
+
+def _integer(value: object, name: str, *, low: int | None = None,
+             high: int | None = None) -> int:
+    """``value`` as an int in ``low..high`` (a bool is refused), or ParameterError."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise ParameterError(f"{name} must be an integer, got {_brief(value)}")
+    number = int(value)
+    if (low is not None and number < low) or (high is not None and number > high):
+        span = (f"be >= {low}" if high is None else f"be <= {high}" if low is None
+                else f"lie in {low}..{high}")
+        raise ParameterError(f"{name} must {span}, got {number}")
+    return number
+
+
+def _flag(value: object, name: str) -> bool:
+    """``value`` as a bool: True or False only (not 0/1, not text), or ParameterError."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(f"{name} must be True or False, got {_brief(value)}")
+    return bool(value)
 
 
 def _check_params(value: object, name: str = "params") -> SnakeParams:

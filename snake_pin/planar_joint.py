@@ -50,7 +50,7 @@ from ._symmetric import symmetric_from_upper
 from ._validation import as_vector
 from .exceptions import ParameterError
 from .friction import _check_data, _check_model
-from .gaits import _brief, _integer
+from .paper import _brief, _integer
 
 __all__ = [
     "PlanarLayout",

@@ -35,9 +35,8 @@ from threadpoolctl import threadpool_limits
 
 from ._validation import finite_number
 from .exceptions import ParameterError, RunInterrupted
-from .gaits import _flag, _integer
 from .manipulability import _free_tuple, _r_batch, task_split
-from .paper import _check_params
+from .paper import _check_params, _flag, _integer
 from .params import SnakeParams
 
 __all__ = ["MAX_SEED", "MAX_STARTS", "SingularFamily", "SingularSearch",

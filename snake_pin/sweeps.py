@@ -26,10 +26,11 @@ from threadpoolctl import threadpool_limits
 
 from ._validation import finite_number
 from .exceptions import ParameterError, RunInterrupted
-from .gaits import Serpenoid, _brief, _flag, _integer, arc
+from .gaits import Serpenoid, arc
 from .manipulability import _free_tuple as _free_joints
 from .manipulability import manipulability, manipulability_R_batch, task_split
 from .model import Snake, _check_snake
+from .paper import _brief, _flag, _integer
 
 __all__ = ["FAMILIES", "MAX_POINTS", "RMap", "Sweep", "r_map", "sweep"]
 
