@@ -226,6 +226,29 @@ def test_unknown_options_are_refused(snake: Snake) -> None:
         LOSController(Snake(SnakeParams.table1(n=3, passive=(1, 2))))
 
 
+@pytest.mark.parametrize(("kwargs", "law"), [
+    ({"k_p": 2.0}, "pd"), ({"k_d": 0.5}, "pd"), ({"k_theta": 5.0, "steering": "pd"}, "cascaded"),
+    ({"lambda1": 10.0, "steering": "pd"}, "cascaded"),
+    ({"v_min": 0.1, "steering": "pd"}, "cascaded"),
+])
+def test_the_other_laws_fields_are_refused(snake: Snake, kwargs: dict[str, object],
+                                            law: str) -> None:
+    """A field only the other steering law reads, set away from its default, is refused."""
+    with pytest.raises(ParameterError, match=f"has no effect .*the '{law}' law") as info:
+        LOSParams(**kwargs)  # type: ignore[arg-type]
+    assert "\n" not in str(info.value)
+    with pytest.raises(ParameterError, match="has no effect"):
+        LOSController(snake, **kwargs)
+
+
+def test_params_must_be_los_params(snake: Snake) -> None:
+    """params={} (or any other non-LOSParams) is refused, not read as the defaults."""
+    with pytest.raises(ParameterError, match="params must be LOSParams"):
+        LOSController(snake, params={})  # type: ignore[arg-type]
+    kept = LOSController(snake, params=LOSParams(steering="pd", k_p=2.0))
+    assert kept.params.k_p == 2.0 and kept.params.steering == "pd"
+
+
 def test_cached_gait_cannot_be_changed_by_a_caller(snake: Snake) -> None:
     """gait(t) asked twice returns the same values even if the caller tried to modify the
     first answer (the cached arrays are read-only)."""

@@ -92,3 +92,21 @@ def test_passive_joint_refused() -> None:
     """PFL needs every input: a snake with a passive joint is refused."""
     with pytest.raises(ParameterError):
         PFLController(Snake(SnakeParams.table1(passive=(5,))))
+
+
+def test_climb_damping_without_climb_is_refused() -> None:
+    """climb_damping has no effect with climb_R = 0: refused, not ignored; with climb_R > 0
+    it is kept, and left out it is 2 /s."""
+    snake = Snake(SnakeParams.table1(n=5))
+    with pytest.raises(ParameterError, match="climb_damping has no effect") as info:
+        PFLController(snake, climb_damping=3.0)
+    assert "\n" not in str(info.value)
+    assert PFLController(snake, climb_R=0.5, climb_damping=3.0).climb_damping == 3.0
+    assert PFLController(snake).climb_damping == 2.0
+
+
+def test_a_reference_must_be_callable() -> None:
+    """A reference that is not callable is refused at construction, not at the first call."""
+    snake = Snake(SnakeParams.table1(n=5))
+    with pytest.raises(ParameterError, match="reference"):
+        PFLController(snake, reference=(0.1, 0.0, 0.0))  # type: ignore[arg-type]

@@ -14,8 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from ..exceptions import ParameterError
+from ..exceptions import ConfigurationError, ParameterError
 from ..gaits import Serpenoid
+from ..paper import _brief, _integer
 from .reference import LinearReference
 
 __all__ = ["Controller", "OpenLoop", "TimeTerms", "gait_for", "reference_rows"]
@@ -44,12 +45,30 @@ def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
     Raises
     ------
     ParameterError
-        The gait is for another number of links.
+        ``n`` is not an integer >= 2, a gait is not a Serpenoid, or the gait is for
+        another number of links.
     """
-    chosen = default if gait is None else gait
+    n = _integer(n, "n", low=2)
+    _check_gait(default, "default")
+    chosen = default if gait is None else _check_gait(gait, "gait")
     if chosen.n != n:
         raise ParameterError(f"gait is for {chosen.n} links, the robot has {n}")
     return chosen
+
+
+def _check_gait(value: object, name: str) -> Serpenoid:
+    """``value`` if it is a :class:`~snake_pin.gaits.Serpenoid`, else ParameterError."""
+    if not isinstance(value, Serpenoid):
+        raise ParameterError(f"{name} must be a Serpenoid, got {_brief(value)}")
+    return value
+
+
+def _check_reference(value: object, name: str = "reference") -> Any:
+    """``value`` if it is callable (a head reference ``t -> (w_r, w_r', w_r'')``)."""
+    if not callable(value):
+        raise ParameterError(f"{name} must be a head reference (a callable of time), "
+                             f"got {_brief(value)}")
+    return value
 
 
 def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: Serpenoid,
@@ -73,7 +92,31 @@ def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: S
     numpy.ndarray
         Shape (T, 3 (n + 2)): per time the reference, then its first and second time
         derivatives, each as ``[w_r, phi_r]`` (n + 2 values).
+
+    Raises
+    ------
+    ParameterError
+        ``reference`` is not callable or ``gait`` is not a Serpenoid.
+    ConfigurationError
+        ``times`` is not a vector of finite numbers.
     """
+    _check_reference(reference)
+    _check_gait(gait, "gait")
+    try:
+        checked = np.asarray(times, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"times must be a vector of numbers, got {_brief(times)}") \
+            from exc
+    if isinstance(times, (bool, np.bool_)) or checked.ndim != 1 \
+            or not np.all(np.isfinite(checked)):
+        raise ConfigurationError(f"times must be a vector of finite numbers, "
+                                 f"got {_brief(times)}")
+    return _reference_rows(reference, gait, checked)
+
+
+def _reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: Serpenoid,
+                    times: np.ndarray) -> np.ndarray:
+    """:func:`reference_rows` of checked arguments (the laws' time terms: a hot path)."""
     column = np.asarray(times, dtype=float)[:, None]
     if isinstance(reference, LinearReference):
         w_r, dw_r, ddw_r = (np.broadcast_to(part, (len(column), 3))
@@ -96,9 +139,16 @@ class TimeTerms:
     ----------
     rows : callable
         ``rows(times) -> array`` with one row per time of the (T,) array ``times`` [s].
+
+    Raises
+    ------
+    ParameterError
+        ``rows`` is not callable.
     """
 
     def __init__(self, rows: Callable[[np.ndarray], np.ndarray]) -> None:
+        if not callable(rows):
+            raise ParameterError(f"rows must be a callable times -> array, got {_brief(rows)}")
         self._rows = rows
         self.prepare(np.zeros(0))
 
@@ -198,11 +248,19 @@ class OpenLoop(Controller):
     ----------
     schedule : callable
         ``schedule(t) -> tau``: the n - 1 joint torques [N m] at time ``t`` [s].
+
+    Raises
+    ------
+    ParameterError
+        ``schedule`` is not callable.
     """
 
     name = "open_loop"
 
     def __init__(self, schedule: Callable[[float], np.ndarray]) -> None:
+        if not callable(schedule):
+            raise ParameterError(f"schedule must be a callable t -> tau, "
+                                 f"got {_brief(schedule)}")
         self.schedule = schedule
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
@@ -318,4 +376,4 @@ class _ReferenceTimeTerms:
         self._time_row.prepare(times)
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:
-        return reference_rows(self.reference, self.gait, times) @ self._law_time
+        return _reference_rows(self.reference, self.gait, times) @ self._law_time

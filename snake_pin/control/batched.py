@@ -67,7 +67,7 @@ last call (V, R).
 from __future__ import annotations
 
 import abc
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -76,7 +76,7 @@ from scipy.linalg import lapack
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import _r_batch
-from ..paper import k_matrix
+from ..paper import _brief, _check_params, _integer, k_matrix
 from ..params import SnakeParams
 from .base import Controller
 from .lyapunov import LyapunovController
@@ -107,6 +107,23 @@ LAYOUT_FIELDS = ("n", "link_length", "mass", "inertia", "com_offset")
 Failure = BaseException | str
 
 
+def _items(value: object, name: str) -> list[Any]:
+    """``value`` as a non-empty list: a sequence (not text, not a mapping), or ParameterError."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise ParameterError(f"{name} must be a non-empty sequence, got {_brief(value)}")
+    items = list(value)
+    if not items:
+        raise ParameterError(f"{name} must be a non-empty sequence, got an empty one")
+    return items
+
+
+def _callable(value: object, name: str) -> Any:
+    """``value`` if it is callable, else ParameterError naming ``name``."""
+    if not callable(value):
+        raise ParameterError(f"{name} must be callable, got {_brief(value)}")
+    return value
+
+
 def layout_key(params: SnakeParams) -> tuple[Any, ...]:
     """Return the layout fields of ``params`` (equal for robots that share a Pinocchio model).
 
@@ -119,7 +136,13 @@ def layout_key(params: SnakeParams) -> tuple[Any, ...]:
     -------
     tuple
         The values of :data:`LAYOUT_FIELDS`, in that order (hashable: a dict key).
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams.
     """
+    _check_params(params)
     return tuple(getattr(params, name) for name in LAYOUT_FIELDS)
 
 
@@ -136,10 +159,16 @@ class BatchTerms:
     ----------
     params : SnakeParams
         Any robot of the layout (only the fields of :data:`LAYOUT_FIELDS` are used).
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams.
     """
 
     def __init__(self, params: SnakeParams) -> None:
-        n = params.n
+        n = _check_params(params).n
+        self._layout = layout_key(params)
         self.n, self.nq = n, n + 2
         k = k_matrix(params)
         masses = params.masses
@@ -447,10 +476,18 @@ class FrictionCoefficients:
     Parameters
     ----------
     robots : sequence of SnakeParams
-        One robot per run (B of them).
+        One robot per run (B of them), all with the same number of links.
+
+    Raises
+    ------
+    ParameterError
+        ``robots`` is not a non-empty sequence of SnakeParams of one n.
     """
 
     def __init__(self, robots: Sequence[SnakeParams]) -> None:
+        robots = [_check_params(p, "robots[]") for p in _items(robots, "robots")]
+        if len({p.n for p in robots}) > 1:
+            raise ParameterError("robots must all have the same number of links")
         c_x = np.array([p.per_link("c_x") for p in robots]).reshape(len(robots), -1)
         c_y = np.array([p.per_link("c_y") for p in robots]).reshape(len(robots), -1)
         self.cbar = 0.5 * (c_x + c_y)
@@ -725,8 +762,24 @@ class _Vectorised(BatchedController):
 
     #: Names of the per-run arrays (batch first) that :meth:`keep` selects.
     _per_run: tuple[str, ...] = ()
+    #: The one controller type a subclass vectorises (set below its definition).
+    _law: type
 
     def __init__(self, controllers: Sequence[Any], terms: BatchTerms | None = None) -> None:
+        controllers = _items(controllers, "controllers")
+        law = self._law
+        for controller in controllers:
+            if type(controller) is not law:
+                raise ParameterError(f"controllers must all be {law.__name__} (exactly), "
+                                     f"got {_brief(controller)}")
+        layout = layout_key(controllers[0].snake.params)
+        if any(layout_key(c.snake.params) != layout for c in controllers):
+            raise ParameterError("controllers must all model robots of one layout "
+                                 f"({', '.join(LAYOUT_FIELDS)})")
+        if terms is not None and (not isinstance(terms, BatchTerms)
+                                  or terms._layout != layout):
+            raise ParameterError(f"terms must be None or the BatchTerms of the controllers' "
+                                 f"layout, got {_brief(terms)}")
         first = controllers[0]
         params = [c.snake.params for c in controllers]
         self.n = first.snake.n
@@ -798,10 +851,17 @@ class BatchedLyapunov(_Vectorised):
         One controller per run, all of one layout (exactly this type).
     terms : BatchTerms or None, optional
         Model terms to share (the plant's); default: a new one for the layout.
+
+    Raises
+    ------
+    ParameterError
+        ``controllers`` is not a non-empty sequence of LyapunovController of one layout, or
+        ``terms`` is not None nor the BatchTerms of that layout.
     """
 
     _per_run = ("k_w1", "k_w2", "k_phi", "lam", "lam_shape", "k_shape", "_kkt_fixed",
                 "_pick", "_scalar", "exact")
+    _law = LyapunovController
 
     def __init__(self, controllers: Sequence[LyapunovController],
                  terms: BatchTerms | None = None) -> None:
@@ -932,10 +992,17 @@ class BatchedQuasiStatic(_Vectorised):
         One controller per run, all of one layout (exactly this type).
     terms : BatchTerms or None, optional
         Model terms to share (the plant's); default: a new one for the layout.
+
+    Raises
+    ------
+    ParameterError
+        ``controllers`` is not a non-empty sequence of QuasiStaticLyapunovController
+        of one layout, or ``terms`` is not None nor the BatchTerms of that layout.
     """
 
     _per_run = ("k_w1", "_w_u", "_w_a", "_normal_diag", "_umask", "_k_p", "_k_d",
                 "max_lead", "dt", "_reference", "_started", "_uu", "_ua", "_eye_a")
+    _law = QuasiStaticLyapunovController
 
     def __init__(self, controllers: Sequence[QuasiStaticLyapunovController],
                  terms: BatchTerms | None = None) -> None:
@@ -1022,9 +1089,16 @@ class BatchedPFL(_Vectorised):
         One controller per run, all of one layout (exactly this type).
     terms : BatchTerms or None, optional
         Model terms to share (the plant's); default: a new one for the layout.
+
+    Raises
+    ------
+    ParameterError
+        ``controllers`` is not a non-empty sequence of PFLController of one layout, or
+        ``terms`` is not None nor the BatchTerms of that layout.
     """
 
     _per_run = ("k_v", "k_p", "r_v", "r_p", "r_min", "climb_R", "climb_damping")
+    _law = PFLController
 
     def __init__(self, controllers: Sequence[PFLController],
                  terms: BatchTerms | None = None) -> None:
@@ -1111,14 +1185,21 @@ class PerRunControllers(BatchedController):
         ``validate(raw, size) -> (tau or None, problem)``: the simulator's torque check.
     n_tau : int
         n - 1, the number of torques each controller returns.
+
+    Raises
+    ------
+    ParameterError
+        ``controllers`` is not a non-empty sequence of callables, ``validate`` is not
+        callable or ``n_tau`` is not a positive integer.
     """
 
     def __init__(self, controllers: Sequence[Controller],
                  validate: Callable[[object, int], tuple[np.ndarray | None, str]],
                  n_tau: int) -> None:
-        self._controllers = list(controllers)
-        self._validate = validate
-        self._n_tau = n_tau
+        self._controllers = [_callable(c, "controllers[]")
+                             for c in _items(controllers, "controllers")]
+        self._validate = _callable(validate, "validate")
+        self._n_tau = _integer(n_tau, "n_tau", low=1)
         self.size = len(controllers)
         self._last: dict[str, np.ndarray] = {}
 
@@ -1193,13 +1274,33 @@ class GroupedControllers(BatchedController):
         together they cover 0..B-1 once.
     n_tau : int
         n - 1, the number of torques per run.
+
+    Raises
+    ------
+    ParameterError
+        ``groups`` is not a non-empty sequence of (rows, BatchedController) pairs whose
+        rows cover 0..B-1 once, or ``n_tau`` is not a positive integer.
     """
 
     def __init__(self, groups: Sequence[tuple[np.ndarray, BatchedController]],
                  n_tau: int) -> None:
-        self.size = sum(len(rows) for rows, _ in groups)
-        self._n_tau = n_tau
-        self._groups = [(np.asarray(rows, dtype=int), ctrl) for rows, ctrl in groups]
+        checked = []
+        for group in _items(groups, "groups"):
+            if not isinstance(group, tuple) or len(group) != 2 \
+                    or not isinstance(group[1], BatchedController):
+                raise ParameterError(f"groups must hold (rows, BatchedController) pairs, "
+                                     f"got {_brief(group)}")
+            rows = np.asarray(group[0])
+            if rows.ndim != 1 or rows.dtype.kind not in "iu" or len(rows) != group[1].size:
+                raise ParameterError("groups' rows must be integer arrays, one row per run "
+                                     "of their controller")
+            checked.append((rows.astype(int), group[1]))
+        every = np.sort(np.concatenate([rows for rows, _ in checked]))
+        if not np.array_equal(every, np.arange(len(every))):
+            raise ParameterError("groups' rows must cover 0..B-1 once")
+        self.size = len(every)
+        self._n_tau = _integer(n_tau, "n_tau", low=1)
+        self._groups = checked
         self._last: dict[str, np.ndarray] = {}
 
     def reset(self) -> dict[int, Failure]:
@@ -1306,8 +1407,15 @@ def batch_controller(controllers: Sequence[Controller], n_tau: int,
     Raises
     ------
     ParameterError
-        A vectorised controller models a robot with another number of joints.
+        ``controllers`` is not a non-empty sequence of callables, ``n_tau`` not a
+        positive integer, ``validate`` (or ``terms``, when given) not callable, or a
+        vectorised controller models a robot with another number of joints.
     """
+    controllers = [_callable(c, "controllers[]") for c in _items(controllers, "controllers")]
+    n_tau = _integer(n_tau, "n_tau", low=1)
+    _callable(validate, "validate")
+    if terms is not None:
+        _callable(terms, "terms")
     groups: dict[tuple[Any, ...], list[int]] = {}
     models: dict[tuple[Any, ...], SnakeParams] = {}
     for row, ctrl in enumerate(controllers):

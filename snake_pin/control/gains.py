@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import ParameterError
+from ..paper import _brief, _flag, _integer
 
 __all__ = ["gain_matrix"]
 
@@ -31,13 +32,20 @@ def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -
     Raises
     ------
     ParameterError
-        ``value`` is not numeric, has the wrong shape, is not finite, not symmetric, or
-        not (semi-)definite.
+        ``value`` is not numeric (a bool is not a gain), has the wrong shape, is not
+        finite, not symmetric, or not (semi-)definite; ``size`` is not a positive
+        integer, ``name`` not a string or ``definite`` not a bool.
     """
+    if not isinstance(name, str):
+        raise ParameterError(f"name must be the gain's name (a string), got {_brief(name)}")
+    size = _integer(size, "size", low=1)
+    definite = _flag(definite, "definite")
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be numeric") from exc
+        raise ParameterError(f"{name} must be numeric, got {_brief(value)}") from exc
+    if value is None or np.asarray(value).dtype.kind == "b":
+        raise ParameterError(f"{name} must be numeric, got {_brief(value)}")
     if arr.ndim == 0:
         arr = float(arr) * np.eye(size)
     elif arr.ndim == 1:

@@ -131,14 +131,19 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.linalg import expm, lapack
 
+from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
-from ..model import Snake
+from ..model import Snake, _check_snake
+from ..paper import _brief
 from ..paths import Line, Path, PathReference
 from .base import Controller
 
 __all__ = ["LOSController", "LOSParams", "ReferenceFilter", "body_kinematics", "los_heading"]
 
 _STEERING = ("cascaded", "pd")
+#: The fields only one steering law reads: a value other than the default given with the
+#: other law would have no effect, so it is refused.
+_ONLY_FOR = {"cascaded": ("k_theta", "lambda1", "lambda2", "v_min"), "pd": ("k_p", "k_d")}
 
 
 @dataclass(frozen=True)
@@ -161,7 +166,9 @@ class LOSParams:
     v_min : float, optional
         Floor of the (averaged) forward speed in the cascaded law [m/s] (> 0).
     k_p, k_d : float, optional
-        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0).
+        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0). Each steering law's
+        own fields (k_theta, lambda1, lambda2, v_min for "cascaded"; k_p, k_d for "pd")
+        must keep their defaults under the other law, which would ignore them.
     phi0_max, phi0_rate : float, optional
         Saturation of the joint offset [rad] and of its rate of change [rad/s] (> 0).
     ref_period, offset_period : float, optional
@@ -176,8 +183,8 @@ class LOSParams:
     Raises
     ------
     ParameterError
-        If a value is not a finite number, is out of its range, or ``steering`` is
-        unknown.
+        If a value is not a finite number, is out of its range, ``steering`` is
+        unknown, or a field of the other steering law differs from its default.
     """
 
     alpha: float = 0.5
@@ -217,9 +224,17 @@ class LOSParams:
             if value < 0.0 and f.name in ("alpha", "k_p", "k_d"):
                 raise ParameterError(f"LOS parameter {f.name} must be non-negative, got {value}")
             object.__setattr__(self, f.name, value)
-        if self.steering not in _STEERING:
+        if not isinstance(self.steering, str) or self.steering not in _STEERING:
             raise ParameterError(f"LOS parameter steering must be one of {', '.join(_STEERING)}, "
-                                 f"got {self.steering!r}")
+                                 f"got {_brief(self.steering)}")
+        defaults = {f.name: f.default for f in fields(self)}
+        for law, names in _ONLY_FOR.items():
+            if law == self.steering:
+                continue
+            for name in names:
+                if getattr(self, name) != defaults[name]:
+                    raise ParameterError(f"LOS parameter {name} has no effect with steering = "
+                                         f"{self.steering!r} (it is the {law!r} law's)")
 
 
 def los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
@@ -238,7 +253,18 @@ def los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
     -------
     float
         The desired heading of travel [rad].
+
+    Raises
+    ------
+    ParameterError
+        A value is not a finite number, or ``look_ahead`` is not positive.
     """
+    return _los_heading(finite_number(gamma, "gamma"), finite_number(cross_track, "cross_track"),
+                        finite_number(look_ahead, "look_ahead", positive=True))
+
+
+def _los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
+    """:func:`los_heading` of checked numbers (the law's per-step call)."""
     return gamma - math.atan(cross_track / look_ahead)
 
 
@@ -253,8 +279,8 @@ def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray
     ----------
     snake : Snake
         The robot (its link masses, lengths and CM offsets).
-    x : numpy.ndarray, shape (2(n + 2),)
-        State ``x = [q, dq]`` (not validated).
+    x : array_like, shape (2(n + 2),)
+        State ``x = [q, dq]``.
 
     Returns
     -------
@@ -262,7 +288,15 @@ def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray
         Position [m] and velocity [m/s] of the whole robot's centre of mass.
     psi, dpsi : float
         Mean heading of travel [rad] and its rate [rad/s].
+
+    Raises
+    ------
+    ParameterError
+        ``snake`` is not a Snake.
+    ConfigurationError
+        ``x`` does not have 2(n + 2) finite entries.
     """
+    x = _check_snake(snake).check_state(x)
     return _kinematics(_cm_lever(snake), snake.nq, x)
 
 
@@ -302,12 +336,19 @@ class ReferenceFilter:
     Parameters
     ----------
     period : float
-        ``2 pi / omega_c`` [s], > 0 (not validated: :class:`LOSParams` checks it).
+        ``2 pi / omega_c`` [s], > 0.
     zeta : float, optional
-        Damping ratio of the second-order factor (1: critically damped).
+        Damping ratio of the second-order factor (1: critically damped), > 0.
+
+    Raises
+    ------
+    ParameterError
+        ``period`` or ``zeta`` is not a positive number.
     """
 
     def __init__(self, period: float, zeta: float = 1.0) -> None:
+        period = finite_number(period, "period", positive=True)
+        zeta = finite_number(zeta, "zeta", positive=True)
         wc = 2.0 * math.pi / period
         k = 2.0 * zeta + 1.0
         aug = np.zeros((4, 4))
@@ -378,19 +419,20 @@ class LOSController(Controller):
     Raises
     ------
     ParameterError
-        If every joint is passive, ``params`` is not a :class:`LOSParams`, an override
-        is unknown or out of its domain, or ``path`` is not a path.
+        If ``snake`` is not a Snake, every joint is passive, ``params`` is not a
+        :class:`LOSParams`, an override is unknown or out of its domain, or ``path`` is
+        not a path.
     """
 
     name = "los"
 
     def __init__(self, snake: Snake, path: Path | PathReference | None = None,
                  params: LOSParams | None = None, **overrides: object) -> None:
-        if not snake.params.actuated:
+        if not _check_snake(snake).params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
-        base = params or LOSParams()
+        base = LOSParams() if params is None else params
         if not isinstance(base, LOSParams):
-            raise ParameterError(f"params must be LOSParams, got {type(base).__name__}")
+            raise ParameterError(f"params must be LOSParams, got {_brief(base)}")
         known = {f.name for f in fields(LOSParams)}
         for key in overrides:
             if key not in known:
@@ -485,8 +527,8 @@ class LOSController(Controller):
         self._s_cm = s_cm
         cross = (p_cm[0] - x_p) * -math.sin(gamma) + (p_cm[1] - y_p) * math.cos(gamma)
         v_t = float(v_cm[0] * math.cos(psi) + v_cm[1] * math.sin(psi))
-        return {"e_ct": cross, "s_cm": s_cm, "theta_los": los_heading(gamma, cross,
-                                                                     self.params.look_ahead),
+        return {"e_ct": cross, "s_cm": s_cm, "theta_los": _los_heading(gamma, cross,
+                                                                      self.params.look_ahead),
                 "theta_avg": psi, "dtheta_avg": dpsi, "v_t": v_t}
 
     def steering_offset(self, t: float, g: dict[str, float], ref: np.ndarray) -> float:

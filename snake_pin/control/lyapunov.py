@@ -82,8 +82,15 @@ from .._blas import dgemv, dposv, dsyrk
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
-from ..model import Snake
-from .base import Controller, TimeTerms, _ReferenceTimeTerms, _ViewsMadeOnce, gait_for
+from ..model import Snake, _check_snake
+from .base import (
+    Controller,
+    TimeTerms,
+    _check_reference,
+    _ReferenceTimeTerms,
+    _ViewsMadeOnce,
+    gait_for,
+)
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
@@ -102,7 +109,13 @@ def head_first_reference(speed: float = 0.1) -> LinearReference:
     -------
     LinearReference
         The reference.
+
+    Raises
+    ------
+    ParameterError
+        ``speed`` is not a finite number.
     """
+    speed = finite_number(speed, "speed")
     return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, np.pi))
 
 
@@ -130,8 +143,8 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
     Raises
     ------
     ParameterError
-        Every joint is passive, the gait is for another robot, or a gain or rate is
-        invalid.
+        ``snake`` is not a Snake, every joint is passive, ``reference`` is not callable,
+        the gait is not a Serpenoid for this robot, or a gain or rate is invalid.
     """
 
     name = "lyapunov"
@@ -141,11 +154,12 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                  k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
                  lam: float = 10.0, lam_shape: float | None = None,
                  k_shape: float | None = None) -> None:
-        n = snake.n
+        n = _check_snake(snake).n
         if not snake.params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
         self.snake = snake
-        self.reference = reference or head_first_reference()
+        self.reference = (head_first_reference() if reference is None
+                          else _check_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
         self.k_w1 = gain_matrix(k_w1, 3, "K_w1")
         k_w2_m = gain_matrix(k_w2, 3, "K_w2")

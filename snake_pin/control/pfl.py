@@ -60,8 +60,15 @@ from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import _r_batch
-from ..model import Snake
-from .base import Controller, TimeTerms, _ReferenceTimeTerms, _ViewsMadeOnce, gait_for
+from ..model import Snake, _check_snake
+from .base import (
+    Controller,
+    TimeTerms,
+    _check_reference,
+    _ReferenceTimeTerms,
+    _ViewsMadeOnce,
+    gait_for,
+)
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
@@ -86,12 +93,16 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
     climb_R
         Gain gamma of the singularity-aware redundancy term (0: the paper's law).
     climb_damping
-        Its damping k_d [1/s].
+        Its damping k_d [1/s]; 2 by default. Only with ``climb_R > 0`` (the paper's law
+        has no such term, and a damping given without it is refused).
 
     Raises
     ------
     ParameterError
-        A joint is passive, n < 4, or a gain is not a valid (semi-)definite matrix.
+        ``snake`` is not a Snake, a joint is passive, n < 4, ``reference`` is not
+        callable, the gait is not a Serpenoid for this robot, a gain is not a valid
+        (semi-)definite matrix, a number is invalid, or ``climb_damping`` is given with
+        ``climb_R = 0``.
     """
 
     name = "pfl"
@@ -99,15 +110,16 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
     def __init__(self, snake: Snake, reference: HeadReference | None = None,
                  gait: Serpenoid | None = None, *, k_v: object = 6.0, k_p: object = 6.2,
                  r_v: object = 0.041, r_p: object = 0.079, r_min: float = 1e-9,
-                 climb_R: float = 0.0, climb_damping: float = 2.0) -> None:
-        if snake.params.passive:
+                 climb_R: float = 0.0, climb_damping: float | None = None) -> None:
+        if _check_snake(snake).params.passive:
             raise ParameterError("PFL needs every joint actuated; use the Lyapunov-like "
                                  "controller with passive joints")
         n = snake.n
         if n < 4:
             raise ParameterError(f"PFL of the head needs n >= 4 links, got {n}")
         self.snake = snake
-        self.reference = reference or LinearReference()
+        self.reference = (LinearReference() if reference is None
+                          else _check_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 3, 1.0, 0.18))
         self.k_v = gain_matrix(k_v, 3, "K_v")
         self.k_p = gain_matrix(k_p, 3, "K_p")
@@ -115,7 +127,11 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self.r_p = gain_matrix(r_p, n - 1, "R_p", definite=False)
         self.r_min = finite_number(r_min, "r_min", non_negative=True)
         self.climb_R = finite_number(climb_R, "climb_R", non_negative=True)
-        self.climb_damping = finite_number(climb_damping, "climb_damping", positive=True)
+        if climb_damping is not None and self.climb_R == 0.0:
+            raise ParameterError("climb_damping has no effect with climb_R = 0 (no climb "
+                                 "term): give climb_R > 0 or leave climb_damping out")
+        self.climb_damping = finite_number(2.0 if climb_damping is None else climb_damping,
+                                           "climb_damping", positive=True)
         # the last call's q'' (None after a failed call) and signals, kept by the hot path
         self._outputs: list = [None, {}]
         self._nq = nq = snake.nq

@@ -51,9 +51,17 @@ from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..friction import damping_twin
 from ..gaits import Serpenoid
-from ..model import Snake
+from ..model import Snake, _check_snake
+from ..paper import _check_params
 from ..params import SnakeParams
-from .base import Controller, TimeTerms, _ReferenceTimeTerms, gait_for, reference_rows
+from .base import (
+    Controller,
+    TimeTerms,
+    _check_reference,
+    _reference_rows,
+    _ReferenceTimeTerms,
+    gait_for,
+)
 from .gains import gain_matrix
 from .lyapunov import head_first_reference
 from .reference import HeadReference
@@ -84,7 +92,14 @@ def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.n
     -------
     tuple of numpy.ndarray
         ``K_p`` [N m/rad] and ``K_d`` [N m s/rad], each of length n - 1.
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams or ``bandwidth`` is not a positive number.
     """
+    _check_params(params)
+    bandwidth = finite_number(bandwidth, "bandwidth", positive=True)
     link = params.masses * params.link_lengths**2
     inertia = 0.5 * (link[:-1] + link[1:])
     return bandwidth**2 * inertia, 2.0 * bandwidth * inertia
@@ -115,8 +130,9 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
     Raises
     ------
     ParameterError
-        Every joint is passive, a link has no lateral or longitudinal friction, or a gain
-        or number is invalid.
+        ``snake`` is not a Snake, every joint is passive, a link has no lateral or
+        longitudinal friction, ``reference`` is not callable, the gait is not a Serpenoid
+        for this robot, or a gain or number is invalid.
     """
 
     name = "lyapunov_velocity"
@@ -126,7 +142,7 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
                  k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
                  servo_bandwidth: float = 20.0, max_lead: float = 0.3,
                  control_dt: float = 1e-3) -> None:
-        params = snake.params
+        params = _check_snake(snake).params
         n = params.n
         if not params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
@@ -137,7 +153,8 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
                 raise ParameterError(f"{where}the quasi-static connection needs c_x > 0 and "
                                      f"c_y > 0 on every link, got {key} = 0")
         self.snake = snake
-        self.reference = reference or head_first_reference()
+        self.reference = (head_first_reference() if reference is None
+                          else _check_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
         self.k_w1 = gain_matrix(k_w1, 3, "K_w1")
         k_w2_d = np.diag(gain_matrix(k_w2, 3, "K_w2"))
@@ -210,7 +227,7 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
         at that time directly, which is cheaper than building a one-row block.
         """
         if len(times) != 1:
-            return reference_rows(self.reference, self.gait, times) @ self._law_time
+            return _reference_rows(self.reference, self.gait, times) @ self._law_time
         t = float(times[0])
         w_r, dw_r, _ = self.reference(t)
         dphi_r = self.gait.derivatives(t)[1]
