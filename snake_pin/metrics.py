@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
-from .manipulability import manipulability
+from ._validation import finite_number
+from .exceptions import ConfigurationError, ParameterError
+from .manipulability import manipulability, task_split
 from .model import Snake
+from .paper import _brief, _integer
 
 if TYPE_CHECKING:
     from .control.reference import HeadReference
@@ -20,6 +24,41 @@ __all__ = ["ERROR_WINDOW", "applied", "criteria_along", "default_error_window", 
 #: Head errors are judged over t >= this [s] in runs of at least twice its length, after
 #: the start-up; shorter runs are judged over their second half (:func:`default_error_window`).
 ERROR_WINDOW = 10.0
+
+
+def _check_traj(value: object) -> Trajectory:
+    """``value`` if it is a :class:`~snake_pin.sim.Trajectory`, else ParameterError."""
+    from .sim import Trajectory
+
+    if not isinstance(value, Trajectory):
+        raise ParameterError(f"traj must be a Trajectory, got {_brief(value)}")
+    return value
+
+
+def _check_summary(value: object) -> Mapping[str, object]:
+    """``value`` if it is a mapping whose window and error entries are numbers or None
+    (a diverged run's NaN included)."""
+    if not isinstance(value, Mapping):
+        raise ParameterError(f"summary must be a mapping (a run summary), got {_brief(value)}")
+    for key in ("error_window", "rms_head_error", "rms_relative", "t_end"):
+        entry = value.get(key)
+        if entry is not None and (isinstance(entry, (bool, np.bool_))
+                                  or not isinstance(entry, numbers.Real)):
+            raise ParameterError(f"summary[{key!r}] must be a number, got {_brief(entry)}")
+    return value
+
+
+def _check_error(error: object, samples: int) -> np.ndarray:
+    """``error`` as a float vector of one entry per sample (a diverged run's NaN kept)."""
+    try:
+        values = np.asarray(error, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"error must be {samples} numbers, got {_brief(error)}") \
+            from exc
+    if isinstance(error, (bool, np.bool_)) or values.shape != (samples,):
+        raise ConfigurationError(f"error must hold one number per sample ({samples}), "
+                                 f"got {_brief(error)}")
+    return values
 
 
 def default_error_window(t_final: float) -> float:
@@ -35,8 +74,13 @@ def default_error_window(t_final: float) -> float:
     float
         ``min(ERROR_WINDOW, t_final / 2)`` [s]: 10 s for runs of 20 s or more, else the
         run's second half, so that every run has a window.
+
+    Raises
+    ------
+    ParameterError
+        ``t_final`` is not a non-negative number.
     """
-    return min(ERROR_WINDOW, 0.5 * float(t_final))
+    return min(ERROR_WINDOW, 0.5 * finite_number(t_final, "t_final", non_negative=True))
 
 
 def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarray:
@@ -54,7 +98,16 @@ def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarra
     -------
     numpy.ndarray, shape (N,)
         Euclidean distance [m] at each sample time ``traj.t``.
+
+    Raises
+    ------
+    ParameterError
+        ``traj`` is not a Trajectory or ``reference`` is not callable.
     """
+    _check_traj(traj)
+    if not callable(reference):
+        raise ParameterError(f"reference must be a head reference (a callable of time), "
+                             f"got {_brief(reference)}")
     ref = np.array([reference(t)[0][:2] for t in traj.t])
     return np.linalg.norm(traj.q[:, :2] - ref, axis=1)
 
@@ -83,8 +136,18 @@ def head_error_summary(traj: Trajectory, error: np.ndarray,
         ``rms_head_error_pct`` and ``max_head_error_pct`` (% of the body length) and
         ``rms_relative`` (RMS over the body length, a fraction); all but ``error_window``
         None when no sample lies in the window (:func:`window_note` says so in words).
+
+    Raises
+    ------
+    ParameterError
+        ``traj`` is not a Trajectory or ``start`` is not a number.
+    ConfigurationError
+        ``error`` does not hold one number per sample.
     """
-    start = default_error_window(traj.t_end) if start is None else float(start)
+    _check_traj(traj)
+    error = _check_error(error, len(traj))
+    start = (default_error_window(traj.t_end) if start is None
+             else finite_number(start, "start"))
     late = window(traj, start)
     if not late.any():
         return {"error_window": start, "rms_head_error": None, "max_head_error": None,
@@ -113,8 +176,13 @@ def window_note(summary: Mapping[str, object]) -> str:
         ``"no samples in the head-error window t >= 20 s (the run ends at 3 s): the
         head-error metrics are null"``, or "" when the window has samples (or the summary
         has no head-error metrics).
+
+    Raises
+    ------
+    ParameterError
+        ``summary`` is not a mapping, or its window or error entries are not numbers.
     """
-    start = summary.get("error_window")
+    start = _check_summary(summary).get("error_window")
     if start is None or "rms_head_error" not in summary \
             or summary.get("rms_head_error") is not None:
         return ""
@@ -136,8 +204,13 @@ def percent(fraction: float | None) -> float | None:
     -------
     float or None
         ``100 * fraction``, or None.
+
+    Raises
+    ------
+    ParameterError
+        ``fraction`` is neither None nor a finite number.
     """
-    return None if fraction is None else 100.0 * fraction
+    return None if fraction is None else 100.0 * finite_number(fraction, "fraction")
 
 
 def error_caption(summary: Mapping[str, object]) -> str:
@@ -155,8 +228,13 @@ def error_caption(summary: Mapping[str, object]) -> str:
         ``"RMS error over t >= 10 s: 0.012 m (1.0 % of the body)"`` (the window's start
         from ``error_window``, :data:`ERROR_WINDOW` if absent), or a line saying the
         window holds no sample.
+
+    Raises
+    ------
+    ParameterError
+        ``summary`` is not a mapping, or its window or error entries are not numbers.
     """
-    start = float(cast(float, summary.get("error_window", ERROR_WINDOW)))
+    start = float(cast(float, _check_summary(summary).get("error_window", ERROR_WINDOW)))
     rms = summary.get("rms_head_error")
     if rms is None:
         return f"no samples in the error window t >= {start:g} s: no RMS error"
@@ -185,8 +263,16 @@ def criteria_along(traj: Trajectory, *, every: int = 1,
         Sample times [s], ``M = ceil(N / every)``.
     D, R : numpy.ndarray, shape (M,)
         The criteria of :func:`snake_pin.manipulability.manipulability` at those samples.
+
+    Raises
+    ------
+    ParameterError
+        ``traj`` is not a Trajectory, ``every`` is not a positive integer, or
+        ``free_joint`` is not a joint of the robot that leaves a task.
     """
-    snake = Snake(traj.params)
+    snake = Snake(_check_traj(traj).params)
+    every = _integer(every, "every", low=1)
+    task_split(snake.n, free_joint)  # the free joint checked before the first sample
     idx = np.arange(0, len(traj), every)
     d, r = np.empty(len(idx)), np.empty(len(idx))
     for out, k in enumerate(idx):
@@ -212,8 +298,13 @@ def applied(traj: Trajectory) -> np.ndarray:
     numpy.ndarray of bool, shape (N,)
         True where ``traj.tau`` was applied: every sample of a diverged run, every sample
         but the last otherwise.
+
+    Raises
+    ------
+    ParameterError
+        ``traj`` is not a Trajectory.
     """
-    mask = np.ones(len(traj), dtype=bool)
+    mask = np.ones(len(_check_traj(traj)), dtype=bool)
     if traj.status != "diverged" and mask.size:
         mask[-1] = False
     return mask
@@ -235,6 +326,13 @@ def window(traj: Trajectory, start: float, stop: float | None = None) -> np.ndar
     -------
     numpy.ndarray of bool, shape (N,)
         True inside the window.
+
+    Raises
+    ------
+    ParameterError
+        ``traj`` is not a Trajectory, or ``start`` or ``stop`` is not a number.
     """
-    stop = traj.t_end if stop is None else stop
+    _check_traj(traj)
+    start = finite_number(start, "start")
+    stop = traj.t_end if stop is None else finite_number(stop, "stop")
     return (traj.t >= start) & (traj.t <= stop)
