@@ -126,6 +126,8 @@ def test_the_stage_runs_the_study_and_reports_its_numbers(
     assert sec.numbers["study"]["status"] == "complete"
     json.dumps(report.summary(), allow_nan=False)
     assert any("failed joint" in " ".join(map(str, h)) for h, _ in sec.tables)
+    text = " ".join([sec.title, *sec.paragraphs])
+    assert "(1 worker)" in text and "1 workers" not in text and "issue" not in text
 
 
 def test_an_interrupted_study_propagates(tmp_path: Path,

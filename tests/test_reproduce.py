@@ -30,6 +30,26 @@ def test_every_section_is_in_the_page_and_summary(report: Path) -> None:
     assert html.count("data:image/png;base64,") >= 25
 
 
+def _page_text(report: Path) -> str:
+    """The report page without its embedded images."""
+    return re.sub(r"data:image/png;base64,[^']*", "", (report / "index.html").read_text())
+
+
+def test_the_page_speaks_to_readers(report: Path) -> None:
+    """The report is a product page: no project history ("issue 14"), captions that give
+    each figure's number once, plain numbers, articles and plurals right, the robot's
+    passive joints as "none" rather than an empty list."""
+    text = _page_text(report)
+    assert not re.search(r"issues? \d", text, re.IGNORECASE)
+    assert "<td>passive</td><td>none</td>" in text
+    for caption in re.findall(r"<figcaption>([^<]*)</figcaption>", text):
+        assert len(re.findall(r"\bFigs?\. ", caption)) <= 1, caption
+    assert re.search(r"<figcaption>Fig\. 2: all joints at phi0 \(", text)
+    for wrong in ("np.float64", "a 8-link", "a 11-link", "a 18-link", "(1 workers)",
+                  "(1 starts)", "<td>[]</td>"):
+        assert wrong not in text, wrong
+
+
 def test_linked_pages_exist(report: Path) -> None:
     """Every link of the page (the meshcat animations) points to a file that was written."""
     html = (report / "index.html").read_text()

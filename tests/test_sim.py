@@ -363,3 +363,43 @@ def test_progress_only_on_a_terminal(table1: Snake, capfd: pytest.CaptureFixture
     finally:
         os.close(master)
     assert "simulate open_loop" in drawn
+
+
+def _torque_line(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    from snake_pin.viz.plots import plot_trajectory
+
+    fig = plot_trajectory(traj)
+    line = fig.axes[2].lines[0]
+    return np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
+
+
+def test_the_torque_plot_shows_the_applied_torques_only(table1: Snake) -> None:
+    """plot_trajectory's torque panel: a completed run's last sample (no torque applied,
+    recorded as 0) is left out instead of drawn as a drop to a floor; a diverged run's
+    last torque (the one that blew it up) is drawn."""
+    done = simulate(table1, _wave(10), _x0(10), 0.05)
+    t, norm = _torque_line(done)
+    assert np.array_equal(t, done.t[:-1]) and np.all(norm > 1e-3)
+    assert np.allclose(norm, np.linalg.norm(done.tau[:-1], axis=1), rtol=0, atol=0)
+    blown = simulate(table1, OpenLoop(lambda t: np.full(9, 0.0 if t < 0.1 else 1e6)),
+                     _x0(10), 1.0)
+    t, norm = _torque_line(blown)
+    assert blown.diverged and np.array_equal(t, blown.t) and norm[-1] == pytest.approx(3e6)
+
+
+def test_head_path_figure_draws_the_head_against_its_reference(table1: Snake,
+                                                              tmp_path: Path) -> None:
+    """plot_head_path draws the reference and the head in the plane (x-y, equal axes) and
+    writes the PNG."""
+    from snake_pin.viz.plots import plot_head_path
+
+    traj = simulate(table1, _wave(10), _x0(10), 0.05)
+    reference = np.c_[0.1 * traj.t, np.zeros(len(traj))]
+    fig = plot_head_path(traj, reference, title="line")
+    lines = fig.axes[0].lines
+    assert np.array_equal(np.c_[lines[0].get_xdata(), lines[0].get_ydata()], reference)
+    assert np.array_equal(np.c_[lines[1].get_xdata(), lines[1].get_ydata()], traj.q[:, :2])
+    assert fig.axes[0].get_aspect() == 1.0
+    png = tmp_path / "head.png"
+    plot_head_path(traj, reference, png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

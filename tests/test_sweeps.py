@@ -149,3 +149,27 @@ def test_sweeps_and_maps_run_with_one_blas_thread(table1: Snake,
     r_map(table1, alpha_points=3, ts_points=3)
     assert len(seen) == 4 and all(threads == {1} for threads in seen)
     assert [pool["num_threads"] for pool in threadpool_info()] == before
+
+
+@pytest.mark.parametrize(("points", "bounds", "count"), [
+    (40, None, 41),             # even grid over -pi/5..pi/5: 0 inserted
+    (41, None, 41),             # odd grid: its middle value is 0
+    (9, (-0.3, 0.5), 9),        # a grid value of 5.6e-17: snapped to 0
+    (4, (-0.3, 0.5), 5),        # -0.3, -0.033, 0.233, 0.5: 0 inserted
+])
+def test_the_singular_zero_is_always_swept(table1: Snake, points: int,
+                                           bounds: tuple[float, float] | None,
+                                           count: int) -> None:
+    """An arc sweep whose range straddles 0 evaluates phi0 = 0 exactly (R = 0 there), in
+    order, between the grid's own ends."""
+    sw = sweep(table1, "arc", points=points, bounds=bounds)
+    assert len(sw.values) == len(sw.R) == count and np.all(np.diff(sw.values) > 0)
+    assert np.array_equal(sw.zeros(), [0.0]) and sw.R[sw.values == 0.0] == 0.0
+    low, high = bounds or (-np.pi / 5, np.pi / 5)
+    assert sw.values[0] == pytest.approx(low) and sw.values[-1] == pytest.approx(high)
+
+
+def test_a_range_without_zero_is_swept_as_given(table1: Snake) -> None:
+    """A range that does not hold 0: exactly ``points`` values from low to high, R > 0."""
+    sw = sweep(table1, "arc", points=6, bounds=(0.1, 0.6))
+    assert np.allclose(sw.values, np.linspace(0.1, 0.6, 6)) and np.all(sw.R > 0)

@@ -84,6 +84,35 @@ def test_port_in_use_is_refused() -> None:
             start_server(busy.getsockname()[1])
 
 
+def test_privileged_port_is_refused_as_permission_denied(tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    """A port the user may not bind (below 1024 without privileges: EACCES) is refused as
+    permission denied, not as "already in use": by start_server and by `view --port 80`
+    (one line, status 2, no server started)."""
+    import errno
+
+    from snake_pin.cli import main
+    from snake_pin.sim import Trajectory
+
+    def denied(self: socket.socket, address: object) -> None:
+        raise PermissionError(errno.EACCES, "Permission denied")
+
+    monkeypatch.setattr(socket.socket, "bind", denied)
+    monkeypatch.setattr(meshcat_view.subprocess, "Popen", None)  # no server may start
+    with pytest.raises(ParameterError, match="permission denied") as info:
+        start_server(80)
+    assert "below 1024" in str(info.value) and "in use" not in str(info.value)
+    traj = Trajectory(t=np.zeros(1), q=np.zeros((1, 12)), dq=np.zeros((1, 12)),
+                      tau=np.zeros((1, 9)), params=SnakeParams.table1())
+    npz, _ = traj.save(tmp_path / "run")
+    assert main(["view", str(npz), "--port", "80"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1
+    assert "port 80" in err and "permission denied" in err and "in use" not in err
+
+
 def test_offline_page_is_what_a_live_server_returns(monkeypatch: pytest.MonkeyPatch) -> None:
     """The same commands give, byte for byte, the page meshcat's live bridge returns
     (objects replaced, subtrees deleted, properties, transforms, the animation)."""

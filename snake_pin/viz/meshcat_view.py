@@ -138,9 +138,9 @@ def start_server(port: int | None = None, timeout: float = 20.0
     if port is not None:
         if not 1 <= port <= 65535:
             raise ParameterError(f"port must lie in 1..65535, got {port}")
-        problem = _port_problem(port)
-        if problem is not None:
-            raise ParameterError(problem)
+        if not port_is_free(port):
+            raise ParameterError(_port_problem(port)
+                                 or f"port {port} on {HOST} is already in use")
     cmd = [sys.executable, "-u", "-m", "snake_pin.viz.meshcat_server", "--stdin-eof", "--quiet"]
     if threading.current_thread() is threading.main_thread():
         # PR_SET_PDEATHSIG follows the thread that started the child: only from the main one
