@@ -234,3 +234,20 @@ def test_engine_cells_of_other_laws_are_not_applicable() -> None:
         row = bc.run_cell("line", controller, "engine", factory=factory)
         assert row["status"] == "not applicable" and "engine" in row["reason"]
         assert math.isnan(row["head_ct_rms"]) and row["snapshots"] == []
+
+
+def test_short_runs_have_a_metrics_window() -> None:
+    """A 1 s benchmark is judged over its second half by default (not NaN for want of a
+    10 s window); error_window moves the window, and one outside [0, t_final) is refused."""
+    def bench(**options: float) -> bc.BenchmarkResult:
+        return bc.run_benchmark(scenarios=["line"], controllers=["lyapunov"], failed=(None,),
+                                t_final=1.0, workers=1, **options)
+
+    default, later = bench(), bench(error_window=0.8)
+    assert default.settings["window_start"] == 0.5 and later.settings["window_start"] == 0.8
+    rows = [result.cell("line", "lyapunov") for result in (default, later)]
+    assert all(math.isfinite(row["head_ct_rms"]) for row in rows)
+    assert rows[0]["head_ct_rms"] != rows[1]["head_ct_rms"]
+    for bad in (1.0, -0.1, math.nan):
+        with pytest.raises(ParameterError, match="error_window"):
+            bench(error_window=bad)

@@ -114,6 +114,35 @@ def test_engine_follows_the_path_it_is_given(tmp_path: Path, capsys) -> None:
     direct = run_engine(SnakeParams.engine(), t_final=0.5, reference=reference).trajectory
     np.testing.assert_array_equal(traj.q, direct.q)
     np.testing.assert_array_equal(traj.tau, direct.tau)
+    error = np.linalg.norm(traj.q[:, :2] - reference.at(traj.t)[0][:, :2], axis=1)
+    late = error[traj.t >= payload["error_window"]]
+    assert payload["error_window"] == 0.25
+    assert payload["rms_head_error"] == pytest.approx(np.sqrt(np.mean(late**2)), rel=1e-12)
+    assert payload["reference"] == "path circle (radius=1.4) at 0.15 m/s"
+    assert (tmp_path / "engine_path.png").is_file()
+
+
+@pytest.mark.parametrize("command", ["simulate", "engine"])
+def test_path_runs_print_the_summary_of_straight_runs(tmp_path: Path, capsys,
+                                                      command: str) -> None:
+    """simulate and engine print the same text summary (keys, in order) with and without
+    --path, and a path run draws its head against the path (x-y PNG) in the folder."""
+    from snake_pin.cli import SUMMARY_KEYS
+
+    extra = ["--controller", "lyapunov"] if command == "simulate" else ["--cone", "pyramidal"]
+    keys = []
+    for path in ([], ["--path", "sinusoid"]):
+        out_dir = tmp_path / ("path" if path else "line")
+        code, out, err = _run([command, *extra, *path, "--t-final", "0.3", "-o", str(out_dir)],
+                              capsys)
+        assert code == 0 and err == "", err
+        keys.append([line.split(":")[0].strip() for line in out.splitlines()
+                     if not line.startswith(" " * 20)])
+        assert "np." not in out and "series" not in out and len(out.splitlines()) < 30
+    assert keys[0] == keys[1] == [*SUMMARY_KEYS, "files"]
+    stem = "lyapunov" if command == "simulate" else "engine"
+    figure = tmp_path / "path" / f"{stem}_path.png"
+    assert figure.read_bytes()[:4] == b"\x89PNG"
 
 
 @pytest.mark.parametrize("command", ["simulate", "engine"])
