@@ -175,3 +175,28 @@ def test_links_with_isotropic_friction_among_wheeled_ones(rng: np.random.Generat
         b, _ = snake.fast_dynamics.affine(x)
         assert np.allclose(b, snake.forward_dynamics(q, dq, np.zeros(params.n - 1)),
                            rtol=1e-10, atol=1e-10)
+
+
+def test_a_foreign_model_is_a_parameter_error() -> None:
+    """The damping twin of a model that is not the robot's paper model is refused with a
+    ParameterError naming the model (it was a bare ValueError)."""
+    from snake_pin import ParameterError
+    from snake_pin.friction import damping_twin
+
+    params = SnakeParams.table1(n=5)
+    other = Snake(SnakeParams.table1(n=6)).model
+    with pytest.raises(ParameterError, match="model must be the paper model of a 5-link"):
+        damping_twin(other, params)
+    with pytest.raises(ParameterError, match="model must be the paper model"):
+        FrictionModel(params, other)
+
+
+def test_derivatives_without_the_model_are_a_parameter_error(
+        rng: np.random.Generator) -> None:
+    """FrictionModel(params) has no twin: its derivatives are refused in one line."""
+    from snake_pin import ParameterError
+
+    params = SnakeParams.table1(n=5)
+    q, dq = random_state(rng, 5)
+    with pytest.raises(ParameterError, match="model="):
+        FrictionModel(params).derivatives(q, dq)

@@ -104,3 +104,19 @@ def test_bad_split_and_friction() -> None:
         partial_integrability(Snake(ISO), 4)
     with pytest.raises(ParameterError):
         involutivity(Snake(ANISO))
+
+
+@pytest.mark.parametrize("k", [True, 1.0, 0, 4])
+def test_split_k_is_an_integer_from_one_to_three(k: object) -> None:
+    """k = True would pass a membership test in (1, 2, 3): refused, like 1.0 and 0."""
+    snake = Snake(SnakeParams.table1(n=4))
+    with pytest.raises(ParameterError, match="k must"):
+        partial_integrability(snake, k, samples=1)  # type: ignore[arg-type]
+
+
+def test_forms_must_give_one_column_per_coordinate() -> None:
+    """lie_bracket_defect refuses forms whose A(z) has the wrong width before differencing."""
+    with pytest.raises(ParameterError, match=r"forms\(z\) must return an \(r, 3\) array"):
+        lie_bracket_defect(lambda z: np.ones((1, 2)), np.zeros(3))
+    with pytest.raises(ParameterError, match="forms must be a callable"):
+        lie_bracket_defect(np.ones((1, 3)), np.zeros(3))  # type: ignore[arg-type]

@@ -131,3 +131,19 @@ def test_sixty_second_run_meets_the_tracking_targets(passive: tuple, limit: floa
     assert not traj.diverged
     assert traj.summary["rms_relative"] <= limit
     assert traj.summary["R_min"] > 0.0
+
+
+@pytest.mark.parametrize("kwargs", [{"k_w1": True}, {"k_phi": [True] * 3},
+                                    {"lam": "fast"}, {"reference": 0.1}, {"gait": "serpenoid"}])
+def test_bad_arguments_are_one_parameter_error(kwargs: dict[str, object]) -> None:
+    """A bool gain, a text rate, a number for a reference, text for a gait: one line each."""
+    with pytest.raises(ParameterError) as info:
+        LyapunovController(Snake(SnakeParams.table1(n=4)), **kwargs)  # type: ignore[arg-type]
+    assert "\n" not in str(info.value)
+
+
+def test_head_first_reference_speed_is_a_number() -> None:
+    """head_first_reference refuses a speed that is not a finite number."""
+    for speed in (None, "0.1x", float("nan"), True):
+        with pytest.raises(ParameterError, match="speed"):
+            head_first_reference(speed)  # type: ignore[arg-type]

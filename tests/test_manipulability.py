@@ -230,3 +230,38 @@ def test_package_name_stays_callable_after_the_submodule_is_imported() -> None:
     q = np.r_[0.0, 0.0, 0.0, np.full(9, 0.3)]
     assert by_name(snake, q).R == pytest.approx(manipulability(snake, q).R, rel=1e-15)
     assert callable(snake_pin.manipulability)
+
+
+@pytest.mark.parametrize("free_joint", [1.0, [2.0], (True,), "2", {2: 1}, np.array([2.5])])
+def test_free_joints_are_integers(table1: Snake, free_joint: object) -> None:
+    """A free joint given as a float, a bool, text or a mapping is refused, not rounded."""
+    with pytest.raises(ParameterError, match=r"free.joint") as info:
+        manipulability(table1, straight(10), free_joint=free_joint)  # type: ignore[arg-type]
+    assert "\n" not in str(info.value)
+
+
+def test_free_joints_accept_numpy_integers(table1: Snake) -> None:
+    """NumPy integers (one or an array of them) are joint numbers like Python ints."""
+    q = arc(10, 0.3)
+    want = manipulability(table1, q, free_joint=(2, 5))
+    for joints in (np.array([2, 5]), [np.int64(2), np.int32(5)]):
+        assert manipulability(table1, q, free_joint=joints).R == want.R  # type: ignore[arg-type]
+    assert manipulability(table1, q, free_joint=np.int64(5)).R == \
+        manipulability(table1, q, free_joint=5).R
+
+
+@pytest.mark.parametrize("flag", ["no", 0, None])
+def test_heading_is_a_bool(table1: Snake, flag: object) -> None:
+    """heading="no" would be truthy: anything but a bool is refused."""
+    with pytest.raises(ParameterError, match="heading"):
+        manipulability(table1, straight(10), heading=flag)  # type: ignore[arg-type]
+
+
+def test_generic_api_refuses_float_indices_and_a_foreign_data(table1: Snake) -> None:
+    """unactuated=[0.0, 1, 2] is refused (not truncated), and so is another model's data."""
+    q = arc(10, 0.3)
+    with pytest.raises(ParameterError, match="unactuated"):
+        dynamic_manipulability(table1.model, table1.data, q, [0.0, 1, 2])
+    other = Snake(SnakeParams.table1(n=5)).model.createData()
+    with pytest.raises(ParameterError, match="data"):
+        dynamic_manipulability(table1.model, other, q, [0, 1, 2])

@@ -237,3 +237,19 @@ def test_snake_refuses_what_is_not_a_robot() -> None:
         Snake("my.urdf")  # type: ignore[arg-type]
     with pytest.raises(RobotFileError, match=r"missing\.urdf"):
         Snake.from_urdf("missing.urdf")
+
+
+def test_fast_dynamics_and_paper_model_check_their_arguments() -> None:
+    """FastDynamics needs a Snake and a positive row count; paper_model a SnakeParams."""
+    from snake_pin import ParameterError
+    from snake_pin.model import FastDynamics, paper_model
+
+    snake = Snake(SnakeParams.table1(n=4))
+    for rows in (0, True, 2.0):
+        with pytest.raises(ParameterError, match="rows"):
+            FastDynamics(snake, rows=rows)  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="snake must be a Snake"):
+        FastDynamics(snake.model)  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="params must be a SnakeParams"):
+        paper_model({"n": 4})  # type: ignore[arg-type]
+    assert FastDynamics(snake, rows=2).states.shape == (2, 2 * snake.nq)

@@ -112,3 +112,22 @@ def test_closed_form_validates_sizes() -> None:
         paper.inertia_matrix(params, np.zeros(5))
     with pytest.raises(ConfigurationError):
         paper.inertia_matrix(params, np.full(12, np.nan))
+
+
+@pytest.mark.parametrize("q", [[0.0, 0.0, 0.1], [[0.0] * 5], [0.0, 0.0, 0.1, float("nan")],
+                               None, "abcd"])
+def test_link_angles_checks_its_vector(q: object) -> None:
+    """link_angles is public: fewer than 4 entries, 2-D, NaN or text are ConfigurationErrors."""
+    with pytest.raises(ConfigurationError, match="q"):
+        paper.link_angles(q)  # type: ignore[arg-type]
+    assert paper.link_angles([1.0, 2.0, 0.5, 0.25]).tolist() == [0.5, 0.75]
+
+
+@pytest.mark.parametrize("call", [lambda: paper.k_matrix(None),
+                                  lambda: paper.inertia_matrix({"n": 4}, np.zeros(6)),
+                                  lambda: paper.l_matrix(True),
+                                  lambda: paper.jacobian_q(4.0)])
+def test_robot_and_size_arguments_are_checked(call: object) -> None:
+    """A robot that is not a SnakeParams, or n given as a bool or float, is a ParameterError."""
+    with pytest.raises(ParameterError, match=r"params|n must"):
+        call()  # type: ignore[operator]

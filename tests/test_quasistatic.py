@@ -170,3 +170,19 @@ def test_torque_equals_a_straightforward_evaluation(params: SnakeParams, prepare
     assert np.abs(np.array(expected)).max() > 0.01  # the torques are not trivially zero
     ctrl.reset()
     assert math.isnan(ctrl.signals()["V"])  # reset forgets the last call
+
+
+@pytest.mark.parametrize("bandwidth", [0.0, -1.0, None, True, float("inf")])
+def test_servo_bandwidth_is_a_positive_number(bandwidth: object) -> None:
+    """servo_gains refuses a bandwidth that is not a positive finite number."""
+    with pytest.raises(ParameterError, match="bandwidth"):
+        servo_gains(SnakeParams.table1(n=4), bandwidth)  # type: ignore[arg-type]
+
+
+def test_gait_and_reference_are_checked_at_construction() -> None:
+    """A gait that is not a Serpenoid or a reference that is not callable is refused."""
+    snake = Snake(SnakeParams.table1(n=4))
+    with pytest.raises(ParameterError, match="gait must be a Serpenoid"):
+        QuasiStaticLyapunovController(snake, gait=(0.5, 1.5))  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="reference"):
+        QuasiStaticLyapunovController(snake, reference="line")  # type: ignore[arg-type]

@@ -141,3 +141,13 @@ def test_search_runs_with_one_blas_thread(monkeypatch: pytest.MonkeyPatch) -> No
     find_singular_postures(SnakeParams.table1(n=6), starts=1)
     assert len(seen) == 5 and all(threads == {1} for threads in seen)
     assert [pool["num_threads"] for pool in threadpool_info()] == before
+
+
+@pytest.mark.parametrize("kwargs", [{"relative": float("nan")}, {"relative": "small"},
+                                    {"progress": "yes"}, {"bound": None}, {"starts": 2.0},
+                                    {"free_joint": [2.0]}])
+def test_arguments_are_checked_before_the_search(kwargs: dict[str, object]) -> None:
+    """Each bad argument is a ParameterError naming it, raised before any start runs."""
+    name = next(iter(kwargs)).replace("_", " ")
+    with pytest.raises(ParameterError, match=f"{name}|{name.replace(' ', '_')}"):
+        find_singular_postures(SnakeParams.table1(n=5), **kwargs)  # type: ignore[arg-type]
