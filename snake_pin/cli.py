@@ -892,7 +892,9 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     atomic_write_bytes(table, (_json_text(data, indent=2) + "\n").encode())
     files.insert(0, str(table))
     payload = {**data, "files": files}
-    text = draws.text() + (f"\nmedian run: {stems[median]}" if median is not None else "")
+    text = (draws.text() + (f"\n  head errors and torques over t >= {start:g} s"
+                            if start is not None else "")
+            + (f"\nmedian run: {stems[median]}" if median is not None else ""))
     if interrupted:
         return _Outcome(payload, text, EXIT_INTERRUPTED,
                         f"engine runs interrupted; {len(draws.done)} of "

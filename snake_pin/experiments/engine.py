@@ -329,7 +329,7 @@ class Draws:
 
 def _range_text(dist: dict[str, Any]) -> str:
     if dist["median"] is None:
-        return "no value (runs shorter than the error window)"
+        return "no value (no samples in the error window)"
     return (f"median {dist['median']:.4g}, 10-90 %: {dist['p10']:.4g} .. {dist['p90']:.4g} "
             f"({dist['count']} runs)")
 
