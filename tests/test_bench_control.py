@@ -105,8 +105,8 @@ def test_quick_benchmark_with_a_user_controller(tmp_path) -> None:
         scenarios=["line", "circle_1L"],
         controllers={"lyapunov": None, "pfl": None,
                      "mine": lambda snake, reference, path: Damped(snake)},
-        failed=(None, 5), t_final=11.0, workers=1)
-    assert len(result.rows) == 2 * 3 * 2
+        failed=(None, 5), t_final=11.0, workers=1, error_window=10.0)
+    assert len(result.rows) == 2 * 3 * 2 and result.settings["window_start"] == 10.0
     for row in result.rows:
         assert set(bc.METRIC_FIELDS) <= set(row)
     lyap = result.cell("circle_1L", "lyapunov")
