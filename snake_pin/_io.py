@@ -629,17 +629,18 @@ def decode_utf8(data: bytes, *, error: Callable[[str], Exception]) -> str:
         raise error(f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
 
 
-# Strings (skipped whole; multi-line ones may end in up to two more quotes) and comments,
-# then what counts: brackets, dots and separators. A quote that starts no complete string
-# ends the scan: tomllib stops with an error at that string too.
-_TOML_TOKEN = re.compile(
-    r'(?P<skip>"""(?:[^"\\]|\\.|"(?!""))*"""(?:"{1,2})?'
+# Strings (multi-line ones may end in up to two more quotes), comments, and a quote that
+# starts no complete string (tomllib stops with an error at that string: so does the scan).
+_TOML_SKIPPED = re.compile(
+    r'"""(?:[^"\\]|\\.|"(?!""))*"""(?:"{1,2})?'
     r"|'''(?:[^']|'(?!''))*'''(?:'{1,2})?"
     r'|"(?:[^"\\\n]|\\[^\n])*"'
     r"|'[^'\n]*'"
-    r"|#[^\n]*)"
-    r"|(?P<open>[\[{])|(?P<close>[\]}])|(?P<dot>\.)|(?P<reset>[,\n])|(?P<stop>[\"'])",
+    r"|#[^\n]*"
+    r"|(?P<stop>[\"'])",
     re.DOTALL)
+# Everything but what counts: brackets, dots and separators.
+_TOML_IGNORED = re.compile(r"[^\[\]{}.,\n]+")
 
 
 def toml_nesting_problem(text: str, max_depth: int = MAX_TOML_DEPTH) -> str | None:
@@ -663,28 +664,34 @@ def toml_nesting_problem(text: str, max_depth: int = MAX_TOML_DEPTH) -> str | No
     str or None
         ``"nested deeper than N levels (...) at line L"``, or None within the bound.
     """
+    pieces: list[str] = []
+    end = 0
+    for match in _TOML_SKIPPED.finditer(text):
+        pieces.append(text[end:match.start()])
+        end = len(text)
+        if match.lastgroup == "stop":
+            break
+        pieces.append("\n" * match.group().count("\n"))  # keeps the line numbers
+        end = match.end()
+    pieces.append(text[end:])
+    marks = _TOML_IGNORED.sub("", "".join(pieces))
     stack: list[int] = []
     level = dots = 0
-    for match in _TOML_TOKEN.finditer(text):
-        group = match.lastgroup
-        if group == "skip":
-            continue
-        if group == "open":
+    line = 1
+    for mark in marks:
+        if mark == ".":
+            dots += 1
+        elif mark == "[" or mark == "{":
             stack.append(dots + 1)
             level += dots + 1
             dots = 0
-        elif group == "close":
-            if stack:
+        else:  # a closing bracket or a separator
+            if stack and (mark == "]" or mark == "}"):
                 level -= stack.pop()
+            line += mark == "\n"
             dots = 0
-        elif group == "dot":
-            dots += 1
-        elif group == "reset":
-            dots = 0
-        else:  # an unterminated string: tomllib refuses the text there
-            return None
+            continue
         if level + dots > max_depth:
-            line = text.count("\n", 0, match.start()) + 1
             return (f"nested deeper than {max_depth} levels (arrays, inline tables and "
                     f"dotted keys inside each other) at line {line}")
     return None

@@ -425,7 +425,8 @@ def test_nesting_is_counted_outside_strings_and_comments_only() -> None:
 
 def test_invalid_toml_is_one_line_of_the_callers_error() -> None:
     """Syntax errors and integers beyond Python's digit limit are the caller's error."""
-    for text in ("x = = 1", "x = " + "9" * 5000, 'x = "unterminated [[[[[['):
+    for text in ("x = = 1", "x = " + "9" * 5000, 'x = "unterminated [[[[[[',
+                 'x = """' + '\\"' * 100_000 + "[" * 100_000):
         with pytest.raises(_Refused, match=r"^the file: not valid TOML: ") as exc:
             parse_toml(text, error=_refused)
         assert "\n" not in str(exc.value)
