@@ -175,7 +175,8 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         batch_function = run_batch
     summary = StudySummary(name=spec.name, study_hash=spec.study_hash,
                            folder=str(folder.path), runs=len(spec.scenarios),
-                           scheduler=address or f"local ({workers} workers)")
+                           scheduler=address or f"local ({workers} worker"
+                           f"{'s' if workers != 1 else ''})")
     interrupted = False
     with folder.locked(spec):
         done = folder.done_keys()
