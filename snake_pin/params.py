@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -181,7 +181,7 @@ class SnakeParams:
 
     @staticmethod
     def _check_passive(passive: object, n: int) -> tuple[int, ...]:
-        if isinstance(passive, (str, bytes)) or _is_number(passive):
+        if isinstance(passive, (str, bytes, Mapping)) or _is_number(passive):
             raise ParameterError(f"passive must be a list of joint indices, got {passive!r}")
         try:
             items = list(passive)  # type: ignore[call-overload]

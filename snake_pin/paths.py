@@ -1590,8 +1590,7 @@ def cross_track_error(path: Path | PathReference, points: object, *,
     ParameterError
         If the points are not a finite (..., 2) array or the span is invalid.
     """
-    curve = path.path if isinstance(path, PathReference) else path
-    pts = np.asarray(points, dtype=float)
+    curve, pts, span = _distance_arguments(path, points, span)
     s = curve.project(pts, span=span)
     g = curve.geometry(s)
     diff = pts - g.p
@@ -1622,8 +1621,30 @@ def along_track(path: Path | PathReference, points: object, *,
     ParameterError
         If the points are not a finite (..., 2) array or the span is invalid.
     """
-    curve = path.path if isinstance(path, PathReference) else path
-    return curve.project(points, span=span)
+    curve, pts, span = _distance_arguments(path, points, span)
+    return curve.project(pts, span=span)
+
+
+def _distance_arguments(path: object, points: object, span: object
+                        ) -> tuple[Path, np.ndarray, tuple[float, float] | None]:
+    """The curve, the points and the span of a distance query, or one ParameterError."""
+    if isinstance(path, PathReference):
+        path = path.path
+    if not isinstance(path, Path):
+        raise ParameterError(f"path must be a Path or a PathReference, got {_short(path)}")
+    try:
+        pts = np.asarray(points, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"points must be a finite (..., 2) array, "
+                             f"got {_short(points)}") from None
+    if span is None:
+        return path, pts, None
+    if not isinstance(span, (tuple, list, np.ndarray)) or len(span) != 2:
+        raise ParameterError(f"span must be (s_min, s_max), got {_short(span)}")
+    low, high = _number(span[0], "span[0]"), _number(span[1], "span[1]")
+    if not high > low:
+        raise ParameterError(f"span must be increasing, got ({low}, {high})")
+    return path, pts, (low, high)
 
 
 # ------------------------------------------------------------------- construction

@@ -476,6 +476,8 @@ def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     """
     if not isinstance(params, SnakeParams):
         raise ParameterError(f"write_robot_file needs SnakeParams, got {type(params).__name__}")
+    if not isinstance(path, (str, os.PathLike)):
+        raise ParameterError(f"path must be a file path, got {_short(path)}")
     path = Path(path)
     if path.suffix != ".toml":
         raise ParameterError(f"robot file must end in .toml: {path}")

@@ -19,6 +19,7 @@ from __future__ import annotations
 import io
 import os
 import re
+import reprlib
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +55,11 @@ RADIUS_RATIO = 0.15
 
 _BODY_RGBA = np.array([0.13, 0.55, 0.13, 1.0])
 _HEAD_RGBA = np.array([0.85, 0.33, 0.10, 1.0])
+
+
+def _check_params(params: object) -> None:
+    if not isinstance(params, SnakeParams):
+        raise ParameterError(f"params must be SnakeParams, got {reprlib.repr(params)}")
 
 
 def _translation(x: float) -> np.ndarray:
@@ -102,7 +108,16 @@ def build_urdf(params: SnakeParams, *, floating_base: bool = True) -> yourdfpy.U
         Links ``link_1`` .. ``link_n`` (head first) joined by revolute z joints
         ``joint_1`` .. ``joint_{n-1}`` limited to ``[-JOINT_LIMIT, JOINT_LIMIT]``; no meshes.
         The friction coefficients are not in it (see :func:`urdf_string`).
+
+    Raises
+    ------
+    ParameterError
+        If ``params`` is not a :class:`~snake_pin.params.SnakeParams` or
+        ``floating_base`` not a bool.
     """
+    _check_params(params)
+    if not isinstance(floating_base, (bool, np.bool_)):
+        raise ParameterError(f"floating_base must be true or false, got {floating_base!r}")
     links = [_link(params, i) for i in range(1, params.n + 1)]
     joints = []
     for i in range(1, params.n):
@@ -142,6 +157,11 @@ def urdf_string(params: SnakeParams, *, floating_base: bool = True) -> str:
         The XML document, with a ``<snake_pin>`` element carrying each link's friction
         coefficients and the robot's name (read back by
         :func:`snake_pin.robot_file.read_urdf`; other tools ignore it).
+
+    Raises
+    ------
+    ParameterError
+        As :func:`build_urdf`.
     """
     # yourdfpy's own write_xml_string drops its keyword arguments (``*kwargs``), so
     # serialise its element tree the way its write_xml_file does.
@@ -188,12 +208,16 @@ def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     Raises
     ------
     ParameterError
-        If ``path`` does not end in ``.urdf`` or its folder does not exist.
+        If ``params`` is not a :class:`~snake_pin.params.SnakeParams`, ``path`` is not a
+        path, does not end in ``.urdf`` or its folder does not exist.
     SnakePinError
         If yourdfpy rejects the generated description (a bug, not a user error).
     OSError
         If the file cannot be written.
     """
+    _check_params(params)
+    if not isinstance(path, (str, os.PathLike)):
+        raise ParameterError(f"path must be a file path, got {reprlib.repr(path)}")
     urdf = build_urdf(params)
     if not urdf.validate():
         raise SnakePinError(f"yourdfpy rejected the generated description of {params.name}")

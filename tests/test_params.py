@@ -38,7 +38,8 @@ def test_engine_preset() -> None:
     {"n": 1}, {"n": 2.5}, {"n": True}, {"mass": 0.0}, {"mass": -1.0},
     {"link_length": 0.0}, {"inertia": -1e-4}, {"c_x": -0.1}, {"c_theta": -1.0},
     {"c_y": math.nan}, {"mass": math.inf}, {"inertia": "heavy"}, {"passive": (0,)},
-    {"passive": (10,)}, {"passive": ("x",)}, {"name": "no spaces"},
+    {"passive": (10,)}, {"passive": ("x",)}, {"passive": {}}, {"passive": {1: 2}},
+    {"name": "no spaces"},
 ])
 def test_invalid_parameters_raise_parameter_error(changes: dict) -> None:
     """Each out-of-domain field is refused with a ParameterError (a SnakePinError)."""

@@ -415,3 +415,21 @@ def test_a_fifo_is_refused_without_blocking(tmp_path: FilePath, name: str) -> No
     assert not worker.is_alive(), "load_path blocked on a FIFO"
     assert isinstance(outcome[0], PathFileError)
     assert str(outcome[0]) == f"{fifo}: is a FIFO, not a regular file: not a path file"
+
+
+@pytest.mark.parametrize("measure", [along_track, cross_track_error])
+def test_distance_arguments_are_checked(measure: object) -> None:
+    """A path that is not a Path, points that are not numbers and a span that is not
+    (s_min, s_max) are each one ParameterError line naming the argument."""
+    points = np.zeros((2, 2))
+    for path in (None, "line", [1.0], True, {}):
+        with pytest.raises(ParameterError, match=r"^path must be a Path or a PathReference"):
+            measure(path, points)  # type: ignore[operator]
+    for bad in ("abc", {}, [[1.0, "x"]]):
+        with pytest.raises(ParameterError, match=r"^points must be a finite"):
+            measure(Line(), bad)  # type: ignore[operator]
+    for span in ("ab", [1.0], True, {}, (0.0, "x"), (2.0, 1.0)):
+        with pytest.raises(ParameterError, match=r"^span"):
+            measure(Circle(), points, span=span)  # type: ignore[operator]
+    reference = load_path("line")
+    assert measure(reference, points, span=[0.0, 1.0]).shape == (2,)  # type: ignore[operator]

@@ -646,6 +646,9 @@ def test_write_refuses_bad_paths(tmp_path: Path) -> None:
         write_robot_file(SnakeParams.table1(), tmp_path / "missing" / "robot.toml")
     with pytest.raises(ParameterError, match="SnakeParams"):
         write_robot_file({"n": 3}, tmp_path / "robot.toml")  # type: ignore[arg-type]
+    for path in (None, True, [1.0], {}):
+        with pytest.raises(ParameterError, match=r"^path must be a file path, got "):
+            write_robot_file(SnakeParams.table1(), path)  # type: ignore[arg-type]
     assert list(tmp_path.iterdir()) == []
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -11,7 +12,7 @@ import pytest
 import yourdfpy
 
 from snake_pin import SnakeParams
-from snake_pin.urdf import passive_joints, urdf_string, write_urdf
+from snake_pin.urdf import build_urdf, passive_joints, urdf_string, write_urdf
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = {"table1": ROOT / "urdf" / "snake_table1.urdf",
@@ -73,4 +74,25 @@ def test_write_refuses_bad_paths(tmp_path: Path) -> None:
         write_urdf(SnakeParams.table1(), tmp_path / "robot.xml")
     with pytest.raises(ParameterError):
         write_urdf(SnakeParams.table1(), tmp_path / "missing" / "robot.urdf")
+    for path in (None, True, [1.0], {}):
+        with pytest.raises(ParameterError, match=r"^path must be a file path, got "):
+            write_urdf(SnakeParams.table1(), path)  # type: ignore[arg-type]
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("build", [build_urdf, urdf_string])
+def test_bad_arguments_are_one_line_naming_them(build: Callable[..., object],
+                                                tmp_path: Path) -> None:
+    """Anything but SnakeParams, or a floating_base that is not a bool, is refused in
+    one ParameterError line naming the argument."""
+    from snake_pin import ParameterError
+
+    for params in (None, "table1", {"n": 3}, SnakeParams.table1().to_dict()):
+        with pytest.raises(ParameterError, match=r"^params must be SnakeParams, got "):
+            build(params)
+        with pytest.raises(ParameterError, match=r"^params must be SnakeParams, got "):
+            write_urdf(params, tmp_path / "robot.urdf")  # type: ignore[arg-type]
+    for flag in (None, "yes", 1, [True]):
+        with pytest.raises(ParameterError, match=r"^floating_base must be true or false"):
+            build(SnakeParams.table1(), floating_base=flag)
     assert list(tmp_path.iterdir()) == []
