@@ -1,14 +1,83 @@
-"""Boundary checks shared by the public functions: sizes and finiteness of vectors."""
+"""Boundary checks shared by the public functions, and the words their messages use.
+
+The package's one home of generic argument checkers: numbers, integers, flags, vectors
+and robot parameters, each raising one line of the package's own errors that names the
+argument. It imports neither Pinocchio nor :mod:`snake_pin.model`, so that the
+closed-form :mod:`snake_pin.paper` can use it.
+"""
 
 from __future__ import annotations
 
 import math
+import numbers
+import os
 
 import numpy as np
 
 from .exceptions import ConfigurationError, ParameterError
+from .params import SnakeParams
 
-__all__ = ["as_vector", "finite_number"]
+__all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "integer",
+           "one_line", "printable_path"]
+
+#: The longest text :func:`brief` shows of a value (longer ones are cut, or named by type).
+BRIEF_CHARS = 40
+
+
+def brief(value: object) -> str:
+    """``value`` for a one-line message: the repr of a scalar or text, else its type.
+
+    A repr longer than :data:`BRIEF_CHARS` is cut (``'abcdefgh...``); an array, a list, a
+    mapping or any other object is named by its type (``an array of shape (3, 3)``,
+    ``a dict``).
+    """
+    if value is None or isinstance(value, (bool, int, float, str, bytes, np.generic)):
+        return one_line(repr(value), BRIEF_CHARS)
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape}"
+    kind = type(value).__name__
+    return f"{'an' if kind[:1].lower() in 'aeiou' else 'a'} {kind}"
+
+
+def one_line(text: str, limit: int = 200) -> str:
+    """``text`` with its whitespace runs (newlines included) made single spaces, at most
+    ``limit`` characters (a longer one ends in ``...``)."""
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def printable_path(path: object) -> str:
+    """A path as one printable line (a name with control characters is quoted)."""
+    raw = os.fspath(path) if isinstance(path, (str, bytes, os.PathLike)) else str(path)
+    text = os.fsdecode(raw) if isinstance(raw, bytes) else raw
+    return text if text.isprintable() else repr(text)
+
+
+def integer(value: object, name: str, *, low: int | None = None,
+            high: int | None = None) -> int:
+    """``value`` as an int in ``low..high`` (a bool is refused), or ParameterError."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise ParameterError(f"{name} must be an integer, got {brief(value)}")
+    number = int(value)
+    if (low is not None and number < low) or (high is not None and number > high):
+        span = (f"be >= {low}" if high is None else f"be <= {high}" if low is None
+                else f"lie in {low}..{high}")
+        raise ParameterError(f"{name} must {span}, got {number}")
+    return number
+
+
+def flag(value: object, name: str) -> bool:
+    """``value`` as a bool: True or False only (not 0/1, not text), or ParameterError."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(f"{name} must be True or False, got {brief(value)}")
+    return bool(value)
+
+
+def check_params(value: object, name: str = "params") -> SnakeParams:
+    """``value`` if it is a :class:`~snake_pin.params.SnakeParams`, else ParameterError."""
+    if not isinstance(value, SnakeParams):
+        raise ParameterError(f"{name} must be a SnakeParams, got {brief(value)}")
+    return value
 
 
 def as_vector(value: object, size: int, name: str) -> np.ndarray:
@@ -51,7 +120,7 @@ def finite_number(value: object, name: str, *, positive: bool = False,
     Parameters
     ----------
     value : object
-        A real number (a bool is refused).
+        A real number (a bool, and text even when it reads as a number, are refused).
     name : str
         The parameter's name in the error message.
     positive : bool, optional
@@ -69,12 +138,15 @@ def finite_number(value: object, name: str, *, positive: bool = False,
     ParameterError
         If ``value`` is not a finite number, or breaks the sign requirement.
     """
-    if isinstance(value, bool):
-        raise ParameterError(f"{name} must be a number, got {value!r}")
+    if isinstance(value, (bool, np.bool_, str, bytes, bytearray)) or \
+            (isinstance(value, np.ndarray) and value.ndim != 0):
+        raise ParameterError(f"{name} must be a number, got {brief(value)}")
     try:
         x = float(value)  # type: ignore[arg-type]
+    except OverflowError:
+        raise ParameterError(f"{name} must be finite, got {brief(value)}") from None
     except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be a number, got {value!r}") from exc
+        raise ParameterError(f"{name} must be a number, got {brief(value)}") from exc
     if not math.isfinite(x):
         raise ParameterError(f"{name} must be finite, got {x}")
     if positive and x <= 0.0:

@@ -61,9 +61,8 @@ import numpy as np
 import pinocchio as pin
 
 from ._symmetric import symmetric_from_upper
-from ._validation import as_vector
+from ._validation import as_vector, brief, check_params
 from .exceptions import ParameterError
-from .paper import _brief, _check_params
 from .params import SnakeParams
 
 __all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_twin",
@@ -83,14 +82,14 @@ _HEAD_JOINT = 3
 def _check_model(value: object, name: str = "model") -> pin.Model:
     """``value`` if it is a ``pinocchio.Model``, else ParameterError naming ``name``."""
     if not isinstance(value, pin.Model):
-        raise ParameterError(f"{name} must be a pinocchio.Model, got {_brief(value)}")
+        raise ParameterError(f"{name} must be a pinocchio.Model, got {brief(value)}")
     return value
 
 
 def _check_data(value: object, model: pin.Model, name: str = "data") -> pin.Data:
     """``value`` if it is a ``pinocchio.Data`` of ``model``'s size, else ParameterError."""
     if not isinstance(value, pin.Data):
-        raise ParameterError(f"{name} must be a pinocchio.Data, got {_brief(value)}")
+        raise ParameterError(f"{name} must be a pinocchio.Data, got {brief(value)}")
     if len(value.oMi) != model.njoints:
         raise ParameterError(f"{name} has {len(value.oMi)} joints, the model "
                              f"{model.njoints}: use model.createData()")
@@ -100,7 +99,7 @@ def _check_data(value: object, model: pin.Model, name: str = "data") -> pin.Data
 def _paper_model_of(model: object, params: object) -> tuple[pin.Model, SnakeParams]:
     """``model`` and ``params`` checked: a Pinocchio model with the joints of the paper model
     of ``params`` (:func:`snake_pin.model.paper_model`)."""
-    checked = _check_params(params)
+    checked = check_params(params)
     pinocchio_model = _check_model(model)
     if pinocchio_model.njoints != checked.n + _HEAD_JOINT or pinocchio_model.nv != checked.n + 2:
         raise ParameterError(f"model must be the paper model of a {checked.n}-link snake, "
@@ -321,7 +320,7 @@ class FrictionModel:
     """
 
     def __init__(self, params: SnakeParams, model: pin.Model | None = None) -> None:
-        params = _check_params(params)
+        params = check_params(params)
         if model is not None:
             model, params = _paper_model_of(model, params)
         n = params.n

@@ -14,9 +14,8 @@ from functools import cached_property
 
 import numpy as np
 
-from ._validation import finite_number
+from ._validation import finite_number, integer
 from .exceptions import ConfigurationError, ParameterError
-from .paper import _integer
 
 __all__ = ["Serpenoid", "arc", "configuration", "initial_state", "straight"]
 
@@ -26,7 +25,7 @@ _HEAD = ("x_h", "y_h", "theta_1")
 
 
 def _check_n(n: int) -> int:
-    return _integer(n, "n", low=2)
+    return integer(n, "n", low=2)
 
 
 def _head(head: Mapping[str, object]) -> dict[str, float]:

@@ -34,10 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import paper
-from ._validation import finite_number
+from ._validation import brief, finite_number, integer
 from .exceptions import ConfigurationError, ParameterError
 from .model import Snake, _check_snake
-from .paper import _brief, _integer
 
 __all__ = [
     "Involutivity",
@@ -94,9 +93,9 @@ def _point(z: object) -> np.ndarray:
     try:
         point = np.asarray(z, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"z must be a vector of numbers, got {_brief(z)}") from exc
+        raise ConfigurationError(f"z must be a vector of numbers, got {brief(z)}") from exc
     if isinstance(z, (bool, np.bool_)) or point.ndim != 1 or point.size == 0:
-        raise ConfigurationError(f"z must be a non-empty vector, got {_brief(z)}")
+        raise ConfigurationError(f"z must be a non-empty vector, got {brief(z)}")
     if not np.all(np.isfinite(point)):
         raise ConfigurationError("z has non-finite entries")
     return point
@@ -144,9 +143,9 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
         number.
     """
     _check_snake(snake)
-    k = _integer(k, "k", low=1, high=3)
-    samples = _integer(samples, "samples", low=1)
-    seed = _integer(seed, "seed", low=0)
+    k = integer(k, "k", low=1, high=3)
+    samples = integer(samples, "samples", low=1)
+    seed = integer(seed, "seed", low=0)
     tolerance = finite_number(tolerance, "tolerance", positive=True)
     rng = np.random.default_rng(seed)
     nv = snake.nv
@@ -203,7 +202,7 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
         If ``snake`` is not a Snake or ``nodes`` is not a positive integer.
     """
     _check_snake(snake)
-    nodes = _integer(nodes, "nodes", low=1)
+    nodes = integer(nodes, "nodes", low=1)
     q = snake.check_q(q)
     q0 = np.zeros(snake.nq) if q0 is None else snake.check_q(q0, "q0")
     s, w = np.polynomial.legendre.leggauss(nodes)
@@ -313,7 +312,7 @@ def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
         or ``step`` is not a positive number.
     """
     if not callable(forms):
-        raise ParameterError(f"forms must be a callable z -> A(z), got {_brief(forms)}")
+        raise ParameterError(f"forms must be a callable z -> A(z), got {brief(forms)}")
     z = _point(z)
     step = finite_number(step, "step", positive=True)
     d = z.size
@@ -396,8 +395,8 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
         positive integer or ``seed`` not a non-negative integer.
     """
     _check_snake(snake)
-    samples = _integer(samples, "samples", low=1)
-    seed = _integer(seed, "seed", low=0)
+    samples = integer(samples, "samples", low=1)
+    seed = integer(seed, "seed", low=0)
     if not snake.params.isotropic:
         raise ParameterError("Theorem 3 applies to the partial integral, which needs c_x = c_y")
     rng = np.random.default_rng(seed)

@@ -44,11 +44,11 @@ from numpy.typing import ArrayLike
 from scipy.linalg import lapack
 
 from ._symmetric import symmetric_from_upper
-from ._validation import as_vector
+from ._validation import as_vector, brief, check_params, flag, integer
 from .exceptions import ConfigurationError, ParameterError
 from .friction import _check_data, _check_model
 from .model import Snake, _check_snake
-from .paper import _brief, _check_params, _flag, _integer, k_matrix
+from .paper import k_matrix
 from .params import SnakeParams
 
 __all__ = [
@@ -128,19 +128,19 @@ def task_split(n: int, free_joint: int | Sequence[int] | None = None,
         ``heading`` is not a bool, or n is too small for the task (n >= 4 plus one link
         per free joint).
     """
-    n = _integer(n, "n", low=2)
-    task, actuated, _ = _split(n, _free_tuple(n, free_joint), _flag(heading, "heading"))
+    n = integer(n, "n", low=2)
+    task, actuated, _ = _split(n, _free_tuple(n, free_joint), flag(heading, "heading"))
     return task, actuated
 
 
 def _integers(value: object, name: str) -> list[int]:
     """``value`` as a list of ints: a sequence (not text, not a mapping) of integers."""
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Iterable):
-        raise ParameterError(f"{name} must be a sequence of integers, got {_brief(value)}")
+        raise ParameterError(f"{name} must be a sequence of integers, got {brief(value)}")
     items = list(value)
     for item in items:
         if isinstance(item, (bool, np.bool_)) or not isinstance(item, numbers.Integral):
-            raise ParameterError(f"{name} must hold integers, got {_brief(item)}")
+            raise ParameterError(f"{name} must hold integers, got {brief(item)}")
     return [int(item) for item in items]
 
 
@@ -243,7 +243,7 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
     q = snake.check_q(q).copy()
     q[:3] = 0.0  # D, R are invariant under rigid motions: remove them exactly
     free = tuple(snake.params.passive) + _free_tuple(snake.n, free_joint)
-    heading, blocks = _flag(heading, "heading"), _flag(blocks, "blocks")
+    heading, blocks = flag(heading, "heading"), flag(blocks, "blocks")
     task, act, flat = _split(snake.n, tuple(sorted(set(free))), heading)
     # Upper triangles straight from Pinocchio (``flat`` only reads that triangle).
     h = pin.crba(snake.model, snake.data, q, pin.Convention.WORLD)
@@ -347,7 +347,7 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
             jac = np.asarray(task, dtype=float)
         except (TypeError, ValueError) as exc:
             raise ConfigurationError(f"task must be a frame name or a finite m x {nv} "
-                                     f"Jacobian, got {_brief(task)}") from exc
+                                     f"Jacobian, got {brief(task)}") from exc
         if isinstance(task, (bool, np.bool_)) or jac.ndim != 2 or jac.shape[1] != nv \
                 or not np.all(np.isfinite(jac)):
             raise ConfigurationError(f"task Jacobian must be a finite m x {nv} matrix")
@@ -397,19 +397,19 @@ def manipulability_R_batch(params: SnakeParams, phi: ArrayLike, *,
         If ``params`` is not a SnakeParams, the free joint is not an integer in
         1..n - 1, ``heading`` is not a bool, or the robot has too few links.
     """
-    n = _check_params(params).n
+    n = check_params(params).n
     try:
         angles = np.asarray(phi, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ConfigurationError(f"phi must be numbers with {n - 1} columns, "
-                                 f"got {_brief(phi)}") from exc
+                                 f"got {brief(phi)}") from exc
     angles = np.atleast_2d(angles)
     if isinstance(phi, (bool, np.bool_)) or angles.ndim != 2 or angles.shape[1] != n - 1:
         raise ConfigurationError(f"phi must have {n - 1} columns, got shape {angles.shape}")
     if not np.all(np.isfinite(angles)):
         raise ConfigurationError("phi has non-finite entries")
     free = tuple(sorted(set(params.passive) | set(_free_tuple(n, free_joint))))
-    return _r_batch(params, angles, free, _flag(heading, "heading"))
+    return _r_batch(params, angles, free, flag(heading, "heading"))
 
 
 def _r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
@@ -453,14 +453,14 @@ def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
                                  f"{', '.join(TASK_ROWS)} or give indices")
         chosen = list(TASK_ROWS[rows])
     elif isinstance(rows, (bytes, Mapping)) or not isinstance(rows, Iterable):
-        raise ParameterError(f"task rows must be a name or indices, got {_brief(rows)}")
+        raise ParameterError(f"task rows must be a name or indices, got {brief(rows)}")
     else:
         chosen = list(rows)
     if not chosen or len(set(chosen)) != len(chosen) or any(
             isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 0 <= r < size
             for r in chosen):
         raise ParameterError(f"task rows must be distinct indices in 0..{size - 1}, "
-                             f"got {_brief(rows) if not isinstance(rows, list) else rows}")
+                             f"got {brief(rows) if not isinstance(rows, list) else rows}")
     return chosen
 
 

@@ -8,11 +8,10 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
-from ._validation import finite_number
+from ._validation import brief, finite_number, integer
 from .exceptions import ConfigurationError, ParameterError
 from .manipulability import manipulability, task_split
 from .model import Snake
-from .paper import _brief, _integer
 
 if TYPE_CHECKING:
     from .control.reference import HeadReference
@@ -31,7 +30,7 @@ def _check_traj(value: object) -> Trajectory:
     from .sim import Trajectory
 
     if not isinstance(value, Trajectory):
-        raise ParameterError(f"traj must be a Trajectory, got {_brief(value)}")
+        raise ParameterError(f"traj must be a Trajectory, got {brief(value)}")
     return value
 
 
@@ -39,12 +38,12 @@ def _check_summary(value: object) -> Mapping[str, object]:
     """``value`` if it is a mapping whose window and error entries are numbers or None
     (a diverged run's NaN included)."""
     if not isinstance(value, Mapping):
-        raise ParameterError(f"summary must be a mapping (a run summary), got {_brief(value)}")
+        raise ParameterError(f"summary must be a mapping (a run summary), got {brief(value)}")
     for key in ("error_window", "rms_head_error", "rms_relative", "t_end"):
         entry = value.get(key)
         if entry is not None and (isinstance(entry, (bool, np.bool_))
                                   or not isinstance(entry, numbers.Real)):
-            raise ParameterError(f"summary[{key!r}] must be a number, got {_brief(entry)}")
+            raise ParameterError(f"summary[{key!r}] must be a number, got {brief(entry)}")
     return value
 
 
@@ -53,11 +52,11 @@ def _check_error(error: object, samples: int) -> np.ndarray:
     try:
         values = np.asarray(error, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"error must be {samples} numbers, got {_brief(error)}") \
+        raise ConfigurationError(f"error must be {samples} numbers, got {brief(error)}") \
             from exc
     if isinstance(error, (bool, np.bool_)) or values.shape != (samples,):
         raise ConfigurationError(f"error must hold one number per sample ({samples}), "
-                                 f"got {_brief(error)}")
+                                 f"got {brief(error)}")
     return values
 
 
@@ -107,7 +106,7 @@ def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarra
     _check_traj(traj)
     if not callable(reference):
         raise ParameterError(f"reference must be a head reference (a callable of time), "
-                             f"got {_brief(reference)}")
+                             f"got {brief(reference)}")
     ref = np.array([reference(t)[0][:2] for t in traj.t])
     return np.linalg.norm(traj.q[:, :2] - ref, axis=1)
 
@@ -271,7 +270,7 @@ def criteria_along(traj: Trajectory, *, every: int = 1,
         ``free_joint`` is not a joint of the robot that leaves a task.
     """
     snake = Snake(_check_traj(traj).params)
-    every = _integer(every, "every", low=1)
+    every = integer(every, "every", low=1)
     task_split(snake.n, free_joint)  # the free joint checked before the first sample
     idx = np.arange(0, len(traj), every)
     d, r = np.empty(len(idx)), np.empty(len(idx))

@@ -30,10 +30,9 @@ import pinocchio as pin
 
 from ._blas import dgemv
 from ._symmetric import symmetric_from_upper
-from ._validation import as_vector
+from ._validation import as_vector, brief, check_params, integer
 from .exceptions import ConfigurationError, ParameterError
 from .friction import FrictionModel
-from .paper import _brief, _check_params, _integer
 from .params import SnakeParams
 from .urdf import urdf_string
 
@@ -70,7 +69,7 @@ def paper_model(params: SnakeParams) -> pin.Model:
     ParameterError
         ``params`` is not a SnakeParams.
     """
-    _check_params(params)
+    check_params(params)
     fixed = pin.buildModelFromXML(urdf_string(params, floating_base=False))
     model = pin.Model()
     model.name = fixed.name
@@ -705,7 +704,7 @@ class FastDynamics:
 
     def __init__(self, snake: Snake, rows: int = 4) -> None:
         _check_snake(snake)
-        rows = _integer(rows, "rows", low=1)
+        rows = integer(rows, "rows", low=1)
         self._snake = snake
         model, data, nq = snake.model, snake.data, snake.nq
         passes = snake.friction.passes
@@ -964,7 +963,7 @@ def _crba_mirrors(model: pin.Model) -> bool:
 def _check_snake(value: object, name: str = "snake") -> Snake:
     """``value`` if it is a :class:`Snake`, else ParameterError naming ``name``."""
     if not isinstance(value, Snake):
-        raise ParameterError(f"{name} must be a Snake, got {_brief(value)}")
+        raise ParameterError(f"{name} must be a Snake, got {brief(value)}")
     return value
 
 

@@ -48,11 +48,9 @@ of this derivation, on random states of random heterogeneous robots.
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 
-from ._validation import as_vector
+from ._validation import as_vector, check_params, integer
 from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
@@ -74,53 +72,15 @@ __all__ = [
 ]
 
 
-# Argument checks shared by the package's public functions (beside _validation's;
-# here because this is the lowest module that needs them).
-def _brief(value: object) -> str:
-    """``value`` for a one-line message: the repr of a short scalar or text, else its type."""
-    if value is None or isinstance(value, (bool, int, float, str, np.generic)):
-        text = repr(value)
-        if len(text) <= 40 and "\n" not in text:
-            return text
-    return f"a {type(value).__name__}"
-
-
-def _integer(value: object, name: str, *, low: int | None = None,
-             high: int | None = None) -> int:
-    """``value`` as an int in ``low..high`` (a bool is refused), or ParameterError."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
-        raise ParameterError(f"{name} must be an integer, got {_brief(value)}")
-    number = int(value)
-    if (low is not None and number < low) or (high is not None and number > high):
-        span = (f"be >= {low}" if high is None else f"be <= {high}" if low is None
-                else f"lie in {low}..{high}")
-        raise ParameterError(f"{name} must {span}, got {number}")
-    return number
-
-
-def _flag(value: object, name: str) -> bool:
-    """``value`` as a bool: True or False only (not 0/1, not text), or ParameterError."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise ParameterError(f"{name} must be True or False, got {_brief(value)}")
-    return bool(value)
-
-
-def _check_params(value: object, name: str = "params") -> SnakeParams:
-    """``value`` if it is a :class:`~snake_pin.params.SnakeParams`, else ParameterError."""
-    if not isinstance(value, SnakeParams):
-        raise ParameterError(f"{name} must be a SnakeParams, got {_brief(value)}")
-    return value
-
-
 def _theta(params: object, theta: object) -> tuple[SnakeParams, np.ndarray]:
     """``params`` checked and ``theta`` as its n finite link angles."""
-    checked = _check_params(params)
+    checked = check_params(params)
     return checked, as_vector(theta, checked.n, "theta")
 
 
 def _q(params: object, q: object, name: str = "q") -> tuple[SnakeParams, np.ndarray]:
     """``params`` checked and ``q`` as its n + 2 finite coordinates."""
-    checked = _check_params(params)
+    checked = check_params(params)
     return checked, as_vector(q, checked.n + 2, name)
 
 
@@ -146,7 +106,7 @@ def k_matrix(params: SnakeParams) -> np.ndarray:
     ParameterError
         ``params`` is not a SnakeParams.
     """
-    _check_params(params)
+    check_params(params)
     lengths = params.link_lengths
     k = np.tril(np.broadcast_to(lengths, (params.n, params.n)), -1)
     k[np.diag_indices(params.n)] = params.com_offsets
@@ -171,7 +131,7 @@ def l_matrix(n: int) -> np.ndarray:
     ParameterError
         ``n`` is not an integer >= 2.
     """
-    n = _integer(n, "n", low=2)
+    n = integer(n, "n", low=2)
     return np.tril(np.ones((n, n)))
 
 
@@ -193,7 +153,7 @@ def jacobian_q(n: int) -> np.ndarray:
     ParameterError
         ``n`` is not an integer >= 2.
     """
-    n = _integer(n, "n", low=2)
+    n = integer(n, "n", low=2)
     out = np.zeros((n + 2, n + 2))
     out[:2, :2] = np.eye(2)
     out[2:, 2:] = l_matrix(n)
@@ -478,7 +438,7 @@ def actuation_matrix(n: int) -> np.ndarray:
     ParameterError
         ``n`` is not an integer >= 2.
     """
-    n = _integer(n, "n", low=2)
+    n = integer(n, "n", low=2)
     return np.vstack([np.zeros((3, n - 1)), np.eye(n - 1)])
 
 

@@ -47,10 +47,9 @@ import numpy as np
 import pinocchio as pin
 
 from ._symmetric import symmetric_from_upper
-from ._validation import as_vector
+from ._validation import as_vector, brief, integer
 from .exceptions import ParameterError
 from .friction import _check_data, _check_model
-from .paper import _brief, _integer
 
 __all__ = [
     "PlanarLayout",
@@ -104,16 +103,16 @@ class PlanarLayout:
     signs: np.ndarray
 
     def __post_init__(self) -> None:
-        n = _integer(self.n, "n", low=2)
-        nv = _integer(self.nv, "nv", low=n + 2, high=n + 2)
-        nq = _integer(self.nq, "nq", low=nv + 1)
+        n = integer(self.n, "n", low=2)
+        nv = integer(self.nv, "nv", low=n + 2, high=n + 2)
+        nq = integer(self.nq, "nq", low=nv + 1)
         for name, kind in (("idx_q", "i"), ("unbounded", "b"), ("signs", "f")):
             value = getattr(self, name)
             if not isinstance(value, np.ndarray) or value.shape != (n - 1,) \
                     or value.dtype.kind != kind:
                 what = {"i": "integers", "b": "bools", "f": "floats"}[kind]
                 raise ParameterError(f"{name} must be a numpy array of {n - 1} {what}, "
-                                     f"got {_brief(value)}")
+                                     f"got {brief(value)}")
         if np.any((self.idx_q < 0) | (self.idx_q >= nq)):
             raise ParameterError(f"idx_q must index the {nq} planar coordinates")
         if not np.all(np.abs(self.signs) == 1.0):
@@ -190,7 +189,7 @@ def _layout(model: pin.Model | PlanarLayout) -> PlanarLayout:
         return model
     if not isinstance(model, pin.Model):
         raise ParameterError(f"model must be a pinocchio.Model or a PlanarLayout, "
-                             f"got {_brief(model)}")
+                             f"got {brief(model)}")
     return planar_layout(model)
 
 

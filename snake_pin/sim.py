@@ -50,6 +50,7 @@ from threadpoolctl import ThreadpoolController
 
 from ._blas import dgemv
 from ._io import atomic_group
+from ._validation import one_line, printable_path
 from .control.base import Controller, _sampler
 from .exceptions import (
     ConfigurationError,
@@ -269,23 +270,24 @@ class Trajectory:
 
         wanted = _wanted_signals(signals)
         file = _resolve(path)
+        shown = printable_path(file)
         raw = open_regular_file(
             file, limit=2 * MAX_TOTAL_BYTES, kind="snake_pin trajectory",
-            error=lambda message: TrajectoryFileError(f"{_shown(file)}: {_one_line(message)}"))
+            error=lambda message: TrajectoryFileError(f"{shown}: {one_line(message)}"))
         try:
             with raw:
                 if os.fstat(raw.fileno()).st_size == 0:
                     raise _Refused("the file is empty")
                 return _read(cls, raw, wanted)
         except _Refused as exc:
-            raise TrajectoryFileError(f"{_shown(file)} is not a usable snake_pin trajectory: "
-                                      f"{_one_line(str(exc))}") from None
+            raise TrajectoryFileError(f"{shown} is not a usable snake_pin trajectory: "
+                                      f"{one_line(str(exc))}") from None
         except zipfile.BadZipFile as exc:
-            raise TrajectoryFileError(f"{_shown(file)} is not a readable snake_pin trajectory: "
-                                      f"broken zip archive ({_one_line(str(exc))})") from None
+            raise TrajectoryFileError(f"{shown} is not a readable snake_pin trajectory: "
+                                      f"broken zip archive ({one_line(str(exc))})") from None
         except Exception as exc:  # hostile input: whatever breaks while parsing is a refusal
-            raise TrajectoryFileError(f"{_shown(file)} is not a readable snake_pin trajectory "
-                                      f"({type(exc).__name__}: {_one_line(str(exc))})") from None
+            raise TrajectoryFileError(f"{shown} is not a readable snake_pin trajectory "
+                                      f"({type(exc).__name__}: {one_line(str(exc))})") from None
 
 
 # ---------------------------------------------------------------------- file names
@@ -301,7 +303,7 @@ def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
             name = name[: -len(suffix)]
             break
     if name in ("", ".", ".."):
-        raise ParameterError(f"trajectory file name is empty: {_shown(path)}")
+        raise ParameterError(f"trajectory file name is empty: {printable_path(path)}")
     return given.with_name(name + ".npz"), given.with_name(name + ".json")
 
 
@@ -315,32 +317,20 @@ def _resolve(path: str | os.PathLike[str]) -> Path:
         if given.is_file():
             return given
         if given.exists():
-            raise TrajectoryFileError(f"{_shown(given)} is not a regular file")
+            raise TrajectoryFileError(f"{printable_path(given)} is not a regular file")
         if given.name and not given.name.endswith(".npz"):
             alternative = given.with_name(given.name + ".npz")
             if alternative.is_file():
                 return alternative
     except (OSError, ValueError) as exc:
-        raise TrajectoryFileError(f"cannot open {_shown(given)}: "
-                                  f"{_one_line(_reason(exc))}") from None
-    raise TrajectoryFileError(f"no trajectory file at {_shown(given)}")
+        raise TrajectoryFileError(f"cannot open {printable_path(given)}: "
+                                  f"{one_line(_reason(exc))}") from None
+    raise TrajectoryFileError(f"no trajectory file at {printable_path(given)}")
 
 
 def _reason(exc: OSError | ValueError) -> str:
     """An error's own words: an OSError's strerror when it has one, else its text."""
     return (exc.strerror if isinstance(exc, OSError) else None) or str(exc)
-
-
-def _shown(path: object) -> str:
-    """A path as one printable line (names with control characters are quoted)."""
-    text = os.fspath(path) if isinstance(path, os.PathLike) else str(path)
-    text = os.fsdecode(text) if isinstance(text, bytes) else text
-    return text if text.isprintable() else repr(text)
-
-
-def _one_line(text: str, limit: int = 200) -> str:
-    text = " ".join(text.split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _wanted_signals(signals: object) -> frozenset[str] | None:
@@ -390,7 +380,7 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
                     stem in (*_CORE, "header") or (stem.startswith(_SIGNAL_PREFIX) and
                                                    _SIGNAL_NAME.fullmatch(
                                                        stem.removeprefix(_SIGNAL_PREFIX)))):
-                raise _Refused(f"unexpected member {_one_line(repr(name), 80)}")
+                raise _Refused(f"unexpected member {one_line(repr(name), 80)}")
         if "header.npy" not in members:
             raise _Refused("no header")
         header_member = _inspect(archive, members["header.npy"], "header", kinds="U")
@@ -517,7 +507,7 @@ def _parse_header(text: str) -> dict[str, Any]:
     try:
         header = json.loads(text)
     except (ValueError, RecursionError) as exc:
-        raise _Refused(f"its header is not JSON ({_one_line(str(exc), 80)})") from None
+        raise _Refused(f"its header is not JSON ({one_line(str(exc), 80)})") from None
     if not isinstance(header, dict):
         raise _Refused("its header is not a JSON object")
     for key, kind in _HEADER_KEYS.items():
@@ -545,7 +535,7 @@ def _parse_header(text: str) -> dict[str, Any]:
     try:
         header["params"] = SnakeParams.from_dict(header["params"])
     except Exception as exc:  # any rejection by SnakeParams
-        raise _Refused(f"its robot parameters are invalid ({_one_line(str(exc), 120)})") from None
+        raise _Refused(f"its robot parameters are invalid ({one_line(str(exc), 120)})") from None
     return header
 
 
@@ -583,7 +573,7 @@ def _to_json(value: object, what: str, *, strict: bool) -> str:
         if strict:
             text = json.dumps(_finite(json.loads(text)), indent=2, allow_nan=False)
     except (TypeError, ValueError, RecursionError) as exc:
-        raise ParameterError(f"{what} is not JSON: {_one_line(str(exc), 120)}") from None
+        raise ParameterError(f"{what} is not JSON: {one_line(str(exc), 120)}") from None
     return text
 
 
@@ -732,7 +722,7 @@ _FLOAT = np.dtype(np.float64)
 
 
 def _failure(t: float, exc: BaseException) -> str:
-    detail = _one_line(str(exc))
+    detail = one_line(str(exc))
     return f"controller failed at t = {t:.4f} s: {type(exc).__name__}" + \
         (f": {detail}" if detail else "")
 
@@ -903,7 +893,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                         problem = _divergence(x, nq, max_speed, max_distance)
                 except (SnakePinError, ArithmeticError, np.linalg.LinAlgError) as exc:
                     problem = f"the dynamics failed ({type(exc).__name__}: " \
-                              f"{_one_line(str(exc))})"
+                              f"{one_line(str(exc))})"
                 if problem:
                     if late_check and not np.isfinite(tau).all():
                         status, reason = "failed", refuse(k, t, known)

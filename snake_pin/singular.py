@@ -33,10 +33,9 @@ import numpy as np
 from scipy.optimize import minimize
 from threadpoolctl import threadpool_limits
 
-from ._validation import finite_number
+from ._validation import check_params, finite_number, flag, integer
 from .exceptions import ParameterError, RunInterrupted
 from .manipulability import _free_tuple, _r_batch, task_split
-from .paper import _check_params, _flag, _integer
 from .params import SnakeParams
 
 __all__ = ["MAX_SEED", "MAX_STARTS", "SingularFamily", "SingularSearch",
@@ -207,14 +206,14 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
         joints that are not integers in 1..n - 1 or leave no task; or a robot whose R is
         zero everywhere.
     """
-    _check_params(params)
-    starts = _integer(starts, "starts", low=1, high=MAX_STARTS)
-    seed = _integer(seed, "seed", low=0, high=MAX_SEED)
+    check_params(params)
+    starts = integer(starts, "starts", low=1, high=MAX_STARTS)
+    seed = integer(seed, "seed", low=0, high=MAX_SEED)
     bound = finite_number(bound, "bound")
     if not 0 < bound <= np.pi:
         raise ParameterError(f"bound must lie in (0, pi], got {bound}")
     relative = finite_number(relative, "relative", non_negative=True)
-    progress = _flag(progress, "progress")
+    progress = flag(progress, "progress")
     free = sorted(set(params.passive) | set(_free_tuple(params.n, free_joint)))
     free_joint = (free[0] if len(free) == 1 else tuple(free)) if free else None
     task_split(params.n, free_joint)  # n large enough for all of them

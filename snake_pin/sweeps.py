@@ -24,13 +24,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ._validation import finite_number
+from ._validation import brief, finite_number, flag, integer
 from .exceptions import ParameterError, RunInterrupted
 from .gaits import Serpenoid, arc
 from .manipulability import _free_tuple as _free_joints
 from .manipulability import manipulability, manipulability_R_batch, task_split
 from .model import Snake, _check_snake
-from .paper import _brief, _flag, _integer
 
 __all__ = ["FAMILIES", "MAX_POINTS", "RMap", "Sweep", "r_map", "sweep"]
 
@@ -148,7 +147,7 @@ def _bounds(bounds: object) -> tuple[float, float]:
     """``bounds`` as (low, high), two finite numbers with low < high, or ParameterError."""
     if isinstance(bounds, (str, bytes)) or not isinstance(bounds, (Sequence, np.ndarray)) \
             or len(bounds) != 2:
-        raise ParameterError(f"bounds must be (low, high), got {_brief(bounds)}")
+        raise ParameterError(f"bounds must be (low, high), got {brief(bounds)}")
     low, high = (finite_number(value, "bounds") for value in bounds)
     if not low < high:
         raise ParameterError(f"bounds must have low < high, got ({low:g}, {high:g})")
@@ -204,10 +203,10 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     """
     _check_snake(snake)
     if not isinstance(family, str) or family not in FAMILIES:
-        raise ParameterError(f"unknown family {_brief(family)}; choose one of "
+        raise ParameterError(f"unknown family {brief(family)}; choose one of "
                              f"{', '.join(FAMILIES)}")
-    points = _integer(points, "points", low=2, high=MAX_POINTS)
-    progress = _flag(progress, "progress")
+    points = integer(points, "points", low=2, high=MAX_POINTS)
+    progress = flag(progress, "progress")
     task_split(snake.n, free_joint)  # validate before any output (progress bar)
     free = tuple(sorted(set(snake.params.passive) | set(_free_joints(snake.n, free_joint))))
     label, default, _ = FAMILIES[family]
@@ -299,8 +298,8 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
         1..n - 1 or leaves the task no actuated joint.
     """
     _check_snake(snake)
-    alpha_points = _integer(alpha_points, "alpha_points", low=1, high=MAX_POINTS)
-    ts_points = _integer(ts_points, "ts_points", low=1, high=MAX_POINTS)
+    alpha_points = integer(alpha_points, "alpha_points", low=1, high=MAX_POINTS)
+    ts_points = integer(ts_points, "ts_points", low=1, high=MAX_POINTS)
     alpha_max = finite_number(alpha_max, "alpha_max", positive=True)
     ts_max = finite_number(ts_max, "ts_max", positive=True)
     task_split(snake.n, free_joint)  # before the grid is made

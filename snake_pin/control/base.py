@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from .._validation import brief, integer
 from ..exceptions import ConfigurationError, ParameterError
 from ..gaits import Serpenoid
-from ..paper import _brief, _integer
 from .reference import LinearReference
 
 __all__ = ["Controller", "OpenLoop", "TimeTerms", "gait_for", "reference_rows"]
@@ -48,7 +48,7 @@ def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
         ``n`` is not an integer >= 2, a gait is not a Serpenoid, or the gait is for
         another number of links.
     """
-    n = _integer(n, "n", low=2)
+    n = integer(n, "n", low=2)
     _check_gait(default, "default")
     chosen = default if gait is None else _check_gait(gait, "gait")
     if chosen.n != n:
@@ -59,7 +59,7 @@ def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
 def _check_gait(value: object, name: str) -> Serpenoid:
     """``value`` if it is a :class:`~snake_pin.gaits.Serpenoid`, else ParameterError."""
     if not isinstance(value, Serpenoid):
-        raise ParameterError(f"{name} must be a Serpenoid, got {_brief(value)}")
+        raise ParameterError(f"{name} must be a Serpenoid, got {brief(value)}")
     return value
 
 
@@ -67,7 +67,7 @@ def _check_reference(value: object, name: str = "reference") -> Any:
     """``value`` if it is callable (a head reference ``t -> (w_r, w_r', w_r'')``)."""
     if not callable(value):
         raise ParameterError(f"{name} must be a head reference (a callable of time), "
-                             f"got {_brief(value)}")
+                             f"got {brief(value)}")
     return value
 
 
@@ -105,12 +105,12 @@ def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: S
     try:
         checked = np.asarray(times, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"times must be a vector of numbers, got {_brief(times)}") \
+        raise ConfigurationError(f"times must be a vector of numbers, got {brief(times)}") \
             from exc
     if isinstance(times, (bool, np.bool_)) or checked.ndim != 1 \
             or not np.all(np.isfinite(checked)):
         raise ConfigurationError(f"times must be a vector of finite numbers, "
-                                 f"got {_brief(times)}")
+                                 f"got {brief(times)}")
     return _reference_rows(reference, gait, checked)
 
 
@@ -148,7 +148,7 @@ class TimeTerms:
 
     def __init__(self, rows: Callable[[np.ndarray], np.ndarray]) -> None:
         if not callable(rows):
-            raise ParameterError(f"rows must be a callable times -> array, got {_brief(rows)}")
+            raise ParameterError(f"rows must be a callable times -> array, got {brief(rows)}")
         self._rows = rows
         self.prepare(np.zeros(0))
 
@@ -260,7 +260,7 @@ class OpenLoop(Controller):
     def __init__(self, schedule: Callable[[float], np.ndarray]) -> None:
         if not callable(schedule):
             raise ParameterError(f"schedule must be a callable t -> tau, "
-                                 f"got {_brief(schedule)}")
+                                 f"got {brief(schedule)}")
         self.schedule = schedule
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:

@@ -73,10 +73,11 @@ from typing import Any
 import numpy as np
 from scipy.linalg import lapack
 
+from .._validation import brief, check_params, integer
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import _r_batch
-from ..paper import _brief, _check_params, _integer, k_matrix
+from ..paper import k_matrix
 from ..params import SnakeParams
 from .base import Controller
 from .lyapunov import LyapunovController
@@ -110,7 +111,7 @@ Failure = BaseException | str
 def _items(value: object, name: str) -> list[Any]:
     """``value`` as a non-empty list: a sequence (not text, not a mapping), or ParameterError."""
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)):
-        raise ParameterError(f"{name} must be a non-empty sequence, got {_brief(value)}")
+        raise ParameterError(f"{name} must be a non-empty sequence, got {brief(value)}")
     items = list(value)
     if not items:
         raise ParameterError(f"{name} must be a non-empty sequence, got an empty one")
@@ -120,7 +121,7 @@ def _items(value: object, name: str) -> list[Any]:
 def _callable(value: object, name: str) -> Any:
     """``value`` if it is callable, else ParameterError naming ``name``."""
     if not callable(value):
-        raise ParameterError(f"{name} must be callable, got {_brief(value)}")
+        raise ParameterError(f"{name} must be callable, got {brief(value)}")
     return value
 
 
@@ -142,7 +143,7 @@ def layout_key(params: SnakeParams) -> tuple[Any, ...]:
     ParameterError
         ``params`` is not a SnakeParams.
     """
-    _check_params(params)
+    check_params(params)
     return tuple(getattr(params, name) for name in LAYOUT_FIELDS)
 
 
@@ -167,7 +168,7 @@ class BatchTerms:
     """
 
     def __init__(self, params: SnakeParams) -> None:
-        n = _check_params(params).n
+        n = check_params(params).n
         self._layout = layout_key(params)
         self.n, self.nq = n, n + 2
         k = k_matrix(params)
@@ -485,7 +486,7 @@ class FrictionCoefficients:
     """
 
     def __init__(self, robots: Sequence[SnakeParams]) -> None:
-        robots = [_check_params(p, "robots[]") for p in _items(robots, "robots")]
+        robots = [check_params(p, "robots[]") for p in _items(robots, "robots")]
         if len({p.n for p in robots}) > 1:
             raise ParameterError("robots must all have the same number of links")
         c_x = np.array([p.per_link("c_x") for p in robots]).reshape(len(robots), -1)
@@ -771,7 +772,7 @@ class _Vectorised(BatchedController):
         for controller in controllers:
             if type(controller) is not law:
                 raise ParameterError(f"controllers must all be {law.__name__} (exactly), "
-                                     f"got {_brief(controller)}")
+                                     f"got {brief(controller)}")
         layout = layout_key(controllers[0].snake.params)
         if any(layout_key(c.snake.params) != layout for c in controllers):
             raise ParameterError("controllers must all model robots of one layout "
@@ -779,7 +780,7 @@ class _Vectorised(BatchedController):
         if terms is not None and (not isinstance(terms, BatchTerms)
                                   or terms._layout != layout):
             raise ParameterError(f"terms must be None or the BatchTerms of the controllers' "
-                                 f"layout, got {_brief(terms)}")
+                                 f"layout, got {brief(terms)}")
         first = controllers[0]
         params = [c.snake.params for c in controllers]
         self.n = first.snake.n
@@ -1199,7 +1200,7 @@ class PerRunControllers(BatchedController):
         self._controllers = [_callable(c, "controllers[]")
                              for c in _items(controllers, "controllers")]
         self._validate = _callable(validate, "validate")
-        self._n_tau = _integer(n_tau, "n_tau", low=1)
+        self._n_tau = integer(n_tau, "n_tau", low=1)
         self.size = len(controllers)
         self._last: dict[str, np.ndarray] = {}
 
@@ -1289,7 +1290,7 @@ class GroupedControllers(BatchedController):
             if not isinstance(group, tuple) or len(group) != 2 \
                     or not isinstance(group[1], BatchedController):
                 raise ParameterError(f"groups must hold (rows, BatchedController) pairs, "
-                                     f"got {_brief(group)}")
+                                     f"got {brief(group)}")
             rows = np.asarray(group[0])
             if rows.ndim != 1 or rows.dtype.kind not in "iu" or len(rows) != group[1].size:
                 raise ParameterError("groups' rows must be integer arrays, one row per run "
@@ -1299,7 +1300,7 @@ class GroupedControllers(BatchedController):
         if not np.array_equal(every, np.arange(len(every))):
             raise ParameterError("groups' rows must cover 0..B-1 once")
         self.size = len(every)
-        self._n_tau = _integer(n_tau, "n_tau", low=1)
+        self._n_tau = integer(n_tau, "n_tau", low=1)
         self._groups = checked
         self._last: dict[str, np.ndarray] = {}
 
@@ -1412,7 +1413,7 @@ def batch_controller(controllers: Sequence[Controller], n_tau: int,
         vectorised controller models a robot with another number of joints.
     """
     controllers = [_callable(c, "controllers[]") for c in _items(controllers, "controllers")]
-    n_tau = _integer(n_tau, "n_tau", low=1)
+    n_tau = integer(n_tau, "n_tau", low=1)
     _callable(validate, "validate")
     if terms is not None:
         _callable(terms, "terms")

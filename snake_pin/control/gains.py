@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._validation import brief, flag, integer
 from ..exceptions import ParameterError
-from ..paper import _brief, _flag, _integer
 
 __all__ = ["gain_matrix"]
 
@@ -37,15 +37,15 @@ def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -
         integer, ``name`` not a string or ``definite`` not a bool.
     """
     if not isinstance(name, str):
-        raise ParameterError(f"name must be the gain's name (a string), got {_brief(name)}")
-    size = _integer(size, "size", low=1)
-    definite = _flag(definite, "definite")
+        raise ParameterError(f"name must be the gain's name (a string), got {brief(name)}")
+    size = integer(size, "size", low=1)
+    definite = flag(definite, "definite")
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be numeric, got {_brief(value)}") from exc
+        raise ParameterError(f"{name} must be numeric, got {brief(value)}") from exc
     if value is None or np.asarray(value).dtype.kind == "b":
-        raise ParameterError(f"{name} must be numeric, got {_brief(value)}")
+        raise ParameterError(f"{name} must be numeric, got {brief(value)}")
     if arr.ndim == 0:
         arr = float(arr) * np.eye(size)
     elif arr.ndim == 1:

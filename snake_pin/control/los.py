@@ -131,10 +131,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.linalg import expm, lapack
 
-from .._validation import finite_number
+from .._validation import brief, finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..model import Snake, _check_snake
-from ..paper import _brief
 from ..paths import Line, Path, PathReference
 from .base import Controller
 
@@ -226,7 +225,7 @@ class LOSParams:
             object.__setattr__(self, f.name, value)
         if not isinstance(self.steering, str) or self.steering not in _STEERING:
             raise ParameterError(f"LOS parameter steering must be one of {', '.join(_STEERING)}, "
-                                 f"got {_brief(self.steering)}")
+                                 f"got {brief(self.steering)}")
         defaults = {f.name: f.default for f in fields(self)}
         for law, names in _ONLY_FOR.items():
             if law == self.steering:
@@ -432,7 +431,7 @@ class LOSController(Controller):
             raise ParameterError("every joint is passive: there is nothing to control")
         base = LOSParams() if params is None else params
         if not isinstance(base, LOSParams):
-            raise ParameterError(f"params must be LOSParams, got {_brief(base)}")
+            raise ParameterError(f"params must be LOSParams, got {brief(base)}")
         known = {f.name for f in fields(LOSParams)}
         for key in overrides:
             if key not in known:

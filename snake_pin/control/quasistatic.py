@@ -47,12 +47,11 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import blas, lapack
 
-from .._validation import finite_number
+from .._validation import check_params, finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..friction import damping_twin
 from ..gaits import Serpenoid
 from ..model import Snake, _check_snake
-from ..paper import _check_params
 from ..params import SnakeParams
 from .base import (
     Controller,
@@ -98,7 +97,7 @@ def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.n
     ParameterError
         ``params`` is not a SnakeParams or ``bandwidth`` is not a positive number.
     """
-    _check_params(params)
+    check_params(params)
     bandwidth = finite_number(bandwidth, "bandwidth", positive=True)
     link = params.masses * params.link_lengths**2
     inertia = 0.5 * (link[:-1] + link[1:])

@@ -48,6 +48,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from .._io import atomic_save, atomic_write_bytes
+from .._validation import one_line, printable_path
 from .errors import StudyError
 from .spec import KEY_FORMAT, SETTINGS, StudySpec
 
@@ -145,7 +146,7 @@ class StudyFolder:
             differs); is not empty and not a study folder; its study.json is unreadable;
             or its ``runs`` is a symbolic link or not a folder.
         """
-        shown = _shown(self.path)
+        shown = printable_path(self.path)
         if self.path.is_symlink():
             raise StudyError(f"{shown} is a symbolic link; give the folder itself (a study "
                              "writes only inside its own folder)")
@@ -173,10 +174,10 @@ class StudyFolder:
     def _check_runs(self) -> None:
         """Refuse a ``runs`` that is a symbolic link or not a folder."""
         if self.runs.is_symlink():
-            raise StudyError(f"{_shown(self.runs)} is a symbolic link; a study writes only "
+            raise StudyError(f"{printable_path(self.runs)} is a symbolic link; a study writes only "
                              "inside its own folder (remove the link)")
         if self.runs.exists() and not self.runs.is_dir():
-            raise StudyError(f"{_shown(self.runs)} exists and is not a folder")
+            raise StudyError(f"{printable_path(self.runs)} exists and is not a folder")
 
     def identity(self) -> dict[str, Any]:
         """The stored ``study.json``.
@@ -196,10 +197,10 @@ class StudyFolder:
             with _open_regular(file) as handle:
                 data = json.loads(handle.read(1 << 24))
         except (OSError, ValueError) as exc:
-            raise StudyError(f"{_shown(file)} is not a readable study identity: "
-                             f"{_one_line(str(exc))}") from None
+            raise StudyError(f"{printable_path(file)} is not a readable study identity: "
+                             f"{one_line(str(exc))}") from None
         if not isinstance(data, dict):
-            raise StudyError(f"{_shown(file)} is not a readable study identity")
+            raise StudyError(f"{printable_path(file)} is not a readable study identity")
         return data
 
     def done_keys(self) -> set[str]:
@@ -243,8 +244,8 @@ class StudyFolder:
             if not entry.name.endswith(".parquet") or entry.name.startswith("."):
                 continue
             if not entry.is_file(follow_symlinks=False):
-                raise StudyError(f"{_shown(entry.path)} is not a regular file (a link, folder "
-                                 "or device); remove it to run its runs again")
+                raise StudyError(f"{printable_path(entry.path)} is not a regular file (a link, "
+                                 "folder or device); remove it to run its runs again")
             files.append(Path(entry.path))
         return sorted(files)
 
@@ -267,7 +268,7 @@ class StudyFolder:
             another process holds the folder's lock (a study is running there); or
             :meth:`check` fails under the lock.
         """
-        shown = _shown(self.path)
+        shown = printable_path(self.path)
         self.check(spec)
         try:
             self.path.mkdir(parents=True, exist_ok=True)
@@ -278,11 +279,11 @@ class StudyFolder:
             fd = os.open(self.path / ".lock", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW
                          | os.O_NONBLOCK, 0o666)
         except OSError as exc:
-            raise StudyError(f"{_shown(self.path / '.lock')}: cannot open the study's lock "
+            raise StudyError(f"{printable_path(self.path / '.lock')}: cannot open the study's lock "
                              f"({exc.strerror or exc}; a symbolic link is refused)") from None
         try:
             if not stat.S_ISREG(os.fstat(fd).st_mode):
-                raise StudyError(f"{_shown(self.path / '.lock')} is not a regular file")
+                raise StudyError(f"{printable_path(self.path / '.lock')} is not a regular file")
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
@@ -302,7 +303,7 @@ class StudyFolder:
             try:
                 self.runs.mkdir(exist_ok=True)
             except OSError as exc:
-                raise StudyError(f"{_shown(self.runs)}: cannot create the folder "
+                raise StudyError(f"{printable_path(self.runs)}: cannot create the folder "
                                  f"({exc.strerror or exc})") from None
             self._check_runs()
             _probe_writable(self.runs)
@@ -389,7 +390,7 @@ class StudyFolder:
 def _read_batch(file: Path, columns: Sequence[str]) -> pa.Table:
     """``columns`` of one batch file, checked (see :meth:`StudyFolder.read_table`)."""
     def refuse(problem: str) -> StudyError:
-        return StudyError(f"{_shown(file)} is not a usable batch file ({problem}); remove "
+        return StudyError(f"{printable_path(file)} is not a usable batch file ({problem}); remove "
                           "it to run its runs again")
 
     try:
@@ -409,7 +410,7 @@ def _read_batch(file: Path, columns: Sequence[str]) -> pa.Table:
     except StudyError:
         raise
     except (OSError, ValueError, pa.ArrowException) as exc:
-        raise refuse(_one_line(str(exc)) or type(exc).__name__) from None
+        raise refuse(one_line(str(exc)) or type(exc).__name__) from None
     if table.column("key").null_count:
         raise refuse("a row has no key")
     if table.column("status").null_count:
@@ -417,7 +418,7 @@ def _read_batch(file: Path, columns: Sequence[str]) -> pa.Table:
     try:
         table = table.select(wanted).cast(pa.schema([SCHEMA.field(n) for n in wanted]))
     except (ValueError, pa.ArrowException) as exc:
-        raise refuse(_one_line(str(exc))) from None
+        raise refuse(one_line(str(exc))) from None
     if not pc.all(pc.is_in(table.column("status"), value_set=pa.array(STATUSES))).as_py():
         raise refuse(f"a row's status is not one of {', '.join(STATUSES)}")
     return table.select(list(columns))
@@ -442,7 +443,7 @@ def _open_regular(path: Path) -> Iterator[Any]:
     fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     try:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise OSError(f"{_shown(path)}: not a regular file")
+            raise OSError(f"{printable_path(path)}: not a regular file")
         handle = os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)
@@ -463,7 +464,7 @@ def _probe_writable(folder: Path) -> None:
             with contextlib.suppress(OSError):
                 os.unlink(name)
     except OSError as exc:
-        raise StudyError(f"{_shown(folder)}: cannot write here ({exc.strerror or exc})") \
+        raise StudyError(f"{printable_path(folder)}: cannot write here ({exc.strerror or exc})") \
             from None
 
 
@@ -471,14 +472,4 @@ def _write_or_refuse(path: Path, data: bytes) -> None:
     try:
         atomic_write_bytes(path, data)
     except OSError as exc:
-        raise StudyError(f"{_shown(path)}: cannot write ({exc.strerror or exc})") from None
-
-
-def _shown(path: object) -> str:
-    text = os.fspath(path) if isinstance(path, os.PathLike) else str(path)
-    return text if text.isprintable() else repr(text)
-
-
-def _one_line(text: str, limit: int = 200) -> str:
-    text = " ".join(text.split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+        raise StudyError(f"{printable_path(path)}: cannot write ({exc.strerror or exc})") from None

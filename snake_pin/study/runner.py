@@ -60,10 +60,11 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 from urllib.parse import urlsplit
 
+from .._validation import one_line, printable_path
 from ..batch import LAYOUT_FIELDS, layout_key
 from ..exceptions import RunInterrupted
 from .errors import StudyError
-from .results import StudyFolder, _one_line, _shown
+from .results import StudyFolder
 from .spec import Scenario, StudySpec, load_study
 from .summary import StudySummary
 
@@ -418,7 +419,7 @@ def check_scheduler(address: str, *, security: Any = None,
     kind = identity.get("type") if isinstance(identity, dict) else None
     if kind != "Scheduler":
         raise StudyError(f"scheduler {text} answered Dask's handshake but is "
-                         f"{'a ' + _one_line(str(kind), 40) if kind else 'no Dask server'}, "
+                         f"{'a ' + one_line(str(kind), 40) if kind else 'no Dask server'}, "
                          "not a scheduler")
     return normal
 
@@ -462,7 +463,7 @@ def load_security(path: str | os.PathLike[str]) -> Any:
     import dask.config
     from distributed.security import Security
 
-    shown = _shown(path)
+    shown = printable_path(path)
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
         try:
@@ -480,7 +481,7 @@ def load_security(path: str | os.PathLike[str]) -> Any:
         loaded = list(dask.config.collect_yaml([os.fspath(path)]))
     except Exception as exc:  # yaml's errors, wrapped by Dask into a multi-line ValueError
         raise StudyError(f"security file {shown} is not YAML Dask config: "
-                         f"{_one_line(str(exc).split('message:')[-1])}") from None
+                         f"{one_line(str(exc).split('message:')[-1])}") from None
     data = loaded[0] if loaded else None
     if data is None:
         raise StudyError(f"security file {shown} is empty or unreadable")
@@ -489,7 +490,7 @@ def load_security(path: str | os.PathLike[str]) -> Any:
         with dask.config.set({f"distributed.comm.{k}": v for k, v in settings.items()}):
             return Security()
     except (ValueError, TypeError) as exc:
-        raise StudyError(f"security file {shown}: {_one_line(str(exc))}") from None
+        raise StudyError(f"security file {shown}: {one_line(str(exc))}") from None
 
 
 def _tls_settings(data: Any, shown: str) -> dict[str, Any]:
@@ -512,7 +513,7 @@ def _tls_settings(data: Any, shown: str) -> dict[str, Any]:
                 found[name] = value
             elif name.startswith("tls.") or name == "require-encryption":
                 raise StudyError(f"security file {shown}: unknown setting "
-                                 f"distributed.comm.{_one_line(name, 80)}")
+                                 f"distributed.comm.{one_line(name, 80)}")
 
     if isinstance(comm, dict):
         walk(comm, "")
@@ -540,7 +541,7 @@ def _security(security: Any) -> Any:
     try:
         return Security()
     except (ValueError, TypeError) as exc:
-        raise StudyError(f"Dask's distributed.comm.tls config: {_one_line(str(exc))}") from None
+        raise StudyError(f"Dask's distributed.comm.tls config: {one_line(str(exc))}") from None
 
 
 def _check_credentials(text: str, security: Any) -> None:
@@ -554,7 +555,7 @@ def _check_credentials(text: str, security: Any) -> None:
         security.get_connection_args("client")
     except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError
         raise StudyError(f"scheduler {text}: the TLS credentials cannot be loaded "
-                         f"({_one_line(str(exc))})") from None
+                         f"({one_line(str(exc))})") from None
 
 
 def _parse_address(address: Any) -> tuple[str, str, str, int]:
@@ -630,9 +631,9 @@ def _handshake_failure(text: str, scheme: str, host: str, port: int, exc: BaseEx
                 "credentials (--security FILE, or Dask's distributed.comm.tls config)")
     if scheme == "tls" and "certificate" in str(exc).lower():
         return (f"scheduler {text} refused these TLS credentials (give its cluster's: "
-                f"--security FILE): {_one_line(str(exc), 120)}")
+                f"--security FILE): {one_line(str(exc), 120)}")
     reason = f"no answer within {timeout:g} s" if silent else \
-        f"{type(exc).__name__}: {_one_line(str(exc), 120) or 'no detail'}"
+        f"{type(exc).__name__}: {one_line(str(exc), 120) or 'no detail'}"
     hint = ("; is it a tcp:// scheduler?" if scheme == "tls" and silent else "")
     return f"scheduler {text} did not complete Dask's handshake ({reason}){hint}"
 
@@ -701,7 +702,7 @@ def _client(address: str | None, workers: int, *, security: Any = None,
         thread.start()
         thread.join(timeout + 2.0)
         if "client" not in made:
-            reason = _one_line(str(made["error"])) if "error" in made else \
+            reason = one_line(str(made["error"])) if "error" in made else \
                 f"no answer within {timeout:g} s"
             raise StudyError(f"scheduler {address}: no Dask scheduler answered ({reason})")
         client = made["client"]

@@ -84,6 +84,7 @@ from typing import Any
 import numpy as np
 
 from .._io import decode_utf8, parse_toml, read_regular_file
+from .._validation import one_line, printable_path
 from ..exceptions import SnakePinError
 from ..metrics import ERROR_WINDOW
 from ..params import SnakeParams
@@ -524,7 +525,7 @@ def load_study(path: str | os.PathLike[str]) -> StudySpec:
         file = Path(path)
     except TypeError:
         raise StudyError(f"study file must be a path, got {_short(path)}") from None
-    where = _Where(_shown(file))
+    where = _Where(printable_path(file))
     data = read_regular_file(file, limit=MAX_STUDY_BYTES, kind="study file", error=where.error)
     return parse_study(decode_utf8(data, error=where.error), file)
 
@@ -550,7 +551,7 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
         One line naming ``path`` and the key at fault.
     """
     file = Path(path)
-    where = _Where(_shown(file))
+    where = _Where(printable_path(file))
     if not isinstance(text, str):
         raise where.error(f"study text must be a string, got {_kind_name(text)}")
     if len(text) > MAX_STUDY_BYTES:
@@ -596,7 +597,7 @@ class _Where:
         self.shown = shown
 
     def error(self, message: str) -> StudyError:
-        return StudyError(_one_line(f"{self.shown}: {message}", 400))
+        return StudyError(one_line(f"{self.shown}: {message}", 400))
 
 
 def _check_keys(where: _Where, table: str, doc: Mapping[str, Any], allowed: Sequence[str],
@@ -838,7 +839,7 @@ def _robots(where: _Where, file: Path, base: Mapping[str, Any], axes: Sequence[A
             robot = load_robot(spec)
         except SnakePinError as exc:
             raise where.error(f"{place('robot')} robot {_short(name)}: "
-                              f"{_one_line(str(exc))}") from None
+                              f"{one_line(str(exc), 300)}") from None
         same = next((other for other, known in robots.items() if known == robot), None)
         if same is not None:
             raise where.error(f"{place('robot')} robot {_short(name)} is the same robot as "
@@ -900,7 +901,7 @@ def _params(where: _Where, settings: Mapping[str, Any], robot: SnakeParams, plac
         except SnakePinError as exc:
             names = ", ".join(sorted({place(k) for k in friction}) or [place("robot")])
             raise where.error(f"{names} robot {_short(settings['robot'])}: "
-                              f"{_one_line(str(exc))}") from None
+                              f"{one_line(str(exc), 300)}") from None
         cache[cache_key] = params
     return params
 
@@ -971,13 +972,3 @@ _REPR.maxstring, _REPR.maxother, _REPR.maxlist = 60, 60, 8
 
 def _short(value: object) -> str:
     return _REPR.repr(value)
-
-
-def _shown(path: object) -> str:
-    text = os.fspath(path) if isinstance(path, os.PathLike) else str(path)
-    return text if text.isprintable() else repr(text)
-
-
-def _one_line(text: str, limit: int = 300) -> str:
-    text = " ".join(text.split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
