@@ -50,7 +50,7 @@ from threadpoolctl import ThreadpoolController
 
 from ._blas import dgemv
 from ._io import atomic_group
-from ._validation import one_line, printable_path
+from ._validation import brief, finite_number, flag, one_line, printable_path
 from .control.base import Controller, _sampler
 from .exceptions import (
     ConfigurationError,
@@ -625,18 +625,34 @@ def _as_controller(controller: object) -> Controller:
     if callable(controller):
         return _FunctionController(controller)
     raise ParameterError("controller must be a Controller or a function f(x, t) -> tau, "
-                         f"got {reprlib.repr(controller)}")
+                         f"got {brief(controller)}")
 
 
 def _number(value: object, name: str, *, allow_inf: bool = False) -> float:
     """``value`` as a positive float (finite unless ``allow_inf``) or ParameterError."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ParameterError(f"{name} must be a number, got {reprlib.repr(value)}")
-    x = float(value)
-    if math.isnan(x) or x <= 0 or (math.isinf(x) and not allow_inf):
-        kind = "positive number" if allow_inf else "positive finite number"
-        raise ParameterError(f"{name} must be a {kind}, got {x}")
-    return x
+    if allow_inf and isinstance(value, numbers.Real) and not isinstance(value, bool) \
+            and value == math.inf:
+        return math.inf
+    return finite_number(value, name, positive=True)
+
+
+def _check_plant(snake: object) -> tuple[int, int]:
+    """(nq, n - 1) of the plant: a :class:`~snake_pin.model.Snake`, or an object with a
+    Snake's ``nq``, ``n``, ``params`` and ``state_derivative``; else ParameterError."""
+    if isinstance(snake, Snake):
+        return snake.nq, snake.n - 1
+    wanted = "snake must be a Snake (or a plant with its nq, n, params and state_derivative)"
+    try:
+        nq, n, params = snake.nq, snake.n, snake.params  # type: ignore[attr-defined]
+        dynamics = snake.state_derivative  # type: ignore[attr-defined]
+    except AttributeError:
+        raise ParameterError(f"{wanted}, got {brief(snake)}") from None
+    if not isinstance(params, SnakeParams) or not callable(dynamics) or \
+            isinstance(n, bool) or not isinstance(n, numbers.Integral) or \
+            isinstance(nq, bool) or not isinstance(nq, numbers.Integral) or \
+            n != params.n or nq != n + 2:
+        raise ParameterError(f"{wanted}, got {brief(snake)} whose nq, n or params disagree")
+    return int(nq), int(n) - 1
 
 
 def _state(x0: object, size: int) -> np.ndarray:
@@ -777,7 +793,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     ParameterError, ConfigurationError
         Bad arguments (before anything runs).
     """
-    nq, n_tau = snake.nq, snake.n - 1
+    nq, n_tau = _check_plant(snake)
     ctrl = _as_controller(controller)
     x = _state(x0, 2 * nq)
     t_final = _number(t_final, "t_final")
@@ -786,11 +802,10 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     max_speed = _number(max_speed, "max_speed", allow_inf=True)
     max_distance = _number(max_distance, "max_distance", allow_inf=True)
     if not isinstance(method, str) or method not in ("rk4", "solve_ivp"):
-        raise ParameterError(f"method must be 'rk4' or 'solve_ivp', got {reprlib.repr(method)}")
-    if not isinstance(progress, (bool, np.bool_)):
-        raise ParameterError(f"progress must be True or False, got {reprlib.repr(progress)}")
+        raise ParameterError(f"method must be 'rk4' or 'solve_ivp', got {brief(method)}")
+    progress = flag(progress, "progress")
     if meta is not None and not isinstance(meta, Mapping):
-        raise ParameterError(f"meta must be a mapping, got {reprlib.repr(meta)}")
+        raise ParameterError(f"meta must be a mapping, got {brief(meta)}")
     substeps, steps = _check_steps(t_final, dt, control_dt)
     _check_size(steps + 1, nq, n_tau, t_final)
     try:

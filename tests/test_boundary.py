@@ -141,7 +141,7 @@ def _torques(raw: object, size: int) -> tuple[np.ndarray | None, str]:
 ROWS: dict[str, Row] = {
     # ------------------------------------------------------------------ snake_pin
     "snake_pin.batch.BatchResult": Row(record=RECORD, owner="batch"),
-    "snake_pin.sim.Trajectory": Row(record=RECORD, owner="sim"),
+    "snake_pin.sim.Trajectory": Row(record=RECORD),
     "snake_pin.control.base.Controller": Row(record=ABSTRACT),
     "snake_pin.model.DynamicsDerivatives": Row(record=RECORD),
     "snake_pin.manipulability.Manipulability": Row(record=RECORD),
@@ -187,7 +187,7 @@ ROWS: dict[str, Row] = {
                    {"n": 5, "link_length": 0.12, "mass": 0.182, "inertia": 2.2e-4,
                     "c_x": 0.5, "c_y": 0.5, "c_theta": 7.2e-5, "passive": (), "name": "x",
                     "com_offset": None}),
-        skip={"com_offset": "None", "name": "str"}, owner="params"),
+        skip={"com_offset": "None", "name": "str"}),
     "snake_pin.paths.along_track": Row(
         lambda w: (snake_pin.along_track, {"path": _m("snake_pin.paths").Line(),
                                            "points": np.zeros((2, 2)), "span": None}),
@@ -236,7 +236,7 @@ ROWS: dict[str, Row] = {
                     "x0": np.r_[w.q, np.zeros(7)], "t_final": 0.002, "dt": 1e-3,
                     "control_dt": 1e-3, "method": "rk4", "max_speed": 1e3,
                     "max_distance": 1e3, "progress": False, "meta": None}),
-        skip={"progress": "bool", "meta": "None dict"}, owner="sim"),
+        skip={"progress": "bool", "meta": "None dict"}, errors={"x0": CONFIG}),
     "snake_pin.batch.simulate_batch": Row(
         lambda w: (snake_pin.simulate_batch,
                    {"robots": w.params, "controllers": [w.lyapunov],
@@ -513,29 +513,6 @@ for _method, _arguments in SNAKE_METHODS.items():
              for a in arguments}),
         errors=dict.fromkeys(_arguments, CONFIG))
 
-def _owned(key: str, argument: str, kinds: str) -> list[str]:
-    return [f"{key}:{argument}:{kind}" for kind in kinds.split()]
-
-
-#: Cases of the rows with an ``owner`` (modules outside :data:`MODULES`) that fail today:
-#: xfail, not strict, reason "owned elsewhere"; each passes once its module checks it.
-OWNED_ELSEWHERE: frozenset[str] = frozenset([
-    *_owned("params.SnakeParams", "passive", "dict"),
-    *_owned("paths.along_track", "path", "None str short bool dict"),
-    *_owned("paths.along_track", "points", "str dict"),
-    *_owned("paths.along_track", "span", "str short bool dict"),
-    *_owned("paths.cross_track_error", "path", "None str short bool dict"),
-    *_owned("paths.cross_track_error", "points", "str dict"),
-    *_owned("paths.cross_track_error", "span", "str short bool dict"),
-    *_owned("robot_file.write_robot_file", "path", "None short bool dict"),
-    *_owned("sim.simulate", "snake", "None str short bool dict"),
-    *_owned("urdf.build_urdf", "floating_base", "None str short dict"),
-    *_owned("urdf.build_urdf", "params", "None str short bool dict"),
-    *_owned("urdf.write_urdf", "params", "None str short bool dict"),
-    *_owned("urdf.write_urdf", "path", "None short bool dict"),
-])
-
-
 def _public() -> dict[str, Any]:
     """Qualified name -> object of every public callable the walk must cover."""
     found: dict[str, Any] = {}
@@ -560,9 +537,7 @@ def _cases() -> list[Any]:
                 if kind in row.skip.get(argument, "").split():
                     continue
                 case_id = f"{key.removeprefix('snake_pin.')}:{argument}:{kind}"
-                marks = ([pytest.mark.xfail(reason="owned elsewhere", strict=False)]
-                         if case_id in OWNED_ELSEWHERE else [])
-                cases.append(pytest.param(key, argument, kind, id=case_id, marks=marks))
+                cases.append(pytest.param(key, argument, kind, id=case_id))
     return cases
 
 
@@ -615,14 +590,6 @@ def test_rows_of_records_say_why() -> None:
     """A row without a call says why (a result record or an abstract class)."""
     for key, row in ROWS.items():
         assert (row.call is None) == (row.record is not None), key
-
-
-def test_expected_failures_are_only_other_modules() -> None:
-    """Only rows of modules outside MODULES may list expected failures, each a real case."""
-    cases = {param.id for param in _cases()}
-    for case in OWNED_ELSEWHERE:
-        assert ROWS[f"snake_pin.{case.split(':')[0]}"].owner is not None, case
-        assert case in cases, case
 
 
 def test_rows_without_task_are_refused() -> None:

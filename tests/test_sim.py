@@ -340,6 +340,39 @@ def test_arguments_are_checked(table1: Snake, name: str, value: object,
         simulate(table1, _wave(10), **kwargs)
 
 
+class _Wrong:
+    """A Snake's attributes with one replaced: not a consistent plant."""
+
+    def __init__(self, snake: Snake, **changed: object) -> None:
+        self._snake, self._changed = snake, changed
+
+    def __getattr__(self, name: str) -> object:
+        return self._changed.get(name, getattr(self._snake, name))
+
+
+@pytest.mark.parametrize("plant", [None, "abc", [1.0], True, {}, np.zeros(10)])
+def test_the_plant_is_checked_at_entry(plant: object) -> None:
+    """Anything without a Snake's attributes is a ParameterError naming snake, in one line."""
+    with pytest.raises(ParameterError, match=r"^snake must be a Snake") as info:
+        simulate(plant, _wave(10), _x0(10), 0.01)  # type: ignore[arg-type]
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("changed", [{"nq": 11}, {"n": 9}, {"n": 10.0}, {"params": {}},
+                                     {"state_derivative": None}])
+def test_an_inconsistent_plant_is_refused(table1: Snake, changed: dict) -> None:
+    """A plant whose nq, n, params or dynamics disagree is refused before anything runs."""
+    with pytest.raises(ParameterError, match="disagree"):
+        simulate(_Wrong(table1, **changed), _wave(10), _x0(10), 0.01)  # type: ignore[arg-type]
+
+
+def test_a_consistent_plant_runs_as_the_snake(table1: Snake) -> None:
+    """A plant with a Snake's attributes (not a Snake) runs, on the plain RK4 step."""
+    plain = simulate(_Wrong(table1), _wave(10), _x0(10), 0.02)  # type: ignore[arg-type]
+    fast = simulate(table1, _wave(10), _x0(10), 0.02)
+    assert plain.status == "completed" and np.allclose(plain.q, fast.q, atol=1e-12)
+
+
 def test_unbounded_divergence_limits(table1: Snake) -> None:
     """math.inf switches a divergence bound off."""
     traj = simulate(table1, _wave(10), _x0(10), 0.01, max_speed=math.inf, max_distance=math.inf)
