@@ -11,14 +11,17 @@ from __future__ import annotations
 import math
 import numbers
 import os
+from typing import TypeVar
 
 import numpy as np
 
 from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
-__all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "integer",
-           "one_line", "printable_path"]
+__all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "instance",
+           "integer", "one_line", "printable_path"]
+
+_T = TypeVar("_T")
 
 #: The longest text :func:`brief` shows of a value (longer ones are cut, or named by type).
 BRIEF_CHARS = 40
@@ -73,11 +76,18 @@ def flag(value: object, name: str) -> bool:
     return bool(value)
 
 
+def instance(value: object, kind: type[_T], name: str, what: str | None = None) -> _T:
+    """``value`` if it is a ``kind``, else ParameterError: ``{name} must be {what}, got ...``
+    (``what`` defaults to ``a {kind's name}``)."""
+    if not isinstance(value, kind):
+        raise ParameterError(f"{name} must be {what or 'a ' + kind.__name__}, "
+                             f"got {brief(value)}")
+    return value
+
+
 def check_params(value: object, name: str = "params") -> SnakeParams:
     """``value`` if it is a :class:`~snake_pin.params.SnakeParams`, else ParameterError."""
-    if not isinstance(value, SnakeParams):
-        raise ParameterError(f"{name} must be a SnakeParams, got {brief(value)}")
-    return value
+    return instance(value, SnakeParams, name)
 
 
 def as_vector(value: object, size: int, name: str) -> np.ndarray:

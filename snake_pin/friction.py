@@ -61,7 +61,7 @@ import numpy as np
 import pinocchio as pin
 
 from ._symmetric import symmetric_from_upper
-from ._validation import as_vector, brief, check_params
+from ._validation import as_vector, check_params, instance
 from .exceptions import ParameterError
 from .params import SnakeParams
 
@@ -81,19 +81,16 @@ _HEAD_JOINT = 3
 
 def _check_model(value: object, name: str = "model") -> pin.Model:
     """``value`` if it is a ``pinocchio.Model``, else ParameterError naming ``name``."""
-    if not isinstance(value, pin.Model):
-        raise ParameterError(f"{name} must be a pinocchio.Model, got {brief(value)}")
-    return value
+    return instance(value, pin.Model, name, "a pinocchio.Model")
 
 
 def _check_data(value: object, model: pin.Model, name: str = "data") -> pin.Data:
     """``value`` if it is a ``pinocchio.Data`` of ``model``'s size, else ParameterError."""
-    if not isinstance(value, pin.Data):
-        raise ParameterError(f"{name} must be a pinocchio.Data, got {brief(value)}")
-    if len(value.oMi) != model.njoints:
-        raise ParameterError(f"{name} has {len(value.oMi)} joints, the model "
+    data = instance(value, pin.Data, name, "a pinocchio.Data")
+    if len(data.oMi) != model.njoints:
+        raise ParameterError(f"{name} has {len(data.oMi)} joints, the model "
                              f"{model.njoints}: use model.createData()")
-    return value
+    return data
 
 
 def _paper_model_of(model: object, params: object) -> tuple[pin.Model, SnakeParams]:

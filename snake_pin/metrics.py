@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
-from ._validation import brief, finite_number, integer
+from ._validation import brief, finite_number, instance, integer
 from .exceptions import ConfigurationError, ParameterError
 from .manipulability import manipulability, task_split
 from .model import Snake
@@ -29,9 +29,7 @@ def _check_traj(value: object) -> Trajectory:
     """``value`` if it is a :class:`~snake_pin.sim.Trajectory`, else ParameterError."""
     from .sim import Trajectory
 
-    if not isinstance(value, Trajectory):
-        raise ParameterError(f"traj must be a Trajectory, got {brief(value)}")
-    return value
+    return instance(value, Trajectory, "traj")
 
 
 def _check_summary(value: object) -> Mapping[str, object]:

@@ -30,8 +30,8 @@ import pinocchio as pin
 
 from ._blas import dgemv
 from ._symmetric import symmetric_from_upper
-from ._validation import as_vector, brief, check_params, integer
-from .exceptions import ConfigurationError, ParameterError
+from ._validation import as_vector, check_params, instance, integer
+from .exceptions import ConfigurationError
 from .friction import FrictionModel
 from .params import SnakeParams
 from .urdf import urdf_string
@@ -962,9 +962,7 @@ def _crba_mirrors(model: pin.Model) -> bool:
 
 def _check_snake(value: object, name: str = "snake") -> Snake:
     """``value`` if it is a :class:`Snake`, else ParameterError naming ``name``."""
-    if not isinstance(value, Snake):
-        raise ParameterError(f"{name} must be a Snake, got {brief(value)}")
-    return value
+    return instance(value, Snake, name)
 
 
 def _vector(value: object, size: int, name: str) -> np.ndarray:

@@ -15,6 +15,7 @@ from snake_pin._validation import (
     check_params,
     finite_number,
     flag,
+    instance,
     integer,
     one_line,
     printable_path,
@@ -90,6 +91,16 @@ def test_integer_flag_and_params() -> None:
     assert check_params(params) is params
     with pytest.raises(ParameterError, match="robot must be a SnakeParams, got a dict"):
         check_params({"n": 3}, "robot")
+
+
+def test_instance_names_the_argument_and_the_wanted_kind() -> None:
+    """instance returns a value of the kind unchanged and words a refusal as 'NAME must be'."""
+    params = SnakeParams.table1(n=3)
+    assert instance(params, SnakeParams, "robot") is params
+    with pytest.raises(ParameterError, match=r"^robot must be a SnakeParams, got None$"):
+        instance(None, SnakeParams, "robot")
+    with pytest.raises(ParameterError, match=r"^model must be a Pinocchio model, got 'x'$"):
+        instance("x", SnakeParams, "model", "a Pinocchio model")
 
 
 def test_as_vector_errors_are_configuration_errors() -> None:

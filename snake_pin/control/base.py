@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validation import brief, integer
+from .._validation import brief, instance, integer
 from ..exceptions import ConfigurationError, ParameterError
 from ..gaits import Serpenoid
 from .reference import LinearReference
@@ -58,9 +58,7 @@ def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
 
 def _check_gait(value: object, name: str) -> Serpenoid:
     """``value`` if it is a :class:`~snake_pin.gaits.Serpenoid`, else ParameterError."""
-    if not isinstance(value, Serpenoid):
-        raise ParameterError(f"{name} must be a Serpenoid, got {brief(value)}")
-    return value
+    return instance(value, Serpenoid, name)
 
 
 def _check_reference(value: object, name: str = "reference") -> Any:
