@@ -270,6 +270,44 @@ def test_a_linked_lock_or_identity_is_not_followed(tmp_path: Path) -> None:
         folder.check(spec)
 
 
+def test_an_identity_that_is_not_a_small_regular_file_is_refused(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """study.json as a FIFO (never opened: it would block) or beyond the size bound is
+    refused in one line naming it."""
+    import os
+
+    from snake_pin.study import results
+
+    folder, spec = _prepared(tmp_path)
+    identity = folder.path / "study.json"
+    size = identity.stat().st_size
+    monkeypatch.setattr(results, "_MAX_IDENTITY_BYTES", size - 1)
+    with pytest.raises(StudyError, match=f"larger than {size - 1} bytes") as info:
+        folder.check(spec)
+    assert str(identity) in str(info.value) and "\n" not in str(info.value)
+    monkeypatch.undo()
+    identity.unlink()
+    os.mkfifo(identity)
+    with pytest.raises(StudyError, match="FIFO, not a regular file") as info:
+        folder.check(spec)
+    assert str(identity) in str(info.value)
+
+
+def test_a_batch_file_beyond_the_size_bound_is_refused(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A batch file larger than the bound is refused with its name, never counted as done."""
+    from snake_pin.study import results
+
+    folder, spec = _prepared(tmp_path)
+    path = folder.runs / batch_name([spec.scenarios[0].key])
+    pq.write_table(rows_table(_rows(spec, spec.scenarios[:1])), path)
+    assert folder.done_keys() == {spec.scenarios[0].key}
+    monkeypatch.setattr(results, "_MAX_BATCH_FILE_BYTES", path.stat().st_size - 1)
+    with pytest.raises(StudyError, match=r"larger than \d+ bytes") as info:
+        folder.done_keys()
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
 def test_a_folder_that_cannot_be_written_fails_before_any_run(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Writing probed for real: a folder under a file, or one whose writes fail (as on a

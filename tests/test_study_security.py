@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import http.client
+import os
 import re
 import socket
 import ssl
@@ -300,8 +301,8 @@ def test_security_options_are_checked_before_anything_is_created(tmp_path: Path)
 
 def test_security_files_are_dask_config_and_bad_ones_are_named(tmp_path: Path) -> None:
     """load_security reads distributed.comm.tls (underscores as Dask spells them too); a
-    missing file, a folder, bad YAML, no TLS setting, an unknown one or a wrong type: one
-    line naming the file."""
+    missing file, a folder, a FIFO, a file too large, not UTF-8, bad YAML, no mapping, no
+    TLS setting, an unknown one or a wrong type: one line naming the file."""
     good = tmp_path / "good.yaml"
     good.write_text("distributed:\n  comm:\n    require_encryption: true\n    tls:\n"
                     "      ca_file: /ca.pem\n      min-version: 1.3\n      client:\n"
@@ -318,7 +319,15 @@ def test_security_files_are_dask_config_and_bad_ones_are_named(tmp_path: Path) -
            "type.yaml": "distributed:\n  comm:\n    tls:\n      ca-file: 3\n",
            "version.yaml": "distributed:\n  comm:\n    tls:\n      ca-file: /ca.pem\n"
                            "      min-version: 1.1\n"}
-    messages = {"missing.yaml": "No such file", "folder.yaml": "not a regular file",
+    bad.update({"blank.yaml": "", "list.yaml": "- distributed\n",
+                "large.yaml": "#" * (1 << 20) + "\n", "latin1.yaml": None})
+    (tmp_path / "latin1.yaml").write_bytes(b"distributed: caf\xe9\n")
+    os.mkfifo(tmp_path / "fifo.yaml")  # never opened: reading it would block
+    bad["fifo.yaml"] = None
+    messages = {"missing.yaml": "no such security file", "folder.yaml": "is a folder",
+                "blank.yaml": "is empty", "list.yaml": "top level is a list",
+                "large.yaml": "larger than 1048576 bytes", "latin1.yaml": "not UTF-8",
+                "fifo.yaml": "FIFO, not a regular file",
                 "broken.yaml": "not YAML Dask config", "empty.yaml": "no distributed.comm.tls",
                 "typo.yaml": "unknown setting distributed.comm.tls.cafile",
                 "type.yaml": "wrong type", "version.yaml": "min-version"}

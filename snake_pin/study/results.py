@@ -47,7 +47,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from .._io import atomic_save, atomic_write_bytes
+from .._io import atomic_save, atomic_write_bytes, open_regular_file
 from .._validation import one_line, printable_path
 from .errors import StudyError
 from .spec import KEY_FORMAT, SETTINGS, StudySpec
@@ -71,6 +71,11 @@ SCHEMA = pa.schema(
         "R_min", "R_tilde_min", "D_min", "t_end", "torque_rms", "wall_time")])
 _IDENTITY = "study.json"
 _FORMAT = 1
+#: Largest study.json read [bytes] (a normalised study is far smaller).
+_MAX_IDENTITY_BYTES = 1 << 24
+#: Largest batch file read [bytes] (a batch holds at most MAX_BATCH rows of a few hundred
+#: bytes each).
+_MAX_BATCH_FILE_BYTES = 1 << 26
 
 
 def batch_name(keys: Sequence[str]) -> str:
@@ -193,12 +198,21 @@ class StudyFolder:
             The file is unreadable or not a JSON object.
         """
         file = self.path / _IDENTITY
+        shown = printable_path(file)
+
+        def refuse(problem: str) -> StudyError:
+            return StudyError(f"{shown} is not a readable study identity: {one_line(problem)}")
+
+        if file.is_symlink():
+            raise refuse("it is a symbolic link (a study reads only inside its own folder)")
         try:
-            with _open_regular(file) as handle:
-                data = json.loads(handle.read(1 << 24))
+            with open_regular_file(file, limit=_MAX_IDENTITY_BYTES, kind="study identity",
+                                   error=refuse) as handle:
+                data = json.loads(handle.read(_MAX_IDENTITY_BYTES))
+        except StudyError:
+            raise
         except (OSError, ValueError) as exc:
-            raise StudyError(f"{printable_path(file)} is not a readable study identity: "
-                             f"{one_line(str(exc))}") from None
+            raise refuse(str(exc)) from None
         if not isinstance(data, dict):
             raise StudyError(f"{printable_path(file)} is not a readable study identity")
         return data
@@ -394,7 +408,10 @@ def _read_batch(file: Path, columns: Sequence[str]) -> pa.Table:
                           "it to run its runs again")
 
     try:
-        with _open_regular(file) as handle:
+        if file.is_symlink():
+            raise refuse("a symbolic link, not a regular file")
+        with open_regular_file(file, limit=_MAX_BATCH_FILE_BYTES, kind="Parquet batch file",
+                               error=refuse) as handle:
             parquet = pq.ParquetFile(handle)
             schema = parquet.schema_arrow
             missing = [n for n in SCHEMA.names if n not in schema.names]
@@ -435,21 +452,6 @@ def _compatible(found: pa.DataType, expected: pa.DataType) -> bool:
     if pa.types.is_floating(expected):
         return pa.types.is_floating(found) or pa.types.is_integer(found)
     return False
-
-
-@contextlib.contextmanager
-def _open_regular(path: Path) -> Iterator[Any]:
-    """``path`` open for binary reading: a regular file, not through a symbolic link."""
-    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise OSError(f"{printable_path(path)}: not a regular file")
-        handle = os.fdopen(fd, "rb")
-    except BaseException:
-        os.close(fd)
-        raise
-    with handle:
-        yield handle
 
 
 def _probe_writable(folder: Path) -> None:

@@ -53,13 +53,13 @@ import logging
 import math
 import os
 import socket
-import stat
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 from urllib.parse import urlsplit
 
+from .._io import decode_utf8, read_regular_file
 from .._validation import one_line, printable_path
 from ..batch import LAYOUT_FIELDS, layout_key
 from ..exceptions import RunInterrupted
@@ -456,35 +456,35 @@ def load_security(path: str | os.PathLike[str]) -> Any:
     Raises
     ------
     StudyError
-        The file is missing, not a regular file, too large or not YAML; holds no
+        The file is missing, not a regular file, too large, not UTF-8 or not YAML; holds no
         ``distributed.comm.tls`` setting, an unknown one, or a value of the wrong type.
     """
     import dask
-    import dask.config
+    import yaml  # type: ignore[import-untyped]  # (PyYAML, a dependency of Dask)
     from distributed.security import Security
 
     shown = printable_path(path)
+
+    def refuse(problem: str) -> StudyError:
+        return StudyError(f"security file {shown}: {one_line(problem)}")
+
+    # Read once, checked (a regular file of bounded size, never a FIFO or a device), and
+    # parsed as Dask parses its config files (yaml.safe_load of the text): Dask's own
+    # collect_yaml would open the path again.
+    raw = read_regular_file(path, limit=_MAX_SECURITY_BYTES, kind="security file",
+                            error=refuse)
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-        try:
-            info = os.fstat(fd)
-        finally:
-            os.close(fd)
-    except OSError as exc:
-        raise StudyError(f"security file {shown}: {exc.strerror or exc}") from None
-    if not stat.S_ISREG(info.st_mode):
-        raise StudyError(f"security file {shown} is not a regular file")
-    if info.st_size > _MAX_SECURITY_BYTES:
-        raise StudyError(f"security file {shown} is larger than "
-                         f"{_MAX_SECURITY_BYTES >> 20} MiB")
-    try:
-        loaded = list(dask.config.collect_yaml([os.fspath(path)]))
-    except Exception as exc:  # yaml's errors, wrapped by Dask into a multi-line ValueError
+        data = yaml.safe_load(decode_utf8(raw, error=refuse))
+    except StudyError:
+        raise
+    except Exception as exc:  # yaml's errors (multi-line), or a nesting too deep to parse
         raise StudyError(f"security file {shown} is not YAML Dask config: "
-                         f"{one_line(str(exc).split('message:')[-1])}") from None
-    data = loaded[0] if loaded else None
+                         f"{one_line(str(exc)) or type(exc).__name__}") from None
     if data is None:
-        raise StudyError(f"security file {shown} is empty or unreadable")
+        raise StudyError(f"security file {shown} is empty")
+    if not isinstance(data, dict):
+        raise StudyError(f"security file {shown} is not YAML Dask config: its top level is "
+                         f"a {type(data).__name__}, not a mapping")
     settings = _tls_settings(data, shown)
     try:
         with dask.config.set({f"distributed.comm.{k}": v for k, v in settings.items()}):
