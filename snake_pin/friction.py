@@ -99,7 +99,7 @@ def _paper_model_of(model: object, params: object) -> tuple[pin.Model, SnakePara
     checked = check_params(params)
     pinocchio_model = _check_model(model)
     if pinocchio_model.njoints != checked.n + _HEAD_JOINT or pinocchio_model.nv != checked.n + 2:
-        raise ParameterError(f"model must be the paper model of a {checked.n}-link snake, "
+        raise ParameterError(f"model must be the paper model of the {checked.n}-link snake, "
                              f"got {pinocchio_model.njoints} joints")
     return pinocchio_model, checked
 

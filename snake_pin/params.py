@@ -193,7 +193,7 @@ class SnakeParams:
                 raise ParameterError(f"passive joint indices must be integers, got {k!r}")
             if not 1 <= int(k) <= n - 1:
                 raise ParameterError(
-                    f"passive joint {k} is outside 1..{n - 1} for a {n}-link snake")
+                    f"passive joint {k} is outside 1..{n - 1} for the {n}-link snake")
         return tuple(sorted({int(k) for k in items}))
 
     # ----------------------------------------------------------------- derived

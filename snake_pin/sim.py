@@ -693,7 +693,7 @@ def _check_size(samples: int, nq: int, n_tau: int, t_final: float) -> None:
     largest = samples * nq * 8
     total = samples * (2 * nq + n_tau + 1) * 8
     if largest > MAX_ARRAY_BYTES or total > MAX_TOTAL_BYTES:
-        raise ParameterError(f"t_final = {t_final:g} s needs {samples} samples of a "
+        raise ParameterError(f"t_final = {t_final:g} s needs {samples} samples of the "
                              f"{nq - 2}-link robot ({_mib(total)}), beyond the "
                              f"{_mib(MAX_ARRAY_BYTES)} per array / {_mib(MAX_TOTAL_BYTES)} "
                              "a trajectory may hold")

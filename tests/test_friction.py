@@ -185,10 +185,12 @@ def test_a_foreign_model_is_a_parameter_error() -> None:
 
     params = SnakeParams.table1(n=5)
     other = Snake(SnakeParams.table1(n=6)).model
-    with pytest.raises(ParameterError, match="model must be the paper model of a 5-link"):
+    with pytest.raises(ParameterError, match="model must be the paper model of the 5-link"):
         damping_twin(other, params)
     with pytest.raises(ParameterError, match="model must be the paper model"):
         FrictionModel(params, other)
+    with pytest.raises(ParameterError, match="paper model of the 8-link snake"):
+        damping_twin(other, SnakeParams.table1(n=8))
 
 
 def test_derivatives_without_the_model_are_a_parameter_error(

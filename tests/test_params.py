@@ -110,3 +110,10 @@ def test_the_ranges_are_the_documented_ones() -> None:
     assert (LENGTH_RANGE, MASS_RANGE, INERTIA_RANGE, FRICTION_RANGE) == (
         (1e-4, 1e2), (1e-6, 1e4), (1e-16, 1e7), (1e-12, 1e6))
     assert set(FIELD_RANGES) == set(LINK_FIELDS) - {"com_offset"}
+
+
+@pytest.mark.parametrize("n", [8, 11, 18])
+def test_an_out_of_range_passive_joint_names_the_robot_in_good_english(n: int) -> None:
+    """A passive joint beyond n - 1 says 'the N-link snake' (never 'a 8-link', 'a 11-link')."""
+    with pytest.raises(ParameterError, match=f"outside 1..{n - 1} for the {n}-link snake$"):
+        SnakeParams.table1(n=n, passive=(n,))

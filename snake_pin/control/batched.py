@@ -1423,7 +1423,7 @@ def batch_controller(controllers: Sequence[Controller], n_tau: int,
         kind = type(ctrl)
         if kind in _VECTORISED and isinstance(ctrl, _VECTORISED_TYPES):
             if ctrl.snake.n - 1 != n_tau:
-                raise ParameterError(f"run {row}: the controller models a "
+                raise ParameterError(f"run {row}: the controller models the "
                                      f"{ctrl.snake.n}-link robot, the plant has "
                                      f"{n_tau + 1} links")
             key: tuple[Any, ...] = (kind, layout_key(ctrl.snake.params))

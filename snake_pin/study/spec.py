@@ -947,7 +947,7 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
     samples = math.ceil(steps - 1e-9) + 1
     nq = n + 2
     if samples * nq * 8 > MAX_ARRAY_BYTES or samples * (2 * nq + n) * 8 > MAX_TOTAL_BYTES:
-        raise where.error(f"{place('t_final')} t_final = {t_final:g} s of a {n}-link robot "
+        raise where.error(f"{place('t_final')} t_final = {t_final:g} s of the {n}-link robot "
                           "needs more memory than a trajectory may hold (snake_pin.sim."
                           "MAX_ARRAY_BYTES)")
 
