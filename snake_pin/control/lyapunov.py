@@ -19,7 +19,7 @@ is a dropped column). Take the targets
 and tau_a = argmin ||A tau_a + b - q''*||^2_W, W = blockdiag(K_w2, K_phi): a weighted least
 squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible).
 
-Evaluation (the closed loop's hot path, issue 13): b comes from one WORLD-convention ABA at
+Evaluation (the closed loop's hot path): b comes from one WORLD-convention ABA at
 zero torque and H^-1 from ``pin.computeMinverse`` right after it
 (:class:`~snake_pin.model.FastDynamics`); every target, s and e are one matrix product
 with the stacked state, b and the time terms; the stack S = [W^(1/2) A, W^(1/2)

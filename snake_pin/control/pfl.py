@@ -20,7 +20,7 @@ Beyond the paper, ``climb_R = gamma > 0`` uses the redundancy to climb log R: u 
 towards the velocity gamma grad log R (a damped gradient flow; it does not disturb
 w'' = a). The report shows what it does to the breakdown.
 
-Evaluation (the closed loop's hot path, issue 13). Expanding the law,
+Evaluation (the closed loop's hot path). Expanding the law,
 
     tau = h2 + H22 w,   w = H12^+ z - u,   z = -H11 a - h1 + H12 (H22^-1 H21 a + u),
 
