@@ -11,8 +11,12 @@ Here: the Lyapunov-like controller on the Table 1 robot with wheel-like friction
 values of the head's decay rate ``lam`` against three noisy initial postures, 4 s each.
 By default a study starts worker processes (a script that calls ``run_study`` then needs
 the usual ``if __name__ == "__main__":`` guard); this example hands it an in-process
-cluster on 127.0.0.1 instead, through the same ``scheduler`` argument that takes a
-remote cluster's address.
+cluster on 127.0.0.1 instead, through the same ``scheduler`` and ``security`` arguments
+that take a remote cluster's address and credentials. A Dask cluster without TLS lets
+any local user connect and run code as you: this one speaks TLS with credentials made
+for it (``security=True``), and ``run_study`` connects with them
+(``security=cluster.security``); ``snake-pin study --scheduler tls://... --security
+FILE`` does the same from the command line.
 """
 
 # %%
@@ -32,7 +36,6 @@ study_file = folder / "gains.toml"
 study_file.write_text("""
 [study]
 name = "gallery_gains"
-batch_size = 3
 
 [base]
 robot = "table1"
@@ -59,11 +62,14 @@ print(spec.name, "-", len(spec.scenarios), "runs over", [axis.setting for axis i
 # Results are keyed by each run's settings: the second invocation finds every run
 # recorded and runs nothing.
 out = folder / "results"
-with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
-                  host="127.0.0.1", dashboard_address=None,
+with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tls",
+                  security=True, host="127.0.0.1", dashboard_address=None,
                   scheduler_kwargs={"dashboard": False}) as cluster:
-    first = run_study(study_file, out, scheduler=cluster.scheduler_address, progress=False)
-    again = run_study(study_file, out, scheduler=cluster.scheduler_address, progress=False)
+    assert cluster.scheduler_address.startswith("tls://")
+    first = run_study(study_file, out, scheduler=cluster.scheduler_address,
+                      security=cluster.security, progress=False)
+    again = run_study(study_file, out, scheduler=cluster.scheduler_address,
+                      security=cluster.security, progress=False)
 print(f"first: {first.status}, ran {first.ran}; again: ran {again.ran}, "
       f"skipped {again.skipped}")
 assert first.status == "complete" and first.statuses["ok"] == first.runs
