@@ -9,14 +9,13 @@ both alike; each figure is the median over the rounds with its 10-90 % range.
 
 Usage: python scripts/bench.py [--quick]
            [--only dynamics,friction_routes,derivatives,manipulability,runs,engine,
-                   sweeps,reproduce,failure_map]
+                   reproduce,failure_map]
            [--baseline COMMIT | --no-baseline]
 
 ``--only reproduce`` (not in the default set: it runs the whole report twice) times
 ``snake-pin reproduce`` quiet and with the other core busy, alternately; ``--only
 failure_map`` (not in the default set either) the report with and without its failure-map
-stage, back to back. ``--only sweeps`` times the tracking stage's runs in lockstep batches
-against one by one.
+stage, back to back.
 """
 
 from __future__ import annotations
@@ -860,39 +859,6 @@ def bench_failure_map(budget: float) -> None:
           "most 120 s)")
 
 
-def bench_sweeps(budget: float) -> None:
-    """The tracking stage's runs by the two routes of ``iter_tracking_runs``: the default
-    rule (lockstep batches, one per core, when each core gets MIN_LOCKSTEP runs) against
-    every run one by one on every core, in interleaved rounds (issue 14, item 8)."""
-    from snake_pin.experiments.batched_sweeps import iter_tracking_runs
-    from snake_pin.experiments.tracking import report_runs, tracking_friction, tracking_params
-    from snake_pin.study.work import MIN_LOCKSTEP
-
-    quick = budget < 0.1
-    t_final, rounds = (3.0, 1) if quick else (20.0, 3)
-    robot, _ = tracking_friction(tracking_params())
-    jobs = [(r.params, r.t_final, r.options) for r in report_runs(robot, t_final, own=False)]
-    cores = os.cpu_count() or 1
-    routes = {"default rule": None, "one by one": len(jobs) + 1}
-    walls: dict[str, list[float]] = {name: [] for name in routes}
-    for _ in range(rounds):
-        for name, lockstep_from in routes.items():
-            start = time.perf_counter()
-            for _ in iter_tracking_runs(jobs, lockstep_from=lockstep_from):
-                pass
-            walls[name].append(time.perf_counter() - start)
-    simulated = sum(job[1] for job in jobs)
-    lockstep = len(jobs) >= MIN_LOCKSTEP * cores
-    rows = [[name + (" (lockstep)" if name == "default rule" and lockstep else ""),
-             show(spread(values), 2), f"{simulated / statistics.median(values):.1f}"]
-            for name, values in walls.items()]
-    table(f"the tracking stage's {len(jobs)} runs ({t_final:g} s each, the isotropic one "
-          f"{min(t_final, 30.0):g} s) on {cores} cores, wall time [s] (median of {rounds} "
-          "interleaved rounds)", ["route", "wall [s]", "simulated s / wall s"], rows)
-    print(f"\ndefault rule / one by one: "
-          f"{show(ratios(walls['default rule'], walls['one by one']), 2, 'x')}")
-
-
 #: The benches that run the whole report (minutes each): not in the default set.
 WHOLE_REPORT = ("reproduce", "failure_map")
 
@@ -901,7 +867,6 @@ BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
                                                "derivatives": bench_derivatives,
                                                "manipulability": bench_manipulability,
                                                "runs": bench_runs, "engine": bench_engine,
-                                               "sweeps": bench_sweeps,
                                                "reproduce": bench_reproduce,
                                                "failure_map": bench_failure_map}
 

@@ -44,7 +44,6 @@ _LAZY = {
     "LOSController": ".control",
     "PathReference": ".paths", "load_path": ".paths", "cross_track_error": ".paths",
     "along_track": ".paths",
-    "BatchResult": ".batch", "simulate_batch": ".batch",
     "Snake": ".model", "DynamicsDerivatives": ".model",
     "load_robot": ".robot_file", "read_robot_file": ".robot_file", "read_urdf": ".robot_file",
     "robot_paths": ".robot_file", "write_robot_file": ".robot_file",
@@ -53,7 +52,6 @@ _LAZY = {
 }
 
 __all__ = [
-    "BatchResult",
     "ConfigurationError",
     "Controller",
     "DynamicsDerivatives",
@@ -90,7 +88,6 @@ __all__ = [
     "read_urdf",
     "robot_paths",
     "simulate",
-    "simulate_batch",
     "straight",
     "write_robot_file",
     "write_urdf",

@@ -20,9 +20,7 @@ import dask
 import pandas as pd
 import pytest
 
-from snake_pin import SnakeParams
 from snake_pin.exceptions import RunInterrupted
-from snake_pin.robot_file import write_robot_file
 from snake_pin.study import (
     StudyError,
     StudySummary,
@@ -34,7 +32,7 @@ from snake_pin.study import (
 )
 from snake_pin.study.runner import check_scheduler, plan_batches
 from snake_pin.study.spec import Scenario, parse_study
-from snake_pin.study.work import run_batch
+from snake_pin.study.work import result_row, run_batch, simulate_scenario
 
 REPO = Path(__file__).resolve().parent.parent
 METRICS = ("rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_error_pct",
@@ -42,7 +40,6 @@ METRICS = ("rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_e
 STUDY = """
 [study]
 name = "small"
-batch_size = 2
 [base]
 t_final = 0.4
 error_window = 0.1
@@ -51,19 +48,6 @@ c_x = 0.5
 values = [10.0, 25.0]
 [axes.failed_joint]
 values = [0, 5, 9]
-"""
-#: 16 runs: on 2 workers, two lockstep batches of 8 (default batch_size).
-LOCKSTEP_STUDY = """
-[base]
-t_final = 0.4
-error_window = 0.1
-c_x = 0.5
-[axes.c_y]
-values = [10.0, 25.0]
-[axes.failed_joint]
-values = [0, 3, 5, 9]
-[axes.lam]
-values = [5.0, 10.0]
 """
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 
@@ -127,16 +111,17 @@ def _same(got: Any, expected: Any, rel: float = 1e-12) -> bool:
     return got == pytest.approx(expected, rel=rel, abs=1e-15)
 
 
-def test_cluster_results_equal_the_runs_done_one_by_one(tmp_path: Path, scheduler: str) -> None:
-    """A 2-worker cluster's rows equal run_batch of each run alone, metrics to 1e-12
-    (batches of 2: each run simulated alone in both)."""
+def test_cluster_results_equal_the_single_runs(tmp_path: Path, scheduler: str) -> None:
+    """A 2-worker cluster runs one run per task (one batch file each), and every row's
+    metrics equal those of simulate_scenario of the same scenario here, to 1e-12."""
     study = _study(tmp_path)
     summary = run_study(study, tmp_path / "out", scheduler=scheduler)
     assert (summary.status, summary.ran, summary.recorded, summary.lost) == ("complete", 6, 6, 0)
     frame = pd.read_parquet(tmp_path / "out" / "runs")
     assert len(frame) == 6
+    assert len(list((tmp_path / "out" / "runs").glob("batch-*.parquet"))) == 6
     for scenario in load_study(study).scenarios:
-        expected = run_batch([scenario])[0]
+        expected = result_row(scenario, simulate_scenario(scenario))
         got = frame[frame["key"] == scenario.key].iloc[0]
         assert got["status"] == expected["status"] == "ok"
         assert got["c_y"] == scenario["c_y"] and got["failed_joint"] == scenario["failed_joint"]
@@ -144,25 +129,6 @@ def test_cluster_results_equal_the_runs_done_one_by_one(tmp_path: Path, schedule
             assert _same(got[metric], expected[metric]), metric
     assert summary.statuses == {"ok": 6, "diverged": 0, "failed": 0}
     assert (tmp_path / "out" / "index.html").is_file()
-
-
-def test_cluster_lockstep_batches_equal_the_runs_done_one_by_one(tmp_path: Path,
-                                                                 scheduler: str) -> None:
-    """16 runs on 2 workers go as two lockstep batches of 8 (one wall time each); every
-    metric equals the run simulated alone (simulate) to 1e-9 (the batch's closed-form model
-    and batched solves round differently: ~1e-12 measured)."""
-    study = _study(tmp_path, LOCKSTEP_STUDY)
-    summary = run_study(study, tmp_path / "out", scheduler=scheduler)
-    assert (summary.status, summary.recorded) == ("complete", 16)
-    frame = pd.read_parquet(tmp_path / "out" / "runs")
-    assert len(list((tmp_path / "out" / "runs").glob("batch-*.parquet"))) == 2
-    assert frame["wall_time"].nunique() == 2  # one per lockstep batch
-    for scenario in load_study(study).scenarios:
-        expected = run_batch([scenario])[0]
-        got = frame[frame["key"] == scenario.key].iloc[0]
-        assert got["status"] == expected["status"] == "ok"
-        for metric in METRICS:
-            assert _same(got[metric], expected[metric], rel=1e-9), metric
 
 
 def test_a_rerun_executes_only_the_missing_runs(tmp_path: Path, scheduler: str) -> None:
@@ -174,7 +140,7 @@ def test_a_rerun_executes_only_the_missing_runs(tmp_path: Path, scheduler: str) 
     run_study(study, out, scheduler=scheduler, batch_function=count)
     assert len(list(marks.iterdir())) == 6
     files = sorted((out / "runs").iterdir())
-    assert len(files) == 3
+    assert len(files) == 6
     removed = files[1]
     lost = set(pd.read_parquet(removed)["key"])
     removed.unlink()
@@ -193,18 +159,18 @@ def test_a_rerun_executes_only_the_missing_runs(tmp_path: Path, scheduler: str) 
 
 def test_a_task_that_raises_is_recorded_as_failed_and_the_rest_completes(
         tmp_path: Path, scheduler: str) -> None:
-    """The batch whose task raised becomes failed rows with the error; others are ok."""
+    """The run whose task raised becomes a failed row with the error; others are ok."""
     out = tmp_path / "out"
     summary = run_study(_study(tmp_path), out, scheduler=scheduler,
                         batch_function=functools.partial(_explode, 1))
     frame = pd.read_parquet(out / "runs").sort_values("index")
     failed = frame[frame["status"] == "failed"]
-    assert set(failed["index"]) == {0, 1}  # run 1's batch (batch_size 2)
+    assert set(failed["index"]) == {1}  # one run per task
     assert all("RuntimeError: boom at run 1" in r for r in failed["reason"])
     assert failed["rms_head_error"].isna().all()
     assert (frame[frame["status"] != "failed"]["status"] == "ok").all()
-    assert summary.statuses == {"ok": 4, "diverged": 0, "failed": 2}
-    assert summary.status == "complete" and "2 of 6 runs failed" in summary.note
+    assert summary.statuses == {"ok": 5, "diverged": 0, "failed": 1}
+    assert summary.status == "complete" and "1 of 6 runs failed" in summary.note
 
 
 def test_a_run_that_raises_inside_a_batch_fails_alone(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -224,16 +190,16 @@ def test_a_run_that_raises_inside_a_batch_fails_alone(monkeypatch: pytest.Monkey
     assert rows[1]["R_min"] is None and rows[0]["R_min"] > 0 and rows[2]["t_end"] == 0.4
 
 
-def test_a_killed_worker_loses_only_its_batch(tmp_path: Path, scheduler: str) -> None:
-    """A worker that dies loses its batch (not recorded); a re-run runs just that batch."""
+def test_a_killed_worker_loses_only_its_run(tmp_path: Path, scheduler: str) -> None:
+    """A worker that dies loses its run (not recorded); a re-run runs just that run."""
     study, out = _study(tmp_path), tmp_path / "out"
     summary = run_study(study, out, scheduler=scheduler,
                         batch_function=functools.partial(_die, 3))
-    assert (summary.status, summary.lost, summary.recorded) == ("incomplete", 2, 4)
+    assert (summary.status, summary.lost, summary.recorded) == ("incomplete", 1, 5)
     assert "run the same command again" in summary.note
-    assert set(pd.read_parquet(out / "runs")["index"]) == {0, 1, 4, 5}
+    assert set(pd.read_parquet(out / "runs")["index"]) == {0, 1, 2, 4, 5}
     again = run_study(study, out, scheduler=scheduler)
-    assert (again.ran, again.status) == (2, "complete")
+    assert (again.ran, again.status) == (1, "complete")
 
 
 def test_unreachable_or_malformed_scheduler_addresses_are_refused(tmp_path: Path) -> None:
@@ -277,39 +243,25 @@ def test_bad_input_is_refused_before_anything_runs(tmp_path: Path) -> None:
     assert not (tmp_path / "c").exists()
 
 
-def test_batches_group_runs_of_one_layout_and_keep_engine_runs_alone(tmp_path: Path) -> None:
-    """Engine runs are one per task; viscous runs fill batches of one layout and dt."""
-    spec = parse_study(STUDY.replace("batch_size = 2", "batch_size = 4"))
-    runs = list(spec.scenarios)
-    assert [[s.index for s in b] for b in plan_batches(runs, 4, 1)] == [[0, 1, 2], [3, 4, 5]]
-    assert [len(b) for b in plan_batches(runs, 4, 8)] == [1] * 6
-    assert [len(b) for b in plan_batches(runs, 2, 1)] == [2, 2, 2]
+def test_every_run_is_one_task_in_study_order() -> None:
+    """plan_batches gives one single-run task per scenario, viscous and engine alike, in
+    study order."""
+    runs = list(load_study(REPO / "studies" / "failure_map.toml").scenarios)
+    assert plan_batches(runs) == [[s] for s in runs]
     engine = parse_study("[base]\nrobot = \"engine\"\nmodel = \"engine\"\ncontroller = "
                          "\"velocity\"\nt_final = 1.0\n[axes.failed_joint]\nvalues = [0, 1, 2]\n")
-    assert [len(b) for b in plan_batches(list(engine.scenarios), 64, 1)] == [1, 1, 1]
-    write_robot_file(SnakeParams.table1(mass=0.3, name="heavy"), tmp_path / "heavy.toml")
-    mixed = parse_study("[base]\nt_final = 1.0\n[axes.robot]\nvalues = [\"table1\", "
-                        "\"heavy.toml\"]\n[axes.dt]\nvalues = [0.001, 0.0005]\n"
-                        "[axes.failed_joint]\nvalues = [0, 1]\n", tmp_path / "study.toml")
-    groups = [{(s["robot"], s["dt"]) for s in b} for b in plan_batches(list(mixed.scenarios),
-                                                                      64, 1)]
-    assert sorted(len(g) for g in groups) == [1, 1, 1, 1]  # layout and dt never mix
+    assert [[s.index for s in b] for b in plan_batches(engine.scenarios)] == [[0], [1], [2]]
 
 
-def test_batches_are_even_one_per_worker_for_small_studies_and_fit_in_memory() -> None:
-    """The failure map (40 x 60 s) on 2 workers: 2 batches of 20; 200 such runs: 4 of 50
-    (63 fit the memory budget); batch_size 16: 4 of 10 (a multiple of the workers)."""
-    spec = load_study(REPO / "studies" / "failure_map.toml")
-    runs = list(spec.scenarios)
-    assert spec.batch_size == 256
-    assert [len(b) for b in plan_batches(runs, spec.batch_size, 2)] == [20, 20]
-    assert [len(b) for b in plan_batches(runs, 16, 2)] == [10, 10, 10, 10]
-    assert [len(b) for b in plan_batches(runs, 256, 1)] == [40]
-    many = parse_study("[base]\nt_final = 60.0\nc_x = 0.5\n[axes.c_y]\n"
-                       "linspace = [5.0, 50.0, 200]\n")
-    batches = plan_batches(list(many.scenarios), 256, 2)
-    assert [len(b) for b in batches] == [50] * 4
-    assert [s.index for b in batches for s in b] == list(range(200))  # study order kept
+def test_a_study_file_with_batch_size_is_refused_in_one_line(tmp_path: Path) -> None:
+    """batch_size (older study files) is refused, not ignored: one line saying runs are one
+    per task, and nothing is created."""
+    study = _study(tmp_path, STUDY.replace("[base]", "batch_size = 2\n[base]"))
+    with pytest.raises(StudyError, match="batch_size is no longer a setting: every run is "
+                       "one task") as info:
+        run_study(study, tmp_path / "out")
+    assert "\n" not in str(info.value)
+    assert not (tmp_path / "out").exists()
 
 
 # ------------------------------------------------------------- interrupts (a process)
@@ -392,11 +344,11 @@ if __name__ == "__main__":
 
 
 @linux_only
-def test_sigterm_keeps_written_batches_leaves_no_process_and_a_rerun_finishes(
+def test_sigterm_keeps_written_runs_leaves_no_process_and_a_rerun_finishes(
         tmp_path: Path, scheduler: str) -> None:
     """SIGTERM after the first batch: interrupted summary, batch kept, workers gone,
     every listener was on 127.0.0.1, and the same study then completes the rest."""
-    study = _study(tmp_path, STUDY.replace("batch_size = 2", "batch_size = 1"))
+    study = _study(tmp_path)
     out = tmp_path / "out"
     script = tmp_path / "run.py"
     script.write_text(SCRIPT)

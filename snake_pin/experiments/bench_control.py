@@ -35,9 +35,11 @@ velocity-level, quasi-static form), ``pfl`` and ``pfl_climb`` (PFL, and PFL clim
     write_benchmark(result, "bench")           # bench/benchmark.csv, .json, figures
 
 A factory given by name (``None``) is the built-in one; a factory that does not pickle
-(a lambda) runs in this process, the others in the pool of
-:func:`~snake_pin.experiments.parallel.run_jobs`. A controller that has a ``reference``
-attribute is a head-tracking law (its time-indexed head error is reported).
+(a lambda) runs in this process, the others as tasks on the local Dask cluster of
+:func:`~snake_pin.experiments.parallel.run_jobs` (its workers are spawned processes: a
+script that runs the benchmark needs the ``if __name__ == "__main__":`` guard). A
+controller that has a ``reference`` attribute is a head-tracking law (its time-indexed
+head error is reported).
 
 Models: ``viscous`` (the Table 1 robot with c_x = 0.5, c_y = 25 N s/m, i.e.
 c_y / c_x = 50, through :func:`snake_pin.sim.simulate` at 1 kHz) and ``engine`` (the
@@ -597,7 +599,8 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     quick : bool, optional
         The small benchmark of ``reproduce --quick``.
     workers : int or None, optional
-        Processes (default: the cores).
+        Dask worker processes (default: one per core, at most one per cell; 1: every
+        cell in this process).
     robot : SnakeParams or None, optional
         The viscous robot (default: the Table 1 tracking robot, c_y = 50 c_x). The LOS
         law's constants are identified for that robot.

@@ -1,7 +1,7 @@
 """The actuator-failure map as a report stage (the paper's future work).
 
 :func:`failure_map_stage` runs the map as a study (:func:`snake_pin.study.run_study`, on a
-local Dask cluster of one worker per core, the runs in lockstep batches) and writes into
+local Dask cluster of one worker per core, one run per task) and writes into
 the report folder:
 
 - ``failure_map.toml``: the study as run. For the Table 1 robot and the full plan it is
@@ -17,7 +17,9 @@ the report folder:
   against c_y/c_x, :func:`snake_pin.study.report.save_figures`), the two tables, and
   ``failure_map_series.png``: head error, R~ and R~ without the heading along the run
   without a failure, with the worst failure and with joint 1 failed (rerun through
-  :func:`snake_pin.sim.simulate`), at the reference ratio :data:`SERIES_RATIO`.
+  :func:`snake_pin.sim.simulate`, as Dask tasks of
+  :func:`~snake_pin.experiments.parallel.run_jobs`), at the reference ratio
+  :data:`SERIES_RATIO`.
 
 The section's numbers (``summary.json``): the tables keyed by failed joint and ratio, the
 study's summary, the series' statistics and the findings' figures. The text states what
@@ -32,11 +34,6 @@ keeps the stages done.
 Options read from ``ctx.options``: ``study_workers`` (local worker processes, default one
 per core) and ``study_scheduler`` (the address of an existing Dask scheduler). On a
 terminal the study draws its progress bar (runs done, failures, ETA).
-
-Cost, measured alone on this 2-core machine (Table 1, :data:`FULL`, a busy neighbour):
-47 s, of which the study 40 s (40 runs of 60 s as two lockstep batches of 20, one per
-worker; starting and closing the local cluster 1-2 s of it) and the three reruns of the
-series 7 s.
 """
 
 from __future__ import annotations
@@ -466,7 +463,7 @@ def failure_map_stage(ctx: Any) -> None:
              f"single failed joint k (its actuator gives no torque), against c_y/c_x = "
              f"{', '.join(f'{r:g}' for r in plan.ratios)} with c_x = {map_c_x(base):g} N s/m. "
              f"{summary.runs} runs as a study ({_singular_workers(summary.scheduler)}, "
-             "lockstep batches): "
+             "one run per task): "
              f"failure_map.toml, results in failure_map/ (Parquet: "
              "pandas.read_parquet('failure_map/runs')).")
     for path, caption in save_figures(spec, rows, ctx.folder, "failure_map"):

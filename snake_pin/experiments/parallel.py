@@ -1,30 +1,26 @@
-"""Run independent experiment jobs on the machine's cores (processes, not threads).
+"""Run independent experiment jobs on Dask: the report's stages, bench-control, engine seeds.
 
-The workers never outlive the run: on Linux each asks the kernel for SIGTERM when the
-process that started it dies (``PR_SET_PDEATHSIG``, so even a ``kill -9`` of the parent
-takes them along), they ignore SIGINT (Ctrl-C in a terminal reaches the whole process
-group; the parent decides) and die on SIGTERM and SIGHUP. When the parent is interrupted
-while it waits (KeyboardInterrupt, which ``snake-pin`` also raises for SIGTERM and SIGHUP)
-or a job fails, the pool is terminated: pending jobs are dropped and running workers
-killed before the exception goes on.
+The package has one executor: these jobs go to the same local Dask cluster a study runs
+on, built by the study runner (:func:`snake_pin.study.runner._client` on a local cluster:
+one worker process per core with one thread each, everything on 127.0.0.1 and TLS with
+credentials made for the call, workers started with ``OMP_WAIT_POLICY=PASSIVE`` and
+one-thread BLAS/OpenMP). The cluster lives for one call: it is closed, and its worker
+processes with it, when the jobs are done, when a job raises, when the caller is
+interrupted while it waits (KeyboardInterrupt, which ``snake-pin`` also raises for SIGTERM
+and SIGHUP: the pending jobs are cancelled and the workers killed before the exception
+goes on) or when the caller closes the iterator early. Worker processes also leave when
+the process that started them dies (Dask's nanny pipe).
 
-Every job runs with BLAS and OpenMP thread pools limited to one thread
-(``threadpoolctl.threadpool_limits(1)``, in a worker or in the calling process alike):
-the jobs are small-matrix work (n + 2 square), the pool already uses every core, and
-multi-threaded BLAS on such matrices spins against the other jobs. Workers also get
-``OMP_WAIT_POLICY=PASSIVE`` in their environment, so an OpenMP runtime they start (or a
-process they spawn) sleeps instead of spinning while it waits (with a busy neighbour
-on the other core, spinning OpenMP threads ran 5-10x slower). An OpenMP runtime already
-loaded in the parent before the fork keeps its policy; the thread limit still holds.
+With one worker or one job the jobs run here, in order, without a cluster. Every job, in
+a worker or here, runs with BLAS and OpenMP thread pools limited to one thread
+(``threadpoolctl.threadpool_limits(1)``): the jobs are small-matrix work and the cluster
+already uses every core.
 """
 
 from __future__ import annotations
 
-import ctypes
-import multiprocessing
+import contextlib
 import os
-import signal
-import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -34,40 +30,11 @@ __all__ = ["iter_jobs", "run_jobs"]
 
 Job = tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]
 
-#: ``PR_SET_PDEATHSIG`` of <linux/prctl.h>.
-_PR_SET_PDEATHSIG = 1
-
-
-def _die_with_parent(parent: int | None) -> None:
-    """Pool initializer: default SIGTERM/SIGHUP, no SIGINT, SIGTERM when the parent dies.
-
-    ``parent`` is the pid the worker was forked from (None when the start method does
-    not fork from us): if it is already gone, the worker leaves at once.
-    """
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    for name in ("SIGTERM", "SIGHUP"):
-        if hasattr(signal, name):
-            signal.signal(getattr(signal, name), signal.SIG_DFL)
-    if sys.platform.startswith("linux"):
-        try:
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
-        except (OSError, AttributeError):  # no prctl: the parent's terminate() still works
-            pass
-    if parent is not None and os.getppid() != parent:
-        os._exit(1)  # the parent died before the death signal was armed
-    os.environ["OMP_WAIT_POLICY"] = "PASSIVE"
-
 
 def _limited(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
     """``fn(*args, **kwargs)`` with BLAS/OpenMP limited to one thread."""
     with threadpool_limits(limits=1):
         return fn(*args, **kwargs)
-
-
-def _indexed(item: tuple[int, Job]) -> tuple[int, Any]:
-    index, (fn, args, kwargs) = item
-    return index, _limited(fn, args, kwargs)
 
 
 def iter_jobs(jobs: Sequence[Job], workers: int | None = None) -> Iterator[tuple[int, Any]]:
@@ -76,11 +43,12 @@ def iter_jobs(jobs: Sequence[Job], workers: int | None = None) -> Iterator[tuple
     Parameters
     ----------
     jobs
-        ``(fn, args, kwargs)`` triples. Each job builds its own models in its process;
-        functions and results must be picklable (the package's dataclasses and arrays are).
+        ``(fn, args, kwargs)`` triples. Each job builds its own models in its worker;
+        functions, arguments and results must pickle (Dask's cloudpickle: the package's
+        dataclasses and arrays do).
     workers
-        Processes to use (default: as many as jobs, at most the number of cores). With
-        one worker or one job, the jobs run here, in order.
+        Worker processes of the local Dask cluster (default: as many as jobs, at most the
+        number of cores). With one worker or one job, the jobs run here, in order.
 
     Yields
     ------
@@ -92,40 +60,43 @@ def iter_jobs(jobs: Sequence[Job], workers: int | None = None) -> Iterator[tuple
     ------
     BaseException
         An exception of a job, a KeyboardInterrupt while waiting, or the caller closing
-        the iterator early: the pool's workers are terminated first.
+        the iterator early: the pending jobs are cancelled and the cluster's workers
+        killed first.
     """
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     if workers <= 1 or len(jobs) <= 1:
         for index, (fn, args, kwargs) in enumerate(jobs):
             yield index, _limited(fn, args, kwargs)
         return
-    context = multiprocessing.get_context()
-    parent = os.getpid() if context.get_start_method() == "fork" else None
-    pool = context.Pool(processes=workers, initializer=_die_with_parent, initargs=(parent,))
-    try:
-        yield from pool.imap_unordered(_indexed, list(enumerate(jobs)))
-    except BaseException:
-        pool.terminate()
-        pool.join()
-        raise
-    pool.close()
-    pool.join()
+    from distributed import as_completed
+
+    from ..study.runner import _client
+
+    with _client(None, workers) as client:
+        futures = {client.submit(_limited, fn, args, kwargs, pure=False): index
+                   for index, (fn, args, kwargs) in enumerate(jobs)}
+        try:
+            for future in as_completed(list(futures), loop=client.loop):
+                yield futures[future], future.result()
+                future.release()
+        except BaseException:
+            with contextlib.suppress(Exception):
+                client.cancel(list(futures), force=True)
+            raise
 
 
 def run_jobs(jobs: Sequence[Job], workers: int | None = None) -> list[Any]:
     """Results of ``fn(*args, **kwargs)`` for each job, in order, on up to ``workers`` cores.
 
-    Each job builds its own models in its process; results must be picklable (the
-    package's dataclasses and arrays are). An exception of a job, or a KeyboardInterrupt
-    while waiting, terminates the pool's workers and is raised again (see
-    :func:`iter_jobs`).
+    An exception of a job, or a KeyboardInterrupt while waiting, cancels the other jobs,
+    closes the cluster and is raised again (see :func:`iter_jobs`).
 
     Parameters
     ----------
     jobs
-        ``(fn, args, kwargs)`` triples.
+        ``(fn, args, kwargs)`` triples (picklable; see :func:`iter_jobs`).
     workers
-        Processes to use (default: as many as jobs, at most the number of cores).
+        Worker processes (default: as many as jobs, at most the number of cores).
 
     Returns
     -------

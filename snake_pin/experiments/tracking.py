@@ -1,10 +1,9 @@
 """Section VI.2: Lyapunov-like head tracking on the Table 1 robot (Figs. 13-17), with and
 without a passive joint, the isotropic contrast, and the lateral-constraint criterion.
 
-Owns one tracking run (:func:`run_tracking`) and its summary (:func:`tracking_summary`,
-shared with the lockstep route of :mod:`snake_pin.experiments.batched_sweeps`), the
-stage's runs (:func:`report_runs`) and the report stage (:func:`tracking_stage`), which
-hands every run to :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs`.
+Owns one tracking run (:func:`run_tracking`) and its summary (:func:`tracking_summary`),
+the stage's runs (:func:`report_runs`) and the report stage (:func:`tracking_stage`), which
+runs them one per task on Dask (:func:`snake_pin.experiments.parallel.run_jobs`).
 """
 
 from __future__ import annotations
@@ -183,8 +182,7 @@ def tracking_summary(traj: Trajectory, snake: Snake,
                      start: float | None = None) -> Trajectory:
     """Add a tracking run's head error, criteria and summary to its trajectory.
 
-    The one summary of a tracking run, whichever route simulated it (:func:`run_tracking`,
-    :func:`~snake_pin.experiments.batched_sweeps.run_tracking_batch`).
+    The one summary of a tracking run (:func:`run_tracking` adds it).
 
     Parameters
     ----------
@@ -572,11 +570,9 @@ def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_ax
 def tracking_stage(ctx) -> None:
     """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweeps.
 
-    Every run of the stage (:func:`report_runs`: 18) goes to
-    :func:`~snake_pin.experiments.batched_sweeps.iter_tracking_runs`, which runs them as
-    one lockstep batch per core when each core gets
-    :data:`~snake_pin.study.work.MIN_LOCKSTEP` of them (on 2 cores, two batches of 9),
-    else one by one on every core. The sweeps (decay rate, sideways friction) are a table,
+    Every run of the stage (:func:`report_runs`: 18) is one :func:`run_tracking` task of
+    :func:`~snake_pin.experiments.parallel.run_jobs` (one worker per core, the longest
+    runs submitted first). The sweeps (decay rate, sideways friction) are a table,
     ``tracking_sweep.png`` (:func:`plot_sweep`) and sentences from the numbers
     (:func:`sweep_findings`, :func:`sweep_text`).
 
@@ -586,7 +582,7 @@ def tracking_stage(ctx) -> None:
         The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
         robot, report and quick mode.
     """
-    from .batched_sweeps import iter_tracking_runs
+    from .parallel import run_jobs
 
     t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
     base = ctx.params.replace(passive=())
@@ -602,7 +598,10 @@ def tracking_stage(ctx) -> None:
              f" w_r = [0.1 t, 0, pi], the arc of (82) turned by pi. The robot '{base.name}' with"
              f" {friction}.")
     runs = report_runs(robot, t_final, own)
-    results = dict(iter_tracking_runs([(r.params, r.t_final, r.options) for r in runs]))
+    order = sorted(range(len(runs)), key=lambda i: -runs[i].t_final)  # longest first
+    done = run_jobs([(run_tracking, (runs[i].params,),
+                      {"t_final": runs[i].t_final, **runs[i].options}) for i in order])
+    results = dict(zip(order, done, strict=True))
     rows = []
     points: dict[str, list[tuple[float, str, Trajectory]]] = {"lam": [], "c_y": []}
     for index, run in enumerate(runs):

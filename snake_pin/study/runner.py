@@ -1,4 +1,4 @@
-"""Running a study on Dask: batches of runs as tasks, rows written as they arrive, resumable.
+"""Running a study on Dask: one run per task, rows written as they arrive, resumable.
 
 :func:`run_study` validates everything first (the study file, the output folder, the
 scheduler address and its Dask handshake), then prepares the folder (checking that it can
@@ -28,20 +28,19 @@ write there), then runs the missing runs only:
   is created. Its workers need the same snake_pin installed, and should be started with
   ``OMP_WAIT_POLICY=PASSIVE`` in their environment (OpenMP reads it when Pinocchio is
   loaded, before any task runs; threadpoolctl still limits the thread counts per task).
-- **Tasks.** Viscous-model runs go in lockstep batches of one robot layout and time step,
-  evenly sized, at most ``batch_size`` (default 256) and what fits in memory, and at
-  least one per worker (:func:`plan_batches`, which states the trade-off); engine runs
-  go one per task. The task is :func:`snake_pin.study.work.run_batch`. At
+- **Tasks.** Every run is one task (:func:`plan_batches`), viscous and engine alike: the
+  task is :func:`snake_pin.study.work.run_batch` of that run, which simulates it exactly
+  as a single run does (:func:`snake_pin.study.work.simulate_scenario`). At
   most one task per worker thread is submitted at a time (the next when one finishes), so
   the runs in flight - what an interrupt or a dying worker can lose - are the running ones.
 - **Results.** Futures are gathered with :func:`distributed.as_completed`; each finished
-  batch is written at once as one Parquet file (temp + rename). A batch whose task raised
-  is recorded as ``failed`` rows carrying the error; a batch lost with a worker that died
-  (after Dask's own retries) is not recorded, and the next invocation runs it again.
+  task's rows are written at once as one Parquet batch file (temp + rename). A task that
+  raised is recorded as ``failed`` rows carrying the error; a task lost with a worker that
+  died (after Dask's own retries) is not recorded, and the next invocation runs it again.
 - **Interrupts.** On KeyboardInterrupt (Ctrl-C; ``snake-pin`` turns SIGTERM and SIGHUP
   into one) the pending futures are cancelled, the client and the local cluster are
-  closed (the local workers are killed without waiting for their running batch), the
-  batches already written are kept, the index is written marked ``interrupted``, and
+  closed (the local workers are killed without waiting for their running task), the
+  runs already written are kept, the index is written marked ``interrupted``, and
   :class:`~snake_pin.exceptions.RunInterrupted` is raised with the
   :class:`~snake_pin.study.summary.StudySummary` as ``partial``.
 """
@@ -61,14 +60,13 @@ from urllib.parse import urlsplit
 
 from .._io import decode_utf8, read_regular_file
 from .._validation import one_line, printable_path
-from ..batch import LAYOUT_FIELDS, layout_key
 from ..exceptions import RunInterrupted
 from .errors import StudyError
 from .results import StudyFolder
 from .spec import Scenario, StudySpec, load_study
 from .summary import StudySummary
 
-__all__ = ["CONNECT_TIMEOUT", "LAYOUT_FIELDS", "LOCAL_HOSTS", "MAX_CONNECT_TIMEOUT",
+__all__ = ["CONNECT_TIMEOUT", "LOCAL_HOSTS", "MAX_CONNECT_TIMEOUT",
            "MAX_WORKERS", "check_scheduler", "load_security", "plan_batches", "run_study"]
 
 #: Default longest wait for a scheduler to complete Dask's handshake [s].
@@ -83,7 +81,7 @@ LOCAL_HOSTS = ("127.0.0.1", "localhost")
 WORKER_ENV = {"OMP_WAIT_POLICY": "PASSIVE", "OMP_NUM_THREADS": "1",
               "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 _CLOSE_TIMEOUT = 20
-#: On an interrupt, a local worker still running a batch is killed after 0.8 this [s].
+#: On an interrupt, a local worker still running a task is killed after 0.8 this [s].
 _KILL_TIMEOUT = 1.0
 #: Largest security file read [bytes].
 _MAX_SECURITY_BYTES = 1 << 20
@@ -188,7 +186,7 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
                 with _client(address, workers, security=credentials, timeout=timeout,
                              dashboard=bool(dashboard), log=say) as client:
                     slots = _slots(client) if address else workers
-                    batches = plan_batches(pending, spec.batch_size, slots)
+                    batches = plan_batches(pending)
                     say(f"study {spec.name}: {len(spec.scenarios)} runs, {summary.skipped} "
                         f"already recorded, {len(pending)} to run in {len(batches)} tasks on "
                         f"{summary.scheduler}")
@@ -305,56 +303,20 @@ def _is_killed_worker(error: BaseException | None) -> bool:
     return isinstance(error, KilledWorker)
 
 
-def plan_batches(scenarios: Sequence[Scenario], batch_size: int,
-                 slots: int) -> list[list[Scenario]]:
-    """Group runs into tasks: engine runs alone; viscous runs that share the robot's layout
-    (:data:`snake_pin.batch.LAYOUT_FIELDS`) and the time steps ``dt``, ``control_dt`` (a
-    lockstep batch shares them), in study order, in evenly sized batches.
-
-    Each group of G runs is cut into k batches of ``ceil(G / k)`` runs, k the fewest that
-    keep batches within ``batch_size`` and within what one lockstep batch holds in memory
-    (:func:`snake_pin.study.work.runs_per_batch`), rounded up to a multiple of ``slots``
-    (worker threads) so that every worker gets the same share.
-
-    The trade-off: a lockstep batch of B runs costs less per run as B grows (measured on
-    this 2-core machine, 10-link robot, per process: B = 1 about 3 simulated seconds per
-    wall second against 13-19 for one run through :func:`snake_pin.sim.simulate`, parity
-    near B = 6-8, then 41 at B = 20, 76 at B = 64, 100 at B = 256), so big batches and
-    one batch per worker are fastest for small studies; but a task is written only when
-    its whole batch is done, so an interrupt or a dying worker loses up to ``slots``
-    batches, and uneven batches leave a worker idle at the end. Batches of fewer than
-    :data:`snake_pin.study.work.MIN_LOCKSTEP` runs are simulated one by one inside the task.
+def plan_batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
+    """The study's tasks: one run each, in study order (viscous and engine runs alike).
 
     Parameters
     ----------
     scenarios
         The runs to execute, in study order.
-    batch_size
-        Most runs per viscous task (the study's ``batch_size``).
-    slots
-        Worker threads of the cluster.
 
     Returns
     -------
     list of list of Scenario
-        The tasks: engine runs alone, then each group's batches in study order.
+        One single-run task per scenario.
     """
-    from .work import runs_per_batch
-
-    batches: list[list[Scenario]] = [[s] for s in scenarios if s.model == "engine"]
-    groups: dict[tuple[Any, ...], list[Scenario]] = {}
-    for s in scenarios:
-        if s.model != "engine":
-            groups.setdefault((*layout_key(s.params), s["dt"], s["control_dt"]),
-                              []).append(s)
-    slots = max(1, slots)
-    for group in groups.values():
-        cap = max(1, min(batch_size, runs_per_batch(group)))
-        count = math.ceil(len(group) / cap)
-        count = min(len(group), slots * math.ceil(count / slots))
-        size = math.ceil(len(group) / count)
-        batches += [group[i:i + size] for i in range(0, len(group), size)]
-    return batches
+    return [[s] for s in scenarios]
 
 
 def check_scheduler(address: str, *, security: Any = None,
@@ -724,7 +686,8 @@ def _client(address: str | None, workers: int, *, security: Any = None,
 @contextlib.contextmanager
 def _local_cluster(workers: int, *, dashboard: bool = False,
                    log: Callable[[str], None] | None = None) -> Iterator[Any]:
-    """The study's local cluster: ``workers`` processes on 127.0.0.1, every connection TLS
+    """The local cluster (of a study, and of :mod:`snake_pin.experiments.parallel`'s
+    jobs): ``workers`` processes on 127.0.0.1, every connection TLS
     with credentials made here (``cluster.security``); HTTP servers with no route (the
     scheduler's dashboard with ``dashboard``) answering local Host headers only."""
     import dask
@@ -747,7 +710,7 @@ def _local_cluster(workers: int, *, dashboard: bool = False,
             log(f"dashboard: {_dashboard_link(cluster.scheduler)}")
         yield cluster
     except BaseException:
-        # interrupted: stop the workers without waiting for their running batch (a nanny
+        # interrupted: stop the workers without waiting for their running task (a nanny
         # otherwise waits 4 s for it before killing the process)
         with contextlib.suppress(Exception):
             cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)

@@ -5,7 +5,6 @@ A study file is TOML (read with :mod:`tomllib`) with three tables::
     [study]                      # optional
     name = "friction_and_gains"  # a label for the page
     description = "..."
-    batch_size = 256             # most runs per task on the viscous model (engine: 1)
 
     [base]                       # the scenario every run starts from (see SETTINGS)
     robot = "table1"             # a preset, or a .toml/.urdf robot file (relative to this file)
@@ -44,8 +43,9 @@ in ``[base]`` and as an axis.
 
 **Validation.** :func:`load_study` checks the whole file before anything runs and raises
 :class:`~snake_pin.study.errors.StudyError` with one line naming the file and the key:
-unknown tables and keys (with the closest known name), wrong types, values out of their
-domain, empty axes, an axis over a setting that does not exist, settings that do not
+unknown tables and keys (with the closest known name; ``batch_size``, a key of older
+study files, is refused: every run is one task), wrong types, values out of their domain,
+empty axes, an axis over a setting that does not exist, settings that do not
 apply, a failed or passive joint out of range for the robot, a ``t_final`` beyond
 :data:`snake_pin.sim.MAX_STEPS` control steps or the trajectory size bounds, robot files
 that do not load, and more than :data:`MAX_RUNS` runs.
@@ -59,8 +59,8 @@ named: a robot file given as ``robots/a.toml``, ``./robots/../robots/a.toml``, a
 absolute path or a symbolic link to it is one robot and gives the same keys, and two
 values of a ``robot`` axis that load the same robot are refused as one run given twice.
 The study's identity, :attr:`StudySpec.study_hash`, hashes the sorted run keys: two study
-files that expand to the same runs are the same study, whatever their layout, name,
-batch size or spelling of robot files.
+files that expand to the same runs are the same study, whatever their layout, name or
+spelling of robot files.
 
 **Files.** A study file is a regular file (a FIFO or a device is refused unread) of at
 most :data:`MAX_STUDY_BYTES`, UTF-8, nested at most :data:`snake_pin._io.MAX_TOML_DEPTH`
@@ -93,9 +93,7 @@ from .errors import StudyError
 
 __all__ = [
     "CONTROLLERS",
-    "DEFAULT_BATCH",
     "KEY_FORMAT",
-    "MAX_BATCH",
     "MAX_RUNS",
     "MAX_SEED",
     "MAX_STUDY_BYTES",
@@ -113,11 +111,6 @@ __all__ = [
 
 #: Most runs one study may expand to.
 MAX_RUNS = 100_000
-#: Largest ``batch_size``.
-MAX_BATCH = 1024
-#: ``batch_size`` when the file gives none: lockstep batches gain little beyond it
-#: (see :func:`snake_pin.study.runner.plan_batches`).
-DEFAULT_BATCH = 256
 #: Largest study file [bytes].
 MAX_STUDY_BYTES = 1 << 20
 #: Seeds (of random axes and of the initial-posture noise) lie in 0..MAX_SEED.
@@ -130,7 +123,7 @@ MODELS = ("viscous", "engine")
 CONTROLLERS = ("lyapunov", "velocity", "pfl")
 _TRACKING = ("lyapunov", "velocity")
 _TABLES = ("study", "base", "axes")
-_STUDY_KEYS = ("name", "description", "batch_size")
+_STUDY_KEYS = ("name", "description")
 _GRID_FORMS = ("values", "linspace")
 _RANDOM_FORMS = ("uniform", "normal")
 _AXIS_KEYS = (*_GRID_FORMS, *_RANDOM_FORMS, "samples", "seed")
@@ -396,7 +389,7 @@ class StudySpec:
     ----------
     path
         The study file.
-    name, description, batch_size
+    name, description
         From ``[study]``.
     base
         The settings ``[base]`` gives explicitly (typed).
@@ -411,7 +404,6 @@ class StudySpec:
     path: Path
     name: str
     description: str
-    batch_size: int
     base: dict[str, Any]
     axes: tuple[Axis, ...]
     scenarios: tuple[Scenario, ...] = field(repr=False)
@@ -433,10 +425,9 @@ class StudySpec:
         Returns
         -------
         dict
-            Name, description, batch size, base, axes, run count, study hash, key format.
+            Name, description, base, axes, run count, study hash, key format.
         """
-        return {"name": self.name, "description": self.description,
-                "batch_size": self.batch_size, "base": _plain(self.base),
+        return {"name": self.name, "description": self.description, "base": _plain(self.base),
                 "axes": [{"setting": a.setting, **a.source} for a in self.axes],
                 "runs": len(self.scenarios), "study_hash": self.study_hash,
                 "key_format": KEY_FORMAT}
@@ -559,6 +550,9 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
     doc = parse_toml(text, error=where.error)
     _check_keys(where, "", doc, _TABLES, "table")
     study = _table(where, doc, "study")
+    if "batch_size" in study:
+        raise where.error("[study] batch_size is no longer a setting: every run is one task "
+                          "(remove the line)")
     _check_keys(where, "[study]", study, _STUDY_KEYS, "key")
     name = study.get("name", file.stem)
     description = study.get("description", "")
@@ -566,10 +560,6 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
         if not isinstance(value, str) or not value.isprintable() or len(value) > 2000:
             raise where.error(f"[study] {key} must be one line of printable text, "
                               f"got {_short(value)}")
-    batch_size = study.get("batch_size", DEFAULT_BATCH)
-    if not _is_int(batch_size) or not 1 <= batch_size <= MAX_BATCH:
-        raise where.error(f"[study] batch_size must be an integer in 1..{MAX_BATCH}, "
-                          f"got {_short(batch_size)}")
     base_doc = _table(where, doc, "base")
     base = {}
     for key, value in base_doc.items():
@@ -585,9 +575,8 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
     scenarios = _scenarios(where, file, base, axes)
     keys = sorted(s.key for s in scenarios)
     study_hash = hashlib.sha256(canonical_json(keys).encode("ascii")).hexdigest()
-    return StudySpec(path=file, name=name, description=description, batch_size=batch_size,
-                     base=base, axes=tuple(axes), scenarios=tuple(scenarios),
-                     study_hash=study_hash)
+    return StudySpec(path=file, name=name, description=description, base=base,
+                     axes=tuple(axes), scenarios=tuple(scenarios), study_hash=study_hash)
 
 
 class _Where:

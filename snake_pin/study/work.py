@@ -1,27 +1,15 @@
-"""The unit of work of a study: run a batch of scenarios, return one result row per scenario.
+"""The unit of work of a study: run a task's scenarios, return one result row per scenario.
 
-:func:`run_batch` is the task the runner submits to Dask. It never lets a run's failure
-escape: a run that raises becomes a row with status ``failed`` and the error text, and
-the other runs of the batch go on. Inside it, BLAS and OpenMP pools are limited to one
-thread (:func:`threadpoolctl.threadpool_limits`): multi-threaded OpenBLAS on tiny matrices
-was measured ~100x slower when another core is busy.
+:func:`run_batch` is the task the runner submits to Dask; the runner gives it one run
+(:func:`snake_pin.study.runner.plan_batches`). It never lets a run's failure escape: a
+run that raises becomes a row with status ``failed`` and the error text, and the other
+runs of the task go on. Inside it, BLAS and OpenMP pools are limited to one thread
+(:func:`threadpoolctl.threadpool_limits`): multi-threaded OpenBLAS on tiny matrices was
+measured ~100x slower when another core is busy.
 
-**Viscous batches run in lockstep.** Viscous-model batches go through
-:func:`simulate_viscous_batch`: the runs of a task (one robot layout, one ``dt`` and
-``control_dt``; the runner plans them so) are stepped together by
-:func:`snake_pin.batch.simulate_batch` at ``stride = 1`` (every sample kept, so the metrics
-are those of :func:`simulate_scenario`; the two agree to about 1e-12, ``tests/test_study_
-runner.py`` checks 1e-9). A task larger than :func:`runs_per_batch` allows (its recorded
-samples would pass :data:`BATCH_RECORD_BYTES`) is stepped as consecutive lockstep chunks.
-When :func:`~snake_pin.batch.simulate_batch` refuses a batch as a whole (any error other
-than an interrupt), its runs go one by one through :func:`simulate_scenario`. Each run's
-:class:`~snake_pin.sim.Trajectory` is cut from the batch's arrays only when its row is
-computed and dropped after it, so a task holds the batch's arrays plus one run's copy.
-Measured on this 2-core machine: one process running the 40 runs of 60 s of
-``studies/failure_map.toml`` as one task (one lockstep batch, rows included) peaked at
-977 MiB resident (the batch's samples: 640 MiB) and took 40 s.
-
-Engine scenarios run one per task through :func:`snake_pin.engine.run.run_engine`.
+A viscous-model run is exactly what the single-run path does: :func:`simulate_scenario`,
+:func:`snake_pin.sim.simulate` of the scenario's robot, controller and initial state.
+Engine scenarios run through :func:`snake_pin.engine.run.run_engine`.
 
 Rows (see :mod:`snake_pin.study.results` for the columns): every setting of the run, the
 key, ``status`` (``ok``, ``diverged``, ``failed``), ``reason``, and the metrics:
@@ -41,7 +29,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,20 +42,12 @@ from ..params import SnakeParams
 from ..sim import Trajectory
 from .spec import Scenario, canonical_json
 
-__all__ = ["BATCH_RECORD_BYTES", "CRITERIA_PERIOD", "MIN_LOCKSTEP", "RunOutcome",
-           "build_controller",
-           "failed_row", "initial_noise", "initial_state", "reference", "result_row", "run_batch",
-           "runs_per_batch", "simulate_scenario", "simulate_viscous_batch"]
+__all__ = ["CRITERIA_PERIOD", "RunOutcome", "build_controller", "failed_row",
+           "initial_noise", "initial_state", "reference", "result_row", "run_batch",
+           "simulate_scenario"]
 
 #: Manipulability criteria are evaluated along a run every this many seconds.
 CRITERIA_PERIOD = 0.1
-#: Largest samples one lockstep batch records [bytes] (:func:`runs_per_batch`): 63 runs of
-#: 60 s of a 10-link robot at 1 kHz (17 MB each).
-BATCH_RECORD_BYTES = 2**30
-#: Fewest runs simulated as a lockstep batch; fewer run one by one through
-#: :func:`simulate_scenario` (measured here: a lockstep batch of B runs matches B single
-#: runs near B = 6-8 and is slower below; at B = 1 it is 4-6x slower).
-MIN_LOCKSTEP = 8
 
 
 @dataclass
@@ -81,7 +61,7 @@ class RunOutcome:
     error
         The error text of a run that raised ("" otherwise).
     wall_time
-        Simulation time of the run [s] (a lockstep batch's time divided by its runs).
+        Simulation time of the run [s].
     """
 
     trajectory: Trajectory | None
@@ -91,16 +71,17 @@ class RunOutcome:
 
 # ------------------------------------------------------------------- the task
 def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
-    """Run a batch and return one result row per scenario, in order (the Dask task).
+    """Run a task's scenarios one by one and return one result row per scenario, in order
+    (the Dask task; the runner gives it one scenario).
 
     A run that raises is a ``failed`` row with the error; a KeyboardInterrupt is not
-    caught (an interrupted batch is lost whole, never half-written).
+    caught (an interrupted task is lost whole, never half-written).
 
     Parameters
     ----------
     scenarios
-        Runs of one model: viscous runs of one robot layout and time step (simulated by
-        :func:`simulate_viscous_batch`), or engine runs (one by one).
+        Runs of either model: viscous runs through :func:`simulate_scenario`, engine runs
+        through :func:`snake_pin.engine.run.run_engine`.
 
     Returns
     -------
@@ -109,140 +90,17 @@ def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
     """
     from threadpoolctl import threadpool_limits
 
-    scenarios = list(scenarios)
+    rows = []
     with threadpool_limits(limits=1):
-        if all(s.model == "viscous" for s in scenarios):
-            outcomes = simulate_viscous_batch(scenarios)
-        else:
-            outcomes = [_guarded(_simulate_engine, s) for s in scenarios]
-        rows = []
-        for scenario, outcome in zip(scenarios, outcomes, strict=True):
+        for scenario in scenarios:
+            simulate = simulate_scenario if scenario.model == "viscous" else _simulate_engine
+            outcome = _guarded(simulate, scenario)
             try:
                 rows.append(result_row(scenario, outcome))
             except Exception as exc:
                 rows.append(failed_row(scenario, f"metrics failed: {_error_text(exc)}",
                                        outcome.wall_time))
     return rows
-
-
-def simulate_viscous_batch(scenarios: Sequence[Scenario]) -> Sequence[RunOutcome]:
-    """Simulate viscous-model scenarios of one robot layout and time step in lockstep.
-
-    One :class:`RunOutcome` per scenario, in order, whose trajectory is what
-    :func:`simulate_scenario` gives for it up to rounding (same status and reason), with the
-    wall time of each run (a chunk's time divided by its runs). The outcomes form a lazy
-    sequence: a trajectory is cut from the batch's arrays when its outcome is read.
-    Fewer than :data:`MIN_LOCKSTEP` scenarios run one by one (faster than a small lockstep
-    batch); more than :func:`runs_per_batch` allows run as evenly sized lockstep chunks.
-
-    A scenario whose controller cannot be built is a failed outcome; the others go on. A
-    batch that :func:`~snake_pin.batch.simulate_batch` refuses as a whole runs one by one
-    (:func:`simulate_scenario`). An interrupt propagates.
-
-    Parameters
-    ----------
-    scenarios
-        Viscous-model runs of one robot layout (same n, link lengths, masses, inertias,
-        CM offsets) and one ``dt`` and ``control_dt``.
-
-    Returns
-    -------
-    Sequence of RunOutcome
-        One per scenario, in order.
-    """
-    scenarios = list(scenarios)
-    outcomes: list[RunOutcome | Callable[[], RunOutcome] | None] = [None] * len(scenarios)
-    if not scenarios:
-        return _Outcomes(outcomes)
-    if len(scenarios) < MIN_LOCKSTEP:
-        return _Outcomes([functools.partial(_guarded, simulate_scenario, s) for s in scenarios])
-    count = math.ceil(len(scenarios) / runs_per_batch(scenarios))
-    size = math.ceil(len(scenarios) / count)
-    for first in range(0, len(scenarios), size):
-        chunk = range(first, min(first + size, len(scenarios)))
-        _simulate_chunk([scenarios[i] for i in chunk], chunk, outcomes)
-    return _Outcomes(outcomes)
-
-
-def runs_per_batch(scenarios: Sequence[Scenario]) -> int:
-    """Most runs of ``scenarios`` one lockstep batch holds in memory.
-
-    Parameters
-    ----------
-    scenarios
-        Viscous-model runs.
-
-    Returns
-    -------
-    int
-        How many runs' samples at stride 1 (q, q', tau and two signals per control step,
-        for the longest run and the largest n) fit :data:`BATCH_RECORD_BYTES`; at least 1.
-    """
-    if not scenarios:
-        return 1
-    longest = max(math.ceil(s["t_final"] / s["control_dt"] - 1e-9) + 1 for s in scenarios)
-    n = max(s.params.n for s in scenarios)
-    per_run = longest * (2 * (n + 2) + (n - 1) + 2) * 8
-    return max(1, BATCH_RECORD_BYTES // per_run)
-
-
-def _simulate_chunk(scenarios: list[Scenario], places: Sequence[int],
-                    outcomes: list[Any]) -> None:
-    """One lockstep batch: fill ``outcomes[places[j]]`` for each scenario j."""
-    from ..batch import simulate_batch
-    from ..model import Snake
-
-    start = time.perf_counter()
-    snakes: dict[SnakeParams, Any] = {}
-    runs = []  # (place, scenario, controller, initial state)
-    for place, scenario in zip(places, scenarios, strict=True):
-        try:
-            snake = snakes.get(scenario.params)
-            if snake is None:
-                snake = snakes[scenario.params] = Snake(scenario.params)
-            runs.append((place, scenario, build_controller(scenario, snake),
-                         initial_state(scenario)))
-        except RunInterrupted:
-            raise
-        except Exception as exc:
-            outcomes[place] = RunOutcome(None, _error_text(exc), 0.0)
-    if not runs:
-        return
-    first = runs[0][1]
-    try:
-        result = simulate_batch([s.params for _, s, _, _ in runs], [c for _, _, c, _ in runs],
-                                [x for _, _, _, x in runs], [s["t_final"] for _, s, _, _ in runs],
-                                dt=first["dt"], control_dt=first["control_dt"], stride=1)
-    except RunInterrupted:
-        raise
-    except Exception:  # refused as a whole: each run on its own
-        for place, scenario, _, _ in runs:
-            outcomes[place] = functools.partial(_guarded, simulate_scenario, scenario)
-        return
-    wall = (time.perf_counter() - start) / len(runs)
-    for b, (place, _, _, _) in enumerate(runs):
-        outcomes[place] = functools.partial(_cut, result, b, wall)
-
-
-def _cut(result: Any, run: int, wall: float) -> RunOutcome:
-    return RunOutcome(result.trajectory(run), "", wall)
-
-
-class _Outcomes(Sequence[RunOutcome]):
-    """Outcomes made when read: a batch's run becomes a Trajectory only when its row is
-    computed (and can be dropped after it); per-run fallbacks simulate when read."""
-
-    def __init__(self, items: list[Any]) -> None:
-        self._items = items
-
-    def __len__(self) -> int:
-        return len(self._items)
-
-    def __getitem__(self, index: Any) -> Any:
-        if isinstance(index, slice):
-            return [self[i] for i in range(*index.indices(len(self)))]
-        item = self._items[index]
-        return item() if callable(item) else item
 
 
 def _guarded(simulate: Any, scenario: Scenario) -> RunOutcome:
