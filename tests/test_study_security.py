@@ -11,6 +11,7 @@ import socket
 import ssl
 import struct
 import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -126,6 +127,35 @@ def test_check_scheduler_names_what_a_tls_scheduler_needs(cluster: Any, tmp_path
     worker = next(iter(cluster.scheduler.workers))
     error = _refused(lambda: check_scheduler(worker, security=config))
     assert isinstance(error, StudyError) and "not a scheduler" in str(error)
+
+
+def test_checking_a_tls_scheduler_leaves_no_warning_in_its_log(cluster: Any) -> None:
+    """The reachability probe of a tls:// scheduler completes a TLS handshake, so the
+    scheduler logs no 'TLS handshake failed' (as it does for a bare TCP connection)."""
+    import logging
+
+    records: list[logging.LogRecord] = []
+    handler = logging.Handler(logging.WARNING)
+    handler.emit = records.append  # type: ignore[method-assign]
+    logger = logging.getLogger("distributed.comm.tcp")
+    level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.WARNING)
+    try:
+        address = cluster.scheduler_address
+        assert _bounded(lambda: check_scheduler(address, security=cluster.security)) == address
+        # then a bare TCP connection, whose warning shows that the log is being read
+        with socket.create_connection(("127.0.0.1", int(address.rsplit(":", 1)[1]))) as bare:
+            mark = f":{bare.getsockname()[1]}'"
+        deadline = time.monotonic() + 10.0
+        while not any(mark in r.getMessage() for r in records) and time.monotonic() < deadline:
+            time.sleep(0.02)
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
+    messages = [record.getMessage() for record in records]
+    assert messages and all(mark in m and "TLS handshake failed" in m for m in messages), \
+        messages
 
 
 def test_a_study_runs_on_a_tls_scheduler_given_a_security_file(cluster: Any, tmp_path: Path,

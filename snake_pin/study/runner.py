@@ -364,8 +364,9 @@ def check_scheduler(address: str, *, security: Any = None,
                          f"the scheduler's tls:// address")
     deadline = time.monotonic() + timeout
     try:
-        with socket.create_connection((host, port), timeout=timeout):
-            pass
+        with socket.create_connection((host, port), timeout=timeout) as probe:
+            if scheme == "tls":
+                _finish_tls(probe, credentials, deadline)
     except ConnectionResetError:
         raise StudyError(f"scheduler {text} did not complete Dask's handshake (it reset the "
                          "connection)") from None
@@ -582,6 +583,24 @@ def _handshake(address: str, security: Any, timeout: float) -> Any:
     if error is None or isinstance(error, asyncio.CancelledError):
         raise TimeoutError
     raise error
+
+
+def _finish_tls(probe: socket.socket, security: Any, deadline: float) -> None:
+    """Complete a TLS handshake on the probe's connection, ignoring any failure.
+
+    A TLS listener logs a warning for a connection closed before its handshake (as a
+    bare TCP probe is); after one it stays quiet. A failure here (credentials refused, a
+    silent or plain-TCP server) is left to Dask's own handshake, which reports it. Takes at
+    most half the time left before ``deadline`` (and at most 1 s).
+    """
+    left = min(1.0, (deadline - time.monotonic()) / 2)
+    context = security.get_connection_args("client").get("ssl_context")
+    if left <= 0.01 or context is None:
+        return
+    probe.settimeout(left)
+    with contextlib.suppress(OSError, ValueError), \
+            context.wrap_socket(probe, server_hostname=None):
+        pass
 
 
 def _handshake_failure(text: str, scheme: str, host: str, port: int, exc: BaseException,
