@@ -36,7 +36,7 @@ MODULES = ("snake_pin.manipulability", "snake_pin.model", "snake_pin.gaits",
            "snake_pin.integrability", "snake_pin.singular", "snake_pin.sweeps",
            "snake_pin.friction", "snake_pin.planar_joint", "snake_pin.paper",
            "snake_pin.metrics", "snake_pin.control", "snake_pin.control.base",
-           "snake_pin.control.batched", "snake_pin.control.gains", "snake_pin.control.los",
+           "snake_pin.control.gains", "snake_pin.control.los",
            "snake_pin.control.lyapunov", "snake_pin.control.pfl",
            "snake_pin.control.quasistatic", "snake_pin.control.reference")
 
@@ -124,23 +124,8 @@ def _serpenoid(w: World) -> Any:
     return snake_pin.Serpenoid(5, 0.5, 1.0, 1.0)
 
 
-def _batched(kind: str) -> Callable[[World], tuple[Callable[..., Any], dict[str, Any]]]:
-    def call(w: World) -> tuple[Callable[..., Any], dict[str, Any]]:
-        batched = _m("snake_pin.control.batched")
-        controller = {"BatchedLyapunov": w.lyapunov, "BatchedPFL": w.pfl,
-                      "BatchedQuasiStatic": w.quasistatic}[kind]
-        return getattr(batched, kind), {"controllers": [controller],
-                                        "terms": batched.BatchTerms(w.params)}
-    return call
-
-
-def _torques(raw: object, size: int) -> tuple[np.ndarray | None, str]:
-    return np.zeros(size), ""
-
-
 ROWS: dict[str, Row] = {
     # ------------------------------------------------------------------ snake_pin
-    "snake_pin.batch.BatchResult": Row(record=RECORD, owner="batch"),
     "snake_pin.sim.Trajectory": Row(record=RECORD),
     "snake_pin.control.base.Controller": Row(record=ABSTRACT),
     "snake_pin.model.DynamicsDerivatives": Row(record=RECORD),
@@ -237,13 +222,6 @@ ROWS: dict[str, Row] = {
                     "control_dt": 1e-3, "method": "rk4", "max_speed": 1e3,
                     "max_distance": 1e3, "progress": False, "meta": None}),
         skip={"progress": "bool", "meta": "None dict"}, errors={"x0": CONFIG}),
-    "snake_pin.batch.simulate_batch": Row(
-        lambda w: (snake_pin.simulate_batch,
-                   {"robots": w.params, "controllers": [w.lyapunov],
-                    "x0s": np.r_[w.q, np.zeros(7)][None, :], "t_final": 0.002, "dt": 1e-3,
-                    "control_dt": 1e-3, "stride": 1, "dynamics": "closed_form",
-                    "threads": 1, "progress": False, "meta": None}),
-        skip={"progress": "bool", "meta": "None dict", "t_final": "short"}, owner="batch"),
     "snake_pin.gaits.straight": Row(
         lambda w: (snake_pin.straight, {"n": 5, "y_h": 0.0})),
     "snake_pin.robot_file.write_robot_file": Row(
@@ -441,32 +419,6 @@ ROWS: dict[str, Row] = {
                    {"reference": snake_pin.LinearReference(), "gait": _serpenoid(w),
                     "times": np.linspace(0.0, 1.0, 3)}),
         skip={"times": "short"}, errors={"times": CONFIG}),
-    # ---------------------------------------------------------- control.batched
-    "snake_pin.control.batched.BatchTerms": Row(
-        lambda w: (_m("snake_pin.control.batched").BatchTerms, {"params": w.params})),
-    "snake_pin.control.batched.BatchedController": Row(record=ABSTRACT),
-    "snake_pin.control.batched.BatchedLyapunov": Row(_batched("BatchedLyapunov"),
-                                                     skip={"terms": "None"}),
-    "snake_pin.control.batched.BatchedPFL": Row(_batched("BatchedPFL"), skip={"terms": "None"}),
-    "snake_pin.control.batched.BatchedQuasiStatic": Row(_batched("BatchedQuasiStatic"),
-                                                        skip={"terms": "None"}),
-    "snake_pin.control.batched.FrictionCoefficients": Row(
-        lambda w: (_m("snake_pin.control.batched").FrictionCoefficients,
-                   {"robots": [w.params]})),
-    "snake_pin.control.batched.GroupedControllers": Row(
-        lambda w: (_m("snake_pin.control.batched").GroupedControllers,
-                   {"groups": [(np.arange(1), _batched("BatchedLyapunov")(w)[0](
-                       [w.lyapunov]))], "n_tau": 4})),
-    "snake_pin.control.batched.PerRunControllers": Row(
-        lambda w: (_m("snake_pin.control.batched").PerRunControllers,
-                   {"controllers": [w.lyapunov], "validate": _torques, "n_tau": 4})),
-    "snake_pin.control.batched.batch_controller": Row(
-        lambda w: (_m("snake_pin.control.batched").batch_controller,
-                   {"controllers": [w.lyapunov], "n_tau": 4, "validate": _torques,
-                    "terms": None}),
-        skip={"terms": "None"}),
-    "snake_pin.control.batched.layout_key": Row(
-        lambda w: (_m("snake_pin.control.batched").layout_key, {"params": w.params})),
     # ------------------------------------------------------------ control.gains
     "snake_pin.control.gains.gain_matrix": Row(
         lambda w: (_m("snake_pin.control.gains").gain_matrix,
