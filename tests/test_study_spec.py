@@ -57,7 +57,8 @@ BAD = {
     "unknown choice": ("[base]\ncontroller = \"mpc\"", "[base] controller must be one of "
                        "lyapunov, velocity, pfl"),
     "negative friction": ("[base]\nc_y = -1.0", "[base] c_y must be >= 0"),
-    "batch size": ("[study]\nbatch_size = 0", "[study] batch_size must be an integer in"),
+    "batch size": ("[study]\nbatch_size = 4", "[study] batch_size is no longer a setting: "
+                   "every run is one task"),
     "empty axis": ("[axes.c_y]\nvalues = []", "[axes.c_y] values is empty"),
     "empty linspace": ("[axes.c_y]\nlinspace = [1.0, 2.0, 0]", "[axes.c_y] linspace = [a, b, n] "
                        "needs an integer n >= 1"),
@@ -260,8 +261,8 @@ def test_run_key_changes_with_every_setting_and_the_robot(controller: str) -> No
 
 
 def test_study_hash_follows_the_runs_not_the_layout(tmp_path: Path) -> None:
-    """Name, batch size and key order leave the hash; a changed value changes it."""
-    one = parse_study("[study]\nname = \"a\"\nbatch_size = 4\n" + QUICK +
+    """Name and key order leave the hash; a changed value changes it."""
+    one = parse_study("[study]\nname = \"a\"\n" + QUICK +
                       "[axes.lam]\nvalues = [5.0, 10.0]\n")
     two = parse_study("[axes.lam]\nvalues = [5.0, 10.0]\n[study]\nname = \"b\"\n"
                       "[base]\nc_y = 25.0\nerror_window = 0.1\nt_final = 0.5\n")
