@@ -47,7 +47,7 @@ _LAZY = {
     "Snake": ".model", "DynamicsDerivatives": ".model",
     "load_robot": ".robot_file", "read_robot_file": ".robot_file", "read_urdf": ".robot_file",
     "robot_paths": ".robot_file", "write_robot_file": ".robot_file",
-    "Trajectory": ".sim", "simulate": ".sim",
+    "Trajectory": ".trajectory", "simulate": ".sim",
     "build_urdf": ".urdf", "write_urdf": ".urdf",
 }
 

@@ -846,7 +846,7 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     from ._io import atomic_write_bytes
     from .experiments.engine import PERTURBATION, Draws, engine_draw, perturbations, plot_engine
     from .experiments.parallel import iter_jobs
-    from .sim import Trajectory
+    from .trajectory import Trajectory
 
     size = PERTURBATION if args.perturbation is None else args.perturbation
     passive = ", ".join(map(str, params.passive))
@@ -918,7 +918,7 @@ def _cmd_view(args: argparse.Namespace) -> _Outcome:
             raise UsageError(f"argument --html: must end in .html, got {args.html}")
         if not html.parent.is_dir():
             raise UsageError(f"argument --html: no folder {html.parent}")
-    from .sim import Trajectory
+    from .trajectory import Trajectory
     from .viz.meshcat_view import view, write_html
 
     expected = _load_robot(args.robot).name if args.robot is not None else None

@@ -27,11 +27,11 @@ from snake_pin import (
     Snake,
     Trajectory,
     TrajectoryFileError,
-    sim,
     simulate,
+    trajectory,
 )
 from snake_pin._io import TEMP_MARKER
-from snake_pin.sim import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES
+from snake_pin.trajectory import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES
 
 _FUZZ = settings(max_examples=80, deadline=None,
                  suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -533,7 +533,7 @@ def test_a_fifo_is_refused_without_blocking(tmp_path: Path,
     os.mkfifo(fifo)
     assert "is not a regular file" in _refused_at_once(fifo)
     assert "no trajectory file" in _refused_at_once(tmp_path / "run")
-    monkeypatch.setattr(sim, "_resolve", lambda path: Path(path))
+    monkeypatch.setattr(trajectory, "_resolve", lambda path: Path(path))
     assert _refused_at_once(fifo) == \
         f"{fifo}: is a FIFO, not a regular file: not a snake_pin trajectory"
 

@@ -14,7 +14,8 @@ from ..integrability import conserved_quantity_along
 from ..metrics import applied, criteria_along, head_error_summary, head_position_error
 from ..model import Snake
 from ..params import SnakeParams
-from ..sim import Trajectory, simulate
+from ..sim import simulate
+from ..trajectory import Trajectory
 
 __all__ = ["TAU_BREAKDOWN", "PFLRun", "breakdown_threshold", "initial_state", "plot_pfl",
            "run_pfl"]

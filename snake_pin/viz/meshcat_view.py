@@ -49,7 +49,7 @@ from ..exceptions import ParameterError, SnakePinError
 if TYPE_CHECKING:
     import meshcat
 
-    from ..sim import Trajectory
+    from ..trajectory import Trajectory
 
 __all__ = ["BODY_COLOR", "offline_visualizer", "start_server", "stop_server", "view",
            "write_html"]

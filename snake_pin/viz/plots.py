@@ -17,7 +17,7 @@ from .._io import atomic_write_bytes
 
 if TYPE_CHECKING:
     from ..model import Snake
-    from ..sim import Trajectory
+    from ..trajectory import Trajectory
 
 __all__ = ["draw_snake", "plot_head_path", "plot_postures", "plot_trajectory", "save_figure"]
 

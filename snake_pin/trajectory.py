@@ -1,0 +1,562 @@
+"""A run's result and its file format: :class:`Trajectory`, saved and loaded.
+
+This module owns what a run leaves behind: the samples (times, states, held torques,
+signals), the run's status and reason, and the pair of files a trajectory is saved as
+(``PATH.npz`` arrays + ``PATH.json`` summary).
+
+Every run ends with a :attr:`Trajectory.status`:
+
+- ``"completed"``: it reached its final time;
+- ``"diverged"``: the state left its bounds (non-finite, speed or distance beyond a bound);
+- ``"failed"``: the controller raised (any exception) or returned a torque of the wrong
+  size, type or a non-finite one;
+- ``"interrupted"``: a KeyboardInterrupt arrived (the run raised
+  :class:`~snake_pin.exceptions.RunInterrupted` carrying the partial trajectory).
+
+``diverged`` is True for the two faults ("diverged", "failed").
+
+Files are written whole or not at all: :meth:`Trajectory.save` stages both files and
+renames them into place together (:func:`snake_pin._io.atomic_group`). They are read with
+bounds: :meth:`Trajectory.load` reads only the arrays it needs, checks each array's .npy
+header (dtype, shape, declared size against :data:`MAX_ARRAY_BYTES` and
+:data:`MAX_TOTAL_BYTES`) before decompressing any of its data, never unpickles, and
+refuses anything malformed with one :class:`~snake_pin.exceptions.TrajectoryFileError`
+line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import math
+import os
+import re
+import reprlib
+import zipfile
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._io import atomic_group, open_regular_file
+from ._validation import one_line, printable_path
+from .exceptions import ConfigurationError, ParameterError, TrajectoryFileError
+from .params import SnakeParams
+
+__all__ = ["MAX_ARRAY_BYTES", "MAX_TOTAL_BYTES", "STATUSES", "Trajectory"]
+
+#: Largest array a trajectory may hold, decompressed [bytes]; a file declaring more is
+#: refused before any of its data is decompressed, and simulate refuses runs beyond it.
+MAX_ARRAY_BYTES = 512 * 2**20
+#: Largest total of the arrays one load reads (or one run records) [bytes].
+MAX_TOTAL_BYTES = 1024 * 2**20
+#: The run statuses, see the module docstring.
+STATUSES = ("completed", "diverged", "failed", "interrupted")
+
+_FAULTS = ("diverged", "failed")
+_CORE = ("t", "q", "dq", "tau")
+_SIGNAL_PREFIX = "signal__"
+_SIGNAL_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
+_MAX_HEADER_CHARS = 1 << 20
+_MAX_MEMBERS = 1024
+_CHUNK = 1 << 20
+_HEADER_KEYS = {"params": dict, "reason": str, "meta": dict, "summary": dict, "signals": list}
+
+
+@dataclass
+class Trajectory:
+    """A recorded run: samples at every control step (plus the initial state).
+
+    The parameters are kept as attributes of the same names.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times [s], shape (N,).
+    q : numpy.ndarray
+        Configurations ``[x, y, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
+        shape (N, n + 2).
+    dq : numpy.ndarray
+        Their velocities [m/s, m/s, rad/s, rad/s], shape (N, n + 2).
+    tau : numpy.ndarray
+        Applied joint torques [N m], shape (N, n - 1); ``tau[k]`` is held over
+        ``[t[k], t[k + 1])``.
+    params : SnakeParams
+        The robot.
+    signals : dict of str to numpy.ndarray, optional
+        Extra per-sample series (controller diagnostics, manipulability, ...), each with N
+        rows; NaN where a value is missing.
+    diverged : bool, optional
+        Whether the run stopped on a fault (status "diverged" or "failed").
+    reason : str, optional
+        Why the run stopped (empty for a completed run).
+    meta : dict, optional
+        Run settings (controller name, time steps, reference ...).
+    summary : dict, optional
+        Scalar results written to the JSON summary.
+    status : str, optional
+        One of :data:`STATUSES`. Left empty, it follows ``diverged`` ("diverged" or
+        "completed"); given, it sets ``diverged``.
+
+    Raises
+    ------
+    ParameterError
+        ``status`` is not one of :data:`STATUSES`, or ``diverged=True`` with a status
+        that is not a fault.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    params: SnakeParams
+    signals: dict[str, np.ndarray] = field(default_factory=dict)
+    diverged: bool = False
+    reason: str = ""
+    meta: dict[str, Any] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+    status: str = ""
+
+    def __post_init__(self) -> None:
+        if self.status == "":
+            self.status = "diverged" if self.diverged else "completed"
+        elif self.status not in STATUSES:
+            raise ParameterError(f"status must be one of {', '.join(STATUSES)}, "
+                                 f"got {reprlib.repr(self.status)}")
+        elif self.diverged and self.status not in _FAULTS:
+            raise ParameterError(f"a run with status {self.status!r} cannot be diverged=True")
+        self.diverged = self.status in _FAULTS
+
+    @property
+    def t_end(self) -> float:
+        """Time of the last sample."""
+        return float(self.t[-1]) if len(self.t) else 0.0
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | os.PathLike[str]) -> tuple[Path, Path]:
+        """Write ``PATH.npz`` (arrays) and ``PATH.json`` (summary) as one set.
+
+        The name keeps its whole stem: only a trailing ``.npz`` or ``.json`` is dropped
+        (``run.v2`` -> ``run.v2.npz`` + ``run.v2.json``). Both files are staged and
+        renamed into place together, the .npz first (see :func:`snake_pin._io.atomic_group`).
+        The JSON summary is RFC 8259 JSON: non-finite numbers are written as null.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The files' common name, with or without ``.npz``/``.json``.
+
+        Returns
+        -------
+        tuple of pathlib.Path
+            The ``.npz`` and ``.json`` files written.
+
+        Raises
+        ------
+        ParameterError
+            The folder does not exist, the name is empty, or meta/summary are not JSON.
+        ConfigurationError
+            The arrays are not a trajectory that :meth:`load` would accept.
+        """
+        npz, js = _file_pair(path)
+        if not npz.parent.is_dir():
+            raise ParameterError(f"output directory does not exist: {npz.parent}")
+        arrays = self._file_arrays()
+        header = {"params": self.params.to_dict(), "status": self.status,
+                  "diverged": self.diverged, "reason": self.reason, "meta": self.meta,
+                  "summary": self.summary, "signals": sorted(self.signals)}
+        header_text = _to_json(header, "the trajectory's meta/summary", strict=False)
+        summary_text = _to_json(self.summary_dict(), "the trajectory's summary", strict=True)
+        arrays["header"] = np.array(header_text)
+        with atomic_group(npz.parent) as group:
+            group.save(npz.name, lambda handle: np.savez_compressed(
+                handle, allow_pickle=True, **arrays))
+            group.write_bytes(js.name, (summary_text + "\n").encode())
+        return npz, js
+
+    def _file_arrays(self) -> dict[str, np.ndarray]:
+        """The arrays to save, checked as :meth:`load` checks them."""
+        core = {name: np.asarray(getattr(self, name)) for name in _CORE}
+        signals = {}
+        for name, value in self.signals.items():
+            if not isinstance(name, str) or not _SIGNAL_NAME.fullmatch(name):
+                raise ConfigurationError(f"signal name {reprlib.repr(name)} is not a plain "
+                                         "name (letters, digits, _ . + -, at most 64)")
+            signals[name] = np.asarray(value)
+        problem = _array_problem(core, signals, self.params.n)
+        if problem:
+            raise ConfigurationError(f"cannot save this trajectory: {problem}")
+        arrays = {name: arr.astype(float, copy=False) for name, arr in core.items()}
+        arrays.update({_SIGNAL_PREFIX + k: v for k, v in signals.items()})
+        return arrays
+
+    def summary_dict(self) -> dict[str, Any]:
+        """The JSON summary: run status plus :attr:`summary`.
+
+        Returns
+        -------
+        dict
+            ``robot``, ``n``, ``t_end`` [s], ``status``, ``diverged`` and ``reason``,
+            then the entries of :attr:`summary`.
+        """
+        return {"robot": self.params.name, "n": self.params.n, "t_end": self.t_end,
+                "status": self.status, "diverged": self.diverged, "reason": self.reason,
+                **self.summary}
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], *,
+             signals: bool | Iterable[str] = True) -> Trajectory:
+        """Read a trajectory written by :meth:`save`, refusing anything else.
+
+        Parameters
+        ----------
+        path
+            The .npz file. If no file has this name and it does not end in ``.npz``,
+            ``PATH.npz`` is tried (the file ``save(PATH)`` writes); no other name is.
+        signals
+            Which signal arrays to read: True (all), False (none; the viewer's choice), or
+            an iterable of names. Arrays not asked for are never decompressed.
+
+        Raises
+        ------
+        TrajectoryFileError
+            One line naming the file: missing, not a regular file (a FIFO is refused
+            unopened), larger than twice :data:`MAX_TOTAL_BYTES` (refused unread), not a
+            trajectory, truncated, corrupt, inconsistent, non-finite, or declaring arrays
+            beyond :data:`MAX_ARRAY_BYTES` (each) or :data:`MAX_TOTAL_BYTES` (together).
+        ParameterError
+            ``signals`` is not True, False or names.
+        """
+        wanted = _wanted_signals(signals)
+        file = _resolve(path)
+        shown = printable_path(file)
+        raw = open_regular_file(
+            file, limit=2 * MAX_TOTAL_BYTES, kind="snake_pin trajectory",
+            error=lambda message: TrajectoryFileError(f"{shown}: {one_line(message)}"))
+        try:
+            with raw:
+                if os.fstat(raw.fileno()).st_size == 0:
+                    raise _Refused("the file is empty")
+                return _read(cls, raw, wanted)
+        except _Refused as exc:
+            raise TrajectoryFileError(f"{shown} is not a usable snake_pin trajectory: "
+                                      f"{one_line(str(exc))}") from None
+        except zipfile.BadZipFile as exc:
+            raise TrajectoryFileError(f"{shown} is not a readable snake_pin trajectory: "
+                                      f"broken zip archive ({one_line(str(exc))})") from None
+        except Exception as exc:  # hostile input: whatever breaks while parsing is a refusal
+            raise TrajectoryFileError(f"{shown} is not a readable snake_pin trajectory "
+                                      f"({type(exc).__name__}: {one_line(str(exc))})") from None
+
+
+# ---------------------------------------------------------------------- file names
+def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
+    """``(PATH.npz, PATH.json)`` for save: only a trailing .npz/.json is dropped."""
+    try:
+        given = Path(path)
+    except TypeError as exc:
+        raise ParameterError(f"not a file path: {reprlib.repr(path)}") from exc
+    name = given.name
+    for suffix in (".npz", ".json"):
+        if name.endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    if name in ("", ".", ".."):
+        raise ParameterError(f"trajectory file name is empty: {printable_path(path)}")
+    return given.with_name(name + ".npz"), given.with_name(name + ".json")
+
+
+def _resolve(path: str | os.PathLike[str]) -> Path:
+    """The file :meth:`Trajectory.load` opens for ``path`` (see there)."""
+    try:
+        given = Path(path)
+    except TypeError as exc:
+        raise TrajectoryFileError(f"not a file path: {reprlib.repr(path)}") from exc
+    try:
+        if given.is_file():
+            return given
+        if given.exists():
+            raise TrajectoryFileError(f"{printable_path(given)} is not a regular file")
+        if given.name and not given.name.endswith(".npz"):
+            alternative = given.with_name(given.name + ".npz")
+            if alternative.is_file():
+                return alternative
+    except (OSError, ValueError) as exc:
+        raise TrajectoryFileError(f"cannot open {printable_path(given)}: "
+                                  f"{one_line(_reason(exc))}") from None
+    raise TrajectoryFileError(f"no trajectory file at {printable_path(given)}")
+
+
+def _reason(exc: OSError | ValueError) -> str:
+    """An error's own words: an OSError's strerror when it has one, else its text."""
+    return (exc.strerror if isinstance(exc, OSError) else None) or str(exc)
+
+
+def _wanted_signals(signals: object) -> frozenset[str] | None:
+    """None for every signal, else the names asked for."""
+    if signals is True or (isinstance(signals, np.bool_) and signals):
+        return None
+    if signals is False or (isinstance(signals, np.bool_) and not signals):
+        return frozenset()
+    if isinstance(signals, (str, bytes)) or not isinstance(signals, Iterable):
+        raise ParameterError(f"signals must be True, False or a list of names, "
+                             f"got {reprlib.repr(signals)}")
+    names = list(signals)
+    if not all(isinstance(name, str) for name in names):
+        raise ParameterError(f"signal names must be strings, got {reprlib.repr(names)}")
+    return frozenset(names)
+
+
+# ------------------------------------------------------------------- reading files
+class _Refused(Exception):
+    """A specific reason to refuse a file (turned into TrajectoryFileError by load)."""
+
+
+@dataclass
+class _Member:
+    info: zipfile.ZipInfo
+    shape: tuple[int, ...] = ()
+    dtype: np.dtype | None = None
+    fortran: bool = False
+
+    @property
+    def nbytes(self) -> int:
+        return math.prod(self.shape) * (self.dtype.itemsize if self.dtype is not None else 0)
+
+
+def _read(cls: type[Trajectory], raw: io.BufferedReader,
+          wanted: frozenset[str] | None) -> Trajectory:
+    with zipfile.ZipFile(raw) as archive:
+        infos = archive.infolist()
+        if len(infos) > _MAX_MEMBERS:
+            raise _Refused(f"{len(infos)} members (at most {_MAX_MEMBERS})")
+        members = {info.filename: info for info in infos}
+        if len(members) != len(infos):
+            raise _Refused("two members share a name")
+        for name in members:
+            stem = name.removesuffix(".npy")
+            if not name.endswith(".npy") or not (
+                    stem in (*_CORE, "header") or (stem.startswith(_SIGNAL_PREFIX) and
+                                                   _SIGNAL_NAME.fullmatch(
+                                                       stem.removeprefix(_SIGNAL_PREFIX)))):
+                raise _Refused(f"unexpected member {one_line(repr(name), 80)}")
+        if "header.npy" not in members:
+            raise _Refused("no header")
+        header_member = _inspect(archive, members["header.npy"], "header", kinds="U")
+        if header_member.shape != () or header_member.nbytes > 4 * _MAX_HEADER_CHARS:
+            raise _Refused(f"the header is not one string of at most {_MAX_HEADER_CHARS} "
+                           "characters")
+        header = _parse_header(str(_data(archive, header_member, "header")[()]))
+        params = header["params"]
+        listed = header["signals"]
+        expected = {f"{name}.npy" for name in _CORE} | {"header.npy"}
+        expected |= {f"{_SIGNAL_PREFIX}{name}.npy" for name in listed}
+        missing, extra = sorted(expected - set(members)), sorted(set(members) - expected)
+        if missing:
+            raise _Refused(f"array {missing[0].removesuffix('.npy')!r} is missing")
+        if extra:
+            raise _Refused(f"member {extra[0]!r} is not listed in its header")
+        unknown = sorted(set() if wanted is None else wanted - set(listed))
+        if unknown:
+            raise _Refused(f"it has no signal {unknown[0]!r} "
+                           f"(it has: {', '.join(listed) or 'none'})")
+        chosen = [name for name in listed if wanted is None or name in wanted]
+
+        # 1. every needed array's .npy header, checked before any data is decompressed
+        n = params.n
+        plan: dict[str, _Member] = {}
+        for name in _CORE:
+            plan[name] = _inspect(archive, members[f"{name}.npy"], name, kinds="f8")
+        samples = plan["t"].shape[0] if len(plan["t"].shape) == 1 else -1
+        _check_shape(plan["t"].shape, (samples,), "t")
+        if samples < 1:
+            raise _Refused("it has no samples")
+        _check_shape(plan["q"].shape, (samples, n + 2), "q")
+        _check_shape(plan["dq"].shape, (samples, n + 2), "dq")
+        _check_shape(plan["tau"].shape, (samples, n - 1), "tau")
+        for name in chosen:
+            member = _inspect(archive, members[f"{_SIGNAL_PREFIX}{name}.npy"],
+                              f"signal {name!r}", kinds="biuf")
+            if len(member.shape) not in (1, 2) or member.shape[0] != samples:
+                raise _Refused(f"signal {name!r} has shape {member.shape}, expected "
+                               f"({samples},) or ({samples}, k)")
+            plan[_SIGNAL_PREFIX + name] = member
+        total = sum(member.nbytes for member in plan.values())
+        if total > MAX_TOTAL_BYTES:
+            raise _Refused(f"its arrays declare {_mib(total)} together, beyond the "
+                           f"{_mib(MAX_TOTAL_BYTES)} bound")
+
+        # 2. the data, each array read to exactly its declared size
+        data = {key: _data(archive, member, key) for key, member in plan.items()}
+    core = {name: data[name].astype(float) for name in _CORE}
+    signals = {name: data[_SIGNAL_PREFIX + name] for name in chosen}
+    problem = _array_problem(core, signals, n)
+    if problem:
+        raise _Refused(problem)
+    return cls(t=core["t"], q=core["q"], dq=core["dq"], tau=core["tau"], params=params,
+               signals=signals, reason=header["reason"], meta=header["meta"],
+               summary=header["summary"], status=header["status"])
+
+
+def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
+             kinds: str) -> _Member:
+    """Read one member's .npy header only, and refuse what the loader would not accept.
+
+    ``kinds`` is "f8" (float64), "U" (a string) or "biuf" (any real numbers).
+    """
+    fmt = np.lib.format
+    with archive.open(info) as stream:
+        version = fmt.read_magic(stream)
+        if version == (1, 0):
+            shape, fortran, dtype = fmt.read_array_header_1_0(stream)
+        elif version == (2, 0):
+            shape, fortran, dtype = fmt.read_array_header_2_0(stream)
+        else:
+            raise _Refused(f"array {label} has .npy format {version} (1.0 or 2.0 expected)")
+    dtype = np.dtype(dtype)
+    if dtype.hasobject:
+        raise _Refused(f"array {label} holds Python objects (pickles are refused)")
+    right = (dtype.kind == "f" and dtype.itemsize == 8) if kinds == "f8" else dtype.kind in kinds
+    if dtype.names is not None or dtype.subdtype is not None or not right:
+        raise _Refused(f"array {label} has dtype {dtype}, expected "
+                       + {"f8": "float64", "U": "a string", "biuf": "numbers"}[kinds])
+    if not all(isinstance(d, int) and d >= 0 for d in shape):
+        raise _Refused(f"array {label} declares the shape {shape}")
+    member = _Member(info, tuple(shape), dtype, bool(fortran))
+    if member.nbytes > MAX_ARRAY_BYTES:
+        raise _Refused(f"array {label} declares {member.shape} ({_mib(member.nbytes)}), "
+                       f"beyond the {_mib(MAX_ARRAY_BYTES)} bound")
+    return member
+
+
+def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
+    """Read a checked member's data: exactly its declared size, and nothing after it."""
+    assert member.dtype is not None
+    buffer = bytearray(member.nbytes)
+    view = memoryview(buffer)
+    with archive.open(member.info) as stream:
+        assert isinstance(stream, io.BufferedIOBase)  # a ZipExtFile: it has readinto
+        version = np.lib.format.read_magic(stream)
+        reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                  else np.lib.format.read_array_header_2_0)
+        reader(stream)
+        got = 0
+        while got < member.nbytes:
+            count = stream.readinto(view[got: got + _CHUNK])
+            if not count:
+                raise _Refused(f"array {label} is truncated ({got} of {member.nbytes} bytes)")
+            got += count
+        if stream.read(1):
+            raise _Refused(f"array {label} has data beyond its declared shape")
+    array = np.frombuffer(buffer, dtype=member.dtype)
+    return array.reshape(member.shape, order="F" if member.fortran else "C")
+
+
+def _check_shape(shape: tuple[int, ...], expected: tuple[int, ...], name: str) -> None:
+    if shape != expected:
+        raise _Refused(f"array {name} has shape {shape}, expected {expected}")
+
+
+def _mib(nbytes: int) -> str:
+    return f"{nbytes / 2**20:.4g} MiB"
+
+
+def _parse_header(text: str) -> dict[str, Any]:
+    """The JSON header, checked key by key; ``params`` becomes SnakeParams."""
+    try:
+        header = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise _Refused(f"its header is not JSON ({one_line(str(exc), 80)})") from None
+    if not isinstance(header, dict):
+        raise _Refused("its header is not a JSON object")
+    for key, kind in _HEADER_KEYS.items():
+        if key not in header:
+            raise _Refused(f"its header has no {key!r}")
+        if not isinstance(header[key], kind):
+            raise _Refused(f"its header's {key!r} is not a{'n' if kind is dict else ''} "
+                           f"{ {dict: 'object', str: 'string', list: 'list'}[kind] }")
+    listed = header["signals"]
+    if not all(isinstance(s, str) and _SIGNAL_NAME.fullmatch(s) for s in listed) or \
+            len(set(listed)) != len(listed):
+        raise _Refused("its header's 'signals' is not a list of distinct signal names")
+    status, diverged = header.get("status"), header.get("diverged")
+    if diverged is not None and not isinstance(diverged, bool):
+        raise _Refused("its header's 'diverged' is not true or false")
+    if status is None:  # files written before statuses existed
+        if diverged is None:
+            raise _Refused("its header has no 'status'")
+        status = "diverged" if diverged else "completed"
+    if not isinstance(status, str) or status not in STATUSES:
+        raise _Refused(f"its header's status is not one of {', '.join(STATUSES)}")
+    if diverged is not None and diverged != (status in _FAULTS):
+        raise _Refused(f"its header says status {status!r} but diverged = {diverged}")
+    header["status"] = status
+    try:
+        header["params"] = SnakeParams.from_dict(header["params"])
+    except Exception as exc:  # any rejection by SnakeParams
+        raise _Refused(f"its robot parameters are invalid ({one_line(str(exc), 120)})") from None
+    return header
+
+
+def _array_problem(core: Mapping[str, np.ndarray], signals: Mapping[str, np.ndarray],
+                   n: int) -> str:
+    """What is wrong with a trajectory's arrays for an n-link robot ("" if nothing)."""
+    t = core["t"]
+    for name in _CORE:
+        arr = core[name]
+        if arr.dtype.kind not in "fiu" or arr.dtype.names is not None:
+            return f"array {name} has dtype {arr.dtype}, expected floats"
+    if t.ndim != 1 or len(t) == 0:
+        return f"array t has shape {t.shape}, expected at least one sample"
+    samples = len(t)
+    for name, width in (("q", n + 2), ("dq", n + 2), ("tau", n - 1)):
+        if core[name].shape != (samples, width):
+            return f"array {name} has shape {core[name].shape}, expected {(samples, width)}"
+    for name in _CORE:
+        if not np.all(np.isfinite(core[name])):
+            return f"array {name} has non-finite entries"
+    if samples > 1 and not np.all(np.diff(t) > 0):
+        return "its times t are not strictly increasing"
+    for name, arr in signals.items():
+        if arr.dtype.kind not in "biuf" or arr.dtype.names is not None:
+            return f"signal {name!r} has dtype {arr.dtype}, expected numbers"
+        if arr.ndim not in (1, 2) or arr.shape[0] != samples:
+            return f"signal {name!r} has shape {arr.shape}, expected {samples} rows"
+    return ""
+
+
+def _to_json(value: object, what: str, *, strict: bool) -> str:
+    """``value`` as JSON text; ``strict`` writes non-finite numbers as null (RFC 8259)."""
+    try:
+        text = json.dumps(value, default=_json_default)
+        if strict:
+            text = json.dumps(_finite(json.loads(text)), indent=2, allow_nan=False)
+    except (TypeError, ValueError, RecursionError) as exc:
+        raise ParameterError(f"{what} is not JSON: {one_line(str(exc), 120)}") from None
+    return text
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    return value
+
+
+def _json_default(value: object) -> object:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return dataclasses.asdict(value)
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
