@@ -93,7 +93,7 @@ def test_engine_results_are_distributions(report: Path) -> None:
     judged on the median, and the viscous model is found insensitive."""
     import numpy as np
 
-    from snake_pin.sim import Trajectory
+    from snake_pin.trajectory import Trajectory
 
     engine = json.loads((report / "summary.json").read_text())["engine"]
     for stem in ("engine", "engine_passive5"):
@@ -119,7 +119,7 @@ def test_reproduce_on_a_robot_file(tmp_path: Path) -> None:
     robot stage lists its per-link values, the engine stage puts that robot itself on
     wheels (10 links, friction identified per link) and reports its distributions."""
     from snake_pin.robot_file import load_robot
-    from snake_pin.sim import Trajectory
+    from snake_pin.trajectory import Trajectory
 
     params = load_robot("camera_head_snake.toml")
     assert main(["reproduce", "--quick", "--robot", "camera_head_snake.toml", "--only", "robot",

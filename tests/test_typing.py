@@ -1,7 +1,9 @@
-"""Typing and layers: mypy passes on every module, import-linter's contracts hold."""
+"""Typing and layers: mypy passes on every module, import-linter's contracts hold, and no
+two modules of the package import each other (not even lazily, inside a function)."""
 
 from __future__ import annotations
 
+import ast
 import re
 import subprocess
 import sys
@@ -21,6 +23,10 @@ PENDING: frozenset[str] = frozenset()
 #: Known breaks of the import-linter contracts, as ``"importer -> imported"`` (the
 #: sim -> viz one of issue 16 item 8 is gone: none today).
 KNOWN_VIOLATIONS: frozenset[str] = frozenset()
+
+#: Known import cycles, as sorted ``(module, module)`` pairs of modules that import each
+#: other (directly or through others); none today.
+KNOWN_CYCLES: frozenset[tuple[str, str]] = frozenset()
 
 _ERROR = re.compile(r"^(?P<path>[^:\s]+\.py):(?P<line>\d+):(?:\d+:)? error: (?P<text>.*)$")
 _SUMMARY = re.compile(r"^(?:Success: no issues found|Found (?P<count>\d+) errors? in \d+ files?)")
@@ -91,6 +97,116 @@ def test_layer_contracts_hold() -> None:
     broken = parse_lint_imports(done.stdout)
     assert broken <= KNOWN_VIOLATIONS, f"new layer violations: {sorted(broken - KNOWN_VIOLATIONS)}"
     assert done.returncode == (1 if broken else 0), done.stdout[-3000:]
+
+
+# ---------------------------------------------------------------- import cycles
+def import_graph(folder: Path, package: str) -> dict[str, set[str]]:
+    """Module -> the package's modules it imports, from every ``import`` statement in its
+    source (module level, inside functions and under ``TYPE_CHECKING`` alike), relative
+    imports resolved; a name that is not a module counts as its nearest module."""
+    files = {}
+    for path in folder.rglob("*.py"):
+        parts = [package, *path.relative_to(folder).with_suffix("").parts]
+        is_package = parts[-1] == "__init__"
+        files[".".join(parts[:-1] if is_package else parts)] = (path, is_package)
+
+    def nearest(name: str) -> str:
+        while name and name not in files:
+            name = name.rpartition(".")[0]
+        return name
+
+    graph: dict[str, set[str]] = {}
+    for module, (path, is_package) in files.items():
+        here = module.split(".") if is_package else module.split(".")[:-1]
+        found: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                found.update(nearest(alias.name) for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join(here[:len(here) - node.level + 1] + ([base] if base else []))
+                found.update(nearest(f"{base}.{alias.name}") or nearest(base)
+                             for alias in node.names)
+        graph[module] = {name for name in found
+                         if name and name != module and name.split(".")[0] == package}
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The groups of modules that reach each other through imports (strongly connected
+    components of two modules or more, Tarjan's algorithm), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    groups: list[list[str]] = []
+
+    def visit(module: str) -> None:
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        for other in sorted(graph.get(module, ())):
+            if other not in index:
+                visit(other)
+                low[module] = min(low[module], low[other])
+            elif other in stack:
+                low[module] = min(low[module], index[other])
+        if low[module] == index[module]:
+            group = []
+            while True:
+                member = stack.pop()
+                group.append(member)
+                if member == module:
+                    break
+            if len(group) > 1:
+                groups.append(sorted(group))
+
+    for module in sorted(graph):
+        if module not in index:
+            visit(module)
+    return sorted(groups)
+
+
+def cycle_pairs(graph: dict[str, set[str]]) -> set[tuple[str, str]]:
+    """The imports that close a cycle: sorted ``(module, module)`` pairs of one group of
+    :func:`import_cycles` where one imports the other."""
+    return {(min(a, b), max(a, b)) for group in import_cycles(graph) for a in group
+            for b in graph[a] if b in group}
+
+
+def test_no_import_cycles() -> None:
+    """No module of snake_pin imports, even lazily, a module that imports it back."""
+    graph = import_graph(ROOT / "snake_pin", "snake_pin")
+    assert len(graph) > 50 and graph["snake_pin.sim"] >= {"snake_pin.model",
+                                                          "snake_pin.trajectory"}
+    unexpected = cycle_pairs(graph) - KNOWN_CYCLES
+    assert not unexpected, (f"modules importing each other: {sorted(unexpected)} "
+                            f"(cycles: {import_cycles(graph)})")
+
+
+def test_cycle_check_sees_lazy_and_relative_imports(tmp_path: Path) -> None:
+    """The check finds a cycle closed by a function-level relative import, and a longer
+    one through a package's ``__init__``; one-way imports are no cycle."""
+    package = tmp_path / "pkg"
+    (package / "sub").mkdir(parents=True)
+    (package / "__init__.py").write_text("from .sub import c\n")
+    (package / "a.py").write_text("from . import b\nimport pkg.d\n")
+    (package / "b.py").write_text("def f():\n    from .a import x\n")
+    (package / "d.py").write_text("import os\n")
+    (package / "sub" / "__init__.py").write_text("")
+    (package / "sub" / "c.py").write_text("import os\nfrom .. import a\n")
+    graph = import_graph(package, "pkg")
+    assert graph["pkg.b"] == {"pkg.a"} and graph["pkg.a"] == {"pkg.b", "pkg.d"}
+    assert graph["pkg.sub.c"] == {"pkg.a"}
+    assert import_cycles(graph) == [["pkg.a", "pkg.b"]]
+    (package / "a.py").write_text("from . import d\n")
+    (package / "b.py").write_text("")
+    (package / "d.py").write_text("from .sub import y\n")  # y: a name of pkg.sub
+    (package / "sub" / "__init__.py").write_text("from .c import y\n")
+    graph = import_graph(package, "pkg")
+    assert graph["pkg.d"] == {"pkg.sub"}
+    assert import_cycles(graph) == [["pkg.a", "pkg.d", "pkg.sub", "pkg.sub.c"]]
+    assert cycle_pairs(graph) == {("pkg.a", "pkg.d"), ("pkg.d", "pkg.sub"),
+                                  ("pkg.sub", "pkg.sub.c"), ("pkg.a", "pkg.sub.c")}
 
 
 # ----------------------------------------------------------------- the parsers

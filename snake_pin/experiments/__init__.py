@@ -4,6 +4,7 @@ Each stage is a function ``stage(context) -> None`` that runs one experiment, wr
 files into ``context.folder`` and adds a section to ``context.report``.
 """
 
-from .reproduce import Context, reproduce, stages
+from .context import Context
+from .reproduce import reproduce, stages
 
 __all__ = ["Context", "reproduce", "stages"]

@@ -15,7 +15,7 @@ from ..integrability import (
 from ..model import Snake
 from ..params import LINK_FIELDS, SnakeParams
 from ..sim import simulate
-from .reproduce import Context
+from .context import Context
 
 __all__ = ["first_links", "integrability_stage"]
 
@@ -55,7 +55,7 @@ def integrability_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
         robot, report and quick mode.
     """
     import matplotlib.pyplot as plt

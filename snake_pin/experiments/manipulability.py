@@ -24,7 +24,7 @@ from ..model import Snake
 from ..singular import SingularSearch, find_singular_postures
 from ..sweeps import FAMILIES, Sweep, r_map, sweep
 from ..viz.plots import plot_postures, plot_r_maps
-from .reproduce import Context
+from .context import Context
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -141,7 +141,7 @@ def manipulability_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
         robot, report and quick mode.
     """
     snake = Snake(ctx.params.replace(passive=()))

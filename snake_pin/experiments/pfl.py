@@ -16,6 +16,7 @@ from ..model import Snake
 from ..params import SnakeParams
 from ..sim import simulate
 from ..trajectory import Trajectory
+from .context import Context
 
 __all__ = ["TAU_BREAKDOWN", "PFLRun", "breakdown_threshold", "initial_state", "plot_pfl",
            "run_pfl"]
@@ -279,13 +280,13 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
     return path
 
 
-def pfl_stage(ctx) -> None:
+def pfl_stage(ctx: Context) -> None:
     """Section VI.1 run, its figures, and the singularity-aware comparison.
 
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
         robot, report and quick mode.
     """
     params = ctx.params.replace(passive=())

@@ -44,14 +44,13 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from .._io import current_umask
 from ..exceptions import ParameterError, RunInterrupted
 from ..params import ROBOTS, SnakeParams
 from ..report import Report
+from .context import Context
 
 __all__ = ["HONOURED", "MIN_LINKS", "Context", "reproduce", "stages", "unhonoured"]
 
@@ -78,31 +77,6 @@ MIN_LINKS: dict[str, int] = {"robot": 2, "manipulability": 6, "integrability": 2
 
 _STAGING = re.compile(r"\.reproduce-(\d+)-\w+")
 _PARTIAL = "interrupted"
-
-
-@dataclass
-class Context:
-    """What every stage gets: the output folder, the robot, the report, options.
-
-    Parameters
-    ----------
-    folder
-        The staging folder the stage writes its files into.
-    params
-        The report's robot.
-    report
-        The report the stage adds its section to.
-    quick
-        Shorter runs (``--quick``).
-    options
-        What stages pass on to later ones (e.g. the tracking runs' files).
-    """
-
-    folder: Path
-    params: SnakeParams
-    report: Report
-    quick: bool = False
-    options: dict[str, Any] = field(default_factory=dict)
 
 
 def stages() -> list[tuple[str, Callable[[Context], None]]]:

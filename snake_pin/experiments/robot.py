@@ -8,7 +8,7 @@ from ..gaits import Serpenoid, arc, straight
 from ..model import Snake
 from ..params import SnakeParams
 from ..viz.plots import plot_postures
-from .reproduce import Context
+from .context import Context
 
 __all__ = ["robot_stage"]
 
@@ -19,7 +19,7 @@ def robot_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
+        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
         robot, report and quick mode.
     """
     params = ctx.params

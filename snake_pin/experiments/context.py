@@ -1,0 +1,42 @@
+"""What a report stage is given: :class:`Context` (its folder, robot, report and options).
+
+The stages (:mod:`snake_pin.experiments.robot`, ``.manipulability``, ``.integrability``,
+...) take a :class:`Context` and import it from here; :mod:`snake_pin.experiments.reproduce`
+makes one and runs the stages with it, so the stages never import the runner.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..params import SnakeParams
+from ..report import Report
+
+__all__ = ["Context"]
+
+
+@dataclass
+class Context:
+    """What every stage gets: the output folder, the robot, the report, options.
+
+    Parameters
+    ----------
+    folder
+        The staging folder the stage writes its files into.
+    params
+        The report's robot.
+    report
+        The report the stage adds its section to.
+    quick
+        Shorter runs (``--quick``).
+    options
+        What stages pass on to later ones (e.g. the tracking runs' files).
+    """
+
+    folder: Path
+    params: SnakeParams
+    report: Report
+    quick: bool = False
+    options: dict[str, Any] = field(default_factory=dict)
