@@ -20,8 +20,7 @@ MODULES = sorted(str(p.relative_to(ROOT)) for folder in ("snake_pin", "scripts")
 #: mypy errors each has left) until they are handed over and fixed.
 PENDING: frozenset[str] = frozenset()
 
-#: Known breaks of the import-linter contracts, as ``"importer -> imported"`` (the
-#: sim -> viz one of issue 16 item 8 is gone: none today).
+#: Known breaks of the import-linter contracts, as ``"importer -> imported"``: none today.
 KNOWN_VIOLATIONS: frozenset[str] = frozenset()
 
 #: Known import cycles, as sorted ``(module, module)`` pairs of modules that import each
@@ -51,11 +50,22 @@ def parse_mypy(output: str) -> dict[str, list[str]]:
 
 
 def parse_lint_imports(output: str) -> set[str]:
-    """Broken imports ``"importer -> imported"``; AssertionError if the tool did not finish."""
-    counts = next((m for m in map(_CONTRACTS.match, output.splitlines()) if m), None)
+    """Broken imports ``"importer -> imported"``, and ``"MODULE is in no layer"`` for a
+    module an exhaustive layers contract does not place; AssertionError if the tool did
+    not finish."""
+    lines = output.replace("is not allowed to import \n", "is not allowed to import ")
+    lines = lines.splitlines()
+    counts = next((m for m in map(_CONTRACTS.match, lines) if m), None)
     assert counts is not None, f"lint-imports printed no summary:\n{output[-3000:]}"
-    found = {f"{m['importer']} -> {m['imported']}"
-             for m in map(_VIOLATION.match, output.splitlines()) if m}
+    found = {f"{m['importer']} -> {m['imported']}" for m in map(_VIOLATION.match, lines) if m}
+    listing = False
+    for line in lines:
+        if line.startswith("The following modules are not listed as layers"):
+            listing = True
+        elif listing and line.startswith("- "):
+            found.add(f"{line[2:].strip()} is in no layer")
+        elif listing and line.strip():
+            listing = False
     assert int(counts["broken"]) == 0 or found, "a contract is broken in an unparsed way"
     return found
 
@@ -246,6 +256,16 @@ def test_mypy_parser_groups_errors_by_file() -> None:
 def test_lint_parser_names_the_broken_import() -> None:
     """A broken layer contract gives its importer -> imported pair; a clean run none."""
     assert parse_lint_imports(_LINT_SAMPLE) == {"snake_pin.sim -> snake_pin.viz"}
+    wrapped = _LINT_SAMPLE.replace("import snake_pin.viz:", "import \nsnake_pin.viz:")
+    assert parse_lint_imports(wrapped) == {"snake_pin.sim -> snake_pin.viz"}
     assert parse_lint_imports("Contracts: 2 kept, 0 broken.\n") == set()
     with pytest.raises(AssertionError):
         parse_lint_imports("Contracts: 1 kept, 1 broken.\n")
+
+
+def test_lint_parser_names_a_module_in_no_layer() -> None:
+    """A module that an exhaustive layers contract does not place is reported by name."""
+    output = ("Contracts: 0 kept, 1 broken.\n\nThe following modules are not listed as "
+              "layers:\n\n- snake_pin.newmod\n\n(Since this contract is marked as "
+              "'exhaustive', every child of every container \nmust be declared as a layer.)\n")
+    assert parse_lint_imports(output) == {"snake_pin.newmod is in no layer"}
