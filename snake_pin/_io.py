@@ -25,7 +25,9 @@ by :func:`open_regular_file` (or :func:`read_regular_file`). What it promises:
   regular file (a FIFO, socket, device or folder) before reading a byte: the name is
   stat-ed first, then opened with ``O_NONBLOCK`` and the descriptor fstat-ed again (the
   name may have changed in between), so a FIFO never blocks the reader. A file larger
-  than the caller's bound is refused from its size, before it is read.
+  than the caller's bound is refused from its size, before it is read. A caller that must
+  not follow a symbolic link (``follow_symlinks=False``) gets the link refused by the
+  open itself (``O_NOFOLLOW``), not by a check that a rename could race.
 - **TOML is bounded before it is parsed.** :func:`parse_toml` scans the text for nesting
   (arrays, inline tables and dotted keys inside each other, at most
   :data:`MAX_TOML_DEPTH` levels) before :mod:`tomllib` sees it: tomllib recurses once per
@@ -497,13 +499,14 @@ def _refusal(exc: OSError | ValueError, kind: str) -> str:
 
 
 def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
-                      error: Callable[[str], Exception]) -> io.BufferedReader:
+                      error: Callable[[str], Exception],
+                      follow_symlinks: bool = True) -> io.BufferedReader:
     """Open ``path`` for binary reading if it is a regular file of at most ``limit`` bytes.
 
-    Never blocks and never reads a byte of anything else: the name is stat-ed (following
-    symbolic links) and refused unless it is a regular file; it is then opened with
-    ``O_NONBLOCK`` (so a FIFO put in its place meanwhile does not block either) and the
-    open descriptor is fstat-ed and checked again, size included.
+    Never blocks and never reads a byte of anything else: the name is stat-ed and refused
+    unless it is a regular file; it is then opened with ``O_NONBLOCK`` (so a FIFO put in
+    its place meanwhile does not block either) and the open descriptor is fstat-ed and
+    checked again, size included.
 
     Parameters
     ----------
@@ -516,6 +519,12 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
     error : callable
         Builds the exception to raise from one line that does not name the file, e.g.
         ``"is a FIFO, not a regular file: not a URDF"``; the caller prefixes the name.
+    follow_symlinks : bool, optional
+        True (default): a symbolic link is followed to its target. False: a name that is
+        a symbolic link is refused, and the file is opened with ``O_NOFOLLOW``, so a link
+        put in its place after the check is refused by the open itself (no window between
+        check and open). Only the name's last component is concerned: the folders on the
+        way are followed either way.
 
     Returns
     -------
@@ -525,24 +534,33 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
     Raises
     ------
     Exception
-        ``error(message)``: no such file, a folder, a FIFO/socket/device, larger than
-        ``limit``, unreadable (permissions, ...), or ``path`` is not a path.
+        ``error(message)``: no such file, a folder, a FIFO/socket/device, a symbolic link
+        (with ``follow_symlinks=False``), larger than ``limit``, unreadable (permissions,
+        ...), or ``path`` is not a path.
     """
     if not isinstance(path, (str, os.PathLike)):
         raise error(f"not a file path: {type(path).__name__}")
+    link = f"is a symbolic link (not followed), not a regular file: not a {kind}"
     try:
-        mode = os.stat(path).st_mode
+        mode = os.stat(path, follow_symlinks=follow_symlinks).st_mode
     except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
         raise error(_refusal(exc, kind)) from None
+    if stat.S_ISLNK(mode):
+        raise error(link)
     if stat.S_ISDIR(mode):
         raise error(f"is a folder, not a {kind}")
     if not stat.S_ISREG(mode):
         raise error(f"is {_not_regular(mode)}, not a regular file: not a {kind}")
     flags = (os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0)
              | getattr(os, "O_CLOEXEC", 0))
+    if not follow_symlinks:
+        flags |= os.O_NOFOLLOW
     try:
         fd = os.open(path, flags)
     except (OSError, ValueError) as exc:
+        if not follow_symlinks and isinstance(exc, OSError) and \
+                exc.errno in (errno.ELOOP, errno.EMLINK):  # EMLINK: the BSDs' word for it
+            raise error(link) from None
         raise error(_refusal(exc, kind)) from None
     try:
         info = os.fstat(fd)
@@ -568,7 +586,8 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
 
 
 def read_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
-                      error: Callable[[str], Exception]) -> bytes:
+                      error: Callable[[str], Exception],
+                      follow_symlinks: bool = True) -> bytes:
     """The bytes of ``path``, opened by :func:`open_regular_file` (at most ``limit``).
 
     Parameters
@@ -582,6 +601,8 @@ def read_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
         What the file should be, for messages.
     error : callable
         Builds the exception to raise from one line (see :func:`open_regular_file`).
+    follow_symlinks : bool, optional
+        False refuses a symbolic link, atomically (see :func:`open_regular_file`).
 
     Returns
     -------
@@ -593,7 +614,8 @@ def read_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
     Exception
         ``error(message)``, as :func:`open_regular_file`, or when reading fails.
     """
-    with open_regular_file(path, limit=limit, kind=kind, error=error) as handle:
+    with open_regular_file(path, limit=limit, kind=kind, error=error,
+                           follow_symlinks=follow_symlinks) as handle:
         try:
             data = handle.read(limit + 1)
         except OSError as exc:

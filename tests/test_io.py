@@ -374,6 +374,48 @@ def test_the_size_bound_is_checked_before_reading(tmp_path: Path,
     assert _read(tmp_path / "edge") == b"y" * 1024
 
 
+_LINK = "the file: is a symbolic link (not followed), not a regular file: not a test file"
+
+
+def test_links_are_refused_when_not_followed(tmp_path: Path) -> None:
+    """With follow_symlinks=False a link (to a file, a FIFO or nothing) is refused in one
+    line and never opened; the plain file itself is still read whole."""
+    (tmp_path / "a").write_bytes(b"abc")
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "to-file").symlink_to(tmp_path / "a")
+    (tmp_path / "to-fifo").symlink_to(tmp_path / "fifo")
+    (tmp_path / "dangling").symlink_to(tmp_path / "none")
+    for name in ("to-file", "to-fifo", "dangling"):
+        assert _refusal(lambda name=name: read_regular_file(
+            tmp_path / name, limit=10, kind="test file", error=_refused,
+            follow_symlinks=False)) == _LINK
+    assert read_regular_file(tmp_path / "a", limit=10, kind="test file", error=_refused,
+                             follow_symlinks=False) == b"abc"
+    with open_regular_file(tmp_path / "a", limit=3, kind="test file", error=_refused,
+                           follow_symlinks=False) as handle:
+        assert handle.read() == b"abc"
+    assert _read(tmp_path / "to-file") == b"abc"  # followed by default
+
+
+def test_a_link_swapped_in_after_the_check_is_refused_by_the_open(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The open itself refuses a link (O_NOFOLLOW): a link put in place after the name was
+    checked is not followed to its target."""
+    (tmp_path / "secret").write_bytes(b"secret")
+    (tmp_path / "plain").write_bytes(b"x")
+    (tmp_path / "link").symlink_to(tmp_path / "secret")
+    real_stat = os.stat
+    monkeypatch.setattr(os, "stat", lambda path, *a, **k: real_stat(tmp_path / "plain"))
+    opened: list[int] = []
+    real_open = os.open
+    monkeypatch.setattr(os, "open", lambda path, flags, *a: opened.append(flags) or
+                        real_open(path, flags, *a))
+    assert _refusal(lambda: open_regular_file(tmp_path / "link", limit=10, kind="test file",
+                                              error=_refused, follow_symlinks=False)) == _LINK
+    assert opened and all(flags & os.O_NOFOLLOW for flags in opened)
+    assert _read(tmp_path / "link") == b"secret"  # the same swap, followed by default
+
+
 def test_open_regular_file_gives_a_blocking_handle_at_the_start(tmp_path: Path) -> None:
     """The handle is an ordinary blocking binary file (what pyarrow or zipfile expect)."""
     (tmp_path / "a").write_bytes(b"abc")
