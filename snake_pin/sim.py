@@ -42,19 +42,12 @@ from .control.base import Controller, _sampler
 from .exceptions import ConfigurationError, ParameterError, RunInterrupted, SnakePinError
 from .model import Snake
 from .params import SnakeParams
-from .trajectory import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES, STATUSES, Trajectory, _mib
+from .trajectory import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES, Trajectory, _mib
+from .trajectory import STATUSES as STATUSES  # re-exported: the run statuses
 
-__all__ = [
-    "MAX_ARRAY_BYTES",
-    "MAX_DISTANCE",
-    "MAX_SPEED",
-    "MAX_STEPS",
-    "MAX_SUBSTEPS",
-    "MAX_TOTAL_BYTES",
-    "STATUSES",
-    "Trajectory",
-    "simulate",
-]
+# Trajectory, STATUSES and the size bounds are defined (and documented) in
+# snake_pin.trajectory; they stay importable from here.
+__all__ = ["MAX_DISTANCE", "MAX_SPEED", "MAX_STEPS", "MAX_SUBSTEPS", "simulate"]
 
 #: Default divergence bounds: joint/base speed [m/s or rad/s] and distance [m].
 MAX_SPEED = 1.0e3
@@ -237,7 +230,8 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     t_final, dt, control_dt
         Times [s]: positive, finite; ``control_dt`` a multiple of ``dt`` (at most
         :data:`MAX_SUBSTEPS` times), at most :data:`MAX_STEPS` control steps, and arrays
-        within :data:`MAX_ARRAY_BYTES`/:data:`MAX_TOTAL_BYTES`.
+        within :data:`~snake_pin.trajectory.MAX_ARRAY_BYTES`/
+        :data:`~snake_pin.trajectory.MAX_TOTAL_BYTES`.
     method : {"rk4", "solve_ivp"}, optional
         The integrator (see above).
     max_speed, max_distance

@@ -52,7 +52,8 @@ from ..params import ROBOTS, SnakeParams
 from ..report import Report
 from .context import Context
 
-__all__ = ["HONOURED", "MIN_LINKS", "Context", "reproduce", "stages", "unhonoured"]
+# Context is defined in experiments.context (the stages import it from there).
+__all__ = ["HONOURED", "MIN_LINKS", "reproduce", "stages", "unhonoured"]
 
 #: Stage -> the robot fields (``SnakeParams`` names, plus "robot" for --robot) it takes
 #: from the robot it is given. Friction does not enter D and R, so the manipulability
