@@ -715,14 +715,15 @@ def _local_cluster(workers: int, *, dashboard: bool = False,
 
     security = Security.temporary()
     routes = list(dask.config.get("distributed.scheduler.http.routes")) if dashboard else []
+    # silence_logs CRITICAL: Dask's own lines (a worker stopped while it runs a task logs
+    # its lost heartbeats) stay off stderr; a task's error comes back through its future
     with dask.config.set({"distributed.scheduler.http.routes": routes,
                           "distributed.worker.http.routes": []}):
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", protocol="tls://", security=security,
-                               dashboard_address=None,
-                               scheduler_kwargs={"dashboard": bool(dashboard),
-                                                 "dashboard_address": "127.0.0.1:0"},
-                               silence_logs=logging.ERROR, env=dict(WORKER_ENV))
+        cluster = _started(lambda: LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+            protocol="tls://", security=security, dashboard_address=None,
+            scheduler_kwargs={"dashboard": bool(dashboard), "dashboard_address": "127.0.0.1:0"},
+            silence_logs=logging.CRITICAL, env=dict(WORKER_ENV)))
     try:
         _guard_hosts(cluster.scheduler)
         if dashboard and log is not None:
@@ -766,6 +767,40 @@ def _guard_hosts(server: Any) -> None:
         return find(request, **kwargs)
 
     app.find_handler = find_handler
+
+
+def _started(make: Callable[[], Any]) -> Any:
+    """The cluster ``make()`` starts, started in a thread of its own: a KeyboardInterrupt
+    that arrives meanwhile waits for the start to finish (a half-started cluster cannot be
+    closed, and Dask's exit hook then fails on it), then stops the cluster and goes on."""
+    made: dict[str, Any] = {}
+    done = threading.Event()  # not Thread.join: an interrupted join can mark it stopped
+
+    def target() -> None:
+        try:
+            made["cluster"] = make()
+        except BaseException as exc:  # handed to the caller's thread
+            made["error"] = exc
+        finally:
+            done.set()
+
+    threading.Thread(target=target, name="snake-pin-cluster-start", daemon=True).start()
+    interrupt: BaseException | None = None
+    while not done.is_set():
+        try:
+            done.wait()
+        except KeyboardInterrupt as exc:
+            interrupt = exc
+    if "error" in made:
+        raise interrupt if interrupt is not None else made["error"]
+    cluster = made["cluster"]
+    if interrupt is not None:
+        with contextlib.suppress(Exception):
+            cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)
+        with contextlib.suppress(Exception):
+            cluster.close(timeout=_CLOSE_TIMEOUT)
+        raise interrupt
+    return cluster
 
 
 async def _close_nannies(nannies: Sequence[Any], timeout: float) -> None:
