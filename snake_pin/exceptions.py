@@ -65,7 +65,7 @@ class RunInterrupted(KeyboardInterrupt):
     message
         One line saying what was interrupted and when (e.g. ``"interrupted at t = 3.2 s"``).
     partial
-        The partial result (a :class:`~snake_pin.sim.Trajectory`, a sweep, ...), or None.
+        The partial result (a :class:`~snake_pin.trajectory.Trajectory`, a sweep, ...), or None.
     """
 
     def __init__(self, message: str, partial: Any = None) -> None:

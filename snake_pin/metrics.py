@@ -15,7 +15,7 @@ from .model import Snake
 
 if TYPE_CHECKING:
     from .control.reference import HeadReference
-    from .sim import Trajectory
+    from .trajectory import Trajectory
 
 __all__ = ["ERROR_WINDOW", "applied", "criteria_along", "default_error_window", "error_caption",
            "head_error_summary", "head_position_error", "percent", "window", "window_note"]
@@ -26,8 +26,8 @@ ERROR_WINDOW = 10.0
 
 
 def _check_traj(value: object) -> Trajectory:
-    """``value`` if it is a :class:`~snake_pin.sim.Trajectory`, else ParameterError."""
-    from .sim import Trajectory
+    """``value`` if it is a :class:`~snake_pin.trajectory.Trajectory`, else ParameterError."""
+    from .trajectory import Trajectory
 
     return instance(value, Trajectory, "traj")
 

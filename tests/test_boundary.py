@@ -126,7 +126,7 @@ def _serpenoid(w: World) -> Any:
 
 ROWS: dict[str, Row] = {
     # ------------------------------------------------------------------ snake_pin
-    "snake_pin.sim.Trajectory": Row(record=RECORD),
+    "snake_pin.trajectory.Trajectory": Row(record=RECORD),
     "snake_pin.control.base.Controller": Row(record=ABSTRACT),
     "snake_pin.model.DynamicsDerivatives": Row(record=RECORD),
     "snake_pin.manipulability.Manipulability": Row(record=RECORD),
