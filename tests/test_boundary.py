@@ -192,7 +192,7 @@ ROWS: dict[str, Row] = {
                     "unactuated": [0, 1, 2], "task": np.eye(7)[:2], "rows": [0, 1]}),
         skip={"task": "None", "rows": "None"},
         errors={"q": CONFIG, "task": EITHER}),
-    "snake_pin.control.lyapunov.head_first_reference": Row(
+    "snake_pin.control.reference.head_first_reference": Row(
         lambda w: (snake_pin.head_first_reference, {"speed": 0.1})),
     "snake_pin.paths.load_path": Row(
         lambda w: (snake_pin.load_path, {"spec": "line"}), owner="paths"),

@@ -2,10 +2,10 @@
 
 from .base import Controller, OpenLoop
 from .los import LOSController, LOSParams
-from .lyapunov import LyapunovController, head_first_reference
+from .lyapunov import LyapunovController
 from .pfl import PFLController
 from .quasistatic import QuasiStaticLyapunovController
-from .reference import LinearReference
+from .reference import LinearReference, head_first_reference
 
 __all__ = ["Controller", "LOSController", "LOSParams", "LinearReference", "LyapunovController",
            "OpenLoop", "PFLController", "QuasiStaticLyapunovController", "head_first_reference"]

@@ -68,7 +68,8 @@ the Table 1 robot; given equal Table 1 links as its model instead, the law loses
 (1.1 m RMS over [5, 15] s).
 
 Convention: in the paper's coordinates (3) theta_1 points from the head towards the
-tail, so a head-first run along +x has theta_1 = pi; see :func:`head_first_reference`.
+tail, so a head-first run along +x has theta_1 = pi; see
+:func:`~snake_pin.control.reference.head_first_reference`.
 """
 
 from __future__ import annotations
@@ -92,31 +93,9 @@ from .base import (
     gait_for,
 )
 from .gains import gain_matrix
-from .reference import HeadReference, LinearReference
+from .reference import HeadReference, head_first_reference
 
-__all__ = ["LyapunovController", "head_first_reference"]
-
-
-def head_first_reference(speed: float = 0.1) -> LinearReference:
-    """``w_r = [speed t, 0, pi]``: the head leads along +x, the body behind it (eq. 80).
-
-    Parameters
-    ----------
-    speed : float, optional
-        Head speed along +x [m/s].
-
-    Returns
-    -------
-    LinearReference
-        The reference.
-
-    Raises
-    ------
-    ParameterError
-        ``speed`` is not a finite number.
-    """
-    speed = finite_number(speed, "speed")
-    return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, np.pi))
+__all__ = ["LyapunovController"]
 
 
 class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
@@ -127,7 +106,7 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
     snake
         The plant; its passive joints get no torque (their columns of E are dropped).
     reference
-        Head reference; default :func:`head_first_reference`.
+        Head reference; default :func:`~snake_pin.control.reference.head_first_reference`.
     gait
         Serpenoid for phi_r; default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
     k_w1, k_w2, k_phi

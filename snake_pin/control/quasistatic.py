@@ -62,8 +62,7 @@ from .base import (
     gait_for,
 )
 from .gains import gain_matrix
-from .lyapunov import head_first_reference
-from .reference import HeadReference
+from .reference import HeadReference, head_first_reference
 
 __all__ = ["QuasiStaticLyapunovController", "servo_gains"]
 

@@ -7,11 +7,11 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from .._validation import as_vector
+from .._validation import as_vector, finite_number
 
 #: ``HeadReference`` is a typing Protocol (importable, never instantiated), so it is not
 #: listed: the public-callable checks would ask for its implicit ``*args, **kwargs``.
-__all__ = ["LinearReference"]
+__all__ = ["LinearReference", "head_first_reference"]
 
 
 class HeadReference(Protocol):
@@ -64,3 +64,25 @@ class LinearReference:
         """(w_r, w_r', w_r'') at time t (fresh arrays: callers may modify them)."""
         start, velocity = self._arrays
         return start + velocity * t, velocity.copy(), np.zeros(3)
+
+
+def head_first_reference(speed: float = 0.1) -> LinearReference:
+    """``w_r = [speed t, 0, pi]``: the head leads along +x, the body behind it (eq. 80).
+
+    Parameters
+    ----------
+    speed : float, optional
+        Head speed along +x [m/s].
+
+    Returns
+    -------
+    LinearReference
+        The reference.
+
+    Raises
+    ------
+    ParameterError
+        ``speed`` is not a finite number.
+    """
+    speed = finite_number(speed, "speed")
+    return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, np.pi))
