@@ -423,7 +423,7 @@ def load_security(path: str | os.PathLike[str]) -> Any:
         ``distributed.comm.tls`` setting, an unknown one, or a value of the wrong type.
     """
     import dask
-    import yaml  # type: ignore[import-untyped]  # (PyYAML, a dependency of Dask)
+    import yaml  # PyYAML, a dependency of Dask
     from distributed.security import Security
 
     shown = printable_path(path)
