@@ -9,13 +9,16 @@ both alike; each figure is the median over the rounds with its 10-90 % range.
 
 Usage: python scripts/bench.py [--quick]
            [--only dynamics,friction_routes,derivatives,manipulability,runs,engine,
-                   reproduce,failure_map]
-           [--baseline COMMIT | --no-baseline]
+                   reproduce,failure_map,study]
+           [--baseline COMMIT | --no-baseline] [--study-sizes 40,256,1000]
+           [--study-rounds 1]
 
 ``--only reproduce`` (not in the default set: it runs the whole report twice) times
 ``snake-pin reproduce`` quiet and with the other core busy, alternately; ``--only
 failure_map`` (not in the default set either) the report with and without its failure-map
-stage, back to back.
+stage, back to back; ``--only study`` (nor this one) a study's throughput in runs per wall
+second at each of ``--study-sizes`` runs, this tree's ``run_study`` against the baseline
+commit's (default 3801e7f, whose studies ran lockstep batches), taking turns per size.
 """
 
 from __future__ import annotations
@@ -859,14 +862,115 @@ def bench_failure_map(budget: float) -> None:
           "most 120 s)")
 
 
-#: The benches that run the whole report (minutes each): not in the default set.
-WHOLE_REPORT = ("reproduce", "failure_map")
+#: Study sizes (runs) of ``--only study`` and the commit it compares to (lockstep batches).
+STUDY_SIZES = (40, 256, 1000)
+STUDY_BASELINE = "3801e7f"
+
+#: The study of ``--only study``: Table 1, Lyapunov-like law, c_y / c_x = 50, 10 s runs from
+#: noisy starts, one seed per run (no ``batch_size``: a baseline with batches uses its own
+#: default).
+STUDY_TEXT = """[study]
+name = "bench_study"
+
+[base]
+robot = "table1"
+controller = "lyapunov"
+model = "viscous"
+c_x = 0.5
+c_y = 25.0
+t_final = 10.0
+error_window = 5.0
+init_noise = 0.02
+
+[axes.init_seed]
+values = [{seeds}]
+"""
+
+#: Runs the study file argv[1] into the new folder argv[2] on argv[3] local workers with
+#: whatever snake_pin is first on the path (this checkout or the baseline's), through its
+#: own run_study; answers {"seconds", "recorded", "status"} (seconds: run_study alone).
+STUDY_WORKER = r"""
+import json, sys, time
+from snake_pin.study import run_study
+
+start = time.perf_counter()
+summary = run_study(sys.argv[1], sys.argv[2], workers=int(sys.argv[3]), progress=False)
+seconds = time.perf_counter() - start
+print(json.dumps({"seconds": seconds, "recorded": summary.recorded,
+                  "status": summary.status}), flush=True)
+"""
+
+
+def timed_study(root: Path, study: Path, workers: int) -> float:
+    """Wall seconds of ``root``'s run_study on ``study`` into a fresh folder (a new process,
+    ``root`` first on its path); the study must complete every run."""
+    import shutil
+
+    folder = Path(tempfile.mkdtemp(prefix="snake_pin_bench_study_"))
+    try:
+        done = subprocess.run([sys.executable, "-P", "-c", STUDY_WORKER, str(study),
+                               str(folder / "out"), str(workers)],
+                              env=dict(os.environ, PYTHONPATH=str(root)), cwd=folder,
+                              capture_output=True, text=True, check=False)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    lines = done.stdout.strip().splitlines()
+    if done.returncode != 0 or not lines:
+        raise RuntimeError(f"study run of {root} failed ({done.returncode}): "
+                           f"{done.stderr.strip()[-300:]}")
+    answer = json.loads(lines[-1])
+    if answer["status"] != "complete":
+        raise RuntimeError(f"study run of {root}: {answer['status']}, "
+                           f"{answer['recorded']} runs recorded")
+    return float(answer["seconds"])
+
+
+def bench_study(budget: float, baseline: str | None = STUDY_BASELINE,
+                sizes: tuple[int, ...] = STUDY_SIZES, rounds: int = 1) -> None:
+    """Study throughput (runs per wall second) of this tree's run_study against
+    ``baseline``'s, each in its own process on a local cluster of one worker per core,
+    on the same generated study of N runs; per size the two trees take turns (baseline,
+    then this tree) for ``rounds`` rounds."""
+    import snake_pin
+
+    del budget  # whole studies: the sizes set the cost
+    workers = os.cpu_count() or 1
+    here = Path(snake_pin.__file__).resolve().parents[1]
+    root, note = (None, "no baseline asked for") if baseline is None else \
+        baseline_checkout(baseline)
+    trees = {"baseline": root, "this tree": here} if root is not None else {"this tree": here}
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="snake_pin_bench_studies_") as folder:
+        for size in sizes:
+            study = Path(folder) / f"study_{size}.toml"
+            study.write_text(STUDY_TEXT.format(seeds=", ".join(map(str, range(size)))))
+            rates: dict[str, list[float]] = {name: [] for name in trees}
+            for _ in range(rounds):
+                for name, tree in trees.items():
+                    rates[name].append(size / timed_study(tree, study, workers))
+            mine, theirs = rates["this tree"], rates.get("baseline")
+            rows.append([str(size), show(spread(mine), 2),
+                         show(spread(theirs), 2) if theirs else "-",
+                         show(ratios(mine, theirs), 2, "x") if theirs else "-"])
+    table(f"Study throughput, runs per wall second (10 s runs, Table 1, Lyapunov-like law, "
+          f"{workers} local workers), median (10-90 %) of {rounds} interleaved round"
+          f"{'s' if rounds != 1 else ''}",
+          ["runs", "this tree [runs/s]", f"{baseline} [runs/s]", "this / baseline"], rows)
+    print(f"\nBaseline: {note}. Each tree runs its own run_study in a process of its own "
+          "(its checkout first on the path), into a fresh folder; the time is run_study's "
+          "(cluster start and result files included, Python's start not).")
+
+
+#: The benches that run the whole report or whole studies (minutes each): not in the
+#: default set.
+WHOLE_REPORT = ("reproduce", "failure_map", "study")
 
 BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
                                                "friction_routes": bench_friction_routes,
                                                "derivatives": bench_derivatives,
                                                "manipulability": bench_manipulability,
                                                "runs": bench_runs, "engine": bench_engine,
+                                               "study": bench_study,
                                                "reproduce": bench_reproduce,
                                                "failure_map": bench_failure_map}
 
@@ -875,13 +979,21 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter timing batches")
     parser.add_argument("--only", default=",".join(n for n in BENCHES if n not in WHOLE_REPORT),
-                        help="comma-separated benches (default all but reproduce and "
-                        "failure_map, which run the whole report: quiet and with the other "
-                        "core busy; with and without the failure map)")
-    parser.add_argument("--baseline", default=BASELINE,
-                        help=f"commit the runs and the engine compare to ({BASELINE})")
+                        help="comma-separated benches (default all but reproduce, "
+                        "failure_map and study, which run the whole report: quiet and with "
+                        "the other core busy; with and without the failure map; and whole "
+                        "studies)")
+    parser.add_argument("--baseline", default=None,
+                        help=f"commit the runs, the engine and the study compare to "
+                        f"(default: {BASELINE} for the runs and the engine, "
+                        f"{STUDY_BASELINE} for the study)")
     parser.add_argument("--no-baseline", action="store_true",
-                        help="skip the baseline columns of the runs and the engine")
+                        help="skip the baseline columns of the runs, the engine and the study")
+    parser.add_argument("--study-sizes", default=",".join(map(str, STUDY_SIZES)),
+                        help="comma-separated run counts of --only study "
+                        f"(default {','.join(map(str, STUDY_SIZES))})")
+    parser.add_argument("--study-rounds", type=int, default=1,
+                        help="interleaved rounds per study size (default 1)")
     args = parser.parse_args()
     budget = 0.05 if args.quick else 0.2
     names = [n for n in args.only.split(",") if n]
@@ -889,13 +1001,24 @@ def main() -> int:
     if unknown:
         print(f"bench: unknown bench(es) {unknown}; choose from {list(BENCHES)}", file=sys.stderr)
         return 2
+    try:
+        sizes = tuple(int(n) for n in args.study_sizes.split(",") if n.strip())
+    except ValueError:
+        sizes = ()
+    if not sizes or min(sizes) < 1 or args.study_rounds < 1:
+        print("bench: --study-sizes takes positive run counts (e.g. 40,256) and "
+              "--study-rounds a positive integer", file=sys.stderr)
+        return 2
     start = time.perf_counter()
     print(f"# python scripts/bench.py {' '.join(sys.argv[1:])}".rstrip())
     print(f"(load average at start: {', '.join(f'{x:.2f}' for x in os.getloadavg())})")
     for name in names:
         if name in ("runs", "engine"):
             bench = bench_runs if name == "runs" else bench_engine
-            bench(budget, None if args.no_baseline else args.baseline)
+            bench(budget, None if args.no_baseline else args.baseline or BASELINE)
+        elif name == "study":
+            bench_study(budget, None if args.no_baseline else args.baseline or STUDY_BASELINE,
+                        sizes, args.study_rounds)
         else:
             BENCHES[name](budget)
     print(f"\n(total {time.perf_counter() - start:.1f} s; load average at the end: "
