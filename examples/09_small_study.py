@@ -4,7 +4,7 @@ Run a small study and read its results with pandas
 
 A **study** is many closed-loop runs described by one TOML file: a base scenario and
 axes over its settings (grids, seeded random draws). :func:`snake_pin.study.run_study`
-runs the runs not yet recorded on a Dask cluster, one Parquet file per finished batch,
+runs the runs not yet recorded on a Dask cluster, one Parquet file per finished run,
 and writes a summary and a page; the command line is ``snake-pin study FILE -o DIR``.
 
 Here: the Lyapunov-like controller on the Table 1 robot with wheel-like friction, two

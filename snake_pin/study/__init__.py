@@ -1,8 +1,7 @@
 """Studies: many closed-loop runs described by one file, run on Dask, kept in Parquet.
 
 - :mod:`~snake_pin.study.spec`: the study file (base scenario, axes), validation, run keys;
-- :mod:`~snake_pin.study.work`: the unit of work (a batch of runs -> result rows), with
-  the hook where the lockstep batched simulator plugs in;
+- :mod:`~snake_pin.study.work`: the unit of work (one run -> its result row);
 - :mod:`~snake_pin.study.runner`: execution on a Dask cluster (TLS-authenticated locally;
   a given scheduler checked by Dask's handshake on a deadline), resuming, interrupts;
 - :mod:`~snake_pin.study.results`: the output folder and its Parquet dataset;
