@@ -114,30 +114,6 @@ def test_engine_results_are_distributions(report: Path) -> None:
     assert check["relative_change"] < 1e-3
 
 
-def test_reproduce_on_a_robot_file(tmp_path: Path) -> None:
-    """reproduce --quick --robot camera_head_snake.toml (robot and engine stages): the
-    robot stage lists its per-link values, the engine stage puts that robot itself on
-    wheels (10 links, friction identified per link) and reports its distributions."""
-    from snake_pin.robot_file import load_robot
-    from snake_pin.trajectory import Trajectory
-
-    params = load_robot("camera_head_snake.toml")
-    assert main(["reproduce", "--quick", "--robot", "camera_head_snake.toml", "--only", "robot",
-                 "--only", "engine", "-o", str(tmp_path)]) == 0
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["robot"]["mass"] == params.masses.tolist()
-    engine = summary["engine"]
-    assert len(engine["friction"]["c_y"]) == 10
-    assert engine["friction"]["c_y"][0] > engine["friction"]["c_y"][1]  # the heavier head
-    run = Trajectory.load(tmp_path / "engine.npz", signals=False)
-    assert run.params.name == "camera_head_snake" and run.params.n == 10
-    assert run.params.link_lengths.tolist() == params.link_lengths.tolist()
-    assert engine["engine"]["draws"]["finished"] == 3
-    assert engine["engine"]["body_length"] == pytest.approx(params.body_length)
-    html = (tmp_path / "index.html").read_text()
-    assert "camera_head_snake" in html and "median" in html
-
-
 def test_which_stages_honour_which_robot() -> None:
     """The engine stage honours --robot for the engine preset and for a robot of one's own,
     not for Table 1 (it would run the engine preset); it never honours --passive or --n."""
@@ -214,18 +190,34 @@ def test_report_is_complete_strict_json_and_in_place(report: Path) -> None:
 
 
 def test_reproduce_runs_every_stage_on_a_robot_file(tmp_path: Path) -> None:
-    """reproduce --quick --robot examples/robots/camera_head_snake.toml: every stage runs on
-    that robot (the failure map and the path benchmark too) and the report is complete."""
+    """reproduce --quick --robot camera_head_snake.toml (a shipped robot by bare file name):
+    every stage runs on that robot (the failure map and the path benchmark too) and the
+    report is complete; the robot stage lists its per-link values, and the engine stage
+    puts that robot itself on wheels (10 links, friction identified per link) and reports
+    its distributions."""
     from snake_pin.experiments import stages
-    from snake_pin.robot_file import robot_paths
+    from snake_pin.robot_file import load_robot
+    from snake_pin.trajectory import Trajectory
 
-    robot_file = robot_paths()["camera_head_snake.toml"]
-    assert main(["reproduce", "--quick", "--robot", str(robot_file), "-o", str(tmp_path)]) == 0
+    params = load_robot("camera_head_snake.toml")
+    assert main(["reproduce", "--quick", "--robot", "camera_head_snake.toml",
+                 "-o", str(tmp_path)]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["run"]["status"] == "complete"
     assert set(summary["run"]["sections"]) >= {name for name, _ in stages()}
     rows = json.loads((tmp_path / "benchmark.json").read_text())
     assert rows["settings"]["robot"]["name"] == "camera_head_snake"
+    assert summary["robot"]["mass"] == params.masses.tolist()
+    engine = summary["engine"]
+    assert len(engine["friction"]["c_y"]) == 10
+    assert engine["friction"]["c_y"][0] > engine["friction"]["c_y"][1]  # the heavier head
+    run = Trajectory.load(tmp_path / "engine.npz", signals=False)
+    assert run.params.name == "camera_head_snake" and run.params.n == 10
+    assert run.params.link_lengths.tolist() == params.link_lengths.tolist()
+    assert engine["engine"]["draws"]["finished"] == 3
+    assert engine["engine"]["body_length"] == pytest.approx(params.body_length)
+    html = (tmp_path / "index.html").read_text()
+    assert "camera_head_snake" in html and "median" in html
 
 
 def test_reproduce_twice_into_the_same_folder(tmp_path: Path) -> None:
