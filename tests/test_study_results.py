@@ -331,7 +331,7 @@ def test_a_folder_that_cannot_be_written_fails_before_any_run(
         raise AssertionError("a cluster was started")
 
     monkeypatch.setattr(tempfile, "mkstemp", read_only)
-    monkeypatch.setattr(runner, "_client", no_cluster)
+    monkeypatch.setattr(runner, "dask_client", no_cluster)
     with pytest.raises(StudyError, match=r"cannot write here \(Read-only file system") as info:
         runner.run_study(study, tmp_path / "ro")
     assert "\n" not in str(info.value)

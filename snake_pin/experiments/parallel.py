@@ -1,7 +1,7 @@
 """Run independent experiment jobs on Dask: the report's stages, bench-control, engine seeds.
 
 The package has one executor: these jobs go to the same local Dask cluster a study runs
-on, built by the study runner (:func:`snake_pin.study.runner._client` on a local cluster:
+on, built by the study runner (:func:`snake_pin.study.runner.dask_client` on a local cluster:
 one worker process per core with one thread each, everything on 127.0.0.1 and TLS with
 credentials made for the call, workers started with ``OMP_WAIT_POLICY=PASSIVE`` and
 one-thread BLAS/OpenMP). The cluster lives for one call: it is closed, and its worker
@@ -70,9 +70,9 @@ def iter_jobs(jobs: Sequence[Job], workers: int | None = None) -> Iterator[tuple
         return
     from distributed import as_completed
 
-    from ..study.runner import _client
+    from ..study.runner import dask_client
 
-    with _client(None, workers) as client:
+    with dask_client(None, workers) as client:
         futures = {client.submit(_limited, fn, args, kwargs, pure=False): index
                    for index, (fn, args, kwargs) in enumerate(jobs)}
         try:

@@ -66,8 +66,8 @@ from .results import StudyFolder
 from .spec import Scenario, StudySpec, load_study
 from .summary import StudySummary
 
-__all__ = ["CONNECT_TIMEOUT", "LOCAL_HOSTS", "MAX_CONNECT_TIMEOUT",
-           "MAX_WORKERS", "check_scheduler", "load_security", "plan_batches", "run_study"]
+__all__ = ["CONNECT_TIMEOUT", "LOCAL_HOSTS", "MAX_CONNECT_TIMEOUT", "MAX_WORKERS",
+           "check_scheduler", "dask_client", "load_security", "plan_batches", "run_study"]
 
 #: Default longest wait for a scheduler to complete Dask's handshake [s].
 CONNECT_TIMEOUT = 10.0
@@ -183,7 +183,7 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         summary.skipped = len(spec.scenarios) - len(pending)
         try:
             if pending:
-                with _client(address, workers, security=credentials, timeout=timeout,
+                with dask_client(address, workers, security=credentials, timeout=timeout,
                              dashboard=bool(dashboard), log=say) as client:
                     slots = _slots(client) if address else workers
                     batches = plan_batches(pending)
@@ -658,12 +658,42 @@ def _slots(client: Any) -> int:
 
 
 @contextlib.contextmanager
-def _client(address: str | None, workers: int, *, security: Any = None,
+def dask_client(address: str | None, workers: int, *, security: Any = None,
             timeout: float = CONNECT_TIMEOUT, dashboard: bool = False,
             log: Callable[[str], None] | None = None) -> Iterator[Any]:
-    """A Dask client: of the scheduler at ``address`` (with ``security``), or of a new
-    local cluster (:func:`_local_cluster`, closed with its worker processes when the block
-    ends however it ends)."""
+    """A Dask client of the scheduler at ``address``, or of a new local cluster.
+
+    The package's one executor: studies and :mod:`snake_pin.experiments.parallel` run
+    their tasks through it.
+
+    Parameters
+    ----------
+    address
+        ``tcp://`` or ``tls://`` address of an existing scheduler (checked first with
+        :func:`check_scheduler`); None starts a local cluster on 127.0.0.1, TLS with
+        credentials made for it, closed with its worker processes when the block ends
+        however it ends.
+    workers
+        Worker processes of the local cluster (one thread each).
+    security
+        The scheduler's ``distributed.security.Security`` (with ``address``).
+    timeout
+        Longest wait for the client of ``address`` [s].
+    dashboard
+        Serve the local cluster's dashboard on 127.0.0.1.
+    log
+        Receives the dashboard's link.
+
+    Yields
+    ------
+    distributed.Client
+        The client.
+
+    Raises
+    ------
+    StudyError
+        No Dask scheduler answered at ``address`` within ``timeout``.
+    """
     from distributed import Client
 
     if address is not None:
