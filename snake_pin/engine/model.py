@@ -45,12 +45,9 @@ from, at any heading. The pyramidal cone matches it only for a snake aligned wit
 world axes: its friction limit is a square in those axes (|f_x| + |f_y| <= mu N), so a
 link sliding at 45 degrees to them feels 26 % less sideways friction, and a serpentine
 gait sweeps its links through such headings; its lower tracking error comes with that
-weaker, heading-dependent friction, not with a better model of the robot. Time of the 60 s run
-(control included, same bench run, interleaved with dc0b889's in worker processes):
-elliptic 7.9 s, 2.10x (10-90 %: 2.08-2.10) faster than dc0b889's 16.7 s (its default,
-elliptic on the dense Jacobian); pyramidal 5.2 s. Of a 138 us control period (elliptic),
-MuJoCo's two steps take 111 us, the controller 15 us and the loop's own work 13 us.
-``WheelSpec(cone="pyramidal")`` remains for quick looks.
+weaker, heading-dependent friction, not with a better model of the robot. The pyramidal cone
+is faster (``python scripts/bench.py --only engine`` times both; the README's speed
+section has the figures): ``WheelSpec(cone="pyramidal")`` remains for quick looks.
 c_theta = 2 d^2 b / r^2 (the axle model; 1.57e-4 N m s) is the same for both cones.
 """
 
