@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
@@ -49,3 +52,21 @@ def heterogeneous_params(rng: np.random.Generator, n: int, friction: str = "anis
                        com_offset=(np.array(lengths) * rng.uniform(0.1, 0.9, n)).tolist(),
                        c_x=c_x, c_y=c_y, c_theta=draw(7.2e-5) if friction != "none" else 0.0,
                        passive=passive, name="heterogeneous")
+
+
+def raised_without_blocking(call: Callable[[], object], what: str) -> BaseException | None:
+    """What ``call`` raises (None if it returns), run in a thread: a reader that blocks
+    (a FIFO opened) fails the test after 60 s instead of hanging it."""
+    outcome: list[BaseException | None] = [None]
+
+    def run() -> None:
+        try:
+            call()
+        except BaseException as exc:  # handed to the test thread
+            outcome[0] = exc
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    worker.join(60)
+    assert not worker.is_alive(), f"{what} blocked"
+    return outcome[0]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import os
-import threading
 from pathlib import Path as FilePath
 
 import numpy as np
@@ -28,6 +27,8 @@ from snake_pin.paths import (
     load_path,
     make_path,
 )
+
+from .conftest import raised_without_blocking
 
 #: A loop of waypoints whose heading passes through +-pi (it heads back along -x).
 LOOP = [(0.0, 0.0), (1.0, 0.2), (2.0, -0.5), (2.5, 1.0), (1.0, 1.5), (-1.0, 0.5)]
@@ -401,20 +402,9 @@ def test_a_fifo_is_refused_without_blocking(tmp_path: FilePath, name: str) -> No
     """A FIFO given as a path file is refused at once, in one line naming it."""
     fifo = tmp_path / name
     os.mkfifo(fifo)
-    outcome: list[BaseException | None] = [None]
-
-    def run() -> None:
-        try:
-            load_path(fifo)
-        except BaseException as exc:  # handed to the test thread
-            outcome[0] = exc
-
-    worker = threading.Thread(target=run, daemon=True)
-    worker.start()
-    worker.join(60)
-    assert not worker.is_alive(), "load_path blocked on a FIFO"
-    assert isinstance(outcome[0], PathFileError)
-    assert str(outcome[0]) == f"{fifo}: is a FIFO, not a regular file: not a path file"
+    error = raised_without_blocking(lambda: load_path(fifo), "load_path on a FIFO")
+    assert isinstance(error, PathFileError)
+    assert str(error) == f"{fifo}: is a FIFO, not a regular file: not a path file"
 
 
 @pytest.mark.parametrize("measure", [along_track, cross_track_error])

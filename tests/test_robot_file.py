@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import threading
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -31,7 +30,7 @@ from snake_pin.robot_file import (
     write_robot_file,
 )
 from snake_pin.urdf import urdf_string, write_urdf
-from tests.conftest import heterogeneous_params, random_state
+from tests.conftest import heterogeneous_params, raised_without_blocking, random_state
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parent / "data"
@@ -655,20 +654,9 @@ def test_write_refuses_bad_paths(tmp_path: Path) -> None:
 # ------------------------------------------------------------- bounded, physical input
 def _refused_at_once(call: Callable[[], object]) -> RobotFileError:
     """The RobotFileError ``call`` raises, from a thread: a reader that blocks fails."""
-    outcome: list[BaseException | None] = [None]
-
-    def run() -> None:
-        try:
-            call()
-        except BaseException as exc:  # handed to the test thread
-            outcome[0] = exc
-
-    worker = threading.Thread(target=run, daemon=True)
-    worker.start()
-    worker.join(60)
-    assert not worker.is_alive(), "the reader blocked"
-    assert isinstance(outcome[0], RobotFileError), outcome[0]
-    return outcome[0]
+    error = raised_without_blocking(call, "the reader")
+    assert isinstance(error, RobotFileError), error
+    return error
 
 
 @pytest.mark.parametrize("name", ["robot.toml", "robot.urdf"])

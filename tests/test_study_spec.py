@@ -6,7 +6,6 @@ import math
 import os
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,8 @@ from snake_pin.robot_file import write_robot_file
 from snake_pin.sim import MAX_STEPS
 from snake_pin.study import SETTINGS, StudyError, load_study, run_key
 from snake_pin.study.spec import MAX_RUNS, canonical_json, parse_study
+
+from .conftest import raised_without_blocking
 
 REPO = Path(__file__).resolve().parent.parent
 QUICK = """
@@ -294,20 +295,9 @@ def test_a_fifo_is_refused_without_blocking(tmp_path: Path) -> None:
     """A FIFO given as the study file is refused at once, in one line naming it."""
     fifo = tmp_path / "study.toml"
     os.mkfifo(fifo)
-    outcome: list[BaseException | None] = [None]
-
-    def run() -> None:
-        try:
-            load_study(fifo)
-        except BaseException as exc:  # handed to the test thread
-            outcome[0] = exc
-
-    worker = threading.Thread(target=run, daemon=True)
-    worker.start()
-    worker.join(60)
-    assert not worker.is_alive(), "load_study blocked on a FIFO"
-    assert isinstance(outcome[0], StudyError)
-    assert str(outcome[0]) == f"{fifo}: is a FIFO, not a regular file: not a study file"
+    error = raised_without_blocking(lambda: load_study(fifo), "load_study on a FIFO")
+    assert isinstance(error, StudyError)
+    assert str(error) == f"{fifo}: is a FIFO, not a regular file: not a study file"
 
 
 def test_one_robot_file_named_many_ways_is_one_robot(tmp_path: Path,

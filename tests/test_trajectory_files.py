@@ -8,7 +8,6 @@ import math
 import os
 import stat
 import struct
-import threading
 import tracemalloc
 import zipfile
 import zlib
@@ -32,6 +31,8 @@ from snake_pin import (
 )
 from snake_pin._io import TEMP_MARKER
 from snake_pin.trajectory import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES
+
+from .conftest import raised_without_blocking
 
 _FUZZ = settings(max_examples=80, deadline=None,
                  suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -509,20 +510,10 @@ def test_an_array_longer_than_its_header_says(original: Trajectory, tmp_path: Pa
 # ---------------------------------------------------------------- what is opened at all
 def _refused_at_once(path: Path) -> str:
     """``_refused(path)`` from a thread: a load that blocks (a FIFO opened) fails."""
-    outcome: list[str | BaseException] = []
-
-    def run() -> None:
-        try:
-            outcome.append(_refused(path))
-        except BaseException as exc:  # handed to the test thread
-            outcome.append(exc)
-
-    worker = threading.Thread(target=run, daemon=True)
-    worker.start()
-    worker.join(60)
-    assert not worker.is_alive(), "Trajectory.load blocked"
-    assert isinstance(outcome[0], str), outcome[0]
-    return outcome[0]
+    text: list[str] = []
+    error = raised_without_blocking(lambda: text.append(_refused(path)), "Trajectory.load")
+    assert error is None and len(text) == 1, error
+    return text[0]
 
 
 def test_a_fifo_is_refused_without_blocking(tmp_path: Path,
