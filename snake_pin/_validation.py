@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
 __all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "instance",
-           "integer", "one_line", "printable_path"]
+           "integer", "model_data", "one_line", "printable_path"]
 
 _T = TypeVar("_T")
 
@@ -88,6 +88,16 @@ def instance(value: object, kind: type[_T], name: str, what: str | None = None) 
 def check_params(value: object, name: str = "params") -> SnakeParams:
     """``value`` if it is a :class:`~snake_pin.params.SnakeParams`, else ParameterError."""
     return instance(value, SnakeParams, name)
+
+
+def model_data(value: object, model: Any, kind: type, name: str = "data") -> Any:
+    """``value`` if it is a ``kind`` (``pinocchio.Data``, passed in so that this module does
+    not import Pinocchio) sized for ``model``, else ParameterError naming ``name``."""
+    data: Any = instance(value, kind, name, "a pinocchio.Data")
+    if len(data.oMi) != model.njoints:
+        raise ParameterError(f"{name} has {len(data.oMi)} joints, the model "
+                             f"{model.njoints}: use model.createData()")
+    return data
 
 
 def as_vector(value: object, size: int, name: str) -> np.ndarray:

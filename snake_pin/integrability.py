@@ -34,9 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import paper
-from ._validation import brief, finite_number, integer
+from ._validation import brief, finite_number, instance, integer
 from .exceptions import ConfigurationError, ParameterError
-from .model import Snake, _check_snake
+from .model import Snake
 
 __all__ = [
     "Involutivity",
@@ -142,7 +142,7 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
         integer, ``seed`` not a non-negative integer or ``tolerance`` not a positive
         number.
     """
-    _check_snake(snake)
+    instance(snake, Snake, "snake")
     k = integer(k, "k", low=1, high=3)
     samples = integer(samples, "samples", low=1)
     seed = integer(seed, "seed", low=0)
@@ -201,7 +201,7 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
     ParameterError
         If ``snake`` is not a Snake or ``nodes`` is not a positive integer.
     """
-    _check_snake(snake)
+    instance(snake, Snake, "snake")
     nodes = integer(nodes, "nodes", low=1)
     q = snake.check_q(q)
     q0 = np.zeros(snake.nq) if q0 is None else snake.check_q(q0, "q0")
@@ -239,7 +239,7 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
     ParameterError
         If ``snake`` is not a Snake, or its friction is not isotropic (g2 is undefined).
     """
-    _check_snake(snake)
+    instance(snake, Snake, "snake")
     q, dq = snake.check_q(q), snake.check_dq(dq)
     return snake.inertia_matrix(q)[:2] @ dq + paper.g2(snake.params, q)
 
@@ -394,7 +394,7 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
         If ``snake`` is not a Snake, its friction is not isotropic, ``samples`` is not a
         positive integer or ``seed`` not a non-negative integer.
     """
-    _check_snake(snake)
+    instance(snake, Snake, "snake")
     samples = integer(samples, "samples", low=1)
     seed = integer(seed, "seed", low=0)
     if not snake.params.isotropic:

@@ -44,10 +44,9 @@ from numpy.typing import ArrayLike
 from scipy.linalg import lapack
 
 from ._symmetric import symmetric_from_upper
-from ._validation import as_vector, brief, check_params, flag, integer
+from ._validation import as_vector, brief, flag, instance, integer, model_data
 from .exceptions import ConfigurationError, ParameterError
-from .friction import _check_data, _check_model
-from .model import Snake, _check_snake
+from .model import Snake
 from .paper import k_matrix
 from .params import SnakeParams
 
@@ -129,7 +128,7 @@ def task_split(n: int, free_joint: int | Sequence[int] | None = None,
         per free joint).
     """
     n = integer(n, "n", low=2)
-    task, actuated, _ = _split(n, _free_tuple(n, free_joint), flag(heading, "heading"))
+    task, actuated, _ = _split(n, free_joints(n, free_joint), flag(heading, "heading"))
     return task, actuated
 
 
@@ -144,7 +143,7 @@ def _integers(value: object, name: str) -> list[int]:
     return [int(item) for item in items]
 
 
-def _free_tuple(n: int, free_joint: int | Sequence[int] | None) -> tuple[int, ...]:
+def free_joints(n: int, free_joint: int | Sequence[int] | None) -> tuple[int, ...]:
     """The free joints (1-based, sorted, distinct) of an n-link robot, or ParameterError."""
     if free_joint is None:
         return ()
@@ -239,10 +238,10 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
         ``heading`` or ``blocks`` is not a bool, or the robot has too few links for the
         task (n >= 4 plus one per free or passive joint).
     """
-    _check_snake(snake)
+    instance(snake, Snake, "snake")
     q = snake.check_q(q).copy()
     q[:3] = 0.0  # D, R are invariant under rigid motions: remove them exactly
-    free = tuple(snake.params.passive) + _free_tuple(snake.n, free_joint)
+    free = tuple(snake.params.passive) + free_joints(snake.n, free_joint)
     heading, blocks = flag(heading, "heading"), flag(blocks, "blocks")
     task, act, flat = _split(snake.n, tuple(sorted(set(free))), heading)
     # Upper triangles straight from Pinocchio (``flat`` only reads that triangle).
@@ -318,8 +317,8 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
         has no task, the frame does not exist, ``rows`` is invalid, or ``rows`` is given
         without a ``task``.
     """
-    model = _check_model(model)
-    _check_data(data, model)
+    model = instance(model, pin.Model, "model", "a pinocchio.Model")
+    model_data(data, model, pin.Data)
     q = as_vector(q, model.nq, "q")
     nv = model.nv
     unact = np.array(sorted(set(_integers(unactuated, "unactuated"))), dtype=int)
@@ -397,7 +396,7 @@ def manipulability_R_batch(params: SnakeParams, phi: ArrayLike, *,
         If ``params`` is not a SnakeParams, the free joint is not an integer in
         1..n - 1, ``heading`` is not a bool, or the robot has too few links.
     """
-    n = check_params(params).n
+    n = instance(params, SnakeParams, "params").n
     try:
         angles = np.asarray(phi, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -408,15 +407,14 @@ def manipulability_R_batch(params: SnakeParams, phi: ArrayLike, *,
         raise ConfigurationError(f"phi must have {n - 1} columns, got shape {angles.shape}")
     if not np.all(np.isfinite(angles)):
         raise ConfigurationError("phi has non-finite entries")
-    free = tuple(sorted(set(params.passive) | set(_free_tuple(n, free_joint))))
-    return _r_batch(params, angles, free, flag(heading, "heading"))
+    free = tuple(sorted(set(params.passive) | set(free_joints(n, free_joint))))
+    return r_batch(params, angles, free, flag(heading, "heading"))
 
 
-def _r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
+def r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
              heading: bool) -> np.ndarray:
-    """:func:`manipulability_R_batch` of checked arguments: ``phi`` (B, n - 1) floats and
-    ``free`` the sorted free joints, passive ones included (the hot path of the searches
-    and of PFL's climb term)."""
+    """:func:`manipulability_R_batch` of checked arguments (``free`` sorted, passive joints
+    included): the hot path of the singular-posture searches and of PFL's climb term."""
     n = params.n
     task, act, _ = _split(n, free, heading)
     m = params.masses
@@ -442,6 +440,9 @@ def _r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
     if coupling.shape[2] < len(task):  # fewer inputs than task directions
         return np.zeros(len(phi))
     return np.linalg.svd(coupling, compute_uv=False)[:, -1]
+
+
+_r_batch = r_batch  # the name snake_pin.control.pfl imports
 
 
 def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
@@ -502,7 +503,7 @@ def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
         If ``snake`` is not a Snake, or ``constrained`` is empty or names a link outside
         1..n (or not by an integer).
     """
-    _check_snake(snake)
+    instance(snake, Snake, "snake")
     q = snake.check_q(q)
     n = snake.n
     links = (list(range(2, n + 1)) if constrained is None

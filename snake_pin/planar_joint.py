@@ -47,9 +47,8 @@ import numpy as np
 import pinocchio as pin
 
 from ._symmetric import symmetric_from_upper
-from ._validation import as_vector, brief, integer
+from ._validation import as_vector, brief, instance, integer, model_data
 from .exceptions import ParameterError
-from .friction import _check_data, _check_model
 
 __all__ = [
     "PlanarLayout",
@@ -156,7 +155,7 @@ def planar_layout(model: pin.Model) -> PlanarLayout:
         parent is the previous joint and whose placement does not rotate; or ``model`` is
         not a ``pinocchio.Model``.
     """
-    _check_model(model)
+    instance(model, pin.Model, "model", "a pinocchio.Model")
     if model.njoints < 3:
         raise ParameterError(f"a snake model needs a planar joint and at least one "
                              f"revolute joint, got {model.njoints - 1} joint(s)")
@@ -458,7 +457,7 @@ def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarr
         If a vector has the wrong size or non-finite entries.
     """
     layout = planar_layout(model)
-    _check_data(data, model)
+    model_data(data, model, pin.Data)
     q_planar, v_planar = paper_to_planar(layout, q, dq)
     mass = symmetric_from_upper(pin.crba(model, data, q_planar))
     bias = pin.nonLinearEffects(model, data, q_planar, v_planar)

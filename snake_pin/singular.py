@@ -35,7 +35,7 @@ from threadpoolctl import threadpool_limits
 
 from ._validation import check_params, finite_number, flag, integer
 from .exceptions import ParameterError, RunInterrupted
-from .manipulability import _free_tuple, _r_batch, task_split
+from .manipulability import free_joints, r_batch, task_split
 from .params import SnakeParams
 
 __all__ = ["MAX_SEED", "MAX_STARTS", "SingularFamily", "SingularSearch",
@@ -214,14 +214,14 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
         raise ParameterError(f"bound must lie in (0, pi], got {bound}")
     relative = finite_number(relative, "relative", non_negative=True)
     progress = flag(progress, "progress")
-    free = sorted(set(params.passive) | set(_free_tuple(params.n, free_joint)))
+    free = sorted(set(params.passive) | set(free_joints(params.n, free_joint)))
     free_joint = (free[0] if len(free) == 1 else tuple(free)) if free else None
     task_split(params.n, free_joint)  # n large enough for all of them
     free_all = tuple(free)
     with threadpool_limits(limits=1):  # tiny matrices: one BLAS thread (module doc)
         dim = params.n - 1
         rng = np.random.default_rng(seed)
-        typical = _r_batch(params, rng.uniform(-bound, bound, (2000, dim)), free_all, True)
+        typical = r_batch(params, rng.uniform(-bound, bound, (2000, dim)), free_all, True)
         scale = float(np.median(typical))
         if not scale > 0:
             raise ParameterError(
@@ -232,7 +232,7 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
         offsets = np.vstack([np.zeros(dim), step * np.eye(dim), -step * np.eye(dim)])
 
         def objective(phi: np.ndarray) -> tuple[float, np.ndarray]:
-            r = _r_batch(params, phi[None, :] + offsets, free_all, True)
+            r = r_batch(params, phi[None, :] + offsets, free_all, True)
             f = (r / scale) ** 2
             return float(f[0]), (f[1:dim + 1] - f[dim + 1:]) / (2 * step)
 

@@ -24,12 +24,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ._validation import brief, finite_number, flag, integer
+from ._validation import brief, finite_number, flag, instance, integer
 from .exceptions import ParameterError, RunInterrupted
 from .gaits import Serpenoid, arc
-from .manipulability import _free_tuple as _free_joints
-from .manipulability import manipulability, manipulability_R_batch, task_split
-from .model import Snake, _check_snake
+from .manipulability import free_joints, manipulability, manipulability_R_batch, task_split
+from .model import Snake
 
 __all__ = ["FAMILIES", "MAX_POINTS", "RMap", "Sweep", "r_map", "sweep"]
 
@@ -201,14 +200,14 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
         ``progress`` not a bool, or free joints that are not integers in 1..n - 1 or leave
         the task no actuated joint.
     """
-    _check_snake(snake)
+    instance(snake, Snake, "snake")
     if not isinstance(family, str) or family not in FAMILIES:
         raise ParameterError(f"unknown family {brief(family)}; choose one of "
                              f"{', '.join(FAMILIES)}")
     points = integer(points, "points", low=2, high=MAX_POINTS)
     progress = flag(progress, "progress")
     task_split(snake.n, free_joint)  # validate before any output (progress bar)
-    free = tuple(sorted(set(snake.params.passive) | set(_free_joints(snake.n, free_joint))))
+    free = tuple(sorted(set(snake.params.passive) | set(free_joints(snake.n, free_joint))))
     label, default, _ = FAMILIES[family]
     low, high = default if bounds is None else _bounds(bounds)
     values = _with_zero(np.linspace(low, high, int(points)))
@@ -297,7 +296,7 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
         upper end not a positive number, or a free joint that is not an integer in
         1..n - 1 or leaves the task no actuated joint.
     """
-    _check_snake(snake)
+    instance(snake, Snake, "snake")
     alpha_points = integer(alpha_points, "alpha_points", low=1, high=MAX_POINTS)
     ts_points = integer(ts_points, "ts_points", low=1, high=MAX_POINTS)
     alpha_max = finite_number(alpha_max, "alpha_max", positive=True)

@@ -129,7 +129,7 @@ def test_search_runs_with_one_blas_thread(monkeypatch: pytest.MonkeyPatch) -> No
     import snake_pin.singular as singular
 
     seen: list[set[int]] = []
-    batch = singular._r_batch
+    batch = singular.r_batch
 
     def spy(*args: object, **kwargs: object) -> object:
         if len(seen) < 5:
@@ -137,7 +137,7 @@ def test_search_runs_with_one_blas_thread(monkeypatch: pytest.MonkeyPatch) -> No
         return batch(*args, **kwargs)
 
     before = [pool["num_threads"] for pool in threadpool_info()]
-    monkeypatch.setattr(singular, "_r_batch", spy)
+    monkeypatch.setattr(singular, "r_batch", spy)
     find_singular_postures(SnakeParams.table1(n=6), starts=1)
     assert len(seen) == 5 and all(threads == {1} for threads in seen)
     assert [pool["num_threads"] for pool in threadpool_info()] == before
