@@ -88,15 +88,10 @@ MAX_TOML_DEPTH = 32
 
 
 def current_umask() -> int:
-    """Return the process's umask, read without a window in which files get a wider mode.
+    """The process's umask, read without a window in which files get a wider mode.
 
     Linux reports it in ``/proc/self/status``; elsewhere it is swapped with 077 and back
     under a lock (a file another thread creates in that instant is private, not wider).
-
-    Returns
-    -------
-    int
-        The umask (e.g. ``0o022``).
     """
     try:
         with open("/proc/self/status", "rb") as status:
@@ -132,22 +127,11 @@ def _pid_alive(pid: int) -> bool:
 
 
 def clean_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
-    """Remove this module's temporary files in ``folder`` whose writer is no longer alive.
+    """Remove the temporaries in ``folder`` (not recursively) whose writer is gone; return them.
 
-    Only names of the form ``.NAME.snake_pin-PID-XXXXXXXX.tmp`` that are regular files are
-    considered, and only when process PID is gone (or a zombie). A pid the kernel has
-    since reused keeps its file until that process ends. Errors (a folder that cannot be
-    listed, a file already removed) are ignored: cleaning is best effort and cheap.
-
-    Parameters
-    ----------
-    folder : str or os.PathLike
-        The folder to clean (not recursively).
-
-    Returns
-    -------
-    list of Path
-        The files removed.
+    Only regular files named ``.NAME.snake_pin-PID-XXXXXXXX.tmp`` whose process PID is gone
+    (or a zombie) go; a reused pid keeps its file until that process ends. Errors are
+    ignored: cleaning is best effort.
     """
     removed: list[Path] = []
     try:
@@ -195,13 +179,7 @@ class _Staged:
 
 
 class AtomicGroup:
-    """Files staged by :func:`atomic_group`; use its methods inside the ``with`` block.
-
-    Parameters
-    ----------
-    folder : str or os.PathLike
-        Where the files go; names given to the methods are relative to it.
-    """
+    """Files staged by :func:`atomic_group` in ``folder``; use its methods inside the block."""
 
     def __init__(self, folder: str | os.PathLike[str]) -> None:
         self.folder = Path(folder)
@@ -217,29 +195,11 @@ class AtomicGroup:
 
     @contextlib.contextmanager
     def open(self, name: str | os.PathLike[str], *, figure: bool = False) -> Iterator[IO[bytes]]:
-        """Stage ``name``: a binary handle on its temporary file.
+        """Stage ``name`` (relative to the folder): yield a binary handle on its temporary.
 
-        If the body raises, that temporary is removed at once (the group can go on).
-
-        Parameters
-        ----------
-        name : str or os.PathLike
-            File name relative to the group's folder (its folder must exist).
-        figure : bool, optional
-            Put the file among the figures, renamed after every data file.
-
-        Yields
-        ------
-        IO[bytes]
-            The temporary file, open for writing; flushed, given the umask's mode and
-            fsync-ed when the body ends.
-
-        Raises
-        ------
-        ParameterError
-            If ``name`` is already staged in this group.
-        OSError
-            If the temporary file cannot be created or written (naming ``name``).
+        The temporary is flushed, given the umask's mode and fsync-ed when the body ends, and
+        removed at once if the body raises. ``figure=True`` renames it after every data file.
+        ParameterError if ``name`` is already staged; OSError (naming ``name``) on a write error.
         """
         target = self.folder / name
         if any(s.target == target for s in self._staged):
@@ -274,58 +234,14 @@ class AtomicGroup:
 
     def write_bytes(self, name: str | os.PathLike[str], data: bytes, *,
                     figure: bool = False) -> Path:
-        """Stage ``data`` as ``name``.
-
-        Parameters
-        ----------
-        name : str or os.PathLike
-            File name relative to the group's folder (its folder must exist).
-        data : bytes
-            The file's content.
-        figure : bool, optional
-            Put the file among the figures, renamed after every data file.
-
-        Returns
-        -------
-        pathlib.Path
-            The final path (the file appears there when the group commits).
-
-        Raises
-        ------
-        ParameterError
-            If ``name`` is already staged in this group.
-        OSError
-            If the temporary file cannot be created or written (naming ``name``).
-        """
+        """Stage ``data`` as ``name`` (as :meth:`open`); return the final path."""
         with self.open(name, figure=figure) as handle:
             handle.write(data)
         return self.folder / name
 
     def save(self, name: str | os.PathLike[str], save: Callable[[IO[bytes]], object], *,
              figure: bool = False) -> Path:
-        """Stage ``name`` written by ``save(handle)``.
-
-        Parameters
-        ----------
-        name : str or os.PathLike
-            File name relative to the group's folder (its folder must exist).
-        save : callable
-            Called with the binary handle, e.g. ``lambda f: np.savez(f, t=t)``.
-        figure : bool, optional
-            Put the file among the figures, renamed after every data file.
-
-        Returns
-        -------
-        pathlib.Path
-            The final path (the file appears there when the group commits).
-
-        Raises
-        ------
-        ParameterError
-            If ``name`` is already staged in this group.
-        OSError
-            If the temporary file cannot be created or written (naming ``name``).
-        """
+        """Stage ``name`` written by ``save(handle)`` (as :meth:`open`); return the final path."""
         with self.open(name, figure=figure) as handle:
             save(handle)
         return self.folder / name
@@ -365,45 +281,20 @@ def _unlink_quietly(path: Path) -> None:
 
 @contextlib.contextmanager
 def atomic_group(folder: str | os.PathLike[str]) -> Iterator[AtomicGroup]:
-    """Write a set of files that appear together, data before figures.
+    """Write a set of files in ``folder`` that appear together, data before figures.
 
-    Inside the block, stage files with :meth:`AtomicGroup.open`, :meth:`~AtomicGroup.save`
-    or :meth:`~AtomicGroup.write_bytes` (``figure=True`` for figures). Each is written to
-    a temporary sibling and fsync-ed; nothing is renamed while the block runs. When the
-    block succeeds, the data files are renamed into place in the order they were staged,
-    then the figures in theirs, then each folder is fsync-ed. If the block raises
-    anything (KeyboardInterrupt included), every temporary is removed and no file of the
-    set changes.
+    Inside the block, stage files on the yielded :class:`AtomicGroup` (``figure=True`` for
+    figures). Each is written to a fsync-ed temporary sibling; nothing is renamed while the
+    block runs. When it succeeds, the data files are renamed into place in the order staged,
+    then the figures, then each folder is fsync-ed. If it raises (KeyboardInterrupt
+    included), every temporary is removed and no file of the set changes.
 
     What a reader can see: POSIX renames are atomic one by one, not as a set. While the
-    block runs, and if it fails, the old files only. During the renames (microseconds,
-    or forever if the process is killed in the middle), the new files form a prefix of
-    that order: every file listed before a new one is new, so a new figure implies new
-    data, while later files may still be old. After the block, all are new, and durable
-    (on a power loss before that, which renames reached the disk is up to the
-    filesystem). A rename that fails (OSError naming the file) stops there: the files
+    block runs, and if it fails, the old files only. During the renames (or forever if the
+    process is killed in the middle), the new files form a prefix of that order: a new
+    figure implies new data, while later files may still be old. After the block, all are
+    new and durable. A rename that fails (OSError naming the file) stops there: the files
     before it are in place, the remaining temporaries are removed.
-
-    Parameters
-    ----------
-    folder : str or os.PathLike
-        Where the files go (an existing folder).
-
-    Yields
-    ------
-    AtomicGroup
-        Stage files on it inside the block.
-
-    Raises
-    ------
-    OSError
-        If a file cannot be staged or renamed into place (naming that file).
-
-    Examples
-    --------
-    >>> with atomic_group(folder) as group:                    # doctest: +SKIP
-    ...     group.save("run.npz", lambda f: np.savez(f, t=t))
-    ...     group.write_bytes("run.png", png, figure=True)
     """
     group = AtomicGroup(folder)
     try:
@@ -415,64 +306,20 @@ def atomic_group(folder: str | os.PathLike[str]) -> Iterator[AtomicGroup]:
 
 @contextlib.contextmanager
 def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
-    """Open a temporary file beside ``path``; on success rename it onto ``path``.
-
-    If the body raises, the temporary file is removed and ``path`` is untouched.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The file to write (its folder must exist).
-
-    Yields
-    ------
-    IO[bytes]
-        The temporary file, open for writing.
-
-    Raises
-    ------
-    OSError
-        If the file cannot be written or renamed (naming ``path``).
-    """
+    """Yield a temporary file beside ``path``, renamed onto it when the body succeeds."""
     path = Path(path)
     with atomic_group(path.parent) as group, group.open(path.name) as handle:
         yield handle
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` whole or not at all.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The file to write (its folder must exist).
-    data : bytes
-        Its content.
-
-    Raises
-    ------
-    OSError
-        If the file cannot be written (naming ``path``).
-    """
+    """Write ``data`` to ``path`` whole or not at all."""
     with atomic_writer(path) as handle:
         handle.write(data)
 
 
 def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object]) -> None:
-    """Call ``save(handle)`` on a temporary file and move it onto ``path`` when it succeeds.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The file to write (its folder must exist).
-    save : callable
-        Called with a binary handle, e.g. ``lambda f: np.savez(f, t=t)``.
-
-    Raises
-    ------
-    OSError
-        If the file cannot be written (naming ``path``).
-    """
+    """Write ``path`` whole or not at all by ``save(handle)`` (e.g. ``np.savez``)."""
     with atomic_writer(path) as handle:
         save(handle)
 
@@ -504,39 +351,11 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
     """Open ``path`` for binary reading if it is a regular file of at most ``limit`` bytes.
 
     Never blocks and never reads a byte of anything else: the name is stat-ed and refused
-    unless it is a regular file; it is then opened with ``O_NONBLOCK`` (so a FIFO put in
-    its place meanwhile does not block either) and the open descriptor is fstat-ed and
-    checked again, size included.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The file.
-    limit : int
-        Largest size accepted [bytes].
-    kind : str
-        What the file should be, for messages (``"robot file"``, ``"URDF"``, ...).
-    error : callable
-        Builds the exception to raise from one line that does not name the file, e.g.
-        ``"is a FIFO, not a regular file: not a URDF"``; the caller prefixes the name.
-    follow_symlinks : bool, optional
-        True (default): a symbolic link is followed to its target. False: a name that is
-        a symbolic link is refused, and the file is opened with ``O_NOFOLLOW``, so a link
-        put in its place after the check is refused by the open itself (no window between
-        check and open). Only the name's last component is concerned: the folders on the
-        way are followed either way.
-
-    Returns
-    -------
-    io.BufferedReader
-        The open file (blocking mode), positioned at its start; close it (``with``).
-
-    Raises
-    ------
-    Exception
-        ``error(message)``: no such file, a folder, a FIFO/socket/device, a symbolic link
-        (with ``follow_symlinks=False``), larger than ``limit``, unreadable (permissions,
-        ...), or ``path`` is not a path.
+    unless it is a regular file, then opened with ``O_NONBLOCK`` (a FIFO put in its place
+    meanwhile does not block either) and the descriptor is fstat-ed and checked again, size
+    included. ``follow_symlinks=False`` refuses a link by ``O_NOFOLLOW`` in the open itself
+    (no window between check and open; only the last component). Every refusal is
+    ``error(line)``, a line naming ``kind`` but not the file (the caller prefixes it).
     """
     if not isinstance(path, (str, os.PathLike)):
         raise error(f"not a file path: {type(path).__name__}")
@@ -588,31 +407,8 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
 def read_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
                       error: Callable[[str], Exception],
                       follow_symlinks: bool = True) -> bytes:
-    """The bytes of ``path``, opened by :func:`open_regular_file` (at most ``limit``).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The file.
-    limit : int
-        Largest size accepted [bytes] (checked on its size, and again on what is read,
-        in case it grew meanwhile).
-    kind : str
-        What the file should be, for messages.
-    error : callable
-        Builds the exception to raise from one line (see :func:`open_regular_file`).
-    follow_symlinks : bool, optional
-        False refuses a symbolic link, atomically (see :func:`open_regular_file`).
-
-    Returns
-    -------
-    bytes
-        The content.
-
-    Raises
-    ------
-    Exception
-        ``error(message)``, as :func:`open_regular_file`, or when reading fails.
+    """The bytes of ``path`` opened by :func:`open_regular_file`; ``limit`` is checked again
+    on what is read, in case the file grew meanwhile.
     """
     with open_regular_file(path, limit=limit, kind=kind, error=error,
                            follow_symlinks=follow_symlinks) as handle:
@@ -626,25 +422,7 @@ def read_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
 
 
 def decode_utf8(data: bytes, *, error: Callable[[str], Exception]) -> str:
-    """``data`` decoded as UTF-8, or ``error("not UTF-8 text (... at byte N)")``.
-
-    Parameters
-    ----------
-    data : bytes
-        A file's content.
-    error : callable
-        Builds the exception to raise from one line.
-
-    Returns
-    -------
-    str
-        The text.
-
-    Raises
-    ------
-    Exception
-        ``error(message)`` when ``data`` is not UTF-8.
-    """
+    """``data`` decoded as UTF-8, or ``error("not UTF-8 text (... at byte N)")``."""
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -666,25 +444,11 @@ _TOML_IGNORED = re.compile(r"[^\[\]{}.,\n]+")
 
 
 def toml_nesting_problem(text: str, max_depth: int = MAX_TOML_DEPTH) -> str | None:
-    """Why ``text`` nests deeper than ``max_depth`` levels, or None; one linear scan.
+    """Why ``text`` nests deeper than ``max_depth`` levels, or None: one linear scan, no parse.
 
-    Levels are those :data:`MAX_TOML_DEPTH` describes: an array or inline table adds one
-    plus the dots of its key; a dotted key adds its dots. Strings and comments are
-    skipped; nothing is parsed. The count may exceed the document's depth by one (the dot
-    of a float value) and may fall short of it by the dots of a table header, which are
-    bounded on their own.
-
-    Parameters
-    ----------
-    text : str
-        TOML text.
-    max_depth : int, optional
-        The deepest nesting accepted.
-
-    Returns
-    -------
-    str or None
-        ``"nested deeper than N levels (...) at line L"``, or None within the bound.
+    Levels are those :data:`MAX_TOML_DEPTH` describes; strings and comments are skipped.
+    The count may exceed the depth by one (a float's dot) and fall short by the dots of a
+    table header, which are bounded on their own.
     """
     pieces: list[str] = []
     end = 0
@@ -721,26 +485,10 @@ def toml_nesting_problem(text: str, max_depth: int = MAX_TOML_DEPTH) -> str | No
 
 def parse_toml(text: str, *, error: Callable[[str], Exception],
                max_depth: int = MAX_TOML_DEPTH) -> dict[str, Any]:
-    """Parse TOML text after bounding its nesting (:func:`toml_nesting_problem`).
+    """Parse TOML text after bounding its nesting, or ``error("not valid TOML: ...")``.
 
-    Parameters
-    ----------
-    text : str
-        The text (its size bounded by the caller: the scan and the parse are linear in it).
-    error : callable
-        Builds the exception to raise from one line that does not name the file.
-    max_depth : int, optional
-        The deepest nesting accepted (:data:`MAX_TOML_DEPTH`).
-
-    Returns
-    -------
-    dict
-        The document.
-
-    Raises
-    ------
-    Exception
-        ``error("not valid TOML: ...")`` or ``error("nested deeper than ...")``.
+    tomllib recurses once per nested array or inline table, so the nesting is checked
+    first (:func:`toml_nesting_problem`).
     """
     problem = toml_nesting_problem(text, max_depth)
     if problem is not None:

@@ -101,26 +101,8 @@ def model_data(value: object, model: Any, kind: type, name: str = "data") -> Any
 
 
 def as_vector(value: object, size: int, name: str) -> np.ndarray:
-    """Return ``value`` as a finite float vector of length ``size``.
-
-    Parameters
-    ----------
-    value : array_like
-        Anything numpy reads as ``size`` numbers (flattened).
-    size : int
-        The length required.
-    name : str
-        The vector's name in the error message (e.g. ``"q"``).
-
-    Returns
-    -------
-    numpy.ndarray, shape (size,)
-        A float array (a view of ``value`` when it already is one).
-
-    Raises
-    ------
-    ConfigurationError
-        If ``value`` is not numeric, has another size, or has non-finite entries.
+    """``value`` as a finite float vector of ``size`` entries (flattened; a view when it
+    already is one), or ConfigurationError naming ``name``.
     """
     try:
         vec = np.asarray(value, dtype=float).reshape(-1)
@@ -135,28 +117,9 @@ def as_vector(value: object, size: int, name: str) -> np.ndarray:
 
 def finite_number(value: object, name: str, *, positive: bool = False,
                   non_negative: bool = False) -> float:
-    """Return ``value`` as a finite float, optionally > 0 or >= 0.
-
-    Parameters
-    ----------
-    value : object
-        A real number (a bool, and text even when it reads as a number, are refused).
-    name : str
-        The parameter's name in the error message.
-    positive : bool, optional
-        Require ``value > 0``.
-    non_negative : bool, optional
-        Require ``value >= 0``.
-
-    Returns
-    -------
-    float
-        The value.
-
-    Raises
-    ------
-    ParameterError
-        If ``value`` is not a finite number, or breaks the sign requirement.
+    """``value`` as a finite float, > 0 if ``positive``, >= 0 if ``non_negative``, or
+    ParameterError naming ``name`` (a bool, and text even when it reads as a number, are
+    refused).
     """
     if isinstance(value, (bool, np.bool_, str, bytes, bytearray)) or \
             (isinstance(value, np.ndarray) and value.ndim != 0):
