@@ -1,103 +1,70 @@
 """Planar paths and head references along them: a curve p(s) plus a timing law s(t).
 
-This module owns the geometry of head references beyond the paper's straight line: a
-:class:`Path` is a planar curve parametrised by arc length s, with its unit tangent (angle
-gamma(s), continuous: never wrapped to ``(-pi, pi]``), curvature kappa(s) and its rate
-kappa'(s); a :class:`Timing` gives s(t) at a constant speed v, optionally after a smooth
-start; a :class:`PathReference` joins the two into the head reference the controllers
-consume, with the same interface as :class:`~snake_pin.control.reference.LinearReference`:
+A :class:`Path` is a planar curve parametrised by arc length s, with its tangent angle
+gamma(s) (continuous, never wrapped), curvature kappa(s) and its rate kappa'(s); a
+:class:`Timing` gives s(t) at a constant speed, optionally after a smooth start; a
+:class:`PathReference` joins the two into the head reference the controllers consume,
+with the interface of :class:`~snake_pin.control.reference.LinearReference`:
 ``reference(t) -> (w_r, w_r', w_r'')``, three fresh arrays of length 3.
 
-Shapes
-------
+The shapes (by default each starts at the origin heading along +x):
+
 - :class:`Line`: any start point and direction.
-- :class:`Circle` and :class:`Arc`: centre, radius > 0, start angle (polar angle of the
-  start point about the centre), direction of travel (``clockwise``). By default the curve
-  passes through the origin heading along +x, like every default shape here.
-- :class:`LaneChange`: a lead-in along the line, then a smooth S to a parallel line at a
-  lateral ``offset`` (left positive) over a longitudinal ``length``. The S is the septic
-  smootherstep ``y = offset P(x / length)``, ``P = 35 u^4 - 84 u^5 + 70 u^6 - 20 u^7``,
-  whose first three derivatives vanish at both ends: the curve is C3, so heading,
-  curvature and the curvature's rate are continuous at the joins and w_r'' is continuous
-  in time.
+- :class:`Circle` and :class:`Arc`: centre, radius, start angle (polar angle of the start
+  point about the centre), direction of travel.
+- :class:`LaneChange`: a lead-in, then a smooth S to a parallel line at a lateral
+  ``offset`` over a ``length``: ``y = offset P(x / length)`` with the septic smootherstep
+  ``P = 35 u^4 - 84 u^5 + 70 u^6 - 20 u^7``, whose first three derivatives vanish at both
+  ends, so the curve is C3 and w_r'' is continuous in time.
 - :class:`Sinusoid`: ``y = amplitude sin(2 pi x / wavelength)``.
-- :class:`Waypoints`: a C2 curve through user points: ``scipy.interpolate.CubicSpline``
-  on the chord-length parameter with natural ends (zero curvature there), re-parametrised
-  by arc length. Its curvature is continuous; kappa' jumps at the knots (a cubic's third
-  derivative is piecewise constant), so the heading's w_r'' jumps there while the
-  position's stays continuous.
+- :class:`Waypoints`: a C2 natural cubic spline through user points on the chord-length
+  parameter; kappa' jumps at the knots, so the heading's w_r'' jumps there.
 
-Finite curves (:class:`Arc`, :class:`Waypoints`) continue beyond their ends along the end
-tangents (straight, zero curvature: C2 at the ends of a waypoint spline, whose ends have
-zero curvature; only C1 at the ends of an arc). Lane changes and sinusoids are unbounded;
-a circle's s runs on over any number of laps.
+Finite curves (arcs, waypoints) continue straight along their end tangents; a circle's s
+runs on over any number of laps.
 
-Arc length. Curves with no closed-form arc length (lane change, sinusoid, waypoints) are
-written p(u) in a parameter u; ``s(u) = int |p'(u)| du`` is tabulated by 8-point
-Gauss-Legendre quadrature on a fine grid of u, and u(s) is found by Newton's method on
-``s(u) - s = 0`` (derivative ``|p'(u)|``) from a linear interpolation of the table, to
-round-off. The tangent, curvature and its rate then follow from the derivatives of p(u)
-(all exact for the polynomial and trigonometric pieces)::
+Curves without a closed-form arc length are written p(u); ``s(u)`` is tabulated by
+8-point Gauss-Legendre quadrature and u(s) found by Newton's method on ``s(u) - s = 0``
+to round-off. The tangent, curvature and its rate follow from the derivatives of p(u)::
 
     t = p'/|p'|,   kappa = (p' x p'')/|p'|^3,
     dkappa/ds = [(p' x p''') |p'|^2 - 3 (p' x p'')(p' . p'')] / |p'|^6.
 
-Head reference (head-first convention). In the paper's coordinates theta_1 points from
-the head towards the tail, so a head that leads along the tangent has
-``theta_1 = gamma(s) + pi`` (the paper's straight run has gamma = 0, theta_1 = pi). With
-``s = s(t)``, the chain rule gives exactly::
+In the paper's coordinates theta_1 points from the head towards the tail, so a head that
+leads along the tangent has ``theta_1 = gamma(s) + pi``. With ``s = s(t)`` and n the left
+normal (``dt/ds = kappa n``), the chain rule gives exactly::
 
     w_r   = [p(s), gamma(s) + pi]
     w_r'  = [t s',  kappa s']
     w_r'' = [kappa n s'^2 + t s'',  kappa' s'^2 + kappa s'']
 
-with n the left normal (t rotated by +pi/2), since ``dt/ds = kappa n``.
+:meth:`Path.project` finds the arc length of the closest point: the nearest point of a
+fine grid (a k-d tree), then safeguarded Newton steps on ``(p(s) - x) . t(s) = 0``. Given
+a hint (a moving point tracked from its last answer, the LOS law's hot path) it searches
+a table of samples within :data:`HINT_RADIUS` of the hint and refines on the path's cubic
+expansion about the nearest sample, in closed form (agreeing with dense sampling to well
+below 1e-6 m). :func:`cross_track_error` (left positive) and :func:`along_track` are
+vectorised over points.
 
-Distance to a path. :meth:`Path.project` finds the arc length of the closest point: the
-nearest point of a fine grid over a span of s (by a k-d tree), then safeguarded Newton
-steps on ``(p(s) - x) . t(s) = 0``. Given a hint (a moving point tracked from its last
-answer, the LOS law's hot path), it searches a table of the path sampled every
-:data:`SAMPLE_STEP` or finer (built once per path, grown on demand) within
-:data:`HINT_RADIUS` of the hint and refines on the path's cubic expansion about the
-nearest sample (two Newton steps, in closed form: no call of the curve itself), which
-agrees with dense brute-force sampling to well below 1e-6 m; the LOS law's step
-(:meth:`Path._track`) also takes the closest point and its tangent angle from that
-expansion. :func:`cross_track_error` is the signed distance (left of the direction of
-travel positive) and :func:`along_track` the arc length of the closest point, both
-vectorised.
+:func:`load_path` takes a shape name with its parameters, or a file: TOML with
+``type = "waypoints"`` and ``points = [[x, y], ...]``, or ``type`` a shape name with that
+shape's parameters, optionally ``speed`` [m/s] and ``ramp`` [s]; or CSV waypoints (two
+columns x, y, an optional header line). Example::
 
-Path files
-----------
-:func:`load_path` takes a shape name with its parameters, or a file:
-
-- TOML: ``type = "waypoints"`` with ``points = [[x, y], ...]``, or ``type`` one of the
-  shape names with that shape's parameters; optionally ``speed`` [m/s] and ``ramp`` [s]
-  (the timing). Example::
-
-      type = "circle"
-      radius = 1.2
-      clockwise = true
-      speed = 0.1
-
-- CSV: waypoints, two columns x, y, one point a line, an optional header line.
+    type = "circle"
+    radius = 1.2
+    clockwise = true
+    speed = 0.1
 
 Path files are regular files (a FIFO or a device is refused unread) of at most
-:data:`MAX_PATH_FILE_BYTES`; a TOML one is nested at most
-:data:`snake_pin._io.MAX_TOML_DEPTH` levels, checked before it is parsed.
-
-Every number must be physically meaningful, in files and in code alike: coordinates and
-lengths (waypoints, start points, centres, origins, radii, offsets, amplitudes,
-wavelengths, lead-ins, the timing's start) lie within +-:data:`MAX_COORDINATE`, positive
-lengths (radius, wavelength, a lane change's length) are at least :data:`MIN_LENGTH`,
-angles (directions, start angles, an arc's sweep) lie within +-:data:`MAX_ANGLE` and the
-timing's speed is at most :data:`MAX_PATH_SPEED`; beyond them the geometry overflows or
-underflows (a waypoint at 1e160 m, a wavelength of 1e-300 m) instead of failing.
-
-Every problem (fewer than two waypoints, coincident consecutive waypoints, a non-positive
-radius, length, wavelength or speed, a non-finite number or one beyond its bound, an
-unknown key or shape, a file that does not parse) is one :class:`PathFileError` line
-naming the file and the field, or a :class:`~snake_pin.exceptions.ParameterError` naming
-the parameter when no file is involved. ``PathFileError`` is a ``ParameterError``.
+:data:`MAX_PATH_FILE_BYTES`, a TOML one nested at most
+:data:`snake_pin._io.MAX_TOML_DEPTH` levels. Every number must be physically meaningful:
+coordinates and lengths within +-:data:`MAX_COORDINATE`, positive lengths at least
+:data:`MIN_LENGTH`, angles within +-:data:`MAX_ANGLE`, speeds at most
+:data:`MAX_PATH_SPEED`; beyond them the geometry would overflow or underflow instead of
+failing. Every problem is one :class:`PathFileError` line naming the file and the field,
+or a :class:`~snake_pin.exceptions.ParameterError` naming the parameter when no file is
+involved (``PathFileError`` is a ``ParameterError``).
 """
 
 from __future__ import annotations
@@ -210,8 +177,9 @@ class PathPoint(NamedTuple):
 
 
 class _Samples(NamedTuple):
-    """The path sampled every ``h`` from ``s0``: points, frames, gamma, kappa, dkappa/ds,
-    and the offsets of the coarse and fine searches of :meth:`Path._project_near`."""
+    """The path sampled every ``h`` from ``s0`` (points, frames, gamma, kappa, kappa'), and
+    the sample offsets of the coarse and fine searches of :meth:`Path._project_near`.
+    """
 
     s0: float
     h: float
@@ -551,12 +519,11 @@ class Path(abc.ABC):
     def _samples(self, lo: float, hi: float) -> _Samples:
         """The path sampled over at least [lo, hi], built once and moved when asked beyond.
 
-        The first table covers :meth:`default_span` (and [lo, hi]); a request beyond it
-        builds a new window around [lo, hi], reaching half the old window's length (at
-        least 2 m) beyond it on each side, so a point moving along an unbounded path costs
-        a rebuild now and then, not every step, and the table's size stays bounded
-        however far the point goes. Spacing: :data:`SAMPLE_STEP`, or 0.05 / max |kappa|
-        where the path bends tighter.
+        The first table covers :meth:`default_span` and [lo, hi]; a request beyond it builds a
+        new window reaching half the old window's length (at least 2 m) beyond [lo, hi] on each
+        side: a point moving along an unbounded path costs an occasional rebuild, and the
+        table's size stays bounded. Spacing: :data:`SAMPLE_STEP`, finer (0.05 over the largest
+        curvature) where the path bends tighter.
         """
         table: _Samples | None = self.__dict__.get("_near_table")
         if table is not None and table.s0 <= lo and table.end >= hi:
@@ -1010,40 +977,9 @@ class Arc(_Finite, Circle):
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         return _Finite._scalar(self, s)
 
-    def default_span(self) -> tuple[float, float]:
-        """Return the arc with a margin at each end (as :meth:`Path.default_span`).
-
-        Returns
-        -------
-        tuple of float
-            ``(s_min, s_max)`` [m].
-        """
-        return Path.default_span(self)
-
-    def project(self, points: object, *, span: tuple[float, float] | None = None,
-                hint: object = None) -> np.ndarray:
-        """Return the arc length of the closest point, the arc's straight ends included.
-
-        Parameters
-        ----------
-        points : array_like, shape (..., 2)
-            Points [m].
-        span : tuple of float, optional
-            ``(s_min, s_max)`` searched [m]; default :meth:`default_span`.
-        hint : float or array_like, optional
-            Arc lengths near the answer (see :meth:`Path.project`).
-
-        Returns
-        -------
-        numpy.ndarray, shape points.shape[:-1]
-            Arc lengths [m].
-
-        Raises
-        ------
-        ParameterError
-            As :meth:`Path.project`.
-        """
-        return Path.project(self, points, span=span, hint=hint)
+    # the arc's own span and search (margins, straight ends), not the circle's laps
+    default_span = Path.default_span
+    project = Path.project
 
 
 class _GraphCurve(Path):
@@ -1413,18 +1349,7 @@ class Timing:
         object.__setattr__(self, "start", _length(self.start, "start"))
 
     def __call__(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return (s, s', s'') at time(s) t.
-
-        Parameters
-        ----------
-        t : float or array_like
-            Time(s) [s].
-
-        Returns
-        -------
-        s, ds, dds : numpy.ndarray, shape t.shape
-            Arc length [m], speed [m/s] and acceleration [m/s^2].
-        """
+        """Return (s, s', s'') at time(s) ``t`` [s], arrays shaped like ``t`` [m, m/s, m/s^2]."""
         t_arr = np.asarray(t, dtype=float)
         v, big_t = self.speed, self.ramp
         if big_t == 0.0:
@@ -1497,26 +1422,10 @@ class PathReference:
         return self.path.name
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return (w_r, w_r', w_r'') at time t (fresh arrays: callers may modify them).
+        """Return fresh arrays (w_r, w_r', w_r'') at time ``t``, or ParameterError if not finite.
 
-        One float at a time through plain-float code (the controllers call this every
-        step); :meth:`at` is the vectorised form and agrees with it to round-off.
-
-        Parameters
-        ----------
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        w_r, dw_r, ddw_r : numpy.ndarray, shape (3,)
-            ``[x_h, y_h, theta_1]`` reference [m, m, rad] and its first and second time
-            derivatives.
-
-        Raises
-        ------
-        ParameterError
-            If ``t`` is not finite.
+        Plain-float code (the controllers call it every step); :meth:`at` is the vectorised
+        form and agrees with it to round-off.
         """
         t = float(t)
         if not math.isfinite(t):

@@ -1,117 +1,16 @@
 """Robot descriptions on disk: TOML robot files, URDF import, and the ``--robot`` lookup.
 
-This module owns turning a file (or a preset name) into a validated
-:class:`~snake_pin.params.SnakeParams`, and writing a robot file back. Every problem with
-a file is one :class:`~snake_pin.exceptions.RobotFileError` whose message is one line
-naming the file, then the field or element (and the link where it applies).
-
-TOML robot files
-----------------
-A robot file describes one planar snake, links numbered from the head::
-
-    # my_snake.toml
-    name = "my_snake"        # required: letters, digits, underscores
-    n = 4                    # optional when a per-link array gives it
-    passive = [2]            # optional: 1-based joints without an actuator
-
-    [links]                  # each field: one number for all links, or n numbers (head first)
-    link_length = [0.20, 0.15, 0.15, 0.15]  # full length 2l_i [m]; joint i at x = 2l_i
-    mass = [0.70, 0.40, 0.40, 0.50]         # [kg]
-    inertia = [3.4e-3, 1.2e-3, 1.2e-3, 9e-4]  # yaw inertia about the link's CM [kg m^2]
-    com_offset = [0.08, 0.075, 0.075, 0.075]  # optional: CM distance from the front [m];
-                                            # default: the middle of each link
-
-    [friction]               # optional; each key one number or n numbers; default 0
-    c_x = 0.5                # along the link [N s/m]
-    c_y = 5.0                # across the link [N s/m]
-    c_theta = 1e-4           # rotation [N m s]
-
-Instead of ``[links]``, one ``[[link]]`` table per link (head first) with the same keys
-as numbers (``link_length``, ``mass``, ``inertia`` required; ``com_offset`` optional, the
-middle of that link when left out)::
-
-    [[link]]
-    link_length = 0.20
-    mass = 0.70
-    inertia = 3.4e-3
-    com_offset = 0.08
-
-    [[link]]
-    link_length = 0.15
-    mass = 0.40
-    inertia = 1.2e-3
-
-Or ``urdf = "relative/path.urdf"`` (relative to the robot file's folder) takes the
-geometry and inertia from a URDF (:func:`read_urdf`); ``[links]``/``[[link]]`` are then
-not allowed, ``n`` (if given) must match the URDF, ``passive`` (if given) replaces the
-URDF's zero-effort marks, and each friction coefficient comes from the robot file's
-``[friction]``, else the URDF's own ``<snake_pin>`` element, else zero, in that order.
-
-No other keys are accepted (a misspelt key is an error, not a silent default). Values are
-checked before the robot is built: types (a string mass), signs, finiteness, physical
-ranges (:data:`snake_pin.params.FIELD_RANGES`), per-link arrays of different lengths,
-``n`` against the arrays. Robot files are regular files (a FIFO or a device is refused
-unread) at most :data:`MAX_ROBOT_FILE_BYTES` long, UTF-8, and nested at most
-:data:`snake_pin._io.MAX_TOML_DEPTH` levels (checked before the TOML is parsed).
-
-URDF import
------------
-:func:`read_urdf` accepts any URDF of a planar serial chain of revolute z joints, written
-by :mod:`snake_pin.urdf` or not. What is accepted, and how it maps onto ``SnakeParams``:
-
-- **One chain.** The links form one tree with one root; after merging ``fixed`` joints,
-  every body has at most one movable child joint (a body with two is a branched tree,
-  refused naming the link). ``fixed`` joints (a camera on the head, a tail cap) are merged
-  into their parent body: masses added, centres of mass averaged, yaw inertias combined
-  by the parallel-axis theorem in the plane. (Done here on yourdfpy's numbers rather than
-  by Pinocchio's URDF parser, whose centres of mass come out up to 1 ulp off the file's:
-  a body of one link keeps the file's numbers exactly, so our URDFs round-trip to equal
-  parameters.)
-- **A leading base is stripped.** A root link without mass (``world``, ``base_footprint``)
-  whose one child joint is ``planar``, ``floating`` or ``fixed`` is dropped; its child is
-  the head. Any other ``planar``, ``floating`` or ``prismatic`` joint is refused by name,
-  as are ``mimic`` joints and unknown joint types.
-- **Revolute z joints in line.** Every movable joint is ``revolute`` or ``continuous``
-  with axis (0, 0, +1) or (0, 0, -1) (a -z joint's URDF angle is -phi_i; the dynamics in
-  phi are the same). Its origin, seen from the parent body, must not rotate (rpy 0 0 0,
-  so every link lies along its x axis at zero joint angles) and must lie on the parent
-  link's +x axis: y = 0 and x > 0; a height z is accepted and ignored (heights do not
-  enter planar dynamics). The tolerance is :data:`GEOMETRY_TOLERANCE` times the link
-  length.
-- **Inertia.** Every link of the chain (the head and each movable joint's child) has an
-  ``<inertial>`` with ``<mass>`` and ``<inertia>``; links fixed onto them may have none.
-  Per body: m_i is the merged mass, J_i the merged inertia about the merged CM about z
-  (tilted inertial frames are rotated), the CM offset its x in the link frame. The CM
-  must lie on the link's x axis (``abs(y)`` within the tolerance) and ``0 <= x <= 2l_i``;
-  its height z is ignored.
-- **Lengths.** Link i's length 2l_i is the x of joint i's origin in link i's frame. The
-  last link has no next joint: its length is the largest x that its own collision
-  geometry reaches in its frame (box, cylinder or sphere; meshes are not loaded), else
-  its visual geometry, else twice its CM offset (also when the geometry ends before the
-  CM). Its length enters no dynamics (friction and inertia act at the CM).
-- **Head position.** x_h, y_h of the resulting model is the origin of the head link's
-  frame (our URDFs put it at the head's front end).
-- **Friction.** URDF has no viscous ground friction. Each of c_x, c_y, c_theta comes from
-  the ``friction`` argument if it names it, else from our ``<snake_pin version="1">``
-  element (written by :func:`snake_pin.urdf.urdf_string`, ignored by other loaders),
-  else it is **zero**.
-- **Passive joints** are those with ``<limit effort="0">``.
-- **Name**: the ``<snake_pin>`` element's name if present, else the ``<robot>`` name with
-  every run of other characters than letters, digits and underscores turned into ``_``
-  (a preset's name gets ``_urdf`` appended, never passing for the preset).
-
-Joint damping and Coulomb friction (``<dynamics>``), joint limits and geometry other than
-the last link's are ignored. URDF files are regular files at most :data:`MAX_URDF_BYTES`
-long; a document type declaration (DTD, entities) is refused. Before any XML is parsed, a
-scan of the bytes counts the ``<link>`` elements (at most :data:`MAX_URDF_LINKS`) and the
-revolute and continuous joints (at most ``MAX_LINKS - 1``, a chain of
-:data:`~snake_pin.params.MAX_LINKS` links): a file beyond either is refused unparsed.
-
-Shipped robots
---------------
-:func:`robot_paths` lists the URDFs and example robot files shipped with the package, and
-:func:`load_robot` turns a ``--robot`` value (a preset name, a ``.toml`` or ``.urdf``
-path, or the bare file name of a shipped robot) into parameters.
+This module turns a file (or a preset name) into a validated
+:class:`~snake_pin.params.SnakeParams`, and writes a robot file back. Every problem with a
+file is one :class:`~snake_pin.exceptions.RobotFileError` line naming the file, then the
+field or element (and the link where it applies). The formats, and what a URDF may
+contain and how it maps onto the parameters, are described in :doc:`/robot_files`: in
+short, a robot file is TOML with ``name``, ``n``, ``passive``, per-link ``[links]`` (or
+``[[link]]`` tables, or ``urdf = "file.urdf"``) and ``[friction]``; no other key is
+accepted and every value is checked before the robot is built. :func:`read_urdf` accepts
+any planar serial chain of revolute z joints, merging ``fixed`` joints into their parent
+body and stripping a massless base; files are regular files of bounded size, and a URDF's
+links and joints are counted on its bytes before any XML is parsed.
 """
 
 from __future__ import annotations
