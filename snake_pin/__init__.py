@@ -15,9 +15,9 @@ import os
 from importlib import metadata as _metadata
 from typing import Any
 
-# Pinocchio's parallel algorithms use OpenMP; its default spinning wait policy made two
-# threads 5-10x slower than one when the other core was busy. libgomp reads this once, when
-# it loads, so it is set before anything imports Pinocchio (a user's own value wins).
+# Pinocchio's parallel algorithms use OpenMP, whose default spinning wait makes two threads
+# slower than one when the other core is busy. libgomp reads this once, when it loads, so
+# it is set before anything imports Pinocchio (a user's own value wins).
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from .exceptions import (

@@ -190,7 +190,7 @@ def _singular_values(a: np.ndarray, rows: int) -> np.ndarray:
     """Singular values of ``a`` (LAPACK dgesvd, descending), zero-padded to ``rows``.
 
     Calling LAPACK directly (on the Fortran-ordered transpose, same singular values)
-    avoids numpy.linalg's per-call overhead, about half of its ~9 us here.
+    avoids numpy.linalg's per-call overhead, about half its time on these small matrices.
     """
     out = lapack.dgesvd(a.T, compute_uv=0)
     values, info = out[1], out[-1]

@@ -478,8 +478,7 @@ class Path(abc.ABC):
             answer when tracking a moving point: then the closest point within
             :data:`HINT_RADIUS` of the hint is returned (the nearby branch of the path;
             without a span, not bounded by :meth:`default_span`), from a table of
-            samples of the path and a local expansion (vectorised numpy, the
-            controllers' hot path: tens of microseconds for one point).
+            samples of the path and a local expansion (the controllers' hot path).
 
         Returns
         -------

@@ -1,7 +1,7 @@
 """Numerical search for singular postures (R = 0) over the whole joint space.
 
 The paper tests families (arcs, serpenoids) and finds only the straight posture
-singular. Here R is minimised over phi in the box |phi_i| <= bound from many random
+singular. Here R is minimised over phi in the box ``abs(phi_i) <= bound`` from many random
 starts: L-BFGS-B on R^2 (smooth where the smallest singular value is simple, unlike R,
 which has a kink at zero) with gradients by batched central differences (one call of
 the vectorised :func:`~snake_pin.manipulability.manipulability_R_batch` per gradient),
@@ -20,8 +20,8 @@ Stopped by Ctrl-C (or SIGTERM turned into KeyboardInterrupt), the search raises
 starts finished so far (``status == "interrupted"``), clustered like a whole one.
 
 The search runs with BLAS and OpenMP limited to one thread (``threadpoolctl``): its
-matrices are 3 x (n - 1), and multi-threaded OpenBLAS made L-BFGS-B spend ~2 ms per
-iteration instead of 7-9 us when the other core of a 2-core machine was busy.
+matrices are 3 x (n - 1), and multi-threaded OpenBLAS makes L-BFGS-B many times slower
+when another core is busy (:doc:`/performance`).
 """
 
 from __future__ import annotations
@@ -41,9 +41,8 @@ from .params import SnakeParams
 __all__ = ["MAX_SEED", "MAX_STARTS", "SingularFamily", "SingularSearch",
            "find_singular_postures"]
 
-#: Most random starts of one search. Each takes about 12 ms at n = 10 (10,000: two
-#: minutes) and 10 s at n = 200; the single-linkage clustering of the minima holds
-#: starts^2 / 2 distances (10,000 minima at R = 0: 400 MB), so more would not fit.
+#: Most random starts of one search (10,000 take minutes at n = 10): the single-linkage
+#: clustering of the minima holds starts^2 / 2 distances (10,000 minima: 400 MB).
 MAX_STARTS = 10_000
 #: Seeds are 32-bit unsigned integers (0 .. 2**32 - 1), as NumPy's legacy seeding takes.
 MAX_SEED = 2**32 - 1
@@ -89,7 +88,7 @@ class SingularSearch:
     params
         The robot searched.
     bound
-        The box |phi_i| <= bound [rad].
+        The box ``abs(phi_i) <= bound`` [rad].
     starts
         Starts that ran.
     free_joint
@@ -169,7 +168,7 @@ class SingularSearch:
 def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: float = np.pi / 2,
                            free_joint: int | Sequence[int] | None = None, seed: int = 0,
                            relative: float = 1e-6, progress: bool = False) -> SingularSearch:
-    """Search |phi_i| <= ``bound`` for postures with R = 0 from ``starts`` random starts.
+    """Search ``abs(phi_i) <= bound`` for postures with R = 0 from ``starts`` random starts.
 
     Parameters
     ----------

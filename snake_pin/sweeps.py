@@ -9,9 +9,8 @@ the sweep of the postures computed so far (``status == "interrupted"``).
 
 BLAS and OpenMP thread pools are limited to one thread while a sweep or a map runs
 (``threadpoolctl``): the matrices are (n + 2)-square, and multi-threaded OpenBLAS on
-matrices that small costs far more than it gives (measured on a 2-core machine with the
-other core busy: a singular-posture search 5x slower, scipy's L-BFGS-B ~2 ms per
-iteration instead of 7-9 us).
+matrices that small costs far more than it gives when another core is busy
+(:doc:`/performance`).
 """
 
 from __future__ import annotations

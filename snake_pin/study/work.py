@@ -4,8 +4,8 @@
 (:func:`snake_pin.study.runner.plan_batches`). It never lets a run's failure escape: a
 run that raises becomes a row with status ``failed`` and the error text, and the other
 runs of the task go on. Inside it, BLAS and OpenMP pools are limited to one thread
-(:func:`threadpoolctl.threadpool_limits`): multi-threaded OpenBLAS on tiny matrices was
-measured ~100x slower when another core is busy.
+(:func:`threadpoolctl.threadpool_limits`): multi-threaded OpenBLAS on tiny matrices is
+many times slower when another core is busy.
 
 A viscous-model run is exactly what the single-run path does: :func:`simulate_scenario`,
 :func:`snake_pin.sim.simulate` of the scenario's robot, controller and initial state.
