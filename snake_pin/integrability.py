@@ -245,21 +245,9 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
 
 
 def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """Return g of eq. (67) at every sample of a run, vectorised.
-
-    Uses ``H1 dq = sum m_i p_i'`` and ``g2 = sum c_i p_i`` (isotropic friction: c = c_x).
-
-    Parameters
-    ----------
-    snake : Snake
-        The robot.
-    q, dq : numpy.ndarray, shape (N, n + 2)
-        Configurations and velocities of the run's samples (not validated).
-
-    Returns
-    -------
-    numpy.ndarray, shape (N, 2)
-        g at each sample [N s].
+    """g of eq. (67), shape (N, 2) [N s], at every sample of a run's ``q``, ``dq`` (N, n + 2),
+    vectorised and unchecked (the experiments' post-processing): ``H1 dq = sum m_i p_i'``
+    and ``g2 = sum c_i p_i`` with isotropic friction c = c_x.
     """
     params = snake.params
     m, c = params.masses, params.per_link("c_x")

@@ -1,4 +1,11 @@
-"""Public docstrings: numpydoc's validation of every public callable, per defining module."""
+"""Docstring policy: numpydoc sections on the public API, and only there; no project history.
+
+Public callables (what a public module lists in ``__all__``, and the public methods of
+those classes) pass numpydoc's validation, per defining module. Private helpers say what
+and why in a line or two, without numpydoc sections. No docstring or comment in the
+package names an issue number or a commit hash: history goes to ``CHANGELOG.md``, figures
+to ``docs/performance.rst``.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +13,13 @@ import ast
 import builtins
 import importlib
 import inspect
+import io
 import pkgutil
+import re
 import textwrap
+import tokenize
 from collections import defaultdict
+from pathlib import Path
 from types import ModuleType
 from typing import Any
 
@@ -33,6 +44,20 @@ CHECKS = frozenset({"GL06", "GL08", "PR01", "PR02", "PR07", "RT01", "RT03", "YD0
 #: Modules still being edited by other helpers: skipped (the reason says how many
 #: problems each has left) until they are handed over and fixed.
 PENDING: frozenset[str] = frozenset()
+
+#: Files whose private helpers still carry numpydoc sections, owned by other helpers:
+#: skipped by the private-helper check until they are fixed.
+SECTIONS_PENDING: frozenset[str] = frozenset({
+    "snake_pin/_blas.py", "snake_pin/_symmetric.py", "snake_pin/control/base.py",
+    "snake_pin/experiments/pfl.py"})
+
+PACKAGE = Path(snake_pin.__file__).resolve().parent
+#: A numpydoc section heading (a known name underlined by dashes).
+SECTION = re.compile(r"^\s*(Parameters|Other Parameters|Returns|Yields|Receives|Raises|Warns"
+                     r"|Attributes)\n\s*-{3,}\s*$", re.MULTILINE)
+#: Project history: an issue number, or a commit hash (7-40 hex digits, letters and digits).
+HISTORY = re.compile(r"\b[Ii]ssues?\s+#?\d+|(?<![\w&])#\d{1,4}\b"
+                     r"|\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*\d)[0-9a-f]{7,40}\b")
 
 
 def _public_modules() -> list[ModuleType]:
@@ -174,6 +199,72 @@ def test_api_walk_covers_the_package_exports() -> None:
         if isinstance(obj, ModuleType) or not callable(obj):
             continue
         assert f"{obj.__module__}.{obj.__qualname__}" in found, name
+
+
+def _source_files() -> list[Path]:
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def _definitions(tree: ast.AST, prefix: str) -> list[tuple[str, ast.AST]]:
+    """(qualified name, node) of every function and class, nested ones included."""
+    found: list[tuple[str, ast.AST]] = []
+    for node in ast.iter_child_nodes(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            name = f"{prefix}.{node.name}"
+            found.append((name, node))
+            found += _definitions(node, name)
+    return found
+
+
+def _private_sections(path: Path) -> list[str]:
+    """Private helpers of one file whose docstrings carry numpydoc sections."""
+    module = ".".join(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    module = module.removesuffix(".__init__")
+    public = {name for objs in API.values() for name in objs}
+    return [f"{name}: a private helper with numpydoc sections (say what and why in a line "
+            f"or two)" for name, node in _definitions(ast.parse(path.read_text("utf-8")), module)
+            if name not in public and not name.rsplit(".", 1)[-1].startswith("__")
+            and SECTION.search(ast.get_docstring(node) or "")]
+
+
+def test_private_helpers_have_no_numpydoc_sections() -> None:
+    """Sections are for the public API; a private helper's docstring is a line or two."""
+    problems = [line for path in _source_files()
+                if path.relative_to(PACKAGE.parent).as_posix() not in SECTIONS_PENDING
+                for line in _private_sections(path)]
+    assert not problems, "\n".join(problems)
+
+
+def test_sections_pending_names_files_with_problems() -> None:
+    """SECTIONS_PENDING has no stale entry: each file exists and still has a problem."""
+    stale = [name for name in sorted(SECTIONS_PENDING)
+             if not (PACKAGE.parent / name).exists()
+             or not _private_sections(PACKAGE.parent / name)]
+    assert not stale, f"remove from SECTIONS_PENDING: {stale}"
+
+
+def test_no_project_history_in_docstrings_or_comments() -> None:
+    """No docstring or comment of the package names an issue number or a commit hash."""
+    problems = []
+    for path in _source_files():
+        text = path.read_text("utf-8")
+        tree = ast.parse(text)
+        for name, node in [("<module>", tree), *_definitions(tree, "")]:
+            for match in HISTORY.finditer(ast.get_docstring(node) or ""):
+                problems.append(f"{path.name}:{name.lstrip('.')}: {match.group()!r}")
+        for token in tokenize.generate_tokens(io.StringIO(text).readline):
+            if token.type == tokenize.COMMENT:
+                for match in HISTORY.finditer(token.string):
+                    problems.append(f"{path.name}:{token.start[0]}: {match.group()!r}")
+    assert not problems, "\n".join(problems)
+
+
+def test_history_check_catches_issue_numbers_and_hashes() -> None:
+    """The history pattern finds issue numbers and commit hashes, not colours or words."""
+    for text in ("see issue 13", "issue #4", "fixes #12", "as in dc0b889", "3801e7f's"):
+        assert HISTORY.search(text), text
+    for text in ('color="#228b22"', "deadbeef", "1234567 runs", "the issue is"):
+        assert not HISTORY.search(text), text
 
 
 # ------------------------------------------------------------ the checks themselves

@@ -19,7 +19,8 @@ if TYPE_CHECKING:
     from ..model import Snake
     from ..trajectory import Trajectory
 
-__all__ = ["draw_snake", "plot_head_path", "plot_postures", "plot_trajectory", "save_figure"]
+__all__ = ["draw_snake", "plot_head_path", "plot_postures", "plot_r_maps", "plot_sweep",
+           "plot_trajectory", "save_figure"]
 
 BODY_COLOR = "#228b22"
 HEAD_COLOR = "#d9541a"
