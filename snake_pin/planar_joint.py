@@ -198,10 +198,9 @@ def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     model : pinocchio.Model or PlanarLayout
-        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
-        :func:`planar_layout`.
+        The planar model or its :func:`planar_layout`.
     q : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...].
 
     Returns
     -------
@@ -211,7 +210,7 @@ def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
         If a vector has the wrong size or non-finite entries.
     """
@@ -237,12 +236,9 @@ def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarr
     Parameters
     ----------
     model : pinocchio.Model or PlanarLayout
-        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
-        :func:`planar_layout`.
-    q : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
-    dq : array_like, shape (n + 2,)
-        Its time derivative q' [m/s, m/s, rad/s, rad/s...].
+        The planar model or its :func:`planar_layout`.
+    q, dq : array_like, shape (n + 2,)
+        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...] and q'.
 
     Returns
     -------
@@ -255,7 +251,7 @@ def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarr
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
         If a vector has the wrong size or non-finite entries.
     """
@@ -281,13 +277,10 @@ def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
     Parameters
     ----------
     model : pinocchio.Model or PlanarLayout
-        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
-        :func:`planar_layout`.
-    q_planar : array_like, shape (nq,)
-        The planar model's configuration ``[x, y, cos theta, sin theta, q_1 ..]``.
-    v_planar : array_like, shape (nv,) = (n + 2,)
-        The planar model's velocity ``[v_x, v_y, omega, q_1' ..]`` (v_x, v_y in the head's
-        frame).
+        The planar model or its :func:`planar_layout`.
+    q_planar, v_planar : array_like, shapes (nq,) and (n + 2,)
+        The planar model's ``[x, y, cos theta, sin theta, q_1 ..]`` and
+        ``[v_x, v_y, omega, q_1' ..]`` (v_x, v_y in the head's frame).
 
     Returns
     -------
@@ -299,7 +292,7 @@ def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
         If a vector has the wrong size or non-finite entries.
     """
@@ -323,12 +316,9 @@ def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
     Parameters
     ----------
     model : pinocchio.Model or PlanarLayout
-        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
-        :func:`planar_layout`.
-    q : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
-    dq : array_like, shape (n + 2,)
-        Its time derivative q' [m/s, m/s, rad/s, rad/s...].
+        The planar model or its :func:`planar_layout`.
+    q, dq : array_like, shape (n + 2,)
+        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...] and q'.
     ddq : array_like, shape (n + 2,)
         Paper acceleration q'' [m/s^2, m/s^2, rad/s^2, rad/s^2...].
 
@@ -340,7 +330,7 @@ def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
         If a vector has the wrong size or non-finite entries.
     """
@@ -358,13 +348,10 @@ def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.n
     Parameters
     ----------
     model : pinocchio.Model or PlanarLayout
-        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
-        :func:`planar_layout`.
-    q_planar : array_like, shape (nq,)
-        The planar model's configuration ``[x, y, cos theta, sin theta, q_1 ..]``.
-    v_planar : array_like, shape (nv,) = (n + 2,)
-        The planar model's velocity ``[v_x, v_y, omega, q_1' ..]`` (v_x, v_y in the head's
-        frame).
+        The planar model or its :func:`planar_layout`.
+    q_planar, v_planar : array_like, shapes (nq,) and (n + 2,)
+        The planar model's ``[x, y, cos theta, sin theta, q_1 ..]`` and
+        ``[v_x, v_y, omega, q_1' ..]`` (v_x, v_y in the head's frame).
     a_planar : array_like, shape (n + 2,)
         The planar model's acceleration (e.g. ``pin.aba``'s result).
 
@@ -376,7 +363,7 @@ def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.n
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
         If a vector has the wrong size or non-finite entries.
     """
@@ -397,10 +384,9 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
     Parameters
     ----------
     model : pinocchio.Model or PlanarLayout
-        The planar model (``pin.buildModelFromUrdf`` of a snake URDF) or its
-        :func:`planar_layout`.
+        The planar model or its :func:`planar_layout`.
     q : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...].
     force : array_like, shape (n + 2,)
         Generalised force in paper coordinates [N, N, N m, N m...].
 
@@ -412,7 +398,7 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`).
+        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
         If a vector has the wrong size or non-finite entries.
     """
@@ -436,10 +422,8 @@ def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarr
         The planar model.
     data : pinocchio.Data
         Its data (overwritten).
-    q : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
-    dq : array_like, shape (n + 2,)
-        Its time derivative q' [m/s, m/s, rad/s, rad/s...].
+    q, dq : array_like, shape (n + 2,)
+        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...] and q'.
 
     Returns
     -------

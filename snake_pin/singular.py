@@ -131,7 +131,8 @@ class SingularSearch:
         Parameters
         ----------
         straight_tol
-            A minimum with every |phi_i| <= this [rad] counts as the straight posture.
+            A minimum with every ``abs(phi_i) <= straight_tol`` counts as the straight
+            posture [rad].
 
         Returns
         -------
