@@ -401,8 +401,7 @@ class Path(abc.ABC):
         Parameters
         ----------
         s : float or array_like
-            Arc length(s) [m], any shape; beyond a finite curve's ends the curve goes on
-            straight.
+            Arc length(s) [m], any shape (beyond a finite curve's ends it goes on straight).
 
         Returns
         -------
@@ -423,7 +422,7 @@ class Path(abc.ABC):
                          flat.kappa.reshape(shape), flat.dkappa.reshape(shape))
 
     def point(self, s: object) -> np.ndarray:
-        """Return the point p(s) of the curve.
+        """Return the point p(s) [m], shape s.shape + (2,), of arc length(s) ``s`` [m].
 
         Parameters
         ----------
@@ -432,7 +431,7 @@ class Path(abc.ABC):
 
         Returns
         -------
-        numpy.ndarray, shape s.shape + (2,)
+        numpy.ndarray
             Points [m].
 
         Raises
@@ -443,13 +442,13 @@ class Path(abc.ABC):
         return self.geometry(s).p
 
     def default_span(self) -> tuple[float, float]:
-        """Return the arc lengths searched by :meth:`project` unless told otherwise.
+        """Return ``(s_min, s_max)`` [m] searched by :meth:`project` unless told otherwise.
 
         Returns
         -------
         tuple of float
-            ``(s_min, s_max)`` [m]: a finite curve with a margin of a quarter of its
-            length (at least 1 m) at each end, else ``(-1, DEFAULT_EXTENT)``.
+            A finite curve with a margin of a quarter of its length (at least 1 m) at each
+            end, else ``(-1, DEFAULT_EXTENT)``.
         """
         if math.isfinite(self.length):
             margin = max(1.0, 0.25 * self.length)
@@ -471,14 +470,12 @@ class Path(abc.ABC):
         points : array_like, shape (..., 2)
             Points [m].
         span : tuple of float, optional
-            ``(s_min, s_max)`` searched [m]; default :meth:`default_span`. The result lies
-            in it.
+            ``(s_min, s_max)`` searched [m]; default :meth:`default_span`. The result lies in it.
         hint : float or array_like, optional
-            Arc lengths near the answer (scalar or one per point), e.g. the last step's
-            answer when tracking a moving point: then the closest point within
-            :data:`HINT_RADIUS` of the hint is returned (the nearby branch of the path;
-            without a span, not bounded by :meth:`default_span`), from a table of
-            samples of the path and a local expansion (the controllers' hot path).
+            Arc lengths near the answer (scalar or one per point), e.g. the last answer when
+            tracking a moving point: then the closest point within :data:`HINT_RADIUS` of the
+            hint (without a span, not bounded by :meth:`default_span`), from a table of
+            samples and a local expansion (the controllers' hot path).
 
         Returns
         -------
@@ -488,8 +485,8 @@ class Path(abc.ABC):
         Raises
         ------
         ParameterError
-            If the points are not a finite (..., 2) array, the span is not increasing or
-            not finite, or the hint is not finite.
+            If the points are not a finite (..., 2) array, the span is not increasing or not
+            finite, or the hint is not finite.
         """
         pts = np.asarray(points, dtype=float)
         if pts.ndim == 0 or pts.shape[-1] != 2 or not np.isfinite(pts).all():
@@ -658,12 +655,12 @@ class Path(abc.ABC):
 
     def plot_points(self, span: tuple[float, float] | None = None,
                     count: int = 1000) -> np.ndarray:
-        """Return evenly spaced points along the path, for drawing.
+        """Return ``count`` evenly spaced points [m] along ``span`` (default :meth:`default_span`).
 
         Parameters
         ----------
         span : tuple of float, optional
-            ``(s_min, s_max)`` [m]; default :meth:`default_span`.
+            ``(s_min, s_max)`` [m].
         count : int, optional
             Number of points.
 
@@ -718,7 +715,7 @@ class Line(Path):
     start : tuple of float, optional
         Point at s = 0, ``(x, y)`` [m].
     direction : float, optional
-        Heading of the line [rad] (0: along +x).
+        Heading [rad] (0: along +x).
 
     Raises
     ------
@@ -801,8 +798,8 @@ class Circle(Path):
     """The circle of ``radius`` about ``centre``, from the polar angle ``start_angle``.
 
     Counter-clockwise (turning left, kappa = 1/radius) unless ``clockwise``. By default
-    (no centre, no start angle) the circle passes through the origin heading along +x.
-    s runs on over any number of laps; gamma grows without wrapping.
+    it passes through the origin heading along +x. s runs on over any number of laps;
+    gamma grows without wrapping.
 
     Parameters
     ----------
@@ -811,16 +808,16 @@ class Circle(Path):
     centre : tuple of float or None, optional
         Centre ``(x, y)`` [m]; None places it so that the start point is the origin.
     start_angle : float or None, optional
-        Polar angle of the start point about the centre [rad]; None: the angle that
-        makes the curve head along +x at the origin (or 0 when a centre is given).
+        Polar angle of the start point [rad]; None: the one that heads along +x at the
+        origin (or 0 when a centre is given).
     clockwise : bool, optional
         Travel clockwise (turning right, kappa = -1/radius).
 
     Raises
     ------
     ParameterError
-        If the radius is not positive, a number is not finite, or ``clockwise`` is not
-        a boolean.
+        If the radius is not positive, a number is not finite, or ``clockwise`` is not a
+        boolean.
     """
 
     radius: float = 1.2
@@ -878,7 +875,7 @@ class Circle(Path):
         return (s, *self._scalar(s)[:3])
 
     def default_span(self) -> tuple[float, float]:
-        """Return the first lap, ``(0, 2 pi radius)``, searched by :meth:`project`.
+        """Return the first lap, ``(0, 2 pi radius)`` [m], searched by :meth:`project`.
 
         Returns
         -------
@@ -898,8 +895,8 @@ class Circle(Path):
         span : tuple of float, optional
             ``(s_min, s_max)`` [m]: the first lap at or after s_min, capped at s_max.
         hint : float or array_like, optional
-            Arc length(s) near the answer: the lap nearest to it is chosen (this wins over
-            ``span``). Without either, the first lap.
+            Arc length(s) near the answer: the nearest lap to it (wins over ``span``). Without
+            either, the first lap.
 
         Returns
         -------
@@ -930,18 +927,10 @@ class Circle(Path):
 class Arc(_Finite, Circle):
     """A circular arc sweeping ``angle`` > 0 radians; straight beyond its ends.
 
-    The other parameters and defaults are those of :class:`Circle`.
-
     Parameters
     ----------
-    radius : float, optional
-        Radius [m], > 0.
-    centre : tuple of float or None, optional
-        Centre ``(x, y)`` [m]; None places it so that the start point is the origin.
-    start_angle : float or None, optional
-        Polar angle of the start point about the centre [rad] (see :class:`Circle`).
-    clockwise : bool, optional
-        Travel clockwise (turning right).
+    radius, centre, start_angle, clockwise
+        As :class:`Circle`'s.
     angle : float, optional
         Angle swept [rad], > 0 (pi/2 by default).
 
@@ -1015,18 +1004,17 @@ class _GraphCurve(Path):
 
 @dataclass(frozen=True)
 class LaneChange(_GraphCurve):
-    """Straight along +x for ``start``, an S of ``length`` to the line y = ``offset``, straight on.
+    """A lead-in of ``start`` along +x, an S of ``length_x`` to the line y = ``offset``, then on.
 
-    In the frame at ``origin`` rotated by ``direction``; ``offset`` > 0 moves left. The S is
-    ``y = offset P(x / length)`` with the septic smootherstep P (C3 joins, see the module).
+    In the frame at ``origin`` rotated by ``direction``; ``offset`` > 0 moves left. The S
+    is ``y = offset P(x / length)`` with the septic smootherstep P (C3 joins).
 
     Parameters
     ----------
     offset : float, optional
         Lateral shift [m], left positive.
     length_x : float, optional
-        Longitudinal length of the S [m], > 0 (``length`` in :func:`make_path` and in
-        path files).
+        Longitudinal length of the S [m], > 0 (``length`` in :func:`make_path` and files).
     start : float, optional
         Straight lead-in before the S [m], >= 0.
     origin : tuple of float, optional
@@ -1179,23 +1167,22 @@ class Sinusoid(_GraphCurve):
 
 @dataclass(frozen=True)
 class Waypoints(_Finite):
-    """The C2 cubic spline through ``points`` (natural ends), by arc length.
+    """The natural C2 cubic spline through ``points`` on the chord-length parameter, by arc length.
 
-    Chord-length parameter u (cumulative distances between consecutive points); the
-    curve is straight beyond the first and last points (zero curvature there).
-    ``knots_s`` holds the arc length of each waypoint.
+    Straight beyond the first and last points (zero curvature there); ``knots_s`` holds
+    the arc length of each waypoint.
 
     Parameters
     ----------
     points : sequence of (float, float)
-        Waypoints ``[[x, y], ...]`` [m], at least two and at most :data:`MAX_WAYPOINTS`,
-        consecutive ones distinct.
+        Waypoints ``[[x, y], ...]`` [m], 2 to :data:`MAX_WAYPOINTS`, consecutive ones
+        distinct.
 
     Raises
     ------
     ParameterError
-        If there are fewer than two waypoints or too many, one is not finite, two
-        consecutive ones coincide, or the spline has a cusp or turns too sharply.
+        If there are too few or too many waypoints, one is not finite, two consecutive
+        ones coincide, or the spline has a cusp or turns too sharply.
     """
 
     points: tuple[tuple[float, float], ...] = field(default=())
@@ -1316,9 +1303,9 @@ class Timing:
     """The timing law s(t): constant ``speed`` from arc length ``start``, after a smooth start.
 
     With ``ramp`` = T > 0 the speed rises from 0 to v over ``0 <= t <= T`` as
-    ``v sigma(t / T)``, ``sigma(u) = 10 u^3 - 15 u^4 + 6 u^5`` (so s'' is continuous),
-    then ``s = start + v (t - T / 2)``. Before t = 0 the reference waits at ``start`` (with
-    a ramp) or extends the line backwards (without).
+    ``v sigma(t / T)``, ``sigma(u) = 10 u^3 - 15 u^4 + 6 u^5`` (s'' is continuous), then
+    ``s = start + v (t - T / 2)``. Before t = 0 the reference waits at ``start`` (with a
+    ramp) or extends the line backwards (without).
 
     Parameters
     ----------
@@ -1362,7 +1349,7 @@ class Timing:
         return self.start + s, ds, dds
 
     def scalar(self, t: float) -> tuple[float, float, float]:
-        """Return (s, s', s'') at one time t, in plain floats (the controllers' hot path).
+        """Return (s, s', s'') at one time ``t`` in plain floats (the controllers' hot path).
 
         Parameters
         ----------
@@ -1388,8 +1375,8 @@ class Timing:
 class PathReference:
     """Head reference along a path: w_r(t) = [p(s(t)), gamma(s(t)) + pi] (head first).
 
-    Same interface as :class:`~snake_pin.control.reference.LinearReference`: calling it
-    at a time t gives (w_r, w_r', w_r''), three fresh float arrays of length 3.
+    Called at a time t it gives (w_r, w_r', w_r''), three fresh float arrays of length 3,
+    as :class:`~snake_pin.control.reference.LinearReference` does.
 
     Parameters
     ----------
@@ -1439,7 +1426,7 @@ class PathReference:
                           dkappa * ds * ds + kappa * dds]))
 
     def at(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return (w_r, w_r', w_r'') at many times (vectorised :meth:`__call__`).
+        """Return (w_r, w_r', w_r'') at many times (vectorised ``__call__``).
 
         Parameters
         ----------
@@ -1475,9 +1462,8 @@ def cross_track_error(path: Path | PathReference, points: object, *,
                       span: tuple[float, float] | None = None) -> np.ndarray:
     """Return the signed distance from each point to the path, positive on the left.
 
-    The closest point is searched over ``span`` (see :meth:`Path.project`). Where the
-    closest point is an end of the span, the distance to it is returned, signed by the
-    side of the tangent there.
+    Where the closest point is an end of the span, the distance to it is returned, signed
+    by the side of the tangent there.
 
     Parameters
     ----------
@@ -1508,7 +1494,7 @@ def cross_track_error(path: Path | PathReference, points: object, *,
 
 def along_track(path: Path | PathReference, points: object, *,
                 span: tuple[float, float] | None = None) -> np.ndarray:
-    """Return the arc length of the closest point of the path to each point.
+    """Return the arc length of the closest point of the path to each point (:meth:`Path.project`).
 
     Parameters
     ----------
@@ -1522,7 +1508,7 @@ def along_track(path: Path | PathReference, points: object, *,
     Returns
     -------
     numpy.ndarray, shape points.shape[:-1]
-        Arc lengths [m] (see :meth:`Path.project`).
+        Arc lengths [m].
 
     Raises
     ------
@@ -1695,18 +1681,17 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     Parameters
     ----------
     spec : str or os.PathLike or Path or PathReference
-        One of :data:`PATH_NAMES` (parameters in ``params``, see :func:`make_path`), a
-        ``.toml`` or ``.csv`` path file (see the module docstring), a :class:`Path`, or a
-        :class:`PathReference` (returned as is when no parameter is given).
+        One of :data:`PATH_NAMES` (see :func:`make_path`), a ``.toml`` or ``.csv`` path
+        file (see the module docstring), a :class:`Path`, or a :class:`PathReference`
+        (returned as is when no parameter is given).
     **params
         Shape parameters and the timing's ``speed`` [m/s] (default 0.1) and ``ramp`` [s]
-        (default 0). With a file, these override the file's values (e.g. a speed given
-        on the command line).
+        (default 0); with a file, they override its values.
 
     Returns
     -------
     PathReference
-        The path with its timing; calling it at t gives ``(w_r, w_r', w_r'')``.
+        The path with its timing.
 
     Raises
     ------
