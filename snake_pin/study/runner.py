@@ -4,45 +4,37 @@
 scheduler address and its Dask handshake), then prepares the folder (checking that it can
 write there), then runs the missing runs only:
 
-- **Cluster.** By default a :class:`distributed.LocalCluster` of ``workers`` processes
-  (default: one per core) with one thread each, everything bound to 127.0.0.1, and
-  **authenticated**: every connection (client, scheduler, workers, nannies) is TLS
-  (``tls://``) with mutual certificates made for this invocation by
-  :meth:`distributed.security.Security.temporary` (kept in memory, handed to the workers
-  by their nannies), so another local user, who can reach 127.0.0.1 but does not hold
-  them, is refused before any message is read. The HTTP servers (scheduler and workers)
-  serve no route and answer 403 to a Host header other than 127.0.0.1 or localhost;
-  ``dashboard=True`` serves the scheduler's Dask dashboard there (a random port on
-  127.0.0.1, logged). Workers start with ``OMP_WAIT_POLICY=PASSIVE`` and Dask's one-thread
-  BLAS/OpenMP environment, and each task limits thread pools again with threadpoolctl
-  (OpenMP's spinning wait and multi-threaded BLAS on tiny matrices are many times slower
-  when another core is busy).
-- **Existing cluster.** ``scheduler="tcp://HOST:PORT"`` or ``"tls://HOST:PORT"`` uses a
-  running cluster instead, with ``security`` (a :class:`distributed.security.Security`,
-  or a YAML file of Dask config read by :func:`load_security`; by default Dask's own
-  config, ``distributed.comm.tls.*``). :func:`check_scheduler` first completes Dask's
-  handshake with it and asks its identity, all within ``connect_timeout`` seconds
-  (default :data:`CONNECT_TIMEOUT`) on a deadline of its own: an address that refuses,
-  never answers, answers something else than Dask, resets the connection, wants TLS (or
-  other credentials) or is not a scheduler fails with one line before any file or folder
-  is created. Its workers need the same snake_pin installed, and should be started with
-  ``OMP_WAIT_POLICY=PASSIVE`` in their environment (OpenMP reads it when Pinocchio is
-  loaded, before any task runs; threadpoolctl still limits the thread counts per task).
-- **Tasks.** Every run is one task (:func:`plan_batches`), viscous and engine alike: the
-  task is :func:`snake_pin.study.work.run_batch` of that run, which simulates it exactly
-  as a single run does (:func:`snake_pin.study.work.simulate_scenario`). At
-  most one task per worker thread is submitted at a time (the next when one finishes), so
-  the runs in flight - what an interrupt or a dying worker can lose - are the running ones.
-- **Results.** Futures are gathered with :func:`distributed.as_completed`; each finished
-  task's rows are written at once as one Parquet batch file (temp + rename). A task that
-  raised is recorded as ``failed`` rows carrying the error; a task lost with a worker that
-  died (after Dask's own retries) is not recorded, and the next invocation runs it again.
-- **Interrupts.** On KeyboardInterrupt (Ctrl-C; ``snake-pin`` turns SIGTERM and SIGHUP
-  into one) the pending futures are cancelled, the client and the local cluster are
-  closed (the local workers are killed without waiting for their running task), the
-  runs already written are kept, the index is written marked ``interrupted``, and
-  :class:`~snake_pin.exceptions.RunInterrupted` is raised with the
-  :class:`~snake_pin.study.summary.StudySummary` as ``partial``.
+- **Local cluster** (the default): ``workers`` processes (one per core) of one thread,
+  bound to 127.0.0.1 and **authenticated**: every connection (client, scheduler, workers,
+  nannies) is TLS with mutual certificates made for this invocation by
+  :meth:`distributed.security.Security.temporary` (in memory, handed to the workers by
+  their nannies), so another local user, who can reach 127.0.0.1 but does not hold them,
+  is refused before any message is read. The HTTP servers serve no route and answer 403
+  to a Host header other than :data:`LOCAL_HOSTS`; ``dashboard=True`` serves Dask's
+  dashboard there (a random port, logged). Workers start with ``OMP_WAIT_POLICY=PASSIVE``
+  and one-thread BLAS/OpenMP, and each task limits thread pools again with threadpoolctl
+  (spinning waits and multi-threaded BLAS on tiny matrices are many times slower when
+  another core is busy).
+- **Existing cluster:** ``scheduler="tcp://HOST:PORT"`` or ``"tls://HOST:PORT"``, with
+  ``security`` (a :class:`distributed.security.Security`, a YAML file of Dask config read
+  by :func:`load_security`, or Dask's own ``distributed.comm.tls.*`` config).
+  :func:`check_scheduler` completes Dask's handshake and asks its identity on a deadline
+  of its own (``connect_timeout``): an address that refuses, never answers, speaks
+  something else, resets, wants other credentials or is not a scheduler fails with one
+  line before any file or folder is created. Its workers need the same snake_pin, and
+  ``OMP_WAIT_POLICY=PASSIVE`` in their environment (OpenMP reads it when Pinocchio loads).
+- **Tasks:** every run is one task, :func:`snake_pin.study.work.run_batch` of that run,
+  which simulates it exactly as a single run does. At most one task per worker thread is
+  in flight, so an interrupt or a dying worker can lose only the running runs.
+- **Results:** each finished task's rows are written at once as one Parquet batch file
+  (temp + rename). A task that raised is recorded as ``failed`` rows carrying the error;
+  a task lost with a dead worker (after Dask's retries) is not recorded, and the next
+  invocation runs it again.
+- **Interrupts:** on KeyboardInterrupt (``snake-pin`` turns SIGTERM and SIGHUP into one)
+  the pending futures are cancelled, the client and the local cluster closed (local
+  workers killed without waiting for their task), the runs already written kept, the
+  index written marked ``interrupted``, and :class:`~snake_pin.exceptions.RunInterrupted`
+  raised with the :class:`~snake_pin.study.summary.StudySummary` as ``partial``.
 """
 
 from __future__ import annotations
@@ -716,20 +708,22 @@ def dask_client(address: str | None, workers: int, *, security: Any = None,
             reason = one_line(str(made["error"])) if "error" in made else \
                 f"no answer within {timeout:g} s"
             raise StudyError(f"scheduler {address}: no Dask scheduler answered ({reason})")
-        client = made["client"]
-        try:
+        with _closing(made["client"]) as client:
             yield client
-        finally:
-            with contextlib.suppress(Exception):
-                client.close(timeout=_CLOSE_TIMEOUT)
         return
-    with _local_cluster(workers, dashboard=dashboard, log=log) as cluster:
-        client = Client(cluster, security=cluster.security, set_as_default=False)
-        try:
-            yield client
-        finally:
-            with contextlib.suppress(Exception):
-                client.close(timeout=_CLOSE_TIMEOUT)
+    with _local_cluster(workers, dashboard=dashboard, log=log) as cluster, \
+            _closing(Client(cluster, security=cluster.security, set_as_default=False)) as client:
+        yield client
+
+
+@contextlib.contextmanager
+def _closing(client: Any) -> Iterator[Any]:
+    """``client``, closed (errors ignored) when the block ends however it ends."""
+    try:
+        yield client
+    finally:
+        with contextlib.suppress(Exception):
+            client.close(timeout=_CLOSE_TIMEOUT)
 
 
 @contextlib.contextmanager
