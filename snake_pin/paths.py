@@ -46,25 +46,13 @@ expansion about the nearest sample, in closed form (agreeing with dense sampling
 below 1e-6 m). :func:`cross_track_error` (left positive) and :func:`along_track` are
 vectorised over points.
 
-:func:`load_path` takes a shape name with its parameters, or a file: TOML with
-``type = "waypoints"`` and ``points = [[x, y], ...]``, or ``type`` a shape name with that
-shape's parameters, optionally ``speed`` [m/s] and ``ramp`` [s]; or CSV waypoints (two
-columns x, y, an optional header line). Example::
-
-    type = "circle"
-    radius = 1.2
-    clockwise = true
-    speed = 0.1
-
-Path files are regular files (a FIFO or a device is refused unread) of at most
-:data:`MAX_PATH_FILE_BYTES`, a TOML one nested at most
-:data:`snake_pin._io.MAX_TOML_DEPTH` levels. Every number must be physically meaningful:
-coordinates and lengths within +-:data:`MAX_COORDINATE`, positive lengths at least
-:data:`MIN_LENGTH`, angles within +-:data:`MAX_ANGLE`, speeds at most
-:data:`MAX_PATH_SPEED`; beyond them the geometry would overflow or underflow instead of
-failing. Every problem is one :class:`PathFileError` line naming the file and the field,
-or a :class:`~snake_pin.exceptions.ParameterError` naming the parameter when no file is
-involved (``PathFileError`` is a ``ParameterError``).
+:func:`load_path` takes a shape name with its parameters, or a TOML or CSV path file
+(format in :doc:`/paths`). Every number must be physically meaningful (coordinates within
++-:data:`MAX_COORDINATE`, positive lengths at least :data:`MIN_LENGTH`, angles within
++-:data:`MAX_ANGLE`, speeds at most :data:`MAX_PATH_SPEED`): beyond them the geometry
+would overflow or underflow instead of failing. Every problem is one
+:class:`PathFileError` line naming the file and the field, or a
+:class:`~snake_pin.exceptions.ParameterError` naming the parameter.
 """
 
 from __future__ import annotations
@@ -1682,7 +1670,7 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     ----------
     spec : str or os.PathLike or Path or PathReference
         One of :data:`PATH_NAMES` (see :func:`make_path`), a ``.toml`` or ``.csv`` path
-        file (see the module docstring), a :class:`Path`, or a :class:`PathReference`
+        file (format in :doc:`/paths`), a :class:`Path`, or a :class:`PathReference`
         (returned as is when no parameter is given).
     **params
         Shape parameters and the timing's ``speed`` [m/s] (default 0.1) and ``ramp`` [s]
