@@ -3,40 +3,32 @@
 Every file snake_pin writes goes through this module, and every file it reads is opened
 by :func:`open_regular_file` (or :func:`read_regular_file`). What it promises:
 
-- **Whole or absent.** A file is written to a temporary sibling in the same folder, flushed
-  and ``fsync``-ed, then renamed onto its name (``os.replace``, atomic on POSIX), and the
-  folder is ``fsync``-ed so the rename itself is durable. A reader sees the old file or
-  the new one, never a part.
+- **Whole or absent.** A file is written to a temporary sibling, flushed and
+  ``fsync``-ed, renamed onto its name (``os.replace``, atomic on POSIX), and the folder
+  ``fsync``-ed so the rename is durable: a reader sees the old file or the new one.
 - **Permissions from the umask.** ``tempfile.mkstemp`` creates 0600 files and a rename
-  keeps the mode, so the temporary file is set to ``0o666 & ~umask`` before the rename
-  (0644 under umask 022, 0600 under 077), as ``open(path, "w")`` would create it. The umask
-  is read at each write from ``/proc/self/status`` (Linux >= 4.7), which changes nothing;
-  elsewhere it is read by setting it to 077 and back under a lock, so another thread
-  creating a file in between gets a private file, never a world-writable one.
-- **No temporary survives a kill.** Temporary names are
-  ``.NAME.snake_pin-PID-XXXXXXXX.tmp``: a hidden file carrying the writer's pid. They are
-  removed on any exception (KeyboardInterrupt included); after a ``kill -9`` they stay
-  until the next write in the same folder, which calls :func:`clean_stale_temporaries`
-  and removes those whose writer is no longer alive.
-- **Sets of files.** :func:`atomic_group` stages several files and renames them into place
-  only when its block succeeds: data files first, then figures, each kind in the order
-  written. See :func:`atomic_group` for exactly what a reader can see meanwhile.
+  keeps the mode, so the temporary is set to ``0o666 & ~umask`` first, as ``open(path,
+  "w")`` would. The umask is read from ``/proc/self/status`` (Linux >= 4.7), which changes
+  nothing; elsewhere by setting it to 077 and back under a lock, so another thread's file
+  created in between is private, never world-writable.
+- **No temporary survives a kill.** Temporaries are hidden ``.NAME.snake_pin-PID-XXXXXXXX.tmp``
+  files, removed on any exception (KeyboardInterrupt included); after a ``kill -9`` the
+  next write in that folder removes those whose writer is gone
+  (:func:`clean_stale_temporaries`).
+- **Sets of files.** :func:`atomic_group` renames several staged files into place only
+  when its block succeeds: data files first, then figures.
 - **Reads are bounded and never hang.** :func:`open_regular_file` refuses anything but a
-  regular file (a FIFO, socket, device or folder) before reading a byte: the name is
-  stat-ed first, then opened with ``O_NONBLOCK`` and the descriptor fstat-ed again (the
-  name may have changed in between), so a FIFO never blocks the reader. A file larger
-  than the caller's bound is refused from its size, before it is read. A caller that must
-  not follow a symbolic link (``follow_symlinks=False``) gets the link refused by the
-  open itself (``O_NOFOLLOW``), not by a check that a rename could race.
-- **TOML is bounded before it is parsed.** :func:`parse_toml` scans the text for nesting
-  (arrays, inline tables and dotted keys inside each other, at most
+  regular file before reading a byte: the name is stat-ed, opened with ``O_NONBLOCK`` (a
+  FIFO never blocks) and the descriptor fstat-ed again (the name may have changed); a
+  file larger than the caller's bound is refused from its size. ``follow_symlinks=False``
+  refuses a link in the open itself (``O_NOFOLLOW``), not by a check a rename could race.
+- **TOML is bounded before it is parsed.** :func:`parse_toml` scans the nesting (at most
   :data:`MAX_TOML_DEPTH` levels) before :mod:`tomllib` sees it: tomllib recurses once per
-  nested array or inline table, and its time and memory grow with the square of a dotted
-  key's length.
+  nested array or inline table, and its time grows with the square of a dotted key's length.
 
-Errors of writes are ``OSError`` naming the file the caller asked for, never a temporary
-name. Errors of reads are built by the caller's ``error`` function from one line that
-does not name the file (the caller prefixes it), so each loader raises its own
+Errors of writes are ``OSError`` naming the file the caller asked for, never a temporary.
+Errors of reads are built by the caller's ``error`` function from one line that does not
+name the file (the caller prefixes it), so each loader raises its own
 :class:`~snake_pin.exceptions.SnakePinError` subclass.
 """
 
