@@ -17,8 +17,7 @@ if TYPE_CHECKING:
     from .control.reference import HeadReference
     from .trajectory import Trajectory
 
-__all__ = ["ERROR_WINDOW", "applied", "criteria_along", "default_error_window", "error_caption",
-           "head_error_summary", "head_position_error", "percent", "window", "window_note"]
+__all__ = ["head_error_summary", "head_position_error"]
 
 #: Head errors are judged over t >= this [s] in runs of at least twice its length, after
 #: the start-up; shorter runs are judged over their second half (:func:`default_error_window`).
@@ -59,24 +58,8 @@ def _check_error(error: object, samples: int) -> np.ndarray:
 
 
 def default_error_window(t_final: float) -> float:
-    """Return the default start of the head-error window for a run of ``t_final`` seconds.
-
-    Parameters
-    ----------
-    t_final : float
-        The run's duration [s].
-
-    Returns
-    -------
-    float
-        ``min(ERROR_WINDOW, t_final / 2)`` [s]: 10 s for runs of 20 s or more, else the
-        run's second half, so that every run has a window.
-
-    Raises
-    ------
-    ParameterError
-        ``t_final`` is not a non-negative number.
-    """
+    """Return the start of the head-error window of a run of ``t_final`` seconds:
+    ``min(ERROR_WINDOW, t_final / 2)``, so that every run has a window."""
     return min(ERROR_WINDOW, 0.5 * finite_number(t_final, "t_final", non_negative=True))
 
 
@@ -159,26 +142,7 @@ def head_error_summary(traj: Trajectory, error: np.ndarray,
 
 
 def window_note(summary: Mapping[str, object]) -> str:
-    """Return one line saying that a run's head-error window is empty, or "".
-
-    Parameters
-    ----------
-    summary : Mapping of str to object
-        A run summary with ``error_window``, ``rms_head_error`` and ``t_end`` (as
-        ``Trajectory.summary_dict()`` gives them after :func:`head_error_summary`).
-
-    Returns
-    -------
-    str
-        ``"no samples in the head-error window t >= 20 s (the run ends at 3 s): the
-        head-error metrics are null"``, or "" when the window has samples (or the summary
-        has no head-error metrics).
-
-    Raises
-    ------
-    ParameterError
-        ``summary`` is not a mapping, or its window or error entries are not numbers.
-    """
+    """Return one line saying that a run's head-error window is empty, or ""."""
     start = _check_summary(summary).get("error_window")
     if start is None or "rms_head_error" not in summary \
             or summary.get("rms_head_error") is not None:
@@ -190,47 +154,12 @@ def window_note(summary: Mapping[str, object]) -> str:
 
 
 def percent(fraction: float | None) -> float | None:
-    """Return a fraction as a percentage, passing None (no error window) through.
-
-    Parameters
-    ----------
-    fraction : float or None
-        A fraction (e.g. ``rms_relative``).
-
-    Returns
-    -------
-    float or None
-        ``100 * fraction``, or None.
-
-    Raises
-    ------
-    ParameterError
-        ``fraction`` is neither None nor a finite number.
-    """
+    """Return a fraction as a percentage, passing None (no error window) through."""
     return None if fraction is None else 100.0 * finite_number(fraction, "fraction")
 
 
 def error_caption(summary: Mapping[str, object]) -> str:
-    """Return one line for figure titles: the RMS error of :func:`head_error_summary`.
-
-    Parameters
-    ----------
-    summary : Mapping of str to object
-        A run summary holding ``rms_head_error`` and ``rms_relative`` (as
-        :func:`head_error_summary` returns them; ``Trajectory.summary`` does).
-
-    Returns
-    -------
-    str
-        ``"RMS error over t >= 10 s: 0.012 m (1.0 % of the body)"`` (the window's start
-        from ``error_window``, :data:`ERROR_WINDOW` if absent), or a line saying the
-        window holds no sample.
-
-    Raises
-    ------
-    ParameterError
-        ``summary`` is not a mapping, or its window or error entries are not numbers.
-    """
+    """Return one line for figure titles: the RMS error of :func:`head_error_summary`."""
     start = float(cast(float, _check_summary(summary).get("error_window", ERROR_WINDOW)))
     rms = summary.get("rms_head_error")
     if rms is None:
@@ -242,31 +171,8 @@ def error_caption(summary: Mapping[str, object]) -> str:
 
 def criteria_along(traj: Trajectory, *, every: int = 1,
                    free_joint: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return the manipulability criteria D and R along a run.
-
-    Parameters
-    ----------
-    traj : Trajectory
-        A finished (or stopped) run: ``traj.t`` has shape (N,), ``traj.q`` (N, n + 2).
-    every : int, optional
-        Evaluate every ``every``-th sample (1: all).
-    free_joint : int or None, optional
-        A 1-based joint to treat as free (D~, R~ of Section III.2) besides the robot's
-        passive joints, which always count as free.
-
-    Returns
-    -------
-    t : numpy.ndarray, shape (M,)
-        Sample times [s], ``M = ceil(N / every)``.
-    D, R : numpy.ndarray, shape (M,)
-        The criteria of :func:`snake_pin.manipulability.manipulability` at those samples.
-
-    Raises
-    ------
-    ParameterError
-        ``traj`` is not a Trajectory, ``every`` is not a positive integer, or
-        ``free_joint`` is not a joint of the robot that leaves a task.
-    """
+    """Return ``(t, D, R)`` along a run, every ``every``-th sample; the robot's passive joints
+    always count as free, ``free_joint`` adds one."""
     snake = Snake(_check_traj(traj).params)
     every = integer(every, "every", low=1)
     task_split(snake.n, free_joint)  # the free joint checked before the first sample
@@ -279,28 +185,8 @@ def criteria_along(traj: Trajectory, *, every: int = 1,
 
 
 def applied(traj: Trajectory) -> np.ndarray:
-    """Return the mask of the samples whose torque was applied.
-
-    A run records one torque per sample, held until the next; the last sample's torque
-    was never applied (recorded as zero) unless the run diverged, where it is the torque
-    held while the state blew up.
-
-    Parameters
-    ----------
-    traj : Trajectory
-        A finished (or stopped) run: ``traj.tau`` has shape (N, n - 1).
-
-    Returns
-    -------
-    numpy.ndarray of bool, shape (N,)
-        True where ``traj.tau`` was applied: every sample of a diverged run, every sample
-        but the last otherwise.
-
-    Raises
-    ------
-    ParameterError
-        ``traj`` is not a Trajectory.
-    """
+    """Return the mask of the samples whose torque was applied: a run holds each torque
+    until the next sample, so the last one (zero) was never applied, unless the run diverged."""
     mask = np.ones(len(_check_traj(traj)), dtype=bool)
     if traj.status != "diverged" and mask.size:
         mask[-1] = False
@@ -308,27 +194,7 @@ def applied(traj: Trajectory) -> np.ndarray:
 
 
 def window(traj: Trajectory, start: float, stop: float | None = None) -> np.ndarray:
-    """Return the mask of the samples with ``start <= t <= stop``.
-
-    Parameters
-    ----------
-    traj : Trajectory
-        A finished (or stopped) run: ``traj.t`` has shape (N,), ``traj.q`` (N, n + 2).
-    start : float
-        Window start [s].
-    stop : float or None, optional
-        Window end [s]; the run's last time by default.
-
-    Returns
-    -------
-    numpy.ndarray of bool, shape (N,)
-        True inside the window.
-
-    Raises
-    ------
-    ParameterError
-        ``traj`` is not a Trajectory, or ``start`` or ``stop`` is not a number.
-    """
+    """Return the mask of the samples with ``start <= t <= stop``."""
     _check_traj(traj)
     start = finite_number(start, "start")
     stop = traj.t_end if stop is None else finite_number(stop, "stop")

@@ -376,22 +376,6 @@ ROWS: dict[str, Row] = {
     "snake_pin.paper.link_angles": Row(
         lambda w: (snake_pin.paper.link_angles, {"q": w.q}), errors={"q": CONFIG}),
     # ------------------------------------------------------------------- metrics
-    "snake_pin.metrics.applied": Row(
-        lambda w: (_m("snake_pin.metrics").applied, {"traj": w.traj})),
-    "snake_pin.metrics.default_error_window": Row(
-        lambda w: (_m("snake_pin.metrics").default_error_window, {"t_final": 20.0})),
-    "snake_pin.metrics.window_note": Row(
-        lambda w: (_m("snake_pin.metrics").window_note,
-                   {"summary": {"error_window": 10.0, "rms_head_error": None, "t_end": 3.0}}),
-        skip={"summary": "dict"}),
-    "snake_pin.metrics.criteria_along": Row(
-        lambda w: (_m("snake_pin.metrics").criteria_along,
-                   {"traj": w.traj, "every": 1, "free_joint": None}),
-        skip={"free_joint": "None"}),
-    "snake_pin.metrics.error_caption": Row(
-        lambda w: (_m("snake_pin.metrics").error_caption,
-                   {"summary": {"rms_head_error": 0.01, "rms_relative": 0.02}}),
-        skip={"summary": "dict"}),
     "snake_pin.metrics.head_error_summary": Row(
         lambda w: (_m("snake_pin.metrics").head_error_summary,
                    {"traj": w.traj, "error": np.zeros(len(w.traj)), "start": 0.0}),
@@ -399,13 +383,6 @@ ROWS: dict[str, Row] = {
     "snake_pin.metrics.head_position_error": Row(
         lambda w: (_m("snake_pin.metrics").head_position_error,
                    {"traj": w.traj, "reference": snake_pin.LinearReference()})),
-    "snake_pin.metrics.percent": Row(
-        lambda w: (_m("snake_pin.metrics").percent, {"fraction": 0.5}),
-        skip={"fraction": "None"}),
-    "snake_pin.metrics.window": Row(
-        lambda w: (_m("snake_pin.metrics").window, {"traj": w.traj, "start": 0.0,
-                                                    "stop": None}),
-        skip={"stop": "None"}),
     # ------------------------------------------------------------- control.base
     "snake_pin.control.base.TimeTerms": Row(
         lambda w: (_m("snake_pin.control.base").TimeTerms,
