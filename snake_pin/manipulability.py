@@ -50,15 +50,8 @@ from .model import Snake
 from .paper import k_matrix
 from .params import SnakeParams
 
-__all__ = [
-    "TASK_ROWS",
-    "Manipulability",
-    "dynamic_manipulability",
-    "lateral_constraint_manipulability",
-    "manipulability",
-    "manipulability_R_batch",
-    "task_split",
-]
+__all__ = ["TASK_ROWS", "Manipulability", "dynamic_manipulability",
+           "lateral_constraint_manipulability", "manipulability"]
 
 
 @dataclass(slots=True)
@@ -105,27 +98,6 @@ def task_split(n: int, free_joint: int | Sequence[int] | None = None,
 
     The task is ``w = [x_h, y_h, theta_1]`` (or ``[x_h, y_h]`` without heading) plus phi_k
     of each free joint k (1-based), i.e. the coordinates without an input.
-
-    Parameters
-    ----------
-    n : int
-        Number of links.
-    free_joint : int or sequence of int or None, optional
-        1-based free joint(s), each in 1..n - 1.
-    heading : bool, optional
-        Include theta_1 in the task (default); False lets it join the actuated block.
-
-    Returns
-    -------
-    task, actuated : numpy.ndarray of int
-        0-based velocity indices into ``dq = [x_h', y_h', theta_1', phi']`` (read-only).
-
-    Raises
-    ------
-    ParameterError
-        If ``n`` is not an integer, a free joint is not an integer in 1..n - 1,
-        ``heading`` is not a bool, or n is too small for the task (n >= 4 plus one link
-        per free joint).
     """
     n = integer(n, "n", low=2)
     task, actuated, _ = _split(n, free_joints(n, free_joint), flag(heading, "heading"))
@@ -358,44 +330,15 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
 def manipulability_R_batch(params: SnakeParams, phi: ArrayLike, *,
                            free_joint: int | Sequence[int] | None = None,
                            heading: bool = True) -> np.ndarray:
-    """Return R (or R~) for many joint-angle vectors at once, vectorised (sweeps, searches).
-
-    theta_1 = 0 without loss of generality (R is invariant under a rigid motion). As in
-    :func:`manipulability`, the robot's passive joints are free joints beside
-    ``free_joint``. Uses the closed form of H from eq. (19) for the task rows only. With
-    ``s = sin(theta)``, ``c = cos(theta)``, ``a = 1^T K`` and e_r the indicator of links
-    r + 1..n (``e_0 = 1``), the rows of H against ``[theta_1, phi]`` are::
-
-        x_h: -(a * s) L,   y_h: (a * c) L,   with a = m^T K (m the link masses),
-        theta_1 (r = 0) or phi_r:  e_r^T H-bar_22 L
-            = ([((m * K (s * e_r))^T K) * s + ((m * K (c * e_r))^T K) * c] + J * e_r) L,
-
-    restricted to the input columns. Checked against :func:`manipulability` in the tests.
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot.
-    phi : array_like, shape (B, n - 1) or (n - 1,)
-        Joint angles [rad], one posture per row.
-    free_joint : int or sequence of int or None, optional
-        1-based further free joint(s) (gives R~).
-    heading : bool, optional
-        Include theta_1 in the task (default).
-
-    Returns
-    -------
-    numpy.ndarray, shape (B,)
-        R of each posture (0 where the robot has fewer inputs than task directions).
-
-    Raises
-    ------
-    ConfigurationError
-        If ``phi`` is not finite numbers with n - 1 columns.
-    ParameterError
-        If ``params`` is not a SnakeParams, the free joint is not an integer in
-        1..n - 1, ``heading`` is not a bool, or the robot has too few links.
-    """
+    """Return R (or R~) of many postures ``phi`` (B, n - 1) at once, vectorised (sweeps,
+    searches); the robot's passive joints are free beside ``free_joint``."""
+    # theta_1 = 0 without loss of generality (R is invariant under a rigid motion). The
+    # closed form of H (eq. 19), task rows only. With s = sin(theta), c = cos(theta),
+    # a = m^T K (m the link masses) and e_r the indicator of links r + 1..n (e_0 = 1):
+    #   x_h: -(a * s) L,   y_h: (a * c) L,
+    #   theta_1 (r = 0) or phi_r:  e_r^T H-bar_22 L
+    #       = ([((m * K (s * e_r))^T K) * s + ((m * K (c * e_r))^T K) * c] + J * e_r) L,
+    # restricted to the input columns. Checked against manipulability() in the tests.
     n = instance(params, SnakeParams, "params").n
     try:
         angles = np.asarray(phi, dtype=float)

@@ -32,19 +32,9 @@ from ._io import atomic_write_bytes, decode_utf8, parse_toml, read_regular_file
 from .exceptions import ParameterError, RobotFileError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
-__all__ = [
-    "FRICTION_KEYS",
-    "GEOMETRY_TOLERANCE",
-    "MAX_ROBOT_FILE_BYTES",
-    "MAX_URDF_BYTES",
-    "MAX_URDF_LINKS",
-    "load_robot",
-    "read_robot_file",
-    "read_urdf",
-    "robot_file_string",
-    "robot_paths",
-    "write_robot_file",
-]
+__all__ = ["FRICTION_KEYS", "GEOMETRY_TOLERANCE", "MAX_ROBOT_FILE_BYTES", "MAX_URDF_BYTES",
+           "MAX_URDF_LINKS", "load_robot", "read_robot_file", "read_urdf", "robot_paths",
+           "write_robot_file"]
 
 #: Largest robot file read [bytes] (a 200-link robot with every field per link is ~30 kB).
 MAX_ROBOT_FILE_BYTES = 1 << 20
@@ -318,22 +308,6 @@ def _toml_per_link(key: str, value: float | tuple[float, ...]) -> str:
 
 def robot_file_string(params: SnakeParams) -> str:
     """Return the TOML robot file of ``params`` (:func:`read_robot_file` reads it back equal).
-
-    The format is fixed and small, so it is written here rather than by a TOML library
-    (none is a dependency): numbers as Python's shortest round-trip ``repr`` (valid TOML
-    floats: parameters are validated finite), per-link fields as one number or an array
-    (wrapped at about 80 characters), the name as a basic string (it is alphanumeric).
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot.
-
-    Returns
-    -------
-    str
-        The file's text: ``name``, ``n``, ``passive`` (if any), ``[links]`` and
-        ``[friction]`` tables.
     """
     lines = ["# snake_pin robot file (snake_pin.robot_file.read_robot_file reads it)",
              f'name = "{params.name}"', f"n = {params.n}"]

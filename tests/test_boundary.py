@@ -236,15 +236,6 @@ ROWS: dict[str, Row] = {
         lambda w: (_m("snake_pin.manipulability").lateral_constraint_manipulability,
                    {"snake": w.snake, "q": w.q, "constrained": [2, 3]}),
         skip={"constrained": "None"}, errors={"q": CONFIG}),
-    "snake_pin.manipulability.manipulability_R_batch": Row(
-        lambda w: (_m("snake_pin.manipulability").manipulability_R_batch,
-                   {"params": w.params, "phi": np.full((2, 4), 0.3), "free_joint": None,
-                    "heading": True}),
-        skip={"free_joint": "None", "heading": "bool"}, errors={"phi": CONFIG}),
-    "snake_pin.manipulability.task_split": Row(
-        lambda w: (_m("snake_pin.manipulability").task_split,
-                   {"n": 5, "free_joint": None, "heading": True}),
-        skip={"free_joint": "None", "heading": "bool"}),
     # --------------------------------------------------------------------- model
     "snake_pin.model.FastDynamics": Row(
         lambda w: (_m("snake_pin.model").FastDynamics, {"snake": w.snake, "rows": 4})),

@@ -48,8 +48,7 @@ from .results import RUNS, StudyFolder
 from .spec import SETTINGS, StudySpec
 from .summary import StudySummary
 
-__all__ = ["AXIS_LABELS", "LOG_SPAN", "MAX_TABLE_ROWS", "METRICS", "axis_label", "figure_plan",
-           "is_categorical", "save_figures", "write_index"]
+__all__ = ["AXIS_LABELS", "METRICS"]
 
 #: Most rows in the page's table (all runs are in the Parquet dataset anyway).
 MAX_TABLE_ROWS = 2000
@@ -88,22 +87,7 @@ document.querySelectorAll('table.sortable th').forEach(function (th, col) {
 
 
 def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
-    """Which figures a study gets (see the module docstring).
-
-    Parameters
-    ----------
-    spec
-        The study.
-
-    Returns
-    -------
-    kind : str
-        ``heatmap``, ``lines`` or ``histogram``.
-    plotted : list of str
-        The axes plotted (two, one or none).
-    replicate : list of str
-        The axes aggregated over (random axes and ``init_seed``).
-    """
+    """Which figures a study gets (see the module docstring)."""
     replicate = [a.setting for a in spec.axes if a.random or a.setting == "init_seed"]
     shown = [a.setting for a in spec.grid_axes if a.setting not in replicate]
     if len(shown) >= 2:
@@ -114,22 +98,7 @@ def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
 
 
 def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> Path:
-    """Write ``summary.json`` then ``index.html`` into the study folder.
-
-    Parameters
-    ----------
-    folder
-        The study folder (its recorded rows are read).
-    spec
-        The study.
-    summary
-        The invocation's summary.
-
-    Returns
-    -------
-    Path
-        ``index.html``.
-    """
+    """Write ``summary.json`` then ``index.html`` into the study folder."""
     table = folder.read_table()
     keys = {s.key for s in spec.scenarios}
     columns = {name: table.column(name).to_pylist() for name in table.column_names}
@@ -170,25 +139,7 @@ def _figures(kind: str, plotted: list[str], spec: StudySpec,
 
 def save_figures(spec: StudySpec, rows: Sequence[dict[str, Any]],
                  folder: str | os.PathLike[str], stem: str) -> list[tuple[Path, str]]:
-    """Write the study's figures (:func:`figure_plan`) as ``folder/STEM_METRIC.png``.
-
-    Parameters
-    ----------
-    spec
-        The study.
-    rows
-        Result rows (dicts, as ``pandas.read_parquet(DIR).to_dict("records")`` gives
-        them).
-    folder
-        An existing folder.
-    stem
-        Start of the file names.
-
-    Returns
-    -------
-    list of (Path, str)
-        Path and caption of each figure, in :data:`METRICS` order (none without rows).
-    """
+    """Write the study's figures (:func:`figure_plan`) as ``folder/STEM_METRIC.png``."""
     kind, plotted, _ = figure_plan(spec)
     out = []
     for metric, caption, fig in _figure_objects(kind, plotted, spec, list(rows)):
@@ -199,23 +150,7 @@ def save_figures(spec: StudySpec, rows: Sequence[dict[str, Any]],
 
 
 def axis_label(spec: StudySpec, name: str) -> tuple[str, Any]:
-    """How a figure shows the axis over a setting.
-
-    Parameters
-    ----------
-    spec
-        The study.
-    name
-        The setting.
-
-    Returns
-    -------
-    label : str
-        Words from :data:`AXIS_LABELS`; for ``c_y``, the ratio ``c_y/c_x`` when every
-        run's robot has one uniform, positive c_x.
-    shown : callable
-        Value -> the value shown (c_y -> c_y/c_x; otherwise unchanged).
-    """
+    """How a figure shows the axis over a setting."""
     if name == "c_y":
         c_x = {s.params.c_x for s in spec.scenarios}
         if len(c_x) == 1:
@@ -226,22 +161,7 @@ def axis_label(spec: StudySpec, name: str) -> tuple[str, Any]:
 
 
 def is_categorical(name: str, values: Sequence[Any]) -> bool:
-    """Whether a figure draws the axis over setting ``name`` as categories.
-
-    Parameters
-    ----------
-    name
-        The setting.
-    values
-        The axis's values.
-
-    Returns
-    -------
-    bool
-        True unless the setting is real-valued (kind ``float``) and every value is a
-        finite number: integer settings are indices or seeds (the failed joint, the
-        noise seed), text settings are names (controller, robot, cone, ...).
-    """
+    """Whether a figure draws the axis over setting ``name`` as categories."""
     setting = SETTINGS.get(name)
     if setting is None or setting.kind != "float":
         return True

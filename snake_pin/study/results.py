@@ -52,7 +52,7 @@ from .._validation import one_line, printable_path
 from .errors import StudyError
 from .spec import KEY_FORMAT, SETTINGS, StudySpec
 
-__all__ = ["RUNS", "SCHEMA", "STATUSES", "StudyFolder", "batch_name", "rows_table"]
+__all__ = ["RUNS", "SCHEMA", "STATUSES"]
 
 #: Folder of the Parquet dataset inside a study folder.
 RUNS = "runs"
@@ -79,40 +79,13 @@ _MAX_BATCH_FILE_BYTES = 1 << 26
 
 
 def batch_name(keys: Sequence[str]) -> str:
-    """The file name of a batch.
-
-    Parameters
-    ----------
-    keys
-        The run keys of the batch, in order.
-
-    Returns
-    -------
-    str
-        ``batch-<first 20 hex of sha256 of its keys>.parquet``.
-    """
+    """The file name of a batch."""
     digest = hashlib.sha256("\n".join(keys).encode("ascii")).hexdigest()
     return f"batch-{digest[:20]}.parquet"
 
 
 def rows_table(rows: Sequence[dict[str, Any]]) -> pa.Table:
-    """Rows as a table of :data:`SCHEMA` (missing columns null, extra keys refused).
-
-    Parameters
-    ----------
-    rows
-        Result rows (dicts keyed by column).
-
-    Returns
-    -------
-    pyarrow.Table
-        One row per dict, in order.
-
-    Raises
-    ------
-    StudyError
-        A row has a key that is not a column of :data:`SCHEMA`.
-    """
+    """Rows as a table of :data:`SCHEMA` (missing columns null, extra keys refused)."""
     names = set(SCHEMA.names)
     for row in rows:
         extra = set(row) - names
@@ -122,13 +95,7 @@ def rows_table(rows: Sequence[dict[str, Any]]) -> pa.Table:
 
 
 class StudyFolder:
-    """The output folder of one study (see the module docstring).
-
-    Parameters
-    ----------
-    path
-        ``DIR``; nothing is created until :meth:`prepare`.
-    """
+    """The output folder of one study (see the module docstring)."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
@@ -137,20 +104,7 @@ class StudyFolder:
 
     # ------------------------------------------------------------ checking
     def check(self, spec: StudySpec) -> None:
-        """Refuse a folder that cannot hold ``spec`` (creates nothing).
-
-        Parameters
-        ----------
-        spec
-            The study to be run here.
-
-        Raises
-        ------
-        StudyError
-            ``DIR`` is a file or a symbolic link; holds another study (its study.json hash
-            differs); is not empty and not a study folder; its study.json is unreadable;
-            or its ``runs`` is a symbolic link or not a folder.
-        """
+        """Refuse a folder that cannot hold ``spec`` (creates nothing)."""
         shown = printable_path(self.path)
         if self.path.is_symlink():
             raise StudyError(f"{shown} is a symbolic link; give the folder itself (a study "
@@ -185,18 +139,7 @@ class StudyFolder:
             raise StudyError(f"{printable_path(self.runs)} exists and is not a folder")
 
     def identity(self) -> dict[str, Any]:
-        """The stored ``study.json``.
-
-        Returns
-        -------
-        dict
-            Its content.
-
-        Raises
-        ------
-        StudyError
-            The file is unreadable or not a JSON object.
-        """
+        """The stored ``study.json``."""
         file = self.path / _IDENTITY
         shown = printable_path(file)
 
@@ -217,38 +160,14 @@ class StudyFolder:
         return data
 
     def done_keys(self) -> set[str]:
-        """Keys of the runs already recorded (every batch file's ``key`` column).
-
-        Returns
-        -------
-        set of str
-            The keys.
-
-        Raises
-        ------
-        StudyError
-            A batch file that is not usable (see :meth:`read_table`), named; its runs are
-            not counted (remove it to run them again).
-        """
+        """Keys of the runs already recorded (every batch file's ``key`` column)."""
         keys: set[str] = set()
         for file in self.batch_files():
             keys.update(_read_batch(file, ["key"]).column("key").to_pylist())
         return keys
 
     def batch_files(self) -> list[Path]:
-        """The batch files, sorted by name (hidden temporaries excluded).
-
-        Returns
-        -------
-        list of Path
-            The ``*.parquet`` entries of ``runs/``.
-
-        Raises
-        ------
-        StudyError
-            ``runs`` is a symbolic link, or one of its ``*.parquet`` entries is not a
-            regular file (a symbolic link, a folder, a device, ...).
-        """
+        """The batch files, sorted by name (hidden temporaries excluded)."""
         self._check_runs()
         if not self.runs.is_dir():
             return []
@@ -268,18 +187,6 @@ class StudyFolder:
 
         Writing is tried for real (a probe file in the folder and in ``runs/``, removed at
         once), so a folder where writing fails is refused here, before any run.
-
-        Parameters
-        ----------
-        spec
-            The study to be run here.
-
-        Raises
-        ------
-        StudyError
-            The folder cannot be created or written; its ``.lock`` is a symbolic link;
-            another process holds the folder's lock (a study is running there); or
-            :meth:`check` fails under the lock.
         """
         shown = printable_path(self.path)
         self.check(spec)
@@ -334,18 +241,7 @@ class StudyFolder:
 
     @contextlib.contextmanager
     def locked(self, spec: StudySpec) -> Iterator[StudyFolder]:
-        """:meth:`prepare` on entry, :meth:`release` on exit.
-
-        Parameters
-        ----------
-        spec
-            The study to be run here.
-
-        Yields
-        ------
-        StudyFolder
-            This folder, locked.
-        """
+        """:meth:`prepare` on entry, :meth:`release` on exit."""
         self.prepare(spec)
         try:
             yield self
@@ -353,20 +249,7 @@ class StudyFolder:
             self.release()
 
     def write_batch(self, keys: Sequence[str], rows: Sequence[dict[str, Any]]) -> Path:
-        """Write one batch's rows as ``runs/batch-<id>.parquet``, whole or not at all.
-
-        Parameters
-        ----------
-        keys
-            The batch's run keys (they name the file).
-        rows
-            Its result rows.
-
-        Returns
-        -------
-        Path
-            The file written.
-        """
+        """Write one batch's rows as ``runs/batch-<id>.parquet``, whole or not at all."""
         table = rows_table(rows)
         self._check_runs()
         path = self.runs / batch_name(keys)
@@ -374,25 +257,7 @@ class StudyFolder:
         return path
 
     def read_table(self, columns: Sequence[str] | None = None) -> pa.Table:
-        """Every recorded row (an empty table of :data:`SCHEMA` if none).
-
-        Parameters
-        ----------
-        columns
-            Only these columns (None: all).
-
-        Returns
-        -------
-        pyarrow.Table
-            The rows of every batch file, with the types of :data:`SCHEMA`.
-
-        Raises
-        ------
-        StudyError
-            A batch file is not a regular file, not readable Parquet, lacks a column of
-            :data:`SCHEMA` or holds it in an incompatible type, or has a row without a key
-            or with an unknown status; the message names it.
-        """
+        """Every recorded row (an empty table of :data:`SCHEMA` if none)."""
         names = list(columns) if columns is not None else list(SCHEMA.names)
         files = self.batch_files()
         if not files:

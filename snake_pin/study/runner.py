@@ -59,7 +59,7 @@ from .spec import Scenario, StudySpec, load_study
 from .summary import StudySummary
 
 __all__ = ["CONNECT_TIMEOUT", "LOCAL_HOSTS", "MAX_CONNECT_TIMEOUT", "MAX_WORKERS",
-           "check_scheduler", "dask_client", "load_security", "plan_batches", "run_study"]
+           "load_security", "run_study"]
 
 #: Default longest wait for a scheduler to complete Dask's handshake [s].
 CONNECT_TIMEOUT = 10.0
@@ -296,18 +296,7 @@ def _is_killed_worker(error: BaseException | None) -> bool:
 
 
 def plan_batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
-    """The study's tasks: one run each, in study order (viscous and engine runs alike).
-
-    Parameters
-    ----------
-    scenarios
-        The runs to execute, in study order.
-
-    Returns
-    -------
-    list of list of Scenario
-        One single-run task per scenario.
-    """
+    """The study's tasks: one run each, in study order (viscous and engine runs alike)."""
     return [[s] for s in scenarios]
 
 
@@ -315,34 +304,9 @@ def check_scheduler(address: str, *, security: Any = None,
                     timeout: float = CONNECT_TIMEOUT) -> str:
     """``address`` normalised, once the scheduler there has completed Dask's handshake.
 
-    A plain TCP connection first (a refused or unreachable address fails at once), then
-    Dask's own connection (TLS for ``tls://``), its handshake and an identity request, all
-    on a deadline of ``timeout`` seconds that does not rely on Dask's own timeouts (a
-    server that accepts connections but never answers is abandoned when it passes).
-
-    Parameters
-    ----------
-    address
-        ``tcp://HOST:PORT``, ``tls://HOST:PORT`` or ``HOST:PORT`` (tcp).
-    security
-        The cluster's credentials: a :class:`distributed.security.Security`, the path of a
-        YAML file of Dask config (:func:`load_security`), or None (Dask's own config).
-    timeout
-        Longest wait [s] (0 < ``timeout`` <= :data:`MAX_CONNECT_TIMEOUT`).
-
-    Returns
-    -------
-    str
-        The address as ``SCHEME://host:port`` (IPv6 hosts in brackets).
-
-    Raises
-    ------
-    StudyError
-        Not a ``[tcp|tls://]host:port`` address; a ``tls://`` address without
-        credentials, or a ``tcp://`` one with settings that require encryption; nothing
-        accepts a connection there; the server does not complete Dask's handshake within
-        ``timeout`` (silent, garbage, reset, a TLS server reached over ``tcp://``,
-        credentials it refuses); or it is not a scheduler.
+    TCP first (a refused address fails at once), then Dask's connection, handshake and an
+    identity request, on a deadline of ``timeout`` that does not rely on Dask's own
+    timeouts: a server that accepts connections but never answers is abandoned.
     """
     text, scheme, host, port = _parse_address(address)
     timeout = _check_timeout(timeout)
@@ -655,36 +619,9 @@ def dask_client(address: str | None, workers: int, *, security: Any = None,
             log: Callable[[str], None] | None = None) -> Iterator[Any]:
     """A Dask client of the scheduler at ``address``, or of a new local cluster.
 
-    The package's one executor: studies and :mod:`snake_pin.experiments.parallel` run
-    their tasks through it.
-
-    Parameters
-    ----------
-    address
-        ``tcp://`` or ``tls://`` address of an existing scheduler (checked first with
-        :func:`check_scheduler`); None starts a local cluster on 127.0.0.1, TLS with
-        credentials made for it, closed with its worker processes when the block ends
-        however it ends.
-    workers
-        Worker processes of the local cluster (one thread each).
-    security
-        The scheduler's ``distributed.security.Security`` (with ``address``).
-    timeout
-        Longest wait for the client of ``address`` [s].
-    dashboard
-        Serve the local cluster's dashboard on 127.0.0.1.
-    log
-        Receives the dashboard's link.
-
-    Yields
-    ------
-    distributed.Client
-        The client.
-
-    Raises
-    ------
-    StudyError
-        No Dask scheduler answered at ``address`` within ``timeout``.
+    The package's one executor (studies and :mod:`snake_pin.experiments.parallel`). The
+    local cluster listens on 127.0.0.1 with TLS credentials made for it, and is closed
+    with its workers when the block ends, however it ends.
     """
     from distributed import Client
 

@@ -42,9 +42,7 @@ from ..params import SnakeParams
 from ..sim import Trajectory
 from .spec import Scenario, canonical_json
 
-__all__ = ["CRITERIA_PERIOD", "RunOutcome", "build_controller", "failed_row",
-           "initial_noise", "initial_state", "reference", "result_row", "run_batch",
-           "simulate_scenario"]
+__all__: list[str] = []
 
 #: Manipulability criteria are evaluated along a run every this many seconds.
 CRITERIA_PERIOD = 0.1
@@ -52,17 +50,7 @@ CRITERIA_PERIOD = 0.1
 
 @dataclass
 class RunOutcome:
-    """What simulating one scenario gave: a trajectory, or the error that stopped it.
-
-    Parameters
-    ----------
-    trajectory
-        The run (its status says whether it completed or diverged); None if it raised.
-    error
-        The error text of a run that raised ("" otherwise).
-    wall_time
-        Simulation time of the run [s].
-    """
+    """What simulating one scenario gave: a trajectory, or the error that stopped it."""
 
     trajectory: Trajectory | None
     error: str = ""
@@ -74,19 +62,8 @@ def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
     """Run a task's scenarios one by one and return one result row per scenario, in order
     (the Dask task; the runner gives it one scenario).
 
-    A run that raises is a ``failed`` row with the error; a KeyboardInterrupt is not
-    caught (an interrupted task is lost whole, never half-written).
-
-    Parameters
-    ----------
-    scenarios
-        Runs of either model: viscous runs through :func:`simulate_scenario`, engine runs
-        through :func:`snake_pin.engine.run.run_engine`.
-
-    Returns
-    -------
-    list of dict
-        :func:`result_row` (or :func:`failed_row`) of each scenario.
+    A run that raises is a ``failed`` row; a KeyboardInterrupt is not caught (an interrupted
+    task is lost whole, never half-written).
     """
     from threadpoolctl import threadpool_limits
 
@@ -115,39 +92,14 @@ def _guarded(simulate: Any, scenario: Scenario) -> RunOutcome:
 
 # ---------------------------------------------------------------- one scenario
 def reference(scenario: Scenario) -> LinearReference:
-    """The head reference of a run.
-
-    Parameters
-    ----------
-    scenario
-        The run.
-
-    Returns
-    -------
-    LinearReference
-        Along +x at ``ref_speed``; head-first (theta_1 = pi) for the Lyapunov-like laws,
-        the VI.1 reference (theta_1 = 0) for PFL.
-    """
+    """The head reference of a run."""
     speed = scenario.settings.get("ref_speed", 0.1)
     heading = 0.0 if scenario.controller == "pfl" else math.pi
     return LinearReference(velocity=(speed, 0.0, 0.0), start=(0.0, 0.0, heading))
 
 
 def initial_state(scenario: Scenario) -> np.ndarray:
-    """The initial state of a run.
-
-    Parameters
-    ----------
-    scenario
-        The run.
-
-    Returns
-    -------
-    numpy.ndarray
-        [q, dq] (2(n + 2)): eq. (82)'s arc with every joint at ``init_phi`` (plus seeded
-        Gaussian noise of ``init_noise`` rad), head at the origin facing the reference's
-        heading, at rest.
-    """
+    """The initial state of a run."""
     from ..gaits import arc
 
     n = scenario.params.n
@@ -158,19 +110,7 @@ def initial_state(scenario: Scenario) -> np.ndarray:
 
 
 def initial_noise(scenario: Scenario) -> np.ndarray:
-    """The offsets a run adds to its initial joint angles (either model).
-
-    Parameters
-    ----------
-    scenario
-        The run.
-
-    Returns
-    -------
-    numpy.ndarray
-        n - 1 angles [rad]: Gaussian, of standard deviation ``init_noise``, drawn from
-        ``numpy.random.default_rng(init_seed)``; zeros when ``init_noise`` is 0.
-    """
+    """The offsets a run adds to its initial joint angles (either model)."""
     n = scenario.params.n
     if scenario["init_noise"] > 0:
         return np.random.default_rng(scenario["init_seed"]).normal(0.0, scenario["init_noise"],
@@ -179,22 +119,7 @@ def initial_noise(scenario: Scenario) -> np.ndarray:
 
 
 def build_controller(scenario: Scenario, snake: Any) -> Any:
-    """The controller of a run.
-
-    Parameters
-    ----------
-    scenario
-        The run (its controller, gains, gait and reference).
-    snake
-        The :class:`~snake_pin.model.Snake` the controller models.
-
-    Returns
-    -------
-    Controller
-        A :class:`~snake_pin.control.LyapunovController`,
-        :class:`~snake_pin.control.QuasiStaticLyapunovController` or
-        :class:`~snake_pin.control.PFLController`.
-    """
+    """The controller of a run."""
     from ..control import LyapunovController, PFLController, QuasiStaticLyapunovController
     from ..gaits import Serpenoid
 
@@ -217,18 +142,7 @@ def build_controller(scenario: Scenario, snake: Any) -> Any:
 
 
 def simulate_scenario(scenario: Scenario) -> RunOutcome:
-    """One viscous-model scenario through :func:`snake_pin.sim.simulate` (may raise).
-
-    Parameters
-    ----------
-    scenario
-        The run.
-
-    Returns
-    -------
-    RunOutcome
-        Its trajectory and wall time.
-    """
+    """One viscous-model scenario through :func:`snake_pin.sim.simulate` (may raise)."""
     from ..model import Snake
     from ..sim import simulate
 
@@ -285,41 +199,13 @@ def _settings_columns(scenario: Scenario) -> dict[str, Any]:
 
 
 def failed_row(scenario: Scenario, reason: str, wall_time: float = math.nan) -> dict[str, Any]:
-    """The row of a run that raised: status ``failed``, ``reason``, no metrics.
-
-    Parameters
-    ----------
-    scenario
-        The run.
-    reason
-        The error text.
-    wall_time
-        Time spent before it raised [s] (NaN: unknown).
-
-    Returns
-    -------
-    dict
-        Its settings, identity columns, status and reason; metrics None.
-    """
+    """The row of a run that raised: status ``failed``, ``reason``, no metrics."""
     return {**_settings_columns(scenario), "status": "failed", "reason": reason,
             **dict.fromkeys(_METRICS), "wall_time": _finite_or_none(wall_time)}
 
 
 def result_row(scenario: Scenario, outcome: RunOutcome) -> dict[str, Any]:
-    """The row of a simulated scenario: its settings, status and metrics.
-
-    Parameters
-    ----------
-    scenario
-        The run.
-    outcome
-        What simulating it gave (a run without a trajectory gives :func:`failed_row`).
-
-    Returns
-    -------
-    dict
-        The columns of :data:`snake_pin.study.results.SCHEMA` (module docstring).
-    """
+    """The row of a simulated scenario: its settings, status and metrics."""
     traj = outcome.trajectory
     if traj is None:
         return failed_row(scenario, outcome.error, outcome.wall_time)

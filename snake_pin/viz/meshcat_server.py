@@ -44,7 +44,7 @@ from meshcat.servers.zmqserver import (
 )
 from tornado.routing import HostMatches, Rule
 
-__all__ = ["BACKLOG", "HOST", "LOCAL_HOSTS", "LoopbackApplication", "LoopbackBridge", "main"]
+__all__: list[str] = []
 
 HOST = "127.0.0.1"
 BACKLOG = 1024
@@ -53,20 +53,7 @@ _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
 
 class LoopbackApplication(tornado.web.Application):
-    """A tornado application whose ``listen`` binds 127.0.0.1 whatever address it is given.
-
-    Parameters
-    ----------
-    handlers : list, optional
-        Tornado rules or ``(pattern, handler, kwargs)`` tuples, as for
-        :class:`tornado.web.Application`.
-    default_host : str or None, optional
-        As for :class:`tornado.web.Application`.
-    transforms : list or None, optional
-        As for :class:`tornado.web.Application`.
-    **settings
-        As for :class:`tornado.web.Application`.
-    """
+    """A tornado application whose ``listen`` binds 127.0.0.1 whatever address it is given."""
 
     def listen(self, port: int, address: str | None = None,
                **kwargs: Any) -> tornado.httpserver.HTTPServer:
@@ -75,25 +62,6 @@ class LoopbackApplication(tornado.web.Application):
         The accept queue holds :data:`BACKLOG` connections (tornado's default, 128, is
         overrun by a burst of short connections: the kernel then drops SYNs and every
         client waits a second for the retransmission).
-
-        Parameters
-        ----------
-        port : int
-            TCP port on 127.0.0.1 (0: any free one).
-        address : str or None, optional
-            Ignored: the server always binds :data:`HOST`.
-        **kwargs
-            Passed to tornado's ``listen`` (``backlog`` defaults to :data:`BACKLOG`).
-
-        Returns
-        -------
-        tornado.httpserver.HTTPServer
-            The listening server.
-
-        Raises
-        ------
-        OSError
-            If the port is in use or cannot be bound.
         """
         kwargs.setdefault("backlog", BACKLOG)
         return super().listen(port, HOST, **kwargs)
@@ -101,11 +69,6 @@ class LoopbackApplication(tornado.web.Application):
 
 class LoopbackBridge(ZMQWebSocketBridge):
     """meshcat's bridge with its web app on :class:`LoopbackApplication` and ZMQ on 127.0.0.1.
-
-    Parameters
-    ----------
-    port : int or None, optional
-        Web port on 127.0.0.1; None searches from 7000 as meshcat does.
     """
 
     def __init__(self, port: int | None = None) -> None:
@@ -117,11 +80,6 @@ class LoopbackBridge(ZMQWebSocketBridge):
         They answer only requests whose ``Host`` names the loopback address
         (:data:`LOCAL_HOSTS`); any other host gets 404, so a page from elsewhere that
         re-points its own domain at 127.0.0.1 (DNS rebinding) reaches nothing.
-
-        Returns
-        -------
-        LoopbackApplication
-            The application meshcat's bridge listens with.
         """
         return LoopbackApplication([Rule(HostMatches(LOCAL_HOSTS), [
             (r"/static/(.*)", StaticFileHandlerNoCache,
@@ -168,17 +126,6 @@ def _silence() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Start the bridge, print its URLs, serve until interrupted, the parent dies or stdin ends.
-
-    Parameters
-    ----------
-    argv : list of str or None, optional
-        Command-line arguments (``--port``, ``--parent PID``, ``--stdin-eof``,
-        ``--quiet``); ``sys.argv[1:]`` by default.
-
-    Returns
-    -------
-    int
-        The exit status, 0.
     """
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--port", type=int, default=None,

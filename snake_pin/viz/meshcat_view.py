@@ -51,8 +51,7 @@ if TYPE_CHECKING:
 
     from ..trajectory import Trajectory
 
-__all__ = ["BODY_COLOR", "offline_visualizer", "start_server", "stop_server", "view",
-           "write_html"]
+__all__ = ["view", "write_html"]
 
 BODY_COLOR = 0x228B22
 HEAD_COLOR = 0xD9541A
@@ -109,32 +108,8 @@ def _read_urls(proc: subprocess.Popen[bytes], timeout: float) -> dict[str, str] 
 
 def start_server(port: int | None = None, timeout: float = 20.0
                  ) -> tuple[subprocess.Popen[bytes], str, str]:
-    """Start meshcat's bridge on 127.0.0.1 in a child process.
-
-    Parameters
-    ----------
-    port : int or None, optional
-        The web port on 127.0.0.1; None takes the first free one from 7000.
-    timeout : float, optional
-        Seconds to wait for the server to announce its URLs.
-
-    Returns
-    -------
-    process : subprocess.Popen
-        The server process.
-    zmq_url, web_url : str
-        Its ZMQ address and the viewer's URL (both on 127.0.0.1). Stop the process with
-        :func:`stop_server`; it also stops by itself when this process ends, however it
-        ends.
-
-    Raises
-    ------
-    ParameterError
-        If ``port`` is outside 1..65535, or cannot be bound on 127.0.0.1 (in use, or
-        permission denied: ports below 1024 need privileges), saying which.
-    SnakePinError
-        If the server does not start.
-    """
+    """Start meshcat's bridge on 127.0.0.1 (``port``, or the first free one from 7000) in a
+    child process that stops when this one ends; return it, its ZMQ URL and its web URL."""
     if port is not None:
         if not 1 <= port <= 65535:
             raise ParameterError(f"port must lie in 1..65535, got {port}")
@@ -173,11 +148,6 @@ def stop_server(proc: subprocess.Popen[bytes]) -> None:
 
     Closes its stdin (the server stops at end of file), then sends SIGTERM, and SIGKILL
     after 5 s.
-
-    Parameters
-    ----------
-    proc : subprocess.Popen
-        The process :func:`start_server` returned.
     """
     if proc.stdin is not None and not proc.stdin.closed:
         proc.stdin.close()  # end of file: the server leaves its loop
@@ -241,11 +211,6 @@ def offline_visualizer() -> meshcat.Visualizer:
     Its window passes every command to meshcat's own bridge code, run in this process on
     an in-memory scene tree; ``static_html()`` then returns meshcat's static export of
     the scene, as a live server would.
-
-    Returns
-    -------
-    meshcat.Visualizer
-        A visualizer on an empty in-memory scene.
     """
     import meshcat
     from meshcat.servers.tree import SceneTree

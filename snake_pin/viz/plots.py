@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from ..trajectory import Trajectory
 
 __all__ = ["draw_snake", "plot_head_path", "plot_postures", "plot_r_maps", "plot_sweep",
-           "plot_trajectory", "save_figure"]
+           "plot_trajectory"]
 
 BODY_COLOR = "#228b22"
 HEAD_COLOR = "#d9541a"
@@ -33,18 +33,6 @@ def save_figure(fig: plt.Figure, path: str | os.PathLike[str] | None) -> plt.Fig
     A figure without a layout engine gets the constrained layout, which makes room for
     labels, titles and colorbars in the one draw that renders the PNG; the tight bounding
     box (``bbox_inches="tight"``) would draw every figure twice.
-
-    Parameters
-    ----------
-    fig : matplotlib.figure.Figure
-        The figure.
-    path : str or os.PathLike or None
-        PNG file to write at 110 dpi; None does nothing.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        ``fig`` (closed if it was saved).
     """
     if path is not None:
         if fig.get_layout_engine() is None:
