@@ -69,29 +69,24 @@ _TOLERANCE = 1e-12
 
 @dataclass(frozen=True)
 class PlanarLayout:
-    """Where a planar-joint snake model keeps each coordinate.
-
-    Built by :func:`planar_layout`; every conversion function accepts it in place of
-    the model (no re-check of the model).
+    """Where a planar-joint snake model keeps each coordinate (:func:`planar_layout` builds it;
+    the conversions accept it in place of the model, without re-checking the model).
 
     Parameters
     ----------
-    n : int
-        Number of links.
-    nq, nv : int
-        The planar model's sizes (nq = n + 3 + number of continuous joints, nv = n + 2).
+    n, nq, nv : int
+        Links, and the planar model's sizes (nq = n + 3 + continuous joints, nv = n + 2).
     idx_q : numpy.ndarray of int, shape (n - 1,)
-        Index in the planar configuration of each joint's first coordinate.
+        Index of each joint's first planar coordinate.
     unbounded : numpy.ndarray of bool, shape (n - 1,)
-        True for joints stored as (cos, sin) (``continuous`` in the URDF).
+        True for joints stored as (cos, sin) (``continuous``).
     signs : numpy.ndarray of float, shape (n - 1,)
-        s_i: +1 for a joint about +z, -1 about -z (``q_i = s_i phi_i``).
+        s_i: +1 about +z, -1 about -z.
 
     Raises
     ------
     ParameterError
-        A size is not an integer (n >= 2, nv = n + 2, nq >= nv + 1), or an array does
-        not hold n - 1 entries of its kind (indices within nq, signs +-1).
+        A size or an array is not as described.
     """
 
     n: int
@@ -139,8 +134,7 @@ def planar_layout(model: pin.Model) -> PlanarLayout:
     Parameters
     ----------
     model : pinocchio.Model
-        A model with a ``JointModelPlanar`` root, e.g. ``pin.buildModelFromUrdf`` of a
-        URDF written by :func:`snake_pin.urdf.write_urdf`.
+        E.g. ``pin.buildModelFromUrdf`` of a URDF of :func:`snake_pin.urdf.write_urdf`.
 
     Returns
     -------
@@ -150,10 +144,8 @@ def planar_layout(model: pin.Model) -> PlanarLayout:
     Raises
     ------
     ParameterError
-        Naming the joint that is not as expected: the first joint must be
-        ``JointModelPlanar`` at the origin, each other a revolute joint about +-z whose
-        parent is the previous joint and whose placement does not rotate; or ``model`` is
-        not a ``pinocchio.Model``.
+        Naming the joint that is not as the module docstring says, or ``model`` is not a
+        ``pinocchio.Model``.
     """
     instance(model, pin.Model, "model", "a pinocchio.Model")
     if model.njoints < 3:
@@ -200,7 +192,7 @@ def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
     model : pinocchio.Model or PlanarLayout
         The planar model or its :func:`planar_layout`.
     q : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...].
+        Paper configuration.
 
     Returns
     -------
@@ -210,9 +202,9 @@ def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
-        If a vector has the wrong size or non-finite entries.
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -238,22 +230,21 @@ def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarr
     model : pinocchio.Model or PlanarLayout
         The planar model or its :func:`planar_layout`.
     q, dq : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...] and q'.
+        Paper configuration and velocity.
 
     Returns
     -------
     q_planar : numpy.ndarray, shape (nq,)
-        ``[x_h, y_h, cos theta_1, sin theta_1, s_i phi_i ..]`` (cos, sin pairs for
-        continuous joints).
+        ``[x_h, y_h, cos theta_1, sin theta_1, s_i phi_i ..]``.
     v_planar : numpy.ndarray, shape (n + 2,)
         ``T q'``.
 
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
-        If a vector has the wrong size or non-finite entries.
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -279,22 +270,19 @@ def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
     model : pinocchio.Model or PlanarLayout
         The planar model or its :func:`planar_layout`.
     q_planar, v_planar : array_like, shapes (nq,) and (n + 2,)
-        The planar model's ``[x, y, cos theta, sin theta, q_1 ..]`` and
-        ``[v_x, v_y, omega, q_1' ..]`` (v_x, v_y in the head's frame).
+        The planar model's configuration and velocity.
 
     Returns
     -------
-    q : numpy.ndarray, shape (n + 2,)
-        ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
-    dq : numpy.ndarray, shape (n + 2,)
-        ``T^T v_planar`` [m/s, m/s, rad/s, rad/s...].
+    q, dq : numpy.ndarray, shape (n + 2,)
+        Paper configuration and ``T^T v_planar``.
 
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
-        If a vector has the wrong size or non-finite entries.
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q_planar = as_vector(q_planar, layout.nq, "q_planar")
@@ -317,22 +305,20 @@ def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
     ----------
     model : pinocchio.Model or PlanarLayout
         The planar model or its :func:`planar_layout`.
-    q, dq : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...] and q'.
-    ddq : array_like, shape (n + 2,)
-        Paper acceleration q'' [m/s^2, m/s^2, rad/s^2, rad/s^2...].
+    q, dq, ddq : array_like, shape (n + 2,)
+        Paper configuration, velocity and acceleration.
 
     Returns
     -------
     numpy.ndarray, shape (n + 2,)
-        The planar model's acceleration (derivative of the components of ``v_planar``).
+        The planar model's acceleration.
 
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
-        If a vector has the wrong size or non-finite entries.
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     _, v_planar = paper_to_planar(layout, q, dq)
@@ -349,23 +335,20 @@ def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.n
     ----------
     model : pinocchio.Model or PlanarLayout
         The planar model or its :func:`planar_layout`.
-    q_planar, v_planar : array_like, shapes (nq,) and (n + 2,)
-        The planar model's ``[x, y, cos theta, sin theta, q_1 ..]`` and
-        ``[v_x, v_y, omega, q_1' ..]`` (v_x, v_y in the head's frame).
-    a_planar : array_like, shape (n + 2,)
-        The planar model's acceleration (e.g. ``pin.aba``'s result).
+    q_planar, v_planar, a_planar : array_like, shapes (nq,), (n + 2,), (n + 2,)
+        The planar model's configuration, velocity and acceleration (e.g. ``pin.aba``'s).
 
     Returns
     -------
     numpy.ndarray, shape (n + 2,)
-        Paper acceleration q'' [m/s^2, m/s^2, rad/s^2, rad/s^2...].
+        Paper acceleration q''.
 
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
-        If a vector has the wrong size or non-finite entries.
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q, dq = planar_to_paper(layout, q_planar, v_planar)
@@ -378,17 +361,15 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
                           force: np.ndarray) -> np.ndarray:
     """Return the planar model's generalised force of a paper one: ``T^-T f = T f``.
 
-    For joint torques, ``force = E tau`` (zeros on x_h, y_h, theta_1) gives
-    ``[0, 0, 0, s_i tau_i]``, the ``tau`` to pass to ``pin.aba`` on the planar model.
+    For joint torques, ``force = E tau`` gives ``[0, 0, 0, s_i tau_i]``, the ``tau`` to
+    pass to ``pin.aba`` on the planar model.
 
     Parameters
     ----------
     model : pinocchio.Model or PlanarLayout
         The planar model or its :func:`planar_layout`.
-    q : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...].
-    force : array_like, shape (n + 2,)
-        Generalised force in paper coordinates [N, N, N m, N m...].
+    q, force : array_like, shape (n + 2,)
+        Paper configuration and generalised force.
 
     Returns
     -------
@@ -398,9 +379,9 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
     ConfigurationError
-        If a vector has the wrong size or non-finite entries.
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     force = as_vector(force, layout.n + 2, "force")
@@ -411,10 +392,8 @@ def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarr
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Return H(q) and the friction-free h(q, q') of eq. (20), computed on the planar model.
 
-    ``H = T^T M T`` and ``h = T^T (b + M T' q')``, with M by CRBA and b =
-    ``nonLinearEffects`` of the planar model at the converted state; equal to
-    :class:`~snake_pin.Snake`'s ``inertia_matrix`` and ``coriolis`` (friction is not in a
-    URDF).
+    ``H = T^T M T`` and ``h = T^T (b + M T' q')`` (M by CRBA, b = ``nonLinearEffects``);
+    equal to :class:`~snake_pin.Snake`'s ``inertia_matrix`` and ``coriolis``.
 
     Parameters
     ----------
@@ -423,22 +402,21 @@ def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarr
     data : pinocchio.Data
         Its data (overwritten).
     q, dq : array_like, shape (n + 2,)
-        Paper configuration ``[x_h, y_h, theta_1, phi]`` [m, m, rad, rad...] and q'.
+        Paper configuration and velocity.
 
     Returns
     -------
     H : numpy.ndarray, shape (n + 2, n + 2)
         Inertia matrix in paper coordinates.
     h : numpy.ndarray, shape (n + 2,)
-        Coriolis/centrifugal generalised forces (no friction) [N, N, N m, N m...].
+        Coriolis/centrifugal generalised forces (no friction).
 
     Raises
     ------
     ParameterError
-        If ``model`` is not a planar-root serial snake (see :func:`planar_layout`), or
-        ``data`` is not a ``pinocchio.Data`` of it.
+        ``model`` is not a planar-root serial snake, or ``data`` not its Data.
     ConfigurationError
-        If a vector has the wrong size or non-finite entries.
+        A vector has the wrong size or non-finite entries.
     """
     layout = planar_layout(model)
     model_data(data, model, pin.Data)
