@@ -1,56 +1,16 @@
 """Planar paths and head references along them: a curve p(s) plus a timing law s(t).
 
-A :class:`Path` is a planar curve parametrised by arc length s, with its tangent angle
-gamma(s) (continuous, never wrapped), curvature kappa(s) and its rate kappa'(s); a
-:class:`Timing` gives s(t) at a constant speed, optionally after a smooth start; a
-:class:`PathReference` joins the two into the head reference the controllers consume,
-with the interface of :class:`~snake_pin.control.reference.LinearReference`:
-``reference(t) -> (w_r, w_r', w_r'')``, three fresh arrays of length 3.
-
-The shapes (by default each starts at the origin heading along +x):
-
-- :class:`Line`: any start point and direction.
-- :class:`Circle` and :class:`Arc`: centre, radius, start angle (polar angle of the start
-  point about the centre), direction of travel.
-- :class:`LaneChange`: a lead-in, then a smooth S to a parallel line at a lateral
-  ``offset`` over a ``length``: ``y = offset P(x / length)`` with the septic smootherstep
-  ``P = 35 u^4 - 84 u^5 + 70 u^6 - 20 u^7``, whose first three derivatives vanish at both
-  ends, so the curve is C3 and w_r'' is continuous in time.
-- :class:`Sinusoid`: ``y = amplitude sin(2 pi x / wavelength)``.
-- :class:`Waypoints`: a C2 natural cubic spline through user points on the chord-length
-  parameter; kappa' jumps at the knots, so the heading's w_r'' jumps there.
-
-Finite curves (arcs, waypoints) continue straight along their end tangents; a circle's s
-runs on over any number of laps.
-
-Curves without a closed-form arc length are written p(u); ``s(u)`` is tabulated by
-8-point Gauss-Legendre quadrature and u(s) found by Newton's method on ``s(u) - s = 0``
-to round-off. The tangent, curvature and its rate follow from the derivatives of p(u)::
-
-    t = p'/|p'|,   kappa = (p' x p'')/|p'|^3,
-    dkappa/ds = [(p' x p''') |p'|^2 - 3 (p' x p'')(p' . p'')] / |p'|^6.
-
-In the paper's coordinates theta_1 points from the head towards the tail, so a head that
-leads along the tangent has ``theta_1 = gamma(s) + pi``. With ``s = s(t)`` and n the left
-normal (``dt/ds = kappa n``), the chain rule gives exactly::
-
-    w_r   = [p(s), gamma(s) + pi]
-    w_r'  = [t s',  kappa s']
-    w_r'' = [kappa n s'^2 + t s'',  kappa' s'^2 + kappa s'']
-
-:meth:`Path.project` finds the arc length of the closest point: the nearest point of a
-fine grid (a k-d tree), then safeguarded Newton steps on ``(p(s) - x) . t(s) = 0``. Given
-a hint (a moving point tracked from its last answer, the LOS law's hot path) it searches
-a table of samples within :data:`HINT_RADIUS` of the hint and refines on the path's cubic
-expansion about the nearest sample, in closed form (agreeing with dense sampling to well
-below 1e-6 m). :func:`cross_track_error` (left positive) and :func:`along_track` are
-vectorised over points.
+A :class:`Path` (shapes :class:`Line`, :class:`Circle`, :class:`Arc`, :class:`LaneChange`,
+:class:`Sinusoid`, :class:`Waypoints`) gives p(s), its tangent angle, curvature and its
+rate; a :class:`Timing` gives s(t); a :class:`PathReference` joins them into the head
+reference the controllers consume (the interface of
+:class:`~snake_pin.control.reference.LinearReference`). :func:`cross_track_error` (left
+positive) and :func:`along_track` are vectorised over points. The geometry, the reference's
+derivatives and the projection are in :doc:`/paths` (Path geometry).
 
 :func:`load_path` takes a shape name with its parameters, or a TOML or CSV path file
-(format in :doc:`/paths`). Every number must be physically meaningful (coordinates within
-+-:data:`MAX_COORDINATE`, positive lengths at least :data:`MIN_LENGTH`, angles within
-+-:data:`MAX_ANGLE`, speeds at most :data:`MAX_PATH_SPEED`): beyond them the geometry
-would overflow or underflow instead of failing. Every problem is one
+(format and bounds in :doc:`/paths`): every number must be physically meaningful, or the
+geometry would overflow or underflow instead of failing. Every problem is one
 :class:`PathFileError` line naming the file and the field, or a
 :class:`~snake_pin.exceptions.ParameterError` naming the parameter.
 """
