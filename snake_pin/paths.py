@@ -413,6 +413,9 @@ class Path(abc.ABC):
                 hint: object = None) -> np.ndarray:
         """Return the arc length ``s*`` of the closest point of the path to each point.
 
+        Lines and circles project exactly (a circle: the lap nearest the hint, else the first
+        lap at or after ``s_min``, capped at ``s_max``; a line ignores the hint).
+
         Parameters
         ----------
         points : array_like, shape (..., 2)
@@ -439,6 +442,9 @@ class Path(abc.ABC):
         pts = np.asarray(points, dtype=float)
         if pts.ndim == 0 or pts.shape[-1] != 2 or not np.isfinite(pts).all():
             raise ParameterError("points must be a finite (..., 2) array")
+        exact = self._exact_projection(pts, span, hint)
+        if exact is not None:
+            return exact
         if span is None:
             lo, hi = (-math.inf, math.inf) if hint is not None else self.default_span()
         else:
@@ -459,6 +465,11 @@ class Path(abc.ABC):
         _, nearest = cKDTree(self._geometry(grid).p).query(flat)
         return self._newton(flat, grid[nearest], lo, hi, 2.0 * (grid[1] - grid[0])) \
             .reshape(pts.shape[:-1])
+
+    def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
+                          hint: object) -> np.ndarray | None:
+        """The closed-form projection of shapes that have one (checked points), else None."""
+        return None
 
     def _samples(self, lo: float, hi: float) -> _Samples:
         """The path sampled over at least [lo, hi], built once and moved when asked beyond.
@@ -694,32 +705,9 @@ class Line(Path):
             + (y - self.start[1]) * math.sin(self.direction)
         return (s, *self._scalar(s)[:3])
 
-    def project(self, points: object, *, span: tuple[float, float] | None = None,
-                hint: object = None) -> np.ndarray:
-        """Return the arc length of the closest point of the line to each point (exact).
-
-        Parameters
-        ----------
-        points : array_like, shape (..., 2)
-            Points [m].
-        span : tuple of float, optional
-            ``(s_min, s_max)`` [m] to clip the result to; unbounded by default.
-        hint : object, optional
-            Ignored (the projection is exact).
-
-        Returns
-        -------
-        numpy.ndarray, shape points.shape[:-1]
-            Arc lengths [m].
-
-        Raises
-        ------
-        ParameterError
-            If the points are not a finite (..., 2) array.
-        """
-        pts = np.asarray(points, dtype=float)
-        if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
-            raise ParameterError("points must be a finite (..., 2) array")
+    def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
+                          hint: object) -> np.ndarray:
+        """Exact: the coordinate along the line (clipped to ``span``)."""
         s = (pts[..., 0] - self.start[0]) * math.cos(self.direction) \
             + (pts[..., 1] - self.start[1]) * math.sin(self.direction)
         return s if span is None else np.clip(s, span[0], span[1])
@@ -832,33 +820,9 @@ class Circle(Path):
         """
         return (0.0, self.length)
 
-    def project(self, points: object, *, span: tuple[float, float] | None = None,
-                hint: object = None) -> np.ndarray:
-        """Return the arc length of the closest point by the polar angle (exact).
-
-        Parameters
-        ----------
-        points : array_like, shape (..., 2)
-            Points [m].
-        span : tuple of float, optional
-            ``(s_min, s_max)`` [m]: the first lap at or after s_min, capped at s_max.
-        hint : float or array_like, optional
-            Arc length(s) near the answer: the nearest lap to it (wins over ``span``). Without
-            either, the first lap.
-
-        Returns
-        -------
-        numpy.ndarray, shape points.shape[:-1]
-            Arc lengths [m].
-
-        Raises
-        ------
-        ParameterError
-            If the points are not a finite (..., 2) array.
-        """
-        pts = np.asarray(points, dtype=float)
-        if pts.ndim == 0 or pts.shape[-1] != 2 or not np.all(np.isfinite(pts)):
-            raise ParameterError("points must be a finite (..., 2) array")
+    def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
+                          hint: object) -> np.ndarray:
+        """Exact, by the polar angle: the lap nearest ``hint``, else per ``span``, else lap 1."""
         polar = np.arctan2(pts[..., 1] - self._c[1], pts[..., 0] - self._c[0])
         lap = self.length
         s = np.mod(self.side * (polar - self._a0) * self.radius, lap)
@@ -915,7 +879,7 @@ class Arc(_Finite, Circle):
 
     # the arc's own span and search (margins, straight ends), not the circle's laps
     default_span = Path.default_span
-    project = Path.project
+    _exact_projection = Path._exact_projection
 
 
 class _GraphCurve(Path):
