@@ -1,29 +1,16 @@
 """Integrability of the unactuated rows (Section V, Theorems 2-3, eqs. 44-67).
 
 * :func:`partial_integrability` checks the two conditions of Theorem 2 for the split
-  ``q1 = q[:k]``, k = 1, 2, 3, at random states: (1) q1 cyclic,
-  ``d/dq1 (dq^T H dq) = 0``; (2) C1 (the first k rows of C) is a gradient, i.e. the
-  Jacobian of each row is symmetric. Derivatives are central differences of Pinocchio's H
-  and of the friction map (step 1e-6; truncation ~1e-12, round-off ~1e-10 relative), so
-  a defect below 1e-6 of the quantities' scale counts as zero.
-* :func:`implied_g2` integrates C1 along a straight path (Gauss-Legendre): if C1 is a
-  gradient, this is the g2 of Theorem 2, compared in the tests with eq. (67).
+  ``q1 = q[:k]``, k = 1, 2, 3, at random states: q1 cyclic and C1 a gradient (central
+  differences; a relative defect below 1e-6 counts as zero).
+* :func:`implied_g2` integrates C1 along a straight path: the g2 of Theorem 2.
 * :func:`conserved_quantity` is ``g = H1 dq + g2`` (eq. 67): for c_x = c_y it is
-  ``m sum(x_i') + c sum(x_i)``, i.e. ``n (m X' + c X)`` for the centre of mass X.
-* :func:`involutivity` tests Theorem 3 (beyond the paper): the distribution
-  ``ker [H1(q) g2(q)]`` on (q, t)-space is involutive iff every Lie bracket of fields in
-  it stays in it. It returns the bracket components outside the distribution, with the
-  same computation on an exact (hence involutive) system as the numerical noise floor.
+  ``n (m X' + c X)`` for the centre of mass X, which therefore relaxes to
+  ``X(0) + (m / c) X'(0)`` whatever the torques.
+* :func:`involutivity` tests Theorem 3 (beyond the paper) by Lie brackets, with an exact
+  system as the numerical noise floor.
 
-Analytically the answer is yes: each form is ``omega = n (m dX + c X dt)``, so
-``d omega = n c dX ^ dt`` and ``d omega_a ^ omega_1 ^ omega_2 = 0`` (every term repeats dX
-or dt). With the integrating factor ``exp(c t / m)``, ``d(exp(c t / m) X) = 0`` on the
-constraint: the centre of mass relaxes to the fixed point ``X_inf = X(0) + (m / c) X'(0)``
-whatever the torques. The constraints are completely integrable and the CM is
-uncontrollable; the head can only move within reach of that point.
-
-Configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2
-numbers [m, m, rad, rad...]) and ``dq`` their time derivatives.
+The analysis (complete integrability, the CM uncontrollable) is in :ref:`integrability`.
 """
 
 from __future__ import annotations

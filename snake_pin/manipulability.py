@@ -1,32 +1,13 @@
 """Dynamic manipulability of an underactuated system (Section III, eqs. 22-42).
 
-One definition serves the snake and any other Pinocchio model. Split the velocity
-coordinates into *unactuated* ones u (for the snake: ``w = [x_h, y_h, theta_1]``, plus
-phi_k of a free joint) and *actuated* ones a. Solving (24)-(25) for the unactuated
-accelerations gives (27)::
-
-    u'' = -(H_uu - H_ua H_aa^-1 H_au)^-1 H_ua H_aa^-1 tau + (terms without tau)
-
-By the block-inverse formula that matrix is exactly the (u, a) block of ``H^-1``, so the
-manipulability ellipsoid is the image of the unit ball under::
-
-    A = [H^-1]_{u,a}              (= -(Schur complement)^-1 H_ua H_aa^-1),
-
-with singular values sigma and ``D = min sigma`` (30, 42). ``R = min lambda``, lambda the
-singular values of ``H_ua = H12`` (31, 42). For a task other than u with Jacobian J,
-``A = J H^-1 B`` (B selects the actuated columns), which for a fully actuated arm is
-Yoshikawa's ``J M^-1``. Singular values are padded with zeros up to the task dimension, so
-a wide task with too few inputs reports D = R = 0, as the ellipsoid is flat. (With a free
-joint, H12~ is 4 x (n - 2): it can have rank 4 only for n >= 6, not n >= 5 as Section
-III.2 states; at n = 5, D~ = R~ = 0 at every posture.)
-
-Free joint k (Section III.2): the selection S of (33) only reorders coordinates, so
-``w~ = [x_h, y_h, theta_1, phi_k]`` is the unactuated set and the same formula gives D~,
-R~. ``heading=False`` leaves theta_1 out of the task and lets it join the second block
-(H11 2x2, H12 2xn), the variant named at the end of Section III.1.
-
-Snake configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2
-numbers [m, m, rad, rad...]).
+One definition serves the snake and any other Pinocchio model: for unactuated velocity
+coordinates u (the snake's ``w = [x_h, y_h, theta_1]``, plus phi_k of a free joint) and
+actuated ones a, the manipulability ellipsoid is the image of the unit ball under
+``A = [H^-1]_{u,a}`` (or ``J H^-1 B`` for a task Jacobian J), ``D = min sigma(A)`` and
+``R = min lambda(H_ua)`` (30, 31, 42), singular values padded with zeros up to the task
+dimension. The derivation, free joints and ``heading=False`` are in :ref:`manipulability`.
+With a free joint, H12~ is 4 x (n - 2): rank 4 needs n >= 6, not n >= 5 as Section III.2
+states; at n = 5, D~ = R~ = 0 at every posture.
 """
 
 from __future__ import annotations

@@ -1,41 +1,12 @@
 """Conversion between Pinocchio's planar-joint model of a snake URDF and paper coordinates.
 
-Plain Pinocchio users load our URDFs with ``pin.buildModelFromUrdf("urdf/snake_table1.urdf")``
-and get the ``world -> base`` joint as a ``JointModelPlanar``. That model's coordinates are
-not the paper's:
-
-=============  ================================================  =================================
-quantity       planar model (Pinocchio)                          paper (:class:`~snake_pin.Snake`)
-=============  ================================================  =================================
-configuration  ``[x, y, cos theta, sin theta, q_1 .. q_{n-1}]``  ``[x_h, y_h, theta_1, phi]``
-               (nq = n + 3)                                      (nq = n + 2)
-velocity       ``[v_x, v_y, omega, q_1' .. q_{n-1}']``           ``[x_h', y_h', theta_1', phi']``
-               v_x, v_y in the *head's* frame                    all plain time derivatives
-acceleration   d/dt of the velocity's components                 ``q''``
-=============  ================================================  =================================
-
-(x, y) is the head link frame's origin (x_h, y_h) and theta = theta_1. With R(theta) the
-head's rotation in the plane, the velocity map is::
-
-    v_planar = T(theta) q',   T = blockdiag(R(theta)^T, 1, S),
-
-with ``S = diag(s_i)``, ``s_i = +1`` for a joint about +z and -1 for one about -z
-(``q_i = s_i phi_i``). Differentiating, ``a_planar = T q'' + T' q'``, where
-``T' q' = theta' [v_y, -v_x, 0, ..., 0]`` (the velocity-product term: the head frame turns
-under the base velocity). Hence::
-
-    q'' = T^-1 (a_planar - T' q'),    H = T^T M T,    h = T^T (b + M T' q'),
-
-with M and b Pinocchio's mass matrix and nonlinear effects of the planar model, and
-generalised forces map as ``f_paper = T^T f_planar`` (equal power); joint torques are the
-same up to the sign s_i. Gravity (along -z) does no work in the plane and drops out. Friction
-is not part of a URDF: ``pin.aba`` on the planar model is the friction-free dynamics.
-
-Also accepted: ``continuous`` joints (Pinocchio's unbounded revolute joints: two
-coordinates cos q_i, sin q_i) and revolute joints about -z. Angles read back from
-(cos, sin) pairs lie in ``(-pi, pi]``. Models of other shapes (another root joint, a rotated
-joint placement, a branch) are refused with :class:`~snake_pin.exceptions.ParameterError`
-naming the joint; vectors of the wrong size or with non-finite entries with
+A plain ``pin.buildModelFromUrdf`` of our URDFs gives a ``JointModelPlanar`` base whose
+coordinates are not the paper's; the maps (``v_planar = T q'``, ``H = T^T M T``, ...)
+are derived in :ref:`concepts` (Pinocchio's planar joint). Also accepted: ``continuous``
+joints (two coordinates cos q_i, sin q_i; angles read back in ``(-pi, pi]``) and revolute
+joints about -z. Models of other shapes (another root joint, a rotated joint placement, a
+branch) are refused with :class:`~snake_pin.exceptions.ParameterError` naming the joint;
+vectors of the wrong size or with non-finite entries with
 :class:`~snake_pin.exceptions.ConfigurationError`.
 """
 
