@@ -107,13 +107,11 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
     Parameters
     ----------
     snake : Snake
-        The robot (Pinocchio model with its friction).
+        The robot.
     k : int
-        Split: q1 holds the first k coordinates (1: x_h; 2: x_h, y_h; 3: and theta_1).
-    samples : int, optional
-        Number of random states (joint angles within +-1.5 rad).
-    seed : int, optional
-        Seed of the random states.
+        q1 holds the first k coordinates (1: x_h; 2: and y_h; 3: and theta_1).
+    samples, seed : int, optional
+        Number and seed of the random states (joint angles within +-1.5 rad).
     tolerance : float, optional
         Relative defect below which a condition holds.
 
@@ -125,9 +123,7 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
     Raises
     ------
     ParameterError
-        If ``snake`` is not a Snake, ``k`` is not 1, 2 or 3, ``samples`` not a positive
-        integer, ``seed`` not a non-negative integer or ``tolerance`` not a positive
-        number.
+        An argument is out of its range or of the wrong type.
     """
     instance(snake, Snake, "snake")
     k = integer(k, "k", low=1, high=3)
@@ -168,11 +164,9 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
     Parameters
     ----------
     snake : Snake
-        The robot (Pinocchio model with its friction).
-    q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
-    q0 : array_like, shape (n + 2,), optional
-        Start of the segment; the zero configuration by default.
+        The robot.
+    q, q0 : array_like, shape (n + 2,)
+        End and start (default zero) of the segment.
     nodes : int, optional
         Number of Gauss-Legendre nodes.
 
@@ -184,9 +178,9 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
     Raises
     ------
     ConfigurationError
-        If ``q`` or ``q0`` does not have n + 2 finite entries.
+        ``q`` or ``q0`` does not have n + 2 finite entries.
     ParameterError
-        If ``snake`` is not a Snake or ``nodes`` is not a positive integer.
+        ``snake`` is not a Snake or ``nodes`` not a positive integer.
     """
     instance(snake, Snake, "snake")
     nodes = integer(nodes, "nodes", low=1)
@@ -200,19 +194,15 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
 
 
 def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """Return ``g = H1 dq + g2`` of eq. (67), H1 the first two rows of H.
-
-    Constant along any motion when the friction is isotropic (c_x = c_y on every link),
-    whatever the joint torques.
+    """Return ``g = H1 dq + g2`` of eq. (67), H1 the first two rows of H: constant along any
+    motion, whatever the torques, when the friction is isotropic (c_x = c_y on every link).
 
     Parameters
     ----------
     snake : Snake
-        The robot (Pinocchio model with its friction).
-    q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
-    dq : array_like, shape (n + 2,)
-        Its time derivative [m/s, m/s, rad/s, rad/s...].
+        The robot.
+    q, dq : array_like, shape (n + 2,)
+        Configuration and velocity.
 
     Returns
     -------
@@ -222,9 +212,9 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
     Raises
     ------
     ConfigurationError
-        If ``q`` or ``dq`` does not have n + 2 finite entries.
+        ``q`` or ``dq`` does not have n + 2 finite entries.
     ParameterError
-        If ``snake`` is not a Snake, or its friction is not isotropic (g2 is undefined).
+        ``snake`` is not a Snake, or its friction is not isotropic (g2 is undefined).
     """
     instance(snake, Snake, "snake")
     q, dq = snake.check_q(q), snake.check_dq(dq)
@@ -266,7 +256,7 @@ def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
     Parameters
     ----------
     forms : callable
-        ``forms(z)`` returns the constraint forms A(z) as an array of shape (r, d).
+        ``forms(z)`` returns the constraint forms A(z), shape (r, d).
     z : numpy.ndarray, shape (d,)
         The point.
     step : float, optional
@@ -275,16 +265,15 @@ def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
     Returns
     -------
     float
-        ``max abs(A [X_i, X_j]) / max abs(A)`` over all pairs i < j; near the
-        central-difference noise when the distribution is involutive.
+        ``max abs(A [X_i, X_j]) / max abs(A)`` over all pairs i < j.
 
     Raises
     ------
     ConfigurationError
-        If ``z`` is not a non-empty vector of finite numbers.
+        ``z`` is not a non-empty vector of finite numbers.
     ParameterError
-        If ``forms`` is not callable or does not return a finite (r, d) array at ``z``,
-        or ``step`` is not a positive number.
+        ``forms`` is not callable or does not return a finite (r, d) array, or ``step``
+        is not a positive number.
     """
     if not callable(forms):
         raise ParameterError(f"forms must be a callable z -> A(z), got {brief(forms)}")
@@ -323,16 +312,12 @@ class Involutivity:
 
     Parameters
     ----------
-    n : int
-        Number of links.
-    samples : int
-        Number of random points tested.
+    n, samples : int
+        Number of links and of random points tested.
     defect : float
-        Largest relative bracket component outside ``Delta = ker [H1 g2]``
-        (:func:`lie_bracket_defect`).
+        Largest relative bracket component outside ``ker [H1 g2]`` (:func:`lie_bracket_defect`).
     noise : float
-        The same for an exact system of the same size (involutive by construction): the
-        numerical noise floor.
+        The same for an exact (involutive) system of the same size: the noise floor.
     """
 
     n: int
@@ -353,10 +338,8 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
     ----------
     snake : Snake
         The robot; its friction must be isotropic.
-    samples : int, optional
-        Number of random points (q, t).
-    seed : int, optional
-        Seed of the random points.
+    samples, seed : int, optional
+        Number and seed of the random points (q, t).
 
     Returns
     -------
@@ -366,8 +349,8 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
     Raises
     ------
     ParameterError
-        If ``snake`` is not a Snake, its friction is not isotropic, ``samples`` is not a
-        positive integer or ``seed`` not a non-negative integer.
+        ``snake`` is not a Snake or its friction not isotropic, or ``samples`` or
+        ``seed`` is out of range.
     """
     instance(snake, Snake, "snake")
     samples = integer(samples, "samples", low=1)

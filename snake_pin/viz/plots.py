@@ -1,4 +1,8 @@
-"""Matplotlib figures: robot drawings like Fig. 1 and time series of a run."""
+"""Matplotlib figures: robot drawings like Fig. 1 and time series of a run.
+
+Every plot function returns its figure; given a ``path`` it writes the PNG whole or not at
+all and closes the figure (:func:`save_figure`), else it keeps the figure open.
+"""
 
 from __future__ import annotations
 
@@ -19,8 +23,7 @@ if TYPE_CHECKING:
     from ..model import Snake
     from ..trajectory import Trajectory
 
-__all__ = ["draw_snake", "plot_head_path", "plot_postures", "plot_r_maps", "plot_sweep",
-           "plot_trajectory"]
+__all__ = ["draw_snake"]
 
 BODY_COLOR = "#228b22"
 HEAD_COLOR = "#d9541a"
@@ -98,28 +101,7 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
 def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
                   path: str | os.PathLike[str] | None = None, *, frames: bool = True,
                   title: str | None = None) -> plt.Figure:
-    """Draw one panel per ``(label, q)``: the robot drawn with its link frames.
-
-    Parameters
-    ----------
-    snake : Snake
-        The robot.
-    postures : sequence of (str, numpy.ndarray)
-        Panel title and configuration ``q`` (length n + 2) of each panel; three panels a
-        row.
-    path : str or os.PathLike or None, optional
-        PNG file to write (whole or not at all; the figure is then closed); None keeps
-        the figure open and writes nothing.
-    frames : bool, optional
-        Draw each link's frame (as in Fig. 1).
-    title : str or None, optional
-        Title of the whole figure.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        The figure.
-    """
+    """Draw one panel per ``(label, q)``: the robot drawn with its link frames."""
     count = len(postures)
     cols = min(count, 3)
     rows = int(np.ceil(count / cols))
@@ -143,19 +125,6 @@ def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None
 
     The torque panel shows the torques that were applied (the last sample's torque of a
     run that did not diverge never was: it is left out, not drawn as zero).
-
-    Parameters
-    ----------
-    traj : Trajectory
-        The run; a diverged run's reason becomes the figure's title.
-    path : str or os.PathLike or None, optional
-        PNG file to write (whole or not at all; the figure is then closed); None keeps
-        the figure open and writes nothing.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        Three panels sharing the time axis [s].
     """
     fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True, layout="constrained")
     axes[0].plot(traj.t, traj.q[:, 0], label="x_h [m]")
@@ -184,28 +153,7 @@ def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None
 def plot_head_path(traj: Trajectory, reference: np.ndarray,
                    path: str | os.PathLike[str] | None = None, *, snapshots: int = 5,
                    title: str | None = None) -> plt.Figure:
-    """Plot the head against its reference in the plane (x-y), with body snapshots.
-
-    Parameters
-    ----------
-    traj : Trajectory
-        The run.
-    reference : numpy.ndarray, shape (N, 2)
-        The reference head position ``(x_h^r, y_h^r)`` [m] at every sample time of
-        ``traj``.
-    path : str or os.PathLike or None, optional
-        PNG file to write (whole or not at all; the figure is then closed); None keeps
-        the figure open and writes nothing.
-    snapshots : int, optional
-        Bodies drawn at evenly spaced times, the first and last included.
-    title : str or None, optional
-        The axes' title (a diverged run's reason is added).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        One panel, equal axes, x and y in m.
-    """
+    """Plot the head against its reference in the plane (x-y), with body snapshots."""
     from ..model import Snake
 
     reference = np.asarray(reference, dtype=float)
@@ -236,21 +184,7 @@ def _positive(values: np.ndarray, floor: float) -> np.ndarray:
 
 
 def plot_sweep(sweep: Any, path: str | os.PathLike[str] | None = None) -> plt.Figure:
-    """Plot D and R against the swept parameter, log scale (zeros drawn at the floor).
-
-    Parameters
-    ----------
-    sweep : snake_pin.sweeps.Sweep
-        A sweep: ``values``, ``D``, ``R``, ``label``, ``family`` and ``free_joint``.
-    path : str or os.PathLike or None, optional
-        PNG file to write (whole or not at all; the figure is then closed); None keeps
-        the figure open and writes nothing.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        Two panels, D and R.
-    """
+    """Plot D and R against the swept parameter, log scale (zeros drawn at the floor)."""
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), layout="constrained")
     suffix = f", joint {sweep.free_joint} free" if sweep.free_joint else ""
     for ax, key, name in ((axes[0], "D", "D"), (axes[1], "R", "R")):
@@ -272,21 +206,7 @@ def plot_sweep(sweep: Any, path: str | os.PathLike[str] | None = None) -> plt.Fi
 
 def plot_r_maps(maps: Sequence[Any], path: str | os.PathLike[str] | None = None
                 ) -> plt.Figure:
-    """Plot log10 R over (alpha, T_s), one panel per map.
-
-    Parameters
-    ----------
-    maps : sequence of snake_pin.sweeps.RMap
-        Maps with ``alpha``, ``ts``, ``R`` and ``free_joint``.
-    path : str or os.PathLike or None, optional
-        PNG file to write (whole or not at all; the figure is then closed); None keeps
-        the figure open and writes nothing.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        One panel per map with its colour bar.
-    """
+    """Plot log10 R over (alpha, T_s), one panel per map."""
     fig, axes = plt.subplots(1, len(maps), figsize=(5.2 * len(maps), 4.2), squeeze=False,
                              layout="constrained")
     for ax, rmap in zip(axes[0], maps, strict=True):
