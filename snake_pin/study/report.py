@@ -1,32 +1,9 @@
 """A study's page: ``DIR/index.html`` (self-contained) and ``DIR/summary.json``.
 
-The figures follow the axes. *Replicate* axes - the random axes and a grid axis over
-``init_seed`` - are spread, not plotted: every figure aggregates over them. Over the
-other grid axes:
-
-- two or more: heatmaps over the first two (median over the rest and the replicates) of
-  the RMS head error in % of the body length and of R~_min, each cell annotated, cells
-  without a successful run marked "x". Colours follow a log scale when the values span
-  a factor of 10 or more, floored at :data:`LOG_SPAN` below the largest (cells under the
-  floor are grey, their value still written: R~ is exactly 0 up to rounding when the
-  failed joint makes the head's heading unactuated);
-- one: the median of each metric against the axis with a 10-90 % band over the
-  replicates (and any other spread);
-- none: histograms of the metrics over all runs.
-
-Axes are labelled in words (:data:`AXIS_LABELS`); an axis over ``c_y`` in a study whose
-runs share one uniform ``c_x`` is shown as the friction ratio ``c_y/c_x``. Only axes over
-real-valued settings are drawn to scale; a categorical axis (a setting that is not a real
-number: the failed joint, a seed, the controller, the robot, the friction cone, ...) is
-drawn as categories, one evenly spaced tick per value labelled with the value
-(:func:`is_categorical`), as are both axes of a heatmap.
-:func:`save_figures` writes the same figures as PNG files (the report stage of the
-actuator-failure map uses it).
-
-Medians and bands use the runs with status ``ok`` only; the table lists every run
-(sortable: click a header) up to :data:`MAX_TABLE_ROWS`. The PNGs are embedded as data URIs
-(the page opens offline and alone); ``summary.json`` is
-:meth:`~snake_pin.study.summary.StudySummary.to_dict`, strict RFC 8259 JSON.
+The figures follow the axes (heatmaps over two grid axes, medians with bands over one,
+histograms over none; replicate axes aggregated), as :ref:`studies` (The study page)
+describes; :func:`save_figures` writes the same figures as PNG files for the
+actuator-failure map's report.
 """
 
 from __future__ import annotations
@@ -48,7 +25,7 @@ from .results import RUNS, StudyFolder
 from .spec import SETTINGS, StudySpec
 from .summary import StudySummary
 
-__all__ = ["AXIS_LABELS", "METRICS"]
+__all__ = ["AXIS_LABELS", "LOG_SPAN", "MAX_TABLE_ROWS", "METRICS"]
 
 #: Most rows in the page's table (all runs are in the Parquet dataset anyway).
 MAX_TABLE_ROWS = 2000

@@ -1,33 +1,10 @@
 """A study's output folder and its Parquet dataset of results (one row per run).
 
-Layout of ``DIR``::
-
-    DIR/study.json               the normalised study and its hash (the folder's identity)
-    DIR/runs/batch-<id>.parquet  one file per finished batch, written whole (temp + rename)
-    DIR/summary.json             StudySummary.to_dict() of the last invocation
-    DIR/index.html               the page (figures embedded)
-    DIR/.lock                    held while a study writes here
-
-``pandas.read_parquet(DIR / "runs")`` (or ``pyarrow.parquet.read_table``, or polars) opens
-the results directly: every batch file has the schema :data:`SCHEMA` (columns: every
-setting of :data:`snake_pin.study.spec.SETTINGS`, null where it does not apply, then the
-identity, status and metric columns of :mod:`snake_pin.study.work`). Temporary files
-are hidden (``.name...tmp``), and Parquet readers skip hidden files.
-
-A folder belongs to one study: :meth:`StudyFolder.check` refuses a folder whose
-``study.json`` holds another study hash, or a non-empty folder that is not a study folder.
-A study writes only inside its folder: ``DIR`` itself, ``DIR/runs``, ``DIR/.lock`` and
-``DIR/study.json`` must not be symbolic links, and :meth:`StudyFolder.prepare` writes a
-probe file in ``DIR`` and ``DIR/runs`` before any run, so a folder where writing fails
-(read-only, full, ...) is refused at once.
-
-Finished runs are found by their keys (:meth:`StudyFolder.done_keys`), so re-running a
-study runs only the missing ones, whatever batches the earlier runs were grouped in. Every
-batch file is read through one check (:meth:`StudyFolder.read_table` and
-:meth:`~StudyFolder.done_keys` alike): a regular file (not a link, folder or device),
-readable Parquet, with every column of :data:`SCHEMA` in a compatible type, a key and a
-known status on every row; any other is refused with one line naming it (remove it to
-run its runs again), never counted as done.
+``pandas.read_parquet(DIR / "runs")`` (or pyarrow, or polars) opens the results directly;
+every batch file has the schema :data:`SCHEMA`. A folder belongs to one study and a study
+writes only inside it (no symbolic links where it writes, writing tried before any run);
+every batch file is read through one check, a bad one refused by name, never counted as
+done. Layout and columns: :ref:`studies` (The study folder).
 """
 
 from __future__ import annotations

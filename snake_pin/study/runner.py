@@ -1,40 +1,11 @@
 """Running a study on Dask: one run per task, rows written as they arrive, resumable.
 
-:func:`run_study` validates everything first (the study file, the output folder, the
-scheduler address and its Dask handshake), then prepares the folder (checking that it can
-write there), then runs the missing runs only:
-
-- **Local cluster** (the default): ``workers`` processes (one per core) of one thread,
-  bound to 127.0.0.1 and **authenticated**: every connection (client, scheduler, workers,
-  nannies) is TLS with mutual certificates made for this invocation by
-  :meth:`distributed.security.Security.temporary` (in memory, handed to the workers by
-  their nannies), so another local user, who can reach 127.0.0.1 but does not hold them,
-  is refused before any message is read. The HTTP servers serve no route and answer 403
-  to a Host header other than :data:`LOCAL_HOSTS`; ``dashboard=True`` serves Dask's
-  dashboard there (a random port, logged). Workers start with ``OMP_WAIT_POLICY=PASSIVE``
-  and one-thread BLAS/OpenMP, and each task limits thread pools again with threadpoolctl
-  (spinning waits and multi-threaded BLAS on tiny matrices are many times slower when
-  another core is busy).
-- **Existing cluster:** ``scheduler="tcp://HOST:PORT"`` or ``"tls://HOST:PORT"``, with
-  ``security`` (a :class:`distributed.security.Security`, a YAML file of Dask config read
-  by :func:`load_security`, or Dask's own ``distributed.comm.tls.*`` config).
-  :func:`check_scheduler` completes Dask's handshake and asks its identity on a deadline
-  of its own (``connect_timeout``): an address that refuses, never answers, speaks
-  something else, resets, wants other credentials or is not a scheduler fails with one
-  line before any file or folder is created. Its workers need the same snake_pin, and
-  ``OMP_WAIT_POLICY=PASSIVE`` in their environment (OpenMP reads it when Pinocchio loads).
-- **Tasks:** every run is one task, :func:`snake_pin.study.work.run_batch` of that run,
-  which simulates it exactly as a single run does. At most one task per worker thread is
-  in flight, so an interrupt or a dying worker can lose only the running runs.
-- **Results:** each finished task's rows are written at once as one Parquet batch file
-  (temp + rename). A task that raised is recorded as ``failed`` rows carrying the error;
-  a task lost with a dead worker (after Dask's retries) is not recorded, and the next
-  invocation runs it again.
-- **Interrupts:** on KeyboardInterrupt (``snake-pin`` turns SIGTERM and SIGHUP into one)
-  the pending futures are cancelled, the client and the local cluster closed (local
-  workers killed without waiting for their task), the runs already written kept, the
-  index written marked ``interrupted``, and :class:`~snake_pin.exceptions.RunInterrupted`
-  raised with the :class:`~snake_pin.study.summary.StudySummary` as ``partial``.
+:func:`run_study` validates everything first, then prepares the folder, then runs the
+missing runs only, on an authenticated local cluster (TLS with certificates made for the
+invocation, 127.0.0.1 only) or an existing one (``scheduler`` with ``security``, whose
+handshake :func:`check_scheduler` completes on a deadline of its own before any file is
+created). How it runs, what an interrupt keeps and why the cluster is authenticated:
+:ref:`studies` (How a study runs).
 """
 
 from __future__ import annotations

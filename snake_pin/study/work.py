@@ -1,27 +1,12 @@
 """The unit of work of a study: run a task's scenarios, return one result row per scenario.
 
-:func:`run_batch` is the task the runner submits to Dask; the runner gives it one run
-(:func:`snake_pin.study.runner.plan_batches`). It never lets a run's failure escape: a
-run that raises becomes a row with status ``failed`` and the error text, and the other
-runs of the task go on. Inside it, BLAS and OpenMP pools are limited to one thread
-(:func:`threadpoolctl.threadpool_limits`): multi-threaded OpenBLAS on tiny matrices is
-many times slower when another core is busy.
-
-A viscous-model run is exactly what the single-run path does: :func:`simulate_scenario`,
-:func:`snake_pin.sim.simulate` of the scenario's robot, controller and initial state.
-Engine scenarios run through :func:`snake_pin.engine.run.run_engine`.
-
-Rows (see :mod:`snake_pin.study.results` for the columns): every setting of the run, the
-key, ``status`` (``ok``, ``diverged``, ``failed``), ``reason``, and the metrics:
-
-- ``rms_head_error``, ``max_head_error`` [m] over ``t >= error_window``, and the same as a
-  percentage of the body length (``*_pct``); null when the run ends before the window;
-- ``R_min``: the smallest R (eq. 31, every joint counted as actuated) along the run;
-  ``R_tilde_min`` and ``D_min``: R~ and D~ (eq. 42) with the robot's passive joints and the
-  failed joint free - the criteria the controller actually faces; all three sampled every
-  :data:`CRITERIA_PERIOD` seconds of the run;
-- ``t_end`` [s]; ``torque_rms`` [N m]: the RMS of every joint torque over the run's
-  control steps; ``wall_time`` [s]: the run's simulation time.
+:func:`run_batch` is the task the runner submits to Dask. It never lets a run's failure
+escape (a run that raises becomes a ``failed`` row with the error text), and limits BLAS
+and OpenMP pools to one thread: multi-threaded OpenBLAS on tiny matrices is many times
+slower when another core is busy. A viscous-model run is exactly the single-run path
+(:func:`simulate_scenario`); engine scenarios run through
+:func:`snake_pin.engine.run.run_engine`. The row's columns: :ref:`studies` (The study
+folder); the criteria are sampled every :data:`CRITERIA_PERIOD` seconds.
 """
 
 from __future__ import annotations
