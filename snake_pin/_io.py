@@ -1,35 +1,13 @@
 """Files in and out: whole-or-absent writes, and bounded reads that never block.
 
-Every file snake_pin writes goes through this module, and every file it reads is opened
-by :func:`open_regular_file` (or :func:`read_regular_file`). What it promises:
-
-- **Whole or absent.** A file is written to a temporary sibling, flushed and
-  ``fsync``-ed, renamed onto its name (``os.replace``, atomic on POSIX), and the folder
-  ``fsync``-ed so the rename is durable: a reader sees the old file or the new one.
-- **Permissions from the umask.** ``tempfile.mkstemp`` creates 0600 files and a rename
-  keeps the mode, so the temporary is set to ``0o666 & ~umask`` first, as ``open(path,
-  "w")`` would. The umask is read from ``/proc/self/status`` (Linux >= 4.7), which changes
-  nothing; elsewhere by setting it to 077 and back under a lock, so another thread's file
-  created in between is private, never world-writable.
-- **No temporary survives a kill.** Temporaries are hidden ``.NAME.snake_pin-PID-XXXXXXXX.tmp``
-  files, removed on any exception (KeyboardInterrupt included); after a ``kill -9`` the
-  next write in that folder removes those whose writer is gone
-  (:func:`clean_stale_temporaries`).
-- **Sets of files.** :func:`atomic_group` renames several staged files into place only
-  when its block succeeds: data files first, then figures.
-- **Reads are bounded and never hang.** :func:`open_regular_file` refuses anything but a
-  regular file before reading a byte: the name is stat-ed, opened with ``O_NONBLOCK`` (a
-  FIFO never blocks) and the descriptor fstat-ed again (the name may have changed); a
-  file larger than the caller's bound is refused from its size. ``follow_symlinks=False``
-  refuses a link in the open itself (``O_NOFOLLOW``), not by a check a rename could race.
-- **TOML is bounded before it is parsed.** :func:`parse_toml` scans the nesting (at most
-  :data:`MAX_TOML_DEPTH` levels) before :mod:`tomllib` sees it: tomllib recurses once per
-  nested array or inline table, and its time grows with the square of a dotted key's length.
-
-Errors of writes are ``OSError`` naming the file the caller asked for, never a temporary.
-Errors of reads are built by the caller's ``error`` function from one line that does not
-name the file (the caller prefixes it), so each loader raises its own
-:class:`~snake_pin.exceptions.SnakePinError` subclass.
+Every file snake_pin writes goes through this module (temporary sibling, fsync, rename,
+folder fsync; mode from the umask; temporaries removed on any exception and, after a
+kill, by the next write in the folder), and every file it reads is opened by
+:func:`open_regular_file` (regular files only, never blocking, size-bounded; TOML nesting
+bounded before it is parsed). The promises and why: :doc:`/promises` (Files in and out).
+Errors of writes are ``OSError`` naming the file the caller asked for, never a temporary;
+errors of reads are built by the caller's ``error`` function from one line that does not
+name the file, so each loader raises its own :class:`~snake_pin.exceptions.SnakePinError`.
 """
 
 from __future__ import annotations

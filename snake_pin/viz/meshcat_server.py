@@ -1,26 +1,8 @@
 """Run meshcat's ZMQ/WebSocket bridge on 127.0.0.1 only (``python -m`` entry).
 
-What this module promises:
-
-- **Loopback only.** Both of the bridge's listeners, the HTTP/WebSocket port and the ZMQ
-  port, are bound to 127.0.0.1 (IPv4 loopback) and to nothing else. meshcat 0.3.2's
-  ``ZMQWebSocketBridge`` calls ``app.listen(port)`` with no address, which listens on
-  every interface (``0.0.0.0`` and ``[::]``); :class:`LoopbackApplication` supplies the
-  address, so the bridge's own port search and its ``--port`` both stay on loopback.
-- **Only for local pages.** It answers only requests whose ``Host`` header is
-  ``127.0.0.1`` or ``localhost`` (any port); others get 404 (no DNS rebinding).
-- **It dies with its parent.** With ``--parent PID`` the server asks Linux to send it
-  SIGTERM when the thread that started it exits (``prctl(PR_SET_PDEATHSIG)``), and exits
-  at once if ``PID`` is already gone. With ``--stdin-eof`` it stops when its standard
-  input reaches end of file, i.e. when the parent's end of the pipe is closed, which the
-  kernel does however the parent ends (SIGKILL included). Neither relies on the parent's
-  own cleanup.
-- **It never blocks on an unread pipe.** It prints ``zmq_url=...`` and ``web_url=...``
-  (like meshcat's script) and, with ``--quiet``, then points its stdout and stderr at
-  ``/dev/null``: meshcat prints a line on stderr for every WebSocket opened and closed,
-  and a pipe nobody reads fills after a few hundred connections and freezes the server.
-
-:func:`snake_pin.viz.meshcat_view.start_server` starts it with all three options.
+Both listeners bound to loopback, only requests for ``127.0.0.1`` or ``localhost``
+answered, death with the parent (``--parent PID``, ``--stdin-eof``), never blocked on an
+unread pipe (``--quiet``): :doc:`/promises` (The viewer's server) says how and why.
 """
 
 from __future__ import annotations

@@ -1,28 +1,10 @@
 """The browser viewer: a snake trajectory in meshcat, live or as one self-contained page.
 
-Links are capsules (a cylinder with two spheres) in the body colour, the head link's
-front sphere is orange, passive joints are blue spheres, and the reference path of the
-head is a black line.
-
-What this module promises:
-
-- :func:`write_html` opens **no network listener or connection and starts no process**
-  (meshcat's object ids come from ``uuid.uuid1``, whose libuuid may knock on the local
-  ``uuidd`` daemon's Unix socket; nothing else touches a socket). The scene is
-  built on a :class:`meshcat.Visualizer` whose window hands each command straight to
-  meshcat's own bridge code (:meth:`ZMQWebSocketBridge.handle_zmq`) in this process, with
-  no socket behind it; the page is that code's answer to ``get_scene``: meshcat's static
-  export, byte for byte what a live server would return for the same commands (later
-  commands at a path replace earlier ones, as in meshcat's scene tree). The page embeds
-  meshcat's JavaScript, the scene and the animation, and opens with no server or network.
-- :func:`view` serves the scene live from :mod:`.meshcat_server` in a child process that
-  listens on 127.0.0.1 only (its web and ZMQ ports), answers only requests addressed to
-  ``127.0.0.1`` or ``localhost``, keeps serving under bursts of connections (its output
-  goes to /dev/null, never to a pipe nobody reads), and dies with this process however
-  it ends (SIGINT, SIGTERM, SIGHUP, SIGKILL): it watches its stdin pipe for end of file
-  and, when started from the main thread, holds a ``PR_SET_PDEATHSIG``. :func:`view`
-  also stops it itself on the way out, including on ``KeyboardInterrupt`` and
-  ``SystemExit``.
+Links are capsules in the body colour, the head link's front sphere is orange, passive
+joints are blue spheres, the head's reference path a black line. :func:`write_html`
+opens no network listener or connection and starts no process; :func:`view` serves the
+scene from a loopback-only child process that dies with this one however it ends. How,
+and why: :doc:`/promises` (The browser viewer).
 """
 
 from __future__ import annotations
