@@ -31,7 +31,6 @@ __all__ = [
     "conserved_quantity",
     "implied_g2",
     "involutivity",
-    "lie_bracket_defect",
     "partial_integrability",
 ]
 
@@ -247,33 +246,9 @@ def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.
 
 def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
                        step: float = 1e-5) -> float:
-    """Return the largest component of a Lie bracket ``[X_i, X_j]`` outside ``ker A(z)``.
-
-    The fields ``X_i = (I - A^+ A) e_i`` span ``ker A``; their brackets
-    ``[X_i, X_j] = DX_j X_i - DX_i X_j`` (central differences) lie in ``ker A`` for all
-    i, j iff the distribution is involutive at z.
-
-    Parameters
-    ----------
-    forms : callable
-        ``forms(z)`` returns the constraint forms A(z), shape (r, d).
-    z : numpy.ndarray, shape (d,)
-        The point.
-    step : float, optional
-        Central-difference step.
-
-    Returns
-    -------
-    float
-        ``max abs(A [X_i, X_j]) / max abs(A)`` over all pairs i < j.
-
-    Raises
-    ------
-    ConfigurationError
-        ``z`` is not a non-empty vector of finite numbers.
-    ParameterError
-        ``forms`` is not callable or does not return a finite (r, d) array, or ``step``
-        is not a positive number.
+    """The largest component of a Lie bracket ``[X_i, X_j]`` outside ``ker A(z)``, relative to
+    ``max abs(A)``: the fields ``X_i = (I - A^+ A) e_i`` span ``ker A``, and their brackets
+    (central differences) stay in it iff the distribution is involutive at z.
     """
     if not callable(forms):
         raise ParameterError(f"forms must be a callable z -> A(z), got {brief(forms)}")

@@ -706,7 +706,7 @@ class Line(Path):
         return (s, *self._scalar(s)[:3])
 
     def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
-                          hint: object) -> np.ndarray:
+                          hint: object) -> np.ndarray | None:
         """Exact: the coordinate along the line (clipped to ``span``)."""
         s = (pts[..., 0] - self.start[0]) * math.cos(self.direction) \
             + (pts[..., 1] - self.start[1]) * math.sin(self.direction)
@@ -821,7 +821,7 @@ class Circle(Path):
         return (0.0, self.length)
 
     def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
-                          hint: object) -> np.ndarray:
+                          hint: object) -> np.ndarray | None:
         """Exact, by the polar angle: the lap nearest ``hint``, else per ``span``, else lap 1."""
         polar = np.arctan2(pts[..., 1] - self._c[1], pts[..., 0] - self._c[0])
         lap = self.length

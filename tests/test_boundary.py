@@ -263,11 +263,6 @@ ROWS: dict[str, Row] = {
     "snake_pin.integrability.involutivity": Row(
         lambda w: (_m("snake_pin.integrability").involutivity,
                    {"snake": w.snake, "samples": 1, "seed": 0})),
-    "snake_pin.integrability.lie_bracket_defect": Row(
-        lambda w: (_m("snake_pin.integrability").lie_bracket_defect,
-                   {"forms": lambda z: np.ones((1, z.size)) * np.r_[z[:1], 1.0, 2.0][:z.size],
-                    "z": np.array([0.1, 0.2, 0.3]), "step": 1e-5}),
-        skip={"z": "short"}, errors={"z": CONFIG}),
     "snake_pin.integrability.partial_integrability": Row(
         lambda w: (_m("snake_pin.integrability").partial_integrability,
                    {"snake": w.snake, "k": 2, "samples": 1, "seed": 0, "tolerance": 1e-6})),

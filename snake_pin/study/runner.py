@@ -71,30 +71,24 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     out_dir
         Its folder (:mod:`snake_pin.study.results`); created if missing.
     scheduler
-        Address of an existing Dask scheduler (``tcp://host:port`` or ``tls://host:port``);
-        None starts a local cluster on 127.0.0.1, authenticated by TLS credentials made for
-        this call.
+        An existing Dask scheduler (``tcp://`` or ``tls://host:port``); None starts the
+        authenticated local cluster.
     workers
-        Local worker processes (default: one per core); refused with ``scheduler``.
+        Local worker processes (default: one per core).
     security
-        With ``scheduler``: its cluster's credentials, a
-        :class:`distributed.security.Security` or the path of a YAML file of Dask config
-        (:func:`load_security`); None: Dask's own config (``distributed.comm.tls.*``).
-        Refused without ``scheduler`` (the local cluster makes its own).
+        The scheduler's credentials: a ``distributed.security.Security``, a YAML file of
+        Dask config (:func:`load_security`), or None (Dask's own config).
     connect_timeout
-        Longest wait [s] for the scheduler to complete Dask's handshake (0 <
-        ``connect_timeout`` <= :data:`MAX_CONNECT_TIMEOUT`).
+        Longest wait [s] for the scheduler's handshake (at most :data:`MAX_CONNECT_TIMEOUT`).
     dashboard
-        Serve the local cluster's Dask dashboard on 127.0.0.1 (a random port, given to
-        ``log``); refused with ``scheduler``.
+        Serve the local cluster's Dask dashboard on 127.0.0.1 (its link goes to ``log``).
     progress
-        A tqdm bar (runs done, failures, ETA) on stderr, drawn only on a terminal;
-        False: none.
+        A tqdm bar on stderr, drawn only on a terminal; False: none.
     log
         Receives a few one-line messages (what runs where); None: silent.
     batch_function
-        The task (default :func:`snake_pin.study.work.run_batch`); it must be importable
-        by the workers. For tests and for plugging in other simulators.
+        The task (default :func:`snake_pin.study.work.run_batch`), importable by the
+        workers: for tests and for plugging in other simulators.
 
     Returns
     -------
@@ -104,11 +98,8 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     Raises
     ------
     StudyError
-        Before anything runs: a bad study file; a folder that holds another study, is or
-        holds a symbolic link where the study writes, or cannot be written; a scheduler
-        that is unreachable or does not complete Dask's handshake in time (nothing is
-        created then); bad ``workers``, ``security``, ``connect_timeout`` or
-        ``dashboard``.
+        Before anything runs: a bad study file, folder, scheduler or argument
+        (``workers``, ``security`` and ``dashboard`` belong to one kind of cluster).
     RunInterrupted
         On KeyboardInterrupt; ``partial`` is the summary (status ``interrupted``).
     """
@@ -317,21 +308,9 @@ def check_scheduler(address: str, *, security: Any = None,
 def load_security(path: str | os.PathLike[str]) -> Any:
     """A Dask cluster's credentials from a YAML file of Dask config.
 
-    The file is Dask config, as in ``~/.config/dask/*.yaml``; its ``distributed.comm``
-    TLS settings are read (other settings are ignored), at least the client's::
-
-        distributed:
-          comm:
-            require-encryption: true      # optional
-            tls:
-              ca-file: /path/to/ca.pem
-              client:
-                cert: /path/to/client.pem
-                key: /path/to/client-key.pem   # optional if the key is in cert
-
-    (also ``ciphers``, ``min-version``, ``max-version``; the ``scheduler`` and
-    ``worker`` entries are accepted and unused). File paths are read as Dask reads them
-    (relative to the working folder).
+    Its ``distributed.comm`` TLS settings are read (the format is in :ref:`studies`; also
+    ``ciphers``, ``min-version``, ``max-version``; ``scheduler`` and ``worker`` entries
+    are accepted and unused), file paths relative to the working folder as Dask reads them.
 
     Parameters
     ----------
@@ -341,13 +320,13 @@ def load_security(path: str | os.PathLike[str]) -> Any:
     Returns
     -------
     distributed.security.Security
-        The credentials, for :func:`run_study` or :func:`check_scheduler`.
+        The credentials, for :func:`run_study`.
 
     Raises
     ------
     StudyError
-        The file is missing, not a regular file, too large, not UTF-8 or not YAML; holds no
-        ``distributed.comm.tls`` setting, an unknown one, or a value of the wrong type.
+        The file cannot be read as YAML, or a ``distributed.comm.tls`` setting is missing,
+        unknown or of the wrong type.
     """
     import dask
     import yaml  # PyYAML, a dependency of Dask
