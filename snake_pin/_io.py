@@ -28,22 +28,10 @@ from typing import IO, Any, NoReturn
 
 from .exceptions import ParameterError
 
-__all__ = [
-    "MAX_TOML_DEPTH",
-    "TEMP_MARKER",
-    "AtomicGroup",
-    "atomic_group",
-    "atomic_save",
-    "atomic_write_bytes",
-    "atomic_writer",
-    "clean_stale_temporaries",
-    "current_umask",
-    "decode_utf8",
-    "open_regular_file",
-    "parse_toml",
-    "read_regular_file",
-    "toml_nesting_problem",
-]
+__all__ = ["MAX_TOML_DEPTH", "TEMP_MARKER", "AtomicGroup", "atomic_group", "atomic_save",
+           "atomic_write_bytes", "atomic_writer", "clean_stale_temporaries", "current_umask",
+           "decode_utf8", "open_regular_file", "parse_toml", "read_regular_file",
+           "toml_nesting_problem"]
 
 #: The marker every temporary name carries: ``.NAME.snake_pin-PID-XXXXXXXX.tmp``.
 TEMP_MARKER = ".snake_pin-"

@@ -9,17 +9,9 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = [
-    "ConfigurationError",
-    "ParameterError",
-    "PathFileError",
-    "RobotFileError",
-    "RunInterrupted",
-    "SingularPostureError",
-    "SnakePinError",
-    "StudyError",
-    "TrajectoryFileError",
-]
+__all__ = ["ConfigurationError", "ParameterError", "PathFileError", "RobotFileError",
+           "RunInterrupted", "SingularPostureError", "SnakePinError", "StudyError",
+           "TrajectoryFileError"]
 
 
 class SnakePinError(Exception):

@@ -1,8 +1,10 @@
 """Posture families of Section IV: straight, arcs (all joints equal) and the serpenoid (43).
 
-Configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2
-numbers: head position [m], head angle [rad], joint angles [rad]); states are
-``x = [q, dq]`` (2(n + 2) numbers).
+Configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``, states
+``x = [q, dq]``. Every function refuses a bad argument with one line naming it:
+:class:`~snake_pin.exceptions.ParameterError` (``n`` not an integer >= 2, a number not
+finite, an unknown head keyword) or :class:`~snake_pin.exceptions.ConfigurationError`
+(joint angles that are not a non-empty finite vector).
 """
 
 from __future__ import annotations
@@ -58,23 +60,21 @@ def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
     Parameters
     ----------
     phi : array_like, shape (n - 1,)
-        Joint angles phi_1 .. phi_{n-1} [rad].
-    x_h, y_h : float, optional
-        Head position [m] (the head link's front end).
-    theta_1 : float, optional
-        Head link angle [rad].
+        Joint angles [rad].
+    x_h, y_h, theta_1 : float, optional
+        Head position [m] (the head link's front end) and head link angle [rad].
 
     Returns
     -------
     numpy.ndarray, shape (n + 2,)
-        ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+        The configuration q.
 
     Raises
     ------
     ConfigurationError
-        If ``phi`` is not a non-empty vector of finite numbers.
+        ``phi`` is not a non-empty vector of finite numbers.
     ParameterError
-        If a head coordinate is not a finite number.
+        A head coordinate is not a finite number.
     """
     head = _head({"x_h": x_h, "y_h": y_h, "theta_1": theta_1})
     return np.r_[head["x_h"], head["y_h"], head["theta_1"], _angles(phi)]
@@ -88,18 +88,17 @@ def straight(n: int, **head: float) -> np.ndarray:
     n : int
         Number of links, >= 2.
     **head : float
-        Head pose: ``x_h`` and ``y_h`` [m], ``theta_1`` [rad] (each 0 by default).
+        Head pose ``x_h``, ``y_h`` [m], ``theta_1`` [rad], each 0 by default.
 
     Returns
     -------
     numpy.ndarray, shape (n + 2,)
-        ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+        The configuration q.
 
     Raises
     ------
     ParameterError
-        If ``n`` is not an integer >= 2, or a head keyword is unknown or not a finite
-        number.
+        A bad argument (see the module docstring).
     """
     return configuration(np.zeros(_check_n(n) - 1), **_head(head))
 
@@ -116,18 +115,17 @@ def arc(n: int, phi0: float, **head: float) -> np.ndarray:
     phi0 : float
         Angle of every joint [rad].
     **head : float
-        Head pose: ``x_h`` and ``y_h`` [m], ``theta_1`` [rad] (each 0 by default).
+        Head pose ``x_h``, ``y_h`` [m], ``theta_1`` [rad], each 0 by default.
 
     Returns
     -------
     numpy.ndarray, shape (n + 2,)
-        ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+        The configuration q.
 
     Raises
     ------
     ParameterError
-        If ``n`` is not an integer >= 2, ``phi0`` is not a finite number, or a head
-        keyword is unknown or not a finite number.
+        A bad argument (see the module docstring).
     """
     count = _check_n(n) - 1
     phi0 = finite_number(phi0, "phi0")
@@ -156,7 +154,7 @@ class Serpenoid:
     Raises
     ------
     ParameterError
-        If ``n`` is not an integer >= 2 or a parameter is not a finite number.
+        A bad argument (see the module docstring).
     """
 
     n: int
@@ -191,7 +189,7 @@ class Serpenoid:
         return self.v * t - self._offsets
 
     def angles(self, t: float = 0.0) -> np.ndarray:
-        """Return the joint angles phi(t) of eq. (43).
+        """Return the joint angles phi(t) [rad] of eq. (43).
 
         Parameters
         ----------
@@ -201,12 +199,12 @@ class Serpenoid:
         Returns
         -------
         numpy.ndarray, shape (n - 1,)
-            phi_1 .. phi_{n-1} [rad].
+            phi_1 .. phi_{n-1}.
         """
         return self.spatial_frequency * self.alpha * np.sin(self._phase(t))
 
     def velocities(self, t: float = 0.0) -> np.ndarray:
-        """Return the joint velocities phi'(t).
+        """Return the joint velocities phi'(t) [rad/s].
 
         Parameters
         ----------
@@ -216,12 +214,12 @@ class Serpenoid:
         Returns
         -------
         numpy.ndarray, shape (n - 1,)
-            [rad/s].
+            phi'.
         """
         return self.spatial_frequency * self.alpha * self.v * np.cos(self._phase(t))
 
     def accelerations(self, t: float = 0.0) -> np.ndarray:
-        """Return the joint accelerations phi''(t).
+        """Return the joint accelerations phi''(t) [rad/s^2].
 
         Parameters
         ----------
@@ -231,7 +229,7 @@ class Serpenoid:
         Returns
         -------
         numpy.ndarray, shape (n - 1,)
-            [rad/s^2].
+            phi''.
         """
         return -self.spatial_frequency * self.alpha * self.v**2 * np.sin(self._phase(t))
 
@@ -246,8 +244,7 @@ class Serpenoid:
         Returns
         -------
         phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
-            Angles [rad], velocities [rad/s] and accelerations [rad/s^2]; equal to
-            :meth:`angles`, :meth:`velocities` and :meth:`accelerations`.
+            :meth:`angles`, :meth:`velocities` and :meth:`accelerations` at t.
         """
         phase = self._phase(t)
         amplitude, velocity, acceleration = self._amplitudes
@@ -262,17 +259,17 @@ class Serpenoid:
         t : float, optional
             Time [s].
         **head : float
-            Head pose: ``x_h`` and ``y_h`` [m], ``theta_1`` [rad] (each 0 by default).
+            Head pose ``x_h``, ``y_h`` [m], ``theta_1`` [rad], each 0 by default.
 
         Returns
         -------
         numpy.ndarray, shape (n + 2,)
-            ``q = [x_h, y_h, theta_1, phi_1(t) .. phi_{n-1}(t)]``.
+            The configuration q.
 
         Raises
         ------
         ParameterError
-            If a head keyword is unknown or not a finite number.
+            A head keyword is unknown or not a finite number.
         """
         return configuration(self.angles(t), **_head(head))
 
@@ -292,12 +289,11 @@ def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
     Returns
     -------
     numpy.ndarray, shape (2(n + 2),)
-        The state ``x = [q, dq]`` with ``q = [0, 0, theta_1, pi/6 .. pi/6]`` and
-        ``dq = 0``.
+        ``x = [q, dq]``, ``q = [0, 0, theta_1, pi/6 .. pi/6]``, ``dq = 0``.
 
     Raises
     ------
     ParameterError
-        If ``n`` is not an integer >= 2 or ``theta_1`` is not a finite number.
+        A bad argument (see the module docstring).
     """
     return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(_check_n(n) + 2)]

@@ -25,14 +25,8 @@ from ._validation import brief, finite_number, instance, integer
 from .exceptions import ConfigurationError, ParameterError
 from .model import Snake
 
-__all__ = [
-    "Involutivity",
-    "PartialIntegrability",
-    "conserved_quantity",
-    "implied_g2",
-    "involutivity",
-    "partial_integrability",
-]
+__all__ = ["Involutivity", "PartialIntegrability", "conserved_quantity", "implied_g2",
+           "involutivity", "partial_integrability"]
 
 _STEP = 1e-6
 

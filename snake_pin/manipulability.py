@@ -66,8 +66,7 @@ class Manipulability:
         Returns
         -------
         dict of str to object
-            D and R as floats, sigma and lambda as lists of floats (the blocks are left
-            out).
+            The blocks are left out.
         """
         return {"D": float(self.D), "R": float(self.R), "sigma": self.sigma.tolist(),
                 "lambda": self.lambda_.tolist()}
@@ -163,13 +162,10 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
     snake : Snake
         The robot. Its passive joints (``params.passive``) are always free joints.
     q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
-        D and R do not depend on x_h, y_h, theta_1 (a rigid motion of the whole snake),
-        so they are evaluated at ``x_h = y_h = theta_1 = 0``: exactly invariant, however
-        far the snake has gone.
+        Configuration. D and R do not depend on the head pose (a rigid motion), so they are
+        evaluated at ``x_h = y_h = theta_1 = 0``: exactly invariant, however far it went.
     free_joint : int or sequence of int or None, optional
-        1-based index (or indices) of further free joints, applying the selection S of
-        (33); they join the robot's passive joints.
+        1-based further free joint(s), applying the selection S of (33).
     heading : bool, optional
         Include theta_1 in the task (default); False gives the 2-D variant of III.1.
     blocks : bool, optional
@@ -178,18 +174,14 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
     Returns
     -------
     Manipulability
-        ``.D`` and ``.R`` (the smallest singular values), ``.sigma`` and ``.lambda_``
-        (all of them, length 3 + free joints, or 2 + free joints without heading), and
-        ``.blocks`` if requested.
+        ``.sigma`` and ``.lambda_`` have length 3 (2 without heading) + free joints.
 
     Raises
     ------
     ConfigurationError
-        If ``q`` does not have n + 2 finite entries.
+        ``q`` does not have n + 2 finite entries.
     ParameterError
-        If ``snake`` is not a Snake, a free joint is not an integer in 1..n - 1,
-        ``heading`` or ``blocks`` is not a bool, or the robot has too few links for the
-        task (n >= 4 plus one per free or passive joint).
+        A bad argument, or too few links for the task (n >= 4 plus one per free joint).
     """
     instance(snake, Snake, "snake")
     q = snake.check_q(q).copy()
@@ -240,35 +232,27 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
     q : array_like, shape (model.nq,)
         Configuration in the model's own coordinates.
     unactuated : sequence of int
-        0-based velocity indices without an actuator (may be empty for a fully actuated
-        robot).
+        0-based velocity indices without an actuator (may be empty: fully actuated).
     task : numpy.ndarray of shape (m, model.nv), or str, or None, optional
-        None: the task is the unactuated coordinates themselves (the snake's w); then
-        R is defined. A Jacobian, or a frame name (its 6-D Jacobian in
-        LOCAL_WORLD_ALIGNED), for any other task: ``A = J H^-1 B``, and R is NaN.
+        None: the unactuated coordinates themselves (the snake's w; R is defined). A
+        Jacobian, or a frame name (its 6-D LOCAL_WORLD_ALIGNED Jacobian): ``A = J H^-1 B``.
     rows : sequence of int or str or None, optional
-        Which rows of the task Jacobian to keep: indices, or a name of :data:`TASK_ROWS`
-        (``"planar"`` keeps x, y and yaw). A planar robot's frame task must keep only its
-        planar rows, or the rows it cannot move pad the singular values with zeros and D
-        is always 0. Default: all rows. Only with a ``task`` (without one there are no
-        task rows to choose, and ``rows`` is refused).
+        Rows of the task Jacobian to keep (indices, or a name of :data:`TASK_ROWS`:
+        ``"planar"`` keeps x, y and yaw; a planar robot's frame task needs it, or the rows
+        it cannot move make D always 0). Only with a ``task``.
 
     Returns
     -------
     Manipulability
-        ``.D`` and ``.sigma`` (singular values of A, padded to the task dimension);
-        ``.R`` and ``.lambda_`` from ``H_ua`` when ``task`` is None, else NaN.
+        ``.R`` and ``.lambda_`` are NaN when a ``task`` is given.
 
     Raises
     ------
     ConfigurationError
-        If ``q`` does not have ``model.nq`` finite entries, or the task Jacobian is not a
-        finite ``m x nv`` matrix.
+        ``q`` or the task Jacobian has the wrong shape or non-finite entries.
     ParameterError
-        If ``model`` or ``data`` is not a Pinocchio model or its data, an unactuated
-        index is not an integer in 0..nv - 1, nothing is actuated, a fully actuated model
-        has no task, the frame does not exist, ``rows`` is invalid, or ``rows`` is given
-        without a ``task``.
+        A bad model, data, index, frame or ``rows``; nothing actuated; a fully actuated
+        model without a task.
     """
     model = instance(model, pin.Model, "model", "a pinocchio.Model")
     model_data(data, model, pin.Data)
@@ -401,16 +385,15 @@ def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
         q'' = P E tau + (terms without tau),   P = N - N A_c^T (A_c N A_c^T)^-1 A_c N,
         N = H^-1
 
-    D is the smallest singular value of the w rows of ``P E`` (the head's reachable
-    accelerations per unit torque); R is NaN. Arcs make it vanish (the classical singular
-    posture of wheeled snakes) while the unconstrained R stays positive.
+    D is the smallest singular value of the w rows of ``P E``. Arcs make it vanish (the
+    classical singular posture of wheeled snakes) while the unconstrained R stays positive.
 
     Parameters
     ----------
     snake : Snake
         The robot.
     q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        Configuration.
     constrained : sequence of int or None, optional
         1-based links whose CM may not slip sideways; links 2..n by default.
 
@@ -422,10 +405,9 @@ def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
     Raises
     ------
     ConfigurationError
-        If ``q`` does not have n + 2 finite entries.
+        ``q`` does not have n + 2 finite entries.
     ParameterError
-        If ``snake`` is not a Snake, or ``constrained`` is empty or names a link outside
-        1..n (or not by an integer).
+        ``snake`` is not a Snake, or ``constrained`` is empty or names no link.
     """
     instance(snake, Snake, "snake")
     q = snake.check_q(q)

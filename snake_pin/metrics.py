@@ -1,4 +1,8 @@
-"""Quantities read off a finished run: head error, manipulability and g along the run."""
+"""Quantities read off a finished run: head error, manipulability and g along the run.
+
+Shared by the command line, the experiments and the studies, which write them into run
+summaries; none of them is public API.
+"""
 
 from __future__ import annotations
 
@@ -17,7 +21,7 @@ if TYPE_CHECKING:
     from .control.reference import HeadReference
     from .trajectory import Trajectory
 
-__all__ = ["head_error_summary", "head_position_error"]
+__all__: list[str] = []
 
 #: Head errors are judged over t >= this [s] in runs of at least twice its length, after
 #: the start-up; shorter runs are judged over their second half (:func:`default_error_window`).
@@ -64,25 +68,8 @@ def default_error_window(t_final: float) -> float:
 
 
 def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarray:
-    """Return the head position error ``|(x_h, y_h) - (x_h^r, y_h^r)|`` at every sample.
-
-    Parameters
-    ----------
-    traj : Trajectory
-        A finished (or stopped) run: ``traj.t`` has shape (N,), ``traj.q`` (N, n + 2).
-    reference : HeadReference
-        The head reference the run tracked (a line, or a path with its timing);
-        ``reference(t)[0][:2]`` is ``(x_h^r, y_h^r)`` [m].
-
-    Returns
-    -------
-    numpy.ndarray, shape (N,)
-        Euclidean distance [m] at each sample time ``traj.t``.
-
-    Raises
-    ------
-    ParameterError
-        ``traj`` is not a Trajectory or ``reference`` is not callable.
+    """Return the head position error ``|(x_h, y_h) - reference(t)[0][:2]|`` [m] at every
+    sample of ``traj``.
     """
     _check_traj(traj)
     if not callable(reference):
@@ -94,35 +81,10 @@ def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarra
 
 def head_error_summary(traj: Trajectory, error: np.ndarray,
                        start: float | None = None) -> dict[str, float | None]:
-    """Return the RMS and max head error over ``t >= start``, absolute and relative.
-
-    The body length is the sum of the link lengths (``params.body_length``: per-link
-    robots are judged against their own length, a long head included).
-
-    Parameters
-    ----------
-    traj : Trajectory
-        A finished (or stopped) run: ``traj.t`` has shape (N,), ``traj.q`` (N, n + 2).
-    error : numpy.ndarray, shape (N,)
-        Head error at every sample [m] (:func:`head_position_error`).
-    start : float or None, optional
-        Start of the judged window [s]; None: :func:`default_error_window` of the run's
-        last sample time.
-
-    Returns
-    -------
-    dict of str to float or None
-        ``error_window`` (the start [s]), ``rms_head_error`` and ``max_head_error`` [m],
-        ``rms_head_error_pct`` and ``max_head_error_pct`` (% of the body length) and
-        ``rms_relative`` (RMS over the body length, a fraction); all but ``error_window``
-        None when no sample lies in the window (:func:`window_note` says so in words).
-
-    Raises
-    ------
-    ParameterError
-        ``traj`` is not a Trajectory or ``start`` is not a number.
-    ConfigurationError
-        ``error`` does not hold one number per sample.
+    """Return the RMS and max head error over ``t >= start`` (default
+    :func:`default_error_window`), in m and in % of the body length (the sum of the link
+    lengths, so per-link robots are judged against their own), and ``rms_relative`` (a
+    fraction); all but ``error_window`` None when no sample lies in the window.
     """
     _check_traj(traj)
     error = _check_error(error, len(traj))

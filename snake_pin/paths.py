@@ -38,33 +38,11 @@ from ._io import decode_utf8, parse_toml, read_regular_file
 from ._validation import finite_number
 from .exceptions import ParameterError, PathFileError
 
-__all__ = [
-    "DEFAULT_EXTENT",
-    "HINT_RADIUS",
-    "MAX_ANGLE",
-    "MAX_COORDINATE",
-    "MAX_PATH_FILE_BYTES",
-    "MAX_PATH_SPEED",
-    "MAX_WAYPOINTS",
-    "MIN_LENGTH",
-    "PATH_NAMES",
-    "SAMPLE_STEP",
-    "Arc",
-    "Circle",
-    "LaneChange",
-    "Line",
-    "Path",
-    "PathFileError",
-    "PathPoint",
-    "PathReference",
-    "Sinusoid",
-    "Timing",
-    "Waypoints",
-    "along_track",
-    "cross_track_error",
-    "load_path",
-    "make_path",
-]
+__all__ = ["DEFAULT_EXTENT", "HINT_RADIUS", "MAX_ANGLE", "MAX_COORDINATE", "MAX_PATH_FILE_BYTES",
+           "MAX_PATH_SPEED", "MAX_WAYPOINTS", "MIN_LENGTH", "PATH_NAMES", "SAMPLE_STEP", "Arc",
+           "Circle", "LaneChange", "Line", "Path", "PathFileError", "PathPoint", "PathReference",
+           "Sinusoid", "Timing", "Waypoints", "along_track", "cross_track_error", "load_path",
+           "make_path"]
 
 #: Arc length searched beyond the start of unbounded paths' projections, and the length
 #: searched along them by default [m] (pass ``span`` to search elsewhere).

@@ -21,17 +21,9 @@ from ._symmetric import symmetric_from_upper
 from ._validation import as_vector, brief, instance, integer, model_data
 from .exceptions import ParameterError
 
-__all__ = [
-    "PlanarLayout",
-    "paper_dynamics",
-    "paper_to_planar",
-    "paper_to_planar_acceleration",
-    "paper_to_planar_force",
-    "planar_layout",
-    "planar_to_paper",
-    "planar_to_paper_acceleration",
-    "velocity_map",
-]
+__all__ = ["PlanarLayout", "paper_dynamics", "paper_to_planar", "paper_to_planar_acceleration",
+           "paper_to_planar_force", "planar_layout", "planar_to_paper",
+           "planar_to_paper_acceleration", "velocity_map"]
 
 _BOUNDED = {"JointModelRZ": 1.0}
 _UNBOUNDED = {"JointModelRUBZ": 1.0}

@@ -30,16 +30,8 @@ from ._io import atomic_write_bytes
 from .exceptions import ParameterError, SnakePinError
 from .params import SnakeParams
 
-__all__ = [
-    "EFFORT_LIMIT",
-    "EXTENSION_TAG",
-    "EXTENSION_VERSION",
-    "JOINT_LIMIT",
-    "build_urdf",
-    "passive_joints",
-    "urdf_string",
-    "write_urdf",
-]
+__all__ = ["EFFORT_LIMIT", "EXTENSION_TAG", "EXTENSION_VERSION", "JOINT_LIMIT", "build_urdf",
+           "passive_joints", "urdf_string", "write_urdf"]
 
 #: Tag and version of the element that carries snake_pin's own data (friction) in a URDF.
 EXTENSION_TAG = "snake_pin"

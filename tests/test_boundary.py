@@ -35,7 +35,7 @@ from snake_pin.exceptions import ConfigurationError, ParameterError, SnakePinErr
 MODULES = ("snake_pin.manipulability", "snake_pin.model", "snake_pin.gaits",
            "snake_pin.integrability", "snake_pin.singular", "snake_pin.sweeps",
            "snake_pin.friction", "snake_pin.planar_joint", "snake_pin.paper",
-           "snake_pin.metrics", "snake_pin.control", "snake_pin.control.base",
+           "snake_pin.control", "snake_pin.control.base",
            "snake_pin.control.gains", "snake_pin.control.los",
            "snake_pin.control.lyapunov", "snake_pin.control.pfl",
            "snake_pin.control.quasistatic", "snake_pin.control.reference")
@@ -361,14 +361,6 @@ ROWS: dict[str, Row] = {
     "snake_pin.paper.k_matrix": Row(lambda w: (snake_pin.paper.k_matrix, {"params": w.params})),
     "snake_pin.paper.link_angles": Row(
         lambda w: (snake_pin.paper.link_angles, {"q": w.q}), errors={"q": CONFIG}),
-    # ------------------------------------------------------------------- metrics
-    "snake_pin.metrics.head_error_summary": Row(
-        lambda w: (_m("snake_pin.metrics").head_error_summary,
-                   {"traj": w.traj, "error": np.zeros(len(w.traj)), "start": 0.0}),
-        skip={"start": "None"}, errors={"error": CONFIG}),
-    "snake_pin.metrics.head_position_error": Row(
-        lambda w: (_m("snake_pin.metrics").head_position_error,
-                   {"traj": w.traj, "reference": snake_pin.LinearReference()})),
     # ------------------------------------------------------------- control.base
     "snake_pin.control.base.TimeTerms": Row(
         lambda w: (_m("snake_pin.control.base").TimeTerms,
