@@ -1,17 +1,11 @@
 """Robot parameters: the frozen, validated ``SnakeParams`` and its named presets.
 
-Every physical field may be one number (all links alike, the paper's robots) or one value
-per link, head first (a real robot: a heavier camera head, a battery tail). A per-link
-field whose values are all equal collapses to the number, so two descriptions of the
-same robot compare equal. Code that works for any robot reads the per-link arrays
-(:meth:`SnakeParams.per_link`, :attr:`~SnakeParams.link_lengths`, ...); the scalar fields
-stay scalars only on uniform robots (:attr:`~SnakeParams.uniform`).
-
-Every value must be physically meaningful, not just finite and of the right sign: each
-per-link field lies in its range of :data:`FIELD_RANGES` (friction may also be exactly
-0; a centre of mass lies on its link). The ranges span every snake robot built, from
-millimetre ones to vehicles, with room on both sides; values beyond them (1e-300 kg,
-1e300 m) overflow or underflow the dynamics while a run still "completes".
+Every physical field is one number (all links alike) or one value per link, head first;
+equal per-link values collapse to the number, so two descriptions of one robot compare
+equal. Code for any robot reads the per-link arrays (:meth:`SnakeParams.per_link`,
+:attr:`~SnakeParams.link_lengths`, ...). Every value must lie in its range of
+:data:`FIELD_RANGES`, or the dynamics would overflow or underflow while a run still
+"completes" (:ref:`concepts`).
 """
 
 from __future__ import annotations

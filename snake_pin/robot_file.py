@@ -1,16 +1,12 @@
 """Robot descriptions on disk: TOML robot files, URDF import, and the ``--robot`` lookup.
 
-This module turns a file (or a preset name) into a validated
-:class:`~snake_pin.params.SnakeParams`, and writes a robot file back. Every problem with a
-file is one :class:`~snake_pin.exceptions.RobotFileError` line naming the file, then the
-field or element (and the link where it applies). The formats, and what a URDF may
-contain and how it maps onto the parameters, are described in :doc:`/robot_files`: in
-short, a robot file is TOML with ``name``, ``n``, ``passive``, per-link ``[links]`` (or
-``[[link]]`` tables, or ``urdf = "file.urdf"``) and ``[friction]``; no other key is
-accepted and every value is checked before the robot is built. :func:`read_urdf` accepts
-any planar serial chain of revolute z joints, merging ``fixed`` joints into their parent
-body and stripping a massless base; files are regular files of bounded size, and a URDF's
-links and joints are counted on its bytes before any XML is parsed.
+A file (or a preset name) becomes a validated :class:`~snake_pin.params.SnakeParams`, and
+a robot file is written back. The formats, what a URDF may contain and how it maps onto
+the parameters are in :doc:`/robot_files`. Every value is checked before the robot is
+built, files are regular files of bounded size, and a URDF's links and joints are
+counted on its bytes before any XML is parsed. Every problem with a file is one
+:class:`~snake_pin.exceptions.RobotFileError` line naming the file, then the field or
+element (and the link where it applies).
 """
 
 from __future__ import annotations
@@ -222,7 +218,7 @@ def _link_count(path: str | os.PathLike[str], doc: dict[str, Any], fields: dict[
 
 
 def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
-    """Read a TOML robot file (format in the module docstring) into validated parameters.
+    """Read a TOML robot file (format in :doc:`/robot_files`) into validated parameters.
 
     Parameters
     ----------
@@ -237,10 +233,8 @@ def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
     Raises
     ------
     RobotFileError
-        One line naming the file and the field (and link) at fault: a missing file, not
-        TOML, an unknown key, a missing field, a wrong type, a negative or non-finite
-        value, per-link arrays of different lengths, ``n`` against the arrays, or (with
-        ``urdf =``) anything :func:`read_urdf` refuses.
+        Anything wrong with the file (or, with ``urdf =``, its URDF), in one line naming
+        the file and the field (and link).
     """
     doc = _parse_toml(path)
     _check_keys(path, doc, _TOP_KEYS, "")
@@ -331,8 +325,7 @@ def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     params : SnakeParams
         The robot.
     path : str or os.PathLike
-        Output file ending in ``.toml`` in an existing folder; an existing file is
-        replaced atomically.
+        Output file ending in ``.toml`` in an existing folder.
 
     Returns
     -------
@@ -342,10 +335,10 @@ def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     Raises
     ------
     ParameterError
-        If ``params`` is not a :class:`~snake_pin.params.SnakeParams`, or the name does
-        not end in ``.toml`` or its folder does not exist (nothing written).
+        ``params`` is not a SnakeParams, or ``path`` is not a ``.toml`` file in an
+        existing folder (nothing written).
     OSError
-        If the file cannot be written.
+        The file cannot be written.
     """
     if not isinstance(params, SnakeParams):
         raise ParameterError(f"write_robot_file needs SnakeParams, got {type(params).__name__}")
@@ -687,24 +680,21 @@ def read_urdf(path: str | os.PathLike[str],
               friction: Mapping[str, Any] | None = None) -> SnakeParams:
     """Read the parameters of the planar snake described by a URDF (ours or anyone's).
 
-    What is accepted and how lengths, masses, inertias, CM offsets, passive joints and
-    the name are read is listed in the module docstring ("URDF import").
+    What is accepted, and how each parameter is read: :doc:`/robot_files` (URDF import).
 
     Parameters
     ----------
     path : str or os.PathLike
         The ``.urdf`` file (at most :data:`MAX_URDF_BYTES`).
     friction : Mapping of str to float or sequence of float, optional
-        ``{"c_x": .., "c_y": .., "c_theta": ..}`` (any subset; each one number or n
-        numbers) [N s/m, N s/m, N m s]. Each coefficient given here wins; the others come
-        from the file's ``<snake_pin>`` element if it has one, else they are **zero**
-        (URDF itself has no viscous ground friction).
+        Any of ``c_x``, ``c_y``, ``c_theta`` (one number or n); each wins over the file's
+        ``<snake_pin>`` element, and a coefficient in neither is **zero** (URDF itself has
+        no viscous ground friction).
 
     Returns
     -------
     SnakeParams
-        One link per body of the chain, head first, with per-link lengths, masses, yaw
-        inertias and CM offsets as read, passive joints from zero effort limits.
+        One link per body of the chain, head first; passive joints from zero effort limits.
 
     Raises
     ------

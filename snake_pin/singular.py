@@ -1,25 +1,11 @@
 """Numerical search for singular postures (R = 0) over the whole joint space.
 
 The paper tests families (arcs, serpenoids) and finds only the straight posture
-singular. Here R is minimised over phi in the box ``abs(phi_i) <= bound`` from many random
-starts: L-BFGS-B on R^2 (smooth where the smallest singular value is simple, unlike R,
-which has a kink at zero) with gradients by batched central differences (one call of
-the vectorised :func:`~snake_pin.manipulability.manipulability_R_batch` per gradient),
-then a polish with tighter tolerances, then clustering of the minima into families up
-to the mirror symmetry phi -> -phi (R is invariant under it).
-
-What to expect: R = 0 means the 3 x (n - 1) block H12 loses rank, and matrices of rank
-<= 2 have codimension (3 - 2)(n - 1 - 2) = n - 3 among 3 x (n - 1) matrices. So unless
-the structure of H12 forbids it, the singular postures form a 2-dimensional set in the
-(n - 1)-dimensional joint space, not isolated points. Minima on such a set are
-clustered by single linkage (samples along one connected sheet join up), and each family
-reports the span of every joint angle over its members.
-
-Stopped by Ctrl-C (or SIGTERM turned into KeyboardInterrupt), the search raises
-:class:`~snake_pin.exceptions.RunInterrupted` whose ``partial`` is the search over the
-starts finished so far (``status == "interrupted"``), clustered like a whole one.
-
-The search runs with BLAS and OpenMP limited to one thread (``threadpoolctl``): its
+singular. Here R^2 is minimised over the box ``abs(phi_i) <= bound`` from many random
+starts (L-BFGS-B, gradients by batched central differences of the vectorised R), then
+polished, and the minima clustered into families up to the mirror phi -> -phi. Why the
+singular postures form sheets rather than points, and how the clusters are read:
+:ref:`manipulability`. The search runs with BLAS and OpenMP limited to one thread: its
 matrices are 3 x (n - 1), and multi-threaded OpenBLAS makes L-BFGS-B many times slower
 when another core is busy (:doc:`/performance`).
 """

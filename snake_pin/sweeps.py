@@ -1,15 +1,9 @@
 """Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map.
 
-A :class:`Sweep` holds one family: the swept parameter, D and R at each value, and the
-free joints if any, as data (:meth:`Sweep.to_dict`, :meth:`Sweep.rows`). This module
-draws and writes nothing: the figure and the files are made a layer up, by
-:func:`snake_pin.experiments.manipulability.write_sweep`. A sweep stopped by
-Ctrl-C/SIGTERM raises :class:`~snake_pin.exceptions.RunInterrupted` whose ``partial`` is
-the sweep of the postures computed so far (``status == "interrupted"``).
-
-BLAS and OpenMP thread pools are limited to one thread while a sweep or a map runs
-(``threadpoolctl``): the matrices are (n + 2)-square, and multi-threaded OpenBLAS on
-matrices that small costs far more than it gives when another core is busy
+A :class:`Sweep` holds one family's D and R as data; the figures and files are made a
+layer up (:func:`snake_pin.experiments.manipulability.write_sweep`). BLAS and OpenMP pools
+are limited to one thread while a sweep or a map runs: on (n + 2)-square matrices
+multi-threaded OpenBLAS costs far more than it gives when another core is busy
 (:doc:`/performance`).
 """
 

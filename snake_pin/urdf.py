@@ -1,17 +1,11 @@
 """URDF generation: a planar n-link snake with a floating planar base (Fig. 1), via yourdfpy.
 
 The generated description is the single source of truth for the robot's geometry and
-inertia: :class:`snake_pin.model.Snake` builds its Pinocchio model from it, and the
-engine model reads the same parameters.
-
-Layout (README, conventions): link ``link_i``'s frame sits at the link's front end with x
-pointing towards the tail; its centre of mass is at x = l. ``joint_i`` (revolute about z)
-joins ``link_i`` to ``link_{i+1}`` at x = 2l of ``link_i``. A ``world`` link and a ``planar``
-joint ``base`` carry the head, so that generic tools see the floating planar base.
-
-Passive joints are marked by ``<limit effort="0">``: a joint with zero effort limit
-cannot be actuated. Pinocchio reads it into ``model.effortLimit`` and
-:func:`passive_joints` recovers the indices from any generated file.
+inertia: :class:`snake_pin.model.Snake` builds its Pinocchio model from it. Links and
+joints follow the frames of :ref:`coordinates`; a ``world`` link and a ``planar`` joint
+``base`` carry the head, so that generic tools see the floating planar base. Passive
+joints are marked by ``<limit effort="0">`` (no actuation), which Pinocchio reads into
+``model.effortLimit`` and :func:`passive_joints` recovers.
 """
 
 from __future__ import annotations

@@ -18,20 +18,13 @@ class StudySummary:
     name, study_hash, folder
         The study and where its results are.
     status
-        ``complete`` (every run recorded), ``interrupted`` (SIGINT/SIGTERM; the batches
-        written so far are kept) or ``incomplete`` (some runs lost: a worker died; re-run
-        to retry them).
-    runs
-        Runs in the study.
-    recorded
-        Runs with a row in the dataset (all invocations).
-    ran
-        Runs executed and recorded by this invocation.
-    skipped
-        Runs already recorded when this invocation started.
+        ``complete``, ``interrupted`` (the batches written so far are kept) or
+        ``incomplete`` (some runs lost with a dead worker; re-run to retry them).
+    runs, recorded, ran, skipped
+        Runs in the study, with a row in the dataset, executed and recorded by this
+        invocation, and already recorded when it started.
     lost
-        Runs submitted by this invocation and not recorded (in flight at an interrupt,
-        or on a worker that died); a re-run executes them.
+        Runs this invocation submitted and did not record; a re-run executes them.
     statuses
         Recorded rows per status (``ok``, ``diverged``, ``failed``).
     wall_time

@@ -310,17 +310,15 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, fps: float, reference: boo
 
 def write_html(traj: Trajectory, path: str | os.PathLike[str], *, fps: float = 20.0,
                reference: bool = True) -> Path:
-    """Write one self-contained HTML page animating ``traj`` (meshcat's static export).
-
-    No server is started and no socket is opened (see :func:`offline_visualizer`).
+    """Write one self-contained HTML page animating ``traj`` (meshcat's static export),
+    with no server and no socket.
 
     Parameters
     ----------
     traj : Trajectory
         The trajectory to animate.
     path : str or os.PathLike
-        The page to write (``.html`` or ``.htm``, in an existing folder); written whole
-        or not at all.
+        The ``.html`` or ``.htm`` page, in an existing folder; written whole or not at all.
     fps : float, optional
         Animation frames per second of simulated time, 1..120.
     reference : bool, optional
@@ -334,10 +332,9 @@ def write_html(traj: Trajectory, path: str | os.PathLike[str], *, fps: float = 2
     Raises
     ------
     ParameterError
-        If ``path`` does not end in ``.html``/``.htm``, its folder does not exist, or
-        ``fps`` is outside 1..120.
+        A bad ``path`` or ``fps``.
     OSError
-        If the page cannot be written.
+        The page cannot be written.
     """
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):
@@ -369,11 +366,9 @@ def view(traj: Trajectory, *, port: int | None = None, fps: float = 30.0,
     fps : float, optional
         Animation frames per second of simulated time, 1..120.
     block : bool, optional
-        Wait until interrupted, then stop the server: once the URL is printed, a
-        ``KeyboardInterrupt`` (Ctrl-C) ends the wait and the call returns normally; one
-        that comes earlier, or a ``SystemExit``, propagates after the server is stopped.
-        Without ``block`` the call returns at once and the server lives until this
-        process ends (stopped at exit, and by itself if the process is killed).
+        Wait until Ctrl-C (then return normally; an earlier one, or a ``SystemExit``,
+        propagates), then stop the server. Without it the server lives until this
+        process ends, however it ends.
 
     Returns
     -------
@@ -383,9 +378,9 @@ def view(traj: Trajectory, *, port: int | None = None, fps: float = 30.0,
     Raises
     ------
     ParameterError
-        If ``fps`` is outside 1..120, or ``port`` is out of range or in use.
+        A bad ``fps``, or ``port`` out of range or in use.
     SnakePinError
-        If the server does not start or stops on its own while ``block`` waits.
+        The server does not start, or stops on its own while ``block`` waits.
     """
     _check_fps(fps)
     proc, zmq_url, web_url = start_server(port)
