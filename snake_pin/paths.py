@@ -76,14 +76,12 @@ class PathPoint(NamedTuple):
 
     Parameters
     ----------
-    p : numpy.ndarray, shape s.shape + (2,)
+    p : numpy.ndarray
         Point on the curve [m].
-    gamma : numpy.ndarray, shape s.shape
+    gamma : numpy.ndarray
         Tangent angle [rad] (continuous in s, not wrapped).
-    kappa : numpy.ndarray, shape s.shape
-        Signed curvature [1/m] (positive turning left), ``d gamma / ds``.
-    dkappa : numpy.ndarray, shape s.shape
-        ``d kappa / ds`` [1/m^2].
+    kappa, dkappa : numpy.ndarray
+        Signed curvature ``d gamma / ds`` [1/m] (positive turning left) and its rate [1/m^2].
     """
 
     p: np.ndarray
@@ -322,22 +320,22 @@ class Path(abc.ABC):
                 float(g.dkappa[0]))
 
     def geometry(self, s: object) -> PathPoint:
-        """Return the point, tangent angle, curvature and its rate at arc length(s) ``s``.
+        """Return the point, tangent angle, curvature and its rate at arc length(s) ``s`` [m].
 
         Parameters
         ----------
         s : float or array_like
-            Arc length(s) [m], any shape (beyond a finite curve's ends it goes on straight).
+            Arc length(s), any shape (beyond a finite curve's ends it goes on straight).
 
         Returns
         -------
         PathPoint
-            Arrays shaped like ``s`` (``p`` with a last axis of 2).
+            Arrays shaped like ``s``.
 
         Raises
         ------
         ParameterError
-            If an arc length is not finite.
+            An arc length is not finite.
         """
         arr = np.asarray(s, dtype=float)
         if not np.all(np.isfinite(arr)):
@@ -353,17 +351,17 @@ class Path(abc.ABC):
         Parameters
         ----------
         s : float or array_like
-            Arc length(s) [m].
+            Arc length(s), as in :meth:`geometry`.
 
         Returns
         -------
         numpy.ndarray
-            Points [m].
+            ``geometry(s).p``.
 
         Raises
         ------
         ParameterError
-            If an arc length is not finite.
+            An arc length is not finite.
         """
         return self.geometry(s).p
 
@@ -389,7 +387,7 @@ class Path(abc.ABC):
 
     def project(self, points: object, *, span: tuple[float, float] | None = None,
                 hint: object = None) -> np.ndarray:
-        """Return the arc length ``s*`` of the closest point of the path to each point.
+        """Return the arc length ``s*`` [m] of the closest point of the path to each point.
 
         Lines and circles project exactly (a circle: the lap nearest the hint, else the first
         lap at or after ``s_min``, capped at ``s_max``; a line ignores the hint).
@@ -403,19 +401,17 @@ class Path(abc.ABC):
         hint : float or array_like, optional
             Arc lengths near the answer (scalar or one per point), e.g. the last answer when
             tracking a moving point: then the closest point within :data:`HINT_RADIUS` of the
-            hint (without a span, not bounded by :meth:`default_span`), from a table of
-            samples and a local expansion (the controllers' hot path).
+            hint, unbounded without a span (the controllers' hot path; :doc:`/paths`).
 
         Returns
         -------
         numpy.ndarray, shape points.shape[:-1]
-            ``s*`` [m].
+            ``s*``.
 
         Raises
         ------
         ParameterError
-            If the points are not a finite (..., 2) array, the span is not increasing or not
-            finite, or the hint is not finite.
+            The points are not a finite (..., 2) array, or the span or the hint is invalid.
         """
         pts = np.asarray(points, dtype=float)
         if pts.ndim == 0 or pts.shape[-1] != 2 or not np.isfinite(pts).all():
@@ -650,14 +646,14 @@ class Line(Path):
     Parameters
     ----------
     start : tuple of float, optional
-        Point at s = 0, ``(x, y)`` [m].
+        Point ``(x, y)`` at s = 0 [m].
     direction : float, optional
         Heading [rad] (0: along +x).
 
     Raises
     ------
     ParameterError
-        If a parameter is not a finite number (or point).
+        A parameter is not a finite number (or point).
     """
 
     start: tuple[float, float] = (0.0, 0.0)
@@ -711,9 +707,7 @@ def _circle_defaults(radius: float, centre: object, start_angle: object,
 class Circle(Path):
     """The circle of ``radius`` about ``centre``, from the polar angle ``start_angle``.
 
-    Counter-clockwise (turning left, kappa = 1/radius) unless ``clockwise``. By default
-    it passes through the origin heading along +x. s runs on over any number of laps;
-    gamma grows without wrapping.
+    By default through the origin heading along +x; s runs on over any number of laps.
 
     Parameters
     ----------
@@ -725,13 +719,12 @@ class Circle(Path):
         Polar angle of the start point [rad]; None: the one that heads along +x at the
         origin (or 0 when a centre is given).
     clockwise : bool, optional
-        Travel clockwise (turning right, kappa = -1/radius).
+        Travel clockwise (turning right, kappa = -1/radius) instead of left.
 
     Raises
     ------
     ParameterError
-        If the radius is not positive, a number is not finite, or ``clockwise`` is not a
-        boolean.
+        A number is not finite or out of its range, or ``clockwise`` not a boolean.
     """
 
     radius: float = 1.2
@@ -827,8 +820,7 @@ class Arc(_Finite, Circle):
     Raises
     ------
     ParameterError
-        If the radius or the angle is not positive, a number is not finite, or
-        ``clockwise`` is not a boolean.
+        As :class:`Circle`, or the angle is not positive.
     """
 
     angle: float = _HALF_PI
@@ -894,10 +886,9 @@ class _GraphCurve(Path):
 
 @dataclass(frozen=True)
 class LaneChange(_GraphCurve):
-    """A lead-in of ``start`` along +x, an S of ``length_x`` to the line y = ``offset``, then on.
+    """A lead-in of ``start``, an S of ``length_x`` to the parallel line at ``offset``, then on.
 
-    In the frame at ``origin`` rotated by ``direction``; ``offset`` > 0 moves left. The S
-    is ``y = offset P(x / length)`` with the septic smootherstep P (C3 joins).
+    In the frame at ``origin`` rotated by ``direction`` (the S: :doc:`/paths`).
 
     Parameters
     ----------
@@ -915,7 +906,7 @@ class LaneChange(_GraphCurve):
     Raises
     ------
     ParameterError
-        If a number is not finite or out of its range.
+        A number is not finite or out of its range.
     """
 
     offset: float = 0.3
@@ -1012,7 +1003,7 @@ class Sinusoid(_GraphCurve):
     Raises
     ------
     ParameterError
-        If a number is not finite or the wavelength is not positive.
+        A number is not finite or out of its range.
     """
 
     amplitude: float = 0.2
@@ -1350,7 +1341,7 @@ class PathReference:
 # ---------------------------------------------------------------- distance to a path
 def cross_track_error(path: Path | PathReference, points: object, *,
                       span: tuple[float, float] | None = None) -> np.ndarray:
-    """Return the signed distance from each point to the path, positive on the left.
+    """Return the signed distance [m] from each point to the path, positive on the left.
 
     Where the closest point is an end of the span, the distance to it is returned, signed
     by the side of the tangent there.
@@ -1367,12 +1358,12 @@ def cross_track_error(path: Path | PathReference, points: object, *,
     Returns
     -------
     numpy.ndarray, shape points.shape[:-1]
-        Signed distances [m].
+        Signed distances.
 
     Raises
     ------
     ParameterError
-        If the points are not a finite (..., 2) array or the span is invalid.
+        The points are not a finite (..., 2) array, or the span is invalid.
     """
     curve, pts, span = _distance_arguments(path, points, span)
     s = curve.project(pts, span=span)
@@ -1384,7 +1375,7 @@ def cross_track_error(path: Path | PathReference, points: object, *,
 
 def along_track(path: Path | PathReference, points: object, *,
                 span: tuple[float, float] | None = None) -> np.ndarray:
-    """Return the arc length of the closest point of the path to each point (:meth:`Path.project`).
+    """Return the arc length [m] of the closest point of the path to each point.
 
     Parameters
     ----------
@@ -1393,17 +1384,17 @@ def along_track(path: Path | PathReference, points: object, *,
     points : array_like, shape (..., 2)
         Points [m].
     span : tuple of float, optional
-        ``(s_min, s_max)`` searched [m]; default the path's :meth:`Path.default_span`.
+        As in :func:`cross_track_error`.
 
     Returns
     -------
     numpy.ndarray, shape points.shape[:-1]
-        Arc lengths [m].
+        :meth:`Path.project` of the points.
 
     Raises
     ------
     ParameterError
-        If the points are not a finite (..., 2) array or the span is invalid.
+        The points are not a finite (..., 2) array, or the span is invalid.
     """
     curve, pts, span = _distance_arguments(path, points, span)
     return curve.project(pts, span=span)
@@ -1457,17 +1448,9 @@ def make_path(name: str, **params: Any) -> Path:
         ``"line"``, ``"circle"``, ``"arc"``, ``"lane_change"``, ``"sinusoid"`` or
         ``"waypoints"``.
     **params
-        The shape's parameters (defaults start at the origin heading along +x; lengths
-        in m, angles in rad):
-
-        - ``line``: ``start`` [x, y], ``direction``;
-        - ``circle``: ``radius`` (1.2), ``centre`` [x, y], ``start_angle``, ``clockwise``;
-        - ``arc``: as circle, plus ``angle`` (the sweep, pi/2);
-        - ``lane_change``: ``offset`` (0.3, left positive), ``length`` (2.0), ``start``
-          (0.5), ``origin``, ``direction``;
-        - ``sinusoid``: ``amplitude`` (0.2), ``wavelength`` (2.0), ``origin``,
-          ``direction``;
-        - ``waypoints``: ``points`` [[x, y], ...] (required).
+        The parameters of the shape's class (:class:`Line`, :class:`Circle`, :class:`Arc`,
+        :class:`LaneChange` with ``length`` for ``length_x``, :class:`Sinusoid`,
+        :class:`Waypoints` whose ``points`` are required), defaults included.
 
     Returns
     -------
@@ -1477,8 +1460,7 @@ def make_path(name: str, **params: Any) -> Path:
     Raises
     ------
     ParameterError
-        If the name is unknown, a parameter is unknown to the shape, ``points`` is
-        missing for waypoints, or a value is out of its domain.
+        An unknown name or parameter, missing waypoints, or a value out of its domain.
     """
     if not isinstance(name, str) or name not in _SHAPES:
         raise ParameterError(f"unknown path {_short(name)}: expected one of "
