@@ -9,11 +9,11 @@
 - :mod:`~snake_pin.study.command`: the ``snake-pin study`` subcommand.
 """
 
-from .command import add_study_parser
+from .command import add_study_parser as add_study_parser  # the CLI's, not in __all__
 from .errors import StudyError
 from .runner import run_study
 from .spec import SETTINGS, Scenario, StudySpec, load_study, run_key
 from .summary import StudySummary
 
-__all__ = ["SETTINGS", "Scenario", "StudyError", "StudySpec", "StudySummary",
-           "add_study_parser", "load_study", "run_key", "run_study"]
+__all__ = ["SETTINGS", "Scenario", "StudyError", "StudySpec", "StudySummary", "load_study",
+           "run_key", "run_study"]
