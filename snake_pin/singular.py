@@ -167,8 +167,7 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     bound
         Joint limit of the box [rad].
     free_joint
-        Search R~ with this joint (or these joints) free, beside the robot's passive
-        joints (which are always free, as in :func:`~snake_pin.manipulability.manipulability`).
+        Search R~ with this joint (or these joints) free, beside the robot's passive joints.
     seed
         Seed of the random starts, 0 .. :data:`MAX_SEED`.
     relative
@@ -184,13 +183,11 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     Raises
     ------
     RunInterrupted
-        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt) after at least one start:
-        ``partial`` is the search over the starts finished so far.
+        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the
+        search over the starts finished so far, with ``status == "interrupted"``.
     ParameterError
-        ``params`` is not a SnakeParams; ``starts``, ``seed``, ``bound`` or ``relative``
-        not a number in its range (the first two integers); ``progress`` not a bool; free
-        joints that are not integers in 1..n - 1 or leave no task; or a robot whose R is
-        zero everywhere.
+        A bad argument, free joints that leave no task, or a robot whose R is zero
+        everywhere.
     """
     check_params(params)
     starts = integer(starts, "starts", low=1, high=MAX_STARTS)

@@ -107,14 +107,12 @@ class Sweep:
         return list(zip(self.values.tolist(), self.D.tolist(), self.R.tolist(), strict=True))
 
     def to_dict(self) -> dict[str, object]:
-        """Plain JSON data of the sweep.
+        """Plain JSON data of the sweep (non-finite entries as None).
 
         Returns
         -------
         dict
-            family, parameter (the label), robot, free_joint, status (``"interrupted"``
-            for a partial sweep), values, D, R (non-finite entries as None) and
-            :attr:`meta`.
+            family, parameter (the label), robot, free_joint, status, values, D, R, meta.
         """
         free = self.free_joint
         return {"family": self.family, "parameter": self.label, "robot": self.robot,
@@ -162,16 +160,14 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     Parameters
     ----------
     snake
-        The robot. Its passive joints are free joints, beside ``free_joint`` (as in
-        :func:`~snake_pin.manipulability.manipulability`).
+        The robot; its passive joints are free beside ``free_joint``.
     family
         One of :data:`FAMILIES`.
     free_joint
         Joint(s) without an actuator (D~ and R~ of eq. 42).
     points
-        Number of parameter values, 2 .. :data:`MAX_POINTS`. When the range holds 0 (the
-        straight posture, singular: R = 0) strictly inside and the even grid misses it,
-        0 is inserted (``points + 1`` values): a sweep always sees the singular point.
+        Number of values, 2 .. :data:`MAX_POINTS`; 0 (the straight posture, singular) is
+        inserted when the range holds it strictly inside and the even grid misses it.
     bounds
         The parameter range (default: the family's range in :data:`FAMILIES`).
     progress
@@ -185,13 +181,10 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     Raises
     ------
     RunInterrupted
-        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the sweep
-        of the values computed so far, with ``status == "interrupted"``.
+        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the
+        sweep of the values computed so far, with ``status == "interrupted"``.
     ParameterError
-        ``snake`` not a Snake, an unknown family, ``points`` not an integer in
-        2 .. :data:`MAX_POINTS`, ``bounds`` not two finite numbers low < high,
-        ``progress`` not a bool, or free joints that are not integers in 1..n - 1 or leave
-        the task no actuated joint.
+        A bad argument, or free joints that leave the task no actuated joint.
     """
     instance(snake, Snake, "snake")
     if not isinstance(family, str) or family not in FAMILIES:
@@ -269,11 +262,11 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
     Parameters
     ----------
     snake
-        The robot (its parameters go to the batched closed form).
+        The robot.
     free_joint
         A free joint (R~), or None.
     alpha_points, ts_points
-        Grid sizes along alpha and T_s.
+        Grid sizes along alpha and T_s (1 .. :data:`MAX_POINTS`).
     alpha_max, ts_max
         Upper ends of the grid (both start at 0).
 
@@ -285,9 +278,7 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
     Raises
     ------
     ParameterError
-        ``snake`` not a Snake, a grid size not an integer in 1 .. :data:`MAX_POINTS`, an
-        upper end not a positive number, or a free joint that is not an integer in
-        1..n - 1 or leaves the task no actuated joint.
+        A bad argument, or a free joint that leaves the task no actuated joint.
     """
     instance(snake, Snake, "snake")
     alpha_points = integer(alpha_points, "alpha_points", low=1, high=MAX_POINTS)
