@@ -174,17 +174,14 @@ def _add_extension(robot: etree._Element, params: SnakeParams) -> None:
 
 
 def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
-    """Write the URDF of ``params`` to ``path`` whole or not at all.
-
-    The description is validated with yourdfpy before it is written.
+    """Write the URDF of ``params`` to ``path`` whole or not at all, validated by yourdfpy.
 
     Parameters
     ----------
     params : SnakeParams
         Robot parameters.
     path : str or os.PathLike
-        Output file; must end in ``.urdf`` and its folder must exist. An existing file is
-        replaced atomically.
+        Output file ending in ``.urdf``, in an existing folder.
 
     Returns
     -------
@@ -194,12 +191,12 @@ def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     Raises
     ------
     ParameterError
-        If ``params`` is not a :class:`~snake_pin.params.SnakeParams`, ``path`` is not a
-        path, does not end in ``.urdf`` or its folder does not exist.
+        ``params`` is not a SnakeParams, or ``path`` not a ``.urdf`` file in an existing
+        folder.
     SnakePinError
-        If yourdfpy rejects the generated description (a bug, not a user error).
+        yourdfpy rejects the generated description (a bug, not a user error).
     OSError
-        If the file cannot be written.
+        The file cannot be written.
     """
     _check_params(params)
     if not isinstance(path, (str, os.PathLike)):
