@@ -300,7 +300,7 @@ def test_c_level_output_never_reaches_json_stdout(capfd: pytest.CaptureFixture[s
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """What C code prints during a --json command (LAPACK's xerbla does) goes to stderr;
     stdout holds the one JSON object."""
-    import snake_pin.experiments.robot as robot
+    import snake_pin.runs.outputs as robot
 
     info = robot.info
 
