@@ -94,7 +94,7 @@ from .tracking import initial_state, tracking_params
 
 __all__ = ["CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT", "METRIC_FIELDS",
            "MODELS", "QUICK_T_FINAL", "SCENARIOS", "SPEED", "WAYPOINTS", "BenchmarkResult",
-           "ControllerFactory", "cm_positions", "make_scenario", "path_metrics", "run_benchmark",
+           "ControllerFactory", "make_scenario", "path_metrics", "run_benchmark",
            "run_cell", "write_benchmark"]
 
 #: Reference speed along every path [m/s] (the paper's 0.1 m/s).
@@ -216,21 +216,8 @@ def _project(path: Curve, points: np.ndarray, s_ref: np.ndarray) -> np.ndarray:
     return path.project(points, span=(lo, hi))
 
 
-def cm_positions(snake: Snake, q: np.ndarray) -> np.ndarray:
-    """Return the centre of mass of the links at each configuration, shape (N, 2) [m].
-
-    Parameters
-    ----------
-    snake : Snake
-        The robot (its link masses weigh the links' centres).
-    q : numpy.ndarray
-        Configurations, shape (N, n + 2).
-
-    Returns
-    -------
-    numpy.ndarray
-        The centre of mass ``(x, y)`` [m] at each configuration, shape (N, 2).
-    """
+def _cm_positions(snake: Snake, q: np.ndarray) -> np.ndarray:
+    """The centre of mass (x, y) of the links at each configuration of ``q``, shape (N, 2) [m]."""
     masses = snake.params.per_link("mass")
     weights = masses / masses.sum()
     return np.array([weights @ snake.link_poses(qk)[:, :2] for qk in q])
@@ -288,7 +275,7 @@ def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
         if isinstance(path, Circle) and math.isinf(getattr(path, "angle", math.inf)):
             lap = path.length
             lag = (lag + 0.5 * lap) % lap - 0.5 * lap
-        cm = cm_positions(snake, qw)
+        cm = _cm_positions(snake, qw)
         s_cm = _project(path, cm, s_ref)
         out.update(head_ct_rms=_rms(ct), head_ct_max=float(ct.max()),
                    head_ct_rms_pct=100.0 * _rms(ct) / body, head_lag_rms=_rms(lag),

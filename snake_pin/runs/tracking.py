@@ -1,9 +1,9 @@
 """Section VI.2's run: Lyapunov-like head tracking (w_r = [0.1 t, 0, pi], gains (84)).
 
 Owns one tracking run (:func:`run_tracking`), its robot (:func:`tracking_params`,
-:func:`tracking_friction`), its start (:func:`initial_state`), its summary
-(:func:`tracking_summary`) and its figures (:func:`plot_tracking`): ``snake-pin simulate
---controller lyapunov``, the report's tracking stage and the controller benchmark use them.
+:func:`tracking_friction`), its start (:func:`initial_state`) and its figures
+(:func:`plot_tracking`): ``snake-pin simulate --controller lyapunov``, the report's
+tracking stage and the controller benchmark use them.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import numpy as np
 
 from .. import gaits
 from ..control import LyapunovController, head_first_reference
-from ..control.reference import LinearReference
 from ..integrability import conserved_quantity_along
 from ..metrics import (
     ERROR_WINDOW,
@@ -29,8 +28,7 @@ from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory, simulate
 
 __all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "initial_state", "plot_tracking",
-           "run_tracking", "tracking_friction", "tracking_meta", "tracking_params",
-           "tracking_summary"]
+           "run_tracking", "tracking_friction", "tracking_params"]
 
 #: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
 #: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
@@ -110,23 +108,6 @@ def initial_state(params: SnakeParams) -> np.ndarray:
     return gaits.initial_state(params.n, theta_1=np.pi)
 
 
-def tracking_meta(controller: LyapunovController) -> dict[str, Any]:
-    """The entries a tracking run adds to its trajectory's meta.
-
-    Parameters
-    ----------
-    controller
-        The run's law.
-
-    Returns
-    -------
-    dict
-        ``reference`` (:data:`REFERENCE`), ``k_shape``, ``lam`` and ``lam_shape`` of the law.
-    """
-    return {"reference": REFERENCE, "k_shape": controller.k_shape, "lam": controller.lam,
-            "lam_shape": controller.lam_shape}
-
-
 def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
                  error_window: float | None = None,
                  progress: bool = False, **controller_options: Any) -> Trajectory:
@@ -151,57 +132,29 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     Returns
     -------
     Trajectory
-        The run with :func:`tracking_summary`'s summary, head error and criteria.
+        The run, its meta with ``reference`` (:data:`REFERENCE`) and the law's ``k_shape``,
+        ``lam`` and ``lam_shape``; ``signals["head_error"]`` [m] at every sample,
+        ``meta["criteria"]`` (D and R, eqs. 30 and 31, every :data:`CRITERIA_EVERY`
+        samples; R~ with the passive joints free, eq. 42) and in its summary: the
+        controller, friction and passive joints, the head error over t >= ``error_window``
+        (error_window, rms_head_error, max_head_error [m], their _pct, rms_relative),
+        R_min, D_min, body_length, g_drift (max |g - g(0)| of eq. 67) and the final head
+        pose.
     """
     params = params or tracking_params()
     snake = Snake(params)
     reference = head_first_reference()
     controller = LyapunovController(snake, reference, **controller_options)
     traj = simulate(snake, controller, initial_state(params), t_final, progress=progress,
-                    meta=tracking_meta(controller))
-    return tracking_summary(traj, snake, reference, start=error_window)
-
-
-def tracking_summary(traj: Trajectory, snake: Snake,
-                     reference: LinearReference | None = None, *,
-                     start: float | None = None) -> Trajectory:
-    """Add a tracking run's head error, criteria and summary to its trajectory.
-
-    The one summary of a tracking run (:func:`run_tracking` adds it).
-
-    Parameters
-    ----------
-    traj
-        The run (changed in place).
-    snake
-        Its robot.
-    reference
-        The head reference; None: w_r = [0.1 t, 0, pi].
-    start
-        Start of the head-error window [s]; None: the default of
-        :func:`~snake_pin.metrics.head_error_summary` (10 s, or the second half of a
-        run shorter than 20 s).
-
-    Returns
-    -------
-    Trajectory
-        ``traj``, with ``signals["head_error"]`` [m] at every sample, ``meta["criteria"]``
-        (D and R, eqs. 30 and 31, every :data:`CRITERIA_EVERY` samples; R~ with the passive
-        joints free, eq. 42) and in its summary: the
-        controller, friction and passive joints, the head error over t >= ``start``
-        (error_window, rms_head_error, max_head_error [m], their _pct, rms_relative),
-        R_min, D_min, body_length,
-        g_drift (max |g - g(0)| of eq. 67) and the final head pose.
-    """
-    params = snake.params
-    reference = reference or head_first_reference()
+                    meta={"reference": REFERENCE, "k_shape": controller.k_shape,
+                          "lam": controller.lam, "lam_shape": controller.lam_shape})
     error = head_position_error(traj, reference)
     t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
     g = conserved_quantity_along(snake, traj.q, traj.dq)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
-    errors = head_error_summary(traj, error) if start is None \
-        else head_error_summary(traj, error, start=start)
+    errors = head_error_summary(traj, error) if error_window is None \
+        else head_error_summary(traj, error, start=error_window)
     traj.summary.update({
         "controller": "lyapunov", "c_x": params.c_x, "c_y": params.c_y,
         "passive": list(params.passive), **errors,
