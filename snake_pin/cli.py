@@ -989,6 +989,16 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
                              f"{len(result.rows)} runs, path metrics over t >= {start:g} s")
 
 
+def _command(parser: argparse.ArgumentParser, func: Callable[[argparse.Namespace], _Outcome],
+             output: str | None = "output folder", *, required: bool = True) -> None:
+    """A subcommand's last options (``-o/--output`` unless ``output`` is None, ``--json``)
+    and the function that runs it."""
+    if output is not None:
+        parser.add_argument("-o", "--output", required=required, help=output)
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(func=func)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line, built in one place.
 
@@ -1012,14 +1022,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("generate", help="write the URDF of a snake robot")
     _robot_options(p)
-    p.add_argument("-o", "--output", required=True, help="output file (.urdf)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_generate)
+    _command(p, _cmd_generate, output="output file (.urdf)")
 
     p = sub.add_parser("info", help="parameters and model sizes of a robot")
     _robot_options(p)
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_info)
+    _command(p, _cmd_info, output=None)
 
     p = sub.add_parser("manip", help="manipulability D, R of one posture (eqs. 30, 31, 42)",
                        description="D and R of one posture. The shape is --shape, or the one "
@@ -1037,8 +1044,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
                    help="joint K is free (beside any --passive joints)")
     p.add_argument("--no-heading", action="store_true", help="leave theta_1 out of the task")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_manip)
+    _command(p, _cmd_manip, output=None)
 
     p = sub.add_parser("sweep", help="D and R along a posture family (Figs. 2-9)")
     p.add_argument("family", choices=("arc", "alpha", "ts"))
@@ -1051,9 +1057,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--range", type=parse_angle, nargs=2, metavar=("LOW", "HIGH"),
                    help="the swept parameter's range, LOW < HIGH (angles may be written "
                    "pi/5; default: arc -pi/5..pi/5, alpha 0..pi/2, ts 0..2)")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_sweep)
+    _command(p, _cmd_sweep)
 
     p = sub.add_parser("singular", help="search the joint box for singular postures (R = 0)")
     _robot_options(p)
@@ -1064,9 +1068,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
                    help="joint K is free (beside any --passive joints)")
     p.add_argument("--seed", type=_int_in(0, MAX_SEED), default=0, help="0..2**32-1")
-    p.add_argument("-o", "--output", help="folder for the families (drawing and JSON)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_singular)
+    _command(p, _cmd_singular, output="folder for the families (drawing and JSON)",
+             required=False)
 
     p = sub.add_parser("simulate", help="closed-loop head tracking run (VI.1 / VI.2)")
     p.add_argument("--controller", required=True, metavar="pfl|lyapunov|los|module:Class",
@@ -1081,9 +1084,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=_ERROR_WINDOW_HELP)
     p.add_argument("--climb-r", type=_float_in(0.0),
                    help="PFL only: gain of the singularity-aware redundancy term (default 0)")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_simulate)
+    _command(p, _cmd_simulate)
 
     p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)",
                        description="The Lyapunov-like law on MuJoCo, a wheel pair per link "
@@ -1118,9 +1119,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--perturbation", type=_float_in(0.0, MAX_PERTURBATION, open_low=True),
                    metavar="EPS", help="with --seeds: offsets of the initial joint angles, "
                    f"uniform in [-EPS, EPS] rad (default 1e-6, at most {MAX_PERTURBATION:g})")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_engine)
+    _command(p, _cmd_engine)
 
     p = sub.add_parser("view", help="meshcat viewer of a saved trajectory (127.0.0.1 only)")
     p.add_argument("trajectory", help="a .npz written by simulate/reproduce")
@@ -1184,9 +1183,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "chaotic: a cell reports their median and 10-90 %% range; default: "
                    "bench_control.ENGINE_DRAWS)")
     p.add_argument("--quick", action="store_true", help="short runs of a few cells")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_bench_control)
+    _command(p, _cmd_bench_control)
     return parser
 
 

@@ -280,8 +280,7 @@ def test_reproduce_refuses_a_robot_its_engine_stage_cannot_put_on_wheels(
 
 
 def test_report_re_exports_the_json_functions() -> None:
-    """snake_pin.report still offers json_safe/json_text (for older imports): the same
-    functions as snake_pin._json."""
+    """snake_pin.report offers json_safe/json_text: the same functions as snake_pin._json."""
     import snake_pin._json
     import snake_pin.report
 

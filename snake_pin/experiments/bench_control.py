@@ -43,9 +43,8 @@ def bench_control_stage(ctx: Context) -> None:
     (circle 1L, velocity law, 12 s, one draw). Full: :data:`REPORT_SCENARIOS` x every
     built-in controller, with and without joint 5 failed, 60 s, and the engine rows:
     :data:`REPORT_ENGINE_SCENARIOS` with the velocity-level law on the engine robot,
-    :data:`REPORT_ENGINE_T` s runs (shorter than 60 s to keep the stage within ~30 s more
-    wall time), each the median of :data:`ENGINE_DRAWS` perturbed starts. Measured on 2
-    cores: 142 s in all, the engine rows 14 s of it (35 s when the machine was loaded).
+    :data:`REPORT_ENGINE_T` s runs (shorter than the viscous runs, for the stage's
+    budget), each the median of :data:`ENGINE_DRAWS` perturbed starts.
 
     Parameters
     ----------

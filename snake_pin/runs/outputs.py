@@ -32,8 +32,8 @@ __all__ = ["draw_singular", "info", "write_singular", "write_sweep"]
 
 
 def _png(fig: Figure) -> bytes:
-    """The figure as PNG bytes (closed). Figures laid out with tight_layout are saved
-    without the tight bounding box, which cost 1.67x per figure."""
+    """The figure as PNG bytes (closed). Laid out with tight_layout already, it is saved
+    without ``bbox_inches="tight"`` (a second layout pass per figure)."""
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
