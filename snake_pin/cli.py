@@ -800,15 +800,10 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
                   friction: dict[str, Any], out: Path, reference: Any = None,
                   start: float | None = None) -> _Outcome:
-    """``engine --seeds N``: N runs from perturbed initial joint angles, as a distribution.
-
-    With ``--path`` every run follows that path (``reference``), and the head error of the
-    distribution is the distance to the reference's point at the same time.
-
-    Every run is saved as it finishes (``engine_seedK``); the figures show the median run;
-    ``engine_seeds.json`` holds the settings, every run's offset and summary, and each
-    metric's median and 10-90 % range. Interrupted, the runs finished are kept and the
-    distribution is over them (status "interrupted").
+    """``engine --seeds N``: N runs from perturbed initial joint angles (along ``--path`` if
+    given), each saved as it finishes (``engine_seedK``), their distribution in
+    ``engine_seeds.json``, the figures of the median run; interrupted, the runs finished and
+    their distribution (status "interrupted").
     """
     from ._io import atomic_write_bytes
     from .runs.engine import PERTURBATION, Draws, engine_draw, perturbations, plot_engine

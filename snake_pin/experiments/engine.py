@@ -13,9 +13,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
+from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
 from ..engine.model import WheelSpec
 from ..engine.run import identify_friction
+from ..gaits import initial_state
 from ..metrics import default_error_window
+from ..model import Snake
 from ..params import ROBOTS, SnakeParams
 from ..runs.engine import (
     METRICS,
@@ -25,9 +30,10 @@ from ..runs.engine import (
     engine_robot,
     perturbations,
     plot_engine,
-    viscous_twin,
+    summarize,
 )
 from ..runs.parallel import run_jobs
+from ..sim import Trajectory, simulate
 from .context import Context
 
 __all__ = ["DRAWS", "QUICK_DRAWS", "SENSITIVE", "VISCOUS_DRAWS", "engine_stage"]
@@ -50,6 +56,23 @@ def _cell(dist: dict[str, Any]) -> str:
 def _passive_joint(n: int) -> int:
     """Joint 5 as in the paper, or the middle joint of a robot too short for it."""
     return 5 if n >= 6 else max(1, n // 2)
+
+
+def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
+                 offset: np.ndarray | None = None, error_window: float | None = None
+                 ) -> Trajectory:
+    """The same law (``law``: "velocity" or "acceleration") on the viscous Pinocchio model
+    of ``params`` from the engine runs' arc of (82), head first, its n - 1 joint angles
+    offset by ``offset``; passed through :func:`~snake_pin.runs.engine.summarize`."""
+    snake = Snake(params)
+    controller = (QuasiStaticLyapunovController(snake, head_first_reference())
+                  if law == "velocity" else LyapunovController(snake, head_first_reference()))
+    x0 = initial_state(params.n, theta_1=np.pi)
+    if offset is not None:
+        x0[3:params.n + 2] += np.asarray(offset, dtype=float)
+    traj = simulate(snake, controller, x0, t_final)
+    summarize(traj, start=error_window)
+    return traj
 
 
 def _friction_section(sec: Any, base: SnakeParams, wheels: WheelSpec,

@@ -316,15 +316,9 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                  t_final: float, factory: ControllerFactory | None,
                  criteria_dt: float | None, draws: int,
                  robot: SnakeParams | None, start: float) -> dict[str, Any]:
-    """An engine cell: ``draws`` perturbed starts, the error metrics' medians over them.
-
-    The draws' offsets are :func:`~snake_pin.runs.engine.perturbations` (seed 0,
-    half-width :data:`~snake_pin.runs.engine.PERTURBATION`); one draw is the
-    unperturbed start. The head and CM errors and the torque RMS are medians over the
-    draws; the row's snapshots, head path and criteria (R, R~, lateral) are the median
-    draw's (by head cross-track RMS); ``head_ct_rms_pct_p10``/``p90`` give the spread;
-    ``t_end`` is the median end time, and when a draw stops early the status, reason and
-    ``diverged_at`` are those of the first draw to stop.
+    """An engine cell (see :func:`run_cell`): the row's snapshots, head path and criteria are
+    the median draw's (by head cross-track RMS), ``t_end`` the median end time, and the status,
+    reason and ``diverged_at`` those of the first draw to stop early.
     """
     from ..engine.run import identify_friction, run_engine
 

@@ -1,13 +1,14 @@
 """Section VI.3's runs on MuJoCo: the Lyapunov-like controller on a wheeled snake with
-Coulomb contacts (Figs. 19-21), and the same controller on the viscous Pinocchio model.
+Coulomb contacts (Figs. 19-21), and the summary and figures of such runs (on the viscous
+Pinocchio model too).
 
 The engine runs are chaotic (with joint 5 passive, offsets of 1e-12..1e-4 rad on the
 initial joint angles moved the RMS head error between 9 % and 11.5 % of the body), so
 their results are distributions: :func:`perturbations` draws N small offsets of the
 initial joint angles (uniform, seeded), :func:`engine_draw` runs one of them, and
 :class:`Draws` gives the median and the 10-90 % range of each metric of :data:`METRICS`
-(``snake-pin engine --seeds N`` and the report's engine stage). The viscous model's runs
-are checked the same way (:func:`viscous_twin` with an offset).
+(``snake-pin engine --seeds N``, the report's engine stage and the benchmark's engine
+cells).
 """
 
 from __future__ import annotations
@@ -21,12 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
+from ..control import head_first_reference
 from ..control.reference import HeadReference
 from ..engine.model import WheelSpec
 from ..engine.run import EngineRun, run_engine
 from ..exceptions import ParameterError
-from ..gaits import initial_state
 from ..metrics import (
     applied,
     criteria_along,
@@ -38,10 +38,10 @@ from ..metrics import (
 )
 from ..model import Snake
 from ..params import ROBOTS, SnakeParams
-from ..sim import Trajectory, simulate
+from ..sim import Trajectory
 
 __all__ = ["METRICS", "PERTURBATION", "Draws", "distribution", "engine_draw", "engine_robot",
-           "perturbations", "plot_engine", "summarize", "viscous_twin"]
+           "perturbations", "plot_engine", "summarize"]
 
 #: Default half-width of the uniform offsets of the initial joint angles [rad].
 PERTURBATION = 1e-6
@@ -360,42 +360,6 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
                      initial_offset=offset, reference=reference)
     summarize(run.trajectory, reference=reference, start=error_window)
     return run
-
-
-def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
-                 offset: Sequence[float] | np.ndarray | None = None,
-                 error_window: float | None = None) -> Trajectory:
-    """The same controller on the viscous Pinocchio model of the same robot.
-
-    Parameters
-    ----------
-    params
-        The robot with its identified viscous friction.
-    t_final
-        Duration [s].
-    law
-        "velocity" (:class:`~snake_pin.control.QuasiStaticLyapunovController`) or
-        "acceleration" (:class:`~snake_pin.control.LyapunovController`).
-    offset
-        n - 1 offsets of the initial joint angles [rad] (default none): the run starts
-        from the engine runs' arc of (82), head first.
-    error_window
-        Start of the head-error window [s] (None: :func:`summarize`'s default).
-
-    Returns
-    -------
-    Trajectory
-        The run, passed through :func:`summarize`.
-    """
-    snake = Snake(params)
-    controller = (QuasiStaticLyapunovController(snake, head_first_reference())
-                  if law == "velocity" else LyapunovController(snake, head_first_reference()))
-    x0 = initial_state(params.n, theta_1=np.pi)
-    if offset is not None:
-        x0[3:params.n + 2] += np.asarray(offset, dtype=float)
-    traj = simulate(snake, controller, x0, t_final)
-    summarize(traj, start=error_window)
-    return traj
 
 
 def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Path,
