@@ -2,10 +2,8 @@
 with Coulomb contacts (Figs. 19-21), beside the same controller on the viscous Pinocchio
 model.
 
-The engine runs are chaotic (with joint 5 passive, offsets of 1e-12..1e-4 rad on the
-initial joint angles moved the RMS head error between 9 % and 11.5 % of the body), so the
-stage reports distributions over perturbed starts (:mod:`snake_pin.runs.engine`), and
-checks the viscous model's runs the same way.
+The engine runs are chaotic, so the stage reports distributions over perturbed starts
+(:mod:`snake_pin.runs.engine`), and checks the viscous model's runs the same way.
 """
 
 from __future__ import annotations

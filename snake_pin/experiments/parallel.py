@@ -1,4 +1,5 @@
-"""The executor's jobs under their former module path: :mod:`snake_pin.runs.parallel`."""
+"""The executor's jobs of :mod:`snake_pin.runs.parallel`, importable by this name too
+(scripts/bench.py imports them here)."""
 
 from ..runs.parallel import iter_jobs, run_jobs
 
