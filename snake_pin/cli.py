@@ -384,28 +384,23 @@ def _path_text(args: argparse.Namespace) -> str:
             + (f" ({shown})" if shown else "") + f" at {speed:g} m/s")
 
 
-def _criteria_csv(traj: Any, path: Path) -> Path | None:
-    """Write the criteria series of ``traj.meta["criteria"]`` (t and each criterion) as CSV,
-    whole or not at all; None when the run has none."""
+def _save_run(traj: Any, out: Path, stem: str, figures: Callable[[], Iterable[Path]],
+              extra: Mapping[str, Any] | None = None) -> _Outcome:
+    """Save a finished run (npz + JSON, its criteria series as CSV when it has one), then
+    its ``figures()``; its outcome: the summary (+ ``extra`` and the files) as JSON payload
+    and text, status 3 for a diverged or failed run, a note when the error window is empty."""
     from ._io import atomic_write_bytes
-
-    series = traj.meta.get("criteria")
-    if not isinstance(series, Mapping) or not series.get("t"):
-        return None
-    names = [k for k, v in series.items() if len(v) == len(series["t"])]
-    rows = [",".join(names)]
-    rows += [",".join(repr(float(series[k][i])) for k in names)
-             for i in range(len(series["t"]))]
-    atomic_write_bytes(path, ("\n".join(rows) + "\n").encode())
-    return path
-
-
-def _run_outcome(traj: Any, out: Path, files: Sequence[Path | str],
-                 extra: Mapping[str, Any] | None = None) -> _Outcome:
-    """A finished run's outcome: its summary (+ ``extra`` and the files) as JSON payload and
-    text, status 3 for a diverged or failed run, and a note when the error window is empty."""
     from .metrics import window_note
 
+    files: list[Path] = list(traj.save(out / stem))  # data first, then the figures
+    series = traj.meta.get("criteria")
+    if isinstance(series, Mapping) and series.get("t"):  # t and each criterion, whole or not
+        names = [k for k, v in series.items() if len(v) == len(series["t"])]
+        rows = [",".join(names)] + [",".join(repr(float(series[k][i])) for k in names)
+                                    for i in range(len(series["t"]))]
+        atomic_write_bytes(out / f"{stem}_criteria.csv", ("\n".join(rows) + "\n").encode())
+        files.append(out / f"{stem}_criteria.csv")
+    files += figures()
     payload = {**traj.summary_dict(), **(extra or {}), "files": [str(f) for f in files]}
     status, note = _run_note(traj, out)
     note = "; ".join(part for part in (note, window_note(payload)) if part)
@@ -432,7 +427,7 @@ def _cmd_generate(args: argparse.Namespace) -> _Outcome:
 
 
 def _cmd_info(args: argparse.Namespace) -> _Outcome:
-    from .experiments.robot import info
+    from .runs.outputs import info
 
     params = _params(args)
     data = info(params)
@@ -514,9 +509,9 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
     free = _free_joints(args, params)
     bounds = _sweep_range(args)
     out = _output_folder(args.output)
-    from .experiments.manipulability import write_sweep
     from .manipulability import task_split
     from .model import Snake
+    from .runs.outputs import write_sweep
     from .sweeps import sweep
 
     task_split(params.n, free)
@@ -566,8 +561,8 @@ def _cmd_singular(args: argparse.Namespace) -> _Outcome:
     if not 0 < args.bound <= math.pi:
         raise UsageError(f"argument --bound: must lie in (0, pi], got {args.bound:g}")
     out = _output_folder(args.output) if args.output else None
-    from .experiments.manipulability import write_singular
     from .manipulability import task_split
+    from .runs.outputs import write_singular
     from .singular import find_singular_postures
 
     task_split(params.n, free)
@@ -653,51 +648,17 @@ def _path_options(parser: argparse.ArgumentParser) -> None:
                         help="reference speed along the path [m/s] (default 0.1)")
 
 
-def _cmd_simulate_on_path(args: argparse.Namespace, params: SnakeParams,
-                          out: Path) -> _Outcome:
-    """A run along ``--path`` (any controller, a user's ``module:Class`` too)."""
-    from .control import LOSController, LyapunovController, PFLController
-    from .experiments.tracking import initial_state, tracking_friction
-    from .model import Snake
-    from .sim import simulate
-
-    reference = _path_reference(args, "line")
-    if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
-        params, _ = tracking_friction(params)
-    snake = Snake(params)
-    kind = args.controller
-    if kind == "lyapunov":
-        controller: Any = LyapunovController(snake, reference)
-    elif kind == "pfl":
-        controller = PFLController(snake, reference, climb_R=args.climb_r or 0.0)
-    elif kind == "los":
-        controller = LOSController(snake, reference)
-    else:
-        controller = _user_controller_class(kind)(snake, reference)
-    stem = "run" if ":" in kind else kind
-    t_final = args.t_final or 60.0
-    start = _error_window(args, t_final)
-    try:
-        traj = simulate(snake, controller, initial_state(params), t_final,
-                        progress=_progress(args), meta={"path": repr(reference)})
-    except RunInterrupted as exc:
-        return _interrupted_run(exc, out, stem)
-    _path_summary(traj, reference, start, head_tracking=kind != "los")
-    traj.summary.update(controller=kind, reference=_path_text(args))
-    return _save_path_run(traj, reference, out, stem)
-
-
 def _path_summary(traj: Any, reference: Any, start: float, *,
                   head_tracking: bool = True) -> None:
     """Fill a path run's summary: the head error to the reference's point at the same time
     (:func:`snake_pin.metrics.head_error_summary`), the path metrics of
-    :func:`snake_pin.experiments.bench_control.path_metrics` (cross-track, lag, criteria)
+    :func:`snake_pin.runs.benchmark.path_metrics` (cross-track, lag, criteria)
     and its criteria series in ``traj.meta["criteria"]`` (not in the summary)."""
     import numpy as np
 
-    from .experiments.bench_control import path_metrics
     from .metrics import head_error_summary
     from .model import Snake
+    from .runs.benchmark import path_metrics
 
     error = np.linalg.norm(traj.q[:, :2] - reference.at(traj.t)[0][:, :2], axis=1)
     metrics = path_metrics(traj.t, traj.q, traj.tau, Snake(traj.params), reference,
@@ -709,58 +670,48 @@ def _path_summary(traj: Any, reference: Any, start: float, *,
                          "passive": list(traj.params.passive)})
 
 
-def _save_path_run(traj: Any, reference: Any, out: Path, stem: str,
-                   extra: Mapping[str, Any] | None = None) -> _Outcome:
-    """Save a path run (npz + JSON, criteria CSV) and its figures: the time series and the
-    head against the path in the plane."""
+def _path_figures(traj: Any, reference: Any, out: Path, stem: str) -> list[Path]:
+    """A path run's figures: the time series and the head against the path in the plane."""
     from .viz.plots import plot_head_path, plot_trajectory
 
-    npz, summary_path = traj.save(out / stem)  # data first, then the figures
-    files: list[Path] = [npz, summary_path]
-    table = _criteria_csv(traj, out / f"{stem}_criteria.csv")
-    if table is not None:
-        files.append(table)
     figure, xy = out / f"{stem}.png", out / f"{stem}_path.png"
     plot_trajectory(traj, figure)
     plot_head_path(traj, reference.at(traj.t)[0][:, :2], xy,
                    title=f"Head against its reference: {traj.summary.get('reference', 'the path')}")
-    return _run_outcome(traj, out, [*files, figure, xy], extra)
+    return [figure, xy]
 
 
 def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
-    on_path = args.path is not None or args.controller not in ("pfl", "lyapunov")
+    kind = args.controller
+    on_path = args.path is not None or kind not in ("pfl", "lyapunov")
     if not on_path:
         _path_reference(args)  # --speed/--path-param without a path: refused
-    if args.controller not in ("pfl", "lyapunov", "los") and ":" not in args.controller:
+    if kind not in ("pfl", "lyapunov", "los") and ":" not in kind:
         raise UsageError(f"argument --controller: choose pfl, lyapunov, los or "
-                         f"module:Class (a Controller subclass), got {args.controller!r}")
-    if on_path:
-        if args.controller != "pfl" and args.climb_r is not None:
-            raise UsageError("argument --climb-r: applies to --controller pfl only")
-        _check_t_final(args.t_final, SIMULATE_DT)
-        _error_window(args, args.t_final or 60.0)
-        if args.controller == "pfl" and params.passive:
-            raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
-        if ":" in args.controller:
-            _user_controller_class(args.controller)  # refused before any folder exists
-        _path_reference(args, "line")  # a bad path: refused here, before any folder
-        out = _output_folder(args.output)
-        out.mkdir(parents=True, exist_ok=True)
-        return _cmd_simulate_on_path(args, params, out)
-    if args.controller == "pfl" and params.passive:
-        raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
-    if args.controller != "pfl" and args.climb_r is not None:
+                         f"module:Class (a Controller subclass), got {kind!r}")
+    if kind != "pfl" and args.climb_r is not None:
         raise UsageError("argument --climb-r: applies to --controller pfl only")
+    if kind == "pfl" and params.passive:
+        raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
     _check_t_final(args.t_final, SIMULATE_DT)
-    t_final = args.t_final or (10.0 if args.controller == "pfl" else 60.0)
+    t_final = args.t_final or (10.0 if kind == "pfl" and not on_path else 60.0)
     start = _error_window(args, t_final)
+    user = _user_controller_class(kind) if ":" in kind else None  # refused before any folder
+    reference = _path_reference(args, "line") if on_path else None  # a bad path: refused here
     out = _output_folder(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    stem = "pfl" if args.controller == "pfl" else "lyapunov"
+    stem = "run" if user is not None else kind
+    if args.cx is None and args.cy is None and (on_path or kind == "lyapunov"):
+        # the tracking runs' anisotropic default friction (erratum 3)
+        from .runs.tracking import tracking_friction
+
+        params, _ = tracking_friction(params)
     try:
-        if args.controller == "pfl":
-            from .experiments.pfl import plot_pfl, run_pfl
+        if reference is not None:
+            traj = _simulate_on_path(args, params, reference, user, t_final, start)
+        elif kind == "pfl":
+            from .runs.pfl import plot_pfl, run_pfl
 
             run = run_pfl(params, t_final=t_final, climb_R=args.climb_r or 0.0,
                           control_dt=SIMULATE_DT, error_window=start,
@@ -768,23 +719,44 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
             traj = run.trajectory
             traj.summary["reference"] = _LINE_PFL
         else:
-            from .experiments.tracking import plot_tracking, run_tracking, tracking_friction
+            from .runs.tracking import plot_tracking, run_tracking
 
-            if args.cx is None and args.cy is None:  # anisotropic default (erratum 3)
-                params, _ = tracking_friction(params)
             traj = run_tracking(params, t_final=t_final, error_window=start,
                                 progress=_progress(args))
             traj.summary["reference"] = _LINE_HEAD_FIRST
     except RunInterrupted as exc:
         return _interrupted_run(exc, out, stem)
-    npz, summary_path = traj.save(out / stem)  # data first, then the figures
-    files: list[Path] = [npz, summary_path]
-    table = _criteria_csv(traj, out / f"{stem}_criteria.csv")
-    if table is not None:
-        files.append(table)
-    figures = plot_pfl(run, out, stem) if args.controller == "pfl" \
-        else plot_tracking(traj, out, stem)
-    return _run_outcome(traj, out, [*files, *figures.values()])
+    if reference is not None:
+        return _save_run(traj, out, stem, lambda: _path_figures(traj, reference, out, stem))
+    if kind == "pfl":
+        return _save_run(traj, out, stem, lambda: plot_pfl(run, out, stem).values())
+    return _save_run(traj, out, stem, lambda: plot_tracking(traj, out, stem).values())
+
+
+def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: Any,
+                      user: type | None, t_final: float, start: float) -> Any:
+    """A run along ``--path`` (any controller, a user's ``module:Class`` too), its summary
+    filled by :func:`_path_summary`."""
+    from .control import LOSController, LyapunovController, PFLController
+    from .model import Snake
+    from .runs.tracking import initial_state
+    from .sim import simulate
+
+    snake = Snake(params)
+    kind = args.controller
+    if user is not None:
+        controller: Any = user(snake, reference)
+    elif kind == "lyapunov":
+        controller = LyapunovController(snake, reference)
+    elif kind == "pfl":
+        controller = PFLController(snake, reference, climb_R=args.climb_r or 0.0)
+    else:
+        controller = LOSController(snake, reference)
+    traj = simulate(snake, controller, initial_state(params), t_final,
+                    progress=_progress(args), meta={"path": repr(reference)})
+    _path_summary(traj, reference, start, head_tracking=kind != "los")
+    traj.summary.update(controller=kind, reference=_path_text(args))
+    return traj
 
 
 def _cmd_engine(args: argparse.Namespace) -> _Outcome:
@@ -801,7 +773,7 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
     out = _output_folder(args.output)
     build_engine_model(params, wheels)  # wheels that do not fit the robot: refused here
     from .engine.run import identify_friction, run_engine
-    from .experiments.engine import plot_engine, summarize
+    from .runs.engine import plot_engine, summarize
 
     out.mkdir(parents=True, exist_ok=True)
     friction = identify_friction(params.replace(passive=()), wheels)
@@ -814,38 +786,28 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
         return _interrupted_run(exc, out, "engine")
     traj = run.trajectory
     traj.summary["controller"] = f"lyapunov ({args.law} law)"
-    if reference is not None:
-        summarize(traj, reference=reference, start=start)
-        _path_summary(traj, reference, start)
-        traj.summary.update(path=repr(reference), reference=_path_text(args))
-        return _save_path_run(traj, reference, out, "engine", {"friction": friction})
-    summarize(traj, start=start)
-    traj.summary["reference"] = _LINE_HEAD_FIRST
-    npz, summary_path = traj.save(out / "engine")
-    files: list[Path] = [npz, summary_path]
-    table = _criteria_csv(traj, out / "engine_criteria.csv")
-    if table is not None:
-        files.append(table)
-    figures = plot_engine(run, None, out, "engine")
-    return _run_outcome(traj, out, [*files, *figures.values()], {"friction": friction})
+    summarize(traj, reference=reference, start=start)
+    if reference is None:
+        traj.summary["reference"] = _LINE_HEAD_FIRST
+        return _save_run(traj, out, "engine", lambda: plot_engine(run, None, out, "engine")
+                         .values(), {"friction": friction})
+    _path_summary(traj, reference, start)
+    traj.summary.update(path=repr(reference), reference=_path_text(args))
+    return _save_run(traj, out, "engine", lambda: _path_figures(traj, reference, out, "engine"),
+                     {"friction": friction})
 
 
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
                   friction: dict[str, Any], out: Path, reference: Any = None,
                   start: float | None = None) -> _Outcome:
-    """``engine --seeds N``: N runs from perturbed initial joint angles, as a distribution.
-
-    With ``--path`` every run follows that path (``reference``), and the head error of the
-    distribution is the distance to the reference's point at the same time.
-
-    Every run is saved as it finishes (``engine_seedK``); the figures show the median run;
-    ``engine_seeds.json`` holds the settings, every run's offset and summary, and each
-    metric's median and 10-90 % range. Interrupted, the runs finished are kept and the
-    distribution is over them (status "interrupted").
+    """``engine --seeds N``: N runs from perturbed initial joint angles (along ``--path`` if
+    given), each saved as it finishes (``engine_seedK``), their distribution in
+    ``engine_seeds.json``, the figures of the median run; interrupted, the runs finished and
+    their distribution (status "interrupted").
     """
     from ._io import atomic_write_bytes
-    from .experiments.engine import PERTURBATION, Draws, engine_draw, perturbations, plot_engine
-    from .experiments.parallel import iter_jobs
+    from .runs.engine import PERTURBATION, Draws, engine_draw, perturbations, plot_engine
+    from .runs.parallel import iter_jobs
     from .trajectory import Trajectory
 
     size = PERTURBATION if args.perturbation is None else args.perturbation
@@ -981,7 +943,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
 
 # --------------------------------------------------------------------- parser
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
-    from .experiments.bench_control import (
+    from .runs.benchmark import (
         CONTROLLERS,
         ENGINE_DRAWS,
         SCENARIOS,
@@ -990,7 +952,7 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     )
 
     _check_t_final(args.t_final, SIMULATE_DT)
-    from .experiments.bench_control import QUICK_T_FINAL
+    from .runs.benchmark import QUICK_T_FINAL
 
     start = _error_window(args, min(args.t_final, QUICK_T_FINAL) if args.quick
                           else args.t_final)
@@ -1022,6 +984,16 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
                              f"{len(result.rows)} runs, path metrics over t >= {start:g} s")
 
 
+def _command(parser: argparse.ArgumentParser, func: Callable[[argparse.Namespace], _Outcome],
+             output: str | None = "output folder", *, required: bool = True) -> None:
+    """A subcommand's last options (``-o/--output`` unless ``output`` is None, ``--json``)
+    and the function that runs it."""
+    if output is not None:
+        parser.add_argument("-o", "--output", required=required, help=output)
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(func=func)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line, built in one place.
 
@@ -1045,14 +1017,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("generate", help="write the URDF of a snake robot")
     _robot_options(p)
-    p.add_argument("-o", "--output", required=True, help="output file (.urdf)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_generate)
+    _command(p, _cmd_generate, output="output file (.urdf)")
 
     p = sub.add_parser("info", help="parameters and model sizes of a robot")
     _robot_options(p)
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_info)
+    _command(p, _cmd_info, output=None)
 
     p = sub.add_parser("manip", help="manipulability D, R of one posture (eqs. 30, 31, 42)",
                        description="D and R of one posture. The shape is --shape, or the one "
@@ -1070,8 +1039,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
                    help="joint K is free (beside any --passive joints)")
     p.add_argument("--no-heading", action="store_true", help="leave theta_1 out of the task")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_manip)
+    _command(p, _cmd_manip, output=None)
 
     p = sub.add_parser("sweep", help="D and R along a posture family (Figs. 2-9)")
     p.add_argument("family", choices=("arc", "alpha", "ts"))
@@ -1084,9 +1052,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--range", type=parse_angle, nargs=2, metavar=("LOW", "HIGH"),
                    help="the swept parameter's range, LOW < HIGH (angles may be written "
                    "pi/5; default: arc -pi/5..pi/5, alpha 0..pi/2, ts 0..2)")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_sweep)
+    _command(p, _cmd_sweep)
 
     p = sub.add_parser("singular", help="search the joint box for singular postures (R = 0)")
     _robot_options(p)
@@ -1097,9 +1063,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
                    help="joint K is free (beside any --passive joints)")
     p.add_argument("--seed", type=_int_in(0, MAX_SEED), default=0, help="0..2**32-1")
-    p.add_argument("-o", "--output", help="folder for the families (drawing and JSON)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_singular)
+    _command(p, _cmd_singular, output="folder for the families (drawing and JSON)",
+             required=False)
 
     p = sub.add_parser("simulate", help="closed-loop head tracking run (VI.1 / VI.2)")
     p.add_argument("--controller", required=True, metavar="pfl|lyapunov|los|module:Class",
@@ -1114,9 +1079,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=_ERROR_WINDOW_HELP)
     p.add_argument("--climb-r", type=_float_in(0.0),
                    help="PFL only: gain of the singularity-aware redundancy term (default 0)")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_simulate)
+    _command(p, _cmd_simulate)
 
     p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)",
                        description="The Lyapunov-like law on MuJoCo, a wheel pair per link "
@@ -1151,9 +1114,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--perturbation", type=_float_in(0.0, MAX_PERTURBATION, open_low=True),
                    metavar="EPS", help="with --seeds: offsets of the initial joint angles, "
                    f"uniform in [-EPS, EPS] rad (default 1e-6, at most {MAX_PERTURBATION:g})")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_engine)
+    _command(p, _cmd_engine)
 
     p = sub.add_parser("view", help="meshcat viewer of a saved trajectory (127.0.0.1 only)")
     p.add_argument("trajectory", help="a .npz written by simulate/reproduce")
@@ -1217,9 +1178,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "chaotic: a cell reports their median and 10-90 %% range; default: "
                    "bench_control.ENGINE_DRAWS)")
     p.add_argument("--quick", action="store_true", help="short runs of a few cells")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_bench_control)
+    _command(p, _cmd_bench_control)
     return parser
 
 

@@ -7,8 +7,7 @@ or was interrupted (:attr:`Report.status`, :attr:`Report.note`): an interrupted 
 so at the top of the page and under ``"run"`` in the summary.
 
 The summary is written with :func:`snake_pin._json.json_text` (RFC 8259: NaN and
-infinities become ``null``). ``json_safe`` and ``json_text`` are re-exported here for
-code that imported them from this module before they moved to :mod:`snake_pin._json`.
+infinities become ``null``); ``json_safe`` and ``json_text`` are importable from here too.
 """
 
 from __future__ import annotations
@@ -22,9 +21,6 @@ from typing import Any
 
 from ._io import atomic_write_bytes
 from ._json import json_safe, json_text
-
-# json_safe and json_text live in snake_pin._json; they are re-exported here for code
-# that still imports them from snake_pin.report (snake_pin.study does, for now).
 
 __all__ = ["Report", "Section", "json_safe", "json_text"]
 

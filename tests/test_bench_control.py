@@ -1,4 +1,4 @@
-"""Tests of snake_pin.experiments.bench_control: metrics, the benchmark, user controllers."""
+"""Tests of snake_pin.runs.benchmark: metrics, the benchmark, user controllers."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import pytest
 
 from snake_pin.control import Controller, LyapunovController, head_first_reference
 from snake_pin.exceptions import ParameterError
-from snake_pin.experiments import bench_control as bc
-from snake_pin.experiments.tracking import initial_state, tracking_params
 from snake_pin.model import Snake
 from snake_pin.paths import Circle, Line, PathReference, Timing
+from snake_pin.runs import benchmark as bc
+from snake_pin.runs.tracking import initial_state, tracking_params
 from snake_pin.sim import simulate
 
 
@@ -176,7 +176,7 @@ def test_engine_cell_is_the_median_of_its_draws(controller: str, failed: int | N
                                                 draws: int, monkeypatch) -> None:
     """An engine cell equals run_engine on the scenario's path by hand (law, failed joint,
     perturbed starts), each metric the median over the draws."""
-    from snake_pin.experiments.engine import PERTURBATION, perturbations
+    from snake_pin.runs.engine import PERTURBATION, perturbations
 
     start, t_final = 0.2, 0.6  # a short window, so that short runs have metrics
     original = bc.path_metrics

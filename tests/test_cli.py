@@ -439,7 +439,7 @@ def test_engine_seeds_reports_the_distribution(capsys: pytest.CaptureFixture[str
     import numpy as np
 
     from snake_pin.engine.run import run_engine
-    from snake_pin.experiments.engine import perturbations, summarize
+    from snake_pin.runs.engine import perturbations, summarize
 
     code, out, _ = _run(capsys, "engine", "--seeds", "3", "--perturbation", "1e-3",
                         "--t-final", "0.3", "-o", str(tmp_path), "--json")

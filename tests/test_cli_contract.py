@@ -280,8 +280,7 @@ def test_reproduce_refuses_a_robot_its_engine_stage_cannot_put_on_wheels(
 
 
 def test_report_re_exports_the_json_functions() -> None:
-    """snake_pin.report still offers json_safe/json_text (for older imports): the same
-    functions as snake_pin._json."""
+    """snake_pin.report offers json_safe/json_text: the same functions as snake_pin._json."""
     import snake_pin._json
     import snake_pin.report
 
@@ -300,7 +299,7 @@ def test_c_level_output_never_reaches_json_stdout(capfd: pytest.CaptureFixture[s
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """What C code prints during a --json command (LAPACK's xerbla does) goes to stderr;
     stdout holds the one JSON object."""
-    import snake_pin.experiments.robot as robot
+    import snake_pin.runs.outputs as robot
 
     info = robot.info
 

@@ -175,8 +175,8 @@ def test_engine_path_with_seeds_runs_each_draw_on_that_path(path: str, tmp_path:
     run_engine(reference=P, initial_offset=its offset) bit for bit, and the distribution
     names the path."""
     from snake_pin.engine.run import run_engine
-    from snake_pin.experiments.engine import PERTURBATION, perturbations
     from snake_pin.params import SnakeParams
+    from snake_pin.runs.engine import PERTURBATION, perturbations
 
     code, out, err = _run(["engine", "--path", path, "--seeds", "2", "--t-final", "0.3",
                            "-o", str(tmp_path), "--json"], capsys)

@@ -195,7 +195,7 @@ def test_initial_offset_moves_only_the_initial_joint_angles() -> None:
 def test_perturbations_are_seeded_uniform_offsets() -> None:
     """perturbations(): (count, joints) draws within [-size, size], the same for the same
     seed, different rows and seeds, zeros for size 0; bad counts and sizes refused."""
-    from snake_pin.experiments.engine import perturbations
+    from snake_pin.runs.engine import perturbations
 
     a = perturbations(11, 7, 1e-6, seed=0)
     assert a.shape == (11, 7) and np.abs(a).max() <= 1e-6 and np.abs(a).max() > 5e-7
@@ -211,7 +211,7 @@ def test_perturbations_are_seeded_uniform_offsets() -> None:
 def test_distribution_and_median_draw() -> None:
     """distribution(): median and linearly interpolated 10/90 % percentiles of the numbers
     (None left out); Draws.median_draw() names the run whose RMS is the median."""
-    from snake_pin.experiments.engine import Draws, distribution
+    from snake_pin.runs.engine import Draws, distribution
 
     d = distribution([float(v) for v in range(11, 0, -1)] + [None])
     assert (d["median"], d["p10"], d["p90"], d["min"], d["max"], d["count"]) == \
@@ -235,7 +235,7 @@ def test_run_engine_follows_the_reference_it_is_given() -> None:
     (the line keeps it near y = 0)."""
     from snake_pin.control import head_first_reference
     from snake_pin.engine.run import run_engine
-    from snake_pin.experiments.bench_control import make_scenario
+    from snake_pin.runs.benchmark import make_scenario
 
     for law in ("velocity", "acceleration"):
         default = run_engine(t_final=0.2, law=law).trajectory

@@ -118,9 +118,9 @@ def test_which_stages_honour_which_robot() -> None:
     """The engine stage honours --robot for the engine preset and for a robot of one's own,
     not for Table 1 (it would run the engine preset); it never honours --passive or --n."""
     from snake_pin import SnakeParams
-    from snake_pin.experiments.engine import engine_robot
     from snake_pin.experiments.reproduce import unhonoured
     from snake_pin.robot_file import load_robot
+    from snake_pin.runs.engine import engine_robot
 
     own = load_robot("camera_head_snake.toml")
     assert unhonoured("engine", {"robot"}, own) == []
@@ -135,8 +135,8 @@ def test_tracking_keeps_an_anisotropic_robots_own_friction() -> None:
     """The tracking stage's friction: a robot file's own when c_y > c_x on every link, else
     (presets, an isotropic robot file) the tracking friction of erratum 3, said so."""
     from snake_pin import SnakeParams
-    from snake_pin.experiments.tracking import TRACKING_FRICTION, tracking_friction
     from snake_pin.robot_file import load_robot
+    from snake_pin.runs.tracking import TRACKING_FRICTION, tracking_friction
 
     own = load_robot("camera_head_snake.toml")
     robot, sentence = tracking_friction(own)
@@ -157,8 +157,8 @@ def test_first_links_and_the_pfl_threshold_follow_the_robot() -> None:
 
     from snake_pin import SnakeParams
     from snake_pin.experiments.integrability import first_links
-    from snake_pin.experiments.pfl import TAU_BREAKDOWN, breakdown_threshold
     from snake_pin.robot_file import load_robot
+    from snake_pin.runs.pfl import TAU_BREAKDOWN, breakdown_threshold
 
     own = load_robot("camera_head_snake.toml")
     four = first_links(own, 4)

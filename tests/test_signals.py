@@ -292,7 +292,7 @@ def test_sigterm_during_engine_seeds_keeps_the_runs_done(capfd: pytest.CaptureFi
     """engine --seeds 3, SIGTERM during the second run (runs in this process): status 130,
     one line, the first run saved, engine_seeds.json marked interrupted with the
     distribution of the one finished run, and the JSON output says so."""
-    import snake_pin.experiments.parallel as parallel
+    import snake_pin.runs.parallel as parallel
     from snake_pin.engine.run import DirtyDerivative
 
     monkeypatch.setattr(parallel.os, "cpu_count", lambda: 1)

@@ -1,4 +1,5 @@
-"""Tests of snake_pin.experiments.tracking: the stage's runs on Dask, its sweeps and findings."""
+"""Tests of snake_pin.experiments.tracking (the stage's runs on Dask, its sweeps and findings)
+and of snake_pin.runs.tracking (one tracking run)."""
 
 from __future__ import annotations
 
@@ -7,18 +8,17 @@ from pathlib import Path
 import pytest
 
 from snake_pin import SnakeParams
-from snake_pin.experiments.parallel import run_jobs
 from snake_pin.experiments.tracking import (
     C_Y_FACTORS,
     DECAY_RATES,
     plot_sweep,
     report_runs,
-    run_tracking,
     sweep_findings,
     sweep_ratio,
     sweep_text,
-    tracking_params,
 )
+from snake_pin.runs.parallel import run_jobs
+from snake_pin.runs.tracking import run_tracking, tracking_params
 
 
 def test_two_workers_give_each_job_its_own_run() -> None:

@@ -1,4 +1,5 @@
-"""What a report stage is given: :class:`Context` (its folder, robot, report and options).
+"""What a report stage is given: :class:`Context` (its folder, robot, report, options and
+the report's one Dask cluster).
 
 The stages (:mod:`snake_pin.experiments.robot`, ``.manipulability``, ``.integrability``,
 ...) take a :class:`Context` and import it from here; :mod:`snake_pin.experiments.reproduce`
@@ -13,6 +14,7 @@ from typing import Any
 
 from ..params import SnakeParams
 from ..report import Report
+from ..runs.parallel import SharedCluster
 
 __all__ = ["Context"]
 
@@ -33,6 +35,9 @@ class Context:
         Shorter runs (``--quick``).
     options
         What stages pass on to later ones (e.g. the tracking runs' files).
+    cluster
+        The report's local Dask cluster, shared by the stages' jobs
+        (:func:`snake_pin.runs.parallel.run_jobs`); None: each call starts its own.
     """
 
     folder: Path
@@ -40,3 +45,4 @@ class Context:
     report: Report
     quick: bool = False
     options: dict[str, Any] = field(default_factory=dict)
+    cluster: SharedCluster | None = None

@@ -18,7 +18,7 @@ the report folder:
   ``failure_map_series.png``: head error, R~ and R~ without the heading along the run
   without a failure, with the worst failure and with joint 1 failed (rerun through
   :func:`snake_pin.sim.simulate`, as Dask tasks of
-  :func:`~snake_pin.experiments.parallel.run_jobs`), at the reference ratio
+  :func:`~snake_pin.runs.parallel.run_jobs`), at the reference ratio
   :data:`SERIES_RATIO`.
 
 The section's numbers (``summary.json``): the tables keyed by failed joint and ratio, the
@@ -50,10 +50,10 @@ import numpy as np
 
 from ..exceptions import ConfigurationError
 from ..params import SnakeParams
+from .context import Context
 
 __all__ = ["C_X", "FULL", "QUICK", "SERIES_RATIO", "TRACKING_LIMIT", "MapPlan",
-           "failure_map_stage", "failure_map_study", "findings", "map_c_x", "map_tables",
-           "run_series"]
+           "failure_map_stage", "failure_map_study"]
 
 #: Friction along each link in the map [N s/m] when the robot has no single positive
 #: c_x of its own (Table 1's is this); c_y = ratio * c_x.
@@ -157,17 +157,8 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
 
 
 def map_c_x(params: SnakeParams) -> float:
-    """The c_x of the map for a robot.
-
-    Parameters
-    ----------
-    params
-        The robot.
-
-    Returns
-    -------
-    float
-        Its c_x when it is one positive number for every link, else :data:`C_X`.
+    """The map's c_x for a robot: its c_x when one positive number for every link, else
+    :data:`C_X`.
     """
     value = params.c_x
     return float(value) if isinstance(value, float) and value > 0 else C_X
@@ -188,22 +179,9 @@ def _number(value: float) -> str:
 # ------------------------------------------------------------------ tables
 def map_tables(rows: Sequence[dict[str, Any]], joints: Sequence[int],
                ratios: Sequence[float]) -> dict[str, dict[str, dict[str, Any]]]:
-    """The map's cells as nested dicts keyed by text.
-
-    Parameters
-    ----------
-    rows
-        Result rows of the study (dicts with ``failed_joint``, ``c_x``, ``c_y``,
-        ``status`` and the metrics).
-    joints, ratios
-        The map's failed joints and ratios c_y/c_x.
-
-    Returns
-    -------
-    dict
-        Per metric (``rms_head_error_pct``, ``R_tilde_min``, ``status``): failed joint ->
-        ratio -> value, keys as text (``"0"``, ``"10"``); a metric is None where the run
-        is not ``ok``, a status ``"missing"`` where there is no row.
+    """The map's cells per metric (``rms_head_error_pct``, ``R_tilde_min``, ``status``):
+    failed joint -> ratio -> value, keys as text (``"0"``, ``"10"``); a metric is None where
+    the run is not ``ok``, a status ``"missing"`` where the study has no row.
     """
     cells = {(r["failed_joint"], _ratio(r)): r for r in rows}
     out: dict[str, dict[str, dict[str, Any]]] = {
@@ -226,23 +204,10 @@ def _ratio(row: dict[str, Any]) -> float:
 # ---------------------------------------------------------------- findings
 def findings(tables: dict[str, dict[str, dict[str, Any]]], joints: Sequence[int],
              ratios: Sequence[float]) -> tuple[list[str], dict[str, Any]]:
-    """What the map shows, read from its tables.
-
-    Parameters
-    ----------
-    tables
-        :func:`map_tables` of the map.
-    joints, ratios
-        The map's failed joints (0 among them) and ratios c_y/c_x.
-
-    Returns
-    -------
-    paragraphs : list of str
-        The findings as report text.
-    numbers : dict
-        Their figures: the ratios where the law tracks without a failure, the failed
-        joints that break tracking there (RMS above :data:`TRACKING_LIMIT`) and the worst,
-        those whose R~ is zero up to rounding, the one with the smallest R~ otherwise.
+    """What the map shows, read from :func:`map_tables`: the report's paragraphs, and their
+    figures (the ratios where the law tracks without a failure, the failed joints that break
+    tracking there, RMS above :data:`TRACKING_LIMIT`, and the worst, those whose R~ is zero
+    up to rounding, the one with the smallest R~ otherwise).
     """
     rms, rt = tables["rms_head_error_pct"], tables["R_tilde_min"]
 
@@ -324,26 +289,10 @@ def _joined(items: Sequence[int]) -> str:
 
 # ------------------------------------------------------------------ series
 def run_series(scenario: Any) -> dict[str, Any]:
-    """Rerun one scenario with :func:`snake_pin.sim.simulate` and read R~ along it.
-
-    Parameters
-    ----------
-    scenario
-        A viscous-model :class:`~snake_pin.study.spec.Scenario`.
-
-    Returns
-    -------
-    dict
-        Every 0.1 s: ``t``, ``error_pct`` (head error, % of the body length),
-        ``R_tilde`` and ``R_tilde_xy`` (R~ with and without the heading); and
-        ``status``, ``t_end``, ``rms_along_pct`` and ``rms_across_pct`` (RMS of the
-        error along and across the path over the error window, % of the body),
-        ``R_tilde_median``, ``R_tilde_xy_median``.
-
-    Raises
-    ------
-    ConfigurationError
-        If the run gave no trajectory (not expected: the simulation raises instead).
+    """Rerun one viscous-model study scenario with :func:`snake_pin.sim.simulate` and read
+    R~ along it: every 0.1 s ``t``, ``error_pct`` (% of the body), ``R_tilde`` and
+    ``R_tilde_xy`` (without the heading); ``status``, ``t_end``, the RMS of the error along
+    and across the path over the error window (% of the body) and the medians of R~.
     """
     from ..manipulability import manipulability
     from ..metrics import head_position_error
@@ -426,19 +375,19 @@ def _singular_workers(scheduler: str) -> str:
     return re.sub(r"\b1 workers\b", "1 worker", scheduler)
 
 
-def failure_map_stage(ctx: Any) -> None:
+def failure_map_stage(ctx: Context) -> None:
     """The actuator-failure map: study, heatmaps, tables, series along the run, findings.
 
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.reproduce.Context`: files go to
+        The report's :class:`~snake_pin.experiments.context.Context`: files go to
         ``ctx.folder``, the section to ``ctx.report``; ``ctx.quick`` picks :data:`QUICK`.
     """
+    from ..runs.parallel import run_jobs
     from ..study import load_study, run_study
     from ..study.report import save_figures
     from ..study.results import StudyFolder
-    from .parallel import run_jobs
 
     plan = QUICK if ctx.quick else FULL
     base = ctx.params.replace(passive=())
@@ -485,7 +434,8 @@ def failure_map_stage(ctx: Any) -> None:
         sec.text(paragraph)
 
     ratio, picks = _series_picks(spec.scenarios, tables, plan.ratios, numbers)
-    results = run_jobs([(run_series, (scenario,), {}) for _, scenario in picks])
+    results = run_jobs([(run_series, (scenario,), {}) for _, scenario in picks],
+                       cluster=ctx.cluster)
     series = [(label, data) for (label, _), data in zip(picks, results, strict=True)]
     _plot_series(series, ratio, ctx.folder / "failure_map_series.png")
     sec.figure(ctx.folder / "failure_map_series.png",

@@ -1,138 +1,23 @@
 """Report stage: manipulability along posture families, the (alpha, T_s) map, shapes of
-Figs. 6-7, and the singular-posture search over the whole joint box.
-
-Also the files of a sweep and of a search (:func:`write_sweep`, :func:`write_singular`),
-used by this stage and by ``snake-pin sweep`` / ``snake-pin singular``: the analysis
-modules (:mod:`snake_pin.sweeps`, :mod:`snake_pin.singular`) return data, and the
-drawing and writing happen here, a layer above them.
-"""
+Figs. 6-7, and the singular-posture search over the whole joint box (its files and
+drawing from :mod:`snake_pin.runs.outputs`)."""
 
 from __future__ import annotations
 
-import csv
-import io
-import os
-from pathlib import Path
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from .._io import atomic_group
-from .._json import json_text
-from ..gaits import Serpenoid, straight
+from ..gaits import Serpenoid
 from ..model import Snake
-from ..singular import SingularSearch, find_singular_postures
-from ..sweeps import FAMILIES, Sweep, r_map, sweep
+from ..runs.outputs import draw_singular, write_sweep
+from ..singular import find_singular_postures
+from ..sweeps import FAMILIES, r_map, sweep
 from ..viz.plots import plot_postures, plot_r_maps
 from .context import Context
 
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+__all__ = ["manipulability_stage"]
 
-__all__ = ["draw_singular", "manipulability_stage", "write_singular", "write_sweep"]
-
-
-def _png(fig: Figure) -> bytes:
-    """The figure as PNG bytes (closed). Figures laid out with tight_layout are saved
-    without the tight bounding box, which cost 1.67x per figure."""
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
-
-
-def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path]:
-    """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` of a sweep into ``folder``.
-
-    The files appear together (data first, then the figure) or not at all; an empty
-    (interrupted before its first posture) sweep has no figure. The JSON is RFC 8259
-    (:meth:`~snake_pin.sweeps.Sweep.to_dict`: non-finite D or R as null).
-
-    Parameters
-    ----------
-    result
-        The sweep (:func:`~snake_pin.sweeps.sweep`).
-    folder
-        An existing folder.
-
-    Returns
-    -------
-    dict
-        ``{"csv": path, "json": path, "png": path}`` (no "png" for an empty sweep).
-    """
-    from ..viz.plots import plot_sweep
-
-    folder = Path(folder)
-    buf = io.StringIO()
-    writer = csv.writer(buf)
-    writer.writerow([result.label, "D", "R"])
-    writer.writerows(result.rows())
-    names = {ext: f"{result.stem}.{ext}" for ext in ("csv", "json", "png")}
-    png = _png(plot_sweep(result)) if result.values.size else b""
-    with atomic_group(folder) as group:
-        group.write_bytes(names["csv"], buf.getvalue().encode())
-        group.write_bytes(names["json"], (json_text(result.to_dict()) + "\n").encode())
-        if result.values.size:
-            group.write_bytes(names["png"], png, figure=True)
-    return {ext: folder / name for ext, name in names.items()
-            if ext != "png" or result.values.size}
-
-
-def write_singular(search: SingularSearch, folder: str | os.PathLike[str]) -> list[Path]:
-    """Write ``singular_postures.json`` and ``singular_postures.png`` into ``folder``.
-
-    Parameters
-    ----------
-    search
-        The search (:func:`~snake_pin.singular.find_singular_postures`).
-    folder
-        An existing folder; the JSON and the drawing (:func:`draw_singular`) appear
-        together or not at all.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The JSON's and the PNG's paths.
-    """
-    png = _png(draw_singular(search, None))
-    with atomic_group(Path(folder)) as group:
-        data = group.write_bytes("singular_postures.json",
-                                 (json_text(search.to_dict(), indent=2) + "\n").encode())
-        figure = group.write_bytes("singular_postures.png", png, figure=True)
-    return [data, figure]
-
-FREE_JOINT = 5  # the paper's example of a free joint
-
-
-def draw_singular(search: SingularSearch, path: str | os.PathLike[str] | None,
-                  limit: int = 5) -> Figure:
-    """Draw the representative of up to ``limit`` families (plus the straight posture).
-
-    Parameters
-    ----------
-    search
-        The search.
-    path
-        PNG file to save to (the figure is then closed), or None.
-    limit
-        Most families drawn (the largest first).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        The figure (open when ``path`` is None).
-    """
-    snake = Snake(search.params)
-    free = f", joint {search.free_joint} free" if search.free_joint else ""
-    postures = [(f"straight: R = 0 exactly{free}", straight(search.params.n))]
-    for fam in search.families[:limit]:
-        postures.append((f"{'straight' if fam.straight else 'non-straight'}, R = {fam.R:.1e}"
-                         f" ({fam.members} start{'' if fam.members == 1 else 's'})",
-                         np.r_[0.0, 0.0, 0.0, fam.phi]))
-    return plot_postures(snake, postures, path, frames=False,
-                         title=f"Singular postures found (|phi_i| <= {search.bound:.2f}){free}")
+#: The paper's example of a free joint.
+FREE_JOINT = 5
 
 
 def manipulability_stage(ctx: Context) -> None:

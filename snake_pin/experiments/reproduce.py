@@ -50,6 +50,7 @@ from .._io import current_umask
 from ..exceptions import ParameterError, RunInterrupted
 from ..params import ROBOTS, SnakeParams
 from ..report import Report
+from ..runs.parallel import SharedCluster
 from .context import Context
 
 # Context is defined in experiments.context (the stages import it from there).
@@ -191,18 +192,22 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
         os.chmod(staging, 0o777 & ~current_umask())
         report = Report(f"snake_pin report: {params.name} robot "
                         "(Ariizumi & Tanaka, manipulability without a lateral constraint)")
-        ctx = Context(folder=staging, params=params, report=report, quick=quick)
         timings: dict[str, float] = {}
         current, sections, files = "", 0, set()
         try:
-            for index, (name, fn) in enumerate(chosen, start=1):
-                current, sections, files = name, len(report.sections), _names(staging)
-                log(f"[{index}/{len(chosen)}] {name} ...")
-                start = time.perf_counter()
-                fn(ctx)
-                timings[name] = time.perf_counter() - start
-                if log_done:
-                    log(f"[{index}/{len(chosen)}] {name} done in {timings[name]:.1f} s")
+            # one local Dask cluster for every stage's jobs, started by the first stage
+            # that fans out and closed (its workers killed) when the stages end
+            with SharedCluster() as cluster:
+                ctx = Context(folder=staging, params=params, report=report, quick=quick,
+                              cluster=cluster)
+                for index, (name, fn) in enumerate(chosen, start=1):
+                    current, sections, files = name, len(report.sections), _names(staging)
+                    log(f"[{index}/{len(chosen)}] {name} ...")
+                    start = time.perf_counter()
+                    fn(ctx)
+                    timings[name] = time.perf_counter() - start
+                    if log_done:
+                        log(f"[{index}/{len(chosen)}] {name} done in {timings[name]:.1f} s")
             current = ""
             _timing(report, timings)
             report.write(staging)
@@ -227,7 +232,7 @@ def _check_engine_robot(params: SnakeParams) -> None:
     """The engine stage's robot has enough links and takes the default wheels (checked
     before anything is written: a robot file's links may be too short for them)."""
     from ..engine.model import WheelSpec, build_engine_model
-    from .engine import engine_robot
+    from ..runs.engine import engine_robot
 
     robot = engine_robot(params)
     if robot.n < MIN_LINKS["engine"]:

@@ -7,6 +7,7 @@ import numpy as np
 from ..gaits import Serpenoid, arc, straight
 from ..model import Snake
 from ..params import SnakeParams
+from ..runs.outputs import info
 from ..viz.plots import plot_postures
 from .context import Context
 
@@ -41,24 +42,6 @@ def robot_stage(ctx: Context) -> None:
     sec.figure(figure, "Postures of the robot with the link frames (red: x_i along the link, "
                "blue: y_i), head in orange, like Fig. 1")
     sec.numbers.update(info(params, snake))
-
-
-def info(params: SnakeParams, snake: Snake | None = None) -> dict[str, object]:
-    """Parameters and model sizes as a JSON-friendly dict (``snake-pin info``).
-
-    The fields of ``params`` (a per-link field as a list, head first), nq, nv, the total
-    mass and body length; for equal links the paper's half length l, for per-link robots
-    ``com_offsets`` (every link's CM from its front end [m]) instead.
-    """
-    snake = snake or Snake(params)
-    data: dict[str, object] = {**params.to_dict(), "nq": snake.nq, "nv": snake.nv,
-                               "total_mass": params.total_mass,
-                               "body_length": params.body_length}
-    if params.uniform:
-        data["half_length"] = params.half_length
-    else:
-        data["com_offsets"] = params.com_offsets.tolist()
-    return data
 
 
 def info_rows(params: SnakeParams, snake: Snake) -> list[list[object]]:

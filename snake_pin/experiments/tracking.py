@@ -1,9 +1,10 @@
-"""Section VI.2: Lyapunov-like head tracking on the Table 1 robot (Figs. 13-17), with and
-without a passive joint, the isotropic contrast, and the lateral-constraint criterion.
+"""Report stage of Section VI.2: Lyapunov-like head tracking on the Table 1 robot (Figs.
+13-17), with and without a passive joint, the isotropic contrast, the lateral-constraint
+criterion (Fig. 15) and the sweeps of the decay rate and of the sideways friction.
 
-Owns one tracking run (:func:`run_tracking`) and its summary (:func:`tracking_summary`),
-the stage's runs (:func:`report_runs`) and the report stage (:func:`tracking_stage`), which
-runs them one per task on Dask (:func:`snake_pin.experiments.parallel.run_jobs`).
+Owns the stage's runs (:func:`report_runs`), its sweeps' findings and figure and the stage
+(:func:`tracking_stage`), which runs each :func:`snake_pin.runs.tracking.run_tracking` as
+one task on Dask (:func:`snake_pin.runs.parallel.run_jobs`).
 """
 
 from __future__ import annotations
@@ -17,36 +18,22 @@ from typing import Any, cast
 
 import numpy as np
 
-from .. import gaits
-from ..control import LyapunovController, head_first_reference
-from ..control.reference import LinearReference
-from ..integrability import conserved_quantity_along
+from ..control import LyapunovController
 from ..manipulability import lateral_constraint_manipulability
-from ..metrics import (
-    ERROR_WINDOW,
-    criteria_along,
-    error_caption,
-    head_error_summary,
-    head_position_error,
-    percent,
-)
+from ..metrics import percent
 from ..model import Snake
-from ..params import ROBOTS, SnakeParams
-from ..sim import Trajectory, simulate
+from ..params import SnakeParams
+from ..runs.parallel import run_jobs
+from ..runs.tracking import CRITERIA_EVERY, plot_tracking, run_tracking, tracking_friction
 
-__all__ = ["CRITERIA_EVERY", "C_Y_FACTORS", "DECAY_RATES", "REFERENCE", "TRACKING_FRICTION",
-           "ReportRun", "initial_state", "plot_sweep", "plot_tracking", "report_runs",
-           "run_tracking", "sweep_findings", "sweep_ratio", "sweep_text", "tracking_friction",
-           "tracking_meta", "tracking_params", "tracking_stage", "tracking_summary"]
+# the tracking run's start and robot, also by their names here (scripts/bench.py uses them)
+from ..runs.tracking import initial_state as initial_state
+from ..runs.tracking import tracking_params as tracking_params
+from ..sim import Trajectory
+from .context import Context
 
-#: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
-#: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
-#: 0.10 m/s at c_y = 10 c_x and 0.16 m/s at 50 c_x, and 50 tracked best of 10..100.
-TRACKING_FRICTION = {"c_x": 0.5, "c_y": 25.0}
-#: Manipulability is evaluated every this many samples (10 ms at 1 kHz).
-CRITERIA_EVERY = 10
-#: The head reference of every tracking run, as the trajectories' meta names it.
-REFERENCE = "w_r = [0.1 t, 0, pi]"
+__all__ = ["C_Y_FACTORS", "DECAY_RATES", "tracking_stage"]
+
 #: The stage's decay-rate sweep: the head's rate lambda [1/s], with the gait's mu = lambda / 2
 #: (the law's default, lambda = 10/s, is the stage's first run: not run twice).
 DECAY_RATES = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0, 30.0)
@@ -55,249 +42,6 @@ DECAY_RATES = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0, 30.0)
 C_Y_FACTORS = (0.1, 0.2, 0.4, 1.0, 2.0, 4.0, 10.0)
 #: The law's own default head rate lambda [1/s] (read, not copied): the sweeps' default.
 _DEFAULT_LAM: float = inspect.signature(LyapunovController).parameters["lam"].default
-
-
-def tracking_params(params: SnakeParams | None = None, **changes: object) -> SnakeParams:
-    """A robot with the tracking friction of erratum 3.
-
-    Parameters
-    ----------
-    params
-        The robot (default Table 1).
-    **changes
-        Further field changes (friction given here wins).
-
-    Returns
-    -------
-    SnakeParams
-        ``params`` with c_x = 0.5, c_y = 25 N s/m (:data:`TRACKING_FRICTION`), then
-        ``changes``.
-    """
-    base = (params or SnakeParams.table1()).replace(**TRACKING_FRICTION)
-    return base.replace(**changes) if changes else base
-
-
-def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
-    """The robot with the friction a tracking run uses, and a sentence saying which.
-
-    A robot of one's own (its name is not a preset's: a robot file, a URDF) keeps its
-    friction when it is anisotropic on every link (c_y > c_x, as wheels give; Section V
-    rules out isotropic friction). Presets (Table 1's friction is isotropic) and other
-    robots get :data:`TRACKING_FRICTION` (erratum 3).
-
-    Parameters
-    ----------
-    params
-        The robot.
-
-    Returns
-    -------
-    tuple of (SnakeParams, str)
-        The robot to run (``params`` itself when it keeps its friction) and a sentence
-        for the report saying which friction it has.
-    """
-    own = params.name not in ROBOTS
-    if own and np.all(params.per_link("c_y") > params.per_link("c_x")):
-        ratio = params.per_link("c_y") / params.per_link("c_x")
-        return params, ("the robot's own friction (anisotropic on every link, c_y > c_x; "
-                        f"c_y / c_x from {ratio.min():.3g} to {ratio.max():.3g})")
-    sentence = (f"friction c_x = {TRACKING_FRICTION['c_x']}, c_y = {TRACKING_FRICTION['c_y']} "
-                "N s/m (erratum 3)")
-    if own:
-        sentence += (", which replaces the robot's own friction: it is not anisotropic on "
-                     "every link, and Section V rules out tracking with isotropic friction")
-    return tracking_params(params), sentence
-
-
-def initial_state(params: SnakeParams) -> np.ndarray:
-    """Eq. (82)'s arc (phi = pi/6), head-first along +x: theta_1 = pi, at rest.
-
-    Parameters
-    ----------
-    params
-        The robot.
-
-    Returns
-    -------
-    numpy.ndarray
-        The state x = [q, dq], 2 (n + 2) values.
-    """
-    return gaits.initial_state(params.n, theta_1=np.pi)
-
-
-def tracking_meta(controller: LyapunovController) -> dict[str, Any]:
-    """The entries a tracking run adds to its trajectory's meta.
-
-    Parameters
-    ----------
-    controller
-        The run's law.
-
-    Returns
-    -------
-    dict
-        ``reference`` (:data:`REFERENCE`), ``k_shape``, ``lam`` and ``lam_shape`` of the law.
-    """
-    return {"reference": REFERENCE, "k_shape": controller.k_shape, "lam": controller.lam,
-            "lam_shape": controller.lam_shape}
-
-
-def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
-                 error_window: float | None = None,
-                 progress: bool = False, **controller_options: Any) -> Trajectory:
-    """60 s of head tracking, w_r = [0.1 t, 0, pi], gains (84), control at 1 kHz.
-
-    Parameters
-    ----------
-    params
-        The robot, used as given (pass :func:`tracking_params` for the anisotropic
-        default; default: Table 1 with it).
-    t_final
-        Duration [s].
-    error_window
-        Start of the head-error window [s] (None: 10 s, or the second half of a run
-        shorter than 20 s).
-    progress
-        Show a progress bar on stderr when it is a terminal.
-    **controller_options
-        Options of :class:`~snake_pin.control.LyapunovController` (e.g. ``lam``,
-        ``lam_shape``).
-
-    Returns
-    -------
-    Trajectory
-        The run with :func:`tracking_summary`'s summary, head error and criteria.
-    """
-    params = params or tracking_params()
-    snake = Snake(params)
-    reference = head_first_reference()
-    controller = LyapunovController(snake, reference, **controller_options)
-    traj = simulate(snake, controller, initial_state(params), t_final, progress=progress,
-                    meta=tracking_meta(controller))
-    return tracking_summary(traj, snake, reference, start=error_window)
-
-
-def tracking_summary(traj: Trajectory, snake: Snake,
-                     reference: LinearReference | None = None, *,
-                     start: float | None = None) -> Trajectory:
-    """Add a tracking run's head error, criteria and summary to its trajectory.
-
-    The one summary of a tracking run (:func:`run_tracking` adds it).
-
-    Parameters
-    ----------
-    traj
-        The run (changed in place).
-    snake
-        Its robot.
-    reference
-        The head reference; None: w_r = [0.1 t, 0, pi].
-    start
-        Start of the head-error window [s]; None: the default of
-        :func:`~snake_pin.metrics.head_error_summary` (10 s, or the second half of a
-        run shorter than 20 s).
-
-    Returns
-    -------
-    Trajectory
-        ``traj``, with ``signals["head_error"]`` [m] at every sample, ``meta["criteria"]``
-        (D and R, eqs. 30 and 31, every :data:`CRITERIA_EVERY` samples; R~ with the passive
-        joints free, eq. 42) and in its summary: the
-        controller, friction and passive joints, the head error over t >= ``start``
-        (error_window, rms_head_error, max_head_error [m], their _pct, rms_relative),
-        R_min, D_min, body_length,
-        g_drift (max |g - g(0)| of eq. 67) and the final head pose.
-    """
-    params = snake.params
-    reference = reference or head_first_reference()
-    error = head_position_error(traj, reference)
-    t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
-    g = conserved_quantity_along(snake, traj.q, traj.dq)
-    traj.signals["head_error"] = error
-    traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
-    errors = head_error_summary(traj, error) if start is None \
-        else head_error_summary(traj, error, start=start)
-    traj.summary.update({
-        "controller": "lyapunov", "c_x": params.c_x, "c_y": params.c_y,
-        "passive": list(params.passive), **errors,
-        "R_min": float(r.min()), "D_min": float(d.min()),
-        "body_length": params.body_length,
-        "g_drift": float(np.abs(g - g[0]).max()),
-        "final_head": traj.q[-1, :3].tolist(),
-    })
-    return traj
-
-
-def plot_tracking(traj: Trajectory, folder: Path, stem: str) -> dict[str, Path]:
-    """Snapshots along the path (Figs. 13, 16), D and R (Figs. 14, 17), head vs reference.
-
-    Parameters
-    ----------
-    traj
-        A run of :func:`run_tracking`.
-    folder
-        Where the PNGs go.
-    stem
-        Their file-name prefix.
-
-    Returns
-    -------
-    dict
-        Figure key ("motion", "criteria", "head") -> PNG path.
-    """
-    import matplotlib.pyplot as plt
-
-    from ..viz.plots import draw_snake, save_figure
-
-    folder = Path(folder)
-    snake = Snake(traj.params)
-    paths = {k: folder / f"{stem}_{k}.png" for k in ("motion", "criteria", "head")}
-    fig, ax = plt.subplots(figsize=(10, 4.2))
-    t_end = traj.t_end
-    ax.plot([0, 0.1 * t_end], [0, 0], "k--", lw=1, label="reference path")
-    ax.plot(traj.q[:, 0], traj.q[:, 1], color="#d9541a", lw=0.8, label="head")
-    times = np.linspace(0, t_end, 7)
-    for k, t in enumerate(times):
-        i = int(np.searchsorted(traj.t, t))
-        draw_snake(ax, snake, traj.q[min(i, len(traj) - 1)], alpha=0.35 + 0.65 * k / 6)
-    joints = ", ".join(str(k) for k in traj.params.passive)
-    passive = f", joint {joints} passive (x)" if traj.params.passive else ""
-    ax.set_title(f"Head tracking, snapshots every {times[1]:.0f} s{passive}", fontsize=10)
-    ax.legend(fontsize=8, loc="upper left")
-    ax.grid(alpha=0.3)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    save_figure(fig, paths["motion"])
-
-    crit = traj.meta["criteria"]
-    tilde = "~" if traj.params.passive else ""
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    axes[0].semilogy(crit["t"], crit["D"], color="#1f4fd1")
-    axes[0].set_ylabel(f"D{tilde}")
-    axes[1].semilogy(crit["t"], crit["R"], color="#228b22")
-    axes[1].set_ylabel(f"R{tilde}")
-    axes[1].set_xlabel("t [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3, which="both")
-    fig.suptitle(f"Manipulability criteria along the run (R min {min(crit['R']):.2e})",
-                 fontsize=10)
-    save_figure(fig, paths["criteria"])
-
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    axes[0].plot(traj.t, traj.q[:, 0], label="x_h")
-    axes[0].plot(traj.t, 0.1 * traj.t, "k:", label="x_h^r")
-    axes[0].plot(traj.t, traj.q[:, 1], label="y_h")
-    axes[0].legend(fontsize=8)
-    axes[0].set_ylabel("[m]")
-    axes[1].plot(traj.t, traj.signals["head_error"], color="firebrick")
-    axes[1].axvspan(0, traj.summary.get("error_window", ERROR_WINDOW), color="0.9")
-    axes[1].set_ylabel("head error [m]")
-    axes[1].set_xlabel("t [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    fig.suptitle(error_caption(traj.summary), fontsize=10)
-    save_figure(fig, paths["head"])
-    return paths
 
 
 def lateral_comparison(traj: Trajectory, path: Path, t_max: float = 10.0) -> dict[str, float]:
@@ -330,27 +74,10 @@ def lateral_comparison(traj: Trajectory, path: Path, t_max: float = 10.0) -> dic
 
 @dataclass(frozen=True)
 class ReportRun:
-    """One run of the tracking stage.
-
-    Parameters
-    ----------
-    label
-        Its row label in the report.
-    params
-        The robot, friction and passive joints included.
-    t_final
-        Duration [s].
-    options
-        Options of :class:`~snake_pin.control.LyapunovController` (``lam``,
-        ``lam_shape``, ``k_shape``).
-    stem
-        File-name stem of its saved trajectory and figures; None: a sweep point (a table
-        row and a point of the sweep's figure only).
-    animate
-        Whether it also gets a self-contained 3-D animation page.
-    sweep
-        The sweep point it is: ``("lam", lambda)`` or ``("c_y", factor)``; None for the
-        runs with files (the first of which is the default point of both sweeps).
+    """One run of the tracking stage: its row label, robot, duration, law options
+    (``lam``, ``lam_shape``, ``k_shape``), file stem (None: a sweep point, a table row and a
+    point of the sweep's figure only), whether it gets a 3-D animation page, and the sweep
+    point it is (``("lam", lambda)`` or ``("c_y", factor)``; None for the runs with files).
     """
 
     label: str
@@ -363,30 +90,16 @@ class ReportRun:
 
 
 def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun]:
-    """The runs of the tracking stage: four with files, then the two sweeps' points.
+    """The runs of the tracking stage on ``robot`` (no passive joint): four with files, then
+    the two sweeps' points.
 
-    With files: no passive joint and joint 5 passive (both animated), the isotropic
-    contrast (at most 30 s: failure and a constant g show by then) and one decay rate for
-    head and gait (lambda = mu = 1/s). The sweeps, each changing one setting of the first
-    run (which is their default point, not run again): the decay rates
-    :data:`DECAY_RATES` along mu = lambda / 2, and every link's c_y times
-    :data:`C_Y_FACTORS`.
-
-    Parameters
-    ----------
-    robot
-        The tracking robot (:func:`tracking_friction`), no passive joint.
-    t_final
-        Duration of the runs [s].
-    own
-        Whether ``robot`` keeps its own friction (the labels then give the factor on c_y,
-        not c_y itself).
-
-    Returns
-    -------
-    list of ReportRun
-        The runs with files (``stem`` set) first, in report order, then the sweeps' points
-        (``sweep`` set), decay rates first, each sweep in increasing order.
+    With files, in report order: no passive joint and joint 5 passive (both animated), the
+    isotropic contrast (at most 30 s: failure and a constant g show by then) and one decay
+    rate for head and gait (lambda = mu = 1/s). Then the sweeps, each changing one setting of
+    the first run (their default point, not run again), each in increasing order: the decay
+    rates :data:`DECAY_RATES` along mu = lambda / 2, and every link's c_y times
+    :data:`C_Y_FACTORS`. With ``own`` (the robot keeps its own friction) the labels give the
+    factor on c_y, not c_y itself.
     """
     c_x = robot.per_link("c_x")
     contrast = (f"isotropic (c_x = c_y = {robot.c_x})" if robot.uniform
@@ -413,18 +126,8 @@ def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun
 
 
 def sweep_ratio(robot: SnakeParams) -> float | None:
-    """The c_y / c_x the sideways-friction sweep is drawn against, if there is one.
-
-    Parameters
-    ----------
-    robot
-        The tracking robot.
-
-    Returns
-    -------
-    float or None
-        c_y / c_x when every link has the same c_x and the same c_y; None otherwise (the
-        sweep is then read as a factor on every link's c_y).
+    """The c_y / c_x the sideways-friction sweep is drawn against: when every link has the
+    same c_x and the same c_y; else None (the sweep reads as a factor on every link's c_y).
     """
     c_x, c_y = robot.per_link("c_x"), robot.per_link("c_y")
     if np.all(c_x == c_x[0]) and np.all(c_y == c_y[0]) and c_x[0] > 0:
@@ -439,24 +142,11 @@ SweepPoint = tuple[float, float | None, float]
 
 def sweep_findings(curves: Mapping[str, Sequence[SweepPoint]], target: float = 5.0
                    ) -> dict[str, dict[str, Any] | None]:
-    """Where each sweep's head error is smallest, its two ends and its points off target.
-
-    Parameters
-    ----------
-    curves
-        Per sweep (``"lam"``, ``"c_y"``): its points (setting, % of the body or None,
-        R_min), in increasing setting.
-    target
-        The RMS head error the runs should stay under [% of the body] (5: no passive
-        joint).
-
-    Returns
-    -------
-    dict
-        Per sweep, None when no point has an error, else ``best``, ``first`` and ``last``
-        (each [setting, %, R_min]: the smallest error and the two ends of the points with
-        an error), ``above`` (the settings whose error exceeds ``target``), ``no_window``
-        (those whose run ended before its error window: no error) and ``target``.
+    """Per sweep (``"lam"``, ``"c_y"``, points in increasing setting): None when no point has
+    an error, else ``best``, ``first`` and ``last`` ([setting, %, R_min]: the smallest error
+    and the two ends of the points with an error), ``above`` (the settings whose error
+    exceeds ``target`` [% of the body]), ``no_window`` (those whose run ended before its
+    error window) and ``target``.
     """
     out: dict[str, dict[str, Any] | None] = {}
     for axis, curve in curves.items():
@@ -474,20 +164,8 @@ def sweep_findings(curves: Mapping[str, Sequence[SweepPoint]], target: float = 5
 
 
 def sweep_text(found: Mapping[str, Mapping[str, Any] | None], c_y_name: str) -> str:
-    """The report's sentences on the two sweeps, from :func:`sweep_findings`.
-
-    Parameters
-    ----------
-    found
-        :func:`sweep_findings`' result.
-    c_y_name
-        What the sideways-friction sweep's settings are (``"c_y / c_x"`` or ``"the factor
-        on c_y"``).
-
-    Returns
-    -------
-    str
-        One paragraph.
+    """The report's paragraph on the two sweeps, from :func:`sweep_findings`; ``c_y_name`` says
+    what the sideways-friction sweep's settings are.
     """
     parts = []
     for axis, name, unit in (("lam", "lambda", "/s"), ("c_y", c_y_name, "")):
@@ -513,23 +191,8 @@ def sweep_text(found: Mapping[str, Mapping[str, Any] | None], c_y_name: str) -> 
 
 def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_axis: str,
                default: Mapping[str, float]) -> Path:
-    """The sweeps' figure: RMS head error (% of the body) against each sweep's setting.
-
-    Parameters
-    ----------
-    curves
-        As for :func:`sweep_findings`.
-    path
-        The PNG to write.
-    c_y_axis
-        Label of the sideways-friction axis.
-    default
-        Each sweep's default setting (drawn as a star).
-
-    Returns
-    -------
-    pathlib.Path
-        ``path``.
+    """The sweeps' figure at ``path``: RMS head error (% of the body) against each sweep's
+    setting, each sweep's ``default`` setting drawn as a star.
     """
     import matplotlib.pyplot as plt
     from matplotlib import ticker
@@ -567,23 +230,22 @@ def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_ax
     return path
 
 
-def tracking_stage(ctx) -> None:
+def tracking_stage(ctx: Context) -> None:
     """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweeps.
 
-    Every run of the stage (:func:`report_runs`: 18) is one :func:`run_tracking` task of
-    :func:`~snake_pin.experiments.parallel.run_jobs` (one worker per core, the longest
-    runs submitted first). The sweeps (decay rate, sideways friction) are a table,
+    Every run of the stage (:func:`report_runs`: 18) is one
+    :func:`~snake_pin.runs.tracking.run_tracking` task of
+    :func:`~snake_pin.runs.parallel.run_jobs` on the report's cluster (the longest runs
+    submitted first). The sweeps (decay rate, sideways friction) are a table,
     ``tracking_sweep.png`` (:func:`plot_sweep`) and sentences from the numbers
     (:func:`sweep_findings`, :func:`sweep_text`).
 
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.reproduce.Context`: output folder,
-        robot, report and quick mode.
+        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
+        robot, report, quick mode and cluster.
     """
-    from .parallel import run_jobs
-
     t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
     base = ctx.params.replace(passive=())
     robot, friction = tracking_friction(base)
@@ -600,7 +262,8 @@ def tracking_stage(ctx) -> None:
     runs = report_runs(robot, t_final, own)
     order = sorted(range(len(runs)), key=lambda i: -runs[i].t_final)  # longest first
     done = run_jobs([(run_tracking, (runs[i].params,),
-                      {"t_final": runs[i].t_final, **runs[i].options}) for i in order])
+                      {"t_final": runs[i].t_final, **runs[i].options}) for i in order],
+                    cluster=ctx.cluster)
     results = dict(zip(order, done, strict=True))
     rows = []
     points: dict[str, list[tuple[float, str, Trajectory]]] = {"lam": [], "c_y": []}

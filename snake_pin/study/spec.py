@@ -43,8 +43,8 @@ in ``[base]`` and as an axis.
 
 **Validation.** :func:`load_study` checks the whole file before anything runs and raises
 :class:`~snake_pin.study.errors.StudyError` with one line naming the file and the key:
-unknown tables and keys (with the closest known name; ``batch_size``, a key of older
-study files, is refused: every run is one task), wrong types, values out of their domain,
+unknown tables and keys (with the closest known name; ``batch_size`` is refused: every
+run is one task), wrong types, values out of their domain,
 empty axes, an axis over a setting that does not exist, settings that do not
 apply, a failed or passive joint out of range for the robot, a ``t_final`` beyond
 :data:`snake_pin.sim.MAX_STEPS` control steps or the trajectory size bounds, robot files

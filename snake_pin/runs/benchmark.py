@@ -1,0 +1,833 @@
+"""The controller benchmark on paths: scenarios x controllers x models x failures.
+
+This module owns the benchmark: its scenarios (:data:`SCENARIOS`), its built-in controller
+factories (:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), running the
+grid in parallel (:func:`run_benchmark`) and writing it (:func:`write_benchmark`: CSV,
+JSON, a table figure, paths with body snapshots, and the circle figures of the paper's
+claim): ``snake-pin bench-control``, ``snake-pin simulate/engine --path`` (the path
+metrics) and the report's benchmark stage use them.
+
+Scenarios (lengths in body lengths L, 1.2 m for Table 1; every path starts at the origin
+heading along +x, where the run starts on the arc of eq. (82), head first): ``line``;
+``circle_0.5L``, ``circle_1L``, ``circle_2L`` (counter-clockwise circles); ``lane_change``
+(0.3 m to the left over 2 m after 0.5 m); ``sinusoid`` (amplitude 0.2 m, wavelength 2 m);
+``waypoints`` (a C2 spline through :data:`WAYPOINTS`). The head reference is the path at
+0.1 m/s (:class:`~snake_pin.paths.PathReference`).
+
+Controllers: ``lyapunov`` (torque-level Lyapunov-like law, VI.2), ``velocity`` (its
+velocity-level, quasi-static form), ``pfl`` and ``pfl_climb`` (PFL, and PFL climbing R with
+``climb_R = 0.5``; both need every joint actuated, so their failed-joint cells are
+"not applicable"), ``los`` (Liljebäck's LOS path following of the centre of mass). Any
+:class:`~snake_pin.control.Controller` subclass joins by a factory
+``factory(snake, reference, path) -> Controller``::
+
+    import numpy as np
+    from snake_pin.control import Controller, LyapunovController
+    from snake_pin.runs.benchmark import run_benchmark, write_benchmark
+
+    class Gentle(LyapunovController):          # or any Controller subclass
+        name = "gentle"
+
+    result = run_benchmark(scenarios=["line", "circle_1L"],
+                           controllers={"lyapunov": None,
+                                        "gentle": lambda snake, ref, path:
+                                            Gentle(snake, ref, lam=5.0)},
+                           t_final=20.0)
+    write_benchmark(result, "bench")           # bench/benchmark.csv, .json, figures
+
+A factory given by name (``None``) is the built-in one; a factory that does not pickle
+(a lambda) runs in this process, the others as tasks on the local Dask cluster of
+:func:`~snake_pin.runs.parallel.run_jobs` (its workers are spawned processes: a
+script that runs the benchmark needs the ``if __name__ == "__main__":`` guard). A
+controller that has a ``reference`` attribute is a head-tracking law (its time-indexed
+head error is reported).
+
+Models: ``viscous`` (the Table 1 robot with c_x = 0.5, c_y = 25 N s/m, i.e.
+c_y / c_x = 50, through :func:`snake_pin.sim.simulate` at 1 kHz) and ``engine`` (the
+engine robot of VI.3 on MuJoCo through :func:`snake_pin.engine.run.run_engine` with the
+scenario's path as its reference, scaled to that robot's body length: ``lyapunov`` is the
+torque-level law, ``velocity`` the velocity-level one; PFL, LOS and user controllers are
+"not applicable" there, run_engine runs the head-tracking laws only). The engine runs are
+chaotic: an engine cell is :data:`ENGINE_DRAWS` runs from initial joint angles offset by
+:func:`~snake_pin.runs.engine.perturbations` (1e-6 rad, seed 0), each metric the
+median over them, with the 10-90 % range of the head cross-track RMS (``draws=1``: the
+unperturbed start, one draw). Failures: ``failed=(None, 5)`` runs each cell with every
+joint actuated and with joint 5 passive (free).
+
+Metrics (:func:`path_metrics`) over ``t >= error_window`` (default 10 s, or the second
+half of runs shorter than 20 s: :func:`~snake_pin.metrics.default_error_window`), on samples
+every 10 ms (criteria every 0.1 s): head cross-track error (distance from the path) RMS and
+max, also in % of the body length; head along-path lag ``s_r(t) - s_h`` RMS (for circles
+wrapped to the nearest lap); time-indexed head error ``|p_h - p_r(t)|`` RMS (head-tracking
+laws only); CM cross-track RMS; R_min, R~_min (joint 5 free) and the lateral-constraint
+criterion's minimum; torque RMS; the status and the time a run diverged.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import pickle
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._io import atomic_group
+from ..control import Controller
+from ..exceptions import ParameterError
+from ..manipulability import lateral_constraint_manipulability, manipulability
+from ..metrics import ERROR_WINDOW, default_error_window
+from ..model import Snake
+from ..params import SnakeParams
+from ..paths import Circle, LaneChange, Line, PathReference, Sinusoid, Timing, Waypoints
+from ..paths import Path as Curve
+from ..sim import Trajectory, simulate
+from .engine import PERTURBATION, distribution, perturbations
+from .parallel import SharedCluster, run_jobs
+from .tracking import initial_state, tracking_params
+
+__all__ = ["CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT", "METRIC_FIELDS",
+           "MODELS", "QUICK_T_FINAL", "SCENARIOS", "SPEED", "WAYPOINTS", "BenchmarkResult",
+           "ControllerFactory", "make_scenario", "path_metrics", "run_benchmark",
+           "run_cell", "write_benchmark"]
+
+#: Reference speed along every path [m/s] (the paper's 0.1 m/s).
+SPEED = 0.1
+#: The longest run of the quick benchmark [s] (``quick=True``).
+QUICK_T_FINAL = 12.0
+#: The joint that fails (becomes passive) in the failed-joint runs, 1-based.
+FAILED_JOINT = 5
+#: The waypoints scenario's points [m]: a gentle S-curve over 7.5 m, first leg along +x.
+WAYPOINTS = ((0.0, 0.0), (1.0, 0.0), (2.0, 0.35), (3.0, 0.25), (4.0, -0.25), (5.5, 0.0),
+             (7.5, 0.3))
+#: Scenario name -> the path as a function of the body length L [m].
+SCENARIOS: dict[str, Callable[[float], Curve]] = {
+    "line": lambda L: Line(),
+    "circle_0.5L": lambda L: Circle(radius=0.5 * L),
+    "circle_1L": lambda L: Circle(radius=1.0 * L),
+    "circle_2L": lambda L: Circle(radius=2.0 * L),
+    "lane_change": lambda L: LaneChange(),
+    "sinusoid": lambda L: Sinusoid(),
+    "waypoints": lambda L: Waypoints(points=WAYPOINTS),
+}
+#: A controller factory: ``factory(snake, reference, path) -> Controller``.
+ControllerFactory = Callable[[Snake, PathReference, Curve], Controller]
+#: The models a benchmark can run on.
+MODELS = ("viscous", "engine")
+#: Sampling of the error metrics (every this many 1 kHz samples: 10 ms) and of the
+#: criteria (0.1 s).
+_EVERY, _CRITERIA_DT = 10, 0.1
+#: Snapshots kept per run for the path figures.
+_SNAPSHOTS = 6
+
+
+def _lyapunov(snake: Snake, reference: PathReference, path: Curve) -> Controller:
+    from ..control import LyapunovController
+
+    return LyapunovController(snake, reference)
+
+
+def _velocity(snake: Snake, reference: PathReference, path: Curve) -> Controller:
+    from ..control import QuasiStaticLyapunovController
+
+    return QuasiStaticLyapunovController(snake, reference)
+
+
+def _pfl(snake: Snake, reference: PathReference, path: Curve) -> Controller:
+    from ..control import PFLController
+
+    return PFLController(snake, reference)
+
+
+def _pfl_climb(snake: Snake, reference: PathReference, path: Curve) -> Controller:
+    from ..control import PFLController
+
+    return PFLController(snake, reference, climb_R=0.5)
+
+
+def _los(snake: Snake, reference: PathReference, path: Curve) -> Controller:
+    from ..control.los import LOSController
+
+    return LOSController(snake, path)
+
+
+#: Built-in controller name -> factory.
+CONTROLLERS: dict[str, ControllerFactory] = {
+    "lyapunov": _lyapunov, "velocity": _velocity, "pfl": _pfl, "pfl_climb": _pfl_climb,
+    "los": _los,
+}
+#: Columns of a benchmark row (CSV order).
+METRIC_FIELDS = ("scenario", "controller", "model", "failed_joint", "status", "reason",
+                 "t_end", "diverged_at", "head_ct_rms", "head_ct_max", "head_ct_rms_pct",
+                 "head_lag_rms", "head_error_rms", "cm_ct_rms", "R_min", "R_tilde_min",
+                 "lateral_min", "torque_rms", "body_length", "draws",
+                 "head_ct_rms_pct_p10", "head_ct_rms_pct_p90", "wall_s")
+#: Engine law of each head-tracking controller (:func:`~snake_pin.engine.run.run_engine`).
+ENGINE_LAWS = {"lyapunov": "acceleration", "velocity": "velocity"}
+#: Perturbed starts per engine cell: the engine is chaotic, its figures are medians.
+ENGINE_DRAWS = 3
+
+
+def make_scenario(name: str, body_length: float, speed: float = SPEED) -> PathReference:
+    """Return the head reference of scenario ``name`` for a body of ``body_length``.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`SCENARIOS`.
+    body_length : float
+        Body length L [m] (circle radii are multiples of it).
+    speed : float, optional
+        Reference speed along the path [m/s].
+
+    Returns
+    -------
+    PathReference
+        The path with a constant-speed timing from s = 0.
+
+    Raises
+    ------
+    ParameterError
+        If the name is unknown.
+    """
+    if name not in SCENARIOS:
+        raise ParameterError(f"unknown scenario {name!r} (expected one of "
+                             f"{', '.join(SCENARIOS)})")
+    return PathReference(SCENARIOS[name](body_length), Timing(speed))
+
+
+# ----------------------------------------------------------------------------- metrics
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(values)))) if values.size else math.nan
+
+
+def _project(path: Curve, points: np.ndarray, s_ref: np.ndarray) -> np.ndarray:
+    """Arc length of the closest path point: circles on the lap nearest the reference's,
+    other paths over the span the reference covers (with a 2 m margin)."""
+    if isinstance(path, Circle) and math.isinf(getattr(path, "angle", math.inf)):
+        return path.project(points, hint=s_ref)
+    lo, hi = float(s_ref.min()) - 2.0, float(s_ref.max()) + 2.0
+    return path.project(points, span=(lo, hi))
+
+
+def _cm_positions(snake: Snake, q: np.ndarray) -> np.ndarray:
+    """The centre of mass (x, y) of the links at each configuration of ``q``, shape (N, 2) [m]."""
+    masses = snake.params.per_link("mass")
+    weights = masses / masses.sum()
+    return np.array([weights @ snake.link_poses(qk)[:, :2] for qk in q])
+
+
+def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
+                 reference: PathReference, *, head_tracking: bool = True,
+                 start: float = ERROR_WINDOW, criteria_dt: float | None = _CRITERIA_DT,
+                 free_joint: int = FAILED_JOINT) -> dict[str, Any]:
+    """Return the benchmark metrics of one run over ``t >= start``.
+
+    Parameters
+    ----------
+    t : numpy.ndarray, shape (N,)
+        Sample times [s].
+    q : numpy.ndarray, shape (N, n + 2)
+        Configurations; ``q[:, :2]`` is the head.
+    tau : numpy.ndarray, shape (N, n - 1)
+        Torques [N m].
+    snake : Snake
+        The robot (for the CM and the criteria).
+    reference : PathReference
+        The path and its timing s_r(t).
+    head_tracking : bool, optional
+        Whether the time-indexed head error is reported (NaN otherwise).
+    start : float, optional
+        Start of the judged window [s].
+    criteria_dt : float or None, optional
+        Sampling of R, R~ and the lateral-constraint criterion [s]; None: not computed.
+    free_joint : int, optional
+        The joint treated as free for R~ (1-based).
+
+    Returns
+    -------
+    dict
+        ``head_ct_rms``, ``head_ct_max``, ``head_ct_rms_pct`` [m, m, % of body],
+        ``head_lag_rms`` [m], ``head_error_rms`` [m], ``cm_ct_rms`` [m], ``R_min``,
+        ``R_tilde_min``, ``lateral_min``, ``D_min``, ``torque_rms`` [N m], and ``series``:
+        the criteria along the run (``t``, ``R``, ``R_tilde``, ``lateral``, ``D``). NaN
+        where the window is empty.
+    """
+    path, body = reference.path, snake.params.body_length
+    mask = t >= start - 1e-9
+    tw, qw = t[mask], q[mask]
+    out: dict[str, Any] = dict.fromkeys(
+        ("head_ct_rms", "head_ct_max", "head_ct_rms_pct", "head_lag_rms", "head_error_rms",
+         "cm_ct_rms", "torque_rms"), math.nan)
+    if len(tw):
+        s_ref = reference.timing(tw)[0]
+        head = qw[:, :2]
+        s_head = _project(path, head, s_ref)
+        g = path.geometry(s_head)
+        ct = np.linalg.norm(head - g.p, axis=1)
+        lag = s_ref - s_head
+        if isinstance(path, Circle) and math.isinf(getattr(path, "angle", math.inf)):
+            lap = path.length
+            lag = (lag + 0.5 * lap) % lap - 0.5 * lap
+        cm = _cm_positions(snake, qw)
+        s_cm = _project(path, cm, s_ref)
+        out.update(head_ct_rms=_rms(ct), head_ct_max=float(ct.max()),
+                   head_ct_rms_pct=100.0 * _rms(ct) / body, head_lag_rms=_rms(lag),
+                   cm_ct_rms=_rms(np.linalg.norm(cm - path.geometry(s_cm).p, axis=1)),
+                   torque_rms=_rms(tau[mask]))
+        if head_tracking:
+            out["head_error_rms"] = _rms(np.linalg.norm(head - reference.at(tw)[0][:, :2],
+                                                        axis=1))
+    series: dict[str, list[float]] = {"t": [], "R": [], "R_tilde": [], "lateral": [], "D": []}
+    if criteria_dt is not None and len(t):
+        times = np.arange(0.0, t[-1] + 1e-9, criteria_dt)
+        idx = np.unique(np.minimum(np.searchsorted(t, times - 1e-9), len(t) - 1))
+        for k in idx:
+            criteria = manipulability(snake, q[k])
+            series["t"].append(float(t[k]))
+            series["R"].append(criteria.R)
+            series["D"].append(criteria.D)
+            series["R_tilde"].append(manipulability(snake, q[k], free_joint=free_joint).R)
+            series["lateral"].append(lateral_constraint_manipulability(snake, q[k]).D)
+    for key, name in (("R", "R_min"), ("R_tilde", "R_tilde_min"), ("lateral", "lateral_min"),
+                      ("D", "D_min")):
+        out[name] = float(np.min(series[key])) if series[key] else math.nan
+    out["series"] = series
+    return out
+
+
+# ------------------------------------------------------------------------------- runs
+def _row(scenario: str, controller: str, model: str, failed: int | None,
+         body_length: float) -> dict[str, Any]:
+    row: dict[str, Any] = dict.fromkeys(METRIC_FIELDS, math.nan)
+    row.update(scenario=scenario, controller=controller, model=model,
+               failed_joint=failed or 0, status="", reason="", body_length=body_length,
+               draws=1)
+    return row
+
+
+def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: int | None,
+                 t_final: float, factory: ControllerFactory | None,
+                 criteria_dt: float | None, draws: int,
+                 robot: SnakeParams | None, start: float) -> dict[str, Any]:
+    """An engine cell (see :func:`run_cell`): the row's snapshots, head path and criteria are
+    the median draw's (by head cross-track RMS), ``t_end`` the median end time, and the status,
+    reason and ``diverged_at`` those of the first draw to stop early.
+    """
+    from ..engine.run import identify_friction, run_engine
+
+    law = ENGINE_LAWS.get(controller)
+    if factory is not None or law is None:
+        row.update(status="not applicable",
+                   reason="the engine runs the head-tracking laws (lyapunov, velocity) only: "
+                          "run_engine has no PFL, LOS or user controller")
+        return row
+    params = robot if robot is not None else SnakeParams.engine()
+    if failed:
+        params = params.replace(passive=(failed,))
+    reference = make_scenario(scenario, params.body_length)
+    row["body_length"] = params.body_length
+    friction = identify_friction(params.replace(passive=()))
+    offsets: list[np.ndarray | None] = (
+        list(perturbations(draws, params.n - 1, PERTURBATION, seed=0)) if draws > 1 else [None])
+    runs: list[tuple[Trajectory, dict[str, Any]]] = []
+    stride = slice(None, None, _EVERY)
+    for offset in offsets:
+        traj = run_engine(params, t_final=t_final, friction=friction, law=law,
+                          initial_offset=offset, reference=reference).trajectory
+        metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
+                               Snake(traj.params), reference, start=start, criteria_dt=None)
+        runs.append((traj, metrics))
+    spread = distribution([m["head_ct_rms_pct"] for _, m in runs])
+    order = sorted(range(len(runs)), key=lambda k: (
+        not math.isfinite(runs[k][1]["head_ct_rms_pct"]), runs[k][1]["head_ct_rms_pct"]))
+    finite = [k for k in order if math.isfinite(runs[k][1]["head_ct_rms_pct"])]
+    median = finite[(len(finite) - 1) // 2] if finite else order[0]
+    traj = runs[median][0]
+    if criteria_dt is not None:
+        row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
+                                Snake(traj.params), reference, start=start,
+                                criteria_dt=criteria_dt))
+    else:
+        row.update(runs[median][1])
+    for key in ("head_ct_rms", "head_ct_max", "head_ct_rms_pct", "head_lag_rms",
+                "head_error_rms", "cm_ct_rms", "torque_rms"):
+        value = distribution([m[key] for _, m in runs])["median"]
+        row[key] = math.nan if value is None else value
+    bad = sorted((t for t, _ in runs if t.status != "completed"), key=lambda t: t.t_end)
+    status = "completed" if not bad else bad[0].status  # the first draw to stop
+    reason = "" if not bad else f"{len(bad)} of {len(runs)} draws: {bad[0].reason}"
+    _finish(row, traj, status, reason)
+    row.update(draws=len(runs),
+               head_ct_rms_pct_p10=math.nan if spread["p10"] is None else spread["p10"],
+               head_ct_rms_pct_p90=math.nan if spread["p90"] is None else spread["p90"],
+               t_end=float(np.median([t.t_end for t, _ in runs])),
+               diverged_at=float(bad[0].t_end) if bad and status in ("diverged", "failed")
+               else math.nan)
+    return row
+
+
+def _check_draws(draws: object) -> None:
+    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
+        raise ParameterError(f"draws must be a positive integer, got {draws!r}")
+
+
+def _finish(row: dict[str, Any], traj: Trajectory, status: str, reason: str) -> None:
+    """The row's status, end time, snapshots and head path from one trajectory."""
+    diverged = status in ("diverged", "failed")
+    times = np.linspace(0.0, traj.t_end, _SNAPSHOTS)
+    idx = np.minimum(np.searchsorted(traj.t, times), len(traj) - 1)
+    row.update(status=status, reason=reason, t_end=float(traj.t_end),
+               diverged_at=float(traj.t_end) if diverged else math.nan,
+               snapshots=[(float(traj.t[k]), traj.q[k].tolist()) for k in idx],
+               head=traj.q[::100, :2].tolist())
+
+
+def run_cell(scenario: str, controller: str, model: str = "viscous",
+             failed: int | None = None, *, t_final: float = 60.0,
+             factory: ControllerFactory | None = None,
+             criteria_dt: float | None = _CRITERIA_DT,
+             robot: SnakeParams | None = None, draws: int = ENGINE_DRAWS,
+             engine_robot: SnakeParams | None = None,
+             error_window: float | None = None) -> dict[str, Any]:
+    """Run one benchmark cell and return its row (see :data:`METRIC_FIELDS`).
+
+    On the engine (MuJoCo, :func:`~snake_pin.engine.run.run_engine` with the scenario as
+    its reference), ``lyapunov`` runs the torque-level law (``law="acceleration"``) and
+    ``velocity`` the velocity-level one; the cell is ``draws`` runs from perturbed
+    starts and each metric is their median (the engine is chaotic), with the 10-90 %
+    range of the head cross-track RMS. Other controllers are "not applicable" there.
+
+    Parameters
+    ----------
+    scenario : str
+        One of :data:`SCENARIOS`.
+    controller : str
+        The controller's name (a key of :data:`CONTROLLERS` unless ``factory`` is given).
+    model : {"viscous", "engine"}, optional
+        The plant.
+    failed : int or None, optional
+        A joint (1-based) made passive, or None.
+    t_final : float, optional
+        Duration [s].
+    factory : callable, optional
+        ``factory(snake, reference, path) -> Controller``; default the built-in one.
+    criteria_dt : float or None, optional
+        Sampling of the criteria [s]; None: not computed.
+    robot : SnakeParams or None, optional
+        The viscous robot (default: the Table 1 tracking robot).
+    draws : int, optional
+        Engine cells: perturbed starts (1: the unperturbed start alone, one draw).
+    engine_robot : SnakeParams or None, optional
+        The engine robot (default: the ``engine`` preset of VI.3).
+    error_window : float or None, optional
+        Start of the metrics' window [s] (None:
+        :func:`~snake_pin.metrics.default_error_window` of ``t_final``).
+
+    Returns
+    -------
+    dict
+        The row, plus ``series`` (criteria along the run), ``snapshots`` (a few
+        configurations with their times) and ``head`` (the head path every 0.1 s); on
+        the engine those of the median draw. Status "not applicable" when the controller
+        refuses the robot (PFL with a passive joint) or the engine cannot run it.
+
+    Raises
+    ------
+    ParameterError
+        An unknown scenario, model or controller (without a ``factory``), or draws not a
+        positive integer.
+    """
+    if model not in MODELS:
+        raise ParameterError(f"unknown model {model!r} (expected one of {', '.join(MODELS)})")
+    _check_draws(draws)
+    start = default_error_window(t_final) if error_window is None else float(error_window)
+    wall = time.perf_counter()
+    params = robot if robot is not None else tracking_params()
+    if failed:
+        params = params.replace(passive=(failed,))
+    reference = make_scenario(scenario, params.body_length)
+    row = _row(scenario, controller, model, failed, params.body_length)
+    row.update(series={}, snapshots=[], head=[])
+    make = factory or CONTROLLERS.get(controller)
+    if make is None:
+        raise ParameterError(f"unknown controller {controller!r} (expected one of "
+                             f"{', '.join(CONTROLLERS)} or a factory)")
+    if model == "engine":
+        _engine_cell(row, scenario, controller, failed, t_final, factory, criteria_dt,
+                     draws, engine_robot, start)
+        row["wall_s"] = time.perf_counter() - wall
+        return row
+    snake = Snake(params)
+    try:
+        ctrl = make(snake, reference, reference.path)
+    except ParameterError as exc:
+        row.update(status="not applicable", reason=str(exc))
+        return row
+    traj = simulate(snake, ctrl, initial_state(params), t_final,
+                    meta={"scenario": scenario, "controller": controller})
+    stride = slice(None, None, _EVERY)
+    row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
+                            reference, head_tracking=hasattr(ctrl, "reference"),
+                            start=start, criteria_dt=criteria_dt))
+    _finish(row, traj, traj.status, traj.reason)
+    row["wall_s"] = time.perf_counter() - wall
+    return row
+
+
+@dataclass
+class BenchmarkResult:
+    """The rows of a benchmark and its settings.
+
+    Parameters
+    ----------
+    rows : list of dict
+        One row per cell (:data:`METRIC_FIELDS` plus ``series``, ``snapshots``,
+        ``head``).
+    settings : dict
+        ``t_final``, scenarios, controllers, models, failed joints, wall time.
+    """
+
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    def table(self) -> list[dict[str, Any]]:
+        """Return the rows without their series (the CSV's content).
+
+        Returns
+        -------
+        list of dict
+            One dict per cell with the keys of :data:`METRIC_FIELDS`, in run order.
+        """
+        return [{k: row[k] for k in METRIC_FIELDS} for row in self.rows]
+
+    def cell(self, scenario: str, controller: str, model: str = "viscous",
+             failed: int | None = None) -> dict[str, Any]:
+        """Return the row of one cell.
+
+        Parameters
+        ----------
+        scenario : str
+            One of :data:`SCENARIOS`.
+        controller : str
+            The controller's name.
+        model : {"viscous", "engine"}, optional
+            The plant.
+        failed : int or None, optional
+            The joint (1-based) made passive, or None (also 0) for none.
+
+        Returns
+        -------
+        dict
+            The cell's row, as :func:`run_cell` returned it.
+
+        Raises
+        ------
+        KeyError
+            If the cell was not run.
+        """
+        for row in self.rows:
+            if (row["scenario"], row["controller"], row["model"],
+                    row["failed_joint"]) == (scenario, controller, model, failed or 0):
+                return row
+        raise KeyError((scenario, controller, model, failed))
+
+
+def _picklable(value: object) -> bool:
+    try:
+        pickle.dumps(value)
+    except Exception:  # anything that does not pickle runs here
+        return False
+    return True
+
+
+def run_benchmark(scenarios: Iterable[str] | None = None,
+                  controllers: Iterable[str] | Mapping[str, ControllerFactory | None]
+                  | None = None,
+                  models: Sequence[str] = ("viscous",),
+                  failed: Sequence[int | None] = (None, FAILED_JOINT), *,
+                  t_final: float = 60.0, quick: bool = False,
+                  workers: int | None = None,
+                  robot: SnakeParams | None = None, draws: int = ENGINE_DRAWS,
+                  engine_robot: SnakeParams | None = None,
+                  error_window: float | None = None,
+                  cluster: SharedCluster | None = None) -> BenchmarkResult:
+    """Run every cell of scenarios x controllers x models x failed joints.
+
+    Parameters
+    ----------
+    scenarios : iterable of str, optional
+        Names from :data:`SCENARIOS`; default all (quick: ``line`` and ``circle_1L``).
+    controllers : iterable of str or mapping, optional
+        Built-in names, or a mapping name -> factory (None: the built-in of that name);
+        default all built-ins (quick: ``lyapunov`` and ``los``).
+    models : sequence of str, optional
+        From :data:`MODELS`.
+    failed : sequence of int or None, optional
+        None (every joint actuated) and/or failed joints.
+    t_final : float, optional
+        Duration of each run [s] (quick: at most 12 s).
+    quick : bool, optional
+        The small benchmark of ``reproduce --quick``.
+    workers : int or None, optional
+        Dask worker processes (default: one per core, at most one per cell; 1: every
+        cell in this process).
+    robot : SnakeParams or None, optional
+        The viscous robot (default: the Table 1 tracking robot, c_y = 50 c_x). The LOS
+        law's constants are identified for that robot.
+    draws : int, optional
+        Perturbed starts per engine cell (medians reported; 1: one unperturbed draw).
+    engine_robot : SnakeParams or None, optional
+        The engine robot (default: the ``engine`` preset).
+    error_window : float or None, optional
+        Start of the metrics' window [s], in [0, t_final) (None:
+        :func:`~snake_pin.metrics.default_error_window` of ``t_final``); in the settings
+        as ``window_start``.
+    cluster : SharedCluster or None, optional
+        A Dask cluster shared with other calls (used unless ``workers`` is given); None:
+        one started for this call.
+
+    Returns
+    -------
+    BenchmarkResult
+        One row per cell, in grid order.
+
+    Raises
+    ------
+    ParameterError
+        An unknown scenario, controller or model, a non-positive t_final, an error
+        window outside [0, t_final), or draws not a positive integer.
+    """
+    _check_draws(draws)
+    if quick:
+        scenarios = scenarios or ("line", "circle_1L")
+        controllers = controllers or ("lyapunov", "los")
+        t_final = min(t_final, QUICK_T_FINAL)
+    names = list(scenarios or SCENARIOS)
+    for name in names:
+        make_scenario(name, 1.0)
+    chosen: dict[str, ControllerFactory | None] = (
+        dict(controllers) if isinstance(controllers, Mapping)
+        else dict.fromkeys(controllers or CONTROLLERS))
+    for name, factory in chosen.items():
+        if factory is None and name not in CONTROLLERS:
+            raise ParameterError(f"unknown controller {name!r} (expected one of "
+                                 f"{', '.join(CONTROLLERS)} or a factory)")
+    for model in models:
+        if model not in MODELS:
+            raise ParameterError(f"unknown model {model!r} (expected one of "
+                                 f"{', '.join(MODELS)})")
+    if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > 0):
+        raise ParameterError(f"t_final must be a positive number, got {t_final!r}")
+    if error_window is None:
+        error_window = default_error_window(t_final)
+    elif not (isinstance(error_window, (int, float)) and not isinstance(error_window, bool)
+              and math.isfinite(error_window) and 0.0 <= error_window < t_final):
+        raise ParameterError(f"error_window must lie in [0, t_final = {t_final:g}) s, "
+                             f"got {error_window!r}")
+    cells = [(s, c, m, f) for m in models for f in failed for s in names for c in chosen]
+    wall = time.perf_counter()
+    pooled = [k for k, (_, c, _, _) in enumerate(cells) if _picklable(chosen[c])]
+    rows: list[dict[str, Any] | None] = [None] * len(cells)
+    options = {"t_final": t_final, "robot": robot, "draws": draws,
+               "engine_robot": engine_robot, "error_window": error_window}
+    jobs = [(run_cell, cells[k], {**options, "factory": chosen[cells[k][1]]})
+            for k in pooled]
+    for k, row in zip(pooled, run_jobs(jobs, workers, cluster=None if workers else cluster),
+                      strict=True):
+        rows[k] = row
+    for k, (s, c, m, f) in enumerate(cells):
+        if rows[k] is None:
+            rows[k] = run_cell(s, c, m, f, t_final=t_final, factory=chosen[c], robot=robot,
+                               draws=draws, engine_robot=engine_robot,
+                               error_window=error_window)
+    settings = {"t_final": t_final, "scenarios": names, "controllers": list(chosen),
+                "models": list(models), "failed": [f or 0 for f in failed],
+                "speed": SPEED, "window_start": float(error_window),
+                "robot": robot.to_dict() if robot is not None else None,
+                "engine_draws": draws,
+                "engine_robot": engine_robot.to_dict() if engine_robot is not None else None,
+                "wall_s": time.perf_counter() - wall}
+    return BenchmarkResult([r for r in rows if r is not None], settings)
+
+
+# ---------------------------------------------------------------------------- output
+def _json_number(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _csv_bytes(result: BenchmarkResult) -> bytes:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=METRIC_FIELDS, lineterminator="\n")
+    writer.writeheader()
+    for row in result.table():
+        writer.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v)
+                         for k, v in row.items()})
+    return buf.getvalue().encode()
+
+
+def _json_bytes(result: BenchmarkResult) -> bytes:
+    doc = {"settings": result.settings,
+           "rows": [{k: _json_number(v) for k, v in row.items()} for row in result.table()],
+           "criteria": {f"{r['scenario']}/{r['controller']}/{r['model']}/{r['failed_joint']}":
+                        r["series"] for r in result.rows if r.get("series")}}
+    return json.dumps(doc, indent=1, allow_nan=False, default=_json_number).encode()
+
+
+def _figure_bytes(fig: Any) -> bytes:
+    import matplotlib.pyplot as plt
+
+    if fig.get_layout_engine() is None:
+        fig.set_layout_engine("constrained")
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def _table_figure(result: BenchmarkResult, model: str, failed: int) -> Any:
+    import matplotlib.pyplot as plt
+
+    rows = [r for r in result.rows if r["model"] == model and r["failed_joint"] == failed]
+    scen = list(dict.fromkeys(r["scenario"] for r in rows))
+    ctrl = list(dict.fromkeys(r["controller"] for r in rows))
+    grid = np.full((len(scen), len(ctrl)), np.nan)
+    for r in rows:
+        grid[scen.index(r["scenario"]), ctrl.index(r["controller"])] = r["head_ct_rms_pct"]
+    fig, ax = plt.subplots(figsize=(1.4 * len(ctrl) + 2.5, 0.5 * len(scen) + 1.5))
+    shown = np.log10(np.clip(grid, 0.1, 1000.0))
+    ax.imshow(np.ma.masked_invalid(shown), cmap="RdYlGn_r", vmin=0.0, vmax=2.0, aspect="auto")
+    for i, s in enumerate(scen):
+        for j, c in enumerate(ctrl):
+            r = next(x for x in rows if x["scenario"] == s and x["controller"] == c)
+            text = "n/a" if r["status"] == "not applicable" else (
+                f"{grid[i, j]:.1f}" if np.isfinite(grid[i, j]) else "-")
+            if r["draws"] > 1 and np.isfinite(grid[i, j]):
+                text += f"\n[{r['head_ct_rms_pct_p10']:.1f}, {r['head_ct_rms_pct_p90']:.1f}]"
+            if r["status"] in ("diverged", "failed"):
+                text += f"\n({r['status']} {r['t_end']:.0f} s)"
+            ax.text(j, i, text, ha="center", va="center", fontsize=8)
+    ax.set_xticks(range(len(ctrl)), ctrl)
+    ax.set_yticks(range(len(scen)), scen)
+    where = f", joint {failed} failed" if failed else ""
+    draws = max((r["draws"] for r in rows), default=1)
+    spread = (f"\nmedian of {draws} perturbed starts [10-90 % range]" if draws > 1 else "")
+    start = result.settings.get("window_start", ERROR_WINDOW)
+    ax.set_title(f"Head cross-track RMS [% of body], {model}{where}, t >= "
+                 f"{start:g} s{spread}", fontsize=9)
+    return fig
+
+
+def _path_figure(result: BenchmarkResult, scenario: str, model: str, failed: int) -> Any:
+    import matplotlib.pyplot as plt
+
+    from ..viz.plots import draw_snake
+
+    rows = [r for r in result.rows if r["scenario"] == scenario and r["model"] == model
+            and r["failed_joint"] == failed and r["snapshots"]]
+    fig, axes = plt.subplots(1, max(len(rows), 1), figsize=(3.6 * max(len(rows), 1), 3.8),
+                             squeeze=False)
+    if model == "engine":
+        robot = result.settings.get("engine_robot")
+        params = SnakeParams.from_dict(robot) if robot else SnakeParams.engine()
+    else:
+        robot = result.settings.get("robot")
+        params = SnakeParams.from_dict(robot) if robot else tracking_params()
+    if failed:
+        params = params.replace(passive=(failed,))
+    snake = Snake(params)
+    reference = make_scenario(scenario, params.body_length)
+    for ax, row in zip(axes[0], rows, strict=False):
+        s_end = reference.timing(np.array([max(row["t_end"], 1.0)]))[0][0]
+        p = reference.path.geometry(np.linspace(0.0, s_end, 400)).p
+        ax.plot(p[:, 0], p[:, 1], "k--", lw=1)
+        head = np.asarray(row["head"])
+        ax.plot(head[:, 0], head[:, 1], color="#d9541a", lw=0.8)
+        for k, (_, q) in enumerate(row["snapshots"]):
+            draw_snake(ax, snake, np.asarray(q), alpha=0.3 + 0.7 * k / (_SNAPSHOTS - 1))
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        pct = row["head_ct_rms_pct"]
+        draws = f"\n(median of {row['draws']} draws, this one)" if row["draws"] > 1 else ""
+        ax.set_title(f"{row['controller']}: {pct:.1f} %{draws}" if np.isfinite(pct)
+                     else f"{row['controller']}: {row['status']}", fontsize=9)
+    fig.suptitle(f"{scenario}: path (dashed), head, body every "
+                 f"{rows[0]['t_end'] / (_SNAPSHOTS - 1) if rows else 0:.0f} s", fontsize=10)
+    return fig
+
+
+def _claim_figure(row: dict[str, Any]) -> Any:
+    import matplotlib.pyplot as plt
+
+    series = row["series"]
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    ax.semilogy(series["t"], np.maximum(series["R"], 1e-16), color="#228b22",
+                label="R (sliding, no lateral constraint)")
+    ax.semilogy(series["t"], np.maximum(series["lateral"], 1e-16), "--", color="#1f4fd1",
+                label="lateral-constraint criterion (wheels)")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("criterion (log)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax.set_title(f"{row['scenario']} ({row['controller']}): head cross-track RMS "
+                 f"{row['head_ct_rms_pct']:.1f} % of body, R min {row['R_min']:.2e}, "
+                 f"lateral min {row['lateral_min']:.1e}", fontsize=9)
+    return fig
+
+
+def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Path]:
+    """Write ``benchmark.csv``, ``benchmark.json`` and the figures into ``folder`` (one set).
+
+    Figures: ``table_<model>_<failed>.png`` (scenario x controller, head cross-track
+    RMS % of body), ``path_<scenario>_<model>_<failed>.png`` (the path, the head and the
+    body at a few times, one panel per controller), ``claim_<scenario>.png`` for the
+    circles run by ``lyapunov`` on the viscous model without failure (R and the
+    lateral-constraint criterion along the run, log scale).
+
+    Parameters
+    ----------
+    result : BenchmarkResult
+        What :func:`run_benchmark` returned.
+    folder : str or pathlib.Path
+        Output folder (created if missing).
+
+    Returns
+    -------
+    dict of str to pathlib.Path
+        Name -> written file.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    out: dict[str, Path] = {}
+    with atomic_group(folder) as group:
+        out["csv"] = group.write_bytes("benchmark.csv", _csv_bytes(result))
+        out["json"] = group.write_bytes("benchmark.json", _json_bytes(result))
+        combos = list(dict.fromkeys((r["model"], r["failed_joint"]) for r in result.rows))
+        for model, failed in combos:
+            name = f"table_{model}_{failed}"
+            out[name] = group.write_bytes(f"{name}.png",
+                                          _figure_bytes(_table_figure(result, model, failed)),
+                                          figure=True)
+            for scenario in dict.fromkeys(r["scenario"] for r in result.rows):
+                if any(r["snapshots"] for r in result.rows if r["scenario"] == scenario
+                       and r["model"] == model and r["failed_joint"] == failed):
+                    name = f"path_{scenario}_{model}_{failed}"
+                    fig = _path_figure(result, scenario, model, failed)
+                    out[name] = group.write_bytes(f"{name}.png", _figure_bytes(fig),
+                                                  figure=True)
+        for row in result.rows:
+            if (row["scenario"].startswith("circle") and row["controller"] == "lyapunov"
+                    and row["model"] == "viscous" and not row["failed_joint"]
+                    and row["series"].get("t")):
+                name = f"claim_{row['scenario']}"
+                out[name] = group.write_bytes(f"{name}.png", _figure_bytes(_claim_figure(row)),
+                                              figure=True)
+    return out

@@ -1,0 +1,474 @@
+"""Section VI.3's runs on MuJoCo: the Lyapunov-like controller on a wheeled snake with
+Coulomb contacts (Figs. 19-21), and the summary and figures of such runs (on the viscous
+Pinocchio model too).
+
+The engine runs are chaotic (with joint 5 passive, offsets of 1e-12..1e-4 rad on the
+initial joint angles moved the RMS head error between 9 % and 11.5 % of the body), so
+their results are distributions: :func:`perturbations` draws N small offsets of the
+initial joint angles (uniform, seeded), :func:`engine_draw` runs one of them, and
+:class:`Draws` gives the median and the 10-90 % range of each metric of :data:`METRICS`
+(``snake-pin engine --seeds N``, the report's engine stage and the benchmark's engine
+cells).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..control import head_first_reference
+from ..control.reference import HeadReference
+from ..engine.model import WheelSpec
+from ..engine.run import EngineRun, run_engine
+from ..exceptions import ParameterError
+from ..metrics import (
+    applied,
+    criteria_along,
+    error_caption,
+    head_error_summary,
+    head_position_error,
+    percent,
+    window,
+)
+from ..model import Snake
+from ..params import ROBOTS, SnakeParams
+from ..sim import Trajectory
+
+__all__ = ["METRICS", "PERTURBATION", "Draws", "distribution", "engine_draw", "engine_robot",
+           "perturbations", "plot_engine", "summarize"]
+
+#: Default half-width of the uniform offsets of the initial joint angles [rad].
+PERTURBATION = 1e-6
+
+#: The metrics reported as distributions (summary keys of :func:`summarize`), with their
+#: labels. Head errors and torques are taken over t >= the error window (10 s, or the
+#: second half of a run shorter than 20 s, :func:`~snake_pin.metrics.default_error_window`);
+#: R is R~ (the passive joint free) on a robot with a passive joint.
+METRICS: dict[str, str] = {
+    "rms_percent": "RMS head error [% of body]",
+    "max_percent": "max head error [% of body]",
+    "R_min": "R min (R~ with a passive joint)",
+    "torque_rms": "torque RMS [N m]",
+}
+
+
+def summarize(traj: Trajectory, *, every: int = 10,
+              reference: HeadReference | None = None,
+              start: float | None = None) -> dict[str, object]:
+    """Head errors and torques over t >= ``start``, D and R from the (estimated) state.
+
+    Parameters
+    ----------
+    traj
+        A head-tracking run (engine or viscous model). Its ``signals`` get
+        ``head_error`` and its ``meta`` the ``criteria`` (t, D, R).
+    every
+        D and R are evaluated at every ``every``-th sample.
+    reference
+        The head reference the run tracked (default the straight line
+        w_r = [0.1 t, 0, pi] of :func:`~snake_pin.control.head_first_reference`); the head
+        error is the distance to its point at the same time.
+    start
+        Start of the window of head errors and torques [s]; None: 10 s, or the second
+        half of a run shorter than 20 s (:func:`~snake_pin.metrics.default_error_window`).
+
+    Returns
+    -------
+    dict
+        ``traj.summary``, updated with error_window, rms_head_error, max_head_error [m],
+        rms_head_error_pct, max_head_error_pct, rms_relative (fraction of the body
+        length), the metrics of :data:`METRICS` (``rms_percent``, ``max_percent``: % of
+        the body length; ``torque_rms``: RMS over the window's applied torques of the
+        actuated joints [N m]; None when the window holds no sample), R_min, D_min,
+        body_length, passive, final_head.
+    """
+    error = head_position_error(
+        traj, head_first_reference() if reference is None else reference)
+    t_c, d, r = criteria_along(traj, every=every)
+    traj.signals["head_error"] = error
+    traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
+    errors = head_error_summary(traj, error, start=start)
+    late = window(traj, float(errors["error_window"] or 0.0)) & applied(traj)
+    actuated = np.array([k - 1 for k in traj.params.actuated], dtype=int)
+    torque = (float(np.sqrt(np.mean(traj.tau[np.ix_(late, actuated)] ** 2)))
+              if late.any() and actuated.size else None)
+    body = traj.params.body_length
+    max_error = errors["max_head_error"]
+    traj.summary.update({
+        **errors,
+        "rms_percent": percent(errors["rms_relative"]),
+        "max_percent": None if max_error is None else 100.0 * max_error / body,
+        "torque_rms": torque,
+        "R_min": float(r.min()), "D_min": float(d.min()),
+        "body_length": body,
+        "passive": list(traj.params.passive),
+        "final_head": traj.q[-1, :3].tolist(),
+    })
+    return traj.summary
+
+
+def perturbations(count: int, joints: int, size: float = PERTURBATION,
+                  seed: int = 0) -> np.ndarray:
+    """``count`` offsets of ``joints`` initial joint angles, uniform in [-size, size] [rad].
+
+    Seeded (``numpy.random.default_rng(seed)``): the same arguments give the same
+    offsets, so any draw can be run again with ``run_engine(initial_offset=...)``.
+
+    Parameters
+    ----------
+    count
+        Number of draws (rows).
+    joints
+        Joint angles per draw (n - 1).
+    size
+        Half-width of the uniform distribution [rad].
+    seed
+        Seed of the generator.
+
+    Returns
+    -------
+    numpy.ndarray
+        (count, joints) offsets [rad].
+
+    Raises
+    ------
+    ParameterError
+        ``count`` or ``joints`` not a positive integer, ``size`` negative or not finite.
+    """
+    for name, value in (("count", count), ("joints", joints)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+            raise ParameterError(f"{name} must be a positive integer, got {value!r}")
+    if not (isinstance(size, numbers.Real) and math.isfinite(size) and size >= 0):
+        raise ParameterError(f"size must be a finite non-negative angle, got {size!r}")
+    return np.random.default_rng(seed).uniform(-size, size, (int(count), int(joints)))
+
+
+def distribution(values: Sequence[float | None]) -> dict[str, Any]:
+    """Median, 10 % and 90 % percentiles, min and max of the values that are numbers.
+
+    Parameters
+    ----------
+    values
+        One metric of several runs; None (no value: a run shorter than the error
+        window) and non-finite entries are left out.
+
+    Returns
+    -------
+    dict
+        ``median``, ``p10``, ``p90`` (percentiles interpolated linearly between the
+        values), ``min``, ``max`` (all None when no value is left) and ``count``.
+    """
+    finite = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
+    if finite.size == 0:
+        return {"median": None, "p10": None, "p90": None, "min": None, "max": None,
+                "count": 0}
+    return {"median": float(np.median(finite)), "p10": float(np.percentile(finite, 10)),
+            "p90": float(np.percentile(finite, 90)), "min": float(finite.min()),
+            "max": float(finite.max()), "count": int(finite.size)}
+
+
+@dataclass
+class Draws:
+    """Runs of one configuration from perturbed initial postures, and their distribution.
+
+    Parameters
+    ----------
+    label
+        What was run (e.g. "velocity law, joint 5 passive").
+    perturbation, seed
+        The offsets' half-width [rad] and seed (:func:`perturbations`).
+    offsets
+        (N, n - 1) offsets of the initial joint angles [rad], one row per draw.
+    summaries
+        Per draw, the run's JSON summary (``Trajectory.summary_dict()`` after
+        :func:`summarize`), or None while (or if) it has not finished.
+    files
+        Per draw, the files it was saved to, if any.
+    """
+
+    label: str
+    perturbation: float
+    seed: int
+    offsets: np.ndarray
+    summaries: list[dict[str, Any] | None] = field(default_factory=list)
+    files: list[list[str]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if not self.summaries:
+            self.summaries = [None] * len(self.offsets)
+        if not self.files:
+            self.files = [[] for _ in self.offsets]
+
+    def record(self, index: int, summary: dict[str, Any], files: Sequence[str] = ()) -> None:
+        """Keep the summary (and files) of a finished draw.
+
+        Parameters
+        ----------
+        index
+            The draw (row of :attr:`offsets`).
+        summary
+            Its JSON summary (``Trajectory.summary_dict()`` after :func:`summarize`).
+        files
+            The files it was saved to, if any.
+        """
+        self.summaries[index] = summary
+        self.files[index] = [str(f) for f in files]
+
+    @property
+    def done(self) -> list[int]:
+        """Indices of the finished draws."""
+        return [i for i, s in enumerate(self.summaries) if s is not None]
+
+    def values(self, metric: str) -> list[float | None]:
+        """One metric of every finished draw, in draw order.
+
+        Parameters
+        ----------
+        metric
+            A summary key (e.g. one of :data:`METRICS`).
+
+        Returns
+        -------
+        list
+            The values (None where a draw has none).
+        """
+        return [self.summaries[i].get(metric) for i in self.done]  # type: ignore[union-attr]
+
+    def distributions(self) -> dict[str, dict[str, Any]]:
+        """The distribution of every metric over the finished draws.
+
+        Returns
+        -------
+        dict
+            Metric of :data:`METRICS` -> its :func:`distribution`.
+        """
+        return {key: distribution(self.values(key)) for key in METRICS}
+
+    def faults(self) -> list[int]:
+        """The finished draws that diverged or failed.
+
+        Returns
+        -------
+        list of int
+            Their indices.
+        """
+        return [i for i in self.done
+                if (self.summaries[i] or {}).get("status") in ("diverged", "failed")]
+
+    def median_draw(self) -> int | None:
+        """The draw that stands for the distribution in figures and files.
+
+        Returns
+        -------
+        int or None
+            The finished draw whose RMS head error is the median (the lower middle one
+            for an even count), or the first finished draw if none has an RMS; None if
+            none finished.
+        """
+        done = self.done
+        if not done:
+            return None
+        rms = [(v, i) for i, v in zip(done, self.values("rms_percent"), strict=True)
+               if v is not None and math.isfinite(v)]
+        if not rms:
+            return done[0]
+        rms.sort()
+        return rms[(len(rms) - 1) // 2][1]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON data of the draws.
+
+        Returns
+        -------
+        dict
+            label, draws (how many), finished, perturbation, seed, distribution (per
+            metric), median_draw, and runs: every draw's offset, summary and files.
+        """
+        return {"label": self.label, "draws": len(self.offsets), "finished": len(self.done),
+                "perturbation": self.perturbation, "seed": self.seed,
+                "distribution": self.distributions(), "median_draw": self.median_draw(),
+                "runs": [{"offset": offset.tolist(), "summary": summary, "files": files}
+                         for offset, summary, files in zip(self.offsets, self.summaries,
+                                                           self.files, strict=True)]}
+
+    def text(self) -> str:
+        """The draws and each metric's median and 10-90 % range, for a terminal.
+
+        Returns
+        -------
+        str
+            Lines without a trailing newline.
+        """
+        lines = [f"{self.label}: {len(self.done)} of {len(self.offsets)} runs, initial joint "
+                 f"angles offset by U(-{self.perturbation:g}, {self.perturbation:g}) rad "
+                 f"(seed {self.seed})"]
+        for key, dist in self.distributions().items():
+            lines.append(f"  {METRICS[key]}: " + _range_text(dist))
+        faults = self.faults()
+        if faults:
+            lines.append(f"  {len(faults)} run(s) diverged or failed: draws "
+                         f"{', '.join(str(i + 1) for i in faults)}")
+        return "\n".join(lines)
+
+
+def _range_text(dist: dict[str, Any]) -> str:
+    if dist["median"] is None:
+        return "no value (no samples in the error window)"
+    return (f"median {dist['median']:.4g}, 10-90 %: {dist['p10']:.4g} .. {dist['p90']:.4g} "
+            f"({dist['count']} runs)")
+
+def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None, *,
+                wheels: WheelSpec, t_final: float, friction: dict[str, Any],
+                law: str = "velocity", reference: HeadReference | None = None,
+                error_window: float | None = None) -> EngineRun:
+    """One engine run from the arc of (82) with ``offset`` added to its joint angles.
+
+    A job for :mod:`snake_pin.runs.parallel` (module-level, picklable).
+
+    Parameters
+    ----------
+    params
+        The robot (passive joints included).
+    offset
+        n - 1 offsets of the initial joint angles [rad], or None.
+    wheels
+        Wheels and contact settings.
+    t_final
+        Duration [s].
+    friction
+        The identified viscous model (:func:`~snake_pin.engine.run.identify_friction`).
+    law
+        "velocity" or "acceleration" (see :func:`~snake_pin.engine.run.run_engine`).
+    reference
+        The head reference (default the straight line of
+        :func:`~snake_pin.control.head_first_reference`).
+    error_window
+        Start of the head-error window [s] (None: :func:`summarize`'s default).
+
+    Returns
+    -------
+    EngineRun
+        The run, its trajectory passed through :func:`summarize`.
+    """
+    run = run_engine(params, wheels=wheels, t_final=t_final, friction=friction, law=law,
+                     initial_offset=offset, reference=reference)
+    summarize(run.trajectory, reference=reference, start=error_window)
+    return run
+
+
+def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Path,
+                stem: str, reference: HeadReference | None = None) -> dict[str, Path]:
+    """Figs. 19 (head vs reference), 20 (D, R), 21 (snapshots), and the side by side.
+
+    Parameters
+    ----------
+    run
+        An engine run (or its trajectory) passed through :func:`summarize`.
+    twin
+        The viscous model's run to draw beside it (passed through :func:`summarize`),
+        or None.
+    folder
+        Where the PNGs go.
+    stem
+        Their file-name prefix.
+    reference
+        The head reference the run tracked (default the straight line of
+        :func:`~snake_pin.control.head_first_reference`), drawn beside the head.
+
+    Returns
+    -------
+    dict
+        Figure key ("head", "criteria", "snapshots", "side_by_side") -> PNG path.
+    """
+    import matplotlib.pyplot as plt
+
+    from ..viz.plots import draw_snake, save_figure
+
+    traj = run.trajectory if isinstance(run, EngineRun) else run
+    paths = {k: folder / f"{stem}_{k}.png" for k in ("head", "criteria", "snapshots")}
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(traj.t, traj.q[:, 0], "-", label="x_h")
+    ax.plot(traj.t, traj.q[:, 1], "--", label="y_h")
+    if reference is None:
+        reference = head_first_reference()
+    target = np.array([reference(float(t))[0][:2] for t in traj.t])
+    ax.plot(traj.t, target[:, 0], ":", color="k", label="x_h^r")
+    ax.plot(traj.t, target[:, 1], ":", color="gray", label="y_h^r")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("[m]")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"Head on the engine (Fig. 19): {error_caption(traj.summary)}", fontsize=10)
+    save_figure(fig, paths["head"])
+
+    crit = traj.meta["criteria"]
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    axes[0].semilogy(crit["t"], crit["D"])
+    axes[0].set_ylabel("D")
+    axes[1].semilogy(crit["t"], crit["R"], color="#228b22")
+    axes[1].set_ylabel("R")
+    axes[1].set_xlabel("t [s]")
+    for a in axes:
+        a.grid(alpha=0.3, which="both")
+    fig.suptitle("D and R from the estimated engine state (Fig. 20)", fontsize=10)
+    save_figure(fig, paths["criteria"])
+
+    snake = Snake(traj.params)
+    fig, ax = plt.subplots(figsize=(9, 4))
+    for k, t in enumerate(np.linspace(0, traj.t_end, 7)):
+        i = min(int(np.searchsorted(traj.t, t)), len(traj) - 1)
+        draw_snake(ax, snake, traj.q[i], alpha=0.35 + 0.65 * k / 6)
+    ax.plot(traj.q[:, 0], traj.q[:, 1], color="#d9541a", lw=0.8)
+    ax.plot(target[:, 0], target[:, 1], "k--", lw=1)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.set_title("Snapshots of the engine run (Fig. 21)", fontsize=10)
+    save_figure(fig, paths["snapshots"])
+
+    if twin is not None:
+        paths["side_by_side"] = folder / f"{stem}_vs_viscous.png"
+        fig, axes = plt.subplots(1, 2, figsize=(12, 4))
+        axes[0].plot(traj.q[:, 0], traj.q[:, 1], label="MuJoCo, wheels (Coulomb)")
+        axes[0].plot(twin.q[:, 0], twin.q[:, 1], label="Pinocchio, viscous (identified)")
+        axes[0].plot(target[:, 0], target[:, 1], "k--", lw=1, label="reference")
+        axes[0].set_xlabel("x [m]")
+        axes[0].set_ylabel("y [m]")
+        axes[0].set_aspect("equal", adjustable="datalim")
+        axes[0].legend(fontsize=8)
+        tc = twin.meta["criteria"]
+        axes[1].semilogy(crit["t"], crit["R"], label="MuJoCo")
+        axes[1].semilogy(tc["t"], tc["R"], label="viscous model")
+        axes[1].set_xlabel("t [s]")
+        axes[1].set_ylabel("R")
+        axes[1].legend(fontsize=8)
+        for a in axes:
+            a.grid(alpha=0.3)
+        fig.suptitle("Same controller, same robot: engine vs viscous model", fontsize=10)
+        save_figure(fig, paths["side_by_side"])
+    return paths
+
+
+def engine_robot(params: SnakeParams) -> SnakeParams:
+    """The robot the engine stage runs for a report on ``params``.
+
+    Parameters
+    ----------
+    params
+        The report's robot.
+
+    Returns
+    -------
+    SnakeParams
+        The ``engine`` preset of VI.3 when ``params`` is a preset (the paper's Table 1
+        robot has no wheeled model in the paper), else ``params`` itself (a robot file or
+        a user's own parameters), every joint actuated.
+    """
+    if params.name in ROBOTS:
+        return SnakeParams.engine()
+    return params.replace(passive=())

@@ -1,0 +1,238 @@
+"""Section VI.2's run: Lyapunov-like head tracking (w_r = [0.1 t, 0, pi], gains (84)).
+
+Owns one tracking run (:func:`run_tracking`), its robot (:func:`tracking_params`,
+:func:`tracking_friction`), its start (:func:`initial_state`) and its figures
+(:func:`plot_tracking`): ``snake-pin simulate --controller lyapunov``, the report's
+tracking stage and the controller benchmark use them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import gaits
+from ..control import LyapunovController, head_first_reference
+from ..integrability import conserved_quantity_along
+from ..metrics import (
+    ERROR_WINDOW,
+    criteria_along,
+    error_caption,
+    head_error_summary,
+    head_position_error,
+)
+from ..model import Snake
+from ..params import ROBOTS, SnakeParams
+from ..sim import Trajectory, simulate
+
+__all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "initial_state", "plot_tracking",
+           "run_tracking", "tracking_friction", "tracking_params"]
+
+#: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
+#: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
+#: 0.10 m/s at c_y = 10 c_x and 0.16 m/s at 50 c_x, and 50 tracked best of 10..100.
+TRACKING_FRICTION = {"c_x": 0.5, "c_y": 25.0}
+#: Manipulability is evaluated every this many samples (10 ms at 1 kHz).
+CRITERIA_EVERY = 10
+#: The head reference of every tracking run, as the trajectories' meta names it.
+REFERENCE = "w_r = [0.1 t, 0, pi]"
+
+
+def tracking_params(params: SnakeParams | None = None, **changes: object) -> SnakeParams:
+    """A robot with the tracking friction of erratum 3.
+
+    Parameters
+    ----------
+    params
+        The robot (default Table 1).
+    **changes
+        Further field changes (friction given here wins).
+
+    Returns
+    -------
+    SnakeParams
+        ``params`` with c_x = 0.5, c_y = 25 N s/m (:data:`TRACKING_FRICTION`), then
+        ``changes``.
+    """
+    base = (params or SnakeParams.table1()).replace(**TRACKING_FRICTION)
+    return base.replace(**changes) if changes else base
+
+
+def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
+    """The robot with the friction a tracking run uses, and a sentence saying which.
+
+    A robot of one's own (its name is not a preset's: a robot file, a URDF) keeps its
+    friction when it is anisotropic on every link (c_y > c_x, as wheels give; Section V
+    rules out isotropic friction). Presets (Table 1's friction is isotropic) and other
+    robots get :data:`TRACKING_FRICTION` (erratum 3).
+
+    Parameters
+    ----------
+    params
+        The robot.
+
+    Returns
+    -------
+    tuple of (SnakeParams, str)
+        The robot to run (``params`` itself when it keeps its friction) and a sentence
+        for the report saying which friction it has.
+    """
+    own = params.name not in ROBOTS
+    if own and np.all(params.per_link("c_y") > params.per_link("c_x")):
+        ratio = params.per_link("c_y") / params.per_link("c_x")
+        return params, ("the robot's own friction (anisotropic on every link, c_y > c_x; "
+                        f"c_y / c_x from {ratio.min():.3g} to {ratio.max():.3g})")
+    sentence = (f"friction c_x = {TRACKING_FRICTION['c_x']}, c_y = {TRACKING_FRICTION['c_y']} "
+                "N s/m (erratum 3)")
+    if own:
+        sentence += (", which replaces the robot's own friction: it is not anisotropic on "
+                     "every link, and Section V rules out tracking with isotropic friction")
+    return tracking_params(params), sentence
+
+
+def initial_state(params: SnakeParams) -> np.ndarray:
+    """Eq. (82)'s arc (phi = pi/6), head-first along +x: theta_1 = pi, at rest.
+
+    Parameters
+    ----------
+    params
+        The robot.
+
+    Returns
+    -------
+    numpy.ndarray
+        The state x = [q, dq], 2 (n + 2) values.
+    """
+    return gaits.initial_state(params.n, theta_1=np.pi)
+
+
+def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
+                 error_window: float | None = None,
+                 progress: bool = False, **controller_options: Any) -> Trajectory:
+    """60 s of head tracking, w_r = [0.1 t, 0, pi], gains (84), control at 1 kHz.
+
+    Parameters
+    ----------
+    params
+        The robot, used as given (pass :func:`tracking_params` for the anisotropic
+        default; default: Table 1 with it).
+    t_final
+        Duration [s].
+    error_window
+        Start of the head-error window [s] (None: 10 s, or the second half of a run
+        shorter than 20 s).
+    progress
+        Show a progress bar on stderr when it is a terminal.
+    **controller_options
+        Options of :class:`~snake_pin.control.LyapunovController` (e.g. ``lam``,
+        ``lam_shape``).
+
+    Returns
+    -------
+    Trajectory
+        The run, its meta with ``reference`` (:data:`REFERENCE`) and the law's ``k_shape``,
+        ``lam`` and ``lam_shape``; ``signals["head_error"]`` [m] at every sample,
+        ``meta["criteria"]`` (D and R, eqs. 30 and 31, every :data:`CRITERIA_EVERY`
+        samples; R~ with the passive joints free, eq. 42) and in its summary: the
+        controller, friction and passive joints, the head error over t >= ``error_window``
+        (error_window, rms_head_error, max_head_error [m], their _pct, rms_relative),
+        R_min, D_min, body_length, g_drift (max |g - g(0)| of eq. 67) and the final head
+        pose.
+    """
+    params = params or tracking_params()
+    snake = Snake(params)
+    reference = head_first_reference()
+    controller = LyapunovController(snake, reference, **controller_options)
+    traj = simulate(snake, controller, initial_state(params), t_final, progress=progress,
+                    meta={"reference": REFERENCE, "k_shape": controller.k_shape,
+                          "lam": controller.lam, "lam_shape": controller.lam_shape})
+    error = head_position_error(traj, reference)
+    t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
+    g = conserved_quantity_along(snake, traj.q, traj.dq)
+    traj.signals["head_error"] = error
+    traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
+    errors = head_error_summary(traj, error) if error_window is None \
+        else head_error_summary(traj, error, start=error_window)
+    traj.summary.update({
+        "controller": "lyapunov", "c_x": params.c_x, "c_y": params.c_y,
+        "passive": list(params.passive), **errors,
+        "R_min": float(r.min()), "D_min": float(d.min()),
+        "body_length": params.body_length,
+        "g_drift": float(np.abs(g - g[0]).max()),
+        "final_head": traj.q[-1, :3].tolist(),
+    })
+    return traj
+
+
+def plot_tracking(traj: Trajectory, folder: Path, stem: str) -> dict[str, Path]:
+    """Snapshots along the path (Figs. 13, 16), D and R (Figs. 14, 17), head vs reference.
+
+    Parameters
+    ----------
+    traj
+        A run of :func:`run_tracking`.
+    folder
+        Where the PNGs go.
+    stem
+        Their file-name prefix.
+
+    Returns
+    -------
+    dict
+        Figure key ("motion", "criteria", "head") -> PNG path.
+    """
+    import matplotlib.pyplot as plt
+
+    from ..viz.plots import draw_snake, save_figure
+
+    folder = Path(folder)
+    snake = Snake(traj.params)
+    paths = {k: folder / f"{stem}_{k}.png" for k in ("motion", "criteria", "head")}
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    t_end = traj.t_end
+    ax.plot([0, 0.1 * t_end], [0, 0], "k--", lw=1, label="reference path")
+    ax.plot(traj.q[:, 0], traj.q[:, 1], color="#d9541a", lw=0.8, label="head")
+    times = np.linspace(0, t_end, 7)
+    for k, t in enumerate(times):
+        i = int(np.searchsorted(traj.t, t))
+        draw_snake(ax, snake, traj.q[min(i, len(traj) - 1)], alpha=0.35 + 0.65 * k / 6)
+    joints = ", ".join(str(k) for k in traj.params.passive)
+    passive = f", joint {joints} passive (x)" if traj.params.passive else ""
+    ax.set_title(f"Head tracking, snapshots every {times[1]:.0f} s{passive}", fontsize=10)
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    save_figure(fig, paths["motion"])
+
+    crit = traj.meta["criteria"]
+    tilde = "~" if traj.params.passive else ""
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    axes[0].semilogy(crit["t"], crit["D"], color="#1f4fd1")
+    axes[0].set_ylabel(f"D{tilde}")
+    axes[1].semilogy(crit["t"], crit["R"], color="#228b22")
+    axes[1].set_ylabel(f"R{tilde}")
+    axes[1].set_xlabel("t [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+    fig.suptitle(f"Manipulability criteria along the run (R min {min(crit['R']):.2e})",
+                 fontsize=10)
+    save_figure(fig, paths["criteria"])
+
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    axes[0].plot(traj.t, traj.q[:, 0], label="x_h")
+    axes[0].plot(traj.t, 0.1 * traj.t, "k:", label="x_h^r")
+    axes[0].plot(traj.t, traj.q[:, 1], label="y_h")
+    axes[0].legend(fontsize=8)
+    axes[0].set_ylabel("[m]")
+    axes[1].plot(traj.t, traj.signals["head_error"], color="firebrick")
+    axes[1].axvspan(0, traj.summary.get("error_window", ERROR_WINDOW), color="0.9")
+    axes[1].set_ylabel("head error [m]")
+    axes[1].set_xlabel("t [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.suptitle(error_caption(traj.summary), fontsize=10)
+    save_figure(fig, paths["head"])
+    return paths
