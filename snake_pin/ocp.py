@@ -47,7 +47,7 @@ import numpy as np
 
 from .exceptions import ParameterError
 from .friction import FrictionModel
-from .model import Snake, _check_snake
+from .model import Snake
 
 __all__ = ["ChainRootActuation", "CostWeights", "FrictionJacobians", "TrackingProblem",
            "differential_model", "reference_states", "state_model"]
@@ -507,6 +507,13 @@ def reference_states(reference: Any, gait: Any, times: np.ndarray) -> np.ndarray
         dw_r = np.array([p[1] for p in parts], dtype=float)
     phi_r, dphi_r, _ = gait.derivatives(times[:, None])
     return np.hstack((w_r, phi_r, dw_r, dphi_r))
+
+
+def _check_snake(value: object) -> Snake:
+    """``value`` if it is a :class:`~snake_pin.model.Snake`, else ParameterError."""
+    if not isinstance(value, Snake):
+        raise ParameterError(f"snake must be a Snake, got {type(value).__name__}")
+    return value
 
 
 def _positive(value: object, name: str) -> float:

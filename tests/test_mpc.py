@@ -105,6 +105,7 @@ def test_bad_arguments_are_one_line() -> None:
             (lambda: CostWeights(head_position=-1.0), "head_position"),
             (lambda: MPCController(snake, options={"horizon": 1.0}), "options"),
             (lambda: MPCController(snake, reference=3.0), "reference"),
+            (lambda: MPCController("snake"), "snake"),
             (lambda: MPCController(Snake(_robot(n=3, passive=(1, 2)))), "passive"),
             (lambda: MPCController(Snake(_robot(passive=(10,)))), "passive"),
     ):

@@ -32,9 +32,9 @@ import numpy as np
 from .._validation import brief
 from ..exceptions import ParameterError
 from ..gaits import Serpenoid
-from ..model import Snake, _check_snake
+from ..model import Snake
 from ..ocp import CostWeights, TrackingProblem, reference_states
-from .base import Controller, _check_reference, gait_for
+from .base import Controller, gait_for
 from .reference import HeadReference, head_first_reference
 
 __all__ = ["MPCController", "MPCOptions"]
@@ -182,12 +182,16 @@ class MPCController(Controller):
 
     def __init__(self, snake: Snake, reference: HeadReference | None = None,
                  gait: Serpenoid | None = None, options: MPCOptions | None = None) -> None:
-        n = _check_snake(snake).n
+        if not isinstance(snake, Snake):
+            raise ParameterError(f"snake must be a Snake, got {brief(snake)}")
+        n = snake.n
         if not snake.params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
         self.snake = snake
-        self.reference = (head_first_reference() if reference is None
-                          else _check_reference(reference))
+        if reference is not None and not callable(reference):
+            raise ParameterError(f"reference must be a head reference (a callable of time), "
+                                 f"got {brief(reference)}")
+        self.reference = head_first_reference() if reference is None else reference
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
         if options is None:
             options = MPCOptions()
