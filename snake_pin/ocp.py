@@ -7,13 +7,15 @@ This module owns the optimal-control model of the robot:
   ``root_joint`` and silently gets the input size wrong here). The generalised force is
   ``tau = [0_3; E_a u] + Q(q, q')``: u holds the torques of the actuated joints only, so a
   passive (failed) joint gets no torque by construction, and the viscous friction Q of
-  eqs. (10)-(13) enters as a state-dependent force with its analytic Jacobians (the
-  damping twin's RNEA derivatives, :meth:`snake_pin.friction.FrictionModel.derivatives`).
+  eqs. (10)-(13) enters as a state-dependent force with its analytic Jacobians
+  (:class:`FrictionJacobians`, vectorised numpy, equal to the damping twin's RNEA
+  derivatives of :meth:`snake_pin.friction.FrictionModel.derivatives`).
 * :func:`differential_model` -- Crocoddyl's C++ free forward dynamics over that actuation:
-  q'' = ABA(q, q', tau) = H^-1 (E tau - h), exactly :meth:`snake_pin.model.Snake.
-  forward_dynamics`, with the derivatives ``d q''/d x = ABA_x + H^-1 dQ/dx`` of
+  q'' = ABA(q, q', tau) = H^-1 (E tau - h), exactly
+  :meth:`snake_pin.model.Snake.forward_dynamics`, with the derivatives
+  ``d q''/d x = ABA_x + H^-1 dQ/dx`` of
   :meth:`~snake_pin.model.Snake.dynamics_derivatives`; plus the costs of :class:`CostWeights`.
-* :class:`TrackingProblem` -- the shooting problem: RK4 nodes of :attr:`node_dt`, whose
+* :class:`TrackingProblem` -- the shooting problem: RK4 nodes of ``node_dt``, whose
   costs' references (head pose and velocity, the gait) are set from a head reference and a
   serpenoid at the nodes' times.
 
@@ -21,13 +23,17 @@ Costs (each a weighted quadratic on a state or control residual, in Crocoddyl's 
 head position ``(x_h, y_h) - p_r(t)``, heading ``theta_1 - theta_r(t)``, head velocity
 ``(x_h', y_h') - p_r'(t)``, gait prior ``phi - phi_r(t)`` and ``phi' - phi_r'(t)``,
 torque ``|u|^2``, joint limits (a quadratic barrier outside ``|phi_i| <= joint_limit``);
-the torque bounds are the box of Box-FDDP (the model's ``u_lb``/``u_ub``). The terminal
-node repeats the state costs, scaled by ``terminal``.
+the torque bounds are the box of Box-FDDP (the model's ``u_lb``/``u_ub``). The running
+costs are rates (Crocoddyl integrates them over each node); the terminal node repeats the
+state costs once, scaled by ``terminal`` [s].
 
-Why RK4 at 10 ms: the viscous snake is stiff. At c_y = 50 c_x its fastest mode decays at
-about 120-140 /s (8 ms), so explicit Euler at 20 ms and RK4 at 25 ms diverge inside the
-horizon (RK4's real stability limit is |lambda dt| < 2.79), while RK4 at 10 ms predicts
-the 1 kHz plant to a fraction of a millimetre over a second.
+Why RK4 at 10 ms: the viscous snake is stiff. At c_y = 50 c_x the linearised dynamics'
+fastest mode decays at 121 /s at the initial arc of eq. (82) and 133 /s at a serpenoid
+posture (8 ms), so explicit Euler at 20 ms and RK4 at 25 ms diverge inside the horizon
+(RK4's stability limit on the negative real axis is |lambda dt| < 2.79). At 10 ms all of
+RK2, RK3 and RK4 are stable, but over 1 s of a sinusoidal torque schedule (0.5 N m,
+held per node) they predict the 1 kHz plant's head to 15, 2.7 and 0.5 mm: RK4's four
+stages per node buy the accuracy a 0.5 s prediction needs.
 
 Why the C++ free forward dynamics rather than a Python action model calling
 :class:`~snake_pin.model.Snake`: both need Python for the friction (a Crocoddyl model in
@@ -82,7 +88,9 @@ class CostWeights:
     joint_limit : float, optional
         On the joint angles beyond the joint limit (a quadratic barrier) [1/rad^2].
     terminal : float, optional
-        Scale of the state costs at the terminal node (in units of one node's cost).
+        Scale of the state costs at the terminal node [s]: the running costs are
+        integrated over time (a node's cost is its rate times ``node_dt``), the terminal
+        one is not, so ``terminal`` weighs the end state as that many seconds of running.
 
     Raises
     ------
@@ -237,8 +245,9 @@ class FrictionJacobians:
     partial derivative of z (``dz_i/dtheta_m = -K_im e_m theta_m'``, ``dz/dV`` = 1 and j,
     ``dz_i/dtheta_m' = K_im j e_m``) goes through the same two linear maps at once, one
     column per coordinate; the exact derivative of e_i^2 adds a diagonal term. Agrees with
-    the damping twin's RNEA derivatives (:meth:`~snake_pin.friction.FrictionModel.
-    derivatives`) to round-off, at a fraction of their Python cost.
+    the damping twin's RNEA derivatives
+    (:meth:`~snake_pin.friction.FrictionModel.derivatives`) to round-off, at less Python
+    cost.
 
     Parameters
     ----------
