@@ -19,10 +19,12 @@ This module owns the optimal-control model of the robot:
   costs' references (head pose and velocity, the gait) are set from a head reference and a
   serpenoid at the nodes' times.
 
-Costs (each a weighted quadratic on a state or control residual, in Crocoddyl's C++):
-head position ``(x_h, y_h) - p_r(t)``, heading ``theta_1 - theta_r(t)``, head velocity
-``(x_h', y_h') - p_r'(t)``, gait prior ``phi - phi_r(t)`` and ``phi' - phi_r'(t)``,
-torque ``|u|^2``, joint limits (a quadratic barrier outside ``|phi_i| <= joint_limit``);
+Costs (weighted quadratics on a state or control residual, in Crocoddyl's C++): head
+position ``(x_h, y_h) - p_r(t)``, heading ``theta_1 - theta_r(t)``, head velocity
+``(x_h', y_h') - p_r'(t)``, gait prior ``phi - phi_r(t)`` and ``phi' - phi_r'(t)`` (these
+five share the residual ``x - x_r(t)``, so they are one cost, ``tracking``, whose
+activation weighs each entry by its term's weight), torque ``|u|^2``, joint limits (a
+quadratic barrier outside ``|phi_i| <= joint_limit``);
 the torque bounds are the box of Box-FDDP (the model's ``u_lb``/``u_ub``). The running
 costs are rates (Crocoddyl integrates them over each node); the terminal node repeats the
 state costs once, scaled by ``terminal`` [s].
@@ -58,9 +60,10 @@ from .model import Snake
 __all__ = ["ChainRootActuation", "CostWeights", "FrictionJacobians", "TrackingProblem",
            "differential_model", "reference_states", "state_model"]
 
-#: Names of the costs in each node's cost sum (Crocoddyl's CostModelSum keys).
-COSTS = ("head_position", "heading", "head_velocity", "gait", "gait_velocity", "torque",
-         "joint_limit")
+#: Names of the costs in each node's cost sum (Crocoddyl's CostModelSum keys): the state
+#: tracking terms (head position, heading, head velocity, gait prior) as one weighted
+#: residual, the torque, the joint-limit barrier.
+COSTS = ("tracking", "torque", "joint_limit")
 #: Bound used for the coordinates a barrier does not limit (Crocoddyl needs finite bounds).
 _FREE = 1e9
 
@@ -343,7 +346,7 @@ def differential_model(snake: Snake, weights: CostWeights | None = None, *,
     Returns
     -------
     crocoddyl.DifferentialActionModelFreeFwdDynamics
-        The model; its cost sum holds the costs of ``COSTS`` whose weight is not 0.
+        The model; its cost sum holds those of ``COSTS`` whose weights are not all 0.
 
     Raises
     ------
@@ -363,21 +366,17 @@ def differential_model(snake: Snake, weights: CostWeights | None = None, *,
     scale = weights.terminal if terminal else 1.0
     nx = 2 * nq
 
-    def state_cost(name: str, weight: float, entries: slice) -> None:
-        if weight * scale <= 0.0:
-            return
-        w = np.zeros(nx)
-        w[entries] = 1.0
-        activation = crocoddyl.ActivationModelWeightedQuad(w)
-        residual = crocoddyl.ResidualModelState(state, np.zeros(nx), nu)
-        costs.addCost(name, crocoddyl.CostModelResidual(state, activation, residual),
-                      weight * scale)
-
-    state_cost("head_position", weights.head_position, slice(0, 2))
-    state_cost("heading", weights.heading, slice(2, 3))
-    state_cost("head_velocity", weights.head_velocity, slice(nq, nq + 2))
-    state_cost("gait", weights.gait, slice(3, nq))
-    state_cost("gait_velocity", weights.gait_velocity, slice(nq + 3, nx))
+    # the five tracking terms share the residual x - x_r(t): one weighted quadratic
+    rates = np.zeros(nx)
+    rates[0:2] = weights.head_position
+    rates[2] = weights.heading
+    rates[nq:nq + 2] = weights.head_velocity
+    rates[3:nq] = weights.gait
+    rates[nq + 3:] = weights.gait_velocity
+    if np.any(rates > 0.0) and scale > 0.0:
+        costs.addCost("tracking", crocoddyl.CostModelResidual(
+            state, crocoddyl.ActivationModelWeightedQuad(rates),
+            crocoddyl.ResidualModelState(state, np.zeros(nx), nu)), scale)
     if weights.joint_limit * scale > 0.0:
         upper = np.full(nx, _FREE)
         upper[3:nq] = joint_limit
@@ -445,8 +444,7 @@ class TrackingProblem:
         # the state residuals of each node (shared C++ objects), whose reference is set
         self._residuals = [[item.cost.residual for name, item in
                             model.differential.costs.costs.todict().items()
-                            if name in ("head_position", "heading", "head_velocity", "gait",
-                                        "gait_velocity")]
+                            if name == "tracking"]
                            for model in [*self.running, self.terminal]]
         self.nu = self.running[0].nu
 
