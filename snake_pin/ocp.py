@@ -108,7 +108,7 @@ class CostWeights:
     gait_velocity: float = 0.05
     torque: float = 0.5
     joint_limit: float = 1000.0
-    terminal: float = 10.0
+    terminal: float = 1.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

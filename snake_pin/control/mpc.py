@@ -78,7 +78,7 @@ class MPCOptions:
 
     horizon: float = 0.5
     node_dt: float = 0.01
-    resolve_period: float = 0.02
+    resolve_period: float = 0.04
     torque_bound: float = 1.0
     joint_limit: float = math.pi / 2
     iterations: int = 2
