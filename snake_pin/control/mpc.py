@@ -37,7 +37,7 @@ from ..ocp import CostWeights, TrackingProblem, reference_states
 from .base import Controller, gait_for
 from .reference import HeadReference, head_first_reference
 
-__all__ = ["MPCController", "MPCOptions"]
+__all__ = ["MPCController", "MPCOptions", "SolveStats"]
 
 @dataclass(frozen=True)
 class MPCOptions:
@@ -251,7 +251,7 @@ class MPCController(Controller):
 
     # ------------------------------------------------------------------ solve
     def _guess(self, x: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """A rollout from x under zero torque (a guess held at x0 stalls Box-FDDP)."""
+        """A rollout from x under zero torque (x itself when the snake starts at rest)."""
         us = [np.zeros(self._problem.nu)] * self.options.nodes
         return list(self._problem.problem.rollout(us)), us
 
