@@ -81,7 +81,7 @@ class MPCOptions:
     resolve_period: float = 0.04
     torque_bound: float = 1.0
     joint_limit: float = math.pi / 2
-    iterations: int = 1
+    iterations: int = 2
     first_iterations: int = 50
     step_halvings: int = 3
     feedback: bool = True
