@@ -9,7 +9,7 @@ both alike; each figure is the median over the rounds with its 10-90 % range.
 
 Usage: python scripts/bench.py [--quick]
            [--only dynamics,friction_routes,derivatives,manipulability,runs,engine,
-                   reproduce,failure_map,study]
+                   reproduce,failure_map,study,mpc]
            [--baseline COMMIT | --no-baseline] [--study-sizes 40,256,1000]
            [--study-rounds 1]
 
@@ -18,7 +18,11 @@ Usage: python scripts/bench.py [--quick]
 failure_map`` (not in the default set either) the report with and without its failure-map
 stage, back to back; ``--only study`` (nor this one) a study's throughput in runs per wall
 second at each of ``--study-sizes`` runs, this tree's ``run_study`` against the baseline
-commit's (default 3801e7f, whose studies ran lockstep batches), taking turns per size.
+commit's (default 3801e7f, whose studies ran lockstep batches), taking turns per size;
+``--only mpc`` (nor this one) the model-predictive controller's closed loop (3 s on the
+line; 1 s with ``--quick``): wall per simulated second and per re-solve, where it goes
+(dynamics, derivatives, solver, plant), the Lyapunov-like law on the same run, and the
+levers per call.
 """
 
 from __future__ import annotations
@@ -961,6 +965,140 @@ def bench_study(budget: float, baseline: str | None = STUDY_BASELINE,
           "(cluster start and result files included, Python's start not).")
 
 
+# ------------------------------------------------------------------------------ mpc
+def _python_dam(snake: Snake) -> Any:
+    """The other route for the OCP's dynamics: a Python differential action model whose
+    calc/calcDiff call Snake.forward_dynamics and Snake.dynamics_derivatives (no costs: a
+    lower bound on that route's cost per call)."""
+    import crocoddyl
+
+    from snake_pin.ocp import state_model
+
+    nq, actuated = snake.nq, np.array(snake.params.actuated) - 1
+
+    class PythonDynamics(crocoddyl.DifferentialActionModelAbstract):
+        def __init__(self) -> None:
+            crocoddyl.DifferentialActionModelAbstract.__init__(
+                self, state_model(snake), len(actuated), 0)
+            self.tau = np.zeros(snake.n - 1)
+
+        def calc(self, data: Any, x: np.ndarray, u: np.ndarray | None = None) -> None:
+            if u is not None:
+                self.tau[actuated] = u
+            data.xout[:] = snake.forward_dynamics(x[:nq], x[nq:], self.tau)
+
+        def calcDiff(self, data: Any, x: np.ndarray,
+                     u: np.ndarray | None = None) -> None:
+            if u is not None:
+                self.tau[actuated] = u
+            d = snake.dynamics_derivatives(x[:nq], x[nq:], self.tau)
+            data.Fx[:, :nq] = d.ddq_dq
+            data.Fx[:, nq:] = d.ddq_dv
+            data.Fu[:] = d.ddq_dtau[:, actuated]
+
+        def createData(self) -> Any:
+            return crocoddyl.DifferentialActionDataAbstract(self)
+
+    return PythonDynamics()
+
+
+def bench_mpc(budget: float) -> None:
+    """The MPC's speed: wall per simulated second and per re-solve and where it goes, with the
+    Lyapunov-like law on the same run; then the levers per call (the OCP's dynamics route,
+    the friction Jacobians)."""
+    import crocoddyl
+
+    from snake_pin import ocp
+    from snake_pin.control import LyapunovController
+    from snake_pin.control.mpc import MPCController, MPCOptions
+    from snake_pin.experiments.tracking import initial_state, tracking_params
+    from snake_pin.paths import Line, PathReference
+    from snake_pin.sim import simulate
+
+    t_final = 1.0 if budget < 0.1 else 3.0
+    params = tracking_params()
+    snake, reference = Snake(params), PathReference(Line())
+    x0 = initial_state(params)
+    counts = {"calc": 0, "calcDiff": 0}
+    actuation = ocp.ChainRootActuation
+    plain = actuation.calc, actuation.calcDiff
+
+    def counted(name: str, method: Callable[..., None]) -> Callable[..., None]:
+        def call(self: Any, *args: Any) -> None:
+            counts[name] += 1
+            method(self, *args)
+        return call
+
+    actuation.calc, actuation.calcDiff = counted("calc", plain[0]), counted("calcDiff", plain[1])
+    try:
+        controller = MPCController(snake, reference, options=MPCOptions())
+        wall = time.perf_counter()
+        traj = simulate(snake, controller, x0, t_final)
+        wall = time.perf_counter() - wall
+    finally:
+        actuation.calc, actuation.calcDiff = plain
+    lyapunov = LyapunovController(snake, reference)
+    lyap_wall = time.perf_counter()
+    simulate(snake, lyapunov, x0, t_final)
+    lyap_wall = time.perf_counter() - lyap_wall
+    stats = controller.stats
+    # per-call times of one node stage's dynamics (friction, ABA, costs) and derivatives, at
+    # states of the run
+    model = ocp.differential_model(snake)
+    data = model.createData()
+    x = np.r_[traj.q[len(traj) // 2], traj.dq[len(traj) // 2]]
+    u = traj.tau[len(traj) // 2][np.array(params.actuated) - 1]
+    per_call = interleaved_us({"calc": partial(model.calc, data, x, u),
+                               "calcDiff": partial(model.calcDiff, data, x, u)}, budget=budget)
+    dynamics = counts["calc"] * per_call["calc"][0] * 1e-6
+    derivatives = counts["calcDiff"] * per_call["calcDiff"][0] * 1e-6
+    solver = stats.wall - dynamics - derivatives
+    plant = wall - stats.wall
+    rows = [
+        ["MPC (default MPCOptions)", f"{wall / t_final:.2f}", f"{t_final / wall:.3f}x",
+         f"{1e3 * stats.wall / stats.solves:.1f}", f"{stats.iterations / stats.solves:.2f}",
+         f"{counts['calc'] / stats.solves:.0f} / {counts['calcDiff'] / stats.solves:.0f}"],
+        ["Lyapunov-like law", f"{lyap_wall / t_final:.3f}", f"{t_final / lyap_wall:.1f}x",
+         "-", "-", "-"],
+    ]
+    table(f"MPC head tracking, line, {t_final:g} s at 1 kHz (Table 1, c_y = 50 c_x, "
+          f"status {traj.status})",
+          ["law", "wall per simulated s [s]", "real-time factor", "wall per re-solve [ms]",
+           "iterations per re-solve", "stage calc / calcDiff per re-solve"], rows)
+    share = [["dynamics (stage calc: friction, ABA, costs)", dynamics],
+             ["derivatives (stage calcDiff: friction Jacobians, ABA derivatives, costs)",
+              derivatives],
+             ["solver (Riccati, rollouts, warm start, Python glue)", solver],
+             ["plant simulation and feedback between re-solves", plant]]
+    table("Where the MPC's wall goes (counts of the run times per-call medians timed after "
+          f"it: calc {show(per_call['calc'])} us, calcDiff {show(per_call['calcDiff'])} us)",
+          ["part", "wall [s]", "share"],
+          [[name, f"{seconds:.2f}", f"{100 * seconds / wall:.0f} %"] for name, seconds in share])
+    # levers, per call: the dynamics route, the friction Jacobians
+    python_route = _python_dam(snake)
+    python_data = python_route.createData()
+    nq = snake.nq
+    twin = FrictionModel(params, snake.model)
+    jacobians, out = ocp.FrictionJacobians(params), np.zeros((nq, 2 * nq))
+    levers = interleaved_us({
+        "C++ free forward dynamics + Python friction actuation: calc": partial(
+            model.calc, data, x, u),
+        "Python action model over Snake (dynamics only): calc": partial(
+            python_route.calc, python_data, x, u),
+        "C++ free forward dynamics + Python friction actuation: calcDiff": partial(
+            model.calcDiff, data, x, u),
+        "Python action model over Snake (dynamics only): calcDiff": partial(
+            python_route.calcDiff, python_data, x, u),
+        "friction Jacobians: numpy (ocp.FrictionJacobians)": partial(jacobians, x, out),
+        "friction Jacobians: damping twin (FrictionModel.derivatives)": partial(
+            twin.derivatives, x[:nq], x[nq:]),
+    }, budget=budget)
+    table("MPC levers, us per call, median (10-90 %) of interleaved rounds",
+          ["route", "us per call"], [[name, show(stats_)] for name, stats_ in levers.items()])
+    print(f"\nCrocoddyl's threads: none used; a Python model holds the GIL "
+          f"(crocoddyl {crocoddyl.__version__}).")
+
+
 #: The benches that run the whole report or whole studies (minutes each): not in the
 #: default set.
 WHOLE_REPORT = ("reproduce", "failure_map", "study")
@@ -972,17 +1110,20 @@ BENCHES: dict[str, Callable[[float], None]] = {"dynamics": bench_dynamics,
                                                "runs": bench_runs, "engine": bench_engine,
                                                "study": bench_study,
                                                "reproduce": bench_reproduce,
-                                               "failure_map": bench_failure_map}
+                                               "failure_map": bench_failure_map,
+                                               "mpc": bench_mpc}
+#: Not in the default set: the report, the studies, and the MPC's closed loop (minutes).
+NOT_DEFAULT = (*WHOLE_REPORT, "mpc")
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter timing batches")
-    parser.add_argument("--only", default=",".join(n for n in BENCHES if n not in WHOLE_REPORT),
+    parser.add_argument("--only", default=",".join(n for n in BENCHES if n not in NOT_DEFAULT),
                         help="comma-separated benches (default all but reproduce, "
                         "failure_map and study, which run the whole report: quiet and with "
                         "the other core busy; with and without the failure map; and whole "
-                        "studies)")
+                        "studies; and mpc, seconds of the MPC's closed loop)")
     parser.add_argument("--baseline", default=None,
                         help=f"commit the runs, the engine and the study compare to "
                         f"(default: {BASELINE} for the runs and the engine, "

@@ -1,0 +1,532 @@
+"""The snake as a Crocoddyl optimal-control problem: head tracking along a timed reference.
+
+This module owns the optimal-control model of the robot:
+
+* :class:`ChainRootActuation` -- Crocoddyl's actuation model for the paper model's
+  PX-PY-RZ chain root (Crocoddyl's ``ActuationModelFloatingBase`` looks for a joint named
+  ``root_joint`` and silently gets the input size wrong here). The generalised force is
+  ``tau = [0_3; E_a u] + Q(q, q')``: u holds the torques of the actuated joints only, so a
+  passive (failed) joint gets no torque by construction, and the viscous friction Q of
+  eqs. (10)-(13) enters as a state-dependent force with its analytic Jacobians
+  (:class:`FrictionJacobians`, vectorised numpy, equal to the damping twin's RNEA
+  derivatives of :meth:`snake_pin.friction.FrictionModel.derivatives`).
+* :func:`differential_model` -- Crocoddyl's C++ free forward dynamics over that actuation:
+  q'' = ABA(q, q', tau) = H^-1 (E tau - h), exactly
+  :meth:`snake_pin.model.Snake.forward_dynamics`, with the derivatives
+  ``d q''/d x = ABA_x + H^-1 dQ/dx`` of
+  :meth:`~snake_pin.model.Snake.dynamics_derivatives`; plus the costs of :class:`CostWeights`.
+* :class:`TrackingProblem` -- the shooting problem: RK4 nodes of ``node_dt``, whose
+  costs' references (head pose and velocity, the gait) are set from a head reference and a
+  serpenoid at the nodes' times.
+
+Costs (weighted quadratics on a state or control residual, in Crocoddyl's C++): head
+position ``(x_h, y_h) - p_r(t)``, heading ``theta_1 - theta_r(t)``, head velocity
+``(x_h', y_h') - p_r'(t)``, gait prior ``phi - phi_r(t)`` and ``phi' - phi_r'(t)`` (these
+five share the residual ``x - x_r(t)``, so they are one cost, ``tracking``, whose
+activation weighs each entry by its term's weight), torque ``|u|^2``, joint limits (a
+quadratic barrier outside ``|phi_i| <= joint_limit``);
+the torque bounds are the box of Box-FDDP (the model's ``u_lb``/``u_ub``). The running
+costs are rates (Crocoddyl integrates them over each node); the terminal node repeats the
+state costs once, scaled by ``terminal`` [s].
+
+Why RK4 at 10 ms: the viscous snake is stiff. At c_y = 50 c_x the linearised dynamics'
+fastest mode decays at 121 /s at the initial arc of eq. (82) and 133 /s at a serpenoid
+posture (8 ms), so explicit Euler at 20 ms and RK4 at 25 ms diverge inside the horizon
+(RK4's stability limit on the negative real axis is |lambda dt| < 2.79). At 10 ms all of
+RK2, RK3 and RK4 are stable, but over 1 s of a sinusoidal torque schedule (0.5 N m,
+held per node) they predict the 1 kHz plant's head to 15, 2.7 and 0.5 mm: RK4's four
+stages per node buy the accuracy a 0.5 s prediction needs.
+
+Why the C++ free forward dynamics rather than a Python action model calling
+:class:`~snake_pin.model.Snake`: both need Python for the friction (a Crocoddyl model in
+Python holds the GIL), but with the C++ model the ABA, its derivatives, the chain rule
+and every cost stay in C++ and only the friction crosses into Python
+(``scripts/bench.py --only mpc`` measures both routes).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+import crocoddyl
+import numpy as np
+
+from .exceptions import ParameterError
+from .friction import FrictionModel
+from .model import Snake
+
+__all__ = ["ChainRootActuation", "CostWeights", "FrictionJacobians", "TrackingProblem",
+           "differential_model", "reference_states", "state_model"]
+
+#: Names of the costs in each node's cost sum (Crocoddyl's CostModelSum keys): the state
+#: tracking terms (head position, heading, head velocity, gait prior) as one weighted
+#: residual, the torque, the joint-limit barrier.
+COSTS = ("tracking", "torque", "joint_limit")
+#: Bound used for the coordinates a barrier does not limit (Crocoddyl needs finite bounds).
+_FREE = 1e9
+
+
+@dataclass(frozen=True)
+class CostWeights:
+    """Weights of the tracking costs (validated; one ParameterError line each).
+
+    Each weight multiplies half a squared residual; all are >= 0 (0 drops the cost).
+
+    Parameters
+    ----------
+    head_position : float, optional
+        On the head point's error to the reference ``p_r(t)`` [1/m^2].
+    heading : float, optional
+        On the head link's angle error ``theta_1 - theta_r(t)`` [1/rad^2]; small, as the
+        head link swings with the gait.
+    head_velocity : float, optional
+        On the head velocity's error to ``p_r'(t)`` [s^2/m^2].
+    gait, gait_velocity : float, optional
+        The gait prior: on ``phi - phi_r(t)`` [1/rad^2] and ``phi' - phi_r'(t)``
+        [s^2/rad^2].
+    torque : float, optional
+        On the actuated torques [1/(N m)^2].
+    joint_limit : float, optional
+        On the joint angles beyond the joint limit (a quadratic barrier) [1/rad^2].
+    terminal : float, optional
+        Scale of the state costs at the terminal node [s]: the running costs are
+        integrated over time (a node's cost is its rate times ``node_dt``), the terminal
+        one is not, so ``terminal`` weighs the end state as that many seconds of running.
+
+    Raises
+    ------
+    ParameterError
+        A weight is not a finite number >= 0.
+    """
+
+    head_position: float = 2000.0
+    heading: float = 1.0
+    head_velocity: float = 20.0
+    gait: float = 2.0
+    gait_velocity: float = 0.05
+    torque: float = 0.5
+    joint_limit: float = 1000.0
+    terminal: float = 1.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, (bool, np.bool_)) or not isinstance(
+                    value, (int, float, np.integer, np.floating)):
+                raise ParameterError(f"cost weight {f.name} must be a number, got {value!r}")
+            value = float(value)
+            if not math.isfinite(value) or value < 0.0:
+                raise ParameterError(f"cost weight {f.name} must be a finite number >= 0, "
+                                     f"got {value}")
+            object.__setattr__(self, f.name, value)
+
+
+def state_model(snake: Snake) -> crocoddyl.StateMultibody:
+    """Crocoddyl's state of ``snake``'s Pinocchio model: ``x = [q, q']``, nx = 2 (n + 2).
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot.
+
+    Returns
+    -------
+    crocoddyl.StateMultibody
+        The state (Euclidean: the chain root has no angle wrapping).
+    """
+    return crocoddyl.StateMultibody(_check_snake(snake).model)
+
+
+class ChainRootActuation(crocoddyl.ActuationModelAbstract):
+    """Actuation of the chain root with friction: ``tau = [0_3; E_a u] + Q(q, q')``.
+
+    Parameters
+    ----------
+    state : crocoddyl.StateMultibody
+        The state of ``snake``'s model (:func:`state_model`).
+    snake : Snake
+        The robot: its actuated joints give u (nu = number of actuated joints) and its
+        friction gives Q.
+    friction : bool, optional
+        Include the viscous friction force (False: the frictionless robot).
+
+    Raises
+    ------
+    ParameterError
+        ``snake`` is not a Snake, or every joint is passive.
+    """
+
+    def __init__(self, state: crocoddyl.StateMultibody, snake: Snake,
+                 friction: bool = True) -> None:
+        _check_snake(snake)
+        if not snake.params.actuated:
+            raise ParameterError("every joint is passive: there is nothing to actuate")
+        #: velocity index of each input (the actuated joints' rows of E)
+        self.rows = np.array([2 + k for k in snake.params.actuated], dtype=int)
+        super().__init__(state, len(self.rows))
+        self.nq = snake.nq
+        self.friction = FrictionModel(snake.params, snake.model) if friction else None
+        self.jacobians = FrictionJacobians(snake.params) if friction else None
+
+    def calc(self, data: Any, x: np.ndarray, u: np.ndarray | None = None) -> None:
+        """Generalised force at state x under inputs u, written into ``data.tau``.
+
+        Parameters
+        ----------
+        data : crocoddyl.ActuationDataAbstract
+            This model's data.
+        x : numpy.ndarray
+            The state ``[q, q']``, length 2 (n + 2).
+        u : numpy.ndarray or None, optional
+            The actuated joints' torques [N m]; None: friction alone.
+        """
+        nq, tau = self.nq, data.tau
+        if self.friction is None:
+            tau[:] = 0.0
+        else:
+            tau[:] = self.friction(x[:nq], x[nq:])
+        if u is not None:
+            tau[self.rows] += u
+
+    def calcDiff(self, data: Any, x: np.ndarray,
+                 u: np.ndarray | None = None) -> None:
+        """Jacobians of the force ``[dQ/dq, dQ/dq']`` into ``data.dtau_dx``.
+
+        ``dtau_du`` = E_a is constant (set by :meth:`createData`).
+
+        Parameters
+        ----------
+        data : crocoddyl.ActuationDataAbstract
+            This model's data.
+        x : numpy.ndarray
+            The state ``[q, q']``, length 2 (n + 2).
+        u : numpy.ndarray or None, optional
+            The inputs (the Jacobians do not depend on them).
+        """
+        if self.jacobians is not None:
+            self.jacobians(x, data.dtau_dx)
+
+    def commands(self, data: Any, x: np.ndarray, tau: np.ndarray) -> None:
+        """Inputs that give the generalised force tau (its actuated rows less friction).
+
+        Parameters
+        ----------
+        data : crocoddyl.ActuationDataAbstract
+            This model's data; ``data.u`` is written.
+        x : numpy.ndarray
+            The state ``[q, q']``, length 2 (n + 2).
+        tau : numpy.ndarray
+            The generalised force, length n + 2.
+        """
+        nq = self.nq
+        force = 0.0 if self.friction is None else self.friction(x[:nq], x[nq:])
+        data.u[:] = (tau - force)[self.rows]
+
+    def createData(self) -> Any:
+        """A data of this model, with the constant ``dtau_du = E_a``.
+
+        Returns
+        -------
+        crocoddyl.ActuationDataAbstract
+            The data.
+        """
+        data = crocoddyl.ActuationDataAbstract(self)
+        data.dtau_du[self.rows, np.arange(self.nu)] = 1.0
+        return data
+
+
+class FrictionJacobians:
+    """``[dQ/dq, dQ/dq']`` of the viscous friction force, vectorised numpy in O(n^2).
+
+    With planar vectors as complex numbers (:mod:`snake_pin.friction`): e_i = exp(j
+    theta_i), link i's CM velocity ``z_i = V + sum_k K_ik j e_k theta_k'`` (V the head
+    point's velocity) and its world force ``F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i)``;
+    the generalised force is ``Q_xy = sum_i F_i`` and ``Q_theta = Im(conj(e) K^T F) -
+    c_theta theta'``, mapped to q by theta = L q[2:] (L lower triangular ones). Every
+    partial derivative of z (``dz_i/dtheta_m = -K_im e_m theta_m'``, ``dz/dV`` = 1 and j,
+    ``dz_i/dtheta_m' = K_im j e_m``) goes through the same two linear maps at once, one
+    column per coordinate; the exact derivative of e_i^2 adds a diagonal term. Agrees with
+    the damping twin's RNEA derivatives
+    (:meth:`~snake_pin.friction.FrictionModel.derivatives`) to round-off, at less Python
+    cost.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot (per-link lengths, CM offsets and friction).
+    """
+
+    def __init__(self, params: Any) -> None:
+        n = params.n
+        self.n = n
+        k_matrix = np.tril(np.broadcast_to(params.link_lengths, (n, n)), -1).copy()
+        k_matrix[np.diag_indices(n)] = params.com_offsets
+        self._k, self._k_t = k_matrix, k_matrix.T.copy()
+        c_x, c_y = params.per_link("c_x"), params.per_link("c_y")
+        self._cbar = 0.5 * (c_x + c_y)
+        self._delta = 0.5 * (c_x - c_y)
+        self._c_theta = params.per_link("c_theta")
+        self._diag = np.diag_indices(n)
+        self._columns = np.empty((n, 2 * n + 2), dtype=complex)
+        self._columns[:, n] = 1.0
+        self._columns[:, n + 1] = 1.0j
+        self._rows = np.empty((n + 2, 2 * n + 2))
+
+    def __call__(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """Write ``[dQ/dq, dQ/dq']`` at the state x = [q, q'] into ``out`` (n + 2, 2 (n + 2)).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            The state, length 2 (n + 2).
+        out : numpy.ndarray
+            The (n + 2, 2 (n + 2)) Jacobian, written in place.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``out``.
+        """
+        n, nq = self.n, self.n + 2
+        theta, rate = np.cumsum(x[2:nq]), np.cumsum(x[nq + 2:])
+        e = np.exp(1j * theta)
+        e_conj = e.conj()
+        spin = self._delta * (e * e)
+        z = self._k @ (1j * e * rate)
+        z += complex(x[nq], x[nq + 1])
+        z_conj = z.conj()
+        g = self._k_t @ (-self._cbar * z - spin * z_conj)
+        columns = self._columns  # dz / d[theta, V, theta']
+        np.multiply(self._k, -(e * rate), out=columns[:, :n])
+        np.multiply(self._k, 1j * e, out=columns[:, n + 2:])
+        d_force = -self._cbar[:, None] * columns - spin[:, None] * columns.conj()
+        d_force[self._diag] -= 2j * spin * z_conj
+        d_torque = (e_conj[:, None] * (self._k_t @ d_force)).imag
+        d_torque[self._diag] -= (e_conj * g).real
+        d_torque[:, n + 2:][self._diag] -= self._c_theta
+        rows = self._rows  # rows of Q_xy and L^T Q_theta
+        total = d_force.sum(axis=0)
+        rows[0], rows[1] = total.real, total.imag
+        rows[2:] = np.cumsum(d_torque[::-1], axis=0)[::-1]
+        out[:, :2] = 0.0
+        out[:, 2:nq] = np.cumsum(rows[:, n - 1::-1], axis=1)[:, ::-1]
+        out[:, nq:nq + 2] = rows[:, n:n + 2]
+        out[:, nq + 2:] = np.cumsum(rows[:, :n + 1:-1], axis=1)[:, ::-1]
+        return out
+
+
+def differential_model(snake: Snake, weights: CostWeights | None = None, *,
+                       torque_bound: float = 1.0, joint_limit: float = math.pi / 2,
+                       terminal: bool = False, friction: bool = True,
+                       state: crocoddyl.StateMultibody | None = None
+                       ) -> crocoddyl.DifferentialActionModelFreeFwdDynamics:
+    """Crocoddyl's free forward dynamics of ``snake`` with the tracking costs.
+
+    The costs' references start at zero; :class:`TrackingProblem` sets them per node.
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot (its friction and passive joints included).
+    weights : CostWeights, optional
+        The costs' weights (default :class:`CostWeights`).
+    torque_bound : float, optional
+        ``|u_i| <= torque_bound`` [N m] (the model's ``u_lb``/``u_ub``), > 0.
+    joint_limit : float, optional
+        The joint-limit barrier's ``|phi_i|`` [rad], > 0.
+    terminal : bool, optional
+        A terminal model: the state costs only, scaled by ``weights.terminal``.
+    friction : bool, optional
+        Include the viscous friction (False: the frictionless robot).
+    state : crocoddyl.StateMultibody, optional
+        The state to share (default a new :func:`state_model`).
+
+    Returns
+    -------
+    crocoddyl.DifferentialActionModelFreeFwdDynamics
+        The model; its cost sum holds those of ``COSTS`` whose weights are not all 0.
+
+    Raises
+    ------
+    ParameterError
+        A bad robot, weights or bound (one line).
+    """
+    _check_snake(snake)
+    weights = CostWeights() if weights is None else weights
+    if not isinstance(weights, CostWeights):
+        raise ParameterError(f"weights must be CostWeights, got {type(weights).__name__}")
+    torque_bound = _positive(torque_bound, "torque_bound")
+    joint_limit = _positive(joint_limit, "joint_limit")
+    state = state_model(snake) if state is None else state
+    actuation = ChainRootActuation(state, snake, friction=friction)
+    nu, nq = actuation.nu, snake.nq
+    costs = crocoddyl.CostModelSum(state, nu)
+    scale = weights.terminal if terminal else 1.0
+    nx = 2 * nq
+
+    # the five tracking terms share the residual x - x_r(t): one weighted quadratic
+    rates = np.zeros(nx)
+    rates[0:2] = weights.head_position
+    rates[2] = weights.heading
+    rates[nq:nq + 2] = weights.head_velocity
+    rates[3:nq] = weights.gait
+    rates[nq + 3:] = weights.gait_velocity
+    if np.any(rates > 0.0) and scale > 0.0:
+        costs.addCost("tracking", crocoddyl.CostModelResidual(
+            state, crocoddyl.ActivationModelWeightedQuad(rates),
+            crocoddyl.ResidualModelState(state, np.zeros(nx), nu)), scale)
+    if weights.joint_limit * scale > 0.0:
+        upper = np.full(nx, _FREE)
+        upper[3:nq] = joint_limit
+        bounds = crocoddyl.ActivationBounds(-upper, upper)
+        costs.addCost("joint_limit", crocoddyl.CostModelResidual(
+            state, crocoddyl.ActivationModelQuadraticBarrier(bounds),
+            crocoddyl.ResidualModelState(state, np.zeros(nx), nu)), weights.joint_limit * scale)
+    if not terminal and weights.torque > 0.0:
+        costs.addCost("torque", crocoddyl.CostModelResidual(
+            state, crocoddyl.ResidualModelControl(state, nu)), weights.torque)
+    model = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, actuation, costs)
+    model.u_lb = np.full(nu, -torque_bound)
+    model.u_ub = np.full(nu, torque_bound)
+    return model
+
+
+class TrackingProblem:
+    """The shooting problem: ``nodes`` RK4 steps of ``node_dt`` with the tracking costs.
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot.
+    nodes : int
+        Number of running nodes (the horizon is ``nodes * node_dt``), >= 1.
+    node_dt : float, optional
+        Step of each node [s] (RK4), > 0.
+    weights : CostWeights, optional
+        The costs' weights.
+    torque_bound, joint_limit : float, optional
+        See :func:`differential_model`.
+
+    Raises
+    ------
+    ParameterError
+        A bad robot, node count, step, weights or bound (one line).
+
+    Attributes
+    ----------
+    problem : crocoddyl.ShootingProblem
+        The problem (its x0 and references are set by :meth:`set_state` and
+        :meth:`set_reference`).
+    running, terminal
+        The integrated action models (their ``differential`` is the free forward dynamics).
+    """
+
+    def __init__(self, snake: Snake, nodes: int, node_dt: float = 0.01,
+                 weights: CostWeights | None = None, *, torque_bound: float = 1.0,
+                 joint_limit: float = math.pi / 2) -> None:
+        _check_snake(snake)
+        if isinstance(nodes, bool) or not isinstance(nodes, (int, np.integer)) or nodes < 1:
+            raise ParameterError(f"nodes must be an integer >= 1, got {nodes!r}")
+        self.snake, self.nodes = snake, int(nodes)
+        self.node_dt = _positive(node_dt, "node_dt")
+        self.state = state_model(snake)
+        options = dict(torque_bound=torque_bound, joint_limit=joint_limit, state=self.state)
+        self.running = [crocoddyl.IntegratedActionModelRK(
+            differential_model(snake, weights, **options), crocoddyl.RKType.four,
+            self.node_dt) for _ in range(self.nodes)]
+        self.terminal = crocoddyl.IntegratedActionModelRK(
+            differential_model(snake, weights, terminal=True, **options),
+            crocoddyl.RKType.four, 0.0)
+        self.problem = crocoddyl.ShootingProblem(
+            np.zeros(2 * snake.nq), self.running, self.terminal)
+        # the state residuals of each node (shared C++ objects), whose reference is set
+        self._residuals = [[item.cost.residual for name, item in
+                            model.differential.costs.costs.todict().items()
+                            if name == "tracking"]
+                           for model in [*self.running, self.terminal]]
+        self.nu = self.running[0].nu
+
+    def set_state(self, x0: np.ndarray) -> None:
+        """Set the initial state of the problem.
+
+        Parameters
+        ----------
+        x0 : numpy.ndarray
+            The state ``[q, q']``, length 2 (n + 2).
+        """
+        self.problem.x0 = np.asarray(x0, dtype=float)
+
+    def set_reference(self, references: np.ndarray) -> None:
+        """Set the state reference of each node's tracking costs.
+
+        Parameters
+        ----------
+        references : numpy.ndarray
+            Shape (nodes + 1, 2 (n + 2)): row k is ``[w_r, phi_r, w_r', phi_r']`` at node
+            k's time (:func:`reference_states`); the last row is the terminal node's.
+        """
+        for residuals, row in zip(self._residuals, references, strict=True):
+            for residual in residuals:
+                residual.reference = row
+
+    def node_times(self, t0: float) -> np.ndarray:
+        """The times of the nodes 0 .. nodes from t0.
+
+        Parameters
+        ----------
+        t0 : float
+            Time of node 0 [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (nodes + 1,) [s].
+        """
+        return t0 + self.node_dt * np.arange(self.nodes + 1)
+
+
+def reference_states(reference: Any, gait: Any, times: np.ndarray) -> np.ndarray:
+    """The reference state ``[w_r, phi_r, w_r', phi_r']`` at each time, (T, 2 (n + 2)).
+
+    Parameters
+    ----------
+    reference : callable
+        A head reference ``t -> (w_r, w_r', w_r'')`` (a PathReference is evaluated at all
+        times at once through its ``at``).
+    gait : Serpenoid
+        The gait prior ``phi_r(t)``.
+    times : numpy.ndarray
+        Times [s], shape (T,).
+
+    Returns
+    -------
+    numpy.ndarray
+        One reference state per time.
+    """
+    times = np.asarray(times, dtype=float)
+    if hasattr(reference, "at"):
+        w_r, dw_r, _ = reference.at(times)
+    else:
+        parts = [reference(float(t)) for t in times]
+        w_r = np.array([p[0] for p in parts], dtype=float)
+        dw_r = np.array([p[1] for p in parts], dtype=float)
+    phi_r, dphi_r, _ = gait.derivatives(times[:, None])
+    return np.hstack((w_r, phi_r, dw_r, dphi_r))
+
+
+def _check_snake(value: object) -> Snake:
+    """``value`` if it is a :class:`~snake_pin.model.Snake`, else ParameterError."""
+    if not isinstance(value, Snake):
+        raise ParameterError(f"snake must be a Snake, got {type(value).__name__}")
+    return value
+
+
+def _positive(value: object, name: str) -> float:
+    """``value`` as a finite positive float, else ParameterError."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (int, float, np.integer, np.floating)) or not math.isfinite(value) \
+            or value <= 0.0:
+        raise ParameterError(f"{name} must be a finite number > 0, got {value!r}")
+    return float(value)
