@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ._blas import dgemv
+from ._blas import gemv
 from ._symmetric import symmetric_from_upper
 from ._validation import as_vector, check_params, instance, integer
 from .exceptions import ConfigurationError
@@ -816,9 +816,9 @@ class FastDynamics:
 
                 def evaluate() -> np.ndarray:
                     twin_crba(twin, twin_data, zq, world)
-                    dgemv(1.0, wheel_columns, rate, 0.0, rolling, 0, 1, 0, 1, 1, 1)
+                    gemv(1.0, wheel_columns, rate, 0.0, rolling, 1)
                     gen[...] = torque
-                    dgemv(-1.0, chain_columns, zv, 1.0, gen, 0, 1, 0, 1, 1, 1)
+                    gemv(-1.0, chain_columns, zv, 1.0, gen, 1)
                     return aba(model, data, q, v, gen, world)
                 return evaluate
 
@@ -828,8 +828,8 @@ class FastDynamics:
                 def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                     twin_crba(twin, twin_data, zq, world)
                     rolled_v[...] = v
-                    dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
-                    dgemv(-1.0, chain_columns, rolled, 0.0, gen, 0, 1, 0, 1, 1, 1)  # Q
+                    gemv(1.0, wheel_columns, zv, 0.0, rolled_w, 1)
+                    gemv(-1.0, chain_columns, rolled, 0.0, gen, 1)  # Q
                     b = aba(model, data, q, v, gen, world)
                     minverse(model, data)
                     return b, inverse_mass
@@ -841,8 +841,8 @@ class FastDynamics:
                 def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                     twin_crba(twin, twin_data, zq, world)
                     rolled_v[...] = v
-                    dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
-                    dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)  # -Q
+                    gemv(1.0, wheel_columns, zv, 0.0, rolled_w, 1)
+                    gemv(1.0, chain_columns, rolled, 0.0, damping, 1)  # -Q
                     crba(model, data, q, world)
                     return mass, add(nle(model, data, q, v), damping, bias)
                 return mass_and_bias

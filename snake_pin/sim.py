@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from ._blas import dgemv
+from ._blas import gemv
 from ._validation import brief, finite_number, flag, one_line
 from .control.base import Controller, _sampler
 from .exceptions import ConfigurationError, ParameterError, RunInterrupted, SnakePinError
@@ -495,16 +495,16 @@ class _FastRK4:
                     row0[...] = state
                     first = evaluate0()
                 a0[...] = first
-                dgemv(1.0, slopes, c1, 0.0, r1, 0, 1, 0, 1, 0, 1)
+                gemv(1.0, slopes, c1, 0.0, r1)
                 v1[...] = s1
                 a1[...] = evaluate1()
-                dgemv(1.0, slopes, c2, 0.0, r2, 0, 1, 0, 1, 0, 1)
+                gemv(1.0, slopes, c2, 0.0, r2)
                 v2[...] = s2
                 a2[...] = evaluate2()
-                dgemv(1.0, slopes, c3, 0.0, r3, 0, 1, 0, 1, 0, 1)
+                gemv(1.0, slopes, c3, 0.0, r3)
                 v3[...] = s3
                 a3[...] = evaluate3()
-                dgemv(1.0, slopes, final, 0.0, new, 0, 1, 0, 1, 0, 1)
+                gemv(1.0, slopes, final, 0.0, new)
                 state[...] = new
             if plain:
                 out[...] = state

@@ -79,7 +79,7 @@ from typing import Any
 
 import numpy as np
 
-from .._blas import dgemv, dposv, dsyrk
+from .._blas import gemv, posv, syrk
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
@@ -252,17 +252,17 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                 b_slot[...] = b
                 time_slot[...] = time_row(t)
                 # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-                dgemv(1.0, law_columns, inputs, 0.0, errors, 0, 1, 0, 1, 1, 1)
+                gemv(1.0, law_columns, inputs, 0.0, errors, 1)
                 multiply(rows, sqrt_w, weighted_t)  # (W^(1/2) A)^T, passive joints' rows 0
-                dsyrk(1.0, stack_columns, 0.0, normal, 1, 0, 1)  # [A^T W A, rhs, V]
+                syrk(1.0, stack_columns, 0.0, normal, 1)  # [A^T W A, rhs, V]
                 gram[...] = gram_block
                 tau = rhs.copy()
-                info = dposv(gram, tau, 0, 1, 1)[2]  # its upper triangle; tau in place
+                info = posv(gram, tau)  # its upper triangle; tau in place
                 if info != 0:
                     raise SingularPostureError(
                         f"A^T W A is not positive definite (LAPACK info {info})")
                 # q'' = b + A tau_a, in b (a new array of aba's)
-                dgemv(1.0, joint_columns, tau, 1.0, b, 0, 1, 0, 1, 0, 1)
+                gemv(1.0, joint_columns, tau, 1.0, b)
                 outputs[0], outputs[1] = b, {"V": normal.item(last, last)}
                 return tau
 

@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from .._blas import dgemv, dposv, dsyrk
+from .._blas import gemv, posv, syrk
 from .._symmetric import smallest_eigenvalue_3x3
 from .._validation import finite_number
 from ..exceptions import ParameterError, SingularPostureError
@@ -186,33 +186,33 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                 outputs[0] = None
                 mass_and_bias(x)  # H (whole) and h, read through the views
                 h12[...] = h12_block
-                dsyrk(1.0, h12, 0.0, gram, 0, 0, 1)  # H12 H12^T (upper triangle)
+                syrk(1.0, h12, 0.0, gram)  # H12 H12^T (upper triangle)
                 r = sqrt(max(smallest(gram), 0.0))  # R: H12's smallest singular value
                 r_min = law.r_min
                 if not r > r_min:
                     raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
                 stacked[...] = time_row(t)
-                dgemv(1.0, gain_columns, x, 1.0, stacked, 0, 1, 0, 1, 1, 1)  # [-a; u] (71, 78)
+                gemv(1.0, gain_columns, x, 1.0, stacked, 1)  # [-a; u] (71, 78)
                 if law.climb_R:
                     subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
                                                      - x[nq + 3:]), u)
-                dgemv(1.0, h12, minus_a, 0.0, p_rhs, 0, 1, 0, 1, 1, 1)  # -H21 a
+                gemv(1.0, h12, minus_a, 0.0, p_rhs, 1)  # -H21 a
                 h22[...] = h22_block
-                info = dposv(h22, p_rhs, 0, 1, 1)[2]  # -p = -H22^-1 H21 a, in p_rhs
+                info = posv(h22, p_rhs)  # -p = -H22^-1 H21 a, in p_rhs
                 if info != 0:
                     raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
                 subtract(u, p_rhs, u)  # stacked = [-a; p + u]
                 z[...] = h_head
-                dgemv(1.0, head_columns, stacked, -1.0, z, 0, 1, 0, 1, 1, 1)  # -H11 a + H12 u - h1
-                info = dposv(gram, z, 0, 1, 1)[2]  # (H12 H12^T)^-1 z, in z
+                gemv(1.0, head_columns, stacked, -1.0, z, 1)  # -H11 a + H12 u - h1
+                info = posv(gram, z)  # (H12 H12^T)^-1 z, in z
                 if info != 0:
                     raise SingularPostureError(
                         f"H12 H12^T is not positive definite (LAPACK info {info})")
-                dgemv(1.0, h12, z, -1.0, u, 0, 1, 0, 1, 1, 1)  # phi'' = H12^+ z - (u + p)
+                gemv(1.0, h12, z, -1.0, u, 1)  # phi'' = H12^+ z - (u + p)
                 negative(minus_a, minus_a)  # w'' = a: stacked is q'' now
                 tau = h_joints.copy()
                 # H21 a + H22 phi'' + h2
-                dgemv(1.0, joint_columns, stacked, 1.0, tau, 0, 1, 0, 1, 1, 1)
+                gemv(1.0, joint_columns, stacked, 1.0, tau, 1)
                 outputs[0], outputs[1] = stacked, {"R": r}
                 return tau
 
