@@ -3,11 +3,11 @@
 On the hot path's tiny arrays (n + 2 = 12 to 24 rows) a call costs its overhead, not its
 flops. scipy's f2py wrappers are the cheapest route when they neither parse a keyword nor
 copy an array: every argument by position (a keyword costs some 0.35 us), ``overwrite_*``
-set and the arrays already Fortran-ordered, contiguous float64. :func:`gemv`,
-:func:`syrk` and :func:`posv` make exactly such calls, so the f2py argument lists live
-here only. A C-ordered matrix is passed as its transpose (``a.T`` is Fortran-ordered)
-with ``trans`` set accordingly. Outputs are written with beta = 0 over whatever a buffer
-held (a NaN included), as BLAS specifies.
+set and the arrays already Fortran-ordered, contiguous float64. :func:`gemv`, :func:`syrk`
+and :func:`posv` make exactly such calls (:func:`solve_spd` is the copying solve of the
+slower paths), so the f2py argument lists live here only. A C-ordered matrix is passed as
+its transpose (``a.T`` is Fortran-ordered) with ``trans`` set accordingly. Outputs are
+written with beta = 0 over whatever a buffer held (a NaN included), as BLAS specifies.
 
 :func:`in_place_calls_hold` checks the helpers once, when the module is imported, against
 numpy: a scipy whose wrappers differ fails the import with one line instead of stepping
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import blas, lapack
 
-__all__ = ["gemv", "in_place_calls_hold", "posv", "syrk"]
+__all__ = ["gemv", "in_place_calls_hold", "posv", "solve_spd", "syrk"]
 
 # scipy's wrappers; the helpers read these module names on each call
 dgemv = blas.dgemv
@@ -80,6 +80,25 @@ def posv(a: np.ndarray, b: np.ndarray) -> int:
         LAPACK's info: 0 on success, > 0 when a is not positive definite.
     """
     return int(dposv(a, b, 0, 1, 1)[2])
+
+
+def solve_spd(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
+    """Solve ``a x = b`` by Cholesky (a's upper triangle) into new arrays (a, b unchanged).
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        Symmetric positive definite matrix.
+    b : numpy.ndarray
+        Right-hand side(s), a vector or a matrix.
+
+    Returns
+    -------
+    tuple
+        The solution and LAPACK's info (0 on success, > 0 when a is not definite).
+    """
+    _, solution, info = dposv(a, b)
+    return solution, int(info)
 
 
 def in_place_calls_hold() -> bool:

@@ -129,11 +129,12 @@ import math
 from dataclasses import dataclass, fields
 
 import numpy as np
-from scipy.linalg import expm, lapack
+from scipy.linalg import expm
 
-from .._validation import brief, finite_number
+from .._blas import solve_spd
+from .._validation import brief, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
-from ..model import Snake, _check_snake
+from ..model import Snake
 from ..paths import Line, Path, PathReference
 from .base import Controller
 
@@ -295,7 +296,7 @@ def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray
     ConfigurationError
         ``x`` does not have 2(n + 2) finite entries.
     """
-    x = _check_snake(snake).check_state(x)
+    x = instance(snake, Snake, "snake").check_state(x)
     return _kinematics(_cm_lever(snake), snake.nq, x)
 
 
@@ -427,7 +428,7 @@ class LOSController(Controller):
 
     def __init__(self, snake: Snake, path: Path | PathReference | None = None,
                  params: LOSParams | None = None, **overrides: object) -> None:
-        if not _check_snake(snake).params.actuated:
+        if not instance(snake, Snake, "snake").params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
         base = LOSParams() if params is None else params
         if not isinstance(base, LOSParams):
@@ -586,7 +587,7 @@ class LOSController(Controller):
         h_vec = snake.bias_of_state(x)
         act, unact = self._act, self._unact
         uu, ua, au, aa = self._blocks
-        solved, info = lapack.dposv(h_mat[uu], np.column_stack((h_mat[ua], h_vec[unact])))[1:]
+        solved, info = solve_spd(h_mat[uu], np.column_stack((h_mat[ua], h_vec[unact])))
         if info != 0:
             raise SingularPostureError(f"H_uu is not positive definite (LAPACK info {info})")
         h_au = h_mat[au]
