@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ._blas import gemv
+from ._blas import gemv_call
 from ._symmetric import crba_mirrors, symmetric_from_upper, whole
 from ._validation import as_vector, check_params, instance
 from .exceptions import ParameterError
@@ -181,8 +181,8 @@ class FrictionData:
     ----------
     twin_data
         The twin's Pinocchio workspace.
-    damping
-        -Q of the last :meth:`FrictionModel.calc_damping` (length n + 2).
+    force
+        The last :meth:`FrictionModel.calc_force` (length n + 2).
     """
 
     def __init__(self, friction: FrictionModel) -> None:
@@ -190,7 +190,7 @@ class FrictionData:
         self._friction = friction
         size, nq = friction.size, friction.nq
         self.twin_data = friction.twin.createData()
-        self.damping = np.zeros(nq)
+        self.force = np.zeros(nq)
         self.q = np.zeros(size)  # [q, 0_w]
         self.head = self.q[:nq]
         self.velocity = np.zeros(size)  # [q', 0_w]
@@ -200,6 +200,14 @@ class FrictionData:
         mass = self.twin_data.M  # column-major and symmetric: its columns are its rows
         self.chain_columns, self.wheel_columns = mass[:, :nq], mass[:, nq:]
         self.crba = whole(pin.crba, mass, friction.crba_mirrors)
+        # the route's products, prepared: w = M_wc q'; Q = -[M_cc M_cw] [q'; w], + base
+        rolling = gemv_call(1.0, self.wheel_columns, self.velocity, 0.0, self.rolled_w, 1)
+        alone = gemv_call(-1.0, self.chain_columns, self.rolled, 0.0, self.force, 1)
+        added = gemv_call(-1.0, self.chain_columns, self.rolled, 1.0, self.force, 1)
+        # what calc_force reads, in one tuple (one attribute lookup per call)
+        self.route = (friction.twin, self.twin_data, friction.zero, self.force, self.q,
+                      self.head, self.velocity_head, self.rolled, self.rolled_v,
+                      self.rolled_w, self.crba, rolling, alone, added)
 
     def __reduce__(self) -> tuple[Any, tuple[FrictionModel]]:
         """Pickled as its model's (the buffers and views are made again)."""
@@ -285,8 +293,9 @@ class FrictionModel:
         :attr:`size`, :attr:`has_wheels`)."""
         return self
 
-    def calc_damping(self, data: FrictionData, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """-Q(q, v) into ``data.damping`` (unchecked: the hot path).
+    def calc_force(self, data: FrictionData, q: np.ndarray, v: np.ndarray,
+                   base: np.ndarray | None = None) -> np.ndarray:
+        """``base + Q(q, v)`` (or Q alone) into ``data.force`` (unchecked: the hot path).
 
         Parameters
         ----------
@@ -294,35 +303,48 @@ class FrictionModel:
             Buffers of this model.
         q, v : numpy.ndarray
             Configuration and velocity, length n + 2 each.
+        base : numpy.ndarray, optional
+            A generalised force to add Q to (E tau in the dynamics), length n + 2.
 
         Returns
         -------
         numpy.ndarray
-            ``data.damping``, valid until the next call with ``data``.
+            ``data.force``, valid until the next call with ``data``.
         """
-        damping = data.damping
-        if not self.has_wheels:
-            damping[...] = pin.rnea(self.twin, data.twin_data, q, self.zero, v)
-            return damping
-        data.head[...] = q
-        if self.uses_twin_crba:
-            data.crba(self.twin, data.twin_data, data.q, _WORLD)
-            data.velocity_head[...] = v
-            data.rolled_v[...] = v
-            gemv(1.0, data.wheel_columns, data.velocity, 0.0, data.rolled_w, 1)  # w = M_wc q'
-            gemv(1.0, data.chain_columns, data.rolled, 0.0, damping, 1)  # M_cc q' + M_cw w
-            return damping
-        nq, rolled = self.nq, data.rolled
-        data.rolled_v[...] = v
-        data.rolled_w[...] = 0.0
-        locked = pin.rnea(self.twin, data.twin_data, data.q, self.zero, rolled)
-        data.rolled_w[...] = locked[nq:]
-        damping[...] = pin.rnea(self.twin, data.twin_data, data.q, self.zero, rolled)[:nq]
-        return damping
+        (twin, twin_data, zero, force, q_ext, head, velocity_head, rolled, rolled_v, rolled_w,
+         crba, rolling, alone, added) = data.route
+        if not self.has_wheels:  # -Q = RNEA(q, 0, v)
+            minus = pin.rnea(twin, twin_data, q, zero, v)
+            if base is None:
+                np.negative(minus, force)
+            else:
+                np.subtract(base, minus, force)
+            return force
+        head[...] = q
+        if self.uses_twin_crba:  # w = M_wc q', -Q = M_cc q' + M_cw w
+            crba(twin, twin_data, q_ext, _WORLD)
+            velocity_head[...] = v
+            rolled_v[...] = v
+            rolling()
+            if base is None:
+                alone()
+            else:
+                force[...] = base
+                added()
+            return force
+        rolled_v[...] = v  # the locked pass gives w, the rolling pass -Q
+        rolled_w[...] = 0.0
+        rolled_w[...] = pin.rnea(twin, twin_data, q_ext, zero, rolled)[self.nq:]
+        minus = pin.rnea(twin, twin_data, q_ext, zero, rolled)[:self.nq]
+        if base is None:
+            np.negative(minus, force)
+        else:
+            np.subtract(base, minus, force)
+        return force
 
     def __call__(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Generalised friction force Q (a new array, length n + 2) at state (q, dq)."""
-        return -self.calc_damping(self._data, q, dq)
+        return self.calc_force(self._data, q, dq).copy()
 
     def matrix(self, q: np.ndarray) -> np.ndarray:
         """C(q) of eq. (11) such that the friction force is -C(q) dq.

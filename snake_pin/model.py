@@ -361,8 +361,8 @@ class Snake:
         numpy.ndarray
             ``q''``, a new array.
         """
-        np.subtract(torque, self.friction.calc_damping(data.friction, q, v), data.force)
-        return pin.aba(self.model, data.pin, q, v, data.force, _WORLD)
+        force = self.friction.calc_force(data.friction, q, v, torque)
+        return pin.aba(self.model, data.pin, q, v, force, _WORLD)
 
     def calc_affine(self, data: SnakeData, q: np.ndarray,
                     v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -381,9 +381,8 @@ class Snake:
             ``b`` (a new array) and ``H^-1``, whole: ``data.inverse_mass`` (row-major),
             valid until the next call with ``data``.
         """
-        damping = self.friction.calc_damping(data.friction, q, v)
-        np.negative(damping, data.force)
-        b = pin.aba(self.model, data.pin, q, v, data.force, _WORLD)
+        force = self.friction.calc_force(data.friction, q, v)
+        b = pin.aba(self.model, data.pin, q, v, force, _WORLD)
         data.minverse(self.model, data.pin)
         return b, data.inverse_mass
 
@@ -404,9 +403,9 @@ class Snake:
             ``H``, whole (``data.mass``, column-major) and ``h`` (``data.bias``), valid
             until the next call with ``data``.
         """
-        damping = self.friction.calc_damping(data.friction, q, v)
+        force = self.friction.calc_force(data.friction, q, v)
         data.crba(self.model, data.pin, q, _WORLD)
-        np.add(pin.nonLinearEffects(self.model, data.pin, q, v), damping, data.bias)
+        np.subtract(pin.nonLinearEffects(self.model, data.pin, q, v), force, data.bias)
         return data.mass, data.bias
 
     def calc_torque(self, data: SnakeData, tau: np.ndarray) -> np.ndarray:
@@ -502,7 +501,7 @@ class Snake:
             The force, length n + 2 [N, N, N m, N m].
         """
         q, dq = self.check_q(q), self.check_dq(dq)
-        return -self.friction.calc_damping(self._data.friction, q, dq)
+        return self.friction.calc_force(self._data.friction, q, dq).copy()
 
     def bias(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """``h(q, dq)`` of eq. (20): Coriolis/centrifugal plus friction, ``H q'' + h = E tau``.
@@ -613,7 +612,7 @@ class Snake:
             The friction force, length n + 2 (a new array).
         """
         x = self.check_state(x)
-        return -self.friction.calc_damping(self._data.friction, x[:self.nq], x[self.nq:])
+        return self.friction.calc_force(self._data.friction, x[:self.nq], x[self.nq:]).copy()
 
     def bias_of_state(self, x: np.ndarray) -> np.ndarray:
         """h at the stacked state x = [q, dq] (as :meth:`bias`).
@@ -765,8 +764,8 @@ class SnakeData:
     mass, inverse_mass
         Views of its M (column-major) and Minv (row-major), filled whole by
         :meth:`Snake.calc_mass_and_bias` and :meth:`Snake.calc_affine`.
-    bias, force, torque
-        h, the generalised force ``E tau + Q`` and ``E tau`` (length n + 2 each).
+    bias, torque
+        h and ``E tau`` (length n + 2 each).
     friction
         The friction route's buffers (:class:`~snake_pin.friction.FrictionData`).
     """
@@ -777,7 +776,7 @@ class SnakeData:
         self.pin = snake.model.createData() if pin_data is None else pin_data
         self.mass, self.inverse_mass = self.pin.M, self.pin.Minv
         nq = snake.nq
-        self.bias, self.force, self.torque = np.zeros(nq), np.zeros(nq), np.zeros(nq)
+        self.bias, self.torque = np.zeros(nq), np.zeros(nq)
         self.friction = snake.friction.create_data()
         mirrors = snake.binding_mirrors
         self.crba = whole(pin.crba, self.mass, mirrors)

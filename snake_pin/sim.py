@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from ._blas import gemv
+from ._blas import gemv_call
 from ._validation import brief, finite_number, flag, one_line
 from .control.base import Controller
 from .exceptions import ConfigurationError, ParameterError, RunInterrupted, SnakePinError
@@ -322,7 +322,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
             status, reason = "failed", _failure(0.0, exc)
         # the controller's methods, found once
         call, signals_of = ctrl.__call__, ctrl.signals
-        first_stage = plant.first_stage
+        plant_acceleration = ctrl.plant_acceleration if plant.takes_first_stage else None
         # one BLAS thread for the run's tiny matrices, entered once (not per step)
         with _thread_pools().limit(limits=1):
             for k in range(steps if status == "completed" else 0):
@@ -344,7 +344,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                         if series is None:
                             series = signals[name] = np.full(steps + 1, np.nan)
                         series[k] = value
-                    first = first_stage(ctrl)
+                    first = plant_acceleration(snake) if plant_acceleration else None
                 except Exception as exc:
                     if tau is not None and not np.isfinite(tau).all():
                         status, reason = "failed", refuse(k, t, known)
@@ -395,10 +395,14 @@ class Plant(abc.ABC):
     checks_torque
         Whether :meth:`step` itself finds a non-finite torque (with the new state), so
         that the loop need not check it first.
+    takes_first_stage
+        Whether :meth:`step` takes the controller's q'' as its first stage
+        (:meth:`~snake_pin.control.Controller.plant_acceleration` of the robot).
     """
 
     nq: int
     checks_torque: bool = False
+    takes_first_stage: bool = False
 
     @abc.abstractmethod
     def reset(self, x0: np.ndarray) -> None:
@@ -420,7 +424,8 @@ class Plant(abc.ABC):
         tau : numpy.ndarray
             Joint torques (n - 1); finite unless :attr:`checks_torque`.
         first : numpy.ndarray or None
-            q'' at the current state under ``tau``, if known (:meth:`first_stage`).
+            q'' at the current state under ``tau``, if known (see
+            :attr:`takes_first_stage`).
         out : numpy.ndarray
             Where the new state ``[q, q']`` goes.
         t : float
@@ -431,21 +436,6 @@ class Plant(abc.ABC):
         str
             What is wrong with the new state or the torque ("" when nothing).
         """
-
-    def first_stage(self, controller: Controller) -> np.ndarray | None:
-        """The controller's q'' of its last call, if it is this plant's (None by default).
-
-        Parameters
-        ----------
-        controller : Controller
-            The run's controller, just called.
-
-        Returns
-        -------
-        numpy.ndarray or None
-            ``q''`` at the current state under the torque it returned, or None.
-        """
-        return None
 
 
 class ViscousPlant(Plant):
@@ -487,6 +477,7 @@ class ViscousPlant(Plant):
         self.checks_torque = method == "rk4"
         self._own = isinstance(snake, Snake) and \
             type(snake).state_derivative is Snake.state_derivative
+        self.takes_first_stage = self._own and method == "rk4"
         self._slopes = np.zeros((5, 2 * nq))  # Y = [Z; d1; d2; d3; d4]
         self._state = self._slopes[0]
         stages = np.zeros((4, 2 * nq))
@@ -505,14 +496,16 @@ class ViscousPlant(Plant):
         else:
             self._evaluate = snake.state_derivative
             self._arguments = [(row, self._joint_torque) for row in rows]
-        h = dt
+        h, columns = dt, self._slopes.T  # Y^T: Fortran-ordered
         coefficients = [np.array(row) for row in (
             (1.0, 0.5 * h, 0.0, 0.0, 0.0), (1.0, 0.0, 0.5 * h, 0.0, 0.0),
-            (1.0, 0.0, 0.0, h, 0.0))]
-        # per later stage: its coefficient row, state, and where its slope goes in Y
-        self._stages = [(coefficients[i - 1], rows[i], self._slopes[i + 1, :nq],
-                         self._slopes[i + 1, nq:], rows[i][nq:]) for i in (1, 2, 3)]
-        self._final = np.array((1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))
+            (1.0, 0.0, 0.0, h, 0.0), (1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))]
+        # per later stage: its state's product with Y, and where its slope goes in Y; then
+        # the new state's product
+        self._stages = [(gemv_call(1.0, columns, coefficients[i - 1], 0.0, rows[i]),
+                         self._slopes[i + 1, :nq], self._slopes[i + 1, nq:], rows[i][nq:])
+                        for i in (1, 2, 3)]
+        self._final = gemv_call(1.0, columns, coefficients[3], 0.0, self._new)
         # bounds of |z|, then of |E tau|: the largest float (false for inf and NaN)
         self._limits = np.full(3 * nq, np.finfo(float).max)
         self._limits[:2] = max_distance
@@ -531,24 +524,6 @@ class ViscousPlant(Plant):
             The initial state, length 2(n + 2).
         """
         self._state[...] = x0
-
-    def first_stage(self, controller: Controller) -> np.ndarray | None:
-        """The controller's q'' (:meth:`~snake_pin.control.Controller.plant_acceleration`)
-        when this plant is the robot's own RK4.
-
-        Parameters
-        ----------
-        controller : Controller
-            The run's controller, just called.
-
-        Returns
-        -------
-        numpy.ndarray or None
-            ``q''`` of its last call, or None.
-        """
-        if self._own and self._method == "rk4":
-            return controller.plant_acceleration(self.snake)
-        return None
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
              t: float) -> str:
@@ -583,25 +558,23 @@ class ViscousPlant(Plant):
             out[...] = _solve_ivp_step(self._rhs, state, t, self._dt * self._substeps)
             state[...] = out
             return _divergence(out, nq, self._max_speed, self._max_distance)
-        evaluate, arguments, slopes = self._evaluate, self._arguments, self._slopes
-        columns, new, final = slopes.T, self._new, self._final  # Y^T: Fortran-ordered
-        d0, a0 = slopes[1, :nq], slopes[1, nq:]
-        velocity = state[nq:]
-        (c1, r1, v1, a1, s1), (c2, r2, v2, a2, s2), (c3, r3, v3, a3, s3) = self._stages
-        arguments0, arguments1, arguments2, arguments3 = arguments
+        evaluate, new, final, slopes = self._evaluate, self._new, self._final, self._slopes
+        d0, a0, velocity = slopes[1, :nq], slopes[1, nq:], state[nq:]
+        (stage1, v1, a1, s1), (stage2, v2, a2, s2), (stage3, v3, a3, s3) = self._stages
+        arguments0, arguments1, arguments2, arguments3 = self._arguments
         for sub in range(self._substeps):
             d0[...] = velocity
             a0[...] = evaluate(*arguments0) if sub or first is None else first
-            gemv(1.0, columns, c1, 0.0, r1)
+            stage1()
             v1[...] = s1
             a1[...] = evaluate(*arguments1)
-            gemv(1.0, columns, c2, 0.0, r2)
+            stage2()
             v2[...] = s2
             a2[...] = evaluate(*arguments2)
-            gemv(1.0, columns, c3, 0.0, r3)
+            stage3()
             v3[...] = s3
             a3[...] = evaluate(*arguments3)
-            gemv(1.0, columns, final, 0.0, new)
+            final()
             state[...] = new
         out[...] = new
         # every |z| and |E tau| within its bound (NaN is not), in one pass over the new

@@ -77,7 +77,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .._blas import gemv, posv, syrk
+from .._blas import gemv_call, posv_call, syrk_call
 from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
@@ -199,7 +199,6 @@ class LyapunovController(ReferenceLaw):
         state = np.hstack((law[:, 3 * nq:], np.eye(2 * nq)))
         self._law_state = np.zeros((2 * width, 5 * nq))
         self._law_state[:nq], self._law_state[width:width + nq] = state[:nq], state[nq:]
-        self._inputs = np.zeros(5 * nq)
         # rows: (W^(1/2) A)^T, then the errors [W^(1/2) (q''* - b); W^(1/2) [s; e]]; times
         # its own transpose it gives A^T W A, the right-hand side and V in one product
         self._stack = np.zeros((m + 2, width))
@@ -212,21 +211,25 @@ class LyapunovController(ReferenceLaw):
     def _allocate(self) -> SimpleNamespace:
         """The call's buffers and their views, made once (and again on unpickling)."""
         nq, m = self.snake.nq, self.snake.n - 1
-        inputs, stack = self._inputs, self._stack
+        inputs, stack = np.zeros(5 * nq), self._stack.copy()  # a copy's own buffers
         data = self.snake.create_data()
         # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas):
         # [A^T W A, rhs, V] = stack stack^T (upper triangle), and its A^T W A block copied
         # whole for the solve. A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a
         # contiguous view of the data's (Pinocchio stores it row-major), and A = rows.T
         normal = np.zeros((m + 2, m + 2), order="F")
+        gram, tau = np.zeros((m, m), order="F"), np.zeros(m)
         rows = data.inverse_mass[3:]
+        b = inputs[2 * nq:3 * nq]
         return SimpleNamespace(
-            data=data, inputs=inputs, x=inputs[:2 * nq], q=inputs[:nq], v=inputs[nq:2 * nq],
-            b=inputs[2 * nq:3 * nq], time=inputs[3 * nq:], errors=stack[m:].reshape(-1),
-            weighted_t=stack[:m, :nq], normal=normal, gram=np.zeros((m, m), order="F"),
-            gram_block=normal[:m, :m], rhs=normal[:m, m], last=m + 1,
-            stack_columns=stack.T, law_columns=self._law_state.T, rows=rows,
-            joint_columns=rows.T)
+            data=data, x=inputs[:2 * nq], q=inputs[:nq], v=inputs[nq:2 * nq], b=b,
+            time=inputs[3 * nq:], weighted_t=stack[:m, :nq], normal=normal, gram=gram,
+            gram_block=normal[:m, :m], rhs=normal[:m, m], last=m + 1, rows=rows, tau=tau,
+            # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
+            errors=gemv_call(1.0, self._law_state.T, inputs, 0.0, stack[m:].reshape(-1), 1),
+            normal_equations=syrk_call(1.0, stack.T, 0.0, normal, 1),  # [A^T W A, rhs, V]
+            solve=posv_call(gram, tau),  # its upper triangle; tau in place
+            acceleration=gemv_call(1.0, rows.T, tau, 1.0, b))  # q'' = b + A tau_a, in b
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques (length n - 1) at state ``x`` and time ``t``.
@@ -251,23 +254,20 @@ class LyapunovController(ReferenceLaw):
         work = self._buffers
         self._acceleration = None
         work.x[...] = x
-        b, _ = self.snake.calc_affine(work.data, work.q, work.v)  # H^-1 read through rows
-        work.b[...] = b
+        work.b[...] = self.snake.calc_affine(work.data, work.q, work.v)[0]  # and H^-1
         work.time[...] = self._time_row(t)
-        # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-        gemv(1.0, work.law_columns, work.inputs, 0.0, work.errors, 1)
+        work.errors()
         np.multiply(work.rows, self._sqrt_w, work.weighted_t)  # (W^(1/2) A)^T
-        syrk(1.0, work.stack_columns, 0.0, work.normal, 1)  # [A^T W A, rhs, V]
-        gram = work.gram
-        gram[...] = work.gram_block
-        tau = work.rhs.copy()
-        info = posv(gram, tau)  # its upper triangle; tau in place
+        work.normal_equations()
+        work.gram[...] = work.gram_block
+        work.tau[...] = work.rhs
+        info = work.solve()[2]
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
-        gemv(1.0, work.joint_columns, tau, 1.0, b)  # q'' = b + A tau_a, in b (aba's own)
-        self._acceleration = b
+        work.acceleration()
+        self._acceleration = work.b
         self._signals = {"V": work.normal.item(work.last, work.last)}
-        return tau
+        return work.tau.copy()
 
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).

@@ -52,7 +52,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .._blas import gemv, posv, syrk
+from .._blas import gemv_call, posv_call, syrk_call
 from .._symmetric import smallest_eigenvalue_3x3
 from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
@@ -153,13 +153,23 @@ class PFLController(ReferenceLaw):
         state = np.zeros(2 * nq)
         # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas): H12
         # and H22 are copied into them per call; H's columns are its rows (symmetric)
+        h12, h22 = np.zeros((3, m), order="F"), np.zeros((m, m), order="F")
+        gram, p_rhs, z, tau = np.zeros((3, 3), order="F"), np.zeros(m), np.zeros(3), np.zeros(m)
+        minus_a, u = stacked[:3], stacked[3:]
         return SimpleNamespace(
-            data=data, state=state, q=state[:nq], v=state[nq:],
-            h12=np.zeros((3, m), order="F"), h22=np.zeros((m, m), order="F"),
-            gram=np.zeros((3, 3), order="F"), p_rhs=np.zeros(m), z=np.zeros(3),
-            gain_columns=self._gain.T, h12_block=mass[:3, 3:], h22_block=mass[3:, 3:],
-            head_columns=mass[:, :3], joint_columns=mass[:, 3:], h_head=data.bias[:3],
-            h_joints=data.bias[3:], minus_a=stacked[:3], u=stacked[3:])
+            data=data, state=state, q=state[:nq], v=state[nq:], h12=h12, h22=h22, gram=gram,
+            z=z, tau=tau, h12_block=mass[:3, 3:], h22_block=mass[3:, 3:],
+            h_head=data.bias[:3], h_joints=data.bias[3:], minus_a=minus_a, u=u,
+            gram_of_h12=syrk_call(1.0, h12, 0.0, gram),  # H12 H12^T (upper triangle)
+            targets=gemv_call(1.0, self._gain.T, state, 1.0, stacked, 1),  # [-a; u] (71, 78)
+            minus_p=gemv_call(1.0, h12, minus_a, 0.0, p_rhs, 1),  # -H21 a
+            solve_p=posv_call(h22, p_rhs),  # -p = -H22^-1 H21 a, in p_rhs
+            p_rhs=p_rhs,
+            # -H11 a + H12 u - h1, then (H12 H12^T)^-1 of it, in z
+            z_rhs=gemv_call(1.0, mass[:, :3], stacked, -1.0, z, 1),
+            solve_z=posv_call(gram, z),
+            joint_rates=gemv_call(1.0, h12, z, -1.0, u, 1),  # phi'' = H12^+ z - (u + p)
+            torque=gemv_call(1.0, mass[:, 3:], stacked, 1.0, tau, 1))  # H21 a + H22 phi'' + h2
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques (length n - 1) at state ``x`` and time ``t``.
@@ -185,39 +195,37 @@ class PFLController(ReferenceLaw):
         self._acceleration = None
         work.state[...] = x
         self.snake.calc_mass_and_bias(work.data, work.q, work.v)  # H (whole) and h
-        h12, gram, stacked, u, minus_a = work.h12, work.gram, self._stacked, work.u, work.minus_a
-        h12[...] = work.h12_block
-        syrk(1.0, h12, 0.0, gram)  # H12 H12^T (upper triangle)
-        r = math.sqrt(max(smallest_eigenvalue_3x3(gram), 0.0))  # H12's smallest singular value
+        work.h12[...] = work.h12_block
+        work.gram_of_h12()
+        r = math.sqrt(max(smallest_eigenvalue_3x3(work.gram), 0.0))  # H12's least singular value
         if not r > self.r_min:
             raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
+        stacked, u = self._stacked, work.u
         stacked[...] = self._time_row(t)
-        gemv(1.0, work.gain_columns, x, 1.0, stacked, 1)  # [-a; u] (71, 78)
+        work.targets()
         if self.climb_R:
             nq = self._nq
             np.subtract(u, self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq])
                                                  - x[nq + 3:]), u)
-        p_rhs, z = work.p_rhs, work.z
-        gemv(1.0, h12, minus_a, 0.0, p_rhs, 1)  # -H21 a
-        h22 = work.h22
-        h22[...] = work.h22_block
-        info = posv(h22, p_rhs)  # -p = -H22^-1 H21 a, in p_rhs
+        work.minus_p()
+        work.h22[...] = work.h22_block
+        info = work.solve_p()[2]
         if info != 0:
             raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-        np.subtract(u, p_rhs, u)  # stacked = [-a; p + u]
-        z[...] = work.h_head
-        gemv(1.0, work.head_columns, stacked, -1.0, z, 1)  # -H11 a + H12 u - h1
-        info = posv(gram, z)  # (H12 H12^T)^-1 z, in z
+        np.subtract(u, work.p_rhs, u)  # stacked = [-a; p + u]
+        work.z[...] = work.h_head
+        work.z_rhs()
+        info = work.solve_z()[2]
         if info != 0:
             raise SingularPostureError(
                 f"H12 H12^T is not positive definite (LAPACK info {info})")
-        gemv(1.0, h12, z, -1.0, u, 1)  # phi'' = H12^+ z - (u + p)
-        np.negative(minus_a, minus_a)  # w'' = a: stacked is q'' now
-        tau = work.h_joints.copy()
-        gemv(1.0, work.joint_columns, stacked, 1.0, tau, 1)  # H21 a + H22 phi'' + h2
+        work.joint_rates()
+        np.negative(work.minus_a, work.minus_a)  # w'' = a: stacked is q'' now
+        work.tau[...] = work.h_joints
+        work.torque()
         self._acceleration = stacked
         self._signals = {"R": r}
-        return tau
+        return work.tau.copy()
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
