@@ -50,7 +50,7 @@ from .trajectory import STATUSES as STATUSES  # re-exported: the run statuses
 # Trajectory, STATUSES and the size bounds are defined (and documented) in
 # snake_pin.trajectory; they stay importable from here.
 __all__ = ["MAX_DISTANCE", "MAX_SPEED", "MAX_STEPS", "MAX_SUBSTEPS", "Plant", "ViscousPlant",
-           "simulate"]
+           "closed_loop", "simulate"]
 
 #: Default divergence bounds: joint/base speed [m/s or rad/s] and distance [m].
 MAX_SPEED = 1.0e3
@@ -273,22 +273,66 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         raise ParameterError(f"meta must be a mapping, got {brief(meta)}")
     substeps, steps = _check_steps(t_final, dt, control_dt)
     _check_size(steps + 1, nq, n_tau, t_final)
+    plant = ViscousPlant(snake, dt, substeps, control_dt=control_dt, method=method,
+                         max_speed=max_speed, max_distance=max_distance)
+    return closed_loop(plant, ctrl, x, steps, progress=progress,
+                       meta={"controller": ctrl.name, "dt": dt, "control_dt": control_dt,
+                             "method": method, **(meta or {})})
+
+
+def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int, *,
+                progress: bool = False, meta: Mapping[str, Any] | None = None,
+                label: str | None = None) -> Trajectory:
+    """The closed loop: ``steps`` control periods of ``plant`` under ``controller``.
+
+    The controller is called at each sampling instant (:meth:`Plant.times`) on the
+    plant's sample and its torque held over the period (zero-order hold). The run ends
+    as the module docstring says; :func:`simulate` and
+    :func:`snake_pin.engine.run.run_engine` are this loop over their plants.
+
+    Parameters
+    ----------
+    plant : Plant
+        The robot being controlled.
+    controller : Controller
+        The law (its torques checked at each call).
+    x0 : numpy.ndarray
+        The initial state, as :meth:`Plant.reset` takes it.
+    steps : int
+        Control periods.
+    progress : bool, optional
+        Show a tqdm bar on a terminal.
+    meta : mapping, optional
+        The trajectory's ``meta``.
+    label : str, optional
+        The progress bar's label (default: the controller's name).
+
+    Returns
+    -------
+    Trajectory
+        The samples up to the last good one, with the run's status and reason.
+
+    Raises
+    ------
+    RunInterrupted
+        On KeyboardInterrupt during the run; ``.partial`` is the trajectory of every
+        completed sample, with status "interrupted".
+    ParameterError
+        Not enough memory for the samples.
+    """
+    ctrl, nq, n_tau = controller, plant.nq, plant.params.n - 1
     try:
-        ts = np.zeros(steps + 1)
         xs = np.zeros((steps + 1, 2 * nq))
         taus = np.zeros((steps + 1, n_tau))
     except MemoryError:
-        raise ParameterError(f"not enough memory for {steps + 1} samples "
-                             f"(t_final = {t_final:g} s)") from None
-    plant = ViscousPlant(snake, dt, substeps, method=method, max_speed=max_speed,
-                         max_distance=max_distance)
-    plant.reset(x)
+        raise ParameterError(f"not enough memory for {steps + 1} samples") from None
+    times, ts = plant.times(steps)
+    plant.reset(x0, xs[0])
+    x = xs[0]
     check_torque, torque_shape = _TorqueCheck(n_tau), (n_tau,)
     # a plant that checks whether the torque is finite (with the new state) refuses a
     # non-finite one as if it had been checked first: no torque, no signals at t
     late_check = plant.checks_torque
-    xs[0] = x
-    ts[1:] = np.arange(steps) * control_dt + control_dt  # sample k + 1 at t_k + control_dt
     signals: dict[str, np.ndarray] = {}
     status, reason = "completed", ""
     good = 1  # samples 0 .. good - 1 are recorded whole; updated last, after each sample
@@ -307,17 +351,15 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     def collect(run_status: str, run_reason: str) -> Trajectory:
         return Trajectory(t=ts[:good].copy(), q=xs[:good, :nq].copy(),
                           dq=xs[:good, nq:].copy(), tau=taus[:good].copy(),
-                          params=snake.params,
+                          params=plant.params,
                           signals={k: v[:good].copy() for k, v in signals.items()},
-                          status=run_status, reason=run_reason,
-                          meta={"controller": ctrl.name, "dt": dt, "control_dt": control_dt,
-                                "method": method, **(meta or {})})
+                          status=run_status, reason=run_reason, meta=dict(meta or {}))
 
     try:
-        bar = _progress(steps, bool(progress), ctrl.name)
+        bar = _progress(steps, bool(progress), label or ctrl.name)
         try:
             ctrl.reset()
-            ctrl.prepare(np.arange(steps) * control_dt)  # the loop's t = k * control_dt
+            ctrl.prepare(times)
         except Exception as exc:
             status, reason = "failed", _failure(0.0, exc)
         # the controller's methods, found once
@@ -325,8 +367,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         plant_acceleration = ctrl.plant_acceleration if plant.takes_first_stage else None
         # one BLAS thread for the run's tiny matrices, entered once (not per step)
         with _thread_pools().limit(limits=1):
-            for k in range(steps if status == "completed" else 0):
-                t = k * control_dt
+            for k, t in enumerate(times.tolist() if status == "completed" else ()):
                 tau, known = None, len(signals)
                 try:
                     raw = call(x, t)
@@ -344,7 +385,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                         if series is None:
                             series = signals[name] = np.full(steps + 1, np.nan)
                         series[k] = value
-                    first = plant_acceleration(snake) if plant_acceleration else None
+                    first = plant_acceleration(plant.snake) if plant_acceleration else None
                 except Exception as exc:
                     if tau is not None and not np.isfinite(tau).all():
                         status, reason = "failed", refuse(k, t, known)
@@ -363,7 +404,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                         status, reason = "failed", refuse(k, t, known)
                         break
                     status = "diverged"
-                    reason = f"diverged at t = {t + control_dt:.4f} s: {problem}"
+                    reason = f"diverged at t = {ts[k + 1]:.4f} s: {problem}"
                     break
                 x = after
                 good = k + 2
@@ -390,8 +431,12 @@ class Plant(abc.ABC):
 
     Attributes
     ----------
-    nq
-        n + 2.
+    nq, params
+        n + 2, and the robot's parameters (the trajectory's).
+    snake
+        The model the plant integrates, for the laws'
+        :meth:`~snake_pin.control.Controller.plant_acceleration` (when
+        :attr:`takes_first_stage`).
     checks_torque
         Whether :meth:`step` itself finds a non-finite torque (with the new state), so
         that the loop need not check it first.
@@ -401,17 +446,36 @@ class Plant(abc.ABC):
     """
 
     nq: int
+    params: SnakeParams
+    snake: Any = None
     checks_torque: bool = False
     takes_first_stage: bool = False
 
     @abc.abstractmethod
-    def reset(self, x0: np.ndarray) -> None:
-        """Start a run from the state ``x0 = [q, q']``.
+    def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """The run's instants: of the controller's calls, and of the samples.
+
+        Parameters
+        ----------
+        steps : int
+            Control periods.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The ``steps`` calls' times and the ``steps + 1`` samples' times [s].
+        """
+
+    @abc.abstractmethod
+    def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
+        """Start a run from ``x0`` and write the first sample ``[q, q']`` into ``out``.
 
         Parameters
         ----------
         x0 : numpy.ndarray
             The initial state, length 2(n + 2).
+        out : numpy.ndarray
+            Where the first sample goes.
         """
 
     @abc.abstractmethod
@@ -457,6 +521,8 @@ class ViscousPlant(Plant):
         RK4's step [s].
     substeps : int
         RK4 steps per control period.
+    control_dt : float, optional
+        The control period [s] (default ``dt * substeps``).
     method : {"rk4", "solve_ivp"}, optional
         Fixed-step RK4, or scipy's adaptive RK45 over each period (tight tolerances).
     max_speed, max_distance : float, optional
@@ -468,10 +534,12 @@ class ViscousPlant(Plant):
         ``snake`` is not a Snake or a stand-in with its nq, n, params and state_derivative.
     """
 
-    def __init__(self, snake: Snake, dt: float, substeps: int, *, method: str = "rk4",
-                 max_speed: float = MAX_SPEED, max_distance: float = MAX_DISTANCE) -> None:
+    def __init__(self, snake: Snake, dt: float, substeps: int, *, control_dt: float | None = None,
+                 method: str = "rk4", max_speed: float = MAX_SPEED,
+                 max_distance: float = MAX_DISTANCE) -> None:
         nq = _check_plant(snake)[0]
-        self.snake, self.nq, self._method = snake, nq, method
+        self.snake, self.nq, self.params, self._method = snake, nq, snake.params, method
+        self._control_dt = dt * substeps if control_dt is None else control_dt
         self._dt, self._substeps = dt, substeps
         self._max_speed, self._max_distance = max_speed, max_distance
         self.checks_torque = method == "rk4"
@@ -515,15 +583,34 @@ class ViscousPlant(Plant):
         self._within = np.zeros(3 * nq, dtype=bool)
         self._all_within = np.ones(3 * nq, dtype=bool).tobytes()
 
-    def reset(self, x0: np.ndarray) -> None:
-        """Start a run from the state ``x0 = [q, q']``.
+    def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Calls at k control_dt; sample k + 1 at t_k + control_dt.
+
+        Parameters
+        ----------
+        steps : int
+            Control periods.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The calls' and the samples' times [s].
+        """
+        calls = np.arange(steps) * self._control_dt
+        return calls, np.r_[0.0, calls + self._control_dt]
+
+    def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
+        """Start a run from the state ``x0``, which is the first sample.
 
         Parameters
         ----------
         x0 : numpy.ndarray
-            The initial state, length 2(n + 2).
+            The initial state ``[q, q']``, length 2(n + 2).
+        out : numpy.ndarray
+            Where the first sample goes.
         """
         self._state[...] = x0
+        out[...] = x0
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
              t: float) -> str:
@@ -555,7 +642,7 @@ class ViscousPlant(Plant):
             joint_torque[joint] = 0.0
         state, nq = self._state, self.nq
         if self._method != "rk4":
-            out[...] = _solve_ivp_step(self._rhs, state, t, self._dt * self._substeps)
+            out[...] = _solve_ivp_step(self._rhs, state, t, self._control_dt)
             state[...] = out
             return _divergence(out, nq, self._max_speed, self._max_distance)
         evaluate, new, final, slopes = self._evaluate, self._new, self._final, self._slopes
