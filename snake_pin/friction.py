@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ._blas import gemv_call
+from ._blas import gemv
 from ._symmetric import crba_mirrors, symmetric_from_upper, whole
 from ._validation import as_vector, check_params, instance
 from .exceptions import ParameterError
@@ -201,9 +201,9 @@ class FrictionData:
         self.chain_columns, self.wheel_columns = mass[:, :nq], mass[:, nq:]
         self.crba = whole(pin.crba, mass, friction.crba_mirrors)
         # the route's products, prepared: w = M_wc q'; Q = -[M_cc M_cw] [q'; w], + base
-        rolling = gemv_call(1.0, self.wheel_columns, self.velocity, 0.0, self.rolled_w, 1)
-        alone = gemv_call(-1.0, self.chain_columns, self.rolled, 0.0, self.force, 1)
-        added = gemv_call(-1.0, self.chain_columns, self.rolled, 1.0, self.force, 1)
+        rolling = gemv(1.0, self.wheel_columns, self.velocity, 0.0, self.rolled_w, 1)
+        alone = gemv(-1.0, self.chain_columns, self.rolled, 0.0, self.force, 1)
+        added = gemv(-1.0, self.chain_columns, self.rolled, 1.0, self.force, 1)
         # what calc_force reads, in one tuple (one attribute lookup per call)
         self.route = (friction.twin, self.twin_data, friction.zero, self.force, self.q,
                       self.head, self.velocity_head, self.rolled, self.rolled_v,

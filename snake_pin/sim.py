@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from ._blas import gemv_call
+from ._blas import gemv
 from ._validation import brief, finite_number, flag, one_line
 from .control.base import Controller
 from .exceptions import ConfigurationError, ParameterError, RunInterrupted, SnakePinError
@@ -570,10 +570,10 @@ class ViscousPlant(Plant):
             (1.0, 0.0, 0.0, h, 0.0), (1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))]
         # per later stage: its state's product with Y, and where its slope goes in Y; then
         # the new state's product
-        self._stages = [(gemv_call(1.0, columns, coefficients[i - 1], 0.0, rows[i]),
+        self._stages = [(gemv(1.0, columns, coefficients[i - 1], 0.0, rows[i]),
                          self._slopes[i + 1, :nq], self._slopes[i + 1, nq:], rows[i][nq:])
                         for i in (1, 2, 3)]
-        self._final = gemv_call(1.0, columns, coefficients[3], 0.0, self._new)
+        self._final = gemv(1.0, columns, coefficients[3], 0.0, self._new)
         # bounds of |z|, then of |E tau|: the largest float (false for inf and NaN)
         self._limits = np.full(3 * nq, np.finfo(float).max)
         self._limits[:2] = max_distance

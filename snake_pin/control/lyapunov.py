@@ -19,52 +19,28 @@ is a dropped column). Take the targets
 and tau_a = argmin ||A tau_a + b - q''*||^2_W, W = blockdiag(K_w2, K_phi): a weighted least
 squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible).
 
-Evaluation (the closed loop's hot path): b comes from one WORLD-convention ABA at zero
-torque and H^-1 from ``pin.computeMinverse`` right after it
-(:meth:`~snake_pin.model.Snake.calc_affine` on the law's own data); every target, s and e
-are one matrix product with the stacked state, b and the time terms; the stack S =
-[W^(1/2) A, W^(1/2) (q''* - b), W^(1/2) [s; e]]^T times its own transpose gives the normal
-equations (A^T W A and their right-hand side) and V at once. A passive joint keeps its row
-of A^T = E^T H^-1 with weight 0 and a 1 in a column of its own, so its normal equation
-reads tau_j = 0 (exactly: its row and column of A^T W A are zero but for that 1) and the
-actuated torques are those of the reduced system, with no copies or fancy indexing. The
-products, the normal equations (syrk) and the solve (posv) are BLAS and LAPACK called in
-place (:mod:`snake_pin._blas`). The law also keeps q'' = A tau_a + b at its state, which
-the simulator uses as RK4's first stage (:meth:`plant_acceleration`).
-With the residual rho = A tau_a + b - q''* (rho = [rho_w; rho_phi]),
+With the residual rho = A tau_a + b - q''*,
 
     V' = -2 lam ||s||^2_{K_w2} - 2 mu ||e||^2_{K_phi} - 2 [s; e]^T W rho
          - 2 k_s e^T K_phi (phi_r - phi).
 
-If every coordinate had an input, rho = 0 and V decays at least as exp(-2 min(lam, mu) t).
-The snake has n - 1 (or fewer) inputs for n + 2 rows, so rho cannot vanish in general:
-the law gives up exactly the W-smallest part of the target that no torque can reach
-(normal equations A^T W rho = 0), trading head against shape by the weights of (84) -
-that is what V "reduced where the underactuation allows" means here. The tests check this
-identity for V' on random states. k_s = 0 is the pure V of (83); a weak shape spring (k_s > 0) keeps
-the body from drifting when a joint has failed and one shape input is gone.
+With an input per coordinate rho = 0 and V decays at least as exp(-2 min(lam, mu) t); the
+snake has at most n - 1 inputs for n + 2 rows, and the law gives up exactly the W-smallest
+part of the target no torque can reach (A^T W rho = 0): V "reduced where the
+underactuation allows" (the tests check this identity for V'). A weak shape spring
+(k_s > 0) keeps the body from drifting when a joint has failed. The head's error must
+decay faster than the gait's (lam = 10/s, mu = lam / 2); one rate for both lets the head
+swing slowly about the reference. The gains are rates and weights on accelerations, with
+no mass or length in them: they stay those of (84) for every robot, whose own H and h
+(per-link values included) scale the torques.
 
-The two rates are the design's tuning. The head's error has to decay faster than the
-gait's (lam = 10/s, mu = lam / 2): with one rate for both (lam = mu = 1/s) the head's x
-error swings slowly (periods of 20-50 s) about the reference, because the myopic least
-squares keeps the gait rather than bending it to push the head. Along mu = lam / 2 the RMS
-head error of the 60 s Table 1 run falls steadily with lam (4.6 % of the body length at
-lam = 3, 3.6 % at 7, 3.2 % at 10; 5.8 % with lam = mu = 1); slowing the gait further
-(mu << lam), or a shape spring without a failed joint, loses the serpenoid and with it
-the propulsion.
-
-Per-link robots (a heavy, long head; a battery tail). Nothing in the law assumes equal
-links: A and b come from the robot's own H and h (per-link masses, lengths, inertias, CM
-offsets and friction), so the torques scale with the robot through H. The gains carry no
-mass or length: K_w1, lam, mu [1/s] and k_s [1/s^2] are rates, K_w2 and K_phi weights
-on accelerations, and they stay those of (84) for every robot, as the paper keeps them
-for its 1.2 m and 1.41 m robots. (Their head rows weigh m/s^2 against the joints'
-rad/s^2, so a body much longer or shorter than a metre shifts the trade towards the
-shape or the head; pass scaled K_w2 for such robots.) Measured on a 10-link robot whose
-head is 2x as long and 3x as heavy as its Table 1 links (c_y = 50 c_x per link): RMS head
-error 4.1 % of the body over [10, 60] s (5.1 % with joint 5 passive), against 3.2 % for
-the Table 1 robot; given equal Table 1 links as its model instead, the law loses the head
-(1.1 m RMS over [5, 15] s).
+Evaluation (the hot path): b and H^-1 from :meth:`~snake_pin.model.Snake.calc_affine` on
+the law's own data; the targets, s and e are one product with [q, q', b, time terms]; the
+stack S = [W^(1/2) A, W^(1/2) (q''* - b), W^(1/2) [s; e]]^T times its transpose gives
+A^T W A, the right-hand side and V at once (BLAS/LAPACK in place, :mod:`snake_pin._blas`).
+A passive joint keeps its row of A^T with weight 0 and a 1 in a column of its own, so its
+normal equation reads tau_j = 0 exactly. q'' = A tau_a + b is kept for the simulator's
+first RK4 stage (:meth:`plant_acceleration`).
 
 Convention: in the paper's coordinates (3) theta_1 points from the head towards the
 tail, so a head-first run along +x has theta_1 = pi; see
@@ -77,7 +53,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .._blas import gemv_call, posv_call, syrk_call
+from .._blas import gemv, posv, syrk
 from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
@@ -226,10 +202,10 @@ class LyapunovController(ReferenceLaw):
             time=inputs[3 * nq:], weighted_t=stack[:m, :nq], normal=normal, gram=gram,
             gram_block=normal[:m, :m], rhs=normal[:m, m], last=m + 1, rows=rows, tau=tau,
             # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-            errors=gemv_call(1.0, self._law_state.T, inputs, 0.0, stack[m:].reshape(-1), 1),
-            normal_equations=syrk_call(1.0, stack.T, 0.0, normal, 1),  # [A^T W A, rhs, V]
-            solve=posv_call(gram, tau),  # its upper triangle; tau in place
-            acceleration=gemv_call(1.0, rows.T, tau, 1.0, b))  # q'' = b + A tau_a, in b
+            errors=gemv(1.0, self._law_state.T, inputs, 0.0, stack[m:].reshape(-1), 1),
+            normal_equations=syrk(1.0, stack.T, 0.0, normal, 1),  # [A^T W A, rhs, V]
+            solve=posv(gram, tau),  # its upper triangle; tau in place
+            acceleration=gemv(1.0, rows.T, tau, 1.0, b))  # q'' = b + A tau_a, in b
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques (length n - 1) at state ``x`` and time ``t``.

@@ -20,29 +20,16 @@ Beyond the paper, ``climb_R = gamma > 0`` uses the redundancy to climb log R: u 
 towards the velocity gamma grad log R (a damped gradient flow; it does not disturb
 w'' = a). The report shows what it does to the breakdown.
 
-Evaluation (the closed loop's hot path). Expanding the law,
-
-    tau = h2 + H22 w,   w = H12^+ z - u,   z = -H11 a - h1 + H12 (H22^-1 H21 a + u),
-
-the same torque with one Cholesky solve of a vector (p = H22^-1 H21 a) instead of a matrix,
-H12^+ z = H12^T (H12 H12^T)^-1 z (R > 0: full row rank) by a 3 x 3 Cholesky solve, R as the
-square root of the smallest eigenvalue of H12 H12^T (the cubic's closed form,
-:func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`, LAPACK's dsyev where two eigenvalues
-nearly coincide; a full SVD of H12 costs 4x more), and H and h from one CRBA, one RNEA
-and the friction's route (:meth:`~snake_pin.model.Snake.calc_mass_and_bias`; the products with H's
-head and joint rows add h1 and h2 as BLAS's beta term, :mod:`snake_pin._blas`). The
-time-only parts of a and u are computed in blocks for the coming calls. The closed loop's
-q'' at the state is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p,
-which the simulator uses as RK4's first stage (:meth:`PFLController.plant_acceleration`);
-the torque is formed from it as tau = H21 a + H22 phi'' + h2 (= h2 + H22 w, one product
-with H's joint rows). H (whole) and h are read through views, made once, of the law's
-own :class:`~snake_pin.model.SnakeData`.
-
-Per-link robots: the law reads only the robot's own H and h (per-link lengths, masses,
-inertias, CM offsets and friction) and the climb term the per-link closed form of R, so
-w'' = a holds for any robot (tested at random states of heterogeneous robots). Its gains
-are rates on accelerations (K_v, R_v [1/s], K_p, R_p [1/s^2]) with no mass or length in
-them; the torque scales with the robot through H, so the gains of (79) serve every robot.
+Evaluation (the hot path): expanded, the law is ``tau = h2 + H22 w``, ``w = H12^+ z - u``,
+``z = -H11 a - h1 + H12 (H22^-1 H21 a + u)``: one Cholesky solve of a vector
+(p = H22^-1 H21 a), ``H12^+ z = H12^T (H12 H12^T)^-1 z`` by a 3 x 3 Cholesky solve, and R
+from the closed-form smallest eigenvalue of H12 H12^T
+(:func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`; a full SVD costs 4x more), on H
+and h of :meth:`~snake_pin.model.Snake.calc_mass_and_bias` (the law's own data). The
+closed loop's q'' is then known, ``[a; w - p]``: the simulator's first RK4 stage
+(:meth:`PFLController.plant_acceleration`). The law reads only the robot's own H and h and
+the per-link closed form of R, so w'' = a holds for any robot; its gains are rates on
+accelerations and serve every robot.
 """
 
 from __future__ import annotations
@@ -52,7 +39,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .._blas import gemv_call, posv_call, syrk_call
+from .._blas import gemv, posv, syrk
 from .._symmetric import smallest_eigenvalue_3x3
 from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
@@ -160,16 +147,16 @@ class PFLController(ReferenceLaw):
             data=data, state=state, q=state[:nq], v=state[nq:], h12=h12, h22=h22, gram=gram,
             z=z, tau=tau, h12_block=mass[:3, 3:], h22_block=mass[3:, 3:],
             h_head=data.bias[:3], h_joints=data.bias[3:], minus_a=minus_a, u=u,
-            gram_of_h12=syrk_call(1.0, h12, 0.0, gram),  # H12 H12^T (upper triangle)
-            targets=gemv_call(1.0, self._gain.T, state, 1.0, stacked, 1),  # [-a; u] (71, 78)
-            minus_p=gemv_call(1.0, h12, minus_a, 0.0, p_rhs, 1),  # -H21 a
-            solve_p=posv_call(h22, p_rhs),  # -p = -H22^-1 H21 a, in p_rhs
+            gram_of_h12=syrk(1.0, h12, 0.0, gram),  # H12 H12^T (upper triangle)
+            targets=gemv(1.0, self._gain.T, state, 1.0, stacked, 1),  # [-a; u] (71, 78)
+            minus_p=gemv(1.0, h12, minus_a, 0.0, p_rhs, 1),  # -H21 a
+            solve_p=posv(h22, p_rhs),  # -p = -H22^-1 H21 a, in p_rhs
             p_rhs=p_rhs,
             # -H11 a + H12 u - h1, then (H12 H12^T)^-1 of it, in z
-            z_rhs=gemv_call(1.0, mass[:, :3], stacked, -1.0, z, 1),
-            solve_z=posv_call(gram, z),
-            joint_rates=gemv_call(1.0, h12, z, -1.0, u, 1),  # phi'' = H12^+ z - (u + p)
-            torque=gemv_call(1.0, mass[:, 3:], stacked, 1.0, tau, 1))  # H21 a + H22 phi'' + h2
+            z_rhs=gemv(1.0, mass[:, :3], stacked, -1.0, z, 1),
+            solve_z=posv(gram, z),
+            joint_rates=gemv(1.0, h12, z, -1.0, u, 1),  # phi'' = H12^+ z - (u + p)
+            torque=gemv(1.0, mass[:, 3:], stacked, 1.0, tau, 1))  # H21 a + H22 phi'' + h2
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques (length n - 1) at state ``x`` and time ``t``.

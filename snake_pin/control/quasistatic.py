@@ -21,25 +21,19 @@ paper's V-REP robot do). Passive joints get no torque. V is not driven to zero -
 underactuation leaves a positive minimum - but each control step commands the joint
 velocity of least V, and the head follows through J.
 
-Per-link robots need nothing special in the law: C is built link by link (each link's own
-c_x, c_y, c_theta at its own centre of mass), and the only gains with physical units, the
-servos', scale per joint with the links it joins (:func:`servo_gains`). Every link must
-have c_x, c_y > 0: a link without friction is one whose inertia is not negligible.
+C is built link by link (each link's own coefficients at its own CM); the servos' gains,
+the only ones with units, scale per joint with the links it joins (:func:`servo_gains`).
+Every link needs c_x, c_y > 0 (a link without friction has inertia that matters).
 
-Evaluation (the engine loop's hot path, about 15 us a call at n = 8): C is the mass
-matrix of the damping twin (:func:`~snake_pin.friction.damping_twin`), a Schur complement
-over its wheels, C = M_cc - M_cw M_ww^-1 M_wc (M_ww = -1); ``C_uu^-1 C_ua`` is the first block row
-of the solution of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa], so one CRBA and one
-LAPACK solve give J without forming C. The normal equations go to BLAS/LAPACK in place
-(:mod:`snake_pin._blas`), and the time-only terms (references and gait, weighted) are
-computed in blocks after :meth:`~QuasiStaticLyapunovController.prepare` (``run_engine``
-announces MuJoCo's sampling instants); V is evaluated only when
-:meth:`~QuasiStaticLyapunovController.signals`
-asks for it.
-
+Evaluation (the engine loop's hot path): C is the damping twin's Schur complement
+(:func:`~snake_pin.friction.damping_twin`, M_ww = -1), and ``C_uu^-1 C_ua`` the first block
+row of the solution of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa]: one CRBA and one
+solve give J without forming C. The time-only terms are computed in blocks after
+:meth:`~QuasiStaticLyapunovController.prepare`; V only when
+:meth:`~QuasiStaticLyapunovController.signals` asks for it.
 :class:`~snake_pin.control.lyapunov.LyapunovController` is the acceleration-level form of
-the same V and gains; it needs a model that predicts accelerations, which sticking wheels
-do not honour (see the engine section of the report).
+the same V; it needs a model that predicts accelerations, which sticking wheels do not
+honour.
 """
 
 from __future__ import annotations
@@ -276,11 +270,11 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         target_u = time[:m].copy()  # sqrt(W_u) [w_r' + K_w1 (w_r - w), phi_r,passive']
         target_u[:3] -= self._k_w1_weighted @ x[:3]
         normal = self._diag_w_a.copy(order="F")
-        syrk(1.0, weighted, 1.0, normal, 1)
+        syrk(1.0, weighted, 1.0, normal, 1)()
         rhs = weighted.T @ target_u
         rhs += time[m:m + k]  # W_a phi_r,actuated'
         target_a = time[m + k:]
-        info = posv(normal, rhs)
+        info = posv(normal, rhs)()[2]
         rate = rhs
         if info != 0:
             raise SingularPostureError(f"normal equations not positive definite (info {info})")
