@@ -234,19 +234,17 @@ class Snake:
 
     # ------------------------------------------------------------ validation
     def check_q(self, q: object, name: str = "q") -> np.ndarray:
-        """``q`` as a finite vector of length n + 2, or ConfigurationError.
+        """``q`` (configuration) as n + 2 finite floats, or ConfigurationError.
 
         Parameters
         ----------
         q : array_like
-            The configuration to check.
-        name : str, optional
-            The argument's name in the error message.
+            The value to check; ``name`` names it in the error message.
 
         Returns
         -------
         numpy.ndarray
-            ``q`` as floats, length n + 2.
+            ``q`` as floats.
 
         Raises
         ------
@@ -256,19 +254,17 @@ class Snake:
         return _vector(q, self.nq, name)
 
     def check_dq(self, dq: object, name: str = "dq") -> np.ndarray:
-        """``dq`` as a finite vector of length n + 2, or ConfigurationError.
+        """``dq`` (velocity) as n + 2 finite floats, or ConfigurationError.
 
         Parameters
         ----------
         dq : array_like
-            The velocity to check.
-        name : str, optional
-            The argument's name in the error message.
+            The value to check; ``name`` names it in the error message.
 
         Returns
         -------
         numpy.ndarray
-            ``dq`` as floats, length n + 2.
+            ``dq`` as floats.
 
         Raises
         ------
@@ -278,19 +274,17 @@ class Snake:
         return _vector(dq, self.nv, name)
 
     def check_tau(self, tau: object, name: str = "tau") -> np.ndarray:
-        """``tau`` as a finite vector of length n - 1 (never broadcast), or ConfigurationError.
+        """``tau`` (joint torques, never broadcast) as n - 1 finite floats, or ConfigurationError.
 
         Parameters
         ----------
         tau : array_like
-            The joint torques to check.
-        name : str, optional
-            The argument's name in the error message.
+            The value to check; ``name`` names it in the error message.
 
         Returns
         -------
         numpy.ndarray
-            ``tau`` as floats, length n - 1.
+            ``tau`` as floats.
 
         Raises
         ------
@@ -300,19 +294,17 @@ class Snake:
         return _vector(tau, self.n - 1, name)
 
     def check_state(self, x: object, name: str = "x") -> np.ndarray:
-        """The stacked state ``x = [q, dq]`` (length 2(n + 2)), or ConfigurationError.
+        """``x`` (the stacked state [q, dq]) as 2(n + 2) finite floats, or ConfigurationError.
 
         Parameters
         ----------
         x : array_like
-            The state to check.
-        name : str, optional
-            The argument's name in the error message.
+            The value to check; ``name`` names it in the error message.
 
         Returns
         -------
         numpy.ndarray
-            ``x`` as floats, length 2(n + 2).
+            ``x`` as floats.
 
         Raises
         ------
@@ -436,8 +428,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -454,8 +445,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -470,11 +460,8 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
 
         Returns
         -------
@@ -489,11 +476,8 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
 
         Returns
         -------
@@ -508,11 +492,8 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
 
         Returns
         -------
@@ -528,7 +509,7 @@ class Snake:
         Parameters
         ----------
         tau : numpy.ndarray
-            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+            Joint torques [N m] (n - 1; passive joints' entries ignored).
 
         Returns
         -------
@@ -542,13 +523,10 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
         tau : numpy.ndarray
-            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+            Joint torques [N m] (n - 1; passive joints' entries ignored).
 
         Returns
         -------
@@ -574,13 +552,10 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
         tau : numpy.ndarray
-            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+            Joint torques [N m] (n - 1; passive joints' entries ignored).
 
         Returns
         -------
@@ -604,7 +579,7 @@ class Snake:
         Parameters
         ----------
         x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
+            State ``[q, dq]`` (2(n + 2)).
 
         Returns
         -------
@@ -620,7 +595,7 @@ class Snake:
         Parameters
         ----------
         x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
+            State ``[q, dq]`` (2(n + 2)).
 
         Returns
         -------
@@ -636,9 +611,9 @@ class Snake:
         Parameters
         ----------
         x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
+            State ``[q, dq]`` (2(n + 2)).
         tau : numpy.ndarray
-            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+            Joint torques [N m] (n - 1; passive joints' entries ignored).
 
         Returns
         -------
@@ -655,11 +630,8 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
 
         Returns
         -------
@@ -676,8 +648,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -692,8 +663,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -714,8 +684,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
