@@ -23,8 +23,8 @@ a Schur complement over the wheels. Two routes evaluate Q, chosen by
 and two products; otherwise RNEA passes, one without wheels, two with them (the locked
 pass gives w in the wheels' rows, the rolling pass -Q in the chain's). The derivatives
 are those of the same two passes (``pin.computeRNEADerivatives``).
-The tests compare both routes with one ``pin.Force`` per link through RNEA and with the
-independent closed form :func:`snake_pin.paper.friction_matrix`.
+:func:`friction_forces` (one ``pin.Force`` per link) is the reference the tests compare
+to; :func:`snake_pin.paper.friction_matrix` is the independent closed form.
 """
 
 from __future__ import annotations
@@ -38,11 +38,12 @@ import pinocchio as pin
 
 from ._blas import gemv
 from ._symmetric import crba_mirrors, symmetric_from_upper, whole
-from ._validation import check_params, instance
+from ._validation import as_vector, check_params, instance
 from .exceptions import ParameterError
 from .params import SnakeParams
 
-__all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionData", "FrictionModel", "damping_twin"]
+__all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionData", "FrictionModel", "damping_twin",
+           "friction_forces"]
 
 #: Longest robot with anisotropic friction whose Q goes through the twin's CRBA and two
 #: products; longer robots (and every isotropic one) use the RNEA passes, whose cost grows
@@ -411,3 +412,58 @@ class FrictionModel:
         q_ext = np.zeros(self.size)
         q_ext[:self.nq] = q
         return q_ext
+
+
+def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
+                    q: np.ndarray, dq: np.ndarray) -> pin.StdVec_Force:
+    """Per-joint friction forces in the joint frames, for ``pin.rnea``/``pin.aba`` (reference).
+
+    Runs ``pin.forwardKinematics`` on ``data``. Joint i + 2 of the paper model carries
+    link i, whose frame is at its front end; the CM sits at x = d_i on the link axis.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
+    params : SnakeParams
+        The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
+    data : pinocchio.Data
+        The model's workspace (its kinematics are updated).
+    q : numpy.ndarray
+        Configuration, length n + 2.
+    dq : numpy.ndarray
+        Velocity, length n + 2.
+
+    Returns
+    -------
+    pinocchio.StdVec_Force
+        One spatial force per joint (zero on the joints before the first link).
+
+    Raises
+    ------
+    ParameterError
+        ``params`` is not a SnakeParams, ``model`` is not its paper model, or ``data``
+        is not the model's.
+    ConfigurationError
+        ``q`` or ``dq`` does not have n + 2 finite entries.
+    """
+    model, params = _paper_model_of(model, params)
+    _check_data(data, model)
+    q = as_vector(q, params.n + 2, "q")
+    dq = as_vector(dq, params.n + 2, "dq")
+    c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
+    offsets = params.com_offsets
+    pin.forwardKinematics(model, data, q, dq)
+    forces = pin.StdVec_Force()
+    for _ in range(_HEAD_JOINT):
+        forces.append(pin.Force.Zero())
+    for link in range(params.n):
+        velocity = data.v[_HEAD_JOINT + link]
+        omega = velocity.angular[2]
+        v_along = velocity.linear[0]
+        v_across = velocity.linear[1] + omega * offsets[link]  # v_cm = v + omega x (d, 0, 0)
+        f_along, f_across = -c_x[link] * v_along, -c_y[link] * v_across
+        torque = offsets[link] * f_across - c_theta[link] * omega  # about the joint origin
+        forces.append(pin.Force(np.array([f_along, f_across, 0.0]),
+                                np.array([0.0, 0.0, torque])))
+    return forces

@@ -312,6 +312,11 @@ ROWS: dict[str, Row] = {
     "snake_pin.friction.damping_twin": Row(
         lambda w: (_m("snake_pin.friction").damping_twin,
                    {"model": w.snake.model, "params": w.params})),
+    "snake_pin.friction.friction_forces": Row(
+        lambda w: (_m("snake_pin.friction").friction_forces,
+                   {"model": w.snake.model, "data": w.snake.model.createData(),
+                    "params": w.params, "q": w.q, "dq": w.dq}),
+        errors={"q": CONFIG, "dq": CONFIG}),
     # -------------------------------------------------------------- planar_joint
     "snake_pin.planar_joint.PlanarLayout": Row(
         lambda w: (_m("snake_pin.planar_joint").PlanarLayout,

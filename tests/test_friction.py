@@ -7,30 +7,9 @@ import pinocchio as pin
 import pytest
 
 from snake_pin import Snake, SnakeParams, paper
-from snake_pin.friction import FrictionModel
+from snake_pin.friction import FrictionModel, friction_forces
 
 from .conftest import random_state
-
-
-def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams, q: np.ndarray,
-                    dq: np.ndarray) -> pin.StdVec_Force:
-    """The reference: one pin.Force per joint, in the joint frame as RNEA/ABA take them,
-    from Pinocchio's own link velocities (link i's frame at its front end, CM at d_i)."""
-    c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
-    offsets = params.com_offsets
-    pin.forwardKinematics(model, data, q, dq)
-    forces = pin.StdVec_Force()
-    for _ in range(3):  # the universe, base_x and base_y: no body
-        forces.append(pin.Force.Zero())
-    for link in range(params.n):
-        velocity = data.v[3 + link]
-        omega = velocity.angular[2]
-        v_across = velocity.linear[1] + omega * offsets[link]  # v_cm = v + omega x (d, 0, 0)
-        f_along, f_across = -c_x[link] * velocity.linear[0], -c_y[link] * v_across
-        torque = offsets[link] * f_across - c_theta[link] * omega  # about the joint origin
-        forces.append(pin.Force(np.array([f_along, f_across, 0.0]),
-                                np.array([0.0, 0.0, torque])))
-    return forces
 
 
 def _closed_form(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:

@@ -59,7 +59,7 @@ def _robots() -> dict[str, SnakeParams]:
     rng = np.random.default_rng(13)
     return {"isotropic": tracking_params(c_y=0.5), "wheels": tracking_params(),
             "passive": tracking_params(passive=(3, 5)),
-            "numpy route": tracking_params(SnakeParams.table1(n=WHEELED_TWIN_MAX_LINKS + 2)),
+            "rnea passes": tracking_params(SnakeParams.table1(n=WHEELED_TWIN_MAX_LINKS + 2)),
             "per link": heterogeneous_params(rng, 10, "anisotropic", passive=(4,))}
 
 
@@ -70,8 +70,8 @@ def _robots() -> dict[str, SnakeParams]:
 def test_fast_step_equals_the_plain_step(robot: str, law: str) -> None:
     """The fast RK4 (its first stage from the controller) follows the plain RK4 to 1e-9.
 
-    Measured: 3e-11 at most (n = 16, the numpy friction route); a wrong stage or hold
-    would be off by O(dt) = 1e-3.
+    The plain step is a plant that replaces state_derivative (the checked API, per stage);
+    a wrong stage or hold would be off by O(dt) = 1e-3.
     """
     params = _robots()[robot]
     runs = []
@@ -229,7 +229,7 @@ def test_bad_torque_refused_first_whatever_the_controller_does(bad: float,
     assert np.array_equal(fast.tau, plain.tau) and set(fast.signals) == set(plain.signals)
 
 
-@pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "numpy route"])
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "rnea passes"])
 def test_controllers_know_the_plants_acceleration(robot: str) -> None:
     """plant_acceleration is the plant's q'' under the returned torque, for its own robot only."""
     params = _robots()[robot]
@@ -247,7 +247,7 @@ def test_controllers_know_the_plants_acceleration(robot: str) -> None:
 
 
 @pytest.mark.parametrize("mirrors", [True, False])
-@pytest.mark.parametrize("robot", ["isotropic", "wheels", "numpy route", "per link"])
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "rnea passes", "per link"])
 def test_calc_methods_match_the_checked_api(robot: str, mirrors: bool,
                                             monkeypatch: pytest.MonkeyPatch) -> None:
     """calc_affine gives b = q''(tau = 0) and the whole H^-1; calc_mass_and_bias the whole
@@ -306,9 +306,9 @@ def _classical_rk4(snake: Snake, schedule, x0: np.ndarray, t_final: float, dt: f
     return np.array(states)
 
 
-@pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "numpy route"])
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "rnea passes"])
 def test_rk4_equals_the_classical_formula(robot: str) -> None:
-    """simulate's RK4 (stage states from the tableau's rows, first stage on the plant) is
+    """simulate's RK4 (stage states from rows of Y = [Z; d1..d4], first stage on the plant) is
     the classical RK4 with the torque held, to 1e-11 (a wrong stage or weight: O(dt))."""
     params = _robots()[robot]
     snake = Snake(params)
