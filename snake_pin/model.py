@@ -239,7 +239,9 @@ class Snake:
         Parameters
         ----------
         q : array_like
-            The value to check; ``name`` names it in the error message.
+            The value to check.
+        name : str, optional
+            Its name in the error message.
 
         Returns
         -------
@@ -259,7 +261,9 @@ class Snake:
         Parameters
         ----------
         dq : array_like
-            The value to check; ``name`` names it in the error message.
+            The value to check.
+        name : str, optional
+            Its name in the error message.
 
         Returns
         -------
@@ -279,7 +283,9 @@ class Snake:
         Parameters
         ----------
         tau : array_like
-            The value to check; ``name`` names it in the error message.
+            The value to check.
+        name : str, optional
+            Its name in the error message.
 
         Returns
         -------
@@ -299,7 +305,9 @@ class Snake:
         Parameters
         ----------
         x : array_like
-            The value to check; ``name`` names it in the error message.
+            The value to check.
+        name : str, optional
+            Its name in the error message.
 
         Returns
         -------
