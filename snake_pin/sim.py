@@ -282,7 +282,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
 
 def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int, *,
                 progress: bool = False, meta: Mapping[str, Any] | None = None,
-                label: str | None = None) -> Trajectory:
+                label: str | None = None, record_signals: bool = True) -> Trajectory:
     """The closed loop: ``steps`` control periods of ``plant`` under ``controller``.
 
     The controller is called at each sampling instant (:meth:`Plant.times`) on the
@@ -306,6 +306,8 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
         The trajectory's ``meta``.
     label : str, optional
         The progress bar's label (default: the controller's name).
+    record_signals : bool, optional
+        Whether to record the controller's :meth:`~snake_pin.control.Controller.signals`.
 
     Returns
     -------
@@ -363,7 +365,8 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
         except Exception as exc:
             status, reason = "failed", _failure(0.0, exc)
         # the controller's methods, found once
-        call, signals_of = ctrl.__call__, ctrl.signals
+        call = ctrl.__call__
+        signals_of = ctrl.signals if record_signals else dict
         plant_acceleration = ctrl.plant_acceleration if plant.takes_first_stage else None
         # one BLAS thread for the run's tiny matrices, entered once (not per step)
         with _thread_pools().limit(limits=1):

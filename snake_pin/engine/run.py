@@ -321,7 +321,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     if reference is not None:
         meta["reference"] = repr(reference)
     traj = closed_loop(plant, controller, np.r_[q0, np.zeros(len(q0))], steps,
-                       progress=progress, meta=meta, label="engine")
+                       progress=progress, meta=meta, label="engine", record_signals=False)
     return EngineRun(traj, plant.true_dq[:len(traj)].copy(), friction)
 
 
