@@ -90,7 +90,8 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
     Parameters
     ----------
     model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); required (the
+        default None is refused).
     params : SnakeParams
         The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
 
@@ -102,7 +103,7 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
     Raises
     ------
     ParameterError
-        ``params`` is not a SnakeParams, or ``model`` is not its paper model.
+        ``params`` is not a SnakeParams, or ``model`` is missing or not its paper model.
     """
     model, params = _paper_model_of(model, params)
     c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
@@ -221,14 +222,14 @@ class FrictionModel:
     ----------
     params : SnakeParams
         The robot and its (per-link) friction coefficients.
-    model : pinocchio.Model, optional
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); built from
-        ``params`` when None.
+    model : pinocchio.Model
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); required (the
+        default None is refused).
 
     Raises
     ------
     ParameterError
-        ``params`` is not a SnakeParams, or ``model`` is neither None nor its paper model.
+        ``params`` is not a SnakeParams, or ``model`` is missing or not its paper model.
 
     Attributes
     ----------
@@ -243,13 +244,11 @@ class FrictionModel:
     """
 
     def __init__(self, params: SnakeParams, model: pin.Model | None = None) -> None:
-        params = check_params(params)
         if model is None:
-            from .model import paper_model
-
-            model = paper_model(params)
+            raise ParameterError("FrictionModel needs the snake's Pinocchio model: use "
+                                 "Snake(params).friction or model=paper_model(params)")
         model, params = _paper_model_of(model, params)
-        self.params = params
+        self.params, self._model = params, model
         self.twin = damping_twin(model, params)
         self.nq, self.size = model.nq, self.twin.nq
         self.has_wheels = self.size > self.nq
@@ -260,7 +259,7 @@ class FrictionModel:
 
     def __getstate__(self) -> dict[str, Any]:
         """The attributes to pickle (the twin rebuilt from the robot on unpickling)."""
-        return {"params": self.params}
+        return {"params": self.params, "model": self._model}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Rebuilt from the pickled robot.
@@ -270,7 +269,7 @@ class FrictionModel:
         state : dict
             The pickled attributes.
         """
-        self.__init__(state["params"])  # type: ignore[misc]
+        self.__init__(state["params"], state["model"])  # type: ignore[misc]
 
     def create_data(self) -> FrictionData:
         """New buffers for :meth:`calc_damping` (see :class:`FrictionData`).
@@ -424,7 +423,8 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
     Parameters
     ----------
     model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); required (the
+        default None is refused).
     params : SnakeParams
         The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
     data : pinocchio.Data

@@ -307,8 +307,7 @@ ROWS: dict[str, Row] = {
         lambda w: (_m("snake_pin.friction").FrictionData, {"friction": w.snake.friction})),
     "snake_pin.friction.FrictionModel": Row(
         lambda w: (_m("snake_pin.friction").FrictionModel,
-                   {"params": w.params, "model": w.snake.model}),
-        skip={"model": "None"}),
+                   {"params": w.params, "model": w.snake.model})),
     "snake_pin.friction.damping_twin": Row(
         lambda w: (_m("snake_pin.friction").damping_twin,
                    {"model": w.snake.model, "params": w.params})),

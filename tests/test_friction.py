@@ -22,7 +22,7 @@ def _rnea_passes(params: SnakeParams, monkeypatch: pytest.MonkeyPatch) -> Fricti
     from snake_pin import friction
 
     monkeypatch.setattr(friction, "WHEELED_TWIN_MAX_LINKS", 0)
-    model = FrictionModel(params)
+    model = FrictionModel(params, Snake(params).model)
     assert not model.uses_twin_crba
     return model
 
@@ -148,7 +148,7 @@ def test_wheels_weigh_minus_one(scaled_axis: bool, rng: np.random.Generator,
     monkeypatch.setattr(friction, "_scaled_axis_kept", lambda: scaled_axis)
     params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.1, 4.0, 1e-6, 0.3, 7.0, 0.3, 2.0, 5.0),
                                 c_theta=1e-3)
-    crba_route = FrictionModel(params)
+    crba_route = FrictionModel(params, Snake(params).model)
     passes = _rnea_passes(params, monkeypatch)
     nq = params.n + 2
     rolling = np.array([float(c != 0.3) for c in params.per_link("c_y")])[::-1]
@@ -171,7 +171,7 @@ def test_twin_far_from_the_origin(c_x: float, c_y: float, rng: np.random.Generat
     smaller coefficient is 0 (link and wheel weigh 0 together; measured 1e-12; a wheel on
     a lever was 1e-8 off there)."""
     params = SnakeParams.table1(c_x=c_x, c_y=c_y, c_theta=1e-3)
-    friction = FrictionModel(params)
+    friction = FrictionModel(params, Snake(params).model)
     for _ in range(10):
         q, dq = random_state(rng, params.n)
         q[:2] += 999.0
@@ -213,15 +213,17 @@ def test_a_foreign_model_is_a_parameter_error() -> None:
         damping_twin(other, SnakeParams.table1(n=8))
 
 
-def test_friction_model_without_a_model_builds_the_paper_model(
-        rng: np.random.Generator) -> None:
-    """FrictionModel(params) builds the robot's paper model itself: the same Q and
-    derivatives as the snake's; a FrictionData needs a FrictionModel."""
+def test_a_friction_model_of_its_own_equals_the_snakes(rng: np.random.Generator) -> None:
+    """A FrictionModel made apart from the Snake (on its paper model) gives the same Q and
+    derivatives as the snake's, also after pickling; a FrictionData needs a FrictionModel."""
+    import pickle
+
     from snake_pin import ParameterError
     from snake_pin.friction import FrictionData
 
     params = SnakeParams.table1(n=5, c_y=4.0)
-    alone, snake = FrictionModel(params), Snake(params)
+    snake = Snake(params)
+    alone = pickle.loads(pickle.dumps(FrictionModel(params, snake.model)))
     q, dq = random_state(rng, 5)
     assert np.array_equal(alone(q, dq), snake.friction(q, dq))
     for mine, theirs in zip(alone.derivatives(q, dq), snake.friction.derivatives(q, dq),
@@ -229,3 +231,5 @@ def test_friction_model_without_a_model_builds_the_paper_model(
         assert np.array_equal(mine, theirs)
     with pytest.raises(ParameterError, match="friction"):
         FrictionData(snake)  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="needs the snake's Pinocchio model"):
+        FrictionModel(params)
