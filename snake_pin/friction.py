@@ -205,10 +205,10 @@ class FrictionData:
         rolling = gemv(1.0, self.wheel_columns, self.velocity, 0.0, self.rolled_w, 1)
         alone = gemv(-1.0, self.chain_columns, self.rolled, 0.0, self.force, 1)
         added = gemv(-1.0, self.chain_columns, self.rolled, 1.0, self.force, 1)
-        # what calc_force reads, in one tuple (one attribute lookup per call)
-        self.route = (friction.twin, self.twin_data, friction.zero, self.force, self.q,
-                      self.head, self.velocity_head, self.rolled, self.rolled_v,
-                      self.rolled_w, self.crba, rolling, alone, added)
+        # what the CRBA route reads, in one tuple (one attribute lookup per call)
+        self.crba_route = (self.head, self.velocity_head, self.rolled_v, self.force,
+                           self.crba, friction.twin, self.twin_data, self.q, rolling, alone,
+                           added)
 
     def __reduce__(self) -> tuple[Any, tuple[FrictionModel]]:
         """Pickled as its model's (the buffers and views are made again)."""
@@ -310,17 +310,10 @@ class FrictionModel:
         numpy.ndarray
             ``data.force``, valid until the next call with ``data``.
         """
-        (twin, twin_data, zero, force, q_ext, head, velocity_head, rolled, rolled_v, rolled_w,
-         crba, rolling, alone, added) = data.route
-        if not self.has_wheels:  # -Q = RNEA(q, 0, v)
-            minus = pin.rnea(twin, twin_data, q, zero, v)
-            if base is None:
-                np.negative(minus, force)
-            else:
-                np.subtract(base, minus, force)
-            return force
-        head[...] = q
         if self.uses_twin_crba:  # w = M_wc q', -Q = M_cc q' + M_cw w
+            (head, velocity_head, rolled_v, force, crba, twin, twin_data, q_ext, rolling,
+             alone, added) = data.crba_route
+            head[...] = q
             crba(twin, twin_data, q_ext, _WORLD)
             velocity_head[...] = v
             rolled_v[...] = v
@@ -331,10 +324,17 @@ class FrictionModel:
                 force[...] = base
                 added()
             return force
-        rolled_v[...] = v  # the locked pass gives w, the rolling pass -Q
-        rolled_w[...] = 0.0
-        rolled_w[...] = pin.rnea(twin, twin_data, q_ext, zero, rolled)[self.nq:]
-        minus = pin.rnea(twin, twin_data, q_ext, zero, rolled)[:self.nq]
+        force = data.force
+        if self.has_wheels:  # the locked pass gives w, the rolling pass -Q
+            data.head[...] = q
+            rolled, nq = data.rolled, self.nq
+            data.rolled_v[...] = v
+            data.rolled_w[...] = 0.0
+            data.rolled_w[...] = pin.rnea(self.twin, data.twin_data, data.q, self.zero,
+                                          rolled)[nq:]
+            minus = pin.rnea(self.twin, data.twin_data, data.q, self.zero, rolled)[:nq]
+        else:  # -Q = RNEA(q, 0, v)
+            minus = pin.rnea(self.twin, data.twin_data, q, self.zero, v)
         if base is None:
             np.negative(minus, force)
         else:
