@@ -51,6 +51,7 @@ __all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionData", "FrictionModel", "damping_t
 WHEELED_TWIN_MAX_LINKS = 40
 
 _WORLD = pin.Convention.WORLD
+_RNEA = pin.rnea
 
 #: Pinocchio joint index of the head link in the paper model (after base_x, base_y).
 _HEAD_JOINT = 3
@@ -205,6 +206,7 @@ class FrictionData:
         rolling = gemv(1.0, self.wheel_columns, self.velocity, 0.0, self.rolled_w, 1)
         alone = gemv(-1.0, self.chain_columns, self.rolled, 0.0, self.force, 1)
         added = gemv(-1.0, self.chain_columns, self.rolled, 1.0, self.force, 1)
+        self.rnea_route = (friction.twin, self.twin_data, friction.zero)
         # what the CRBA route reads, in one tuple (one attribute lookup per call)
         self.crba_route = (self.head, self.velocity_head, self.rolled_v, self.force,
                            self.crba, friction.twin, self.twin_data, self.q, rolling, alone,
@@ -334,7 +336,8 @@ class FrictionModel:
                                           rolled)[nq:]
             minus = pin.rnea(self.twin, data.twin_data, data.q, self.zero, rolled)[:nq]
         else:  # -Q = RNEA(q, 0, v)
-            minus = pin.rnea(self.twin, data.twin_data, q, self.zero, v)
+            twin, twin_data, zero = data.rnea_route
+            minus = _RNEA(twin, twin_data, q, zero, v)
         if base is None:
             np.negative(minus, force)
         else:

@@ -42,6 +42,7 @@ __all__ = ["BASE_JOINTS", "DynamicsDerivatives", "Snake", "SnakeData", "paper_mo
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
 
 _WORLD = pin.Convention.WORLD
+_ABA = pin.aba
 
 
 def paper_model(params: SnakeParams) -> pin.Model:
@@ -361,8 +362,8 @@ class Snake:
         numpy.ndarray
             ``q''``, a new array.
         """
-        force = self.friction.calc_force(data.friction, q, v, torque)
-        return pin.aba(self.model, data.pin, q, v, force, _WORLD)
+        model, pin_data, calc_force, friction = data.dynamics
+        return _ABA(model, pin_data, q, v, calc_force(friction, q, v, torque), _WORLD)
 
     def calc_affine(self, data: SnakeData, q: np.ndarray,
                     v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -755,6 +756,8 @@ class SnakeData:
         nq = snake.nq
         self.bias, self.torque = np.zeros(nq), np.zeros(nq)
         self.friction = snake.friction.create_data()
+        # what calc_acceleration reads, in one tuple (one attribute lookup per call)
+        self.dynamics = (snake.model, self.pin, snake.friction.calc_force, self.friction)
         mirrors = snake.binding_mirrors
         self.crba = whole(pin.crba, self.mass, mirrors)
         self.minverse = whole(pin.computeMinverse, self.inverse_mass, mirrors)
