@@ -1,16 +1,20 @@
 """Small helpers for symmetric matrices: full matrices from the upper triangles that
 Pinocchio's CRBA and computeMinverse fill (their strict lower triangles are not computed),
-and the smallest eigenvalue of a 3x3 one in closed form (PFL's R, every step)."""
+in a copy or in the Data's own buffer, and the smallest eigenvalue of a 3x3 one in closed
+form (PFL's R, every step)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from scipy.linalg import lapack
 
-__all__ = ["smallest_eigenvalue_3x3", "symmetric_from_upper"]
+__all__ = ["crba_mirrors", "smallest_eigenvalue_3x3", "symmetric_from_upper", "whole"]
 
 #: Beyond this |cos(3 phi)| two eigenvalues nearly coincide, where acos loses digits (it
 #: amplifies rounding by 1 / sqrt(1 - cos^2), at most 700 within it). PFL's Gram matrices
@@ -89,3 +93,56 @@ def smallest_eigenvalue_3x3(upper: np.ndarray) -> float:
         return math.nan
     eigenvalues, _, _ = lapack.dsyev(np.asarray(upper, dtype=float), compute_v=0)
     return float(eigenvalues[0])
+
+
+def whole(algorithm: Callable[..., Any], matrix: np.ndarray,
+           mirrors: bool) -> Callable[..., Any]:
+    """``algorithm`` (``pin.crba`` or ``pin.computeMinverse``) itself when the bindings fill
+    ``matrix`` (a view of the Data's M or Minv) whole, else a wrapper of the same signature
+    that also mirrors its upper triangle into the lower one, in place.
+
+    Parameters
+    ----------
+    algorithm : callable
+        The Pinocchio function.
+    matrix : numpy.ndarray
+        The view it fills.
+    mirrors : bool
+        Whether the bindings already fill it whole (:func:`crba_mirrors`).
+
+    Returns
+    -------
+    callable
+        ``algorithm`` or the wrapper.
+    """
+    if mirrors:
+        return algorithm
+    lower = np.tril(np.ones(matrix.shape, dtype=bool), -1)
+
+    def whole(*arguments: Any) -> np.ndarray:
+        algorithm(*arguments)
+        np.copyto(matrix, matrix.T, where=lower)
+        return matrix
+
+    return whole
+
+
+def crba_mirrors(model: pin.Model) -> bool:
+    """Whether ``pin.crba`` fills ``data.M`` whole (both triangles).
+
+    Pinocchio's algorithm fills the upper triangle; its Python bindings mirror it.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The model to probe (once, on a configuration away from symmetries).
+
+    Returns
+    -------
+    bool
+        True when ``data.M`` is symmetric after ``pin.crba``.
+    """
+    data = model.createData()
+    mass = data.M  # the view the callers read, not the returned copy
+    returned = pin.crba(model, data, np.linspace(0.3, 0.9, model.nq), pin.Convention.WORLD)
+    return bool(np.array_equal(mass, returned) and np.array_equal(mass, mass.T))

@@ -1,79 +1,56 @@
-"""Anisotropic viscous friction of eqs. (10)-(13) as generalised forces on the Pinocchio model.
+r"""Anisotropic viscous friction of eqs. (10)-(13) as generalised forces on the Pinocchio model.
 
 Each link i feels, at its centre of mass and in its own frame, the force
 ``-diag(c_x, c_y) v_cm`` and the torque ``-c_theta * omega`` (README, conventions).
 
-Three routes compute the same thing:
+The *damping twin* computes it in Pinocchio's C++. A link's friction wrench with
+c_x = c_y = c is its spatial velocity times a rigid-body inertia of "mass" c at the CM
+and rotational "inertia" c_theta, so C(q) of eq. (11) is the twin's mass matrix and
+Q = -C(q) q' = -RNEA_twin(q, 0, q'). A rigid-body inertia is isotropic in translation, so
+with c_x != c_y link i carries the larger of its two coefficients and a *wheel* takes the
+difference back: a prismatic joint at the CM, along the direction of the larger
+coefficient, of "mass" -|c_y,i - c_x,i| and axis 1/sqrt|c_y,i - c_x,i| long (Pinocchio
+keeps a prismatic axis as given), so that its block of the twin's mass matrix is
+M_ww = -1. The wheels are appended after the chain, tail first (link k's subtree is links
+k..n and wheels n..k: depth-first, as CRBA and the RNEA derivatives need), so the twin's
+configuration is ``[q, 0_w]``. A wheel rolling at ``w = M_wc q'`` cancels its share of
+the motion along its axis, and
 
-* :func:`friction_forces` -- the reference: one ``pin.Force`` per joint, expressed in the
-  joint frame as Pinocchio's RNEA/ABA expect, built from Pinocchio's own link velocities.
-  It is clear but builds Python objects per link (about 50 us at n = 10).
-* :class:`FrictionModel` with the snake's model -- the hot path, in Pinocchio's C++: the
-  *damping twin*. With isotropic friction (c_x = c_y = c, the Table 1 robot) a link's
-  friction wrench is its spatial velocity times a rigid-body inertia: force -c v_cm at
-  the CM and torque -c_theta omega are the momentum of a body of "mass" c centred at the
-  link's CM with rotational "inertia" c_theta. So C(q) is the mass matrix of a twin of
-  the model with those inertias: Q = -C(q) q' = -RNEA_twin(q, 0, q') and C = CRBA_twin(q).
-  A rigid-body inertia is isotropic in translation, so with c_x != c_y each link of the
-  twin also carries a *wheel*: a body of "mass" c_y - c_x at the CM on a prismatic joint
-  along the link, inserted right after its link in the tree (so every subtree stays
-  contiguous in the velocity vector, as CRBA and the RNEA derivatives need). A wheel
-  that rolls with the link's longitudinal speed -u takes none of the longitudinal motion
-  and adds damping c_y - c_x sideways only: exactly the anisotropy. One RNEA with the
-  wheels locked gives (c_y - c_x) u in the wheels' rows; a second with the wheels rolling
-  at -u gives Q in the chain's rows. In matrix form, with the twin's mass matrix M split
-  into chain (c) and wheel (w) blocks, C = M_cc - M_cw M_ww^-1 M_wc (a Schur complement),
-  and the same two passes through ``pin.computeRNEADerivatives`` give dQ/dq exactly.
-  The twin over 2n + 2 joints beats numpy only for robots up to n = 40
-  (``scripts/bench.py --only friction_routes`` measures the routes), so longer
-  anisotropic robots use numpy for Q (the derivatives always use the twin).
-  The force alone (:class:`ForcePasses`, the simulator's hot path) runs on another twin,
-  built so that the Schur complement costs two products and nothing else. Its wheels are
-  appended after the whole chain, tail first (still depth-first: link k's subtree is links
-  k..n and wheels n..k), so the chain's coordinates are one slice: the extended state is
-  ``[q, 0_w]``, ``[q', 0_w]``. Link i carries the larger of c_x,i and c_y,i
-  isotropically, and its wheel takes the difference back: "mass" -|c_y,i - c_x,i| sliding
-  along the direction of the larger coefficient (a wheel sliding sideways leaves its
-  negative mass acting along the link: c_y - (c_y - c_x) = c_x there). The wheel is a
-  prismatic joint at the CM whose axis is 1/sqrt|c_y,i - c_x,i| long (Pinocchio keeps a
-  prismatic axis as given), so the CM slides at that factor times the joint's rate and
-  M_ww = -|c_y - c_x| / |c_y - c_x| = -1: the wheels roll at exactly ``M_wc q'``, and one
-  CRBA and two products give Q (the rolling speeds, then ``-Q = M_cc q' + M_cw (M_wc
-  q')``), cheaper than two RNEAs. (Should a Pinocchio normalise the axis, the wheel turns
-  on a lever of that length instead: the same matrix, less exact far from the origin.)
-  Every coefficient may differ from link to link: in the derivatives' twin link i
-  carries c_x,i, c_theta,i and a wheel of c_y,i - c_x,i.
-* :class:`FrictionModel` without a model -- vectorised numpy, O(n): with planar vectors
-  written as complex numbers, e_i = exp(j theta_i) and the CM velocity z_i = x_i' + j y_i',
-  the world force on link i is ``F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i)``,
-  cbar_i = (c_x,i + c_y,i)/2, delta_i = (c_x,i - c_y,i)/2, because rotating into the link
-  frame, scaling by diag(c_x,i, c_y,i) and rotating back is exactly that.
+.. math:: C = M_{cc} + M_{cw} M_{wc}, \qquad -Q = M_{cc} q' + M_{cw} w,
 
-Tests check the routes against each other and against eq. (11).
+a Schur complement over the wheels. Two routes evaluate Q, chosen by
+:data:`WHEELED_TWIN_MAX_LINKS`: up to that many links (with wheels) one CRBA of the twin
+and two products; otherwise RNEA passes, one without wheels, two with them (the locked
+pass gives w in the wheels' rows, the rolling pass -Q in the chain's). The derivatives
+are those of the same two passes (``pin.computeRNEADerivatives``).
+:func:`friction_forces` (one ``pin.Force`` per link) is the reference the tests compare
+to; :func:`snake_pin.paper.friction_matrix` is the independent closed form.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from ._symmetric import symmetric_from_upper
+from ._blas import gemv
+from ._symmetric import crba_mirrors, symmetric_from_upper, whole
 from ._validation import as_vector, check_params, instance
 from .exceptions import ParameterError
 from .params import SnakeParams
 
-__all__ = ["WHEELED_TWIN_MAX_LINKS", "ForcePasses", "FrictionModel", "damping_twin",
+__all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionData", "FrictionModel", "damping_twin",
            "friction_forces"]
 
-#: Longest robot whose anisotropic friction force goes through the wheeled twin (one CRBA
-#: over 2n + 2 joints and two products); numpy's cost grows more slowly with n. One
-#: closed-loop evaluation (a FastDynamics evaluator) took 5.6 against 13.2 us at n = 10,
-#: 14.6 against 18.5 at n = 30, 20.0 against 21.3 at n = 40 and 26.7 against 25.0 at
-#: n = 50 (``python scripts/bench.py --only friction_routes``).
+#: Longest robot with anisotropic friction whose Q goes through the twin's CRBA and two
+#: products; longer robots (and every isotropic one) use the RNEA passes, whose cost grows
+#: more slowly with n.
 WHEELED_TWIN_MAX_LINKS = 40
+
+_WORLD = pin.Convention.WORLD
 
 #: Pinocchio joint index of the head link in the paper model (after base_x, base_y).
 _HEAD_JOINT = 3
@@ -104,14 +81,11 @@ def _paper_model_of(model: object, params: object) -> tuple[pin.Model, SnakePara
     return pinocchio_model, checked
 
 
-def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.ndarray,
-                                                                  np.ndarray]:
+def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
     """The snake's tree with each link's inertia replaced by its damping (module docstring).
 
-    Link i (Pinocchio joint i + 2 of :func:`snake_pin.model.paper_model`) gets "mass"
-    c_x,i at its own centre of mass and rotational "inertia" c_theta,i. When some
-    c_y,i != c_x,i, a wheel joint ``wheel_i`` (prismatic along the link, at the CM)
-    carrying "mass" c_y,i - c_x,i follows each link joint in the tree.
+    Joints 1 .. n + 2 of the twin are the snake's (same names and placements); with
+    anisotropic friction the n wheels ``wheel_n`` .. ``wheel_1`` follow, tail first.
 
     Parameters
     ----------
@@ -122,9 +96,8 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.n
 
     Returns
     -------
-    twin, chain, wheels
-        The twin model, the twin's velocity indices of the snake's n + 2 coordinates, and
-        those of the n wheels (empty without wheels). Every joint here has nq = nv = 1.
+    pinocchio.Model
+        The twin, nq = nv = n + 2 plus the number of wheels (0 or n).
 
     Raises
     ------
@@ -133,107 +106,7 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> tuple[pin.Model, np.n
     """
     model, params = _paper_model_of(model, params)
     c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
-    extra = c_y - c_x
-    with_wheels = bool(np.any(extra != 0.0))
-    twin = pin.Model()
-    twin.name = f"{model.name}_damping_twin"
-    mapping = {0: 0}
-    chain, wheels = [], []
-    for joint in range(1, model.njoints):
-        index = twin.addJoint(mapping[model.parents[joint]], model.joints[joint],
-                              model.jointPlacements[joint], model.names[joint])
-        mapping[joint] = index
-        chain.append(twin.joints[index].idx_v)
-        link = joint - _HEAD_JOINT
-        if link < 0:
-            continue  # base_x, base_y: no body
-        lever = model.inertias[joint].lever.copy()
-        twin.appendBodyToJoint(index, pin.Inertia(float(c_x[link]), lever,
-                                                  np.eye(3) * float(c_theta[link])),
-                               pin.SE3.Identity())
-        if with_wheels:
-            wheel = twin.addJoint(index, pin.JointModelPX(), pin.SE3(np.eye(3), lever),
-                                  f"wheel_{link + 1}")
-            twin.appendBodyToJoint(wheel, pin.Inertia(float(extra[link]), np.zeros(3),
-                                                      np.zeros((3, 3))), pin.SE3.Identity())
-            wheels.append(twin.joints[wheel].idx_v)
-    twin.gravity = pin.Motion.Zero()
-    return twin, np.array(chain, dtype=int), np.array(wheels, dtype=int)
-
-
-class ForcePasses:
-    """The damping twin's force alone, on preallocated buffers (hot path).
-
-    The twin's chain comes first and the n wheels (anisotropic friction only) after it,
-    tail first, so the extended configuration is ``[q, 0_w]`` (size :attr:`size`), a
-    state is read from one slice, and the joints stay in depth-first order (link k's
-    subtree is ``[link k .. link n, wheel n .. wheel k]``, contiguous, as CRBA needs).
-    Without wheels one RNEA at velocity ``[q']`` gives -Q. With wheels, one CRBA gives the
-    twin's mass matrix M, whose wheel block M_ww is -1 (the module docstring): with its
-    chain (c) and wheel (w) blocks the wheels roll at ``w = -M_ww^-1 M_wc q' = M_wc q'``
-    and ``-Q = M_cc q' + M_cw w``, the Schur complement applied by two products and
-    nothing else (two RNEAs, a locked and a rolling pass, cost more).
-
-    Parameters
-    ----------
-    model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
-    params : SnakeParams
-        The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
-
-    Raises
-    ------
-    ParameterError
-        ``params`` is not a SnakeParams, or ``model`` is not its paper model.
-
-    Attributes
-    ----------
-    size
-        n + 2 plus the number of wheels.
-    twin, twin_data
-        The twin's model and workspace.
-    has_wheels
-        Whether the twin carries wheels (some c_y,i != c_x,i).
-    zero
-        A zero velocity of the twin (RNEA's v: the twin only ever sees accelerations).
-    """
-
-    def __init__(self, model: pin.Model, params: SnakeParams) -> None:
-        model, params = _paper_model_of(model, params)
-        c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))
-        self.has_wheels = bool(np.any(c_y != c_x))
-        self.twin = _appended_twin(model, c_x, c_y, c_theta, self.has_wheels)
-        self.twin_data = self.twin.createData()
-        self.size = self.twin.nq
-        self.zero = np.zeros(self.size)
-        self._nq = model.nq
-        self._q = np.zeros(self.size)
-        self._v = np.zeros(self.size)
-
-    def force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Q(q, dq) as a new array (copies the state into the extended buffers).
-
-        Parameters
-        ----------
-        q : numpy.ndarray
-            Configuration, length n + 2.
-        dq : numpy.ndarray
-            Velocity, length n + 2.
-
-        Returns
-        -------
-        numpy.ndarray
-            The generalised friction force ``Q``, length n + 2 [N, N, N m, N m].
-        """
-        nq, q_ext, v_ext = self._nq, self._q, self._v
-        q_ext[:nq] = q
-        v_ext[:nq] = dq
-        if not self.has_wheels:
-            return -pin.rnea(self.twin, self.twin_data, q_ext, self.zero, v_ext)
-        mass = symmetric_from_upper(pin.crba(self.twin, self.twin_data, q_ext,
-                                             pin.Convention.WORLD))
-        v_ext[nq:] = mass[nq:, :nq] @ dq  # the wheels roll at M_wc q' (M_ww = -1)
-        return -(mass[:nq] @ v_ext)
+    return _appended_twin(model, c_x, c_y, c_theta, bool(np.any(c_y != c_x)))
 
 
 def _appended_twin(model: pin.Model, c_x: np.ndarray, c_y: np.ndarray, c_theta: np.ndarray,
@@ -242,7 +115,7 @@ def _appended_twin(model: pin.Model, c_x: np.ndarray, c_y: np.ndarray, c_theta: 
     that takes the difference back with M_ww = -1, appended after the chain, tail first
     (so that the joints stay in depth-first order), or no wheels (module docstring)."""
     twin = pin.Model()
-    twin.name = f"{model.name}_damping_passes"
+    twin.name = f"{model.name}_damping_twin"
     larger = np.maximum(c_x, c_y) if wheels else c_x
     for joint in range(1, model.njoints):
         index = twin.addJoint(model.parents[joint], model.joints[joint],
@@ -296,115 +169,188 @@ def _scaled_axis_kept() -> bool:
     return bool(mass[0, 0] == -1.0)
 
 
-class FrictionModel:
-    """Generalised friction force Q(q, q') = -C(q) q' in paper coordinates.
+class FrictionData:
+    """Buffers of one evaluation of a :class:`FrictionModel` (:meth:`FrictionModel.create_data`).
 
     Parameters
     ----------
-    params
+    friction : FrictionModel
+        The friction model.
+
+    Attributes
+    ----------
+    twin_data
+        The twin's Pinocchio workspace.
+    force
+        The last :meth:`FrictionModel.calc_force` (length n + 2).
+    """
+
+    def __init__(self, friction: FrictionModel) -> None:
+        instance(friction, FrictionModel, "friction")
+        self._friction = friction
+        size, nq = friction.size, friction.nq
+        self.twin_data = friction.twin.createData()
+        self.force = np.zeros(nq)
+        self.q = np.zeros(size)  # [q, 0_w]
+        self.head = self.q[:nq]
+        self.velocity = np.zeros(size)  # [q', 0_w]
+        self.velocity_head = self.velocity[:nq]
+        self.rolled = np.zeros(size)  # [q', w]
+        self.rolled_v, self.rolled_w = self.rolled[:nq], self.rolled[nq:]
+        mass = self.twin_data.M  # column-major and symmetric: its columns are its rows
+        self.chain_columns, self.wheel_columns = mass[:, :nq], mass[:, nq:]
+        self.crba = whole(pin.crba, mass, friction.crba_mirrors)
+        # the route's products, prepared: w = M_wc q'; Q = -[M_cc M_cw] [q'; w], + base
+        rolling = gemv(1.0, self.wheel_columns, self.velocity, 0.0, self.rolled_w, 1)
+        alone = gemv(-1.0, self.chain_columns, self.rolled, 0.0, self.force, 1)
+        added = gemv(-1.0, self.chain_columns, self.rolled, 1.0, self.force, 1)
+        # what calc_force reads, in one tuple (one attribute lookup per call)
+        self.route = (friction.twin, self.twin_data, friction.zero, self.force, self.q,
+                      self.head, self.velocity_head, self.rolled, self.rolled_v,
+                      self.rolled_w, self.crba, rolling, alone, added)
+
+    def __reduce__(self) -> tuple[Any, tuple[FrictionModel]]:
+        """Pickled as its model's (the buffers and views are made again)."""
+        return FrictionData, (self._friction,)
+
+
+class FrictionModel:
+    """Generalised friction force Q(q, q') = -C(q) q' in paper coordinates, on the twin.
+
+    Parameters
+    ----------
+    params : SnakeParams
         The robot and its (per-link) friction coefficients.
-    model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`). With it, Q
-        comes from the damping twin's RNEA (and C from its CRBA) when friction is
-        isotropic, and from the wheeled twin when it is not and n <=
-        :data:`WHEELED_TWIN_MAX_LINKS`; otherwise from vectorised numpy. Derivatives
-        (:meth:`derivatives`) need the model.
+    model : pinocchio.Model, optional
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); built from
+        ``params`` when None.
 
     Raises
     ------
     ParameterError
         ``params`` is not a SnakeParams, or ``model`` is neither None nor its paper model.
+
+    Attributes
+    ----------
+    twin
+        The damping twin (:func:`damping_twin`).
+    nq, size
+        n + 2, and the twin's nq (n + 2 plus the wheels).
+    has_wheels
+        Whether some c_y,i != c_x,i (the twin carries wheels).
+    uses_twin_crba
+        Whether Q comes from the twin's CRBA and two products (else from RNEA passes).
     """
 
     def __init__(self, params: SnakeParams, model: pin.Model | None = None) -> None:
         params = check_params(params)
-        if model is not None:
-            model, params = _paper_model_of(model, params)
-        n = params.n
-        self._twin: pin.Model | None = None
-        self._wheels = False
-        self._force_on_twin = False
-        #: The force's passes (the hot path) when Q comes from the twin, else None.
-        self.passes: ForcePasses | None = None
-        if model is not None:
-            self._twin, self._chain, self._wheel_v = damping_twin(model, params)
-            self._twin_data = self._twin.createData()
-            self._nv = model.nv
-            self._wheels = len(self._wheel_v) > 0
-            self._zero = np.zeros(self._twin.nv)
-            extra = params.per_link("c_y") - params.per_link("c_x")
-            # a wheel too light to invert (below the smallest normal float, 1/extra would
-            # overflow) adds no damping worth the name: it stays still (gain 0)
-            with np.errstate(divide="ignore", over="ignore"):
-                self._roll = np.where(np.abs(extra) >= np.finfo(float).tiny, -1.0 / extra, 0.0)
-            self._force_on_twin = not self._wheels or n <= WHEELED_TWIN_MAX_LINKS
-            if self._force_on_twin:
-                self.passes = ForcePasses(model, params)
-        lower = np.tril(np.ones((n, n)))
-        # theta = L [theta_1, phi] (eq. 17), applied to q and q' at once by one matmul
-        self._angles_t = lower.T.copy()
-        # CM velocities: x' + j y' = (x_h' + j y_h') + K (j e theta') (eqs. 3-6), with
-        # K_ij = 2l_j below the diagonal and the CM offset d_i on it
-        k_matrix = np.tril(np.broadcast_to(params.link_lengths, (n, n)), -1)
-        k_matrix[np.diag_indices(n)] = params.com_offsets
-        c_x, c_y = params.per_link("c_x"), params.per_link("c_y")
-        cbar = 0.5 * (c_x + c_y)
-        self._jk = 1j * k_matrix
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.where(cbar > 0, (c_x - c_y) / (c_x + c_y), 0.0)
-        self._ratio = ratio if np.any(ratio) else None
-        # F_i = -cbar_i w_i; rows 0..n-1 give K^T F (torques about theta), row n gives
-        # sum F (total force), so one matmul yields both.
-        self._reduce = np.vstack([k_matrix.T, np.ones((1, n))]) * (-cbar)[None, :]
-        self._upper = lower.T.copy()
-        self._c_theta = params.per_link("c_theta")
-        self._n = n
+        if model is None:
+            from .model import paper_model
+
+            model = paper_model(params)
+        model, params = _paper_model_of(model, params)
         self.params = params
+        self.twin = damping_twin(model, params)
+        self.nq, self.size = model.nq, self.twin.nq
+        self.has_wheels = self.size > self.nq
+        self.uses_twin_crba = self.has_wheels and params.n <= WHEELED_TWIN_MAX_LINKS
+        self.crba_mirrors = crba_mirrors(self.twin)
+        self.zero = np.zeros(self.size)
+        self._data = FrictionData(self)
 
-    @property
-    def uses_twin(self) -> bool:
-        """Whether Q comes from the damping twin (in Pinocchio) rather than numpy."""
-        return self._force_on_twin
+    def __getstate__(self) -> dict[str, Any]:
+        """The attributes to pickle (the twin rebuilt from the robot on unpickling)."""
+        return {"params": self.params}
 
-    @property
-    def has_wheels(self) -> bool:
-        """Whether the twin carries the wheels of anisotropic friction."""
-        return self._wheels
-
-    def __call__(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Generalised friction force (length n + 2) at state (q, dq)."""
-        if self._force_on_twin:
-            return self._twin_force(q, dq)
-        both = np.array((q[2:], dq[2:])) @ self._angles_t  # rows: theta, theta'
-        return self._force(both[0], both[1], complex(dq[0], dq[1]))
-
-    def of_state(self, x: np.ndarray) -> np.ndarray:
-        """Same as ``self(q, dq)`` for the stacked state x = [q, dq] (hot path).
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Rebuilt from the pickled robot.
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
+        state : dict
+            The pickled attributes.
+        """
+        self.__init__(state["params"])  # type: ignore[misc]
+
+    def create_data(self) -> FrictionData:
+        """New buffers for :meth:`calc_damping` (see :class:`FrictionData`).
+
+        Returns
+        -------
+        FrictionData
+            Buffers made once, for one caller.
+        """
+        return FrictionData(self)
+
+    @property
+    def twin_data(self) -> pin.Data:
+        """The twin's workspace of the plain calls."""
+        return self._data.twin_data
+
+    @property
+    def passes(self) -> FrictionModel:
+        """This model (the twin's passes: :attr:`twin`, :attr:`twin_data`, :attr:`zero`,
+        :attr:`size`, :attr:`has_wheels`)."""
+        return self
+
+    def calc_force(self, data: FrictionData, q: np.ndarray, v: np.ndarray,
+                   base: np.ndarray | None = None) -> np.ndarray:
+        """``base + Q(q, v)`` (or Q alone) into ``data.force`` (unchecked: the hot path).
+
+        Parameters
+        ----------
+        data : FrictionData
+            Buffers of this model.
+        q, v : numpy.ndarray
+            Configuration and velocity, length n + 2 each.
+        base : numpy.ndarray, optional
+            A generalised force to add Q to (E tau in the dynamics), length n + 2.
 
         Returns
         -------
         numpy.ndarray
-            The generalised friction force ``Q``, length n + 2.
+            ``data.force``, valid until the next call with ``data``.
         """
-        n2 = self._n + 2
-        if self._force_on_twin:
-            return self._twin_force(x[:n2], x[n2:])
-        both = x.reshape(2, n2)[:, 2:] @ self._angles_t
-        return self._force(both[0], both[1], complex(x[n2], x[n2 + 1]))
+        (twin, twin_data, zero, force, q_ext, head, velocity_head, rolled, rolled_v, rolled_w,
+         crba, rolling, alone, added) = data.route
+        if not self.has_wheels:  # -Q = RNEA(q, 0, v)
+            minus = pin.rnea(twin, twin_data, q, zero, v)
+            if base is None:
+                np.negative(minus, force)
+            else:
+                np.subtract(base, minus, force)
+            return force
+        head[...] = q
+        if self.uses_twin_crba:  # w = M_wc q', -Q = M_cc q' + M_cw w
+            crba(twin, twin_data, q_ext, _WORLD)
+            velocity_head[...] = v
+            rolled_v[...] = v
+            rolling()
+            if base is None:
+                alone()
+            else:
+                force[...] = base
+                added()
+            return force
+        rolled_v[...] = v  # the locked pass gives w, the rolling pass -Q
+        rolled_w[...] = 0.0
+        rolled_w[...] = pin.rnea(twin, twin_data, q_ext, zero, rolled)[self.nq:]
+        minus = pin.rnea(twin, twin_data, q_ext, zero, rolled)[:self.nq]
+        if base is None:
+            np.negative(minus, force)
+        else:
+            np.subtract(base, minus, force)
+        return force
+
+    def __call__(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """Generalised friction force Q (a new array, length n + 2) at state (q, dq)."""
+        return self.calc_force(self._data, q, dq).copy()
 
     def matrix(self, q: np.ndarray) -> np.ndarray:
         """C(q) of eq. (11) such that the friction force is -C(q) dq.
 
-        With the twin: its mass matrix by CRBA, and for anisotropic friction the Schur
-        complement M_cc - M_cw M_ww^-1 M_wc over the wheels. Without a model: the force
-        is linear in dq, so the columns are the responses to the unit velocities,
-        computed together: theta' of the unit vectors is [0 | L] and the base velocity
-        is 1 (x_h') or j (y_h').
+        The twin's mass matrix by CRBA, and with wheels the Schur complement
+        ``M_cc + M_cw M_wc`` over them (M_ww = -1).
 
         Parameters
         ----------
@@ -416,41 +362,21 @@ class FrictionModel:
         numpy.ndarray
             ``C(q)``, shape (n + 2, n + 2), symmetric positive semi-definite.
         """
-        if self._twin is not None:
-            mass = symmetric_from_upper(pin.crba(self._twin, self._twin_data,
-                                                 self._extend(q), pin.Convention.WORLD))
-            chain = self._chain
-            out = mass[np.ix_(chain, chain)]
-            if self._wheels:
-                cross = mass[np.ix_(chain, self._wheel_v)]
-                out = out + (cross * self._roll) @ cross.T
-            return out
-        n = self._n
-        theta = self._angles_t.T @ q[2:]
-        theta_dot = np.zeros((n, n + 2))
-        theta_dot[:, 2:] = self._angles_t.T
-        base = np.zeros(n + 2, dtype=complex)
-        base[0], base[1] = 1.0, 1.0j
-        e = np.exp(1j * theta)
-        z = self._jk @ (e[:, None] * theta_dot) + base[None, :]
-        if self._ratio is not None:
-            z += (self._ratio * e * e)[:, None] * z.conjugate()
-        g = self._reduce @ z
-        out = np.empty((n + 2, n + 2))
-        out[0], out[1] = g[-1].real, g[-1].imag
-        out[2:] = self._upper @ ((e.conjugate()[:, None] * g[:-1]).imag
-                                 - self._c_theta[:, None] * theta_dot)
-        return -out
+        nq = self.nq
+        mass = symmetric_from_upper(pin.crba(self.twin, self.twin_data, self._extend(q),
+                                             _WORLD))
+        cross = mass[:nq, nq:]
+        return mass[:nq, :nq] + cross @ cross.T
 
     def derivatives(self, q: np.ndarray,
                     dq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Q(q, dq) and its Jacobians dQ/dq and dQ/ddq, from the twin's RNEA derivatives.
 
-        Isotropic: Q = -RNEA_twin(q, 0, dq), so dQ/dq = -dRNEA/dq and dQ/ddq = -M_twin.
-        Anisotropic (module docstring): with w = roll * RNEA_w(q, 0, [dq; 0]) the wheels'
-        rolling speed and Q = -RNEA_c(q, 0, [dq; w]), the chain rule over the two passes
-        gives dQ/dq = -(R2_q + M_cw dw/dq) and dQ/ddq = -(M_cc + M_cw dw/ddq), with
-        dw/dq = roll * R1_q (wheel rows) and dw/ddq = roll * M_wc.
+        Without wheels Q = -RNEA(q, 0, dq), so dQ/dq = -dRNEA/dq and dQ/ddq = -M. With
+        them (module docstring) the locked pass gives ``w = RNEA_w(q, 0, [dq; 0])`` and the
+        rolling pass ``-Q = RNEA_c(q, 0, [dq; w])``; the chain rule over the two passes
+        gives dQ/dq = -(R2_q + M_cw R1_q) (R1_q: the locked pass's wheel rows) and
+        dQ/ddq = -(M_cc + M_cw M_wc).
 
         Parameters
         ----------
@@ -463,61 +389,29 @@ class FrictionModel:
         -------
         tuple of numpy.ndarray
             ``Q`` (length n + 2), ``dQ/dq`` and ``dQ/ddq`` (each (n + 2, n + 2)).
-
-        Raises
-        ------
-        ParameterError
-            The friction model was built without the snake's Pinocchio model.
         """
-        if self._twin is None:
-            raise ParameterError("friction derivatives need the snake's Pinocchio model: "
-                                 "build the FrictionModel with model=")
-        twin, data, zero, chain = self._twin, self._twin_data, self._zero, self._chain
-        q_ext, a_ext = self._extend(q), np.zeros(twin.nv)
-        a_ext[chain] = dq
-        if not self._wheels:
-            dtau_dq, _, mass = pin.computeRNEADerivatives(twin, data, q_ext, zero, a_ext)
-            mass = symmetric_from_upper(mass)
-            force = -pin.rnea(twin, data, q_ext, zero, a_ext)
-            return force, -dtau_dq.copy(), -mass
-        wheels, roll = self._wheel_v, self._roll
+        twin, data, zero, nq = self.twin, self.twin_data, self.zero, self.nq
+        q_ext, a_ext = self._extend(q), np.zeros(self.size)
+        a_ext[:nq] = dq
         dtau_dq, _, mass = pin.computeRNEADerivatives(twin, data, q_ext, zero, a_ext)
         mass = symmetric_from_upper(mass)
         locked = pin.rnea(twin, data, q_ext, zero, a_ext)
-        dw_dq = roll[:, None] * dtau_dq[np.ix_(wheels, chain)]
-        cross = mass[np.ix_(chain, wheels)]
-        dw_dv = roll[:, None] * cross.T
-        a_ext[wheels] = roll * locked[wheels]
+        if not self.has_wheels:
+            return -locked, -dtau_dq.copy(), -mass
+        dw_dq = dtau_dq[nq:, :nq].copy()
+        cross = mass[:nq, nq:]
+        a_ext[nq:] = locked[nq:]
         dtau_dq2, _, _ = pin.computeRNEADerivatives(twin, data, q_ext, zero, a_ext)
-        force = -pin.rnea(twin, data, q_ext, zero, a_ext)[chain]
-        dforce_dq = -(dtau_dq2[np.ix_(chain, chain)] + cross @ dw_dq)
-        dforce_dv = -(mass[np.ix_(chain, chain)] + cross @ dw_dv)
+        force = -pin.rnea(twin, data, q_ext, zero, a_ext)[:nq]
+        dforce_dq = -(dtau_dq2[:nq, :nq] + cross @ dw_dq)
+        dforce_dv = -(mass[:nq, :nq] + cross @ cross.T)
         return force, dforce_dq, dforce_dv
 
     def _extend(self, q: np.ndarray) -> np.ndarray:
-        """The twin's configuration: q on the chain, wheels at their link's CM (0)."""
-        if not self._wheels:
-            return q
-        q_ext = np.zeros(self._twin.nq)  # type: ignore[union-attr]
-        q_ext[self._chain] = q
+        """The twin's configuration ``[q, 0_w]``."""
+        q_ext = np.zeros(self.size)
+        q_ext[:self.nq] = q
         return q_ext
-
-    def _twin_force(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        return self.passes.force(q, dq)  # type: ignore[union-attr]
-
-    def _force(self, theta: np.ndarray, theta_dot: np.ndarray, base: complex) -> np.ndarray:
-        e = np.exp(1j * theta)
-        z = self._jk @ (e * theta_dot)
-        z += base
-        if self._ratio is not None:  # world force F_i = -cbar_i w_i
-            z += self._ratio * (e * e) * z.conjugate()
-        g = self._reduce @ z
-        out = np.empty(self._n + 2)
-        out[0] = g[-1].real
-        out[1] = g[-1].imag
-        # torque on theta_i: Im(conj(e_i) (K^T F)_i), minus c_theta_i theta_i'; then L^T
-        out[2:] = self._upper @ ((e.conjugate() * g[:-1]).imag - self._c_theta * theta_dot)
-        return out
 
 
 def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,

@@ -12,15 +12,16 @@ The equation of motion is eq. (20): H(q) q'' + h(q, q') = E tau, with h the Cori
 centrifugal terms plus viscous friction (:mod:`snake_pin.friction`).
 
 Public methods validate their inputs (shape, finiteness) and raise
-:class:`~snake_pin.exceptions.ConfigurationError`; the ``*_of_state`` methods,
-``state_derivative`` and :class:`FastDynamics` (``Snake.fast_dynamics``: the simulator's and
-the controllers' preallocated step) are the unchecked hot path.
+:class:`~snake_pin.exceptions.ConfigurationError`, then run the one implementation of each
+computation: the unchecked ``calc_*`` methods over a :class:`SnakeData` (buffers made once,
+``Snake.create_data()``), as Pinocchio's Model/Data. The simulator's plant and the
+controllers each hold a SnakeData of their own and call ``calc_*`` directly.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -28,16 +29,14 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ._blas import dgemv
-from ._symmetric import symmetric_from_upper
-from ._validation import as_vector, check_params, instance, integer
+from ._symmetric import crba_mirrors, symmetric_from_upper, whole
+from ._validation import as_vector, check_params, instance
 from .exceptions import ConfigurationError
 from .friction import FrictionModel
 from .params import SnakeParams
 from .urdf import urdf_string
 
-__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "FastDynamics", "RK4Tableau", "Snake",
-           "paper_model"]
+__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "Snake", "SnakeData", "paper_model"]
 
 #: Names of the three root joints, in order: they carry x_h, y_h and theta_1.
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
@@ -156,8 +155,6 @@ class Snake:
         self.nv = self.model.nv
         self.link_joints = np.arange(3, 3 + self.n)
         self.friction = FrictionModel(self.params, self.model)
-        self._cache_key = b""  # bytes of the last state whose friction is cached
-        self._cache_q = np.zeros(self.nv)
         self._actuated = np.array([k - 1 for k in self.params.actuated], dtype=int)
         # 1 on actuated joints, 0 on passive ones (None: all actuated, skip the product)
         self._mask: np.ndarray | None = None
@@ -169,10 +166,26 @@ class Snake:
         return f"Snake({self.params!r})"
 
     def __getstate__(self) -> dict[str, Any]:
-        """Pickled without the cached :attr:`fast_dynamics` (closures; rebuilt on use)."""
+        """Pickled without its own buffers (made again on use).
+
+        Returns
+        -------
+        dict
+            The attributes to pickle.
+        """
         state = self.__dict__.copy()
-        state.pop("fast_dynamics", None)
+        state.pop("_data", None)
         return state
+
+    @cached_property
+    def _data(self) -> SnakeData:
+        """The buffers of the checked methods, on :attr:`data`."""
+        return SnakeData(self, self.data)
+
+    @cached_property
+    def binding_mirrors(self) -> bool:
+        """Whether Pinocchio's bindings return H and H^-1 whole (checked once)."""
+        return _binding_mirrors(self.model)
 
     @classmethod
     def from_urdf(cls, path: str | os.PathLike[str],
@@ -219,26 +232,21 @@ class Snake:
 
         return cls(load_robot(spec, **overrides))
 
-    @cached_property
-    def fast_dynamics(self) -> FastDynamics:
-        """This robot's preallocated hot path (see :class:`FastDynamics`), made once."""
-        return FastDynamics(self)
-
     # ------------------------------------------------------------ validation
     def check_q(self, q: object, name: str = "q") -> np.ndarray:
-        """``q`` as a finite vector of length n + 2, or ConfigurationError.
+        """``q`` (configuration) as n + 2 finite floats, or ConfigurationError.
 
         Parameters
         ----------
         q : array_like
-            The configuration to check.
+            The value to check.
         name : str, optional
-            The argument's name in the error message.
+            Its name in the error message.
 
         Returns
         -------
         numpy.ndarray
-            ``q`` as floats, length n + 2.
+            ``q`` as floats.
 
         Raises
         ------
@@ -248,19 +256,19 @@ class Snake:
         return _vector(q, self.nq, name)
 
     def check_dq(self, dq: object, name: str = "dq") -> np.ndarray:
-        """``dq`` as a finite vector of length n + 2, or ConfigurationError.
+        """``dq`` (velocity) as n + 2 finite floats, or ConfigurationError.
 
         Parameters
         ----------
         dq : array_like
-            The velocity to check.
+            The value to check.
         name : str, optional
-            The argument's name in the error message.
+            Its name in the error message.
 
         Returns
         -------
         numpy.ndarray
-            ``dq`` as floats, length n + 2.
+            ``dq`` as floats.
 
         Raises
         ------
@@ -270,19 +278,19 @@ class Snake:
         return _vector(dq, self.nv, name)
 
     def check_tau(self, tau: object, name: str = "tau") -> np.ndarray:
-        """``tau`` as a finite vector of length n - 1 (never broadcast), or ConfigurationError.
+        """``tau`` (joint torques, never broadcast) as n - 1 finite floats, or ConfigurationError.
 
         Parameters
         ----------
         tau : array_like
-            The joint torques to check.
+            The value to check.
         name : str, optional
-            The argument's name in the error message.
+            Its name in the error message.
 
         Returns
         -------
         numpy.ndarray
-            ``tau`` as floats, length n - 1.
+            ``tau`` as floats.
 
         Raises
         ------
@@ -292,19 +300,19 @@ class Snake:
         return _vector(tau, self.n - 1, name)
 
     def check_state(self, x: object, name: str = "x") -> np.ndarray:
-        """The stacked state ``x = [q, dq]`` (length 2(n + 2)), or ConfigurationError.
+        """``x`` (the stacked state [q, dq]) as 2(n + 2) finite floats, or ConfigurationError.
 
         Parameters
         ----------
         x : array_like
-            The state to check.
+            The value to check.
         name : str, optional
-            The argument's name in the error message.
+            Its name in the error message.
 
         Returns
         -------
         numpy.ndarray
-            ``x`` as floats, length 2(n + 2).
+            ``x`` as floats.
 
         Raises
         ------
@@ -321,14 +329,114 @@ class Snake:
         e_matrix[3 + self._actuated, self._actuated] = 1.0
         return e_matrix
 
+    def create_data(self) -> SnakeData:
+        """New buffers for the unchecked ``calc_*`` methods (see :class:`SnakeData`).
+
+        Returns
+        -------
+        SnakeData
+            Buffers made once, for one caller (a law, a plant).
+        """
+        return SnakeData(self)
+
+    def calc_acceleration(self, data: SnakeData, q: np.ndarray, v: np.ndarray,
+                          torque: np.ndarray) -> np.ndarray:
+        """q'' of eq. (20) under the generalised torque ``E tau`` (unchecked hot path).
+
+        ``q'' = ABA(q, v, E tau + Q(q, v))``, in Pinocchio's WORLD convention (faster than
+        LOCAL here, and the one after which the two-argument ``pin.computeMinverse`` is
+        right).
+
+        Parameters
+        ----------
+        data : SnakeData
+            Buffers of this robot.
+        q, v : numpy.ndarray
+            Configuration and velocity, length n + 2 each.
+        torque : numpy.ndarray
+            ``E tau`` (length n + 2, zero on the base and passive rows).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``q''``, a new array.
+        """
+        force = self.friction.calc_force(data.friction, q, v, torque)
+        return pin.aba(self.model, data.pin, q, v, force, _WORLD)
+
+    def calc_affine(self, data: SnakeData, q: np.ndarray,
+                    v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(b, H^-1)``: q'' at zero torque (``-H^-1 h``) and the inverse inertia (unchecked).
+
+        Parameters
+        ----------
+        data : SnakeData
+            Buffers of this robot.
+        q, v : numpy.ndarray
+            Configuration and velocity, length n + 2 each.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``b`` (a new array) and ``H^-1``, whole: ``data.inverse_mass`` (row-major),
+            valid until the next call with ``data``.
+        """
+        force = self.friction.calc_force(data.friction, q, v)
+        b = pin.aba(self.model, data.pin, q, v, force, _WORLD)
+        data.minverse(self.model, data.pin)
+        return b, data.inverse_mass
+
+    def calc_mass_and_bias(self, data: SnakeData, q: np.ndarray,
+                           v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(H, h)`` of eq. (20): H by CRBA and h = Coriolis/centrifugal - Q (unchecked).
+
+        Parameters
+        ----------
+        data : SnakeData
+            Buffers of this robot.
+        q, v : numpy.ndarray
+            Configuration and velocity, length n + 2 each.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``H``, whole (``data.mass``, column-major) and ``h`` (``data.bias``), valid
+            until the next call with ``data``.
+        """
+        force = self.friction.calc_force(data.friction, q, v)
+        data.crba(self.model, data.pin, q, _WORLD)
+        np.subtract(pin.nonLinearEffects(self.model, data.pin, q, v), force, data.bias)
+        return data.mass, data.bias
+
+    def calc_torque(self, data: SnakeData, tau: np.ndarray) -> np.ndarray:
+        """``E tau`` into ``data.torque`` (passive joints' entries 0; unchecked).
+
+        Parameters
+        ----------
+        data : SnakeData
+            Buffers of this robot.
+        tau : numpy.ndarray
+            Joint torques [N m], length n - 1.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``data.torque`` (length n + 2).
+        """
+        torque = data.torque
+        if self._mask is None:
+            torque[3:] = tau
+        else:
+            np.multiply(tau, self._mask, torque[3:])
+        return torque
+
     def inertia_matrix(self, q: np.ndarray) -> np.ndarray:
         """H(q) of eq. (19) by CRBA, symmetric (n + 2) x (n + 2).
 
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -337,7 +445,7 @@ class Snake:
         """
         q = self.check_q(q)
         # CRBA fills the upper triangle; the WORLD convention is 2x faster at n = 100
-        return symmetric_from_upper(pin.crba(self.model, self.data, q, pin.Convention.WORLD))
+        return symmetric_from_upper(pin.crba(self.model, self.data, q, _WORLD))
 
     def inverse_inertia_matrix(self, q: np.ndarray) -> np.ndarray:
         """``H(q)^-1`` by Pinocchio's computeMinverse (symmetric).
@@ -345,8 +453,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -361,11 +468,8 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
 
         Returns
         -------
@@ -380,11 +484,8 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
 
         Returns
         -------
@@ -392,18 +493,15 @@ class Snake:
             The force, length n + 2 [N, N, N m, N m].
         """
         q, dq = self.check_q(q), self.check_dq(dq)
-        return self.friction(q, dq)
+        return self.friction.calc_force(self._data.friction, q, dq).copy()
 
     def bias(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """``h(q, dq)`` of eq. (20): Coriolis/centrifugal plus friction, ``H q'' + h = E tau``.
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
 
         Returns
         -------
@@ -411,7 +509,7 @@ class Snake:
             ``h``, length n + 2.
         """
         q, dq = self.check_q(q), self.check_dq(dq)
-        return pin.nonLinearEffects(self.model, self.data, q, dq) - self.friction(q, dq)
+        return self.calc_mass_and_bias(self._data, q, dq)[1].copy()
 
     def generalized_torque(self, tau: np.ndarray) -> np.ndarray:
         """``E tau`` with passive joints' entries dropped (their torque is zero).
@@ -419,30 +517,24 @@ class Snake:
         Parameters
         ----------
         tau : numpy.ndarray
-            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+            Joint torques [N m] (n - 1; passive joints' entries ignored).
 
         Returns
         -------
         numpy.ndarray
             The generalised torque, length n + 2 (zero on x, y, theta_1).
         """
-        tau = self.check_tau(tau)
-        out = np.zeros(self.nv)
-        out[3 + self._actuated] = tau[self._actuated]
-        return out
+        return self.calc_torque(self._data, self.check_tau(tau)).copy()
 
     def forward_dynamics(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """``q'' = H^-1 (E tau - h)`` by ABA; torques on passive joints are ignored.
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
         tau : numpy.ndarray
-            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+            Joint torques [N m] (n - 1; passive joints' entries ignored).
 
         Returns
         -------
@@ -450,9 +542,8 @@ class Snake:
             ``q''``, length n + 2.
         """
         q, dq, tau = self.check_q(q), self.check_dq(dq), self.check_tau(tau)
-        generalized = self.friction(q, dq)
-        generalized[3:] += tau if self._mask is None else tau * self._mask
-        return pin.aba(self.model, self.data, q, dq, generalized).copy()
+        data = self._data
+        return self.calc_acceleration(data, q, dq, self.calc_torque(data, tau))
 
     def dynamics_derivatives(self, q: np.ndarray, dq: np.ndarray,
                              tau: np.ndarray) -> DynamicsDerivatives:
@@ -469,13 +560,10 @@ class Snake:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
         tau : numpy.ndarray
-            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+            Joint torques [N m] (n - 1; passive joints' entries ignored).
 
         Returns
         -------
@@ -484,8 +572,7 @@ class Snake:
         """
         q, dq, tau = self.check_q(q), self.check_dq(dq), self.check_tau(tau)
         force, dforce_dq, dforce_dv = self.friction.derivatives(q, dq)
-        generalized = force
-        generalized[3:] += tau if self._mask is None else tau * self._mask
+        generalized = force + self.calc_torque(self._data, tau)
         model, data = self.model, self.data
         ddq_dq, ddq_dv, minv = pin.computeABADerivatives(model, data, q, dq, generalized)
         minv = symmetric_from_upper(minv)
@@ -495,77 +582,64 @@ class Snake:
                                    ddq=data.ddq.copy())
 
     def friction_of_state(self, x: np.ndarray) -> np.ndarray:
-        """Friction force at the stacked state x = [q, dq], remembering the last state.
-
-        A controller evaluates h at the sampled state and the integrator's first stage
-        evaluates q'' at the same state: the second call is served from the cache.
-        Unchecked (hot path).
+        """Friction force at the stacked state x = [q, dq] (as :meth:`friction_force`).
 
         Parameters
         ----------
         x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
+            State ``[q, dq]`` (2(n + 2)).
 
         Returns
         -------
         numpy.ndarray
             The friction force, length n + 2 (a new array).
         """
-        key = x.tobytes()  # bitwise equality: 15x cheaper than comparing arrays
-        if key == self._cache_key:
-            return self._cache_q.copy()
-        out = self.friction.of_state(x)
-        self._cache_key = key
-        self._cache_q[:] = out
-        return out
+        x = self.check_state(x)
+        return self.friction.calc_force(self._data.friction, x[:self.nq], x[self.nq:]).copy()
 
     def bias_of_state(self, x: np.ndarray) -> np.ndarray:
-        """h at the stacked state x = [q, dq] (same as ``bias(q, dq)``; unchecked).
+        """h at the stacked state x = [q, dq] (as :meth:`bias`).
 
         Parameters
         ----------
         x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
+            State ``[q, dq]`` (2(n + 2)).
 
         Returns
         -------
         numpy.ndarray
             ``h``, length n + 2.
         """
-        nq = self.nq
-        return pin.nonLinearEffects(self.model, self.data, x[:nq], x[nq:]) \
-            - self.friction_of_state(x)
+        x = self.check_state(x)
+        return self.calc_mass_and_bias(self._data, x[:self.nq], x[self.nq:])[1].copy()
 
     def state_derivative(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """q'' for the stacked state x = [q, dq] (the simulator's hot path; unchecked).
+        """q'' for the stacked state x = [q, dq] (as :meth:`forward_dynamics`).
 
         Parameters
         ----------
         x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
+            State ``[q, dq]`` (2(n + 2)).
         tau : numpy.ndarray
-            Joint torques [N m], length n - 1 (entries of passive joints ignored).
+            Joint torques [N m] (n - 1; passive joints' entries ignored).
 
         Returns
         -------
         numpy.ndarray
             ``q''``, length n + 2.
         """
-        nq = self.nq
-        generalized = self.friction_of_state(x)
-        generalized[3:] += tau if self._mask is None else tau * self._mask
-        return pin.aba(self.model, self.data, x[:nq], x[nq:], generalized).copy()
+        x, tau = self.check_state(x), self.check_tau(tau)
+        data = self._data
+        return self.calc_acceleration(data, x[:self.nq], x[self.nq:],
+                                      self.calc_torque(data, tau))
 
     def kinetic_energy(self, q: np.ndarray, dq: np.ndarray) -> float:
         """T of eq. (8).
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
-        dq : numpy.ndarray
-            Velocity ``q'`` [m/s, m/s, rad/s, rad/s], length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
 
         Returns
         -------
@@ -582,8 +656,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -598,8 +671,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -620,8 +692,7 @@ class Snake:
         Parameters
         ----------
         q : numpy.ndarray
-            Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-            length n + 2.
+            Configuration (n + 2, paper coordinates).
 
         Returns
         -------
@@ -645,319 +716,67 @@ class Snake:
         return theta, ends
 
 
-class FastDynamics:
-    """The closed loop's hot path: q'' and the affine map of q'' in tau, unchecked.
+class SnakeData:
+    """Buffers of one caller of a :class:`Snake`'s ``calc_*`` methods (``create_data()``).
 
-    States are the rows of :attr:`states`, laid out as the friction passes read them
-    (:class:`~snake_pin.friction.ForcePasses`): ``z = [q, 0_w, q', 0_w]``, 2 :attr:`size`
-    long, where the w slots are the wheels of anisotropic friction (none for isotropic
-    friction or the numpy route); :attr:`select` picks ``[q, q']`` out of a row. A run
-    steps with a :class:`RK4Tableau` of its own (:meth:`tableau`): it writes a stage state
-    whole (w slots 0) and also its q' into the stage's slope row before evaluating it: with
-    wheels, that ``[q', 0_w]`` gives their rolling speeds, which go into the state's wheel
-    velocity slots (so evaluating a row twice gives the same q''). The stage states, the
-    torque and the workspace are shared by the robot's runs and calls, and written before
-    each use; a run's state between its steps lives in its own tableau, so runs of one
-    robot may nest (a controller that simulates its robot). Every ABA is in Pinocchio's
-    WORLD convention: faster than LOCAL here, and the one after which the two-argument
-    ``pin.computeMinverse`` is right (after a LOCAL ABA it silently returns a wrong
-    matrix).
+    As Pinocchio's Data to its Model: made once, written by each call, read until the
+    next. Pickled as its robot's (the buffers and their views are made again).
 
     Parameters
     ----------
     snake : Snake
         The robot.
-    rows : int, optional
-        Number of stage states (rows of :attr:`states`; 4 for RK4).
+    pin_data : pinocchio.Data, optional
+        The Pinocchio workspace to use (a new one by default).
 
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, or ``rows`` is not a positive integer.
+        ``snake`` is not a Snake.
 
     Attributes
     ----------
-    states
-        (rows, 2 size) stage states, written by the caller.
-    torque
-        E tau (length n + 2; passive rows stay 0), written by the caller, used by the
-        tableaux' evaluators.
-    checked
-        The buffer whose tail is :attr:`torque` (length 2 size + n + 2); its head is free
-        for the caller's new state, so that one pass over it checks the state and the
-        torque it was reached with.
-    affine
-        ``affine(x) -> (b, M)`` at the plain state ``x = [q, q']``: b = q'' at zero torque
-        (-H^-1 h, a new array) and M = H^-1, whole (both triangles), which is
-        :attr:`inverse_mass`.
-    mass_and_bias
-        ``mass_and_bias(x) -> (H, h)`` at the plain state x: H by CRBA, whole (both
-        triangles), which is :attr:`mass`, and h = Coriolis/centrifugal minus friction, as
-        :meth:`Snake.bias`, which is :attr:`bias`.
-    mass, inverse_mass, bias
-        The arrays :attr:`mass_and_bias` and :attr:`affine` fill (views of a workspace of
-        their own, made once: a controller may keep slices of them); valid until the next
-        call, read only. They are Pinocchio's: :attr:`mass` is stored column-major
-        (Fortran-ordered), :attr:`inverse_mass` row-major; both are symmetric, so BLAS
-        reads their rows or columns without a copy.
+    pin
+        The Pinocchio workspace.
+    mass, inverse_mass
+        Views of its M (column-major) and Minv (row-major), filled whole by
+        :meth:`Snake.calc_mass_and_bias` and :meth:`Snake.calc_affine`.
+    bias, torque
+        h and ``E tau`` (length n + 2 each).
+    friction
+        The friction route's buffers (:class:`~snake_pin.friction.FrictionData`).
     """
 
-    def __init__(self, snake: Snake, rows: int = 4) -> None:
+    def __init__(self, snake: Snake, pin_data: pin.Data | None = None) -> None:
         _check_snake(snake)
-        rows = integer(rows, "rows", low=1)
         self._snake = snake
-        model, data, nq = snake.model, snake.data, snake.nq
-        passes = snake.friction.passes
-        size = passes.size if passes is not None else nq
-        self.size = size
-        self.states = np.zeros((rows, 2 * size))
-        self.checked = np.zeros(2 * size + nq)
-        self.torque = self.checked[2 * size:]
-        self.select = np.r_[np.arange(nq), size + np.arange(nq)]
-        gen, damping = np.zeros(nq), np.zeros(nq)
-        torque = self.torque
-        rnea, aba, nle = pin.rnea, pin.aba, pin.nonLinearEffects
-        # The controllers' calls run on a workspace of their own, whose M and Minv are read
-        # through views made once (Pinocchio returns copies: slicing those costs per call).
-        data = model.createData()
-        self.mass, self.inverse_mass = mass, inverse_mass = data.M, data.Minv
-        self.bias = bias = np.zeros(nq)
-        # crba and minverse fill H and H^-1 whole: Pinocchio's own functions where its
-        # bindings mirror the triangle they compute (these do), else wrappers that mirror
-        crba = _whole(pin.crba, mass, _crba_mirrors(model))
-        minverse = _whole(pin.computeMinverse, inverse_mass, _binding_mirrors(model))
-        negative, subtract, add = np.negative, np.subtract, np.add
-        # outputs are passed by position below: numpy parses an out= keyword for some 40 ns
-        world = _WORLD
-
-        def views(z: np.ndarray) -> tuple[np.ndarray, ...]:
-            """[q, 0_w], [q', 0_w], q and q' of a state z (views made once)."""
-            return z[:size], z[size:], z[:nq], z[size:size + nq]
-
-        # Each call below is made by a factory over the views of the state it reads: a
-        # stage (its evaluator), the plain calls' own state, or a run's state Z (the first
-        # row of its RK4Tableau). The routes' factories repeat their skeleton on purpose:
-        # a shared helper would cost a Python call per evaluation
-        if passes is None:  # long anisotropic robots: Q by numpy on [q, q'] (size == nq)
-            of_state = snake.friction.of_state
-
-            def evaluate_at(z: np.ndarray, rate: np.ndarray) -> Callable[[], np.ndarray]:
-                _, _, q, v = views(z)
-
-                def evaluate() -> np.ndarray:
-                    add(torque, of_state(z), gen)
-                    return aba(model, data, q, v, gen, world)
-                return evaluate
-
-            def affine_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
-                _, _, q, v = views(z)
-
-                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    b = aba(model, data, q, v, of_state(z), world)
-                    minverse(model, data)
-                    return b, inverse_mass
-                return affine
-
-            def mass_and_bias_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
-                _, _, q, v = views(z)
-
-                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    crba(model, data, q, world)
-                    return mass, subtract(nle(model, data, q, v), of_state(z), bias)
-                return mass_and_bias
-
-        elif not passes.has_wheels:  # isotropic: one RNEA of the twin gives -Q
-            twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
-
-            def evaluate_at(z: np.ndarray, rate: np.ndarray) -> Callable[[], np.ndarray]:
-                zq, zv, q, v = views(z)  # size == nq: the twin's rows are Q's
-
-                def evaluate() -> np.ndarray:
-                    subtract(torque, rnea(twin, twin_data, zq, zero, zv), gen)
-                    return aba(model, data, q, v, gen, world)
-                return evaluate
-
-            def affine_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
-                zq, zv, q, v = views(z)
-
-                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    negative(rnea(twin, twin_data, zq, zero, zv), gen)
-                    b = aba(model, data, q, v, gen, world)
-                    minverse(model, data)
-                    return b, inverse_mass
-                return affine
-
-            def mass_and_bias_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
-                zq, zv, q, v = views(z)
-
-                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    minus_q = rnea(twin, twin_data, zq, zero, zv)
-                    crba(model, data, q, world)
-                    return mass, add(nle(model, data, q, v), minus_q, bias)
-                return mass_and_bias
-
-        else:  # wheels: the twin's CRBA and the Schur complement (ForcePasses)
-            twin, twin_data = passes.twin, passes.twin_data
-            twin_mass = twin_data.M
-            twin_crba = _whole(pin.crba, twin_mass, _crba_mirrors(twin))
-            # -Q at [zq, zv]: [M_cc, M_cw] [q'; w] with the wheels rolling at w = M_wc q'
-            # (M_ww = -1, see ForcePasses), by BLAS's dgemv on M's columns (Fortran-
-            # ordered, and M is symmetric: columns are rows), in place (see _blas). A stage
-            # reads [q'; 0_w] from its slope row and writes w into its own wheel slots
-            # (no copy), then E tau + Q on a copy of E tau; the other states keep their
-            # wheel slots 0 (Z is a row of RK4's tableau) and roll in a buffer of their own
-            chain_columns, wheel_columns = twin_mass[:, :nq], twin_mass[:, nq:]
-            rolled = np.zeros(size)  # [q', w]
-            rolled_v, rolled_w = rolled[:nq], rolled[nq:]
-
-            def evaluate_at(z: np.ndarray, rate: np.ndarray) -> Callable[[], np.ndarray]:
-                zq, zv, q, v = views(z)
-                rolling = zv[nq:]
-
-                def evaluate() -> np.ndarray:
-                    twin_crba(twin, twin_data, zq, world)
-                    dgemv(1.0, wheel_columns, rate, 0.0, rolling, 0, 1, 0, 1, 1, 1)
-                    gen[...] = torque
-                    dgemv(-1.0, chain_columns, zv, 1.0, gen, 0, 1, 0, 1, 1, 1)
-                    return aba(model, data, q, v, gen, world)
-                return evaluate
-
-            def affine_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
-                zq, zv, q, v = views(z)
-
-                def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    twin_crba(twin, twin_data, zq, world)
-                    rolled_v[...] = v
-                    dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
-                    dgemv(-1.0, chain_columns, rolled, 0.0, gen, 0, 1, 0, 1, 1, 1)  # Q
-                    b = aba(model, data, q, v, gen, world)
-                    minverse(model, data)
-                    return b, inverse_mass
-                return affine
-
-            def mass_and_bias_at(z: np.ndarray) -> Callable[[np.ndarray], Any]:
-                zq, zv, q, v = views(z)
-
-                def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                    twin_crba(twin, twin_data, zq, world)
-                    rolled_v[...] = v
-                    dgemv(1.0, wheel_columns, zv, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
-                    dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)  # -Q
-                    crba(model, data, q, world)
-                    return mass, add(nle(model, data, q, v), damping, bias)
-                return mass_and_bias
-
-        self._evaluate_at, self._affine_at, self._mass_and_bias_at = (
-            evaluate_at, affine_at, mass_and_bias_at)
-        own = np.zeros(2 * size)  # the plain calls' own state, so that they never clobber
-        own_q, own_v = own[:nq], own[size:size + nq]  # a stage or a run's state
-        own_affine, own_mass_and_bias = affine_at(own), mass_and_bias_at(own)
-
-        def affine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            own_q[...] = x[:nq]
-            own_v[...] = x[nq:]
-            return own_affine(x)
-
-        def mass_and_bias(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            own_q[...] = x[:nq]
-            own_v[...] = x[nq:]
-            return own_mass_and_bias(x)
-
-        self.affine, self.mass_and_bias = affine, mass_and_bias
-
-    def tableau(self) -> RK4Tableau:
-        """A new RK4 tableau on this robot, for one run (see :class:`RK4Tableau`).
-
-        Returns
-        -------
-        RK4Tableau
-            Zeroed, with its evaluators and its calls at its state Z.
-        """
-        size, rows = self.size, len(self.states)
-        slopes = np.zeros((rows + 1, 2 * size))
-        step = slopes[0]
-        return RK4Tableau(
-            dynamics=self, slopes=slopes,
-            evaluators=[self._evaluate_at(row, rate[:size])
-                        for row, rate in zip(self.states, slopes[1:], strict=True)],
-            affine=self._affine_at(step), mass_and_bias=self._mass_and_bias_at(step))
+        self.pin = snake.model.createData() if pin_data is None else pin_data
+        self.mass, self.inverse_mass = self.pin.M, self.pin.Minv
+        nq = snake.nq
+        self.bias, self.torque = np.zeros(nq), np.zeros(nq)
+        self.friction = snake.friction.create_data()
+        mirrors = snake.binding_mirrors
+        self.crba = whole(pin.crba, self.mass, mirrors)
+        self.minverse = whole(pin.computeMinverse, self.inverse_mass, mirrors)
 
     def __reduce__(self) -> tuple[Any, tuple[Snake]]:
-        """Pickled as its robot's (the closures are rebuilt by the robot on use)."""
-        return _fast_dynamics_of, (self._snake,)
-
-
-@dataclass(frozen=True, eq=False)
-class RK4Tableau:
-    """One run's RK4 tableau on a robot's :class:`FastDynamics` (:meth:`FastDynamics.tableau`).
-
-    Parameters
-    ----------
-    dynamics : FastDynamics
-        The robot's fast dynamics.
-    slopes : numpy.ndarray
-        (rows + 1, 2 size): ``[Z; d_1; ...]``, the run's state Z (layout of
-        :attr:`FastDynamics.states`) and per stage i its slope ``[q', 0_w, q'', 0_w]`` in
-        row i + 1, whose first half the run writes before evaluating stage i.
-    evaluators : list of callable
-        ``evaluators[i]() -> q''`` (a new array) at ``dynamics.states[i]`` under
-        ``dynamics.torque``: one closure per stage, over its views.
-    affine, mass_and_bias : callable
-        :attr:`FastDynamics.affine` and :attr:`FastDynamics.mass_and_bias` at Z, read in
-        place (their argument is not read): for a law in the run, whose x is Z.
-    """
-
-    dynamics: FastDynamics
-    slopes: np.ndarray
-    evaluators: list[Callable[[], np.ndarray]]
-    affine: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
-    mass_and_bias: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
-
-
-def _fast_dynamics_of(snake: Snake) -> FastDynamics:
-    return snake.fast_dynamics
-
-
-def _whole(algorithm: Callable[..., Any], matrix: np.ndarray,
-           mirrors: bool) -> Callable[..., Any]:
-    """``algorithm`` (``pin.crba`` or ``pin.computeMinverse``) itself when the bindings
-    return ``matrix`` (the view of the Data's M or Minv) whole, else a wrapper of the same
-    signature that mirrors its upper triangle into the lower one in place."""
-    if mirrors:
-        return algorithm
-    lower = np.tril(np.ones(matrix.shape, dtype=bool), -1)
-
-    def whole(*arguments: Any) -> np.ndarray:
-        algorithm(*arguments)
-        np.copyto(matrix, matrix.T, where=lower)
-        return matrix
-
-    return whole
+        """Pickled as its robot's."""
+        return SnakeData, (self._snake,)
 
 
 def _binding_mirrors(model: pin.Model) -> bool:
-    """Whether ``pin.crba`` and ``pin.computeMinverse`` (after ABA) return H and H^-1 whole.
+    """Whether ``pin.crba`` and ``pin.computeMinverse`` (after ABA) fill M and Minv whole.
 
     Pinocchio's own algorithms fill the upper triangle only; its Python bindings mirror it
     (this one does). Checked once per robot on a configuration away from symmetries.
     """
     data = model.createData()
-    inverse = data.Minv  # the view FastDynamics reads, not the returned copy
+    inverse = data.Minv  # the view the callers read, not the returned copy
     q = np.linspace(0.3, 0.9, model.nq)
     pin.aba(model, data, q, q, np.zeros(model.nv), _WORLD)
     returned = pin.computeMinverse(model, data)
     whole_inverse = np.array_equal(inverse, returned) and np.array_equal(inverse, inverse.T)
-    return bool(_crba_mirrors(model) and whole_inverse)
-
-
-def _crba_mirrors(model: pin.Model) -> bool:
-    """Whether ``pin.crba`` fills ``data.M`` whole (both triangles); see
-    :func:`_binding_mirrors`. Alone for the damping twin, whose ABA may be singular (a
-    wheel of zero "mass" where c_y = c_x on some links)."""
-    data = model.createData()
-    mass = data.M  # the view FastDynamics reads, not the returned copy
-    returned = pin.crba(model, data, np.linspace(0.3, 0.9, model.nq), _WORLD)
-    return bool(np.array_equal(mass, returned) and np.array_equal(mass, mass.T))
+    return bool(crba_mirrors(model) and whole_inverse)
 
 
 def _check_snake(value: object, name: str = "snake") -> Snake:

@@ -16,16 +16,18 @@
 In each case the samples up to the last good one are kept, and ``reason`` says when and
 why. ``diverged`` is True for the two faults ("diverged", "failed").
 
-Speed: with the robot's own :class:`~snake_pin.model.Snake` the RK4 step runs on
-preallocated buffers (:class:`_FastRK4`, :class:`~snake_pin.model.FastDynamics`), takes its
-first stage from the controller when the controller computed it
-(:meth:`~snake_pin.control.Controller.plant_acceleration`), and the loop holds BLAS to one
-thread; the stages, weights and hold are those of :func:`_rk4_step` (the plain step, kept
-for other plants), so results agree to rounding (``tests/test_speed_equivalence.py``).
+The loop (zero-order hold, torque checks, signals, interrupts, divergence) is written
+once, over a :class:`Plant`: one control period of a robot under a held torque.
+:class:`ViscousPlant` is the viscous model by fixed-step RK4 on buffers made once (the
+robot's ``calc_acceleration`` over a :class:`~snake_pin.model.SnakeData` of its own), its
+first stage taken from the controller when the controller computed it
+(:meth:`~snake_pin.control.Controller.plant_acceleration`), or by scipy's adaptive RK45
+for cross-checks; the MuJoCo plant is :class:`snake_pin.engine.run.EnginePlant`.
 """
 
 from __future__ import annotations
 
+import abc
 import functools
 import math
 import numbers
@@ -36,9 +38,9 @@ from typing import Any
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from ._blas import dgemv
+from ._blas import gemv
 from ._validation import brief, finite_number, flag, one_line
-from .control.base import Controller, _sampler
+from .control.base import Controller
 from .exceptions import ConfigurationError, ParameterError, RunInterrupted, SnakePinError
 from .model import Snake
 from .params import SnakeParams
@@ -47,7 +49,8 @@ from .trajectory import STATUSES as STATUSES  # re-exported: the run statuses
 
 # Trajectory, STATUSES and the size bounds are defined (and documented) in
 # snake_pin.trajectory; they stay importable from here.
-__all__ = ["MAX_DISTANCE", "MAX_SPEED", "MAX_STEPS", "MAX_SUBSTEPS", "simulate"]
+__all__ = ["MAX_DISTANCE", "MAX_SPEED", "MAX_STEPS", "MAX_SUBSTEPS", "Plant", "ViscousPlant",
+           "closed_loop", "simulate"]
 
 #: Default divergence bounds: joint/base speed [m/s or rad/s] and distance [m].
 MAX_SPEED = 1.0e3
@@ -270,30 +273,68 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         raise ParameterError(f"meta must be a mapping, got {brief(meta)}")
     substeps, steps = _check_steps(t_final, dt, control_dt)
     _check_size(steps + 1, nq, n_tau, t_final)
+    plant = ViscousPlant(snake, dt, substeps, control_dt=control_dt, method=method,
+                         max_speed=max_speed, max_distance=max_distance)
+    return closed_loop(plant, ctrl, x, steps, progress=progress,
+                       meta={"controller": ctrl.name, "dt": dt, "control_dt": control_dt,
+                             "method": method, **(meta or {})})
+
+
+def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int, *,
+                progress: bool = False, meta: Mapping[str, Any] | None = None,
+                label: str | None = None, record_signals: bool = True) -> Trajectory:
+    """The closed loop: ``steps`` control periods of ``plant`` under ``controller``.
+
+    The controller is called at each sampling instant (:meth:`Plant.times`) on the
+    plant's sample and its torque held over the period (zero-order hold). The run ends
+    as the module docstring says; :func:`simulate` and
+    :func:`snake_pin.engine.run.run_engine` are this loop over their plants.
+
+    Parameters
+    ----------
+    plant : Plant
+        The robot being controlled.
+    controller : Controller
+        The law (its torques checked at each call).
+    x0 : numpy.ndarray
+        The initial state, as :meth:`Plant.reset` takes it.
+    steps : int
+        Control periods.
+    progress : bool, optional
+        Show a tqdm bar on a terminal.
+    meta : mapping, optional
+        The trajectory's ``meta``.
+    label : str, optional
+        The progress bar's label (default: the controller's name).
+    record_signals : bool, optional
+        Whether to record the controller's :meth:`~snake_pin.control.Controller.signals`.
+
+    Returns
+    -------
+    Trajectory
+        The samples up to the last good one, with the run's status and reason.
+
+    Raises
+    ------
+    RunInterrupted
+        On KeyboardInterrupt during the run; ``.partial`` is the trajectory of every
+        completed sample, with status "interrupted".
+    ParameterError
+        Not enough memory for the samples.
+    """
+    ctrl, nq, n_tau = controller, plant.nq, plant.params.n - 1
     try:
-        ts = np.zeros(steps + 1)
         xs = np.zeros((steps + 1, 2 * nq))
         taus = np.zeros((steps + 1, n_tau))
     except MemoryError:
-        raise ParameterError(f"not enough memory for {steps + 1} samples "
-                             f"(t_final = {t_final:g} s)") from None
-    accel = snake.state_derivative
-
-    def rhs(state: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        return np.concatenate([state[nq:], accel(state, tau)])
-
-    # The fast RK4 (same stages and hold, preallocated; see _FastRK4) needs the robot's own
-    # dynamics: a plant that replaces state_derivative keeps the plain step.
+        raise ParameterError(f"not enough memory for {steps + 1} samples") from None
+    times, ts = plant.times(steps)
+    plant.reset(x0, xs[0])
+    x = xs[0]
     check_torque, torque_shape = _TorqueCheck(n_tau), (n_tau,)
-    fast = None
-    if method == "rk4" and isinstance(snake, Snake) and \
-            type(snake).state_derivative is Snake.state_derivative:
-        fast = _FastRK4(snake, x, dt, substeps, max_speed, max_distance)
-    # the fast step checks whether the torque is finite, with the new state; a non-finite
-    # one is then refused as if it had been checked first: no torque, no signals at t
-    late_check = fast is not None
-    xs[0] = x
-    ts[1:] = np.arange(steps) * control_dt + control_dt  # sample k + 1 at t_k + control_dt
+    # a plant that checks whether the torque is finite (with the new state) refuses a
+    # non-finite one as if it had been checked first: no torque, no signals at t
+    late_check = plant.checks_torque
     signals: dict[str, np.ndarray] = {}
     status, reason = "completed", ""
     good = 1  # samples 0 .. good - 1 are recorded whole; updated last, after each sample
@@ -312,26 +353,24 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     def collect(run_status: str, run_reason: str) -> Trajectory:
         return Trajectory(t=ts[:good].copy(), q=xs[:good, :nq].copy(),
                           dq=xs[:good, nq:].copy(), tau=taus[:good].copy(),
-                          params=snake.params,
+                          params=plant.params,
                           signals={k: v[:good].copy() for k, v in signals.items()},
-                          status=run_status, reason=run_reason,
-                          meta={"controller": ctrl.name, "dt": dt, "control_dt": control_dt,
-                                "method": method, **(meta or {})})
+                          status=run_status, reason=run_reason, meta=dict(meta or {}))
 
     try:
-        bar = _progress(steps, bool(progress), ctrl.name)
+        bar = _progress(steps, bool(progress), label or ctrl.name)
         try:
             ctrl.reset()
-            ctrl.prepare(np.arange(steps) * control_dt)  # the loop's t = k * control_dt
+            ctrl.prepare(times)
         except Exception as exc:
             status, reason = "failed", _failure(0.0, exc)
         # the controller's methods, found once
-        call = _sampler(ctrl, fast.tableau if fast is not None else None)
-        signals_of, plant_acceleration = ctrl.signals, ctrl.plant_acceleration
+        call = ctrl.__call__
+        signals_of = ctrl.signals if record_signals else dict
+        plant_acceleration = ctrl.plant_acceleration if plant.takes_first_stage else None
         # one BLAS thread for the run's tiny matrices, entered once (not per step)
         with _thread_pools().limit(limits=1):
-            for k in range(steps if status == "completed" else 0):
-                t = k * control_dt
+            for k, t in enumerate(times.tolist() if status == "completed" else ()):
                 tau, known = None, len(signals)
                 try:
                     raw = call(x, t)
@@ -349,7 +388,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                         if series is None:
                             series = signals[name] = np.full(steps + 1, np.nan)
                         series[k] = value
-                    first = plant_acceleration(snake) if fast is not None else None
+                    first = plant_acceleration(plant.snake) if plant_acceleration else None
                 except Exception as exc:
                     if tau is not None and not np.isfinite(tau).all():
                         status, reason = "failed", refuse(k, t, known)
@@ -359,15 +398,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                 taus[k] = tau
                 after = xs[k + 1]
                 try:
-                    if fast is not None:
-                        problem = fast.step(tau, first, after)
-                    else:
-                        if method == "rk4":
-                            for _ in range(substeps):
-                                x = _rk4_step(accel, x, tau, dt, nq)
-                        else:
-                            x = _solve_ivp_step(rhs, x, tau, t, control_dt)
-                        problem = _divergence(x, nq, max_speed, max_distance)
+                    problem = plant.step(tau, first, after, t)
                 except (SnakePinError, ArithmeticError, np.linalg.LinAlgError) as exc:
                     problem = f"the dynamics failed ({type(exc).__name__}: " \
                               f"{one_line(str(exc))})"
@@ -376,12 +407,9 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
                         status, reason = "failed", refuse(k, t, known)
                         break
                     status = "diverged"
-                    reason = f"diverged at t = {t + control_dt:.4f} s: {problem}"
+                    reason = f"diverged at t = {ts[k + 1]:.4f} s: {problem}"
                     break
-                if fast is not None:
-                    x = after
-                else:
-                    after[...] = x
+                x = after
                 good = k + 2
                 if bar is not None and k % 100 == 0:
                     bar.update(min(100, steps - bar.n))
@@ -401,135 +429,256 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         raise RunInterrupted(partial.reason, partial=partial) from None
 
 
-class _FastRK4:
-    """RK4 with the torque held, as :func:`_rk4_step`, on preallocated buffers (hot path).
+class Plant(abc.ABC):
+    """What :func:`simulate` steps: one control period of a robot under a held torque.
 
-    The same stages and weights: with the step's state Z and the stage slopes d1..d4 as
-    the rows of one array Y = [Z; d1; d2; d3; d4] (the run's own
-    :class:`~snake_pin.model.RK4Tableau`), each stage state is one product of a
-    coefficient row with Y (Z + h/2 d1, Z + h/2 d2, Z + h d3, and the new state
-    Z + h/6 (d1 + 2 d2 + 2 d3 + d4)), written straight into the rows of the robot's
-    :class:`~snake_pin.model.FastDynamics` (its layout [q, 0_w, q', 0_w]). The first stage
-    reuses the controller's q'' when it offers it (``Controller.plant_acceleration``), and
-    the divergence check is vectorised (the exact :func:`_divergence` words a fault).
+    Attributes
+    ----------
+    nq, params
+        n + 2, and the robot's parameters (the trajectory's).
+    snake
+        The model the plant integrates, for the laws'
+        :meth:`~snake_pin.control.Controller.plant_acceleration` (when
+        :attr:`takes_first_stage`).
+    checks_torque
+        Whether :meth:`step` itself finds a non-finite torque (with the new state), so
+        that the loop need not check it first.
+    takes_first_stage
+        Whether :meth:`step` takes the controller's q'' as its first stage
+        (:meth:`~snake_pin.control.Controller.plant_acceleration` of the robot).
     """
 
-    def __init__(self, snake: Snake, x0: np.ndarray, h: float, substeps: int,
-                 max_speed: float, max_distance: float) -> None:
-        dynamics = snake.fast_dynamics
-        nq, size = snake.nq, dynamics.size
-        self._nq, self._substeps = nq, substeps
+    nq: int
+    params: SnakeParams
+    snake: Any = None
+    checks_torque: bool = False
+    takes_first_stage: bool = False
+
+    @abc.abstractmethod
+    def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """The run's instants: of the controller's calls, and of the samples.
+
+        Parameters
+        ----------
+        steps : int
+            Control periods.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The ``steps`` calls' times and the ``steps + 1`` samples' times [s].
+        """
+
+    @abc.abstractmethod
+    def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
+        """Start a run from ``x0`` and write the first sample ``[q, q']`` into ``out``.
+
+        Parameters
+        ----------
+        x0 : numpy.ndarray
+            The initial state, length 2(n + 2).
+        out : numpy.ndarray
+            Where the first sample goes.
+        """
+
+    @abc.abstractmethod
+    def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
+             t: float) -> str:
+        """Advance one control period from time ``t`` under ``tau``, held.
+
+        Parameters
+        ----------
+        tau : numpy.ndarray
+            Joint torques (n - 1); finite unless :attr:`checks_torque`.
+        first : numpy.ndarray or None
+            q'' at the current state under ``tau``, if known (see
+            :attr:`takes_first_stage`).
+        out : numpy.ndarray
+            Where the new state ``[q, q']`` goes.
+        t : float
+            The time of the current state [s].
+
+        Returns
+        -------
+        str
+            What is wrong with the new state or the torque ("" when nothing).
+        """
+
+
+class ViscousPlant(Plant):
+    """The viscous model of eq. (20), by fixed-step RK4 with the torque held (or RK45).
+
+    RK4's stage states and slopes are the rows of buffers made once: with the step's state
+    Z and its slopes d1..d4 as the rows of Y = [Z; d1; d2; d3; d4], each stage state is one
+    product of a coefficient row with Y (Z + h/2 d1, Z + h/2 d2, Z + h d3, and the new
+    state Z + h/6 (d1 + 2 d2 + 2 d3 + d4)). The accelerations come from the robot's
+    :meth:`~snake_pin.model.Snake.calc_acceleration` on a data object of the plant's own,
+    or from ``state_derivative`` for a plant that replaces it (any object with a Snake's
+    ``nq``, ``n``, ``params`` and ``state_derivative``).
+
+    Parameters
+    ----------
+    snake : Snake
+        The robot (or a stand-in with its ``state_derivative``).
+    dt : float
+        RK4's step [s].
+    substeps : int
+        RK4 steps per control period.
+    control_dt : float, optional
+        The control period [s] (default ``dt * substeps``).
+    method : {"rk4", "solve_ivp"}, optional
+        Fixed-step RK4, or scipy's adaptive RK45 over each period (tight tolerances).
+    max_speed, max_distance : float, optional
+        Divergence bounds [m/s, m] (``math.inf``: none).
+
+    Raises
+    ------
+    ParameterError
+        ``snake`` is not a Snake or a stand-in with its nq, n, params and state_derivative.
+    """
+
+    def __init__(self, snake: Snake, dt: float, substeps: int, *, control_dt: float | None = None,
+                 method: str = "rk4", max_speed: float = MAX_SPEED,
+                 max_distance: float = MAX_DISTANCE) -> None:
+        nq = _check_plant(snake)[0]
+        self.snake, self.nq, self.params, self._method = snake, nq, snake.params, method
+        self._control_dt = dt * substeps if control_dt is None else control_dt
+        self._dt, self._substeps = dt, substeps
         self._max_speed, self._max_distance = max_speed, max_distance
-        # the run's own tableau [Z; d1; d2; d3; d4] (a run nested in a controller's call
-        # has its own), its stage evaluators and its calls at Z for the law
-        self.tableau = dynamics.tableau()
-        self._evaluators, self._torque, self._select = (self.tableau.evaluators,
-                                                        dynamics.torque, dynamics.select)
-        self._joint_torque = self._torque[3:]
-        self._slopes = self.tableau.slopes
+        self.checks_torque = method == "rk4"
+        self._own = isinstance(snake, Snake) and \
+            type(snake).state_derivative is Snake.state_derivative
+        self.takes_first_stage = self._own and method == "rk4"
+        self._slopes = np.zeros((5, 2 * nq))  # Y = [Z; d1; d2; d3; d4]
         self._state = self._slopes[0]
-        self._state[self._select] = x0
-        # the new state goes right before the torque: one pass checks both (see step)
-        self._checked = dynamics.checked
-        self._next = self._checked[:2 * size]
-        # per stage: its coefficient row, its state (a row of the dynamics' buffer), and
-        # where its slope goes in Y: q' (the stage state's velocity) and q''
-        coefficients = [np.array(row) for row in (
-            (0.0, 0.0, 0.0, 0.0, 0.0), (1.0, 0.5 * h, 0.0, 0.0, 0.0),
-            (1.0, 0.0, 0.5 * h, 0.0, 0.0), (1.0, 0.0, 0.0, h, 0.0))]
-        stages = [(i, coefficients[i], dynamics.states[i], self._slopes[i + 1, :nq],
-                   self._slopes[i + 1, size:size + nq],
-                   dynamics.states[i, size:size + nq]) for i in range(4)]
-        self._first_stage, self._later_stages = stages[0][2:5], stages[1:]
-        self._final = np.array((1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))
-        self._velocity = self._state[size:size + nq]
-        self._plain = size == nq  # no wheel slots: the layout is [q, q'] itself
-        # bounds of |z|, then of |E tau|: the largest float (false for inf and NaN)
-        self._limits = np.full(len(self._checked), np.finfo(float).max)
-        self._limits[2:size] = np.inf
-        self._limits[:2] = max_distance
-        self._limits[size:2 * size] = np.inf
-        self._limits[size:size + nq] = max_speed
-        self._magnitude = np.zeros(len(self._checked))
-        self._within = np.zeros(len(self._checked), dtype=bool)
-        self._all_within = np.ones(len(self._checked), dtype=bool).tobytes()
-        # E tau: tau copied whole, then a passive joint's entry checked (a non-finite one
-        # ends the step before it starts) and set to 0: no arithmetic, so no
-        # floating-point flag whatever numpy's error settings
+        stages = np.zeros((4, 2 * nq))
+        stages[0] = np.nan  # stage 1's state is Z itself
+        # the new state right before E tau: one pass checks both (see step)
+        self._checked = np.zeros(3 * nq)
+        self._new, torque = self._checked[:2 * nq], self._checked[2 * nq:]
+        self._joint_torque = torque[3:]
         self._passive = tuple(k - 1 for k in snake.params.passive)
-        self.step = self._make_step()
+        rows = [self._state, *stages[1:]]
+        if self._own:
+            data = snake.create_data()
+            self._evaluate: Callable[..., np.ndarray] = snake.calc_acceleration
+            self._arguments: list[tuple[Any, ...]] = [(data, row[:nq], row[nq:], torque)
+                                                      for row in rows]
+        else:
+            self._evaluate = snake.state_derivative
+            self._arguments = [(row, self._joint_torque) for row in rows]
+        h, columns = dt, self._slopes.T  # Y^T: Fortran-ordered
+        coefficients = [np.array(row) for row in (
+            (1.0, 0.5 * h, 0.0, 0.0, 0.0), (1.0, 0.0, 0.5 * h, 0.0, 0.0),
+            (1.0, 0.0, 0.0, h, 0.0), (1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))]
+        # per later stage: its state's product with Y, and where its slope goes in Y; then
+        # the new state's product
+        self._stages = [(gemv(1.0, columns, coefficients[i - 1], 0.0, rows[i]),
+                         self._slopes[i + 1, :nq], self._slopes[i + 1, nq:], rows[i][nq:])
+                        for i in (1, 2, 3)]
+        self._final = gemv(1.0, columns, coefficients[3], 0.0, self._new)
+        # bounds of |z|, then of |E tau|: the largest float (false for inf and NaN)
+        self._limits = np.full(3 * nq, np.finfo(float).max)
+        self._limits[:2] = max_distance
+        self._limits[2:nq] = np.inf
+        self._limits[nq:2 * nq] = max_speed
+        self._magnitude = np.zeros(3 * nq)
+        self._within = np.zeros(3 * nq, dtype=bool)
+        self._all_within = np.ones(3 * nq, dtype=bool).tobytes()
 
-    def _make_step(self) -> Callable[[np.ndarray, np.ndarray | None, np.ndarray], str]:
-        """:attr:`step`, with everything it reads in its closure (cheaper than attributes),
-        its three later stages unrolled and every output passed by position (numpy parses
-        ``out=`` keywords for some 40 ns a call)."""
-        passive, joint_torque, isfinite = self._passive, self._joint_torque, math.isfinite
-        state = self._state
-        evaluate0, evaluate1, evaluate2, evaluate3 = self._evaluators
-        slopes = self._slopes.T  # Fortran-ordered: Y^T c by dgemv, in place (see _blas)
-        row0, d0, a0 = self._first_stage
-        (c1, r1, v1, a1, s1), (c2, r2, v2, a2, s2), (c3, r3, v3, a3, s3) = (
-            stage[1:] for stage in self._later_stages)
-        substeps, velocity, final, new = self._substeps, self._velocity, self._final, self._next
-        plain, select, checked = self._plain, self._select, self._checked
-        magnitude, limits, within, all_within = (self._magnitude, self._limits, self._within,
-                                                 self._all_within)
-        less_equal, absolute = np.less_equal, np.absolute
-        nq, max_speed, max_distance = self._nq, self._max_speed, self._max_distance
+    def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Calls at k control_dt; sample k + 1 at t_k + control_dt.
 
-        def step(tau: np.ndarray, first: np.ndarray | None, out: np.ndarray) -> str:
-            """Advance one control period under ``tau``; write [q, q'] into ``out``.
+        Parameters
+        ----------
+        steps : int
+            Control periods.
 
-            ``first`` is q'' at the current state under ``tau`` if known; ``tau`` need not
-            be finite. Returns what is wrong with the new state or the torque ("" when
-            both are within bounds, see :func:`_divergence`).
-            """
-            joint_torque[...] = tau  # view[...] = x: the cheapest copy
-            for joint in passive:
-                if not isfinite(joint_torque[joint]):
-                    return "the torque is not finite"  # nothing stepped
-                joint_torque[joint] = 0.0
-            for sub in range(substeps):
-                d0[...] = velocity  # each stage's q' in its slope first (see FastDynamics)
-                if sub or first is None:
-                    row0[...] = state
-                    first = evaluate0()
-                a0[...] = first
-                dgemv(1.0, slopes, c1, 0.0, r1, 0, 1, 0, 1, 0, 1)
-                v1[...] = s1
-                a1[...] = evaluate1()
-                dgemv(1.0, slopes, c2, 0.0, r2, 0, 1, 0, 1, 0, 1)
-                v2[...] = s2
-                a2[...] = evaluate2()
-                dgemv(1.0, slopes, c3, 0.0, r3, 0, 1, 0, 1, 0, 1)
-                v3[...] = s3
-                a3[...] = evaluate3()
-                dgemv(1.0, slopes, final, 0.0, new, 0, 1, 0, 1, 0, 1)
-                state[...] = new
-            if plain:
-                out[...] = state
-            else:
-                state.take(select, None, out)
-            # every |z| and |E tau| within its bound (NaN is not), in one pass over the new
-            # state and the torque: compared as bytes, cheaper than .all()
-            if less_equal(absolute(checked, magnitude), limits, within).tobytes() == all_within:
-                return ""
-            return _divergence(out, nq, max_speed, max_distance) or "the torque is not finite"
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The calls' and the samples' times [s].
+        """
+        calls = np.arange(steps) * self._control_dt
+        return calls, np.r_[0.0, calls + self._control_dt]
 
-        return step
+    def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
+        """Start a run from the state ``x0``, which is the first sample.
 
+        Parameters
+        ----------
+        x0 : numpy.ndarray
+            The initial state ``[q, q']``, length 2(n + 2).
+        out : numpy.ndarray
+            Where the first sample goes.
+        """
+        self._state[...] = x0
+        out[...] = x0
 
-def _rk4_step(accel, x: np.ndarray, tau: np.ndarray, h: float,
-              nq: int) -> np.ndarray:
-    """One classical RK4 step of x' = [dq, accel(x, tau)] (the stage slopes d1..d4)."""
-    d1 = np.concatenate((x[nq:], accel(x, tau)))
-    x2 = x + (0.5 * h) * d1
-    d2 = np.concatenate((x2[nq:], accel(x2, tau)))
-    x3 = x + (0.5 * h) * d2
-    d3 = np.concatenate((x3[nq:], accel(x3, tau)))
-    x4 = x + h * d3
-    d4 = np.concatenate((x4[nq:], accel(x4, tau)))
-    return x + (h / 6.0) * (d1 + d4 + 2.0 * (d2 + d3))
+    def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
+             t: float) -> str:
+        """Advance one control period from time ``t`` under ``tau``, held.
+
+        Parameters
+        ----------
+        tau : numpy.ndarray
+            Joint torques (n - 1), finite or not (a non-finite one is reported).
+        first : numpy.ndarray or None
+            q'' at the current state under ``tau``, if known.
+        out : numpy.ndarray
+            Where the new state ``[q, q']`` goes.
+        t : float
+            The time of the current state [s].
+
+        Returns
+        -------
+        str
+            What is wrong with the new state or the torque ("" when nothing).
+        """
+        joint_torque = self._joint_torque
+        joint_torque[...] = tau
+        # E tau: a passive joint's entry checked (a non-finite one ends the step before it
+        # starts) and set to 0: no arithmetic, so no floating-point flag
+        for joint in self._passive:
+            if not math.isfinite(joint_torque[joint]):
+                return "the torque is not finite"  # nothing stepped
+            joint_torque[joint] = 0.0
+        state, nq = self._state, self.nq
+        if self._method != "rk4":
+            out[...] = _solve_ivp_step(self._rhs, state, t, self._control_dt)
+            state[...] = out
+            return _divergence(out, nq, self._max_speed, self._max_distance)
+        evaluate, new, final, slopes = self._evaluate, self._new, self._final, self._slopes
+        d0, a0, velocity = slopes[1, :nq], slopes[1, nq:], state[nq:]
+        (stage1, v1, a1, s1), (stage2, v2, a2, s2), (stage3, v3, a3, s3) = self._stages
+        arguments0, arguments1, arguments2, arguments3 = self._arguments
+        for sub in range(self._substeps):
+            d0[...] = velocity
+            a0[...] = evaluate(*arguments0) if sub or first is None else first
+            stage1()
+            v1[...] = s1
+            a1[...] = evaluate(*arguments1)
+            stage2()
+            v2[...] = s2
+            a2[...] = evaluate(*arguments2)
+            stage3()
+            v3[...] = s3
+            a3[...] = evaluate(*arguments3)
+            final()
+            state[...] = new
+        out[...] = new
+        # every |z| and |E tau| within its bound (NaN is not), in one pass over the new
+        # state and the torque: compared as bytes, cheaper than .all()
+        if np.less_equal(np.absolute(self._checked, self._magnitude), self._limits,
+                         self._within).tobytes() == self._all_within:
+            return ""
+        return _divergence(out, nq, self._max_speed, self._max_distance) or \
+            "the torque is not finite"
+
+    def _rhs(self, _t: float, x: np.ndarray) -> np.ndarray:
+        """[q', q''] under the held torque, for scipy's solver."""
+        nq = self.nq
+        return np.concatenate((x[nq:], self.snake.state_derivative(x, self._joint_torque)))
 
 
 def _divergence(x: np.ndarray, nq: int, max_speed: float, max_distance: float) -> str:
@@ -544,12 +693,12 @@ def _divergence(x: np.ndarray, nq: int, max_speed: float, max_distance: float) -
     return f"head is {distance:.3g} m away, beyond {max_distance:g} m"
 
 
-def _solve_ivp_step(rhs, x: np.ndarray, tau: np.ndarray, t: float,
-                    span: float) -> np.ndarray:
+def _solve_ivp_step(rhs: Callable[[float, np.ndarray], np.ndarray], x: np.ndarray,
+                    t: float, span: float) -> np.ndarray:
+    """The state after ``span`` seconds by scipy's RK45 (NaN if it fails)."""
     from scipy.integrate import solve_ivp
 
-    sol = solve_ivp(lambda _t, y: rhs(y, tau), (t, t + span), x, method="RK45",
-                    rtol=1e-10, atol=1e-12)
+    sol = solve_ivp(rhs, (t, t + span), x, method="RK45", rtol=1e-10, atol=1e-12)
     return sol.y[:, -1] if sol.success else np.full_like(x, np.nan)
 
 

@@ -14,12 +14,33 @@ def test_in_place_calls_hold_on_this_scipy() -> None:
     assert _blas.in_place_calls_hold()
 
 
-def test_dgemv_folds_beta_and_transposes_like_numpy() -> None:
-    """dgemv on a C matrix's transpose gives numpy's product plus beta y, in y itself."""
+def test_syrk_and_posv_work_in_place() -> None:
+    """Prepared syrk fills the upper triangle of a^T a; posv solves into b, reports info;
+    solve_spd leaves its arguments alone."""
+    rng = np.random.default_rng(1)
+    a = np.asfortranarray(rng.normal(size=(6, 4)))
+    gram = np.zeros((4, 4), order="F")
+    _blas.syrk(1.0, a, 0.0, gram, 1)()
+    upper = np.triu_indices(4)
+    np.testing.assert_allclose(gram[upper], (a.T @ a)[upper], rtol=1e-13)
+    matrix, rhs = np.asfortranarray(a.T @ a + np.eye(4)), rng.normal(size=4)
+    expected = np.linalg.solve(matrix, rhs)
+    assert _blas.posv(matrix, rhs)()[2] == 0
+    np.testing.assert_allclose(rhs, expected, rtol=1e-10)
+    assert _blas.posv(np.asfortranarray(-np.eye(2)), np.ones(2))()[2] > 0  # not definite
+    spd, rhs = a.T @ a + np.eye(4), rng.normal(size=(4, 2))
+    before = rhs.copy()
+    solution, info = _blas.solve_spd(spd, rhs)
+    assert info == 0 and np.array_equal(rhs, before)
+    np.testing.assert_allclose(solution, np.linalg.solve(spd, rhs), rtol=1e-10)
+
+
+def test_gemv_folds_beta_and_transposes_like_numpy() -> None:
+    """gemv on a C matrix's transpose gives numpy's product plus beta y, in y itself."""
     rng = np.random.default_rng(0)
     c_ordered, x, y = rng.normal(size=(4, 7)), rng.normal(size=7), rng.normal(size=4)
     expected = c_ordered @ x - y
-    _blas.dgemv(1.0, c_ordered.T, x, -1.0, y, 0, 1, 0, 1, 1, 1)
+    _blas.gemv(1.0, c_ordered.T, x, -1.0, y, 1)()
     np.testing.assert_allclose(y, expected, rtol=1e-13, atol=1e-14)
 
 

@@ -128,6 +128,7 @@ ROWS: dict[str, Row] = {
     # ------------------------------------------------------------------ snake_pin
     "snake_pin.trajectory.Trajectory": Row(record=RECORD),
     "snake_pin.control.base.Controller": Row(record=ABSTRACT),
+    "snake_pin.control.base.ReferenceLaw": Row(record=ABSTRACT),
     "snake_pin.model.DynamicsDerivatives": Row(record=RECORD),
     "snake_pin.manipulability.Manipulability": Row(record=RECORD),
     "snake_pin.control.los.LOSController": Row(
@@ -237,9 +238,9 @@ ROWS: dict[str, Row] = {
                    {"snake": w.snake, "q": w.q, "constrained": [2, 3]}),
         skip={"constrained": "None"}, errors={"q": CONFIG}),
     # --------------------------------------------------------------------- model
-    "snake_pin.model.FastDynamics": Row(
-        lambda w: (_m("snake_pin.model").FastDynamics, {"snake": w.snake, "rows": 4})),
-    "snake_pin.model.RK4Tableau": Row(record=RECORD),
+    "snake_pin.model.SnakeData": Row(
+        lambda w: (_m("snake_pin.model").SnakeData, {"snake": w.snake}),
+        skip={"pin_data": "None"}),
     "snake_pin.model.paper_model": Row(
         lambda w: (_m("snake_pin.model").paper_model, {"params": w.params})),
     # --------------------------------------------------------------------- gaits
@@ -288,9 +289,8 @@ ROWS: dict[str, Row] = {
                     "bounds": (0.1, 0.2), "progress": False}),
         skip={"free_joint": "None", "bounds": "None", "progress": "bool"}),
     # ------------------------------------------------------------------ friction
-    "snake_pin.friction.ForcePasses": Row(
-        lambda w: (_m("snake_pin.friction").ForcePasses,
-                   {"model": w.snake.model, "params": w.params})),
+    "snake_pin.friction.FrictionData": Row(
+        lambda w: (_m("snake_pin.friction").FrictionData, {"friction": w.snake.friction})),
     "snake_pin.friction.FrictionModel": Row(
         lambda w: (_m("snake_pin.friction").FrictionModel,
                    {"params": w.params, "model": w.snake.model}),

@@ -1,4 +1,4 @@
-"""Friction: the vectorised route equals the pin.Force external-force reference."""
+"""Friction: the damping twin's two routes equal the pin.Force reference and the closed form."""
 
 from __future__ import annotations
 
@@ -6,18 +6,34 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from snake_pin import Snake, SnakeParams
+from snake_pin import Snake, SnakeParams, paper
 from snake_pin.friction import FrictionModel, friction_forces
 
 from .conftest import random_state
 
 
+def _closed_form(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """Q = -C(q) dq with C from the paper's closed form (snake_pin.paper)."""
+    return -paper.friction_matrix(params, q) @ dq
+
+
+def _rnea_passes(params: SnakeParams, monkeypatch: pytest.MonkeyPatch) -> FrictionModel:
+    """The friction model of ``params`` on the RNEA passes' route, whatever its length."""
+    from snake_pin import friction
+
+    monkeypatch.setattr(friction, "WHEELED_TWIN_MAX_LINKS", 0)
+    model = FrictionModel(params)
+    assert not model.uses_twin_crba
+    return model
+
+
 @pytest.mark.parametrize("c", [(0.5, 0.5, 7.2e-5), (0.2, 8.0, 1e-3), (3.0, 0.1, 0.0)])
-def test_vectorised_friction_equals_external_forces(c: tuple, rng: np.random.Generator) -> None:
-    """Q of the twin and numpy routes equals RNEA(no fext) - RNEA(fext) with pin.Force."""
+def test_friction_equals_external_forces(c: tuple, rng: np.random.Generator,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Q of both routes and the closed form equals RNEA(no fext) - RNEA(fext) with pin.Force."""
     params = SnakeParams.table1(c_x=c[0], c_y=c[1], c_theta=c[2])
     snake = Snake(params)
-    numpy_route = FrictionModel(params)
+    passes = _rnea_passes(params, monkeypatch)
     zero = np.zeros(snake.nv)
     for _ in range(20):
         q, dq = random_state(rng, params.n)
@@ -25,8 +41,9 @@ def test_vectorised_friction_equals_external_forces(c: tuple, rng: np.random.Gen
         reference = (pin.rnea(snake.model, snake.data, q, dq, zero)
                      - pin.rnea(snake.model, snake.data, q, dq, zero, fext))
         assert np.allclose(snake.friction(q, dq), reference, rtol=1e-12, atol=1e-13)
-        assert np.allclose(snake.friction.of_state(np.r_[q, dq]), reference, atol=1e-13)
-        assert np.allclose(numpy_route(q, dq), reference, rtol=1e-12, atol=1e-13)
+        assert np.allclose(snake.friction_of_state(np.r_[q, dq]), reference, atol=1e-13)
+        assert np.allclose(passes(q, dq), reference, rtol=1e-12, atol=1e-13)
+        assert np.allclose(_closed_form(params, q, dq), reference, rtol=1e-12, atol=1e-13)
 
 
 @pytest.mark.parametrize("c_y", [0.5, 5.0])
@@ -52,58 +69,64 @@ def test_friction_opposes_motion(rng: np.random.Generator) -> None:
 
 
 @pytest.mark.parametrize("c", [(0.5, 0.5, 7.2e-5), (2.0, 2.0, 0.0), (0.0, 0.0, 1e-3)])
-def test_damping_twin_equals_numpy_route(c: tuple, rng: np.random.Generator) -> None:
-    """Isotropic friction: the damping twin's RNEA and CRBA equal the complex-number route."""
+def test_isotropic_twin_equals_the_closed_form(c: tuple, rng: np.random.Generator) -> None:
+    """Isotropic friction: the damping twin's RNEA and CRBA equal the paper's C(q) dq."""
     params = SnakeParams.table1(c_x=c[0], c_y=c[1], c_theta=c[2])
     snake = Snake(params)
-    assert snake.friction.uses_twin and not snake.friction.has_wheels
-    numpy_route = FrictionModel(params)
-    assert not numpy_route.uses_twin
+    assert not snake.friction.uses_twin_crba and not snake.friction.has_wheels
     for _ in range(20):
         q, dq = random_state(rng, params.n)
-        assert np.allclose(snake.friction(q, dq), numpy_route(q, dq), rtol=1e-12, atol=1e-13)
-        assert np.allclose(snake.friction.of_state(np.r_[q, dq]), numpy_route(q, dq),
-                           rtol=1e-12, atol=1e-13)
+        expected = _closed_form(params, q, dq)
+        assert np.allclose(snake.friction(q, dq), expected, rtol=1e-12, atol=1e-13)
+        assert np.allclose(snake.friction_of_state(np.r_[q, dq]), expected, rtol=1e-12,
+                           atol=1e-13)
         c_twin = snake.friction.matrix(q)
-        assert np.allclose(c_twin, numpy_route.matrix(q), rtol=1e-12, atol=1e-13)
+        assert np.allclose(c_twin, paper.friction_matrix(params, q), rtol=1e-12, atol=1e-13)
         assert np.allclose(c_twin, c_twin.T, atol=0.0)
 
 
 @pytest.mark.parametrize("c", [(0.5, 25.0, 7.2e-5), (0.04, 61.4, 1.6e-4), (3.0, 0.1, 0.0)])
-def test_twin_with_wheels_equals_numpy_route(c: tuple, rng: np.random.Generator) -> None:
-    """Anisotropic friction: the twin whose wheels roll along the links gives the same Q."""
+def test_twin_with_wheels_equals_the_closed_form(c: tuple, rng: np.random.Generator,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Anisotropic friction: the twin whose wheels roll along the links gives the closed
+    form's Q by both routes (CRBA and products; RNEA passes) and its C."""
     params = SnakeParams.table1(c_x=c[0], c_y=c[1], c_theta=c[2])
     snake = Snake(params)
-    assert snake.friction.uses_twin and snake.friction.has_wheels
-    numpy_route = FrictionModel(params)
+    assert snake.friction.uses_twin_crba and snake.friction.has_wheels
+    passes = _rnea_passes(params, monkeypatch)
     for _ in range(20):
         q, dq = random_state(rng, params.n)
-        expected = numpy_route(q, dq)
+        expected = _closed_form(params, q, dq)
         scale = np.abs(expected).max()
         assert np.allclose(snake.friction(q, dq), expected, rtol=1e-12, atol=1e-13 * scale)
-        assert np.allclose(snake.friction.of_state(np.r_[q, dq]), expected, rtol=1e-12,
+        assert np.allclose(snake.friction_of_state(np.r_[q, dq]), expected, rtol=1e-12,
                            atol=1e-13 * scale)
-    assert np.allclose(snake.friction.matrix(q), numpy_route.matrix(q), rtol=1e-14)
+        assert np.allclose(passes(q, dq), expected, rtol=1e-12, atol=1e-13 * scale)
+    c_closed = paper.friction_matrix(params, q)
+    assert np.allclose(snake.friction.matrix(q), c_closed, rtol=1e-12,
+                       atol=1e-14 * np.abs(c_closed).max())
 
 
-def test_long_anisotropic_robots_use_numpy() -> None:
-    """Beyond WHEELED_TWIN_MAX_LINKS links anisotropic friction goes through numpy."""
+def test_long_anisotropic_robots_use_the_rnea_passes() -> None:
+    """Beyond WHEELED_TWIN_MAX_LINKS links anisotropic friction goes through RNEA passes;
+    isotropic friction always does (one pass)."""
     from snake_pin.friction import WHEELED_TWIN_MAX_LINKS
 
     n = WHEELED_TWIN_MAX_LINKS + 1
-    assert not Snake(SnakeParams.table1(n=n, c_y=5.0)).friction.uses_twin
-    assert Snake(SnakeParams.table1(n=n)).friction.uses_twin  # isotropic: always the twin
+    assert not Snake(SnakeParams.table1(n=n, c_y=5.0)).friction.uses_twin_crba
+    assert Snake(SnakeParams.table1(n=n - 1, c_y=5.0)).friction.uses_twin_crba
+    assert not Snake(SnakeParams.table1(n=5)).friction.uses_twin_crba
 
 
-def test_force_passes_twin_is_depth_first(rng: np.random.Generator) -> None:
-    """The passes' twin (wheels appended tail first) has a right CRBA: its RNEA's columns."""
-    from snake_pin.friction import ForcePasses
+def test_twin_is_depth_first(rng: np.random.Generator) -> None:
+    """The twin (wheels appended tail first) has a right CRBA: its RNEA's columns."""
+    from snake_pin.friction import damping_twin
 
     params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.3, 4.0, 12.0, 0.3, 7.0, 0.3, 2.0, 5.0),
                                 c_theta=1e-3)
     snake = Snake(params)
-    passes = ForcePasses(snake.model, params)
-    twin, size = passes.twin, passes.size
+    twin = damping_twin(snake.model, params)
+    size = twin.nq
     assert size == snake.nq + params.n
     for _ in range(5):
         q_ext = np.zeros(size)
@@ -115,64 +138,61 @@ def test_force_passes_twin_is_depth_first(rng: np.random.Generator) -> None:
 
 
 @pytest.mark.parametrize("scaled_axis", [True, False], ids=["prismatic", "lever"])
-def test_force_passes_wheels_weigh_minus_one(scaled_axis: bool, rng: np.random.Generator,
-                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    """The passes' wheel block M_ww is -I at any posture, for c_y above and below c_x, and
-    Q is numpy's, on a scaled prismatic axis and on the lever (a Pinocchio that normalises
-    axes)."""
+def test_wheels_weigh_minus_one(scaled_axis: bool, rng: np.random.Generator,
+                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """The twin's wheel block M_ww is -I at any posture, for c_y above and below c_x, and
+    Q is the closed form's, on a scaled prismatic axis and on the lever (a Pinocchio that
+    normalises axes), by both routes."""
     from snake_pin import friction
 
     monkeypatch.setattr(friction, "_scaled_axis_kept", lambda: scaled_axis)
     params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.1, 4.0, 1e-6, 0.3, 7.0, 0.3, 2.0, 5.0),
                                 c_theta=1e-3)
-    snake = Snake(params)
-    passes = friction.ForcePasses(snake.model, params)
-    numpy_route = FrictionModel(params)
+    crba_route = FrictionModel(params)
+    passes = _rnea_passes(params, monkeypatch)
+    nq = params.n + 2
     rolling = np.array([float(c != 0.3) for c in params.per_link("c_y")])[::-1]
     for _ in range(5):
         q, dq = random_state(rng, params.n)
-        q_ext = np.zeros(passes.size)
-        q_ext[:snake.nq] = q
-        mass = pin.crba(passes.twin, passes.twin.createData(), q_ext, pin.Convention.WORLD)
-        block = mass[snake.nq:, snake.nq:]
-        assert np.allclose(block, -np.diag(rolling), rtol=0.0, atol=1e-12)
-        expected = numpy_route(q, dq)
-        assert np.allclose(passes.force(q, dq), expected, rtol=1e-12,
-                           atol=1e-13 * np.abs(expected).max())
+        q_ext = np.zeros(crba_route.size)
+        q_ext[:nq] = q
+        mass = pin.crba(crba_route.twin, crba_route.twin.createData(), q_ext,
+                        pin.Convention.WORLD)
+        assert np.allclose(mass[nq:, nq:], -np.diag(rolling), rtol=0.0, atol=1e-12)
+        expected = _closed_form(params, q, dq)
+        for route in (crba_route, passes):
+            assert np.allclose(route(q, dq), expected, rtol=1e-12,
+                               atol=1e-13 * np.abs(expected).max())
 
 
 @pytest.mark.parametrize(("c_x", "c_y"), [(0.0, 25.0), (25.0, 0.0), (0.5, 5.0)])
-def test_force_passes_far_from_the_origin(c_x: float, c_y: float,
-                                          rng: np.random.Generator) -> None:
-    """999 m from the origin Q is still numpy's to 1e-11, also where a link's smaller
-    coefficient is 0 (link and wheel weigh 0 together; measured 1e-12; a wheel on a lever
-    was 1e-8 off there)."""
-    from snake_pin.friction import ForcePasses
-
+def test_twin_far_from_the_origin(c_x: float, c_y: float, rng: np.random.Generator) -> None:
+    """999 m from the origin Q is still the closed form's to 1e-11, also where a link's
+    smaller coefficient is 0 (link and wheel weigh 0 together; measured 1e-12; a wheel on
+    a lever was 1e-8 off there)."""
     params = SnakeParams.table1(c_x=c_x, c_y=c_y, c_theta=1e-3)
-    passes = ForcePasses(Snake(params).model, params)
-    numpy_route = FrictionModel(params)
+    friction = FrictionModel(params)
     for _ in range(10):
         q, dq = random_state(rng, params.n)
         q[:2] += 999.0
-        expected = numpy_route(q, dq)
-        assert np.abs(passes.force(q, dq) - expected).max() < 1e-11 * np.abs(expected).max()
+        expected = _closed_form(params, q, dq)
+        assert np.abs(friction(q, dq) - expected).max() < 1e-11 * np.abs(expected).max()
 
 
 def test_links_with_isotropic_friction_among_wheeled_ones(rng: np.random.Generator) -> None:
-    """Per-link c_y equal to c_x on some links (their wheels weigh 0): the same Q."""
+    """Per-link c_y equal to c_x on some links (their wheels weigh 0): the same Q, and the
+    free acceleration of calc_affine is forward_dynamics at zero torque."""
     params = SnakeParams.table1(c_x=0.3, c_y=(0.3, 9.0, 0.3, 4.0, 12.0, 0.3, 7.0, 0.3, 2.0, 5.0),
                                 c_theta=1e-3)
     snake = Snake(params)
-    numpy_route = FrictionModel(params)
-    assert snake.friction.has_wheels and snake.friction.passes is not None
+    assert snake.friction.has_wheels and snake.friction.uses_twin_crba
+    data = snake.create_data()
     for _ in range(10):
         q, dq = random_state(rng, params.n)
-        expected = numpy_route(q, dq)
+        expected = _closed_form(params, q, dq)
         scale = np.abs(expected).max()
         assert np.allclose(snake.friction(q, dq), expected, rtol=1e-12, atol=1e-13 * scale)
-        x = np.r_[q, dq]
-        b, _ = snake.fast_dynamics.affine(x)
+        b, _ = snake.calc_affine(data, q, dq)
         assert np.allclose(b, snake.forward_dynamics(q, dq, np.zeros(params.n - 1)),
                            rtol=1e-10, atol=1e-10)
 
@@ -193,12 +213,19 @@ def test_a_foreign_model_is_a_parameter_error() -> None:
         damping_twin(other, SnakeParams.table1(n=8))
 
 
-def test_derivatives_without_the_model_are_a_parameter_error(
+def test_friction_model_without_a_model_builds_the_paper_model(
         rng: np.random.Generator) -> None:
-    """FrictionModel(params) has no twin: its derivatives are refused in one line."""
+    """FrictionModel(params) builds the robot's paper model itself: the same Q and
+    derivatives as the snake's; a FrictionData needs a FrictionModel."""
     from snake_pin import ParameterError
+    from snake_pin.friction import FrictionData
 
-    params = SnakeParams.table1(n=5)
+    params = SnakeParams.table1(n=5, c_y=4.0)
+    alone, snake = FrictionModel(params), Snake(params)
     q, dq = random_state(rng, 5)
-    with pytest.raises(ParameterError, match="model="):
-        FrictionModel(params).derivatives(q, dq)
+    assert np.array_equal(alone(q, dq), snake.friction(q, dq))
+    for mine, theirs in zip(alone.derivatives(q, dq), snake.friction.derivatives(q, dq),
+                            strict=True):
+        assert np.array_equal(mine, theirs)
+    with pytest.raises(ParameterError, match="friction"):
+        FrictionData(snake)  # type: ignore[arg-type]

@@ -124,16 +124,20 @@ def test_head_pose_and_bad_sizes(table1: Snake) -> None:
         table1.check_tau([0.0] * 8)
 
 
-def test_friction_cache_follows_in_place_changes(rng: np.random.Generator) -> None:
-    """The last-state friction cache never serves a state changed in place since."""
+def test_state_methods_follow_in_place_changes(rng: np.random.Generator) -> None:
+    """friction_of_state, bias_of_state and state_derivative read the state they are given,
+    also one changed in place since the last call (no cache serves an old state)."""
     snake = Snake(SnakeParams.table1(c_y=5.0))
     q, dq = random_state(rng, snake.n)
     x = np.r_[q, dq]
+    tau = rng.normal(size=snake.n - 1)
     first = snake.friction_of_state(x)
-    assert np.array_equal(snake.friction_of_state(x), first)  # served from the cache
     x[snake.nq + 4] += 0.5  # same array object, new state
-    assert np.allclose(snake.friction_of_state(x), snake.friction(x[:snake.nq], x[snake.nq:]))
+    q, dq = x[:snake.nq], x[snake.nq:]
+    assert np.allclose(snake.friction_of_state(x), snake.friction(q, dq))
     assert not np.allclose(snake.friction_of_state(x), first)
+    assert np.array_equal(snake.bias_of_state(x), snake.bias(q, dq))
+    assert np.array_equal(snake.state_derivative(x, tau), snake.forward_dynamics(q, dq, tau))
 
 
 def _central(fn, x: np.ndarray, step: float) -> np.ndarray:
@@ -239,17 +243,45 @@ def test_snake_refuses_what_is_not_a_robot() -> None:
         Snake.from_urdf("missing.urdf")
 
 
-def test_fast_dynamics_and_paper_model_check_their_arguments() -> None:
-    """FastDynamics needs a Snake and a positive row count; paper_model a SnakeParams."""
+def test_snake_data_and_paper_model_check_their_arguments() -> None:
+    """SnakeData needs a Snake; paper_model a SnakeParams; create_data gives fresh buffers."""
     from snake_pin import ParameterError
-    from snake_pin.model import FastDynamics, paper_model
+    from snake_pin.model import SnakeData, paper_model
 
     snake = Snake(SnakeParams.table1(n=4))
-    for rows in (0, True, 2.0):
-        with pytest.raises(ParameterError, match="rows"):
-            FastDynamics(snake, rows=rows)  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="snake must be a Snake"):
-        FastDynamics(snake.model)  # type: ignore[arg-type]
+        SnakeData(snake.model)  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="params must be a SnakeParams"):
         paper_model({"n": 4})  # type: ignore[arg-type]
-    assert FastDynamics(snake, rows=2).states.shape == (2, 2 * snake.nq)
+    first, second = snake.create_data(), snake.create_data()
+    assert first.torque.shape == (snake.nq,) and first.pin is not second.pin
+    assert not np.shares_memory(first.mass, second.mass)
+
+
+def test_calc_methods_equal_the_closed_form(rng: np.random.Generator) -> None:
+    """The one implementation over a SnakeData: q'' (calc_acceleration), (b, H^-1)
+    (calc_affine) and (H, h) (calc_mass_and_bias) equal snake_pin.paper's closed form,
+    per-link anisotropic robot with a passive joint, on two data objects in turn."""
+    params = SnakeParams.table1(c_y=(0.5, 9.0, 0.5, 4.0, 12.0, 0.5, 7.0, 0.5, 2.0, 5.0),
+                                passive=(4,))
+    snake = Snake(params)
+    data = [snake.create_data(), snake.create_data()]
+    e = paper.actuation_matrix(params.n)
+    e[:, 3] = 0.0  # joint 4 passive
+    for k in range(6):
+        q, dq = random_state(rng, params.n)
+        tau = rng.normal(size=params.n - 1)
+        h_closed, bias_closed = paper.inertia_matrix(params, q), paper.bias(params, q, dq)
+        ddq_closed = np.linalg.solve(h_closed, e @ tau - bias_closed)
+        own = data[k % 2]
+        torque = snake.calc_torque(own, tau)
+        assert np.array_equal(torque, e @ tau)
+        ddq = snake.calc_acceleration(own, q, dq, torque)
+        assert np.allclose(ddq, ddq_closed, rtol=1e-8, atol=1e-8 * np.abs(ddq_closed).max())
+        b, h_inv = snake.calc_affine(own, q, dq)
+        assert np.allclose(h_inv @ h_closed, np.eye(snake.nq), atol=1e-8)
+        assert np.array_equal(h_inv, h_inv.T)
+        assert np.allclose(b + h_inv @ torque, ddq, rtol=1e-9, atol=1e-9 * np.abs(ddq).max())
+        mass, bias = snake.calc_mass_and_bias(own, q, dq)
+        assert np.allclose(mass, h_closed, rtol=1e-12, atol=1e-14)
+        assert np.allclose(bias, bias_closed, rtol=1e-10, atol=1e-12)

@@ -59,7 +59,7 @@ def _robots() -> dict[str, SnakeParams]:
     rng = np.random.default_rng(13)
     return {"isotropic": tracking_params(c_y=0.5), "wheels": tracking_params(),
             "passive": tracking_params(passive=(3, 5)),
-            "numpy route": tracking_params(SnakeParams.table1(n=WHEELED_TWIN_MAX_LINKS + 2)),
+            "rnea passes": tracking_params(SnakeParams.table1(n=WHEELED_TWIN_MAX_LINKS + 2)),
             "per link": heterogeneous_params(rng, 10, "anisotropic", passive=(4,))}
 
 
@@ -70,8 +70,8 @@ def _robots() -> dict[str, SnakeParams]:
 def test_fast_step_equals_the_plain_step(robot: str, law: str) -> None:
     """The fast RK4 (its first stage from the controller) follows the plain RK4 to 1e-9.
 
-    Measured: 3e-11 at most (n = 16, the numpy friction route); a wrong stage or hold
-    would be off by O(dt) = 1e-3.
+    The plain step is a plant that replaces state_derivative (the checked API, per stage);
+    a wrong stage or hold would be off by O(dt) = 1e-3.
     """
     params = _robots()[robot]
     runs = []
@@ -145,12 +145,12 @@ def test_fast_step_refuses_a_torque_where_the_plain_step_does(
 
 @pytest.mark.parametrize("robot", ["isotropic", "wheels"])
 def test_a_run_after_a_blown_up_run_of_the_same_robot_is_untouched(robot: str) -> None:
-    """The robot's stage states and workspace are shared by its runs: what a non-finite
-    torque left there does not reach the next run (equal to the run on a fresh robot)."""
+    """What a non-finite torque left in a run's buffers does not reach the next run of the
+    same robot (equal to the run on a fresh robot)."""
     params = _robots()[robot]
     used = Snake(params)
     blown = simulate(used, _TurnsBad(np.inf, 3), initial_state(params), 0.05)
-    assert blown.status == "failed" and np.isnan(used.fast_dynamics.states).any()
+    assert blown.status == "failed"
     runs = [simulate(snake, LyapunovController(snake), initial_state(params), 0.05)
             for snake in (used, Snake(params))]
     assert runs[0].status == runs[1].status == "completed"
@@ -229,7 +229,7 @@ def test_bad_torque_refused_first_whatever_the_controller_does(bad: float,
     assert np.array_equal(fast.tau, plain.tau) and set(fast.signals) == set(plain.signals)
 
 
-@pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "numpy route"])
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "rnea passes"])
 def test_controllers_know_the_plants_acceleration(robot: str) -> None:
     """plant_acceleration is the plant's q'' under the returned torque, for its own robot only."""
     params = _robots()[robot]
@@ -247,12 +247,12 @@ def test_controllers_know_the_plants_acceleration(robot: str) -> None:
 
 
 @pytest.mark.parametrize("mirrors", [True, False])
-@pytest.mark.parametrize("robot", ["isotropic", "wheels", "numpy route", "per link"])
-def test_fast_dynamics_match_the_checked_api(robot: str, mirrors: bool,
-                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    """affine gives b = q''(tau = 0) and the whole H^-1; mass_and_bias the whole H and h.
-    Also with bindings that fill the upper triangle only (simulated: FastDynamics then
-    mirrors it itself)."""
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "rnea passes", "per link"])
+def test_calc_methods_match_the_checked_api(robot: str, mirrors: bool,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """calc_affine gives b = q''(tau = 0) and the whole H^-1; calc_mass_and_bias the whole
+    H and h. Also with bindings that fill the upper triangle only (simulated: SnakeData
+    then mirrors it itself)."""
     import pinocchio as pin
 
     import snake_pin.model
@@ -269,18 +269,58 @@ def test_fast_dynamics_match_the_checked_api(robot: str, mirrors: bool,
                             lambda m, d, *a: (minverse(m, d, *a), upper_only(d.Minv))[1])
         assert not snake_pin.model._binding_mirrors(Snake(_robots()[robot]).model)
     snake = Snake(_robots()[robot])
+    data = snake.create_data()
     rng = np.random.default_rng(8)
     nq = snake.nq
     for _ in range(5):
         x = head_first_state(rng, snake.n)
         q, dq = x[:nq], x[nq:]
-        b, minv = snake.fast_dynamics.affine(x)
+        b, minv = snake.calc_affine(data, q, dq)
         assert np.allclose(b, snake.forward_dynamics(q, dq, np.zeros(snake.n - 1)),
                            rtol=1e-10, atol=1e-10)
         assert np.allclose(minv, snake.inverse_inertia_matrix(q), rtol=1e-10, atol=1e-10)
-        mass, bias = snake.fast_dynamics.mass_and_bias(x)
+        mass, bias = snake.calc_mass_and_bias(data, q, dq)
         assert np.allclose(mass, snake.inertia_matrix(q), atol=1e-14)
         assert np.allclose(bias, snake.bias(q, dq), rtol=1e-12, atol=1e-13)
+
+
+def _classical_rk4(snake: Snake, schedule, x0: np.ndarray, t_final: float, dt: float,
+                   control_dt: float) -> np.ndarray:
+    """The classical RK4 with a zero-order hold, on the checked forward_dynamics: the
+    states at each control sample (written here, independent of the package's step)."""
+    nq, substeps = snake.nq, round(control_dt / dt)
+
+    def slope(x: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        return np.concatenate((x[nq:], snake.forward_dynamics(x[:nq], x[nq:], tau)))
+
+    states, x = [x0], x0.copy()
+    for k in range(round(t_final / control_dt)):
+        tau = schedule(k * control_dt)
+        for _ in range(substeps):
+            d1 = slope(x, tau)
+            d2 = slope(x + 0.5 * dt * d1, tau)
+            d3 = slope(x + 0.5 * dt * d2, tau)
+            d4 = slope(x + dt * d3, tau)
+            x = x + dt / 6.0 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
+        states.append(x)
+    return np.array(states)
+
+
+@pytest.mark.parametrize("robot", ["isotropic", "wheels", "passive", "rnea passes"])
+def test_rk4_equals_the_classical_formula(robot: str) -> None:
+    """simulate's RK4 (stage states from rows of Y = [Z; d1..d4], first stage on the plant) is
+    the classical RK4 with the torque held, to 1e-11 (a wrong stage or weight: O(dt))."""
+    params = _robots()[robot]
+    snake = Snake(params)
+
+    def schedule(t: float, n: int = params.n) -> np.ndarray:
+        return 0.02 * np.sin(3 * t + np.arange(n - 1))
+
+    x0 = initial_state(params)
+    run = simulate(snake, OpenLoop(schedule), x0, 0.05, dt=5e-4)
+    expected = _classical_rk4(snake, schedule, x0, 0.05, 5e-4, 1e-3)
+    assert run.status == "completed"
+    assert np.abs(np.hstack((run.q, run.dq)) - expected).max() < 1e-11
 
 
 @pytest.mark.parametrize("law", [LyapunovController, PFLController])
@@ -347,7 +387,7 @@ def test_saved_figures_keep_their_labels_without_the_tight_box(tmp_path: Path) -
 
 
 def test_robots_and_controllers_still_pickle_after_a_run() -> None:
-    """The hot path's closures are not pickled: a used robot and its laws round-trip and rerun."""
+    """A used robot and its laws round-trip (their data objects made again) and rerun."""
     import pickle
 
     params = tracking_params()
@@ -356,9 +396,14 @@ def test_robots_and_controllers_still_pickle_after_a_run() -> None:
     for law in laws:
         before = simulate(snake, law, initial_state(params), 0.02)
         copy = pickle.loads(pickle.dumps(law))
-        assert copy.snake is not snake and copy._dynamics is copy.snake.fast_dynamics
+        assert copy.snake is not snake
         after = simulate(copy.snake, copy, initial_state(params), 0.02)
         assert np.array_equal(before.q, after.q) and np.array_equal(before.tau, after.tau)
+    again = pickle.loads(pickle.dumps(snake))
+    data = pickle.loads(pickle.dumps(snake.create_data()))
+    x = initial_state(params)
+    assert np.array_equal(again.calc_affine(again.create_data(), x[:snake.nq], x[snake.nq:])[0],
+                          snake.calc_affine(data, x[:snake.nq], x[snake.nq:])[0])
 
 
 def test_a_shallow_copy_keeps_its_own_last_call(rng: np.random.Generator) -> None:
@@ -377,44 +422,25 @@ def test_a_shallow_copy_keeps_its_own_last_call(rng: np.random.Generator) -> Non
             assert np.array_equal(law.plant_acceleration(snake), ddq)
 
 
-def test_sampler_skips_only_a_call_that_merely_forwards(rng: np.random.Generator) -> None:
-    """A law's sampler is its hot closure (same torque), made over the run's tableau when
-    the run steps with the law's own robot; a subclass's own __call__ is kept."""
-    from snake_pin.control.base import _sampler
+def test_a_subclass_call_is_what_a_run_calls() -> None:
+    """A law's subclass that scales or clips its torque gets its own __call__ in a run."""
 
     class Scaled(LyapunovController):
         def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
             return 2.0 * super().__call__(x, t)
 
-    params = tracking_params()
-    snake = Snake(params)
-    x = head_first_state(rng, snake.n)
-    law, scaled = LyapunovController(snake), Scaled(snake)
-    tableau = snake.fast_dynamics.tableau()
-    tableau.slopes[0, snake.fast_dynamics.select] = x  # Z = x, as in a run
-    assert _sampler(law) is law._hot and np.array_equal(_sampler(law)(x, 0.1), law(x, 0.1))
-    at_z = _sampler(law, tableau)
-    assert at_z is not law._hot and np.allclose(at_z(x, 0.1), law(x, 0.1), rtol=1e-12)
-    assert _sampler(law, Snake(params).fast_dynamics.tableau()) is law._hot  # another robot
-    assert _sampler(scaled) is scaled and _sampler(scaled, tableau) is scaled
-    run = simulate(snake, scaled, initial_state(params), 0.02)
-    assert np.allclose(run.tau[0], 2.0 * law(initial_state(params), 0.0), rtol=1e-12)
-
-
-def test_a_subclass_wrapping_the_hot_path_is_called() -> None:
-    """A law whose subclass wraps the closure its call runs gets that closure in a run."""
-
     class Clipped(LyapunovController):
-        def _make_views(self) -> None:
-            super()._make_views()
-            hot = self._hot
-            self._hot = lambda x, t: np.clip(hot(x, t), -0.005, 0.005)
+        def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+            return np.clip(super().__call__(x, t), -0.005, 0.005)
 
     params = tracking_params()
     snake = Snake(params)
+    law = LyapunovController(snake)
+    run = simulate(snake, Scaled(snake), initial_state(params), 0.02)
+    assert np.allclose(run.tau[0], 2.0 * law(initial_state(params), 0.0), rtol=1e-12)
     run = simulate(snake, Clipped(snake), initial_state(params), 0.02)
     assert np.abs(run.tau).max() <= 0.005
-    assert np.abs(LyapunovController(snake)(initial_state(params), 0.0)).max() > 0.005
+    assert np.abs(law(initial_state(params), 0.0)).max() > 0.005
 
 
 @pytest.mark.parametrize("law", [LyapunovController, PFLController])

@@ -19,7 +19,7 @@ from ..exceptions import ConfigurationError, ParameterError
 from ..gaits import Serpenoid
 from .reference import LinearReference
 
-__all__ = ["Controller", "OpenLoop", "TimeTerms", "gait_for", "reference_rows"]
+__all__ = ["Controller", "OpenLoop", "ReferenceLaw", "TimeTerms", "gait_for", "reference_rows"]
 
 #: Time-only terms are computed for this many coming calls at once (see TimeTerms).
 _BLOCK = 1024
@@ -61,14 +61,6 @@ def _check_gait(value: object, name: str) -> Serpenoid:
     return instance(value, Serpenoid, name)
 
 
-def _check_reference(value: object, name: str = "reference") -> Any:
-    """``value`` if it is callable (a head reference ``t -> (w_r, w_r', w_r'')``)."""
-    if not callable(value):
-        raise ParameterError(f"{name} must be a head reference (a callable of time), "
-                             f"got {brief(value)}")
-    return value
-
-
 def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: Serpenoid,
                    times: np.ndarray) -> np.ndarray:
     """One row ``[w_r, phi_r, w_r', phi_r', w_r'', phi_r'']`` (3 (n + 2) values) per time.
@@ -98,7 +90,7 @@ def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: S
     ConfigurationError
         ``times`` is not a vector of finite numbers.
     """
-    _check_reference(reference)
+    ReferenceLaw.checked_reference(reference)
     _check_gait(gait, "gait")
     try:
         checked = np.asarray(times, dtype=float)
@@ -265,103 +257,47 @@ class OpenLoop(Controller):
         return np.asarray(self.schedule(t), dtype=float)
 
 
-class _ViewsMadeOnce(abc.ABC):
-    """A law whose hot path is a closure over views made once (of its buffers and of the
-    robot's ``FastDynamics``): :meth:`_make_views` makes it and keeps it in ``_hot``,
-    which a call of the law calls (closure variables are cheaper to read than
-    attributes). A pickled view is a detached copy and a closure does not pickle, so
-    both are made again on unpickling."""
+class ReferenceLaw(Controller):
+    """Base of the laws that follow a head reference with a serpenoid gait.
 
-    _hot: Callable[[np.ndarray, float], np.ndarray]
-    #: ``(make, hot)``: the factory of the hot path over a set of dynamics calls (the
-    #: robot's FastDynamics, or a run's RK4Tableau: see :func:`_sampler`) and the ``_hot``
-    #: it made.
-    _made: tuple[Callable[[Any], Callable[[np.ndarray, float], np.ndarray]],
-                 Callable[[np.ndarray, float], np.ndarray]]
-    _dynamics: Any  # the robot's FastDynamics
-
-    @abc.abstractmethod
-    def _make_views(self) -> None:
-        """Make the views and the hot path's closure, and keep it in ``_hot`` (and its
-        factory in ``_made``)."""
-
-    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        """Joint torques (length n - 1) at state ``x`` and time ``t``."""
-        return self._hot(x, t)
-
-    def __getstate__(self) -> dict[str, Any]:
-        """The attributes to pickle: all but the hot path's closure.
-
-        Returns
-        -------
-        dict
-            The attributes.
-        """
-        state = self.__dict__.copy()
-        state.pop("_hot", None)
-        state.pop("_made", None)
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        """Unpickled (or copied): the views are made again on the robot's own dynamics and
-        buffers; the last call's q'' and signals stay with the original.
-
-        Parameters
-        ----------
-        state : dict
-            The pickled attributes.
-        """
-        self.__dict__.update(state)
-        if "_outputs" in state:
-            self._outputs: list[Any] = [None, {}]
-        self._make_views()
-
-
-def _sampler(controller: Controller,
-             tableau: Any = None) -> Callable[[np.ndarray, float], np.ndarray]:
-    """What a run calls at each sample: the controller, or, where calling it would only
-    forward to its hot path's closure (:class:`_ViewsMadeOnce`), that closure (one
-    Python call fewer per sample).
-
-    When the run steps with ``tableau`` (a :class:`~snake_pin.model.RK4Tableau` on the
-    robot the law models, its own for this run), the closure is made for the run over the
-    tableau's calls, which read the state from its Z in place instead of copying x into
-    the dynamics' own buffer. It equals calling the controller only while x is Z: use it
-    in that run only.
-
-    Parameters
-    ----------
-    controller : Controller
-        The controller, reset and prepared for the run.
-    tableau : RK4Tableau, optional
-        The run's tableau when it steps with the robot's fast dynamics (else None).
-
-    Returns
-    -------
-    callable
-        ``f(x, t) -> tau``.
-    """
-    if not (isinstance(controller, _ViewsMadeOnce)
-            and type(controller).__call__ is _ViewsMadeOnce.__call__):
-        return controller
-    make, made = getattr(controller, "_made", (None, None))
-    if controller._hot is made and tableau is not None and \
-            tableau.dynamics is controller._dynamics:
-        return make(tableau)  # type: ignore[misc]
-    return controller._hot  # also a hot path a subclass made or wrapped itself
-
-
-class _ReferenceTimeTerms:
-    """The time-only terms of a law that follows ``self.reference`` with ``self.gait``.
-
-    Shared by the Lyapunov-like law and PFL: each keeps a :class:`TimeTerms` in
-    ``_time_row`` and the matrix ``_law_time`` mapping the reference rows to its terms.
+    A subclass sets ``reference``, ``gait``, ``_law_time`` (the map from the reference rows
+    of :func:`reference_rows` to its time-only terms) and ``_time_row`` (a
+    :class:`TimeTerms` of :meth:`_time_terms`). Its buffers, if any, live in
+    ``_buffers``, made by :meth:`_allocate` once and again on unpickling (views do not
+    survive pickling); the last call's q'' and signals stay with the original.
     """
 
     reference: Any
     gait: Serpenoid
     _time_row: TimeTerms
     _law_time: np.ndarray
+    _buffers: Any = None
+
+    @staticmethod
+    def checked_reference(value: object, name: str = "reference") -> Any:
+        """``value`` if it is callable (a head reference ``t -> (w_r, w_r', w_r'')``).
+
+        Parameters
+        ----------
+        value : object
+            The head reference.
+        name : str, optional
+            The argument's name in the error message.
+
+        Returns
+        -------
+        callable
+            ``value``.
+
+        Raises
+        ------
+        ParameterError
+            ``value`` is not callable.
+        """
+        if not callable(value):
+            raise ParameterError(f"{name} must be a head reference (a callable of time), "
+                                 f"got {brief(value)}")
+        return value
 
     def prepare(self, times: np.ndarray) -> None:
         """Compute the references' terms for the coming calls in blocks (see TimeTerms).
@@ -374,4 +310,35 @@ class _ReferenceTimeTerms:
         self._time_row.prepare(times)
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:
+        """The time-only terms at ``times``, one row per time."""
         return _reference_rows(self.reference, self.gait, times) @ self._law_time
+
+    def _allocate(self) -> Any:
+        """The call's buffers (None: none)."""
+        return None
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The attributes to pickle: all but the buffers and the last call's outputs.
+
+        Returns
+        -------
+        dict
+            The attributes.
+        """
+        state = self.__dict__.copy()
+        for name in ("_buffers", "_acceleration", "_signals"):
+            state.pop(name, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled (or copied): the buffers are made again.
+
+        Parameters
+        ----------
+        state : dict
+            The pickled attributes.
+        """
+        self.__dict__.update(state)
+        self._acceleration: np.ndarray | None = None
+        self._signals: dict[str, float] = {}
+        self._buffers = self._allocate()

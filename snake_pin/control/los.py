@@ -1,126 +1,52 @@
 """Line-of-sight (LOS) path following of the centre of mass: the field's baseline law.
 
-After Liljebäck, Pettersen, Stavdahl and Gravdahl,
-*Snake Robots: Modelling, Mechatronics, and Control* (Springer, 2013) and Liljebäck,
-Haugstuen and Pettersen, "Path following control of planar snake robots using a cascaded
-approach" (IEEE Trans. Control Systems Technology 20(1), 2012). The law does not track a
-head trajectory: it steers the whole body so that its centre of mass (CM) converges to a
-path and moves along it at whatever speed the gait gives.
+After Liljebäck, Pettersen, Stavdahl and Gravdahl, *Snake Robots: Modelling,
+Mechatronics, and Control* (Springer, 2013) and Liljebäck, Haugstuen and Pettersen, "Path
+following control of planar snake robots using a cascaded approach" (IEEE TCST 20(1),
+2012), re-derived in this package's conventions (the primary texts were not at hand: the
+law is the book's as stated there and in public reimplementations). It does not track a
+head trajectory: it steers the body so that its centre of mass (CM) converges to a path
+and moves along it at the gait's speed. States are ``x = [q, dq]``.
 
-The primary texts were not at hand here; the law below is the book's cascaded law as it
-is stated there and coded in public reimplementations (the same terms, filter and the
-book's simulation constants lambda_1 = 0.5, lambda_2 = 20 for its robot), re-derived in
-this package's conventions. States are ``x = [q, dq]`` (length 2(n + 2)) with the paper's
-``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+1. **Gait with a steering offset**: ``phi_ref,i(t) = alpha sin(omega t - (i - 1) delta) +
+   phi_0`` (joints numbered from the head, so the wave runs head to tail); a constant
+   phi_0 bends the body into an arc on average and turns it.
+2. **LOS guidance**: with the CM at signed cross-track distance e from its closest path
+   point, ``theta_los = gamma_p(s*) - atan(e / Delta)`` (look-ahead Delta), smoothed by
+   the third-order filter ``omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s +
+   omega_c^2))`` (zeta = 1, ``omega_c = 2 pi / ref_period``) into theta_ref, theta_ref',
+   theta_ref''.
+3. **Heading control** of the mean heading ``psi = (1 / n) sum theta_i + pi`` (theta_i
+   points head to tail here). ``steering = "cascaded"`` (default) inverts the book's
+   averaged turning model ``psi'' = -lambda_1 psi' - (lambda_2 / (n - 1)) v_t sum phi_i``
+   (the sign of phi_0 flipped by the convention)::
 
-Structure
----------
-1. **Gait with a steering offset** (lateral undulation). The joint references are::
+       phi_0 = -(theta_ref'' + lambda_1 theta_ref' + k_theta (theta_ref - psi))
+               / (lambda_2 v_t) - (1 / (n - 1)) sum_i alpha sin(omega t - (i - 1) delta)
 
-       phi_ref,i(t) = alpha sin(omega t - (i - 1) delta) + phi_0,   i = 1 .. n - 1.
+   so that ``e_psi'' + lambda_1 e_psi' + k_theta e_psi = 0``, with v_t the CM speed along
+   psi low-pass filtered over one gait period (``speed_period``) and floored at ``v_min``
+   (the instantaneous speed nearly vanishes twice a cycle and 1 / v_t then saturates
+   phi_0). ``steering = "pd"``: ``phi_0 = -(k_p (theta_ref - psi) + k_d (theta_ref' -
+   psi'))``. phi_0 is saturated at ``phi0_max``, rate-limited to ``phi0_rate`` and
+   smoothed by a second third-order filter (``offset_period``) whose derivatives feed
+   phi_ref', phi_ref''.
+4. **Joint control** by collocated partial feedback linearisation: with a the actuated
+   joints and u the rest, ``tau_a = (H_aa - H_au H_uu^-1 H_ua) v + h_a - H_au H_uu^-1 h_u``
+   gives ``q_a'' = v = phi_ref'' + k_d (phi_ref' - phi') + k_p (phi_ref - phi)`` exactly.
 
-   Our joints are numbered from the head (the book numbers links from the tail and writes
-   ``+ (i - 1) delta``); with ``- (i - 1) delta`` the wave runs from head to tail, as it must
-   for the head to lead. A constant offset phi_0 bends the body into an arc on average
-   and so turns it.
+Defaults (:class:`LOSParams`) are for the Table 1 robot with c_y = 25 N s/m: alpha = 0.5
+rad, omega = 0.8 rad/s, delta = 0.94 rad (about 0.1 m/s along the path); lambda_2 /
+lambda_1 = 9.3 /m fitted from open-loop runs with constant offsets (lambda_1 = 20 /s,
+lambda_2 = 186 /(m s)); k_theta = 10 /s^2, Delta = 0.6 m, ref_period = 1 s, v_min = 0.03
+m/s, phi0_max = 0.35 rad, phi0_rate = 0.3 rad/s, offset_period = 0.5 s, k_p = 100 /s^2,
+k_d = 20 /s: the lowest CM cross-track errors of the settings tried over circles, a lane
+change and a sinusoid (RMS 1-2 cm). Another robot needs its own lambda_2 / lambda_1 and
+probably its own gait.
 
-2. **LOS guidance.** With the CM at signed cross-track distance e (left of the path
-   positive) from its closest path point ``s*``, the desired heading is::
-
-       theta_los = gamma_p(s*) - atan(e / Delta),
-
-   gamma_p the path's tangent angle and Delta > 0 the look-ahead distance. For the book's
-   straight path along x this is ``theta_ref = -atan(p_y / Delta)``. theta_los is passed
-   through the third-order low-pass reference filter
-   ``omega_c^3 / ((s + omega_c) (s^2 + 2 zeta omega_c s + omega_c^2))`` (zeta = 1,
-   ``omega_c = 2 pi / ref_period``) that gives the smooth theta_ref and its derivatives
-   theta_ref', theta_ref'' the heading law needs.
-
-3. **Heading control** of the body's mean heading. In our coordinates theta_i points from
-   the front of link i to its back (head to tail), so the direction of travel of a
-   head-first snake is ``psi = (1 / n) sum theta_i + pi`` (the book's theta_bar). Two laws:
-
-   - ``steering = "cascaded"`` (default), the published model-based law. The book's
-     averaged model of the turning motion is
-     ``theta_bar'' = -lambda_1 theta_bar' + (lambda_2 / (n - 1)) v_t sum phi_i``, with v_t
-     the forward speed and lambda_1, lambda_2 > 0 empirical constants. In our convention
-     (``phi_i = theta_{i+1} - theta_i``, head first) a positive joint offset bends the
-     head clockwise relative to the tail, so it turns the snake to the right:
-     ``psi'' = -lambda_1 psi' - (lambda_2 / (n - 1)) v_t sum phi_i``. Choosing::
-
-         phi_0 = -(theta_ref'' + lambda_1 theta_ref' + k_theta (theta_ref - psi))
-                 / (lambda_2 v_t) - (1 / (n - 1)) sum_i alpha sin(omega t - (i - 1) delta)
-
-     cancels the gait's own mean bending and makes the averaged heading error
-     ``e_psi = psi - theta_ref`` obey ``e_psi'' + lambda_1 e_psi' + k_theta e_psi = 0``
-     (exponentially stable for k_theta > 0). This is the book's law with the sign of
-     phi_0 flipped by the convention; the published law reads::
-
-         phi_0 = (1 / (lambda_2 v_t)) (theta_ref'' + lambda_1 theta_ref'
-                  - k_theta (theta_bar - theta_ref))
-                 - (1 / (N - 1)) sum alpha sin(omega t + (i - 1) delta)
-
-     v_t is the model's
-     *averaged* forward speed: here the CM velocity along psi, low-pass filtered over
-     one gait period (``speed_period``), floored at ``v_min`` (the published analysis
-     assumes v_t > 0). With the instantaneous v_t, which nearly vanishes twice per gait
-     cycle, 1 / v_t saturated phi_0 in bursts and the body curled up on the circle test
-     (0.15-0.6 m RMS cross-track error instead of 0.03 m).
-   - ``steering = "pd"``: the simpler form the same authors use in experiments,
-     ``phi_0 = -(k_p (theta_ref - psi) + k_d (theta_ref' - psi'))``, needing no model
-     constants. Without the theta_ref' feedforward it keeps a steady error on curves.
-
-   Either way phi_0 is saturated at +-``phi0_max``, rate-limited to ``phi0_rate`` (from
-   phi_0 = 0 at the start) and, like the published implementation, smoothed by a second
-   third-order filter (``offset_period``) whose derivatives feed the joint references'
-   phi_ref', phi_ref''. The rate limit is this implementation's: bending the whole body
-   at once is expensive against c_y = 25 N s/m (phi_0 swept at 0.5 rad/s took 10 N m,
-   against 0.1 N m for the gait alone). ``theta_ref - psi`` is wrapped to ``(-pi, pi]``.
-
-4. **Joint control: feedback linearisation of the actuated joints** (collocated partial
-   feedback linearisation, the same structure the PFL controller uses for its joints).
-   Split q into actuated joints a and the rest u (base and passive joints). From
-   ``H q'' + h = E tau``, the u rows give ``q_u'' = -H_uu^-1 (H_ua q_a'' + h_u)``;
-   substituting into the a rows::
-
-       tau_a = (H_aa - H_au H_uu^-1 H_ua) v + h_a - H_au H_uu^-1 h_u
-
-   makes ``q_a'' = v`` exactly, with
-   ``v = phi_ref'' + k_d (phi_ref' - phi') + k_p (phi_ref - phi)`` (the book's joint law on
-   its simplified model, here through the full model).
-
-Parameters and their defaults (:class:`LOSParams`)
---------------------------------------------------
-Chosen for the Table 1 robot with c_x = 0.5, c_y = 25 N s/m
-(``SnakeParams.table1(c_y=25.0)``), all measured with :func:`snake_pin.sim.simulate`:
-
-- gait alpha = 0.5 rad, omega = 0.8 rad/s, delta = 0.94 rad (about the VI.2
-  serpenoid's amplitude and its 1.5 waves along the body; omega chosen for 0.1 m/s
-  along the path, the head-tracking runs' speed: 0.07-0.10 m/s on the scenarios below,
-  0.13-0.14 m/s at omega = 1.1, 0.19 m/s at omega = 2 without steering);
-- lambda_1 = 20 /s, lambda_2 = 186 /(m s): open-loop runs with constant offsets
-  (phi_0 = +-0.1, 0.1 then -0.05) fitted to the averaged model give a turning rate
-  ``psi' = -(lambda_2 / lambda_1) v_t phi_bar`` with lambda_2 / lambda_1 = 9.3 /m at
-  omega = 1, 1.5 and 2 rad/s (e.g. psi' = -0.169 rad/s at phi_0 = 0.1, v_t = 0.181 m/s);
-  lambda_1 itself is poorly determined (15-50 /s: with c_y = 25 the heading settles
-  within a fraction of a second), 20 /s fits to 1.3 mrad/s RMS;
-- k_theta = 10 /s^2 (heading error poles at -0.5 and -19.5 /s), Delta = 0.6 m (half the
-  body length), ref_period = 1 s, v_min = 0.03 m/s, phi0_max = 0.35 rad,
-  phi0_rate = 0.3 rad/s, offset_period = 0.5 s, joint gains k_p = 100 /s^2,
-  k_d = 20 /s (critically damped, 10 rad/s). Of the settings tried (Delta 0.6 or 1.2 m,
-  k_theta 5-20, ref_period 0.5-4 s, phi0_max 0.35-0.6, phi0_rate 0.25-1, the PD law with
-  k_p 0.1-1, omega 0.7-1.1), these gave the lowest CM cross-track errors over circles of
-  radius 0.6, 1.2 and 2.4 m, a lane change and a sinusoid (RMS 1-2 cm over 20-60 s of
-  60 s runs) with peak torques of about 3.4 N m in the start-up (0.6 N m RMS); a 4 s
-  reference filter lags on circles (0.12-0.22 m), 0.5 s passes the gait's oscillation
-  of e into phi_0; the PD law keeps 5-16 cm on the circles.
-
-Another robot needs its own lambda_2 / lambda_1 (run constant offsets, fit the turning
-rate) and probably its own gait.
-
-Signals recorded per step: ``e_ct`` (CM cross-track error [m]), ``theta_ref``,
-``theta_avg`` (psi), ``phi_0`` (the offset used), ``v_t`` (instantaneous), ``v_avg`` (the
-averaged speed the law uses) and ``s_cm`` (arc length of the CM's closest path point).
+Signals per step: ``e_ct`` (CM cross-track error [m]), ``theta_ref``, ``theta_avg`` (psi),
+``phi_0``, ``v_t``, ``v_avg`` (the averaged speed the law uses) and ``s_cm`` (arc length of
+the CM's closest path point).
 """
 
 from __future__ import annotations
@@ -129,11 +55,12 @@ import math
 from dataclasses import dataclass, fields
 
 import numpy as np
-from scipy.linalg import expm, lapack
+from scipy.linalg import expm
 
-from .._validation import brief, finite_number
+from .._blas import solve_spd
+from .._validation import brief, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
-from ..model import Snake, _check_snake
+from ..model import Snake
 from ..paths import Line, Path, PathReference
 from .base import Controller
 
@@ -295,7 +222,7 @@ def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray
     ConfigurationError
         ``x`` does not have 2(n + 2) finite entries.
     """
-    x = _check_snake(snake).check_state(x)
+    x = instance(snake, Snake, "snake").check_state(x)
     return _kinematics(_cm_lever(snake), snake.nq, x)
 
 
@@ -427,7 +354,7 @@ class LOSController(Controller):
 
     def __init__(self, snake: Snake, path: Path | PathReference | None = None,
                  params: LOSParams | None = None, **overrides: object) -> None:
-        if not _check_snake(snake).params.actuated:
+        if not instance(snake, Snake, "snake").params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
         base = LOSParams() if params is None else params
         if not isinstance(base, LOSParams):
@@ -586,7 +513,7 @@ class LOSController(Controller):
         h_vec = snake.bias_of_state(x)
         act, unact = self._act, self._unact
         uu, ua, au, aa = self._blocks
-        solved, info = lapack.dposv(h_mat[uu], np.column_stack((h_mat[ua], h_vec[unact])))[1:]
+        solved, info = solve_spd(h_mat[uu], np.column_stack((h_mat[ua], h_vec[unact])))
         if info != 0:
             raise SingularPostureError(f"H_uu is not positive definite (LAPACK info {info})")
         h_au = h_mat[au]

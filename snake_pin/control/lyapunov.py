@@ -19,53 +19,28 @@ is a dropped column). Take the targets
 and tau_a = argmin ||A tau_a + b - q''*||^2_W, W = blockdiag(K_w2, K_phi): a weighted least
 squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible).
 
-Evaluation (the closed loop's hot path): b comes from one WORLD-convention ABA at
-zero torque and H^-1 from ``pin.computeMinverse`` right after it
-(:class:`~snake_pin.model.FastDynamics`); every target, s and e are one matrix product
-with the stacked state, b and the time terms; the stack S = [W^(1/2) A, W^(1/2)
-(q''* - b), W^(1/2) [s; e]]^T times its own transpose gives the normal equations (A^T W A
-and their right-hand side) and V at once. A passive joint keeps its row of A^T = E^T H^-1
-with weight 0 and a 1 in a column of its own, so its normal equation reads tau_j = 0
-(exactly: its row and column of A^T W A are zero but for that 1) and the actuated torques
-are those of the reduced system, with no copies or fancy indexing. The products, the
-normal equations (dsyrk) and the solve (dposv) are BLAS and LAPACK called in place
-(:mod:`snake_pin._blas`); in a run on its own robot the law reads the state from RK4's
-in place (:func:`~snake_pin.control.base.sampler`). The law also keeps q'' = A tau_a + b
-at its state, which the simulator uses as RK4's first stage (:meth:`plant_acceleration`).
-With the residual rho = A tau_a + b - q''* (rho = [rho_w; rho_phi]),
+With the residual rho = A tau_a + b - q''*,
 
     V' = -2 lam ||s||^2_{K_w2} - 2 mu ||e||^2_{K_phi} - 2 [s; e]^T W rho
          - 2 k_s e^T K_phi (phi_r - phi).
 
-If every coordinate had an input, rho = 0 and V decays at least as exp(-2 min(lam, mu) t).
-The snake has n - 1 (or fewer) inputs for n + 2 rows, so rho cannot vanish in general:
-the law gives up exactly the W-smallest part of the target that no torque can reach
-(normal equations A^T W rho = 0), trading head against shape by the weights of (84) -
-that is what V "reduced where the underactuation allows" means here. The tests check this
-identity for V' on random states. k_s = 0 is the pure V of (83); a weak shape spring (k_s > 0) keeps
-the body from drifting when a joint has failed and one shape input is gone.
+With an input per coordinate rho = 0 and V decays at least as exp(-2 min(lam, mu) t); the
+snake has at most n - 1 inputs for n + 2 rows, and the law gives up exactly the W-smallest
+part of the target no torque can reach (A^T W rho = 0): V "reduced where the
+underactuation allows" (the tests check this identity for V'). A weak shape spring
+(k_s > 0) keeps the body from drifting when a joint has failed. The head's error must
+decay faster than the gait's (lam = 10/s, mu = lam / 2); one rate for both lets the head
+swing slowly about the reference. The gains are rates and weights on accelerations, with
+no mass or length in them: they stay those of (84) for every robot, whose own H and h
+(per-link values included) scale the torques.
 
-The two rates are the design's tuning. The head's error has to decay faster than the
-gait's (lam = 10/s, mu = lam / 2): with one rate for both (lam = mu = 1/s) the head's x
-error swings slowly (periods of 20-50 s) about the reference, because the myopic least
-squares keeps the gait rather than bending it to push the head. Along mu = lam / 2 the RMS
-head error of the 60 s Table 1 run falls steadily with lam (4.6 % of the body length at
-lam = 3, 3.6 % at 7, 3.2 % at 10; 5.8 % with lam = mu = 1); slowing the gait further
-(mu << lam), or a shape spring without a failed joint, loses the serpenoid and with it
-the propulsion.
-
-Per-link robots (a heavy, long head; a battery tail). Nothing in the law assumes equal
-links: A and b come from the robot's own H and h (per-link masses, lengths, inertias, CM
-offsets and friction), so the torques scale with the robot through H. The gains carry no
-mass or length: K_w1, lam, mu [1/s] and k_s [1/s^2] are rates, K_w2 and K_phi weights
-on accelerations, and they stay those of (84) for every robot, as the paper keeps them
-for its 1.2 m and 1.41 m robots. (Their head rows weigh m/s^2 against the joints'
-rad/s^2, so a body much longer or shorter than a metre shifts the trade towards the
-shape or the head; pass scaled K_w2 for such robots.) Measured on a 10-link robot whose
-head is 2x as long and 3x as heavy as its Table 1 links (c_y = 50 c_x per link): RMS head
-error 4.1 % of the body over [10, 60] s (5.1 % with joint 5 passive), against 3.2 % for
-the Table 1 robot; given equal Table 1 links as its model instead, the law loses the head
-(1.1 m RMS over [5, 15] s).
+Evaluation (the hot path): b and H^-1 from :meth:`~snake_pin.model.Snake.calc_affine` on
+the law's own data; the targets, s and e are one product with [q, q', b, time terms]; the
+stack S = [W^(1/2) A, W^(1/2) (q''* - b), W^(1/2) [s; e]]^T times its transpose gives
+A^T W A, the right-hand side and V at once (BLAS/LAPACK in place, :mod:`snake_pin._blas`).
+A passive joint keeps its row of A^T with weight 0 and a 1 in a column of its own, so its
+normal equation reads tau_j = 0 exactly. q'' = A tau_a + b is kept for the simulator's
+first RK4 stage (:meth:`plant_acceleration`).
 
 Convention: in the paper's coordinates (3) theta_1 points from the head towards the
 tail, so a head-first run along +x has theta_1 = pi; see
@@ -74,31 +49,23 @@ tail, so a head-first run along +x has theta_1 = pi; see
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from types import SimpleNamespace
 
 import numpy as np
 
-from .._blas import dgemv, dposv, dsyrk
-from .._validation import finite_number
+from .._blas import gemv, posv, syrk
+from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
-from ..model import Snake, _check_snake
-from .base import (
-    Controller,
-    TimeTerms,
-    _check_reference,
-    _ReferenceTimeTerms,
-    _ViewsMadeOnce,
-    gait_for,
-)
+from ..model import Snake
+from .base import ReferenceLaw, TimeTerms, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, head_first_reference
 
 __all__ = ["LyapunovController"]
 
 
-class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
+class LyapunovController(ReferenceLaw):
     """Head tracking that reduces V of (83) by weighted least squares on q''.
 
     Parameters
@@ -133,12 +100,12 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                  k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
                  lam: float = 10.0, lam_shape: float | None = None,
                  k_shape: float | None = None) -> None:
-        n = _check_snake(snake).n
+        n = instance(snake, Snake, "snake").n
         if not snake.params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
         self.snake = snake
         self.reference = (head_first_reference() if reference is None
-                          else _check_reference(reference))
+                          else self.checked_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
         self.k_w1 = gain_matrix(k_w1, 3, "K_w1")
         k_w2_m = gain_matrix(k_w2, 3, "K_w2")
@@ -157,11 +124,11 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         self.k_shape = finite_number(default_shape if k_shape is None else k_shape, "k_shape",
                                      non_negative=True)
         self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
-        # the last call's q'' (None after a failed call) and signals, kept by the hot path
-        self._outputs: list = [None, {}]
+        self._acceleration = None  # the last call's q'' (None: failed)
+        self._signals = {}
         self._time_row = TimeTerms(self._time_terms)
         self._build_law()
-        self._make_views()
+        self._buffers = self._allocate()
 
     def _build_law(self) -> None:
         """Constant matrices of the hot path (see the module docstring)."""
@@ -208,68 +175,75 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         state = np.hstack((law[:, 3 * nq:], np.eye(2 * nq)))
         self._law_state = np.zeros((2 * width, 5 * nq))
         self._law_state[:nq], self._law_state[width:width + nq] = state[:nq], state[nq:]
-        self._inputs = np.zeros(5 * nq)
         # rows: (W^(1/2) A)^T, then the errors [W^(1/2) (q''* - b); W^(1/2) [s; e]]; times
         # its own transpose it gives A^T W A, the right-hand side and V in one product
         self._stack = np.zeros((m + 2, width))
         self._stack[passive, nq + np.arange(len(passive))] = 1.0
-        self._dynamics = snake.fast_dynamics
         # W^(1/2) scales A^T's columns, by a whole matrix of weights (numpy broadcasting
         # costs more here); a passive joint's row weighs 0
         self._sqrt_w = np.tile(sqrt_w, (m, 1))
         self._sqrt_w[passive] = 0.0
 
-    def _make_views(self) -> None:
-        """The hot path (:meth:`__call__`): a closure over views of its buffers, made once
-        (see :class:`~snake_pin.control.base._ViewsMadeOnce`)."""
+    def _allocate(self) -> SimpleNamespace:
+        """The call's buffers and their views, made once (and again on unpickling)."""
         nq, m = self.snake.nq, self.snake.n - 1
-        inputs, stack, outputs = self._inputs, self._stack, self._outputs
-        x_slot, b_slot, time_slot = inputs[:2 * nq], inputs[2 * nq:3 * nq], inputs[3 * nq:]
-        weighted_t, errors = stack[:m, :nq], stack[m:].reshape(-1)
-        # BLAS and LAPACK run in place on Fortran-ordered buffers of the closure's own (see
-        # snake_pin._blas): [A^T W A, rhs, V] = stack stack^T (upper triangle), and its
-        # A^T W A block copied whole for the solve
-        normal, gram = np.zeros((m + 2, m + 2), order="F"), np.zeros((m, m), order="F")
-        stack_columns, law_columns = stack.T, self._law_state.T
-        gram_block, rhs, last = normal[:m, :m], normal[:m, m], m + 1
-        # A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a contiguous view of
-        # the dynamics' H^-1 (filled by each affine call; Pinocchio stores it row-major),
-        # and A = rows.T, Fortran-ordered for dgemv
-        rows = self._dynamics.inverse_mass[3:]
-        joint_columns = rows.T
-        time_row, sqrt_w = self._time_row, self._sqrt_w
-        multiply = np.multiply
+        inputs, stack = np.zeros(5 * nq), self._stack.copy()  # a copy's own buffers
+        data = self.snake.create_data()
+        # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas):
+        # [A^T W A, rhs, V] = stack stack^T (upper triangle), and its A^T W A block copied
+        # whole for the solve. A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a
+        # contiguous view of the data's (Pinocchio stores it row-major), and A = rows.T
+        normal = np.zeros((m + 2, m + 2), order="F")
+        gram, tau = np.zeros((m, m), order="F"), np.zeros(m)
+        rows = data.inverse_mass[3:]
+        b = inputs[2 * nq:3 * nq]
+        return SimpleNamespace(
+            data=data, x=inputs[:2 * nq], q=inputs[:nq], v=inputs[nq:2 * nq], b=b,
+            time=inputs[3 * nq:], weighted_t=stack[:m, :nq], normal=normal, gram=gram,
+            gram_block=normal[:m, :m], rhs=normal[:m, m], last=m + 1, rows=rows, tau=tau,
+            # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
+            errors=gemv(1.0, self._law_state.T, inputs, 0.0, stack[m:].reshape(-1), 1),
+            normal_equations=syrk(1.0, stack.T, 0.0, normal, 1),  # [A^T W A, rhs, V]
+            solve=posv(gram, tau),  # its upper triangle; tau in place
+            acceleration=gemv(1.0, rows.T, tau, 1.0, b))  # q'' = b + A tau_a, in b
 
-        def make(calls: Any) -> Callable[[np.ndarray, float], np.ndarray]:
-            """The law over b and H^-1 from ``calls.affine``: the robot's own, at x
-            (FastDynamics), or a run's at its state Z (RK4Tableau, see sampler)."""
-            affine = calls.affine
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Joint torques (length n - 1) at state ``x`` and time ``t``.
 
-            def hot(x: np.ndarray, t: float) -> np.ndarray:
-                outputs[0] = None
-                b, _ = affine(x)  # and H^-1, whole, read through rows
-                x_slot[...] = x
-                b_slot[...] = b
-                time_slot[...] = time_row(t)
-                # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-                dgemv(1.0, law_columns, inputs, 0.0, errors, 0, 1, 0, 1, 1, 1)
-                multiply(rows, sqrt_w, weighted_t)  # (W^(1/2) A)^T, passive joints' rows 0
-                dsyrk(1.0, stack_columns, 0.0, normal, 1, 0, 1)  # [A^T W A, rhs, V]
-                gram[...] = gram_block
-                tau = rhs.copy()
-                info = dposv(gram, tau, 0, 1, 1)[2]  # its upper triangle; tau in place
-                if info != 0:
-                    raise SingularPostureError(
-                        f"A^T W A is not positive definite (LAPACK info {info})")
-                # q'' = b + A tau_a, in b (a new array of aba's)
-                dgemv(1.0, joint_columns, tau, 1.0, b, 0, 1, 0, 1, 0, 1)
-                outputs[0], outputs[1] = b, {"V": normal.item(last, last)}
-                return tau
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+        t : float
+            Time [s].
 
-            return hot
+        Returns
+        -------
+        numpy.ndarray
+            ``tau`` (passive joints' entries 0).
 
-        self._hot = make(self._dynamics)
-        self._made = (make, self._hot)
+        Raises
+        ------
+        SingularPostureError
+            A^T W A is not positive definite.
+        """
+        work = self._buffers
+        self._acceleration = None
+        work.x[...] = x
+        work.b[...] = self.snake.calc_affine(work.data, work.q, work.v)[0]  # and H^-1
+        work.time[...] = self._time_row(t)
+        work.errors()
+        np.multiply(work.rows, self._sqrt_w, work.weighted_t)  # (W^(1/2) A)^T
+        work.normal_equations()
+        work.gram[...] = work.gram_block
+        work.tau[...] = work.rhs
+        info = work.solve()[2]
+        if info != 0:
+            raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
+        work.acceleration()
+        self._acceleration = work.b
+        self._signals = {"V": work.normal.item(work.last, work.last)}
+        return work.tau.copy()
 
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).
@@ -349,7 +323,7 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         numpy.ndarray or None
             ``q''`` (length n + 2), or None for another plant.
         """
-        return self._outputs[0] if snake is self.snake else None
+        return self._acceleration if snake is self.snake else None
 
     def signals(self) -> dict[str, float]:
         """Diagnostics of the last call.
@@ -359,4 +333,4 @@ class LyapunovController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         dict of str to float
             ``V``: eq. (83) at the state and time of the last call.
         """
-        return self._outputs[1]
+        return self._signals

@@ -20,62 +20,40 @@ Beyond the paper, ``climb_R = gamma > 0`` uses the redundancy to climb log R: u 
 towards the velocity gamma grad log R (a damped gradient flow; it does not disturb
 w'' = a). The report shows what it does to the breakdown.
 
-Evaluation (the closed loop's hot path). Expanding the law,
-
-    tau = h2 + H22 w,   w = H12^+ z - u,   z = -H11 a - h1 + H12 (H22^-1 H21 a + u),
-
-the same torque with one Cholesky solve of a vector (p = H22^-1 H21 a) instead of a matrix,
-H12^+ z = H12^T (H12 H12^T)^-1 z (R > 0: full row rank) by a 3 x 3 Cholesky solve, R as the
-square root of the smallest eigenvalue of H12 H12^T (the cubic's closed form,
-:func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`, LAPACK's dsyev where two eigenvalues
-nearly coincide; a full SVD of H12 costs 4x more), and H and h from one CRBA, one RNEA
-and the friction passes (:class:`~snake_pin.model.FastDynamics`; the products with H's
-head and joint rows add h1 and h2 as BLAS's beta term, :mod:`snake_pin._blas`). The
-time-only parts of a and u are computed in blocks for the coming calls. The closed loop's
-q'' at the state is then known: w'' = a and phi'' = H22^-1 (tau - h2 - H21 a) = w - p,
-which the simulator uses as RK4's first stage (:meth:`PFLController.plant_acceleration`);
-the torque is formed from it as tau = H21 a + H22 phi'' + h2 (= h2 + H22 w, one product
-with H's joint rows). H (whole: the bindings mirror CRBA's triangle) and h are read
-through views made once; in a run on its own robot, at RK4's state in place
-(:func:`~snake_pin.control.base.sampler`).
-
-Per-link robots: the law reads only the robot's own H and h (per-link lengths, masses,
-inertias, CM offsets and friction) and the climb term the per-link closed form of R, so
-w'' = a holds for any robot (tested at random states of heterogeneous robots). Its gains
-are rates on accelerations (K_v, R_v [1/s], K_p, R_p [1/s^2]) with no mass or length in
-them; the torque scales with the robot through H, so the gains of (79) serve every robot.
+Evaluation (the hot path): expanded, the law is ``tau = h2 + H22 w``, ``w = H12^+ z - u``,
+``z = -H11 a - h1 + H12 (H22^-1 H21 a + u)``: one Cholesky solve of a vector
+(p = H22^-1 H21 a), ``H12^+ z = H12^T (H12 H12^T)^-1 z`` by a 3 x 3 Cholesky solve, and R
+from the closed-form smallest eigenvalue of H12 H12^T
+(:func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`; a full SVD costs 4x more), on H
+and h of :meth:`~snake_pin.model.Snake.calc_mass_and_bias` (the law's own data). The
+closed loop's q'' is then known, ``[a; w - p]``: the simulator's first RK4 stage
+(:meth:`PFLController.plant_acceleration`). The law reads only the robot's own H and h and
+the per-link closed form of R, so w'' = a holds for any robot; its gains are rates on
+accelerations and serve every robot.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
+from types import SimpleNamespace
 
 import numpy as np
 
-from .._blas import dgemv, dposv, dsyrk
+from .._blas import gemv, posv, syrk
 from .._symmetric import smallest_eigenvalue_3x3
-from .._validation import finite_number
+from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import _r_batch
-from ..model import Snake, _check_snake
-from .base import (
-    Controller,
-    TimeTerms,
-    _check_reference,
-    _ReferenceTimeTerms,
-    _ViewsMadeOnce,
-    gait_for,
-)
+from ..model import Snake
+from .base import ReferenceLaw, TimeTerms, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
 __all__ = ["PFLController"]
 
 
-class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
+class PFLController(ReferenceLaw):
     """Head PFL controller of Section VI.1.
 
     Parameters
@@ -111,7 +89,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                  gait: Serpenoid | None = None, *, k_v: object = 6.0, k_p: object = 6.2,
                  r_v: object = 0.041, r_p: object = 0.079, r_min: float = 1e-9,
                  climb_R: float = 0.0, climb_damping: float | None = None) -> None:
-        if _check_snake(snake).params.passive:
+        if instance(snake, Snake, "snake").params.passive:
             raise ParameterError("PFL needs every joint actuated; use the Lyapunov-like "
                                  "controller with passive joints")
         n = snake.n
@@ -119,7 +97,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
             raise ParameterError(f"PFL of the head needs n >= 4 links, got {n}")
         self.snake = snake
         self.reference = (LinearReference() if reference is None
-                          else _check_reference(reference))
+                          else self.checked_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 3, 1.0, 0.18))
         self.k_v = gain_matrix(k_v, 3, "K_v")
         self.k_p = gain_matrix(k_p, 3, "K_p")
@@ -132,8 +110,8 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
                                  "term): give climb_R > 0 or leave climb_damping out")
         self.climb_damping = finite_number(2.0 if climb_damping is None else climb_damping,
                                            "climb_damping", positive=True)
-        # the last call's q'' (None after a failed call) and signals, kept by the hot path
-        self._outputs: list = [None, {}]
+        self._acceleration = None  # the last call's q'' (None: failed)
+        self._signals = {}
         self._nq = nq = snake.nq
         # [a; u] = (time terms) + gain @ x, from (71) and (78) without the climb term
         m = n - 1
@@ -149,77 +127,92 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         law[:3] *= -1.0
         self._law_time = law.T.copy()
         self._time_row = TimeTerms(self._time_terms)
-        self._dynamics = snake.fast_dynamics
         # [-a; u], then [-a; u + p], then the call's q'' = [w''; phi''] = [a; phi'']
         self._stacked = np.zeros(nq)
-        self._make_views()
+        self._buffers = self._allocate()
 
-    def _make_views(self) -> None:
-        """The hot path (:meth:`__call__`): a closure over views made once of the dynamics'
-        H and h (filled by each mass_and_bias call) and of the buffers (see
-        :class:`~snake_pin.control.base._ViewsMadeOnce`)."""
-        nq, dynamics, outputs = self._nq, self._dynamics, self._outputs
+    def _allocate(self) -> SimpleNamespace:
+        """The call's buffers and their views, made once (and again on unpickling)."""
+        nq = self._nq
         m = nq - 3
-        mass, bias = dynamics.mass, dynamics.bias  # H (Fortran-ordered, whole) and h
-        stacked = self._stacked
-        # BLAS and LAPACK run in place on Fortran-ordered buffers of the closure's own (see
-        # snake_pin._blas): H12 and H22 are copied into them per call; H's columns are its
-        # rows (symmetric)
+        data = self.snake.create_data()
+        mass, stacked = data.mass, self._stacked  # H (Fortran-ordered, whole)
+        state = np.zeros(2 * nq)
+        # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas): H12
+        # and H22 are copied into them per call; H's columns are its rows (symmetric)
         h12, h22 = np.zeros((3, m), order="F"), np.zeros((m, m), order="F")
-        gram, p_rhs, z = np.zeros((3, 3), order="F"), np.zeros(m), np.zeros(3)
-        gain_columns = self._gain.T  # Fortran-ordered
-        h12_block, h22_block = mass[:3, 3:], mass[3:, 3:]
-        head_columns, joint_columns = mass[:, :3], mass[:, 3:]
-        h_head, h_joints = bias[:3], bias[3:]
+        gram, p_rhs, z, tau = np.zeros((3, 3), order="F"), np.zeros(m), np.zeros(3), np.zeros(m)
         minus_a, u = stacked[:3], stacked[3:]
-        time_row = self._time_row
-        subtract, negative, sqrt = np.subtract, np.negative, math.sqrt
-        smallest = smallest_eigenvalue_3x3
-        law = self  # r_min and the climb's settings are read per call, as attributes
+        return SimpleNamespace(
+            data=data, state=state, q=state[:nq], v=state[nq:], h12=h12, h22=h22, gram=gram,
+            z=z, tau=tau, h12_block=mass[:3, 3:], h22_block=mass[3:, 3:],
+            h_head=data.bias[:3], h_joints=data.bias[3:], minus_a=minus_a, u=u,
+            gram_of_h12=syrk(1.0, h12, 0.0, gram),  # H12 H12^T (upper triangle)
+            targets=gemv(1.0, self._gain.T, state, 1.0, stacked, 1),  # [-a; u] (71, 78)
+            minus_p=gemv(1.0, h12, minus_a, 0.0, p_rhs, 1),  # -H21 a
+            solve_p=posv(h22, p_rhs),  # -p = -H22^-1 H21 a, in p_rhs
+            p_rhs=p_rhs,
+            # -H11 a + H12 u - h1, then (H12 H12^T)^-1 of it, in z
+            z_rhs=gemv(1.0, mass[:, :3], stacked, -1.0, z, 1),
+            solve_z=posv(gram, z),
+            joint_rates=gemv(1.0, h12, z, -1.0, u, 1),  # phi'' = H12^+ z - (u + p)
+            torque=gemv(1.0, mass[:, 3:], stacked, 1.0, tau, 1))  # H21 a + H22 phi'' + h2
 
-        def make(calls: Any) -> Callable[[np.ndarray, float], np.ndarray]:
-            """The law over H and h from ``calls.mass_and_bias``: the robot's own, at x
-            (FastDynamics), or a run's at its state Z (RK4Tableau, see sampler)."""
-            mass_and_bias = calls.mass_and_bias
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Joint torques (length n - 1) at state ``x`` and time ``t``.
 
-            def hot(x: np.ndarray, t: float) -> np.ndarray:
-                outputs[0] = None
-                mass_and_bias(x)  # H (whole) and h, read through the views
-                h12[...] = h12_block
-                dsyrk(1.0, h12, 0.0, gram, 0, 0, 1)  # H12 H12^T (upper triangle)
-                r = sqrt(max(smallest(gram), 0.0))  # R: H12's smallest singular value
-                r_min = law.r_min
-                if not r > r_min:
-                    raise SingularPostureError(f"R = {r:.3g} <= {r_min:g}: PFL is undefined here")
-                stacked[...] = time_row(t)
-                dgemv(1.0, gain_columns, x, 1.0, stacked, 0, 1, 0, 1, 1, 1)  # [-a; u] (71, 78)
-                if law.climb_R:
-                    subtract(u, law.climb_damping * (law.climb_R * law._grad_log_r(x[3:nq])
-                                                     - x[nq + 3:]), u)
-                dgemv(1.0, h12, minus_a, 0.0, p_rhs, 0, 1, 0, 1, 1, 1)  # -H21 a
-                h22[...] = h22_block
-                info = dposv(h22, p_rhs, 0, 1, 1)[2]  # -p = -H22^-1 H21 a, in p_rhs
-                if info != 0:
-                    raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-                subtract(u, p_rhs, u)  # stacked = [-a; p + u]
-                z[...] = h_head
-                dgemv(1.0, head_columns, stacked, -1.0, z, 0, 1, 0, 1, 1, 1)  # -H11 a + H12 u - h1
-                info = dposv(gram, z, 0, 1, 1)[2]  # (H12 H12^T)^-1 z, in z
-                if info != 0:
-                    raise SingularPostureError(
-                        f"H12 H12^T is not positive definite (LAPACK info {info})")
-                dgemv(1.0, h12, z, -1.0, u, 0, 1, 0, 1, 1, 1)  # phi'' = H12^+ z - (u + p)
-                negative(minus_a, minus_a)  # w'' = a: stacked is q'' now
-                tau = h_joints.copy()
-                # H21 a + H22 phi'' + h2
-                dgemv(1.0, joint_columns, stacked, 1.0, tau, 0, 1, 0, 1, 1, 1)
-                outputs[0], outputs[1] = stacked, {"R": r}
-                return tau
+        Parameters
+        ----------
+        x : numpy.ndarray
+            State ``x = [q, dq]``, length 2(n + 2).
+        t : float
+            Time [s].
 
-            return hot
+        Returns
+        -------
+        numpy.ndarray
+            ``tau``.
 
-        self._hot = make(dynamics)
-        self._made = (make, self._hot)
+        Raises
+        ------
+        SingularPostureError
+            R <= r_min, or H22 or H12 H12^T is not positive definite.
+        """
+        work = self._buffers
+        self._acceleration = None
+        work.state[...] = x
+        self.snake.calc_mass_and_bias(work.data, work.q, work.v)  # H (whole) and h
+        work.h12[...] = work.h12_block
+        work.gram_of_h12()
+        r = math.sqrt(max(smallest_eigenvalue_3x3(work.gram), 0.0))  # H12's least singular value
+        if not r > self.r_min:
+            raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
+        stacked, u = self._stacked, work.u
+        stacked[...] = self._time_row(t)
+        work.targets()
+        if self.climb_R:
+            nq = self._nq
+            np.subtract(u, self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq])
+                                                 - x[nq + 3:]), u)
+        work.minus_p()
+        work.h22[...] = work.h22_block
+        info = work.solve_p()[2]
+        if info != 0:
+            raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
+        np.subtract(u, work.p_rhs, u)  # stacked = [-a; p + u]
+        work.z[...] = work.h_head
+        work.z_rhs()
+        info = work.solve_z()[2]
+        if info != 0:
+            raise SingularPostureError(
+                f"H12 H12^T is not positive definite (LAPACK info {info})")
+        work.joint_rates()
+        np.negative(work.minus_a, work.minus_a)  # w'' = a: stacked is q'' now
+        work.tau[...] = work.h_joints
+        work.torque()
+        self._acceleration = stacked
+        self._signals = {"R": r}
+        return work.tau.copy()
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
@@ -257,7 +250,7 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         numpy.ndarray or None
             ``q''`` (length n + 2), or None for another plant.
         """
-        return self._outputs[0] if snake is self.snake else None
+        return self._acceleration if snake is self.snake else None
 
     def _grad_log_r(self, phi: np.ndarray, step: float = 1e-6) -> np.ndarray:
         """Central-difference gradient of log R over phi (one batched evaluation)."""
@@ -274,4 +267,4 @@ class PFLController(_ViewsMadeOnce, _ReferenceTimeTerms, Controller):
         dict of str to float
             ``R``: the head's manipulability at the last call.
         """
-        return self._outputs[1]
+        return self._signals

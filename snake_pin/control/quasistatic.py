@@ -21,46 +21,34 @@ paper's V-REP robot do). Passive joints get no torque. V is not driven to zero -
 underactuation leaves a positive minimum - but each control step commands the joint
 velocity of least V, and the head follows through J.
 
-Per-link robots need nothing special in the law: C is built link by link (each link's own
-c_x, c_y, c_theta at its own centre of mass), and the only gains with physical units, the
-servos', scale per joint with the links it joins (:func:`servo_gains`). Every link must
-have c_x, c_y > 0: a link without friction is one whose inertia is not negligible.
+C is built link by link (each link's own coefficients at its own CM); the servos' gains,
+the only ones with units, scale per joint with the links it joins (:func:`servo_gains`).
+Every link needs c_x, c_y > 0 (a link without friction has inertia that matters).
 
-Evaluation (the engine loop's hot path, about 15 us a call at n = 8): C is the mass
-matrix of the damping twin (:func:`~snake_pin.friction.damping_twin`), a Schur complement
-over its wheels, C = M_cc - M_cw M_ww^-1 M_wc; ``C_uu^-1 C_ua`` is the first block row
-of the solution of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa], so one CRBA and one
-LAPACK solve give J without forming C. The normal equations go to BLAS/LAPACK (dsyrk,
-dposv), and the time-only terms (references and gait, weighted) are computed in blocks
-after :meth:`~QuasiStaticLyapunovController.prepare` (``run_engine`` announces MuJoCo's
-sampling instants); V is evaluated only when :meth:`~QuasiStaticLyapunovController.signals`
-asks for it.
-
+Evaluation (the engine loop's hot path): C is the damping twin's Schur complement
+(:func:`~snake_pin.friction.damping_twin`, M_ww = -1), and ``C_uu^-1 C_ua`` the first block
+row of the solution of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa]: one CRBA and one
+solve give J without forming C. The time-only terms are computed in blocks after
+:meth:`~QuasiStaticLyapunovController.prepare`; V only when
+:meth:`~QuasiStaticLyapunovController.signals` asks for it.
 :class:`~snake_pin.control.lyapunov.LyapunovController` is the acceleration-level form of
-the same V and gains; it needs a model that predicts accelerations, which sticking wheels
-do not honour (see the engine section of the report).
+the same V; it needs a model that predicts accelerations, which sticking wheels do not
+honour.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg import blas, lapack
+from scipy.linalg import lapack
 
-from .._validation import check_params, finite_number
+from .._blas import posv, syrk
+from .._validation import check_params, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
-from ..friction import damping_twin
 from ..gaits import Serpenoid
-from ..model import Snake, _check_snake
+from ..model import Snake
 from ..params import SnakeParams
-from .base import (
-    Controller,
-    TimeTerms,
-    _check_reference,
-    _reference_rows,
-    _ReferenceTimeTerms,
-    gait_for,
-)
+from .base import ReferenceLaw, TimeTerms, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, head_first_reference
 
@@ -103,7 +91,7 @@ def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.n
     return bandwidth**2 * inertia, 2.0 * bandwidth * inertia
 
 
-class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
+class QuasiStaticLyapunovController(ReferenceLaw):
     """Velocity-level minimiser of V (83) through the quasi-static connection, with servos.
 
     Parameters
@@ -140,7 +128,7 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
                  k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
                  servo_bandwidth: float = 20.0, max_lead: float = 0.3,
                  control_dt: float = 1e-3) -> None:
-        params = _check_snake(snake).params
+        params = instance(snake, Snake, "snake").params
         n = params.n
         if not params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
@@ -152,7 +140,7 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
                                      f"c_y > 0 on every link, got {key} = 0")
         self.snake = snake
         self.reference = (head_first_reference() if reference is None
-                          else _check_reference(reference))
+                          else self.checked_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
         self.k_w1 = gain_matrix(k_w1, 3, "K_w1")
         k_w2_d = np.diag(gain_matrix(k_w2, 3, "K_w2"))
@@ -177,19 +165,18 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
         params, nq = self.snake.params, self.snake.nq
         u, a = self._u, self._a
         m, k = len(u), len(a)
-        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction), M_ww
-        # diagonal (each wheel's c_y,i - c_x,i). C_uu X = C_ua is the first block row of
-        # [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa] (eliminate Y = M_ww^-1 (M_wa - M_wu X)),
-        # so one CRBA and one solve give X = C_uu^-1 C_ua = -J without forming C; the
-        # entries are read from the upper triangle Pinocchio fills (row <= column). Wheels
-        # of c_y,i = c_x,i weigh nothing and are left out (they add nothing to C).
-        twin, chain, wheels = damping_twin(self.snake.model, params)
+        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction), M_ww =
+        # -1. C_uu X = C_ua is the first block row of [M_uu M_uw; M_wu M_ww] [X; Y] =
+        # [M_ua; M_wa] (eliminate Y = M_ww^-1 (M_wa - M_wu X)), so one CRBA and one solve
+        # give X = C_uu^-1 C_ua = -J without forming C; the entries are read from the upper
+        # triangle Pinocchio fills (row <= column). Wheels of c_y,i = c_x,i weigh nothing
+        # and are left out (they add nothing to C).
+        twin = self.snake.friction.twin
         self._twin, self._twin_data = twin, twin.createData()
-        self._twin_q = np.zeros(twin.nq)  # every twin joint has nq = nv = 1
-        self._chain = chain
-        if len(wheels):
-            extra = params.per_link("c_y") - params.per_link("c_x")
-            wheels = wheels[extra != 0.0]
+        self._twin_q = np.zeros(twin.nq)  # [q, 0_w]
+        chain = np.arange(nq)
+        wheels = np.array([v for v in range(nq, twin.nv) if twin.inertias[v + 1].mass != 0.0],
+                          dtype=int)  # joint v + 1 moves velocity v
         rows = np.r_[chain[u], wheels]
         cols = np.r_[rows, chain[a]]
         self._gather = (np.minimum.outer(rows, cols) * twin.nv
@@ -225,7 +212,7 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
         at that time directly, which is cheaper than building a one-row block.
         """
         if len(times) != 1:
-            return _reference_rows(self.reference, self.gait, times) @ self._law_time
+            return super()._time_terms(times)
         t = float(times[0])
         w_r, dw_r, _ = self.reference(t)
         dphi_r = self.gait.derivatives(t)[1]
@@ -265,7 +252,7 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
     def _solved(self, q: np.ndarray) -> np.ndarray:
         """``C_uu^-1 C_ua`` at q (``-J``)."""
         twin_q = self._twin_q
-        twin_q[self._chain] = q
+        twin_q[:self.snake.nq] = q
         mass = pin.crba(self._twin, self._twin_data, twin_q, pin.Convention.WORLD)
         block = self._block
         system = mass.take(self._gather).reshape(block, -1)
@@ -282,11 +269,13 @@ class QuasiStaticLyapunovController(_ReferenceTimeTerms, Controller):
         time = self._time_row(t)
         target_u = time[:m].copy()  # sqrt(W_u) [w_r' + K_w1 (w_r - w), phi_r,passive']
         target_u[:3] -= self._k_w1_weighted @ x[:3]
-        normal = blas.dsyrk(1.0, weighted, beta=1.0, c=self._diag_w_a, trans=1)
+        normal = self._diag_w_a.copy(order="F")
+        syrk(1.0, weighted, 1.0, normal, 1)()
         rhs = weighted.T @ target_u
         rhs += time[m:m + k]  # W_a phi_r,actuated'
         target_a = time[m + k:]
-        rate, info = lapack.dposv(normal, rhs, overwrite_a=1, overwrite_b=1)[1:]
+        info = posv(normal, rhs)()[2]
+        rate = rhs
         if info != 0:
             raise SingularPostureError(f"normal equations not positive definite (info {info})")
         self._last = (weighted, rate, target_u, target_a)

@@ -29,26 +29,13 @@ tangential constraints), condim 3 wheel contacts (sliding friction only; rolling
 axle is the hinge), soft contacts with solref (0.005, 1): critically damped at 5 ms, well
 above the step.
 
-The cone is chosen by the fidelity table of ``scripts/bench.py --only engine`` (MuJoCo
-4.0, 8-link ``engine`` robot; friction identified by
-:func:`~snake_pin.engine.run.identify_friction` against its references, the rolling model
-c_x = 2 b / r^2 = 0.0444 N s/m and the Coulomb equivalent c_y = 1.5 mu m g / v0 =
-61.36 N s/m; RMS head error over t >= 10 s of 7 runs of 60 s from initial joint angles
-offset by U(-1e-6, 1e-6) rad, median (10-90 %))::
-
-    cone       c_x            c_y            c_y at 45 deg  RMS %, all     RMS %, 5 passive
-    elliptic   0.0421 -5.2%   61.38 +0.04%   61.38 +0.04%   6.13 6.02-6.34  10.43 8.89-11.95
-    pyramidal  0.0420 -5.4%   61.86 +0.81%   45.58 -25.7%   5.62 5.12-5.78   8.70 8.18-10.37
-
-**Elliptic is the default**: it is the Coulomb contact the viscous model is identified
-from, at any heading. The pyramidal cone matches it only for a snake aligned with the
-world axes: its friction limit is a square in those axes (|f_x| + |f_y| <= mu N), so a
-link sliding at 45 degrees to them feels 26 % less sideways friction, and a serpentine
-gait sweeps its links through such headings; its lower tracking error comes with that
-weaker, heading-dependent friction, not with a better model of the robot. The pyramidal cone
-is faster (``python scripts/bench.py --only engine`` times both; the README's speed
-section has the figures): ``WheelSpec(cone="pyramidal")`` remains for quick looks.
-c_theta = 2 d^2 b / r^2 (the axle model; 1.57e-4 N m s) is the same for both cones.
+**Elliptic cones are the default**: the Coulomb contact the viscous model is identified
+from, at any heading. A pyramidal cone's friction limit is a square in the world axes
+(|f_x| + |f_y| <= mu N): a link sliding at 45 degrees to them feels 26 % less sideways
+friction, and a serpentine gait sweeps its links through such headings. It is faster
+(``scripts/bench.py --only engine`` times both and prints the fidelity table):
+``WheelSpec(cone="pyramidal")`` remains for quick looks. c_theta = 2 d^2 b / r^2 (the
+axle model) is the same for both cones.
 """
 
 from __future__ import annotations

@@ -12,7 +12,8 @@
   each link's mass (the load on its wheels), c_theta from each link's own wheel offset.
 * :class:`DirtyDerivative` estimates velocities from positions with 2 pi f_c s / (s + 2 pi f_c)
   (erratum 4 in docs/errata.md), discretised by backward Euler.
-* :func:`run_engine` runs the Lyapunov-like controller against MuJoCo at 1 kHz.
+* :func:`run_engine` runs the Lyapunov-like controller against MuJoCo at 1 kHz: the
+  :class:`EnginePlant` in :func:`snake_pin.sim.closed_loop`, the loop simulate runs.
 """
 
 from __future__ import annotations
@@ -28,14 +29,15 @@ import numpy as np
 from .._validation import finite_number
 from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
 from ..control.reference import HeadReference
-from ..exceptions import ParameterError, RunInterrupted
+from ..exceptions import ParameterError
 from ..gaits import initial_state
 from ..model import Snake
 from ..params import SnakeParams
-from ..sim import MAX_STEPS, Trajectory
+from ..sim import MAX_STEPS, Plant, Trajectory, closed_loop
 from .model import GRAVITY, EngineModel, WheelSpec, build_engine_model
 
-__all__ = ["LAWS", "DirtyDerivative", "EngineRun", "identify_friction", "run_engine"]
+__all__ = ["LAWS", "DirtyDerivative", "EnginePlant", "EngineRun", "identify_friction",
+           "run_engine"]
 
 
 class DirtyDerivative:
@@ -300,7 +302,6 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     friction = friction or identify_friction(params.replace(passive=()), wheels)
     model_params = params.replace(c_x=friction["c_x"], c_y=friction["c_y"],
                                   c_theta=friction["c_theta"])
-    engine = build_engine_model(params, wheels)
     snake = Snake(model_params)
     head_reference = reference if reference is not None else head_first_reference()
     controller: QuasiStaticLyapunovController | LyapunovController
@@ -311,24 +312,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         controller = LyapunovController(snake, head_reference)
     q0 = initial_state(params.n, theta_1=math.pi)[: params.n + 2]
     q0[3:] += offset
-    engine.set_paper_configuration(q0)
-    nq = snake.nq
-    filt = DirtyDerivative(nq, cutoff, dt)
-    ts = np.empty(steps + 1)
-    states = np.empty((steps + 1, 2 * nq))  # rows [q, dq]: the controller reads one whole
-    qs, dqs = states[:, :nq], states[:, nq:]
-    true_dq = np.empty((steps + 1, nq))
-    taus = np.zeros((steps + 1, params.n - 1))
-    yaw_prev, yaw_turns = q0[2], 0.0
-    status, reason = "completed", ""
-    good = 0  # samples 0 .. good - 1 are recorded whole (updated after each sample)
-    bar = None
-    # MuJoCo's clock adds the timestep once per engine step (from 0 after the reset), so
-    # the sampling instants are these running sums exactly and the controller can
-    # prepare its time-only terms (a call at another time would compute them alone)
-    clock = np.cumsum(np.full(steps * wheels.substeps, wheels.timestep))
-    controller.prepare(np.r_[0.0, clock[wheels.substeps - 1::wheels.substeps]][:steps])
-
+    plant = EnginePlant(build_engine_model(params, wheels), model_params, cutoff)
     meta = {"controller": controller.name, "law": law, "engine": "mujoco",
             "cutoff_hz": cutoff, "control_dt": dt, "engine_timestep": wheels.timestep,
             "wheel_radius": wheels.radius, "wheel_friction": wheels.friction}
@@ -336,72 +320,125 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         meta["initial_offset"] = offset.tolist()
     if reference is not None:
         meta["reference"] = repr(reference)
+    traj = closed_loop(plant, controller, np.r_[q0, np.zeros(len(q0))], steps,
+                       progress=progress, meta=meta, label="engine", record_signals=False)
+    return EngineRun(traj, plant.true_dq[:len(traj)].copy(), friction)
 
-    def collect(run_status: str, run_reason: str) -> EngineRun:
-        traj = Trajectory(t=ts[:good].copy(), q=qs[:good].copy(), dq=dqs[:good].copy(),
-                          tau=taus[:good].copy(), params=model_params, status=run_status,
-                          reason=run_reason,
-                          meta=dict(meta))
-        return EngineRun(traj, true_dq[:good].copy(), friction)
 
-    try:
-        if progress:
-            from tqdm import tqdm
+class EnginePlant(Plant):
+    """The MuJoCo robot as a :class:`~snake_pin.sim.Plant`: the torque held over
+    ``wheels.substeps`` engine steps, the sample read from the engine and its velocity
+    from a :class:`DirtyDerivative` (what a robot's encoders give).
 
-            bar = tqdm(total=steps, desc="engine", unit="step", leave=False, disable=None)
-        # the engine's state through views of its arrays (as EngineModel reads it)
-        data, mj_model, mj_step = engine.data, engine.model, mujoco.mj_step
+    The heading is unwrapped so that the filter and the reference see a continuous angle.
+    A sample whose configuration is not finite, or whose body left the floor (its root
+    above five wheel radii), ends the run as diverged. The engine's own velocities at the
+    samples are kept in :attr:`true_dq`.
+
+    Parameters
+    ----------
+    engine : EngineModel
+        The MuJoCo robot.
+    params : SnakeParams
+        The controller's model of it (the trajectory's parameters).
+    cutoff : float
+        The velocity filter's cut-off [Hz].
+
+    Attributes
+    ----------
+    true_dq
+        (samples, n + 2): the engine's velocities on (x, y, yaw, phi) at each sample.
+    """
+
+    def __init__(self, engine: EngineModel, params: SnakeParams, cutoff: float) -> None:
+        self.engine, self.params = engine, params
+        self.nq = params.n + 2
+        wheels = engine.wheels
+        self._filter = DirtyDerivative(self.nq, cutoff, wheels.control_dt)
+        self._motors = np.array(engine.actuated, dtype=int) - 1
+        self._ceiling = 5 * wheels.radius
+        self.true_dq = np.zeros((0, self.nq))
+        self._sample = 0
+        self._yaw, self._turns = 0.0, 0.0
+
+    def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """MuJoCo's clock: it adds the timestep once per engine step from 0 after the
+        reset, so the sampling instants are these running sums exactly.
+
+        Parameters
+        ----------
+        steps : int
+            Control periods.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The calls' and the samples' times [s].
+        """
+        wheels = self.engine.wheels
+        clock = np.cumsum(np.full(steps * wheels.substeps, wheels.timestep))
+        samples = np.r_[0.0, clock[wheels.substeps - 1::wheels.substeps]]
+        self.true_dq = np.zeros((steps + 1, self.nq))
+        return samples[:steps], samples
+
+    def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
+        """Put the robot at rest at the configuration of ``x0`` and read the first sample.
+
+        Parameters
+        ----------
+        x0 : numpy.ndarray
+            The initial state (its velocities are not used: the robot starts at rest).
+        out : numpy.ndarray
+            Where the first sample goes.
+        """
+        q0 = x0[:self.nq]
+        self.engine.set_paper_configuration(q0)
+        self._yaw, self._turns, self._sample = float(q0[2]), 0.0, 0
+        self._read(out)
+
+    def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
+             t: float) -> str:
+        """Hold ``tau`` over the engine's substeps, then read the next sample.
+
+        Parameters
+        ----------
+        tau : numpy.ndarray
+            Joint torques (n - 1), finite; passive joints have no motor.
+        first : None
+            Unused (the engine computes its own accelerations).
+        out : numpy.ndarray
+            Where the new sample goes.
+        t : float
+            The time of the current sample [s].
+
+        Returns
+        -------
+        str
+            "the engine state left the floor" when it did, else "".
+        """
+        engine = self.engine
+        tau.take(self._motors, out=engine.data.ctrl)  # EngineModel.apply_torque
+        mujoco.mj_step(engine.model, engine.data, engine.wheels.substeps)
+        return self._read(out)
+
+    def _read(self, out: np.ndarray) -> str:
+        """The sample into ``out`` (EngineModel.paper_configuration, then the filter)."""
+        engine, nq = self.engine, self.nq
+        data = engine.data
+        q = out[:nq]
         head = int(engine.link_bodies[0])
-        head_frame, head_position = data.xmat[head], data.xpos[head]
-        qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
-        hinges, chain = engine.hinge_qpos, engine.chain_dofs
-        motors = np.array(engine.actuated, dtype=int) - 1
-        ceiling, substeps, torque_shape = 5 * wheels.radius, wheels.substeps, (params.n - 1,)
-        for k in range(steps + 1):
-            q = qs[k]  # EngineModel.paper_configuration, written in place
-            yaw = math.atan2(head_frame[3], head_frame[0])
-            q[0], q[1] = head_position[0], head_position[1]
-            qpos.take(hinges, out=q[3:])
-            # unwrap the heading so the filter and the reference see a continuous angle
-            jump = yaw - yaw_prev
-            if math.isfinite(jump):
-                yaw_turns -= 2 * math.pi * round(jump / (2 * math.pi))
-            yaw_prev = yaw
-            q[2] = yaw + yaw_turns
-            if not (np.isfinite(q).all() and qpos[2] < ceiling):
-                status = "diverged"
-                reason = f"engine state left the floor at t = {data.time:.3f} s"
-                break
-            filt(q, dqs[k])
-            t = data.time
-            ts[k] = t
-            qvel.take(chain, out=true_dq[k])
-            good = k + 1
-            if k == steps:
-                break
-            try:
-                tau = np.asarray(controller(states[k], t), dtype=float)
-            except Exception as exc:
-                status = "failed"
-                reason = f"controller failed at t = {t:.3f} s: {exc}"
-                break
-            if tau.shape != torque_shape or not np.isfinite(tau).all():
-                status = "failed"
-                reason = (f"controller failed at t = {t:.3f} s: torque of "
-                          f"shape {tau.shape} or not finite")
-                break
-            taus[k] = tau
-            tau.take(motors, out=ctrl)  # EngineModel.apply_torque
-            mj_step(mj_model, data, substeps)
-            if bar is not None and k % 500 == 0:
-                bar.update(min(500, steps - bar.n))
-    except KeyboardInterrupt:
-        if good == 0:
-            raise
-        taus[good - 1] = 0.0  # the torque after the last sample was not (fully) applied
-        partial = collect("interrupted", f"interrupted at t = {ts[good - 1]:.3f} s")
-        raise RunInterrupted(partial.trajectory.reason, partial=partial.trajectory) from None
-    finally:
-        if bar is not None:
-            bar.close()
-    return collect(status, reason)
+        frame, position = data.xmat[head], data.xpos[head]
+        yaw = math.atan2(frame[3], frame[0])
+        q[0], q[1] = position[0], position[1]
+        data.qpos.take(engine.hinge_qpos, out=q[3:])
+        jump = yaw - self._yaw
+        if math.isfinite(jump):
+            self._turns -= 2 * math.pi * round(jump / (2 * math.pi))
+        self._yaw = yaw
+        q[2] = yaw + self._turns
+        if not (np.isfinite(q).all() and data.qpos[2] < self._ceiling):
+            return "the engine state left the floor"
+        self._filter(q, out[nq:])
+        data.qvel.take(engine.chain_dofs, out=self.true_dq[self._sample])
+        self._sample += 1
+        return ""
