@@ -252,7 +252,8 @@ def tracking_stage(ctx: Context) -> None:
     sec = ctx.report.section("tracking", "Lyapunov-like head tracking (VI.2)")
     sec.text("Law: weighted least squares on q'' = A tau + b towards s' = -lambda s (head, "
              "weight K_w2) and phi'' = phi_r'' + mu e (joints, weight K_phi), gains (84), "
-             "lambda = 10/s, mu = lambda / 2; V' = -2 lambda |s|^2 - 2 mu |e|^2 - 2 [s; e]^T W "
+             f"lambda = {_DEFAULT_LAM:g}/s, mu = lambda / 2; V' = -2 lambda |s|^2 - 2 mu "
+             "|e|^2 - 2 [s; e]^T W "
              "rho with the unreachable residual rho (derivation and the choice of the two rates "
              "in snake_pin/control/lyapunov.py). In the paper's coordinates theta_1 "
              "points from the head to the tail, so the head-first run along +x has theta_1 = pi:"
