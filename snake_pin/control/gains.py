@@ -56,7 +56,7 @@ def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -
     Raises
     ------
     ParameterError
-        ``value`` is not numeric (a bool is not a gain), has the wrong shape, is not
+        ``value`` is not numeric (a bool or text is not a gain), has the wrong shape, is not
         finite, not symmetric, or not (semi-)definite; ``size`` is not a positive
         integer, ``name`` not a string or ``definite`` not a bool.
     """
@@ -68,7 +68,7 @@ def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ParameterError(f"{name} must be numeric, got {brief(value)}") from exc
-    if value is None or np.asarray(value).dtype.kind == "b":
+    if value is None or np.asarray(value).dtype.kind in "bSUO":  # text is not a gain
         raise ParameterError(f"{name} must be numeric, got {brief(value)}")
     if arr.ndim == 0:
         arr = float(arr) * np.eye(size)
