@@ -713,7 +713,7 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
         elif kind == "pfl":
             from .runs.pfl import plot_pfl, run_pfl
 
-            run = run_pfl(params, t_final=t_final, climb_R=args.climb_r or 0.0,
+            run = run_pfl(params, t_final=t_final, climb_R=args.climb_r,
                           control_dt=SIMULATE_DT, error_window=start,
                           progress=_progress(args))
             traj = run.trajectory
@@ -737,7 +737,7 @@ def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: 
                       user: type | None, t_final: float, start: float) -> Any:
     """A run along ``--path`` (any controller, a user's ``module:Class`` too), its summary
     filled by :func:`_path_summary`."""
-    from .control import LOSController, LyapunovController, PFLController
+    from .control import LOSController, LyapunovController, PFLController, PFLOptions
     from .model import Snake
     from .runs.tracking import initial_state
     from .sim import simulate
@@ -749,7 +749,8 @@ def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: 
     elif kind == "lyapunov":
         controller = LyapunovController(snake, reference)
     elif kind == "pfl":
-        controller = PFLController(snake, reference, climb_R=args.climb_r or 0.0)
+        options = PFLOptions() if args.climb_r is None else PFLOptions(climb_R=args.climb_r)
+        controller = PFLController(snake, reference, options=options)
     else:
         controller = LOSController(snake, reference)
     traj = simulate(snake, controller, initial_state(params), t_final,

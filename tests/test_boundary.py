@@ -147,18 +147,34 @@ ROWS: dict[str, Row] = {
     "snake_pin.control.lyapunov.LyapunovController": Row(
         lambda w: (snake_pin.LyapunovController,
                    {"snake": w.snake, "reference": snake_pin.LinearReference(),
-                    "gait": _serpenoid(w), "k_w1": 2.0, "k_w2": 400.0, "k_phi": 20.0,
-                    "lam": 10.0, "lam_shape": 5.0, "k_shape": 0.1}),
-        skip={"reference": "None", "gait": "None", "k_phi": "None", "lam_shape": "None",
-              "k_shape": "None"}),
+                    "gait": _serpenoid(w), "options": None, "k_w1": 2.0, "k_w2": 400.0,
+                    "k_phi": 20.0, "lam": 10.0, "lam_shape": 5.0, "k_shape": 0.1}),
+        skip={"reference": "None", "gait": "None", "options": "None", "k_phi": "None",
+              "lam_shape": "None", "k_shape": "None"}),
+    "snake_pin.control.lyapunov.LyapunovOptions": Row(
+        lambda w: (_m("snake_pin.control.lyapunov").LyapunovOptions,
+                   {"k_w1": 2.0, "k_w2": (400.0, 400.0, 45.0), "k_phi": 20.0, "lam": 10.0,
+                    "lam_shape": 5.0, "k_shape": 0.1}),
+        # the joints' gain alone has no size to check ([1.0]: one joint)
+        skip={"k_phi": "None short", "lam_shape": "None", "k_shape": "None"}),
+    "snake_pin.control.gains.default_k_phi": Row(
+        lambda w: (_m("snake_pin.control.gains").default_k_phi, {"joints": 4})),
     "snake_pin.control.base.OpenLoop": Row(
         lambda w: (snake_pin.OpenLoop, {"schedule": lambda t: np.zeros(4)})),
     "snake_pin.control.pfl.PFLController": Row(
         lambda w: (snake_pin.PFLController,
                    {"snake": w.snake, "reference": snake_pin.LinearReference(),
-                    "gait": _serpenoid(w), "k_v": 6.0, "k_p": 6.2, "r_v": 0.041,
-                    "r_p": 0.079, "r_min": 1e-9, "climb_R": 0.5, "climb_damping": 2.0}),
-        skip={"reference": "None", "gait": "None", "climb_damping": "None"}),
+                    "gait": _serpenoid(w), "options": None, "k_v": 6.0, "k_p": 6.2,
+                    "r_v": 0.041, "r_p": 0.079, "r_min": 1e-9, "climb_R": 0.5,
+                    "climb_damping": 2.0}),
+        skip={"reference": "None", "gait": "None", "options": "None",
+              "climb_damping": "None"}),
+    "snake_pin.control.pfl.PFLOptions": Row(
+        lambda w: (_m("snake_pin.control.pfl").PFLOptions,
+                   {"k_v": 6.0, "k_p": (6.2, 6.2, 6.2), "r_v": 0.041, "r_p": 0.079,
+                    "r_min": 1e-9, "climb_R": 0.5, "climb_damping": 2.0}),
+        # the joints' gains alone have no size to check ([1.0]: one joint)
+        skip={"r_v": "short", "r_p": "short", "climb_damping": "None"}),
     "snake_pin.paths.PathReference": Row(
         lambda w: (snake_pin.PathReference, {"path": _m("snake_pin.paths").Line(),
                                              "timing": None}),
@@ -393,9 +409,16 @@ ROWS: dict[str, Row] = {
     "snake_pin.control.quasistatic.QuasiStaticLyapunovController": Row(
         lambda w: (snake_pin.control.QuasiStaticLyapunovController,
                    {"snake": w.snake, "reference": snake_pin.LinearReference(),
-                    "gait": _serpenoid(w), "k_w1": 2.0, "k_w2": 400.0, "k_phi": 20.0,
-                    "servo_bandwidth": 20.0, "max_lead": 0.3, "control_dt": 1e-3}),
-        skip={"reference": "None", "gait": "None", "k_phi": "None"}),
+                    "gait": _serpenoid(w), "options": None, "k_w1": 2.0, "k_w2": 400.0,
+                    "k_phi": 20.0, "servo_bandwidth": 20.0, "max_lead": 0.3,
+                    "control_dt": 1e-3}),
+        skip={"reference": "None", "gait": "None", "options": "None", "k_phi": "None"}),
+    "snake_pin.control.quasistatic.QuasiStaticOptions": Row(
+        lambda w: (_m("snake_pin.control.quasistatic").QuasiStaticOptions,
+                   {"k_w1": 2.0, "k_w2": 400.0, "k_phi": 20.0, "servo_bandwidth": 20.0,
+                    "max_lead": 0.3, "control_dt": 1e-3}),
+        # the joints' gain alone has no size to check ([1.0]: one joint)
+        skip={"k_phi": "None short"}),
     "snake_pin.control.quasistatic.servo_gains": Row(
         lambda w: (_m("snake_pin.control.quasistatic").servo_gains,
                    {"params": w.params, "bandwidth": 20.0})),

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from snake_pin import ParameterError, Serpenoid, Snake, SnakeParams, simulate
-from snake_pin.control import LyapunovController, head_first_reference
+from snake_pin.control import LyapunovController, LyapunovOptions, head_first_reference
 from snake_pin.experiments.tracking import initial_state, tracking_params
 from snake_pin.metrics import head_error_summary, head_position_error
 
@@ -147,3 +147,44 @@ def test_head_first_reference_speed_is_a_number() -> None:
     for speed in (None, "0.1x", float("nan"), True):
         with pytest.raises(ParameterError, match="speed"):
             head_first_reference(speed)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("field", "value"), [("lam", 0.0), ("lam_shape", -1.0),
+                                              ("k_shape", -0.1), ("k_w1", -2.0),
+                                              ("k_w2", [1.0, 1.0]), ("k_phi", "big")])
+def test_options_refuse_a_field_out_of_bounds(field: str, value: object) -> None:
+    """LyapunovOptions refuses a field outside its domain in one line naming it."""
+    with pytest.raises(ParameterError) as info:
+        LyapunovOptions(**{field: value})
+    message = str(info.value)
+    assert "\n" not in message and field.lower() in message.lower()
+
+
+def test_keywords_and_options_give_the_same_law() -> None:
+    """Keywords of the constructor and an options object give the same torque at a state."""
+    snake = Snake(SnakeParams.table1(n=5, passive=(2,)))
+    x = head_first_state(np.random.default_rng(3), 5)
+    given = {"k_w1": 3.0, "lam": 6.0, "k_phi": 15.0}
+    by_keywords = LyapunovController(snake, **given)(x, 0.4)
+    by_options = LyapunovController(snake, options=LyapunovOptions(**given))(x, 0.4)
+    np.testing.assert_array_equal(by_keywords, by_options)
+    both = LyapunovController(snake, options=LyapunovOptions(lam=1.0), lam=6.0,
+                              k_w1=3.0, k_phi=15.0)
+    np.testing.assert_array_equal(both(x, 0.4), by_options)
+
+
+def test_robot_dependent_defaults_are_resolved_once() -> None:
+    """k_phi, lam_shape and k_shape left None are filled in by LyapunovOptions.resolved."""
+    ctrl = LyapunovController(Snake(SnakeParams.table1(n=5, passive=(2,))), lam=8.0)
+    assert ctrl.options == LyapunovOptions(lam=8.0).resolved(4, passive=True)
+    assert ctrl.options.k_phi == (10.0, 20.0, 20.0, 20.0)
+    assert (ctrl.lam_shape, ctrl.k_shape) == (4.0, 0.3)
+
+
+def test_unknown_keyword_and_wrong_options_are_refused() -> None:
+    """An unknown keyword or options of another law: one ParameterError line."""
+    snake = Snake(SnakeParams.table1(n=4))
+    with pytest.raises(ParameterError, match="unknown LyapunovOptions field 'lamda'"):
+        LyapunovController(snake, lamda=3.0)
+    with pytest.raises(ParameterError, match="options must be LyapunovOptions"):
+        LyapunovController(snake, options={"lam": 3.0})  # type: ignore[arg-type]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from snake_pin import ParameterError, SingularPostureError, Snake, SnakeParams, straight
-from snake_pin.control import PFLController
+from snake_pin.control import PFLController, PFLOptions
 from snake_pin.experiments.pfl import run_pfl
 
 from .conftest import heterogeneous_params
@@ -110,3 +110,26 @@ def test_a_reference_must_be_callable() -> None:
     snake = Snake(SnakeParams.table1(n=5))
     with pytest.raises(ParameterError, match="reference"):
         PFLController(snake, reference=(0.1, 0.0, 0.0))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("field", "value"), [("k_v", 0.0), ("k_p", [1.0, 2.0]),
+                                              ("r_v", -0.1), ("r_min", -1.0),
+                                              ("climb_R", float("nan")),
+                                              ("climb_damping", 0.0)])
+def test_options_refuse_a_field_out_of_bounds(field: str, value: object) -> None:
+    """PFLOptions refuses a field outside its domain in one line naming it."""
+    extra = {"climb_R": 1.0} if field == "climb_damping" else {}
+    with pytest.raises(ParameterError) as info:
+        PFLOptions(**{field: value}, **extra)
+    message = str(info.value)
+    assert "\n" not in message and field.lower() in message.lower()
+
+
+def test_keywords_and_options_give_the_same_law() -> None:
+    """Keywords of the constructor and an options object give the same torque at a state."""
+    snake = Snake(SnakeParams.table1(n=5))
+    x = np.r_[straight(5), np.full(7, 0.05)]
+    x[3:7] = [0.3, -0.2, 0.25, -0.1]
+    given = {"k_v": 4.0, "r_p": 0.1, "climb_R": 0.5, "climb_damping": 3.0}
+    np.testing.assert_array_equal(PFLController(snake, **given)(x, 0.3),
+                                  PFLController(snake, options=PFLOptions(**given))(x, 0.3))

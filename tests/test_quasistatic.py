@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from snake_pin import ParameterError, Snake, SnakeParams, simulate
-from snake_pin.control import QuasiStaticLyapunovController
+from snake_pin.control import QuasiStaticLyapunovController, QuasiStaticOptions
 from snake_pin.control.quasistatic import servo_gains
 from snake_pin.gaits import arc
 
@@ -186,3 +186,36 @@ def test_gait_and_reference_are_checked_at_construction() -> None:
         QuasiStaticLyapunovController(snake, gait=(0.5, 1.5))  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="reference"):
         QuasiStaticLyapunovController(snake, reference="line")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("field", "value"), [("servo_bandwidth", 0.0), ("max_lead", -0.3),
+                                              ("control_dt", None), ("k_w2", 0.0)])
+def test_options_refuse_a_field_out_of_bounds(field: str, value: object) -> None:
+    """QuasiStaticOptions refuses a field outside its domain in one line naming it."""
+    with pytest.raises(ParameterError) as info:
+        QuasiStaticOptions(**{field: value})
+    message = str(info.value)
+    assert "\n" not in message and field.lower() in message.lower()
+
+
+def test_keywords_and_options_give_the_same_law() -> None:
+    """Keywords of the constructor and an options object give the same torque at a state."""
+    snake = Snake(SnakeParams.table1(n=5))
+    x = head_first_state(np.random.default_rng(3), 5)
+    given = {"servo_bandwidth": 10.0, "k_phi": 15.0}
+    np.testing.assert_array_equal(
+        QuasiStaticLyapunovController(snake, **given)(x, 0.0),
+        QuasiStaticLyapunovController(snake, options=QuasiStaticOptions(**given))(x, 0.0))
+
+
+def test_shares_the_gains_of_the_torque_level_law() -> None:
+    """K_w1, K_w2 and K_phi have one default and one domain for both Lyapunov-like laws."""
+    from dataclasses import fields
+
+    from snake_pin.control import LyapunovOptions
+
+    torque = {f.name: f for f in fields(LyapunovOptions)}
+    for f in fields(QuasiStaticOptions):
+        if f.name in torque:
+            assert (f.default, dict(f.metadata)) == (torque[f.name].default,
+                                                     dict(torque[f.name].metadata))

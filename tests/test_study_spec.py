@@ -335,3 +335,52 @@ def test_a_physically_meaningless_robot_file_names_the_study_robot_and_field(
                                         "mass = [0.1, 1e-300, 0.1]\ninertia = 1e-4\n")
     message = _refused(tmp_path, "[base]\nrobot = \"tiny.toml\"\n")
     assert "[base] robot 'tiny.toml'" in message and "link 2: mass must be in" in message
+
+
+def test_law_settings_are_the_options_fields() -> None:
+    """Each law's settings take their defaults, bounds and controllers from its options class."""
+    from dataclasses import fields
+
+    from snake_pin.control.gains import default_k_phi
+    from snake_pin.study.spec import LAW_OPTIONS
+
+    seen = set()
+    for controller, cls in LAW_OPTIONS.items():
+        for f in fields(cls):
+            if f.name in ("control_dt", "r_min", "climb_damping"):
+                assert f.name not in SETTINGS or f.name == "control_dt"
+                continue
+            meta = f.metadata
+            if meta["entries"]:
+                names = [f"{f.name}_{e}" for e in meta["entries"]]
+                defaults = list(f.default)
+            elif f.name == "k_phi":
+                names, defaults = ["k_phi_1", "k_phi"], list(default_k_phi(2))
+            else:
+                names, defaults = [f.name], [f.default]
+            for name, default in zip(names, defaults, strict=True):
+                setting = SETTINGS[name]
+                assert (setting.default, setting.low, setting.high, setting.open_low) == \
+                    (default, meta["low"], meta["high"], meta["open_low"]), name
+                assert controller in setting.controllers, name
+                seen.add(name)
+    owned = {name for name, s in SETTINGS.items() if set(s.controllers) != set(LAW_OPTIONS)
+             and s.models == ("viscous",)}
+    assert owned == seen
+
+
+@pytest.mark.parametrize(("controller", "passive"), [("lyapunov", "[3]"), ("velocity", "[]"),
+                                                     ("pfl", "[]")])
+def test_a_run_builds_the_default_options(controller: str, passive: str) -> None:
+    """A study run without gains builds its controller from the options' own defaults."""
+    from snake_pin.control import LyapunovOptions, PFLOptions, QuasiStaticOptions
+    from snake_pin.study.spec import law_options
+
+    spec = parse_study(QUICK + f'controller = "{controller}"\npassive = {passive}\n')
+    scenario = spec.scenarios[0]
+    joints = scenario.params.n - 1
+    expected = {"lyapunov": LyapunovOptions().resolved(joints, passive=True),
+                "velocity": QuasiStaticOptions(k_phi=tuple(
+                    LyapunovOptions().resolved(joints).k_phi)),
+                "pfl": PFLOptions()}[controller]
+    assert law_options(scenario.settings, joints) == expected

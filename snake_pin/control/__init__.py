@@ -2,10 +2,11 @@
 
 from .base import Controller, OpenLoop
 from .los import LOSController, LOSParams
-from .lyapunov import LyapunovController
-from .pfl import PFLController
-from .quasistatic import QuasiStaticLyapunovController
+from .lyapunov import LyapunovController, LyapunovOptions
+from .pfl import PFLController, PFLOptions
+from .quasistatic import QuasiStaticLyapunovController, QuasiStaticOptions
 from .reference import LinearReference, head_first_reference
 
 __all__ = ["Controller", "LOSController", "LOSParams", "LinearReference", "LyapunovController",
-           "OpenLoop", "PFLController", "QuasiStaticLyapunovController", "head_first_reference"]
+           "LyapunovOptions", "OpenLoop", "PFLController", "PFLOptions",
+           "QuasiStaticLyapunovController", "QuasiStaticOptions", "head_first_reference"]

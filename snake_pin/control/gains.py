@@ -7,7 +7,31 @@ import numpy as np
 from .._validation import brief, flag, integer
 from ..exceptions import ParameterError
 
-__all__ = ["gain_matrix"]
+__all__ = ["K_PHI_FIRST", "K_PHI_REST", "default_k_phi", "gain_matrix"]
+
+#: K_phi of (84), shared by the Lyapunov-like laws: joint 1, then every other joint.
+K_PHI_FIRST, K_PHI_REST = 10.0, 20.0
+
+
+def default_k_phi(joints: int) -> np.ndarray:
+    """K_phi's diagonal of (84) for ``joints`` joints: 10, then 20 on the others.
+
+    Parameters
+    ----------
+    joints : int
+        The number of joints, n - 1.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[10, 20, ..., 20]`` of length ``joints``.
+
+    Raises
+    ------
+    ParameterError
+        ``joints`` is not a positive integer.
+    """
+    return np.r_[K_PHI_FIRST, np.full(integer(joints, "joints", low=1) - 1, K_PHI_REST)]
 
 
 def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -> np.ndarray:
@@ -32,7 +56,7 @@ def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -
     Raises
     ------
     ParameterError
-        ``value`` is not numeric (a bool is not a gain), has the wrong shape, is not
+        ``value`` is not numeric (a bool or text is not a gain), has the wrong shape, is not
         finite, not symmetric, or not (semi-)definite; ``size`` is not a positive
         integer, ``name`` not a string or ``definite`` not a bool.
     """
@@ -44,7 +68,7 @@ def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ParameterError(f"{name} must be numeric, got {brief(value)}") from exc
-    if value is None or np.asarray(value).dtype.kind == "b":
+    if value is None or np.asarray(value).dtype.kind in "bSUO":  # text is not a gain
         raise ParameterError(f"{name} must be numeric, got {brief(value)}")
     if arr.ndim == 0:
         arr = float(arr) * np.eye(size)

@@ -49,6 +49,7 @@ tail, so a head-first run along +x has theta_1 = pi; see
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
@@ -58,11 +59,83 @@ from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
+from ._options import check_fields, merged, option, tracking_gain
 from .base import ReferenceLaw, TimeTerms, gait_for
-from .gains import gain_matrix
+from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
 
-__all__ = ["LyapunovController"]
+__all__ = ["LyapunovController", "LyapunovOptions"]
+
+#: The shape spring k_s when the robot has a passive (or failed) joint [1/s^2].
+K_SHAPE_PASSIVE = 0.3
+
+
+@dataclass(frozen=True)
+class LyapunovOptions:
+    """Options of :class:`LyapunovController` (validated; one ParameterError line each).
+
+    Gains are scalars (times identity), diagonals or symmetric matrices.
+
+    Parameters
+    ----------
+    k_w1 : float or array_like, optional
+        K_w1 of (84), the head's error rates [1/s] (3 x 3, positive definite).
+    k_w2 : float or array_like, optional
+        K_w2 of (84), the weights of the head's error in V (3 x 3, diagonal, positive).
+    k_phi : float or array_like or None, optional
+        K_phi of (84), the weights of the joints' error in V ((n - 1) x (n - 1), diagonal,
+        positive); None: 10 on joint 1 and 20 on the others (:func:`default_k_phi`).
+    lam : float, optional
+        Decay rate lambda of the head's error s [1/s] (> 0).
+    lam_shape : float or None, optional
+        Decay rate mu of the joints' velocity error e [1/s] (> 0); None: ``lam / 2``.
+    k_shape : float or None, optional
+        Shape spring k_s [1/s^2] (>= 0); None: 0 with every joint actuated, 0.3 with a
+        passive joint.
+
+    Raises
+    ------
+    ParameterError
+        A field is outside its domain (one line naming it).
+    """
+
+    k_w1: object = tracking_gain("k_w1")
+    k_w2: object = tracking_gain("k_w2")
+    k_phi: object = tracking_gain("k_phi")
+    lam: float = option(10.0, "decay rate of the head's error", unit="1/s", low=0.0,
+                        open_low=True)
+    lam_shape: float | None = option(None, "decay rate of the joints' error", unit="1/s",
+                                     low=0.0, open_low=True, default_doc="lam / 2")
+    k_shape: float | None = option(None, "shape spring", unit="1/s^2", low=0.0,
+                                   default_doc="0; 0.3 with a passive or failed joint")
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+    def resolved(self, joints: int | None = None, passive: bool = False) -> LyapunovOptions:
+        """These options with the robot-dependent defaults (None fields) filled in.
+
+        Parameters
+        ----------
+        joints : int or None, optional
+            The robot's n - 1 (None: ``k_phi`` stays as it is).
+        passive : bool, optional
+            Whether a joint gives no torque (passive or failed).
+
+        Returns
+        -------
+        LyapunovOptions
+            ``k_phi`` of :func:`default_k_phi`, ``lam_shape = lam / 2`` and ``k_shape``
+            0.3 with a passive joint, 0 without, where they were None.
+        """
+        k_phi = self.k_phi
+        if k_phi is None and joints is not None:
+            k_phi = tuple(default_k_phi(joints))
+        return LyapunovOptions(
+            k_w1=self.k_w1, k_w2=self.k_w2, k_phi=k_phi, lam=self.lam,
+            lam_shape=self.lam / 2 if self.lam_shape is None else self.lam_shape,
+            k_shape=(K_SHAPE_PASSIVE if passive else 0.0) if self.k_shape is None
+            else self.k_shape)
 
 
 class LyapunovController(ReferenceLaw):
@@ -76,30 +149,27 @@ class LyapunovController(ReferenceLaw):
         Head reference; default :func:`~snake_pin.control.reference.head_first_reference`.
     gait
         Serpenoid for phi_r; default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
-    k_w1, k_w2, k_phi
-        Gains of (84): diag(2, 2, 3), diag(400, 400, 45), diag(10, 20, ..., 20).
-    lam
-        Decay rate lambda of the head's error s [1/s].
-    lam_shape
-        Decay rate mu of the joint-velocity error e [1/s]; default ``lam / 2``.
-    k_shape
-        Shape spring k_s [1/s^2]; default 0 with every joint actuated, 0.3 with a
-        passive joint.
+    options
+        :class:`LyapunovOptions` (gains of (84), the rates lam and lam_shape, the shape
+        spring k_shape); default ``LyapunovOptions()``.
+    **overrides
+        Fields of :class:`LyapunovOptions` to change (e.g. ``lam=5.0``); the robot-dependent
+        defaults are filled in by :meth:`LyapunovOptions.resolved` and kept as
+        ``self.options``.
 
     Raises
     ------
     ParameterError
         ``snake`` is not a Snake, every joint is passive, ``reference`` is not callable,
-        the gait is not a Serpenoid for this robot, or a gain or rate is invalid.
+        the gait is not a Serpenoid for this robot, ``options`` is not a LyapunovOptions,
+        an override is unknown, or a gain or rate is invalid.
     """
 
     name = "lyapunov"
 
     def __init__(self, snake: Snake, reference: HeadReference | None = None,
-                 gait: Serpenoid | None = None, *, k_w1: object = (2.0, 2.0, 3.0),
-                 k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
-                 lam: float = 10.0, lam_shape: float | None = None,
-                 k_shape: float | None = None) -> None:
+                 gait: Serpenoid | None = None, options: LyapunovOptions | None = None,
+                 **overrides: object) -> None:
         n = instance(snake, Snake, "snake").n
         if not snake.params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
@@ -107,22 +177,20 @@ class LyapunovController(ReferenceLaw):
         self.reference = (head_first_reference() if reference is None
                           else self.checked_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
-        self.k_w1 = gain_matrix(k_w1, 3, "K_w1")
-        k_w2_m = gain_matrix(k_w2, 3, "K_w2")
-        default_phi = np.r_[10.0, np.full(n - 2, 20.0)]
-        k_phi_m = gain_matrix(default_phi if k_phi is None else k_phi, n - 1, "K_phi")
+        self.options = opts = merged(LyapunovOptions, options, overrides).resolved(
+            n - 1, bool(snake.params.passive))
+        self.k_w1 = gain_matrix(opts.k_w1, 3, "K_w1")
+        k_w2_m = gain_matrix(opts.k_w2, 3, "K_w2")
+        k_phi_m = gain_matrix(opts.k_phi, n - 1, "K_phi")
         if not (np.allclose(k_w2_m, np.diag(np.diag(k_w2_m)))
                 and np.allclose(k_phi_m, np.diag(np.diag(k_phi_m)))):
             raise ParameterError("K_w2 and K_phi must be diagonal (they weight rows)")
         self.k_w2, self.k_phi = k_w2_m, k_phi_m
         self._weights = np.r_[np.diag(k_w2_m), np.diag(k_phi_m)]
         self._k_w2_diag, self._k_phi_diag = np.diag(k_w2_m).copy(), np.diag(k_phi_m).copy()
-        self.lam = finite_number(lam, "lam", positive=True)
-        self.lam_shape = finite_number(self.lam / 2 if lam_shape is None else lam_shape,
-                                       "lam_shape", positive=True)
-        default_shape = 0.3 if snake.params.passive else 0.0
-        self.k_shape = finite_number(default_shape if k_shape is None else k_shape, "k_shape",
-                                     non_negative=True)
+        self.lam = finite_number(opts.lam, "lam", positive=True)
+        self.lam_shape = finite_number(opts.lam_shape, "lam_shape", positive=True)
+        self.k_shape = finite_number(opts.k_shape, "k_shape", non_negative=True)
         self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
         self._acceleration = None  # the last call's q'' (None: failed)
         self._signals = {}

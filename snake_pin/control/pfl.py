@@ -35,6 +35,7 @@ accelerations and serve every robot.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
@@ -46,11 +47,61 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import _r_batch
 from ..model import Snake
+from ._options import check_fields, merged, option
 from .base import ReferenceLaw, TimeTerms, gait_for
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
-__all__ = ["PFLController"]
+__all__ = ["PFLController", "PFLOptions"]
+
+#: The climb term's damping k_d when climb_R > 0 and none is given [1/s].
+CLIMB_DAMPING = 2.0
+
+
+@dataclass(frozen=True)
+class PFLOptions:
+    """Options of :class:`PFLController` (validated; one ParameterError line each).
+
+    Gains are scalars (times identity), diagonals or symmetric matrices.
+
+    Parameters
+    ----------
+    k_v, k_p : float or array_like, optional
+        K_v [1/s] and K_p [1/s^2] of (71) on the head (3 x 3, positive definite).
+    r_v, r_p : float or array_like, optional
+        R_v [1/s] and R_p [1/s^2] of (78) on the joints ((n - 1) x (n - 1), positive
+        semi-definite).
+    r_min : float, optional
+        Smallest R for which the law is defined (>= 0); below it SingularPostureError.
+    climb_R : float, optional
+        Gain gamma of the singularity-aware redundancy term (>= 0; 0: the paper's law).
+    climb_damping : float or None, optional
+        Its damping k_d [1/s] (> 0); None: 2. Only with ``climb_R > 0``.
+
+    Raises
+    ------
+    ParameterError
+        A field is outside its domain, or ``climb_damping`` is given with ``climb_R = 0``.
+    """
+
+    k_v: object = option(6.0, "velocity gain on the head", unit="1/s", low=0.0, open_low=True,
+                         symbol="K_v", size=3)
+    k_p: object = option(6.2, "position gain on the head", unit="1/s^2", low=0.0,
+                         open_low=True, symbol="K_p", size=3)
+    r_v: object = option(0.041, "velocity gain on the joints", unit="1/s", low=0.0,
+                         symbol="R_v")
+    r_p: object = option(0.079, "position gain on the joints", unit="1/s^2", low=0.0,
+                         symbol="R_p")
+    r_min: float = option(1e-9, "smallest R for which the law is defined", low=0.0)
+    climb_R: float = option(0.0, "gain of the singularity-aware redundancy term", low=0.0)
+    climb_damping: float | None = option(None, "damping of the redundancy term", unit="1/s",
+                                         low=0.0, open_low=True, default_doc="CLIMB_DAMPING, 2")
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        if self.climb_damping is not None and self.climb_R == 0.0:
+            raise ParameterError("climb_damping has no effect with climb_R = 0 (no climb "
+                                 "term): give climb_R > 0 or leave climb_damping out")
 
 
 class PFLController(ReferenceLaw):
@@ -64,31 +115,26 @@ class PFLController(ReferenceLaw):
         Head reference; default w_r = [0.1 t, 0, 0] (eq. 80).
     gait
         Serpenoid for phi_r; default alpha = pi/3, T_s = 1, v = 0.18 (eq. 81).
-    k_v, k_p, r_v, r_p
-        Gains of (79): K_v = 6 I3, K_p = 6.2 I3, R_v = 0.041 I, R_p = 0.079 I.
-    r_min
-        Below this R the law is undefined: a SingularPostureError is raised.
-    climb_R
-        Gain gamma of the singularity-aware redundancy term (0: the paper's law).
-    climb_damping
-        Its damping k_d [1/s]; 2 by default. Only with ``climb_R > 0`` (the paper's law
-        has no such term, and a damping given without it is refused).
+    options
+        :class:`PFLOptions` (gains of (79), r_min, the climb term); default ``PFLOptions()``.
+    **overrides
+        Fields of :class:`PFLOptions` to change (e.g. ``climb_R=0.5``); the result is kept
+        as ``self.options``.
 
     Raises
     ------
     ParameterError
         ``snake`` is not a Snake, a joint is passive, n < 4, ``reference`` is not
         callable, the gait is not a Serpenoid for this robot, a gain is not a valid
-        (semi-)definite matrix, a number is invalid, or ``climb_damping`` is given with
-        ``climb_R = 0``.
+        (semi-)definite matrix, a number is invalid, ``climb_damping`` is given with
+        ``climb_R = 0``, ``options`` is not a PFLOptions or an override is unknown.
     """
 
     name = "pfl"
 
     def __init__(self, snake: Snake, reference: HeadReference | None = None,
-                 gait: Serpenoid | None = None, *, k_v: object = 6.0, k_p: object = 6.2,
-                 r_v: object = 0.041, r_p: object = 0.079, r_min: float = 1e-9,
-                 climb_R: float = 0.0, climb_damping: float | None = None) -> None:
+                 gait: Serpenoid | None = None, options: PFLOptions | None = None,
+                 **overrides: object) -> None:
         if instance(snake, Snake, "snake").params.passive:
             raise ParameterError("PFL needs every joint actuated; use the Lyapunov-like "
                                  "controller with passive joints")
@@ -99,17 +145,16 @@ class PFLController(ReferenceLaw):
         self.reference = (LinearReference() if reference is None
                           else self.checked_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 3, 1.0, 0.18))
-        self.k_v = gain_matrix(k_v, 3, "K_v")
-        self.k_p = gain_matrix(k_p, 3, "K_p")
-        self.r_v = gain_matrix(r_v, n - 1, "R_v", definite=False)
-        self.r_p = gain_matrix(r_p, n - 1, "R_p", definite=False)
-        self.r_min = finite_number(r_min, "r_min", non_negative=True)
-        self.climb_R = finite_number(climb_R, "climb_R", non_negative=True)
-        if climb_damping is not None and self.climb_R == 0.0:
-            raise ParameterError("climb_damping has no effect with climb_R = 0 (no climb "
-                                 "term): give climb_R > 0 or leave climb_damping out")
-        self.climb_damping = finite_number(2.0 if climb_damping is None else climb_damping,
-                                           "climb_damping", positive=True)
+        self.options = opts = merged(PFLOptions, options, overrides)
+        self.k_v = gain_matrix(opts.k_v, 3, "K_v")
+        self.k_p = gain_matrix(opts.k_p, 3, "K_p")
+        self.r_v = gain_matrix(opts.r_v, n - 1, "R_v", definite=False)
+        self.r_p = gain_matrix(opts.r_p, n - 1, "R_p", definite=False)
+        self.r_min = finite_number(opts.r_min, "r_min", non_negative=True)
+        self.climb_R = finite_number(opts.climb_R, "climb_R", non_negative=True)
+        self.climb_damping = finite_number(CLIMB_DAMPING if opts.climb_damping is None
+                                           else opts.climb_damping, "climb_damping",
+                                           positive=True)
         self._acceleration = None  # the last call's q'' (None: failed)
         self._signals = {}
         self._nq = nq = snake.nq

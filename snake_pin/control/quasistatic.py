@@ -38,6 +38,8 @@ honour.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
@@ -48,11 +50,47 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..params import SnakeParams
+from ._options import check_fields, merged, option, tracking_gain
 from .base import ReferenceLaw, TimeTerms, gait_for
-from .gains import gain_matrix
+from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
 
-__all__ = ["QuasiStaticLyapunovController", "servo_gains"]
+__all__ = ["QuasiStaticLyapunovController", "QuasiStaticOptions", "servo_gains"]
+
+@dataclass(frozen=True)
+class QuasiStaticOptions:
+    """Options of :class:`QuasiStaticLyapunovController` (validated; one line each).
+
+    Parameters
+    ----------
+    k_w1, k_w2, k_phi : float or array_like, optional
+        Gains of (84), as in :class:`~snake_pin.control.lyapunov.LyapunovOptions` (the
+        same fields, defaults and bounds).
+    servo_bandwidth : float, optional
+        Bandwidth omega_s of the joint servos [rad/s] (> 0).
+    max_lead : float, optional
+        Largest distance the integrated joint reference may run ahead of the joint [rad]
+        (> 0).
+    control_dt : float, optional
+        The controller's sampling period [s] (> 0).
+
+    Raises
+    ------
+    ParameterError
+        A field is outside its domain (one line naming it).
+    """
+
+    k_w1: object = tracking_gain("k_w1")
+    k_w2: object = tracking_gain("k_w2")
+    k_phi: object = tracking_gain("k_phi")
+    servo_bandwidth: float = option(20.0, "joint servo bandwidth", unit="rad/s", low=0.0,
+                                    open_low=True)
+    max_lead: float = option(0.3, "largest lead of the servo reference", unit="rad", low=0.0,
+                             open_low=True)
+    control_dt: float = option(1e-3, "control period", unit="s", low=0.0, open_low=True)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
@@ -100,34 +138,30 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         The robot and its viscous friction model (identified coefficients on the engine).
     reference, gait
         As for the acceleration-level controller (w_r = [0.1 t, 0, pi], serpenoid of VI.2).
-    k_w1, k_w2, k_phi
-        Gains of (84).
-    servo_bandwidth
-        omega_s [rad/s] of the joint servos: joint k gets K_p,k = omega_s^2 I_k and
-        K_d,k = 2 omega_s I_k (critically damped on I_k), with I_k the mean of
-        m_i (2l_i)^2 over the two links it joins (i = k, k + 1): the inertia scale of a
-        link about its joint, per link, so a heavy, long head gets stiffer servos next to
-        it. On equal links I_k = m (2l)^2 for every joint (the paper's robots).
-    max_lead
-        Largest distance [rad] the integrated joint reference may run ahead of the joint.
-    control_dt
-        The controller's sampling period [s] (the joint reference is integrated over it).
+    options
+        :class:`QuasiStaticOptions`: gains of (84), the servos' bandwidth omega_s (joint k
+        gets K_p,k = omega_s^2 I_k and K_d,k = 2 omega_s I_k, critically damped on I_k, the
+        mean of m_i (2l_i)^2 over the two links it joins: a heavy, long head gets stiffer
+        servos next to it; on equal links I_k = m (2l)^2), max_lead and control_dt (the
+        period over which the joint reference is integrated).
+    **overrides
+        Fields of :class:`QuasiStaticOptions` to change; the result is kept as
+        ``self.options``.
 
     Raises
     ------
     ParameterError
         ``snake`` is not a Snake, every joint is passive, a link has no lateral or
         longitudinal friction, ``reference`` is not callable, the gait is not a Serpenoid
-        for this robot, or a gain or number is invalid.
+        for this robot, ``options`` is not a QuasiStaticOptions, an override is unknown, or
+        a gain or number is invalid.
     """
 
     name = "lyapunov_velocity"
 
     def __init__(self, snake: Snake, reference: HeadReference | None = None,
-                 gait: Serpenoid | None = None, *, k_w1: object = (2.0, 2.0, 3.0),
-                 k_w2: object = (400.0, 400.0, 45.0), k_phi: object | None = None,
-                 servo_bandwidth: float = 20.0, max_lead: float = 0.3,
-                 control_dt: float = 1e-3) -> None:
+                 gait: Serpenoid | None = None, options: QuasiStaticOptions | None = None,
+                 **overrides: object) -> None:
         params = instance(snake, Snake, "snake").params
         n = params.n
         if not params.actuated:
@@ -142,19 +176,20 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self.reference = (head_first_reference() if reference is None
                           else self.checked_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
-        self.k_w1 = gain_matrix(k_w1, 3, "K_w1")
-        k_w2_d = np.diag(gain_matrix(k_w2, 3, "K_w2"))
-        k_phi_d = np.diag(gain_matrix(np.r_[10.0, np.full(n - 2, 20.0)] if k_phi is None
-                                      else k_phi, n - 1, "K_phi"))
+        self.options = opts = merged(QuasiStaticOptions, options, overrides)
+        self.k_w1 = gain_matrix(opts.k_w1, 3, "K_w1")
+        k_w2_d = np.diag(gain_matrix(opts.k_w2, 3, "K_w2"))
+        k_phi_d = np.diag(gain_matrix(default_k_phi(n - 1) if opts.k_phi is None
+                                      else opts.k_phi, n - 1, "K_phi"))
         self._u = np.array([0, 1, 2] + [2 + k for k in params.passive])
         self._a = np.array([2 + k for k in params.actuated])
         self._w_u = np.r_[k_w2_d, k_phi_d[self._u[3:] - 3]]
         self._w_a = k_phi_d[self._a - 3]
-        omega = finite_number(servo_bandwidth, "servo_bandwidth", positive=True)
+        omega = finite_number(opts.servo_bandwidth, "servo_bandwidth", positive=True)
         self.k_p, self.k_d = servo_gains(params, omega)
         self._k_p_a, self._k_d_a = self.k_p[self._a - 3], self.k_d[self._a - 3]
-        self.max_lead = finite_number(max_lead, "max_lead", positive=True)
-        self.dt = finite_number(control_dt, "control_dt", positive=True)
+        self.max_lead = finite_number(opts.max_lead, "max_lead", positive=True)
+        self.dt = finite_number(opts.control_dt, "control_dt", positive=True)
         self._reference_a: np.ndarray | None = None
         self._last: tuple[np.ndarray, ...] | None = None
         self._build_law()

@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from ..control import LyapunovOptions
 from ..exceptions import ConfigurationError
 from ..params import SnakeParams
 from .context import Context
@@ -406,8 +407,10 @@ def failure_map_stage(ctx: Context) -> None:
     sec = ctx.report.section("failure_map", "Actuator-failure map (the paper's future "
                                             "work)")
     own = "" if _is_table1(base) else f" (robot '{base.name}', its passive joints cleared)"
-    sec.text(f"The Lyapunov-like law of VI.2 (gains (84), lambda = 10/s, mu = 5/s, k_shape "
-             f"0.3 with a failed joint) on the {base.n}-link robot{own} for {plan.t_final:g} "
+    law = LyapunovOptions().resolved(passive=True)  # the defaults with a failed joint
+    sec.text(f"The Lyapunov-like law of VI.2 (gains (84), lambda = {law.lam:g}/s, mu = "
+             f"{law.lam_shape:g}/s, k_shape {law.k_shape:g} with a failed joint) on the "
+             f"{base.n}-link robot{own} for {plan.t_final:g} "
              "s, head-first along w_r = [0.1 t, 0, pi], with no failed joint (0) and each "
              f"single failed joint k (its actuator gives no torque), against c_y/c_x = "
              f"{', '.join(f'{r:g}' for r in plan.ratios)} with c_x = {map_c_x(base):g} N s/m. "

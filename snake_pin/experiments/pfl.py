@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..control import PFLOptions
+from ..control.pfl import CLIMB_DAMPING
 from ..metrics import applied
 from ..runs.pfl import TAU_BREAKDOWN, PFLRun, breakdown_threshold, plot_pfl, run_pfl
 
@@ -13,6 +15,9 @@ from ..runs.pfl import initial_state as initial_state
 from .context import Context
 
 __all__ = ["pfl_stage"]
+
+#: The singularity-aware variant the stage runs beside the paper's law.
+CLIMB = PFLOptions(climb_R=0.5)
 
 
 def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
@@ -103,9 +108,9 @@ def pfl_stage(ctx: Context) -> None:
     sec.text(text)
     aniso_params = params.replace(c_y=10 * params.per_link("c_x"))
     runs = {f"{friction}, plain": plain,
-            f"{friction}, climb R": run_pfl(params, t_final=t_final, climb_R=0.5),
+            f"{friction}, climb R": run_pfl(params, t_final=t_final, options=CLIMB),
             "c_y = 10 c_x, plain": run_pfl(aniso_params, t_final=2 * t_final),
-            "c_y = 10 c_x, climb R": run_pfl(aniso_params, t_final=2 * t_final, climb_R=0.5)}
+            "c_y = 10 c_x, climb R": run_pfl(aniso_params, t_final=2 * t_final, options=CLIMB)}
     rows = []
     for label, run in runs.items():
         s = run.trajectory.summary
@@ -115,7 +120,8 @@ def pfl_stage(ctx: Context) -> None:
     sec.table(["run", "breakdown [s]", "R at dip", "max |g - g(0)|", "max head error [m]"],
               rows)
     sec.figure(compare_variants(runs, ctx.folder / "pfl_variants.png"),
-               "Beyond the paper: using kappa to climb log R (gamma = 0.5, k_d = 2)")
+               f"Beyond the paper: using kappa to climb log R (gamma = {CLIMB.climb_R:g}, "
+               f"k_d = {CLIMB_DAMPING:g})")
     if paper_robot:
         sec.text("Climbing log R with the redundancy does not remove the breakdown: with "
                  "isotropic friction it cannot, because the conserved g pins the centre of mass"

@@ -9,7 +9,6 @@ one task on Dask (:func:`snake_pin.runs.parallel.run_jobs`).
 
 from __future__ import annotations
 
-import inspect
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -18,7 +17,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from ..control import LyapunovController
+from ..control import LyapunovOptions
 from ..manipulability import lateral_constraint_manipulability
 from ..metrics import percent
 from ..model import Snake
@@ -41,7 +40,7 @@ DECAY_RATES = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0, 30.0)
 #: run; with the tracking friction, c_y / c_x = 5 ... 500).
 C_Y_FACTORS = (0.1, 0.2, 0.4, 1.0, 2.0, 4.0, 10.0)
 #: The law's own default head rate lambda [1/s] (read, not copied): the sweeps' default.
-_DEFAULT_LAM: float = inspect.signature(LyapunovController).parameters["lam"].default
+_DEFAULT_LAM: float = LyapunovOptions().lam
 
 
 def lateral_comparison(traj: Trajectory, path: Path, t_max: float = 10.0) -> dict[str, float]:
@@ -253,7 +252,8 @@ def tracking_stage(ctx: Context) -> None:
     sec = ctx.report.section("tracking", "Lyapunov-like head tracking (VI.2)")
     sec.text("Law: weighted least squares on q'' = A tau + b towards s' = -lambda s (head, "
              "weight K_w2) and phi'' = phi_r'' + mu e (joints, weight K_phi), gains (84), "
-             "lambda = 10/s, mu = lambda / 2; V' = -2 lambda |s|^2 - 2 mu |e|^2 - 2 [s; e]^T W "
+             f"lambda = {_DEFAULT_LAM:g}/s, mu = lambda / 2; V' = -2 lambda |s|^2 - 2 mu "
+             "|e|^2 - 2 [s; e]^T W "
              "rho with the unreachable residual rho (derivation and the choice of the two rates "
              "in snake_pin/control/lyapunov.py). In the paper's coordinates theta_1 "
              "points from the head to the tail, so the head-first run along +x has theta_1 = pi:"

@@ -16,8 +16,8 @@ heading along +x, where the run starts on the arc of eq. (82), head first): ``li
 
 Controllers: ``lyapunov`` (torque-level Lyapunov-like law, VI.2), ``velocity`` (its
 velocity-level, quasi-static form), ``pfl`` and ``pfl_climb`` (PFL, and PFL climbing R with
-``climb_R = 0.5``; both need every joint actuated, so their failed-joint cells are
-"not applicable"), ``los`` (Liljebäck's LOS path following of the centre of mass). Any
+``climb_R =`` :data:`PFL_CLIMB_R`; both need every joint actuated, so their failed-joint
+cells are "not applicable"), ``los`` (Liljebäck's LOS path following of the centre of mass). Any
 :class:`~snake_pin.control.Controller` subclass joins by a factory
 ``factory(snake, reference, path) -> Controller``::
 
@@ -93,8 +93,8 @@ from .parallel import SharedCluster, run_jobs
 from .tracking import initial_state, tracking_params
 
 __all__ = ["CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT", "METRIC_FIELDS",
-           "MODELS", "QUICK_T_FINAL", "SCENARIOS", "SPEED", "WAYPOINTS", "BenchmarkResult",
-           "ControllerFactory", "make_scenario", "path_metrics", "run_benchmark",
+           "MODELS", "PFL_CLIMB_R", "QUICK_T_FINAL", "SCENARIOS", "SPEED", "WAYPOINTS",
+           "BenchmarkResult", "ControllerFactory", "make_scenario", "path_metrics", "run_benchmark",
            "run_cell", "write_benchmark"]
 
 #: Reference speed along every path [m/s] (the paper's 0.1 m/s).
@@ -127,6 +127,10 @@ _EVERY, _CRITERIA_DT = 10, 0.1
 _SNAPSHOTS = 6
 
 
+#: climb_R of the ``pfl_climb`` controller (its other options are PFLOptions' defaults).
+PFL_CLIMB_R = 0.5
+
+
 def _lyapunov(snake: Snake, reference: PathReference, path: Curve) -> Controller:
     from ..control import LyapunovController
 
@@ -146,9 +150,9 @@ def _pfl(snake: Snake, reference: PathReference, path: Curve) -> Controller:
 
 
 def _pfl_climb(snake: Snake, reference: PathReference, path: Curve) -> Controller:
-    from ..control import PFLController
+    from ..control import PFLController, PFLOptions
 
-    return PFLController(snake, reference, climb_R=0.5)
+    return PFLController(snake, reference, options=PFLOptions(climb_R=PFL_CLIMB_R))
 
 
 def _los(snake: Snake, reference: PathReference, path: Curve) -> Controller:

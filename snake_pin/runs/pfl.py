@@ -8,13 +8,13 @@ the report's PFL stage use them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from .. import gaits
-from ..control import LinearReference, PFLController
+from ..control import LinearReference, PFLController, PFLOptions
 from ..integrability import conserved_quantity_along
 from ..metrics import applied, criteria_along, head_error_summary, head_position_error
 from ..model import Snake
@@ -97,9 +97,10 @@ class PFLRun:
     breakdown: int  # sample index of the breakdown (len - 1 if none)
 
 
-def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R: float = 0.0,
-            control_dt: float = 1e-3, error_window: float | None = None,
-            progress: bool = False) -> PFLRun:
+def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0,
+            climb_R: float | None = None, control_dt: float = 1e-3,
+            error_window: float | None = None, progress: bool = False,
+            options: PFLOptions | None = None) -> PFLRun:
     """Run Section VI.1 (gains 79, reference 80, serpenoid 81, initial state 82).
 
     The summary has t_end, diverged, breakdown_time, t_R_min, R_min, g_drift_max and
@@ -115,7 +116,8 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
     t_final
         Duration [s].
     climb_R
-        Gain of the singularity-aware use of the redundancy (0: the paper's law).
+        Gain of the singularity-aware use of the redundancy (0: the paper's law); None:
+        that of ``options``.
     control_dt
         Control period and RK4 step [s].
     error_window
@@ -123,6 +125,8 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
         shorter than 20 s).
     progress
         Show a progress bar on stderr when it is a terminal.
+    options
+        The law's :class:`~snake_pin.control.PFLOptions` (None: the defaults, gains 79).
 
     Returns
     -------
@@ -132,7 +136,10 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0, climb_R
     params = params or SnakeParams.table1()
     snake = Snake(params)
     reference = LinearReference()
-    controller = PFLController(snake, reference, climb_R=climb_R)
+    if climb_R is not None and (options is None or isinstance(options, PFLOptions)):
+        options = replace(PFLOptions() if options is None else options, climb_R=climb_R)
+    controller = PFLController(snake, reference, options=options)
+    climb_R = controller.climb_R
     traj = simulate(snake, controller, initial_state(params), t_final, dt=control_dt,
                     control_dt=control_dt, progress=progress,
                     meta={"climb_R": climb_R, "reference_velocity": [0.1, 0.0, 0.0]})

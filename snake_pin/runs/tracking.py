@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from .. import gaits
-from ..control import LyapunovController, head_first_reference
+from ..control import LyapunovController, LyapunovOptions, head_first_reference
 from ..integrability import conserved_quantity_along
 from ..metrics import (
     ERROR_WINDOW,
@@ -109,8 +109,9 @@ def initial_state(params: SnakeParams) -> np.ndarray:
 
 
 def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
-                 error_window: float | None = None,
-                 progress: bool = False, **controller_options: Any) -> Trajectory:
+                 error_window: float | None = None, progress: bool = False,
+                 options: LyapunovOptions | None = None,
+                 **controller_options: Any) -> Trajectory:
     """60 s of head tracking, w_r = [0.1 t, 0, pi], gains (84), control at 1 kHz.
 
     Parameters
@@ -125,8 +126,10 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
         shorter than 20 s).
     progress
         Show a progress bar on stderr when it is a terminal.
+    options
+        The law's :class:`~snake_pin.control.LyapunovOptions` (None: the defaults).
     **controller_options
-        Options of :class:`~snake_pin.control.LyapunovController` (e.g. ``lam``,
+        Fields of :class:`~snake_pin.control.LyapunovOptions` to change (e.g. ``lam``,
         ``lam_shape``).
 
     Returns
@@ -144,7 +147,7 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     params = params or tracking_params()
     snake = Snake(params)
     reference = head_first_reference()
-    controller = LyapunovController(snake, reference, **controller_options)
+    controller = LyapunovController(snake, reference, options=options, **controller_options)
     traj = simulate(snake, controller, initial_state(params), t_final, progress=progress,
                     meta={"reference": REFERENCE, "k_shape": controller.k_shape,
                           "lam": controller.lam, "lam_shape": controller.lam_shape})

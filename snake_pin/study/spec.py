@@ -70,6 +70,7 @@ levels (checked before the TOML is parsed).
 from __future__ import annotations
 
 import difflib
+import functools
 import hashlib
 import itertools
 import json
@@ -77,14 +78,16 @@ import math
 import os
 import reprlib
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import Field, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from .._io import decode_utf8, parse_toml, read_regular_file
 from .._validation import one_line, printable_path
+from ..control import LyapunovOptions, PFLOptions, QuasiStaticOptions
+from ..control.gains import K_PHI_FIRST, K_PHI_REST
 from ..exceptions import SnakePinError
 from ..metrics import ERROR_WINDOW
 from ..params import SnakeParams
@@ -94,6 +97,7 @@ from .errors import StudyError
 __all__ = [
     "CONTROLLERS",
     "KEY_FORMAT",
+    "LAW_OPTIONS",
     "MAX_RUNS",
     "MAX_SEED",
     "MAX_STUDY_BYTES",
@@ -104,6 +108,7 @@ __all__ = [
     "Setting",
     "StudySpec",
     "canonical_json",
+    "law_options",
     "load_study",
     "parse_study",
     "run_key",
@@ -223,14 +228,90 @@ def _settings(*items: Setting) -> dict[str, Setting]:
     return {s.name: s for s in items}
 
 
-def _gain(name: str, default: float, what: str) -> Setting:
-    return Setting(name, "float", default, what, 0.0, open_low=True, models=("viscous",),
-                   controllers=_TRACKING)
+#: The options dataclass of each controller: their fields are the laws' settings.
+LAW_OPTIONS: dict[str, type] = {"lyapunov": LyapunovOptions, "velocity": QuasiStaticOptions,
+                                "pfl": PFLOptions}
+#: Option fields a study does not set: the controller's period is the run's own
+#: ``control_dt``; r_min and climb_damping keep their defaults.
+_NOT_IN_STUDIES = frozenset({"control_dt", "r_min", "climb_damping"})
+#: Words for a head gain's diagonal entries in the settings' help.
+_ENTRY_WORDS = {"x": "x_h", "y": "y_h", "theta": "theta_1"}
 
 
-def _pfl(name: str, default: float, what: str, *, open_low: bool = True) -> Setting:
-    return Setting(name, "float", default, what, 0.0, open_low=open_low, models=("viscous",),
-                   controllers=("pfl",))
+def _law_fields() -> dict[str, tuple[Field[Any], tuple[str, ...]]]:
+    """Each option field a study sets, with the controllers whose dataclass declares it."""
+    found: dict[str, tuple[Field[Any], tuple[str, ...]]] = {}
+    for controller, cls in LAW_OPTIONS.items():
+        for f in fields(cls):
+            if f.name not in _NOT_IN_STUDIES:
+                first, owners = found.get(f.name, (f, ()))
+                found[f.name] = first, (*owners, controller)
+    return found
+
+
+def _law_settings() -> list[Setting]:
+    """The laws' settings, generated from their options dataclasses' fields.
+
+    A head gain is one setting per diagonal entry (``k_w1_x``, ...), K_phi two
+    (``k_phi_1`` for joint 1, ``k_phi`` for the others), another gain one scalar (times
+    identity); each takes its field's default, bounds and doc.
+    """
+    out = []
+    for name, (f, controllers) in _law_fields().items():
+        meta, default = f.metadata, f.default
+        made = functools.partial(Setting, kind="float", low=meta["low"], high=meta["high"],
+                                 open_low=meta["open_low"], models=("viscous",),
+                                 controllers=controllers)
+        symbol, unit = meta["symbol"], f" [{meta['unit']}]" if meta["unit"] else ""
+        if meta["entries"]:
+            out += [made(name=f"{name}_{entry}", default=value,
+                         help=f"{symbol} entry of {_ENTRY_WORDS[entry]}")
+                    for entry, value in zip(meta["entries"], cast("tuple[float, ...]", default),
+                                            strict=True)]
+        elif symbol and meta["size"] is None and default is None:  # K_phi
+            out += [made(name=f"{name}_1", default=K_PHI_FIRST, help=f"{symbol} entry of joint 1"),
+                    made(name=name, default=K_PHI_REST,
+                         help=f"{symbol} entries of joints 2..n-1")]
+        elif symbol:
+            out.append(made(name=name, default=default, help=f"{symbol} (times identity)"))
+        else:
+            extra = f" ({meta['default_doc']})" if meta["default_doc"] else ""
+            out.append(made(name=name, default=default, help=meta["doc"] + unit + extra))
+    return out
+
+
+def law_options(settings: Mapping[str, Any], joints: int) -> Any:
+    """The options of a run's controller from its (resolved) settings.
+
+    Parameters
+    ----------
+    settings
+        A run's settings (:attr:`Scenario.settings`), on the viscous model.
+    joints
+        The robot's n - 1.
+
+    Returns
+    -------
+    LyapunovOptions or QuasiStaticOptions or PFLOptions
+        The options, the inverse of the settings' generation from their fields.
+    """
+    controller = settings["controller"]
+    cls = LAW_OPTIONS[controller]
+    values: dict[str, Any] = {}
+    for f in fields(cls):
+        meta = f.metadata
+        if f.name == "control_dt":
+            values[f.name] = settings["control_dt"]
+        elif f.name in _NOT_IN_STUDIES:
+            continue
+        elif meta["entries"]:
+            values[f.name] = tuple(settings[f"{f.name}_{e}"] for e in meta["entries"])
+        elif meta["symbol"] and meta["size"] is None and f.default is None:  # K_phi
+            values[f.name] = (settings[f"{f.name}_1"],
+                              *([settings[f.name]] * (joints - 1)))
+        else:
+            values[f.name] = settings[f.name]
+    return cls(**values)
 
 
 #: Every setting a study can give in ``[base]`` or vary on an axis.
@@ -273,31 +354,8 @@ SETTINGS: dict[str, Setting] = _settings(
             "initial joint angle [rad] (engine runs are chaotic: spread them with init_seed)",
             0.0),
     Setting("init_seed", "int", 0, "seed of that noise", 0.0, MAX_SEED),
-    # Lyapunov-like laws (gains of eq. 84)
-    _gain("k_w1_x", 2.0, "K_w1 entry of x_h"),
-    _gain("k_w1_y", 2.0, "K_w1 entry of y_h"),
-    _gain("k_w1_theta", 3.0, "K_w1 entry of theta_1"),
-    _gain("k_w2_x", 400.0, "K_w2 entry of x_h"),
-    _gain("k_w2_y", 400.0, "K_w2 entry of y_h"),
-    _gain("k_w2_theta", 45.0, "K_w2 entry of theta_1"),
-    _gain("k_phi_1", 10.0, "K_phi entry of joint 1"),
-    _gain("k_phi", 20.0, "K_phi entries of joints 2..n-1"),
-    Setting("lam", "float", 10.0, "decay rate of the head's error [1/s]", 0.0, open_low=True,
-            models=("viscous",), controllers=("lyapunov",)),
-    Setting("lam_shape", "float", None, "decay rate of the joints' error [1/s] (lam / 2)",
-            0.0, open_low=True, models=("viscous",), controllers=("lyapunov",)),
-    Setting("k_shape", "float", None, "shape spring [1/s^2] (0; 0.3 with a passive or "
-            "failed joint)", 0.0, models=("viscous",), controllers=("lyapunov",)),
-    Setting("servo_bandwidth", "float", 20.0, "joint servo bandwidth [rad/s]", 0.0,
-            open_low=True, models=("viscous",), controllers=("velocity",)),
-    Setting("max_lead", "float", 0.3, "largest lead of the servo reference [rad]", 0.0,
-            open_low=True, models=("viscous",), controllers=("velocity",)),
-    # PFL (eq. 79)
-    _pfl("k_v", 6.0, "K_v (times identity)"),
-    _pfl("k_p", 6.2, "K_p (times identity)"),
-    _pfl("r_v", 0.041, "R_v (times identity)", open_low=False),
-    _pfl("r_p", 0.079, "R_p (times identity)", open_low=False),
-    _pfl("climb_R", 0.0, "gain of the singularity-aware redundancy term", open_low=False),
+    # the control laws: generated from their options dataclasses (snake_pin.control)
+    *_law_settings(),
     # engine (MuJoCo)
     Setting("mu", "float", 1.0, "wheel-floor Coulomb friction", 0.0, _MAX_MU, open_low=True,
             models=("engine",), controllers=_TRACKING),
@@ -858,10 +916,10 @@ def _resolve_defaults(settings: dict[str, Any]) -> None:
         if settings[name] is None:
             settings[name] = value
     if controller == "lyapunov":
-        if settings["lam_shape"] is None:
-            settings["lam_shape"] = settings["lam"] / 2
-        if settings["k_shape"] is None:
-            settings["k_shape"] = 0.3 if settings["passive"] or settings["failed_joint"] else 0.0
+        options = LyapunovOptions(lam=settings["lam"], lam_shape=settings["lam_shape"],
+                                  k_shape=settings["k_shape"]).resolved(
+            passive=bool(settings["passive"] or settings["failed_joint"]))
+        settings["lam_shape"], settings["k_shape"] = options.lam_shape, options.k_shape
 
 
 def _params(where: _Where, settings: Mapping[str, Any], robot: SnakeParams, place: Any,

@@ -25,7 +25,7 @@ from ..exceptions import RunInterrupted
 from ..metrics import head_error_summary, head_position_error
 from ..params import SnakeParams
 from ..sim import Trajectory
-from .spec import Scenario, canonical_json
+from .spec import Scenario, canonical_json, law_options
 
 __all__: list[str] = []
 
@@ -111,19 +111,9 @@ def build_controller(scenario: Scenario, snake: Any) -> Any:
     s = scenario.settings
     n = scenario.params.n
     gait = Serpenoid(n, s["gait_alpha"], s["gait_ts"], s["gait_v"])
-    ref = reference(scenario)
-    if scenario.controller == "pfl":
-        return PFLController(snake, ref, gait, k_v=s["k_v"], k_p=s["k_p"], r_v=s["r_v"],
-                             r_p=s["r_p"], climb_R=s["climb_R"])
-    gains = {"k_w1": (s["k_w1_x"], s["k_w1_y"], s["k_w1_theta"]),
-             "k_w2": (s["k_w2_x"], s["k_w2_y"], s["k_w2_theta"]),
-             "k_phi": np.r_[s["k_phi_1"], np.full(n - 2, s["k_phi"])]}
-    if scenario.controller == "velocity":
-        return QuasiStaticLyapunovController(snake, ref, gait, **gains,
-                                             servo_bandwidth=s["servo_bandwidth"],
-                                             max_lead=s["max_lead"], control_dt=s["control_dt"])
-    return LyapunovController(snake, ref, gait, **gains, lam=s["lam"],
-                              lam_shape=s["lam_shape"], k_shape=s["k_shape"])
+    law = {"pfl": PFLController, "velocity": QuasiStaticLyapunovController}.get(
+        scenario.controller, LyapunovController)
+    return law(snake, reference(scenario), gait, options=law_options(s, n - 1))
 
 
 def simulate_scenario(scenario: Scenario) -> RunOutcome:

@@ -1,0 +1,108 @@
+"""Fields of the controllers' options dataclasses: default, bounds and one-line doc in one place.
+
+:func:`option` declares a field (its metadata holds the doc, the bounds, the unit and,
+for a gain, its matrix symbol and size); :func:`check_fields` validates an instance in
+``__post_init__``; :func:`merged` applies a constructor's keyword overrides to an options
+object. :mod:`snake_pin.study.spec` reads the same metadata to build a study's settings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import field, fields, replace
+from typing import Any, TypeVar
+
+import numpy as np
+
+from .._validation import brief, finite_number
+from ..exceptions import ParameterError
+from .gains import K_PHI_FIRST, K_PHI_REST, gain_matrix
+
+T = TypeVar("T")
+
+
+def option(default: Any, doc: str, *, unit: str = "", low: float | None = None,
+           high: float | None = None, open_low: bool = False, symbol: str = "",
+           size: int | None = None, entries: tuple[str, ...] = (),
+           default_doc: str = "") -> Any:
+    """A dataclass field with its one-line doc and domain in ``metadata``.
+
+    A field with a ``symbol`` is a gain matrix (a scalar, a diagonal or a matrix, checked
+    by :func:`~snake_pin.control.gains.gain_matrix`; ``size`` 3 for the head, None for the
+    joints, whose number only the robot knows), positive definite if ``open_low`` and
+    semi-definite otherwise. ``entries`` names a head gain's diagonal entries in study
+    files; ``default_doc`` says how a None default is resolved.
+    """
+    return field(default=default, metadata={
+        "doc": doc, "unit": unit, "low": low, "high": high, "open_low": open_low,
+        "symbol": symbol, "size": size, "entries": entries, "default_doc": default_doc})
+
+
+def tracking_gain(name: str) -> Any:
+    """The field of a gain of (84) (``k_w1``, ``k_w2`` or ``k_phi``): both Lyapunov-like
+    laws declare theirs with it, so that the two share one default and one domain."""
+    return option(**_TRACKING_GAINS[name])
+
+
+#: The gains of (84): K_w1 and K_w2 on the head, K_phi (None: :func:`default_k_phi`).
+_TRACKING_GAINS: dict[str, dict[str, Any]] = {
+    "k_w1": {"default": (2.0, 2.0, 3.0), "doc": "rates of the head's error", "unit": "1/s",
+             "low": 0.0, "open_low": True, "symbol": "K_w1", "size": 3,
+             "entries": ("x", "y", "theta")},
+    "k_w2": {"default": (400.0, 400.0, 45.0), "doc": "weights of the head's error in V",
+             "low": 0.0, "open_low": True, "symbol": "K_w2", "size": 3,
+             "entries": ("x", "y", "theta")},
+    "k_phi": {"default": None, "doc": "weights of the joints' error in V", "low": 0.0,
+              "open_low": True, "symbol": "K_phi",
+              "default_doc": f"{K_PHI_FIRST:g} on joint 1, {K_PHI_REST:g} on the others"},
+}
+
+
+def _frozen_gain(value: object, symbol: str, size: int | None, definite: bool) -> Any:
+    """A gain checked and stored hashable: a float, a tuple or a tuple of rows."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = np.zeros((0, 0))  # gain_matrix below says why
+    order = size if size is not None else (max(arr.shape[0], 1) if arr.ndim in (1, 2) else 1)
+    gain_matrix(value, order, symbol, definite=definite)
+    if arr.ndim == 0:
+        return float(arr)
+    if arr.ndim == 1:
+        return tuple(float(v) for v in arr)
+    return tuple(tuple(float(v) for v in row) for row in arr)
+
+
+def check_fields(options: Any) -> None:
+    """Validate and normalise every field of an options dataclass (its ``__post_init__``):
+    a field outside its domain is a ParameterError of one line naming it."""
+    for f in fields(options):
+        meta, value = f.metadata, getattr(options, f.name)
+        if value is None and f.default is None:
+            continue  # resolved per robot
+        if meta.get("symbol"):
+            value = _frozen_gain(value, meta["symbol"], meta["size"], meta["open_low"])
+        else:
+            value = finite_number(value, f.name)
+            low, high = meta.get("low"), meta.get("high")
+            if low is not None and (value < low or (meta["open_low"] and value == low)):
+                word = ("positive" if meta["open_low"] else "non-negative") if low == 0 else \
+                    f"{'>' if meta['open_low'] else '>='} {low:g}"
+                raise ParameterError(f"{f.name} must be {word}, got {value}")
+            if high is not None and value > high:
+                raise ParameterError(f"{f.name} must be <= {high:g}, got {value}")
+            value = 0.0 if value == 0.0 else value
+        object.__setattr__(options, f.name, value)
+
+
+def merged(cls: type[T], options: T | None, overrides: dict[str, object]) -> T:
+    """``options`` (or the defaults) with a constructor's keyword ``overrides``; a wrong
+    ``options`` type or an unknown override is a ParameterError."""
+    base = cls() if options is None else options
+    if not isinstance(base, cls):
+        raise ParameterError(f"options must be {cls.__name__}, got {brief(base)}")
+    known = [f.name for f in fields(cls)]  # type: ignore[arg-type]
+    for key in overrides:
+        if key not in known:
+            raise ParameterError(f"unknown {cls.__name__} field {key!r} "
+                                 f"(expected one of {', '.join(known)})")
+    return replace(base, **overrides) if overrides else base  # type: ignore[type-var]
