@@ -350,7 +350,6 @@ def r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
     return np.linalg.svd(coupling, compute_uv=False)[:, -1]
 
 
-_r_batch = r_batch  # the name snake_pin.control.pfl imports
 
 
 def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:

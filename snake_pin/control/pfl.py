@@ -45,7 +45,7 @@ from .._symmetric import smallest_eigenvalue_3x3
 from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
-from ..manipulability import _r_batch
+from ..manipulability import r_batch
 from ..model import Snake
 from ._options import check_fields, merged, option
 from .base import ReferenceLaw, TimeTerms, gait_for
@@ -301,7 +301,7 @@ class PFLController(ReferenceLaw):
         """Central-difference gradient of log R over phi (one batched evaluation)."""
         dim = len(phi)
         probes = phi[None, :] + np.vstack([step * np.eye(dim), -step * np.eye(dim)])
-        r = _r_batch(self.snake.params, probes, (), True)  # PFL: no passive joint
+        r = r_batch(self.snake.params, probes, (), True)  # PFL: no passive joint
         return (np.log(r[:dim]) - np.log(r[dim:])) / (2 * step)
 
     def signals(self) -> dict[str, float]:
