@@ -32,7 +32,7 @@ state costs once, scaled by ``terminal`` [s].
 Why RK4 at 10 ms: the viscous snake is stiff. At c_y = 50 c_x the linearised dynamics'
 fastest mode decays at 121 /s at the initial arc of eq. (82) and 133 /s at a serpenoid
 posture (8 ms), so explicit Euler at 20 ms and RK4 at 25 ms diverge inside the horizon
-(RK4's stability limit on the negative real axis is |lambda dt| < 2.79). At 10 ms all of
+(RK4's stability limit on the negative real axis is ``|lambda dt| < 2.79``). At 10 ms all of
 RK2, RK3 and RK4 are stable, but over 1 s of a sinusoidal torque schedule (0.5 N m,
 held per node) they predict the 1 kHz plant's head to 15, 2.7 and 0.5 mm: RK4's four
 stages per node buy the accuracy a 0.5 s prediction needs.

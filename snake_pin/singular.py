@@ -30,7 +30,7 @@ __all__ = ["MAX_SEED", "MAX_STARTS", "SingularFamily", "SingularSearch",
 #: Most random starts of one search (10,000 take minutes at n = 10): the single-linkage
 #: clustering of the minima holds starts^2 / 2 distances (10,000 minima: 400 MB).
 MAX_STARTS = 10_000
-#: Seeds are 32-bit unsigned integers (0 .. 2**32 - 1), as NumPy's legacy seeding takes.
+#: Seeds are 32-bit unsigned integers (``0 .. 2**32 - 1``), as NumPy's legacy seeding takes.
 MAX_SEED = 2**32 - 1
 
 
@@ -171,7 +171,7 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     seed
         Seed of the random starts, 0 .. :data:`MAX_SEED`.
     relative
-        R <= relative * (median R of random postures) counts as numerically zero.
+        ``R <= relative * (median R of random postures)`` counts as numerically zero.
     progress
         Show a progress bar on stderr when it is a terminal.
 

@@ -85,7 +85,7 @@ class Sweep:
         Parameters
         ----------
         relative
-            R <= relative * (largest R of the sweep) counts as zero.
+            ``R <= relative * (largest R of the sweep)`` counts as zero.
 
         Returns
         -------

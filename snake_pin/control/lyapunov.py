@@ -1,25 +1,25 @@
 """Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here.
 
 The paper's reference [27] for this law is not available; only V (83) and the gains (84)
-are. This module's law:
+are. This module's law::
 
     V = ||s||^2_{K_w2} + ||e||^2_{K_phi},  s = e_w' + K_w1 e_w,  e = phi_r' - phi'   (83)
 
-with e_w = w_r - w. Along the dynamics
+with e_w = w_r - w. Along the dynamics::
 
     V' = 2 s^T K_w2 (w_r'' + K_w1 e_w' - w'') + 2 e^T K_phi (phi_r'' - phi'').
 
 The accelerations are affine in the actuated torques: q'' = H^-1 (E_a tau_a - h) =
 A tau_a + b, A = H^-1 E_a (E_a: the columns of E of the actuated joints; a passive joint
-is a dropped column). Take the targets
+is a dropped column). Take the targets::
 
     w''*   = w_r'' + K_w1 e_w' + lam s          (then s' = -lam s)
     phi''* = phi_r'' + mu e + k_s (phi_r - phi)  (then e' = -mu e)
 
-and tau_a = argmin ||A tau_a + b - q''*||^2_W, W = blockdiag(K_w2, K_phi): a weighted least
+and ``tau_a = argmin ||A tau_a + b - q''*||^2_W``, ``W = blockdiag(K_w2, K_phi)``: a weighted least
 squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible).
 
-With the residual rho = A tau_a + b - q''*,
+With the residual ``rho = A tau_a + b - q''*``::
 
     V' = -2 lam ||s||^2_{K_w2} - 2 mu ||e||^2_{K_phi} - 2 [s; e]^T W rho
          - 2 k_s e^T K_phi (phi_r - phi).

@@ -1,13 +1,13 @@
 """Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected.
 
 Derivation (eq. 70 is misprinted; the law is derived again from (27)). Solving (25) for
-phi'' and substituting into (24):
+phi'' and substituting into (24)::
 
     Hs w'' = -h1 + H12 H22^-1 (h2 - tau),      Hs = H11 - H12 H22^-1 H21   (27, 68)
 
 For w'' = a we need H12 H22^-1 tau = -Hs a - h1 + H12 H22^-1 h2. With
 tau = H22 [H12^+ y + (I - H12^+ H12) kappa], H12 H22^-1 tau = y whenever H12 has full
-row rank (R > 0), so
+row rank (R > 0), so::
 
     tau = H22 H12^+ (-Hs a - h1 + H12 H22^-1 h2) + H22 (I - H12^+ H12) kappa.
 

@@ -4,17 +4,17 @@ When friction dominates inertia (time constant m / c_y much shorter than the mot
 on wheels, where it is effectively zero), the unactuated rows of (20) reduce to a force
 balance: C_uu u' + C_ua a' = 0, u the unactuated coordinates (w, plus phi_k of a passive
 joint k) and a the actuated joint angles. The head then moves with the joints through the
-quasi-static connection
+quasi-static connection::
 
     u' = J(q) a',   J = -C_uu^-1 C_ua        (C of eqs. 11-13, the viscous model).
 
-Under it, V of (83) is a quadratic function of the actuated joint velocities:
+Under it, V of (83) is a quadratic function of the actuated joint velocities::
 
     V(a') = ||J_w a' - (w_r' + K_w1 e_w)||^2_{K_w2} + ||a' - phi_r,a'||^2_{K_phi,a}
             + ||J_k a' - phi_r,k'||^2_{K_phi,k}
 
 (J_w, J_k: the w rows and the passive rows of J), since s = e_w' + K_w1 e_w =
-w_r' + K_w1 e_w - w'. The law takes the minimiser a'* of V (normal equations, positive
+w_r' + K_w1 e_w - w'. The law takes the minimiser ``a'*`` of V (normal equations, positive
 definite because K_phi is), integrates it into a joint reference and lets a PD servo of
 bandwidth omega_s on each actuated joint realise it (as the servo-driven joints of the
 paper's V-REP robot do). Passive joints get no torque. V is not driven to zero - the
@@ -298,7 +298,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         return solved[:self._m]
 
     def _rate(self, x: np.ndarray, t: float) -> np.ndarray:
-        """a'* at (x, t); keeps what V needs for :meth:`signals`."""
+        """``a'*`` at (x, t); keeps what V needs for :meth:`signals`."""
         m, k = self._m, len(self._a)
         weighted = self._solved(x[:self.snake.nq]) * self._neg_sqrt_w_u  # sqrt(W_u) J
         time = self._time_row(t)

@@ -31,7 +31,7 @@ above the step.
 
 **Elliptic cones are the default**: the Coulomb contact the viscous model is identified
 from, at any heading. A pyramidal cone's friction limit is a square in the world axes
-(|f_x| + |f_y| <= mu N): a link sliding at 45 degrees to them feels 26 % less sideways
+(``|f_x| + |f_y| <= mu N``): a link sliding at 45 degrees to them feels 26 % less sideways
 friction, and a serpentine gait sweeps its links through such headings. It is faster
 (``scripts/bench.py --only engine`` times both and prints the fidelity table):
 ``WheelSpec(cone="pyramidal")`` remains for quick looks. c_theta = 2 d^2 b / r^2 (the

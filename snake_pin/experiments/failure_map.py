@@ -57,10 +57,10 @@ __all__ = ["C_X", "FULL", "QUICK", "SERIES_RATIO", "TRACKING_LIMIT", "MapPlan",
            "failure_map_stage", "failure_map_study"]
 
 #: Friction along each link in the map [N s/m] when the robot has no single positive
-#: c_x of its own (Table 1's is this); c_y = ratio * c_x.
+#: c_x of its own (Table 1's is this); ``c_y = ratio * c_x``.
 C_X = 0.5
 #: RMS head error [% of body length] beyond which a run counts as not tracking: the
-#: issue's target with a passive joint (and twice the one without).
+#: tracking target with a passive joint (and twice the one without).
 TRACKING_LIMIT = 10.0
 #: The ratio c_y/c_x of the rerun series (the tracking stage's friction), or the closest.
 SERIES_RATIO = 50.0

@@ -25,7 +25,7 @@ from ..trajectory import Trajectory
 __all__ = ["TAU_BREAKDOWN", "PFLRun", "breakdown_threshold", "initial_state", "plot_pfl",
            "run_pfl"]
 
-#: ||tau|| above this [N m] counts as the breakdown of PFL on the Table 1 robot. While
+#: ``||tau||`` above this [N m] counts as the breakdown of PFL on the Table 1 robot. While
 #: tracking, it needs 0.01-0.3 N m; 1 N m is several times that and a tenth of the rated
 #: effort. Other robots scale it (:func:`breakdown_threshold`).
 TAU_BREAKDOWN = 1.0
@@ -34,7 +34,7 @@ _TABLE1_LINK = 0.182 * 0.12**2
 
 
 def breakdown_threshold(params: SnakeParams) -> float:
-    """||tau|| [N m] that counts as PFL's breakdown for ``params``.
+    """``||tau||`` [N m] that counts as PFL's breakdown for ``params``.
 
     Joint torques for the same joint accelerations scale with m (2l)^2 (the camera-head
     example needs 1.1 N m at t = 0, the Table 1 robot 0.25 N m), so a fixed threshold
@@ -104,7 +104,7 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0,
     """Run Section VI.1 (gains 79, reference 80, serpenoid 81, initial state 82).
 
     The summary has t_end, diverged, breakdown_time, t_R_min, R_min, g_drift_max and
-    head_error_max, all taken before the breakdown (||tau|| above
+    head_error_max, all taken before the breakdown (``||tau||`` above
     :func:`breakdown_threshold`, in the summary as breakdown_threshold), and the head
     error over ``t >= error_window`` of :func:`~snake_pin.metrics.head_error_summary`
     (error_window, rms_head_error, max_head_error, their _pct, rms_relative).

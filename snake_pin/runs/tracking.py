@@ -141,7 +141,7 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
         samples; R~ with the passive joints free, eq. 42) and in its summary: the
         controller, friction and passive joints, the head error over t >= ``error_window``
         (error_window, rms_head_error, max_head_error [m], their _pct, rms_relative),
-        R_min, D_min, body_length, g_drift (max |g - g(0)| of eq. 67) and the final head
+        R_min, D_min, body_length, g_drift (max ``|g - g(0)|`` of eq. 67) and the final head
         pose.
     """
     params = params or tracking_params()
