@@ -43,7 +43,6 @@ extensions = [
     "numpydoc",
     "sphinx_gallery.gen_gallery",
     "matplotlib.sphinxext.plot_directive",
-    "docstring_repairs",
     "snake_pin_docs",
 ]
 

@@ -9,7 +9,7 @@ and rotational "inertia" c_theta, so C(q) of eq. (11) is the twin's mass matrix 
 Q = -C(q) q' = -RNEA_twin(q, 0, q'). A rigid-body inertia is isotropic in translation, so
 with c_x != c_y link i carries the larger of its two coefficients and a *wheel* takes the
 difference back: a prismatic joint at the CM, along the direction of the larger
-coefficient, of "mass" -|c_y,i - c_x,i| and axis 1/sqrt|c_y,i - c_x,i| long (Pinocchio
+coefficient, of "mass" ``-|c_y,i - c_x,i|`` and axis ``1/sqrt|c_y,i - c_x,i|`` long (Pinocchio
 keeps a prismatic axis as given), so that its block of the twin's mass matrix is
 M_ww = -1. The wheels are appended after the chain, tail first (link k's subtree is links
 k..n and wheels n..k: depth-first, as CRBA and the RNEA derivatives need), so the twin's

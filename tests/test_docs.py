@@ -20,8 +20,7 @@ DOCS = ROOT / "docs"
 EXAMPLES = sorted(p for p in (ROOT / "examples").glob("*.py"))
 sys.path.insert(0, str(DOCS / "_ext"))
 
-from docstring_repairs import escape_markup, literal_blocks  # noqa: E402
-from snake_pin_docs import _EQ_REFERENCE, _canonical, _numbers, _public  # noqa: E402
+from snake_pin_docs import _EQ_REFERENCE, _canonical, _numbers, _public, escape_text  # noqa: E402
 
 #: The documented build command (README, docs/installation.rst) without its folders.
 BUILD = [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-b", "html"]
@@ -145,22 +144,10 @@ def test_equation_references_are_read(text: str, numbers: list[int]) -> None:
     assert match is not None and _numbers(match) == numbers
 
 
-def test_repairs_escape_plain_text_markup_only() -> None:
-    """|x| and a lone * are escaped; inline literals, roles and emphasis are kept."""
+def test_plain_text_escapes_its_markup_only() -> None:
+    """|x| and a lone * in CLI help are escaped; inline literals, roles and emphasis kept."""
     lines = ["|phi_i| <= pi/2 and q''* here", "``|x|`` and :func:`f` and *this*",
              "* a bullet", "- b|c"]
-    assert escape_markup(lines) == [r"\|phi_i\| <= pi/2 and q''\* here",
-                                    "``|x|`` and :func:`f` and *this*", "* a bullet",
-                                    r"- b\|c"]
-
-
-def test_repairs_turn_indented_formulas_into_literal_blocks() -> None:
-    """An indented block after a paragraph becomes literal; a ``::`` block is left alone."""
-    formula = ["Solving gives", "", "    Hs w'' = -h1", "        + H12 tau", "", "Then."]
-    assert literal_blocks(formula) == ["Solving gives", "", "::", "", "    Hs w'' = -h1",
-                                       "        + H12 tau", "", "Then."]
-    already = ["Example::", "", "    code |x|", "", "Text."]
-    assert literal_blocks(already) == already
-    assert escape_markup(already) == already
-    bullets = ["- item", "", "  continued", "- next"]
-    assert literal_blocks(bullets) == bullets
+    assert [escape_text(line) for line in lines] == [
+        r"\|phi_i\| <= pi/2 and q''\* here", "``|x|`` and :func:`f` and *this*",
+        "* a bullet", r"- b\|c"]

@@ -30,14 +30,13 @@ from collections.abc import Iterator
 from types import ModuleType
 from typing import Any
 
-from docstring_repairs import escape_markup
 from docutils import nodes
 from docutils.statemachine import StringList
 from sphinx.application import Sphinx
 from sphinx.util.docutils import SphinxDirective
 from sphinx.util.nodes import nested_parse_with_titles
 
-__all__ = ["PAPER_SECTIONS", "equation_references", "public_modules", "setup"]
+__all__ = ["PAPER_SECTIONS", "equation_references", "escape_text", "public_modules", "setup"]
 
 #: Equation ranges of the paper's sections (Ariizumi and Tanaka).
 PAPER_SECTIONS = (
@@ -56,9 +55,35 @@ _EQ_REFERENCE = re.compile(
 _EQ_TAIL = re.compile(rf"\s*(-|–|,|,?\s*and|to)\s*{_NUMBER}")
 
 
+#: Inline constructs kept as they are in plain text: backslash escapes, inline literals,
+#: roles with their text, interpreted text, strong and emphasis closed on the line.
+_PROTECTED = re.compile(
+    r"\\."
+    r"|``.+?``"
+    r"|(?::[\w:+.-]+:)?`[^`]+`(?::[\w:+.-]+:)?_{0,2}"
+    r"|(?<![\w*\\])\*\*(?=\S)(?:\\.|[^*\\])+?(?<=[^\s\\])\*\*(?![\w*])"
+    r"|(?<![\w*\\])\*(?=[^\s*])(?:\\.|[^*\\])+?(?<=[^\s\\])\*(?![\w*])"
+)
+
+
+def escape_text(line: str) -> str:
+    """One line of plain text (a CLI help, a summary) with ``|`` and a lone ``*`` escaped
+    for reStructuredText, outside inline literals and roles; a leading bullet is kept."""
+    bullet = re.match(r"^\s*[*+-]\s+", line)
+    if bullet:
+        return bullet.group(0) + escape_text(line[bullet.end():])
+    parts, last = [], 0
+    for match in _PROTECTED.finditer(line):
+        parts.append(re.sub(r"([*|])", r"\\\1", line[last:match.start()]))
+        parts.append(match.group(0))
+        last = match.end()
+    parts.append(re.sub(r"([*|])", r"\\\1", line[last:]))
+    return "".join(parts)
+
+
 def _text(text: str) -> str:
     """Help or description text: inline literals and roles kept, stray markup escaped."""
-    return "\n".join(escape_markup(text.splitlines()))
+    return "\n".join(escape_text(line) for line in text.splitlines())
 
 
 def _sentence(text: str) -> str:
@@ -337,7 +362,7 @@ def _public(package: ModuleType, name: str) -> Any:
 def _summary(obj: Any) -> str:
     doc = inspect.getdoc(obj) or ""
     first = doc.strip().split("\n\n")[0].replace("\n", " ").strip()
-    return " ".join(escape_markup([first]))
+    return escape_text(first)
 
 
 class PublicNames(_RstDirective):
