@@ -35,96 +35,37 @@ dposv = lapack.dposv
 
 def gemv(alpha: float, a: np.ndarray, x: np.ndarray, beta: float, y: np.ndarray,
          trans: int = 0) -> Callable[[], Any]:
-    """``y = alpha op(a) x + beta y`` in place, op(a) = a (trans 0) or a^T (trans 1), prepared.
-
-    Parameters
-    ----------
-    alpha, beta : float
-        The scalars.
-    a : numpy.ndarray
-        Fortran-ordered float64 matrix.
-    x, y : numpy.ndarray
-        Contiguous float64 vectors; y is overwritten (not read when beta is 0).
-    trans : int, optional
-        1 to apply a^T.
-
-    Returns
-    -------
-    callable
-        Runs the product when called.
-    """
+    """``y = alpha op(a) x + beta y`` in place (op(a) = a, or a^T with ``trans=1``),
+    prepared: the returned callable runs it. ``a`` Fortran-ordered, ``x`` and ``y``
+    contiguous float64; ``y`` is not read when ``beta`` is 0."""
     return functools.partial(dgemv, alpha, a, x, beta, y, 0, 1, 0, 1, trans, 1)
 
 
 def syrk(alpha: float, a: np.ndarray, beta: float, c: np.ndarray,
          trans: int = 0) -> Callable[[], Any]:
-    """Upper triangle of ``c = alpha op(a) op(a)^T + beta c`` in place, prepared.
-
-    Parameters
-    ----------
-    alpha, beta : float
-        The scalars.
-    a : numpy.ndarray
-        Fortran-ordered float64 matrix; op(a) = a (trans 0) or a^T (trans 1).
-    c : numpy.ndarray
-        Fortran-ordered square float64 matrix; its strict lower triangle is not written.
-    trans : int, optional
-        1 to use a^T.
-
-    Returns
-    -------
-    callable
-        Runs the product when called.
-    """
+    """The upper triangle of ``c = alpha op(a) op(a)^T + beta c`` in place (op(a) = a, or
+    a^T with ``trans=1``), prepared: the returned callable runs it. ``a`` and ``c``
+    Fortran-ordered float64; c's strict lower triangle is not written."""
     return functools.partial(dsyrk, alpha, a, beta, c, trans, 0, 1)
 
 
 def posv(a: np.ndarray, b: np.ndarray) -> Callable[[], tuple[Any, Any, int]]:
-    """``a x = b`` by Cholesky from a's upper triangle, x into b, the factor into a, prepared.
-
-    Parameters
-    ----------
-    a : numpy.ndarray
-        Fortran-ordered square float64 matrix (overwritten).
-    b : numpy.ndarray
-        Contiguous float64 vector (overwritten by the solution).
-
-    Returns
-    -------
-    callable
-        Solves when called and returns LAPACK's ``(factor, solution, info)``; info (item
-        2) is 0 on success, > 0 when a is not positive definite.
-    """
+    """``a x = b`` by Cholesky from a's upper triangle, prepared: the returned callable
+    writes x into ``b`` and the factor into ``a`` and returns LAPACK's
+    ``(factor, solution, info)``, info > 0 when ``a`` is not positive definite."""
     return functools.partial(dposv, a, b, 0, 1, 1)
 
 
 def solve_spd(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
-    """Solve ``a x = b`` by Cholesky (a's upper triangle) into new arrays (a, b unchanged).
-
-    Parameters
-    ----------
-    a : numpy.ndarray
-        Symmetric positive definite matrix.
-    b : numpy.ndarray
-        Right-hand side(s), a vector or a matrix.
-
-    Returns
-    -------
-    tuple
-        The solution and LAPACK's info (0 on success, > 0 when a is not definite).
-    """
+    """``a x = b`` by Cholesky from a's upper triangle into new arrays (``a`` and ``b``
+    unchanged): the solution and LAPACK's info (> 0 when ``a`` is not definite)."""
     _, solution, info = dposv(a, b)
     return solution, int(info)
 
 
 def in_place_calls_hold() -> bool:
-    """Whether the helpers give numpy's numbers in the caller's buffers.
-
-    Returns
-    -------
-    bool
-        True when :func:`gemv`, :func:`syrk` and :func:`posv` work in place as documented.
-    """
+    """Whether :func:`gemv`, :func:`syrk` and :func:`posv` give numpy's numbers in the
+    caller's buffers (checked once, at import)."""
     rng = np.random.default_rng(5)
     a = np.asfortranarray(rng.normal(size=(5, 3)))
     x3, x5 = rng.normal(size=3), rng.normal(size=5)

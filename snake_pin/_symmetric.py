@@ -37,18 +37,8 @@ def _strict_lower(size: int) -> np.ndarray:
 
 
 def symmetric_from_upper(upper: np.ndarray) -> np.ndarray:
-    """Return a new symmetric matrix: ``upper``'s upper triangle mirrored into the lower one.
-
-    Parameters
-    ----------
-    upper : numpy.ndarray, shape (k, k)
-        A square matrix whose upper triangle (diagonal included) is meaningful.
-
-    Returns
-    -------
-    numpy.ndarray, shape (k, k)
-        The symmetric matrix; ``upper`` is unchanged.
-    """
+    """A new symmetric matrix: ``upper``'s upper triangle (diagonal included) mirrored into
+    the lower one; ``upper`` is unchanged."""
     out = upper.copy()
     np.copyto(out, upper.T, where=_strict_lower(upper.shape[0]))
     return out
@@ -58,24 +48,15 @@ def smallest_eigenvalue_3x3(upper: np.ndarray) -> float:
     """The smallest eigenvalue of a symmetric 3x3 matrix given by its upper triangle.
 
     The trigonometric closed form of the characteristic cubic: with q = tr(G)/3,
-    p^2 = ||G - q I||_F^2 / 6 and cos(3 phi) = det(G - q I) / (2 p^3), the eigenvalues are
+    ``p^2 = ||G - q I||_F^2 / 6`` and ``cos(3 phi) = det(G - q I) / (2 p^3)``, the eigenvalues are
     q + 2 p cos(phi + 2 pi k / 3), the smallest at k = 1 (phi in [0, pi/3]). Its error is a
     few rounding units of the largest eigenvalue, up to some 700 where two eigenvalues come
     close (acos amplifies rounding there), against a few for LAPACK: 1e-13 of the largest
     at most, 1e-7 of the smallest. LAPACK's ``dsyev`` takes over where the form would lose
-    more: two eigenvalues nearly coincide (|cos(3 phi)| > 1 - 1e-6), the smallest is below
+    more: two eigenvalues nearly coincide (``|cos(3 phi)| > 1 - 1e-6``), the smallest is below
     1e-6 of the largest (near-singular: PFL's check of R against r_min stays LAPACK's), or
-    the spread p is too small to divide by. Twice as fast as ``dsyev`` through scipy.
-
-    Parameters
-    ----------
-    upper : numpy.ndarray, shape (3, 3)
-        A symmetric matrix; only its upper triangle (diagonal included) is read.
-
-    Returns
-    -------
-    float
-        Its smallest eigenvalue (NaN if an entry is NaN).
+    the spread p is too small to divide by. Twice as fast as ``dsyev`` through scipy. NaN
+    if an entry is NaN.
     """
     (a, b, c), (_, d, e), (_, _, f) = upper.tolist()
     q = (a + d + f) / 3.0
@@ -100,20 +81,6 @@ def whole(algorithm: Callable[..., Any], matrix: np.ndarray,
     """``algorithm`` (``pin.crba`` or ``pin.computeMinverse``) itself when the bindings fill
     ``matrix`` (a view of the Data's M or Minv) whole, else a wrapper of the same signature
     that also mirrors its upper triangle into the lower one, in place.
-
-    Parameters
-    ----------
-    algorithm : callable
-        The Pinocchio function.
-    matrix : numpy.ndarray
-        The view it fills.
-    mirrors : bool
-        Whether the bindings already fill it whole (:func:`crba_mirrors`).
-
-    Returns
-    -------
-    callable
-        ``algorithm`` or the wrapper.
     """
     if mirrors:
         return algorithm
@@ -130,17 +97,8 @@ def whole(algorithm: Callable[..., Any], matrix: np.ndarray,
 def crba_mirrors(model: pin.Model) -> bool:
     """Whether ``pin.crba`` fills ``data.M`` whole (both triangles).
 
-    Pinocchio's algorithm fills the upper triangle; its Python bindings mirror it.
-
-    Parameters
-    ----------
-    model : pinocchio.Model
-        The model to probe (once, on a configuration away from symmetries).
-
-    Returns
-    -------
-    bool
-        True when ``data.M`` is symmetric after ``pin.crba``.
+    Pinocchio's algorithm fills the upper triangle; its Python bindings mirror it. Probed
+    once per model, on a configuration away from symmetries.
     """
     data = model.createData()
     mass = data.M  # the view the callers read, not the returned copy
