@@ -43,6 +43,7 @@ from collections.abc import Callable, Mapping
 from functools import partial
 from pathlib import Path
 from typing import Any
+from unittest.mock import patch
 
 import numpy as np
 
@@ -133,8 +134,7 @@ def bench_dynamics(budget: float) -> None:
                 "forward dynamics": (
                     partial(snake.forward_dynamics, q, dq, tau), closed_fd),
             }
-            route = ("twin" if not snake.friction.has_wheels else "wheeled twin") \
-                if snake.friction.uses_twin else "numpy"
+            route = friction_route(snake)
             for name, (fast, slow) in pairs.items():
                 if name == "H" and label != "iso":
                     continue  # H does not depend on friction
@@ -154,11 +154,13 @@ def bench_dynamics(budget: float) -> None:
                 rows.append([str(n), "forward dynamics against a pin.Force list", label,
                              show(spread(times["fast"])), show(spread(times["slow"])),
                              show(ratios(times["slow"], times["fast"]), unit="x")])
-                numpy_route = FrictionModel(params)
+                def closed_q(q=q, dq=dq, params=params) -> np.ndarray:
+                    return -paper.friction_matrix(params, q) @ dq
+
                 times = interleaved_samples({
-                    "fast": partial(snake.friction, q, dq),
-                    "slow": partial(numpy_route, q, dq)}, budget=budget)
-                rows.append([str(n), "friction Q alone: twin against numpy", label,
+                    "fast": partial(snake.friction, q, dq), "slow": closed_q}, budget=budget)
+                rows.append([str(n), "friction Q alone: twin against -C(q) q' of the closed "
+                             "form", f"{label} ({route})",
                              show(spread(times["fast"])), show(spread(times["slow"])),
                              show(ratios(times["slow"], times["fast"]), unit="x")])
     table("Dynamics, us per call, median (10-90 %) of interleaved rounds",
@@ -168,10 +170,19 @@ def bench_dynamics(budget: float) -> None:
           "another route.")
 
 
+def friction_route(snake: Snake) -> str:
+    """Which route of the damping twin gives the robot's friction force Q."""
+    friction = snake.friction
+    if friction.uses_twin_crba:
+        return "twin CRBA + 2 products"
+    return "twin RNEA, 2 passes" if friction.has_wheels else "twin RNEA"
+
+
 def bench_friction_routes(budget: float) -> None:
-    """Anisotropic friction in the closed loop: one stage evaluation of an RK4 tableau (friction and
-    ABA) with Q from the wheeled twin against Q from numpy, for several n; the crossing
-    sets ``snake_pin.friction.WHEELED_TWIN_MAX_LINKS``."""
+    """Anisotropic friction in the closed loop: one stage evaluation of RK4 (the friction
+    force and ABA: ``Snake.calc_acceleration``) with Q from the twin's CRBA and two
+    products against Q from its two RNEA passes, for several n; the crossing sets
+    ``snake_pin.friction.WHEELED_TWIN_MAX_LINKS``."""
     from snake_pin import friction
 
     rows = []
@@ -180,29 +191,32 @@ def bench_friction_routes(budget: float) -> None:
         params = SnakeParams.table1(n=n, c_y=25.0)
         snakes = {}
         try:  # the route is chosen when the robot is built: build one on each
-            for route, limit in (("twin", n), ("numpy", n - 1)):
+            for route, limit in (("crba", n), ("rnea", n - 1)):
                 friction.WHEELED_TWIN_MAX_LINKS = limit
                 snakes[route] = Snake(params)
         finally:
             friction.WHEELED_TWIN_MAX_LINKS = chosen
+        assert snakes["crba"].friction.uses_twin_crba
+        assert not snakes["rnea"].friction.uses_twin_crba
         rng = np.random.default_rng(n)
-        x = np.r_[0.1, -0.2, 0.3, rng.uniform(-1, 1, n - 1), rng.normal(size=n + 2)]
+        q = np.r_[0.1, -0.2, 0.3, rng.uniform(-1, 1, n - 1)]
+        v, tau = rng.normal(size=n + 2), rng.normal(size=n - 1)
         calls = {}
         for route, snake in snakes.items():
-            dynamics = snake.fast_dynamics
-            dynamics.states[1, dynamics.select] = x
-            tableau = dynamics.tableau()
-            tableau.slopes[2, :snake.nq] = x[snake.nq:]  # the stage's q', as RK4 writes it
-            calls[route] = tableau.evaluators[1]
+            data = snake.create_data()
+            torque = snake.calc_torque(data, tau).copy()  # E tau, as the plant holds it
+            calls[route] = partial(snake.calc_acceleration, data, q, v, torque)
+        assert np.allclose(calls["crba"](), calls["rnea"](), rtol=1e-9, atol=1e-9)
         times = interleaved_samples(calls, budget=budget)
-        rows.append([str(n), "twin" if n <= chosen else "numpy",
-                     show(spread(times["twin"]), 2), show(spread(times["numpy"]), 2),
-                     show(ratios(times["numpy"], times["twin"]), 2, "x")])
-    table("Anisotropic friction (c_y = 50 c_x) in one closed-loop evaluation, us per call, "
-          "median (10-90 %) of interleaved rounds",
-          ["n", "route used", "wheeled twin (CRBA + 2 products) [us]", "numpy [us]",
-           "numpy / twin"], rows)
-    print(f"\nWHEELED_TWIN_MAX_LINKS = {chosen}: the twin up to there, numpy beyond.")
+        rows.append([str(n), "CRBA" if n <= chosen else "RNEA passes",
+                     show(spread(times["crba"]), 2), show(spread(times["rnea"]), 2),
+                     show(ratios(times["rnea"], times["crba"]), 2, "x")])
+    table("Anisotropic friction (c_y = 50 c_x) in one closed-loop evaluation "
+          "(Snake.calc_acceleration), us per call, median (10-90 %) of interleaved rounds",
+          ["n", "route used", "twin CRBA + 2 products [us]", "twin RNEA, 2 passes [us]",
+           "RNEA / CRBA"], rows)
+    print(f"\nWHEELED_TWIN_MAX_LINKS = {chosen}: the twin's CRBA up to there, its RNEA "
+          "passes beyond.")
 
 
 def bench_derivatives(budget: float) -> None:
@@ -323,8 +337,11 @@ WORKER = r"""
 import json, sys, time
 from snake_pin import Snake, SnakeParams
 from snake_pin.control import LyapunovController, PFLController
-from snake_pin.experiments import pfl, tracking
 from snake_pin.sim import simulate
+try:
+    from snake_pin.runs import pfl, tracking
+except ImportError:  # a checkout from before snake_pin.runs (the baseline)
+    from snake_pin.experiments import pfl, tracking
 
 built = {}
 def build(kind, robot):
@@ -417,23 +434,23 @@ def baseline_checkout(commit: str) -> tuple[Path | None, str]:
 def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
                products: bool = False) -> Callable[[], None]:
     """A function making exactly the Pinocchio calls of one closed-loop step of
-    ``simulate`` (see :class:`snake_pin.model.FastDynamics`), on the run's states in turn:
+    ``simulate`` (see :class:`snake_pin.sim.ViscousPlant`), on the run's states in turn:
     the controller's (Lyapunov-like: the friction's, ABA, computeMinverse; PFL: the
     friction's, CRBA, nonLinearEffects), then three RK4 stages (the friction's and ABA
     each; the first stage comes from the controller). The friction's call is the damping
-    twin's RNEA (isotropic friction) or its CRBA (with wheels). With ``products``, each
-    CRBA of the twin is followed by the two products that turn it into Q (the wheels'
+    twin's (:class:`snake_pin.friction.FrictionModel`): its RNEA (isotropic friction), its
+    CRBA (with wheels, up to ``WHEELED_TWIN_MAX_LINKS`` links) or its two RNEA passes
+    (longer robots). With ``products``, the twin's CRBA is the friction model's own
+    ``calc_force`` instead: the CRBA and the two products that turn it into Q (the wheels'
     rolling speeds, then the force: the Schur complement), as the step makes them."""
     import pinocchio as pin
 
-    from snake_pin._blas import dgemv
-
-    passes = snake.friction.passes
-    if passes is None:
-        raise ValueError("the floor is defined for the damping twin's route")
-    model, data, nq, size = snake.model, snake.data, snake.nq, passes.size
-    twin, twin_data, zero = passes.twin, passes.twin_data, passes.zero
-    wheels = passes.has_wheels
+    friction = snake.friction
+    model, data, nq, size = snake.model, snake.data, snake.nq, friction.size
+    twin, zero = friction.twin, np.zeros(size)
+    friction_data = friction.create_data()
+    twin_data = friction_data.twin_data
+    crba_route, wheels = friction.uses_twin_crba, friction.has_wheels
     world = pin.Convention.WORLD
     rnea, aba, crba = pin.rnea, pin.aba, pin.crba
     arguments = []
@@ -446,18 +463,17 @@ def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
     cursor = iter(range(1 << 62))
     count = len(arguments)
 
-    mass = twin_data.M  # column-major and symmetric: its columns are its rows
-    chain_columns, wheel_columns = mass[:, :nq], mass[:, nq:]
-    rolled, damping = np.zeros(size), np.zeros(nq)
-    rolled_v, rolled_w = rolled[:nq], rolled[nq:]
+    calc_force = friction.calc_force
 
     def friction_call(q_ext: np.ndarray, v_ext: np.ndarray, v: np.ndarray) -> None:
-        if wheels:
-            crba(twin, twin_data, q_ext, world)
-            if products:  # the same work as the step's: the rolling speeds, then -Q
-                rolled_v[...] = v
-                dgemv(1.0, wheel_columns, v_ext, 0.0, rolled_w, 0, 1, 0, 1, 1, 1)
-                dgemv(1.0, chain_columns, rolled, 0.0, damping, 0, 1, 0, 1, 1, 1)
+        if crba_route:
+            if products:  # the same work as the step's: CRBA, rolling speeds, then -Q
+                calc_force(friction_data, q_ext[:nq], v)
+            else:
+                crba(twin, twin_data, q_ext, world)
+        elif wheels:  # the locked pass (w), the rolling pass (-Q)
+            rnea(twin, twin_data, q_ext, zero, v_ext)
+            rnea(twin, twin_data, q_ext, zero, v_ext)
         else:
             rnea(twin, twin_data, q_ext, zero, v_ext)
 
@@ -483,7 +499,7 @@ def bench_runs(budget: float, baseline: str | None = BASELINE) -> None:
     of its Pinocchio calls (timed in this process in the same rounds)."""
     import snake_pin
     from snake_pin.control import LyapunovController, PFLController
-    from snake_pin.experiments import pfl, tracking
+    from snake_pin.runs import pfl, tracking
     from snake_pin.sim import simulate
 
     quick = budget < 0.1
@@ -515,7 +531,7 @@ def bench_runs(budget: float, baseline: str | None = BASELINE) -> None:
             states = np.hstack((traj.q, traj.dq))[pick]
             floor = step_floor(snake, kind, states, traj.tau[pick])
             with_products = step_floor(snake, kind, states, traj.tau[pick], products=True) \
-                if snake.friction.has_wheels else None
+                if snake.friction.uses_twin_crba else None
             for worker in (new, old):  # warm-up: imports, first allocations
                 if worker is not None:
                     worker.run(kind, robot, 0.01)
@@ -711,8 +727,8 @@ def engine_fidelity(quick: bool) -> None:
     of perturbed runs (a distribution: the engine runs are chaotic)."""
     from snake_pin.engine.model import WheelSpec
     from snake_pin.engine.run import identify_friction
-    from snake_pin.experiments.engine import PERTURBATION, engine_draw, perturbations
-    from snake_pin.experiments.parallel import run_jobs
+    from snake_pin.runs.engine import PERTURBATION, engine_draw, perturbations
+    from snake_pin.runs.parallel import run_jobs
 
     count, t_final = (QUICK_ENGINE_SEEDS, 20.0) if quick else (ENGINE_SEEDS, 60.0)
     robots = (("every joint actuated", SnakeParams.engine()),
@@ -756,7 +772,7 @@ def engine_fidelity(quick: bool) -> None:
           "2 d^2 b / r^2 for both cones, not a fit: a link turning about its own CM rolls its "
           "wheels, and in a coast of the whole snake that torque is swamped by the sliding "
           "wheels' (about 1e-5 of it). Offsets of the initial joint angles: "
-          f"U(-{PERTURBATION:g}, {PERTURBATION:g}) rad, snake_pin.experiments.engine."
+          f"U(-{PERTURBATION:g}, {PERTURBATION:g}) rad, snake_pin.runs.engine."
           "perturbations(seed=0), the same for both cones.")
 
 
@@ -1011,8 +1027,8 @@ def bench_mpc(budget: float) -> None:
     from snake_pin import ocp
     from snake_pin.control import LyapunovController
     from snake_pin.control.mpc import MPCController, MPCOptions
-    from snake_pin.experiments.tracking import initial_state, tracking_params
     from snake_pin.paths import Line, PathReference
+    from snake_pin.runs.tracking import initial_state, tracking_params
     from snake_pin.sim import simulate
 
     t_final = 1.0 if budget < 0.1 else 3.0
@@ -1029,14 +1045,12 @@ def bench_mpc(budget: float) -> None:
             method(self, *args)
         return call
 
-    actuation.calc, actuation.calcDiff = counted("calc", plain[0]), counted("calcDiff", plain[1])
-    try:
+    with patch.object(actuation, "calc", counted("calc", plain[0])), \
+            patch.object(actuation, "calcDiff", counted("calcDiff", plain[1])):
         controller = MPCController(snake, reference, options=MPCOptions())
         wall = time.perf_counter()
         traj = simulate(snake, controller, x0, t_final)
         wall = time.perf_counter() - wall
-    finally:
-        actuation.calc, actuation.calcDiff = plain
     lyapunov = LyapunovController(snake, reference)
     lyap_wall = time.perf_counter()
     simulate(snake, lyapunov, x0, t_final)
@@ -1065,11 +1079,12 @@ def bench_mpc(budget: float) -> None:
           f"status {traj.status})",
           ["law", "wall per simulated s [s]", "real-time factor", "wall per re-solve [ms]",
            "iterations per re-solve", "stage calc / calcDiff per re-solve"], rows)
-    share = [["dynamics (stage calc: friction, ABA, costs)", dynamics],
-             ["derivatives (stage calcDiff: friction Jacobians, ABA derivatives, costs)",
-              derivatives],
-             ["solver (Riccati, rollouts, warm start, Python glue)", solver],
-             ["plant simulation and feedback between re-solves", plant]]
+    share: list[tuple[str, float]] = [
+        ("dynamics (stage calc: friction, ABA, costs)", dynamics),
+        ("derivatives (stage calcDiff: friction Jacobians, ABA derivatives, costs)",
+         derivatives),
+        ("solver (Riccati, rollouts, warm start, Python glue)", solver),
+        ("plant simulation and feedback between re-solves", plant)]
     table("Where the MPC's wall goes (counts of the run times per-call medians timed after "
           f"it: calc {show(per_call['calc'])} us, calcDiff {show(per_call['calcDiff'])} us)",
           ["part", "wall [s]", "share"],

@@ -288,12 +288,6 @@ class FrictionModel:
         """The twin's workspace of the plain calls."""
         return self._data.twin_data
 
-    @property
-    def passes(self) -> FrictionModel:
-        """This model (the twin's passes: :attr:`twin`, :attr:`twin_data`, :attr:`zero`,
-        :attr:`size`, :attr:`has_wheels`)."""
-        return self
-
     def calc_force(self, data: FrictionData, q: np.ndarray, v: np.ndarray,
                    base: np.ndarray | None = None) -> np.ndarray:
         """``base + Q(q, v)`` (or Q alone) into ``data.force`` (unchecked: the hot path).

@@ -1,9 +1,10 @@
-"""Closed-loop simulation: fixed-step RK4 on ABA with zero-order-hold control.
+"""Simulation of the viscous model: fixed-step RK4 on ABA with zero-order-hold control.
 
-:func:`simulate` runs a controller against a plant and returns a
+:func:`simulate` runs a controller against the viscous model of a robot and returns a
 :class:`~snake_pin.trajectory.Trajectory` (defined, with its file format, in
-:mod:`snake_pin.trajectory`; also importable from here). Every run ends with a
-:attr:`~snake_pin.trajectory.Trajectory.status`:
+:mod:`snake_pin.trajectory`; also importable from here). It is the closed loop of
+:mod:`snake_pin.loop` over a :class:`ViscousPlant`, so every run ends with one of the
+statuses that module describes:
 
 - ``"completed"``: it reached ``t_final``;
 - ``"diverged"``: the state left its bounds (non-finite, speed or distance beyond a bound);
@@ -16,19 +17,16 @@
 In each case the samples up to the last good one are kept, and ``reason`` says when and
 why. ``diverged`` is True for the two faults ("diverged", "failed").
 
-The loop (zero-order hold, torque checks, signals, interrupts, divergence) is written
-once, over a :class:`Plant`: one control period of a robot under a held torque.
 :class:`ViscousPlant` is the viscous model by fixed-step RK4 on buffers made once (the
 robot's ``calc_acceleration`` over a :class:`~snake_pin.model.SnakeData` of its own), its
 first stage taken from the controller when the controller computed it
 (:meth:`~snake_pin.control.Controller.plant_acceleration`), or by scipy's adaptive RK45
-for cross-checks; the MuJoCo plant is :class:`snake_pin.engine.run.EnginePlant`.
+for cross-checks. The MuJoCo plant, :class:`snake_pin.engine.run.EnginePlant`, runs in the
+same loop without depending on this module.
 """
 
 from __future__ import annotations
 
-import abc
-import functools
 import math
 import numbers
 import re
@@ -36,27 +34,26 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
-from threadpoolctl import ThreadpoolController
 
 from ._blas import gemv
-from ._validation import brief, finite_number, flag, one_line
+from ._validation import brief, finite_number, flag
 from .control.base import Controller
-from .exceptions import ConfigurationError, ParameterError, RunInterrupted, SnakePinError
+from .exceptions import ConfigurationError, ParameterError
+from .loop import MAX_STEPS, Plant, closed_loop  # re-exported: the loop simulate runs
 from .model import Snake
 from .params import SnakeParams
 from .trajectory import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES, Trajectory, _mib
 from .trajectory import STATUSES as STATUSES  # re-exported: the run statuses
 
 # Trajectory, STATUSES and the size bounds are defined (and documented) in
-# snake_pin.trajectory; they stay importable from here.
+# snake_pin.trajectory, MAX_STEPS, Plant and closed_loop in snake_pin.loop; they stay
+# importable from here.
 __all__ = ["MAX_DISTANCE", "MAX_SPEED", "MAX_STEPS", "MAX_SUBSTEPS", "Plant", "ViscousPlant",
            "closed_loop", "simulate"]
 
 #: Default divergence bounds: joint/base speed [m/s or rad/s] and distance [m].
 MAX_SPEED = 1.0e3
 MAX_DISTANCE = 1.0e3
-#: Most control steps one run may take (t_final <= 1000 s at the default 1 kHz).
-MAX_STEPS = 1_000_000
 #: Most integration steps per control step (control_dt / dt).
 MAX_SUBSTEPS = 1_000
 
@@ -163,50 +160,6 @@ def _check_size(samples: int, nq: int, n_tau: int, t_final: float) -> None:
                              "a trajectory may hold")
 
 
-def _torque(raw: object, size: int) -> tuple[np.ndarray | None, str]:
-    """The controller's output as ``size`` finite floats, or None and what is wrong."""
-    tau = raw if type(raw) is np.ndarray else np.asarray(raw)
-    if tau.dtype.kind not in "fiu" or tau.dtype.names is not None:
-        return None, f"controller returned a torque of dtype {tau.dtype}, not numbers"
-    if tau.shape != (size,):
-        if tau.ndim == 0 and size == 1:
-            tau = tau.reshape(1)
-        elif tau.ndim <= 1:
-            return None, (f"controller returned {tau.size} torque{'' if tau.size == 1 else 's'}"
-                          f", expected {size}")
-        else:
-            return None, f"controller returned torques of shape {tau.shape}, expected {size}"
-    if tau.dtype != np.float64:
-        tau = tau.astype(float)
-    if not np.isfinite(tau).all():
-        return None, "controller returned a non-finite torque"
-    return tau, ""
-
-
-class _TorqueCheck:
-    """:func:`_torque` for one run, with a cheap path for n - 1 finite float64 values."""
-
-    def __init__(self, size: int) -> None:
-        self._size, self._shape = size, (size,)
-        self._finite = np.zeros(size, dtype=bool)
-        self._all_finite = np.ones(size, dtype=bool).tobytes()
-
-    def __call__(self, raw: object) -> tuple[np.ndarray | None, str]:
-        if type(raw) is np.ndarray and raw.dtype is _FLOAT and raw.shape == self._shape and \
-                np.isfinite(raw, self._finite).tobytes() == self._all_finite:
-            return raw, ""
-        return _torque(raw, self._size)
-
-
-_FLOAT = np.dtype(np.float64)
-
-
-def _failure(t: float, exc: BaseException) -> str:
-    detail = one_line(str(exc))
-    return f"controller failed at t = {t:.4f} s: {type(exc).__name__}" + \
-        (f": {detail}" if detail else "")
-
-
 def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float], Any],
              x0: np.ndarray, t_final: float, *, dt: float = 1e-3, control_dt: float = 1e-3,
              method: str = "rk4", max_speed: float = MAX_SPEED,
@@ -278,231 +231,6 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     return closed_loop(plant, ctrl, x, steps, progress=progress,
                        meta={"controller": ctrl.name, "dt": dt, "control_dt": control_dt,
                              "method": method, **(meta or {})})
-
-
-def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int, *,
-                progress: bool = False, meta: Mapping[str, Any] | None = None,
-                label: str | None = None, record_signals: bool = True) -> Trajectory:
-    """The closed loop: ``steps`` control periods of ``plant`` under ``controller``.
-
-    The controller is called at each sampling instant (:meth:`Plant.times`) on the
-    plant's sample and its torque held over the period (zero-order hold). The run ends
-    as the module docstring says; :func:`simulate` and
-    :func:`snake_pin.engine.run.run_engine` are this loop over their plants.
-
-    Parameters
-    ----------
-    plant : Plant
-        The robot being controlled.
-    controller : Controller
-        The law (its torques checked at each call).
-    x0 : numpy.ndarray
-        The initial state, as :meth:`Plant.reset` takes it.
-    steps : int
-        Control periods.
-    progress : bool, optional
-        Show a tqdm bar on a terminal.
-    meta : mapping, optional
-        The trajectory's ``meta``.
-    label : str, optional
-        The progress bar's label (default: the controller's name).
-    record_signals : bool, optional
-        Whether to record the controller's :meth:`~snake_pin.control.Controller.signals`.
-
-    Returns
-    -------
-    Trajectory
-        The samples up to the last good one, with the run's status and reason.
-
-    Raises
-    ------
-    RunInterrupted
-        On KeyboardInterrupt during the run; ``.partial`` is the trajectory of every
-        completed sample, with status "interrupted".
-    ParameterError
-        Not enough memory for the samples.
-    """
-    ctrl, nq, n_tau = controller, plant.nq, plant.params.n - 1
-    try:
-        xs = np.zeros((steps + 1, 2 * nq))
-        taus = np.zeros((steps + 1, n_tau))
-    except MemoryError:
-        raise ParameterError(f"not enough memory for {steps + 1} samples") from None
-    times, ts = plant.times(steps)
-    plant.reset(x0, xs[0])
-    x = xs[0]
-    check_torque, torque_shape = _TorqueCheck(n_tau), (n_tau,)
-    # a plant that checks whether the torque is finite (with the new state) refuses a
-    # non-finite one as if it had been checked first: no torque, no signals at t
-    late_check = plant.checks_torque
-    signals: dict[str, np.ndarray] = {}
-    status, reason = "completed", ""
-    good = 1  # samples 0 .. good - 1 are recorded whole; updated last, after each sample
-    bar = None
-
-    def refuse(k: int, t: float, known: int) -> str:
-        """The reason for a non-finite torque at sample k, its torque and signals undone
-        (``known``: how many signals there were before the call)."""
-        taus[k] = 0.0
-        for name in list(signals)[known:]:
-            del signals[name]
-        for series in signals.values():
-            series[k] = np.nan
-        return f"controller returned a non-finite torque at t = {t:.4f} s"
-
-    def collect(run_status: str, run_reason: str) -> Trajectory:
-        return Trajectory(t=ts[:good].copy(), q=xs[:good, :nq].copy(),
-                          dq=xs[:good, nq:].copy(), tau=taus[:good].copy(),
-                          params=plant.params,
-                          signals={k: v[:good].copy() for k, v in signals.items()},
-                          status=run_status, reason=run_reason, meta=dict(meta or {}))
-
-    try:
-        bar = _progress(steps, bool(progress), label or ctrl.name)
-        try:
-            ctrl.reset()
-            ctrl.prepare(times)
-        except Exception as exc:
-            status, reason = "failed", _failure(0.0, exc)
-        # the controller's methods, found once
-        call = ctrl.__call__
-        signals_of = ctrl.signals if record_signals else dict
-        plant_acceleration = ctrl.plant_acceleration if plant.takes_first_stage else None
-        # one BLAS thread for the run's tiny matrices, entered once (not per step)
-        with _thread_pools().limit(limits=1):
-            for k, t in enumerate(times.tolist() if status == "completed" else ()):
-                tau, known = None, len(signals)
-                try:
-                    raw = call(x, t)
-                    if late_check and type(raw) is np.ndarray and raw.dtype is _FLOAT \
-                            and raw.shape == torque_shape:
-                        tau = raw  # whether it is finite: checked with the new state
-                    else:
-                        checked, problem = check_torque(raw)
-                        if checked is None:
-                            status, reason = "failed", f"{problem} at t = {t:.4f} s"
-                            break
-                        tau = checked
-                    for name, value in signals_of().items():
-                        series = signals.get(name)
-                        if series is None:
-                            series = signals[name] = np.full(steps + 1, np.nan)
-                        series[k] = value
-                    first = plant_acceleration(plant.snake) if plant_acceleration else None
-                except Exception as exc:
-                    if tau is not None and not np.isfinite(tau).all():
-                        status, reason = "failed", refuse(k, t, known)
-                    else:
-                        status, reason = "failed", _failure(t, exc)
-                    break
-                taus[k] = tau
-                after = xs[k + 1]
-                try:
-                    problem = plant.step(tau, first, after, t)
-                except (SnakePinError, ArithmeticError, np.linalg.LinAlgError) as exc:
-                    problem = f"the dynamics failed ({type(exc).__name__}: " \
-                              f"{one_line(str(exc))})"
-                if problem:
-                    if late_check and not np.isfinite(tau).all():
-                        status, reason = "failed", refuse(k, t, known)
-                        break
-                    status = "diverged"
-                    reason = f"diverged at t = {ts[k + 1]:.4f} s: {problem}"
-                    break
-                x = after
-                good = k + 2
-                if bar is not None and k % 100 == 0:
-                    bar.update(min(100, steps - bar.n))
-        if bar is not None:
-            bar.close()
-        # Samples 0..good-1 are good. tau[good-1] is the torque held after the last one:
-        # on divergence the one applied when the state blew up (kept as evidence); at the
-        # end of a completed run, or when the controller failed, none was applied: zero.
-        return collect(status, reason)
-    except KeyboardInterrupt:
-        if bar is not None:
-            bar.close()
-        # Samples 0 .. good - 1 are whole; the torque after the last one was not (fully)
-        # applied, so it is recorded as zero, as at the end of a completed run.
-        taus[good - 1] = 0.0
-        partial = collect("interrupted", f"interrupted at t = {ts[good - 1]:.4f} s")
-        raise RunInterrupted(partial.reason, partial=partial) from None
-
-
-class Plant(abc.ABC):
-    """What :func:`simulate` steps: one control period of a robot under a held torque.
-
-    Attributes
-    ----------
-    nq, params
-        n + 2, and the robot's parameters (the trajectory's).
-    snake
-        The model the plant integrates, for the laws'
-        :meth:`~snake_pin.control.Controller.plant_acceleration` (when
-        :attr:`takes_first_stage`).
-    checks_torque
-        Whether :meth:`step` itself finds a non-finite torque (with the new state), so
-        that the loop need not check it first.
-    takes_first_stage
-        Whether :meth:`step` takes the controller's q'' as its first stage
-        (:meth:`~snake_pin.control.Controller.plant_acceleration` of the robot).
-    """
-
-    nq: int
-    params: SnakeParams
-    snake: Any = None
-    checks_torque: bool = False
-    takes_first_stage: bool = False
-
-    @abc.abstractmethod
-    def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """The run's instants: of the controller's calls, and of the samples.
-
-        Parameters
-        ----------
-        steps : int
-            Control periods.
-
-        Returns
-        -------
-        tuple of numpy.ndarray
-            The ``steps`` calls' times and the ``steps + 1`` samples' times [s].
-        """
-
-    @abc.abstractmethod
-    def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
-        """Start a run from ``x0`` and write the first sample ``[q, q']`` into ``out``.
-
-        Parameters
-        ----------
-        x0 : numpy.ndarray
-            The initial state, length 2(n + 2).
-        out : numpy.ndarray
-            Where the first sample goes.
-        """
-
-    @abc.abstractmethod
-    def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
-             t: float) -> str:
-        """Advance one control period from time ``t`` under ``tau``, held.
-
-        Parameters
-        ----------
-        tau : numpy.ndarray
-            Joint torques (n - 1); finite unless :attr:`checks_torque`.
-        first : numpy.ndarray or None
-            q'' at the current state under ``tau``, if known (see
-            :attr:`takes_first_stage`).
-        out : numpy.ndarray
-            Where the new state ``[q, q']`` goes.
-        t : float
-            The time of the current state [s].
-
-        Returns
-        -------
-        str
-            What is wrong with the new state or the torque ("" when nothing).
-        """
 
 
 class ViscousPlant(Plant):
@@ -700,20 +428,3 @@ def _solve_ivp_step(rhs: Callable[[float, np.ndarray], np.ndarray], x: np.ndarra
 
     sol = solve_ivp(rhs, (t, t + span), x, method="RK45", rtol=1e-10, atol=1e-12)
     return sol.y[:, -1] if sol.success else np.full_like(x, np.nan)
-
-
-@functools.cache
-def _thread_pools() -> ThreadpoolController:
-    """The process's BLAS/OpenMP pools, found once: ``threadpool_limits`` looks them up
-    again on every entry (0.75 ms), a kept controller's ``limit`` takes 10 us."""
-    return ThreadpoolController()
-
-
-def _progress(total: int, enabled: bool, label: str):
-    """A tqdm bar when ``enabled`` and stderr is a terminal (``disable=None``), else None."""
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    bar = tqdm(total=total, desc=f"simulate {label}", unit="step", leave=False, disable=None)
-    return None if bar.disable else bar

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from snake_pin.cli import EXIT_INTERRUPTED, main
-from snake_pin.experiments.parallel import run_jobs
+from snake_pin.runs.parallel import run_jobs
 from snake_pin.sim import Trajectory
 
 
@@ -279,7 +279,7 @@ def test_pool_jobs_run_with_one_blas_thread_and_passive_openmp() -> None:
 
 def test_iter_jobs_yields_each_result_with_its_index() -> None:
     """iter_jobs gives every job's result once, with the job's index (any order)."""
-    from snake_pin.experiments.parallel import iter_jobs
+    from snake_pin.runs.parallel import iter_jobs
 
     jobs = [(pow, (k, 2), {}) for k in range(6)]
     pairs = list(iter_jobs(jobs, workers=2))
@@ -407,7 +407,7 @@ def test_pool_workers_die_with_a_killed_parent(tmp_path: Path) -> None:
     """kill -9 of the process that runs a pool: its workers die too (PR_SET_PDEATHSIG)."""
     code = textwrap.dedent("""
         import time
-        from snake_pin.experiments.parallel import run_jobs
+        from snake_pin.runs.parallel import run_jobs
         run_jobs([(time.sleep, (60.0,), {}), (time.sleep, (60.0,), {})], workers=2)
     """)
     proc = _popen(cwd=tmp_path, code=code)

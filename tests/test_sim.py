@@ -1,17 +1,12 @@
-"""Simulation core: RK4/ZOH accuracy, divergence handling, Trajectory files."""
+"""The viscous plant: RK4/ZOH accuracy, divergence, simulate's argument checks, Trajectory files.
+
+What the closed loop itself does (torque checks, signals, interrupts) is in test_loop.py.
+"""
 
 from __future__ import annotations
 
-import fcntl
 import json
 import math
-import os
-import pty
-import select
-import signal
-import struct
-import sys
-import termios
 from pathlib import Path
 
 import numpy as np
@@ -25,12 +20,10 @@ from snake_pin import (
     ParameterError,
     Snake,
     SnakeParams,
-    SnakePinError,
     Trajectory,
     TrajectoryFileError,
     simulate,
 )
-from snake_pin.control import Controller
 from snake_pin.exceptions import RunInterrupted
 from snake_pin.model import SnakeData
 
@@ -75,21 +68,6 @@ def test_divergence_stops_and_keeps_the_run(table1: Snake, tmp_path: Path) -> No
     assert Trajectory.load(npz).t_end == traj.t_end
 
 
-class _Refuses(Controller):
-    name = "refuses"
-
-    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        if t >= 0.05:
-            raise SnakePinError("posture is singular")
-        return np.zeros(9)
-
-
-def test_controller_error_stops_the_run(table1: Snake) -> None:
-    """A controller raising SnakePinError ends the run with its message as the reason."""
-    traj = simulate(table1, _Refuses(), _x0(10), 1.0)
-    assert traj.diverged and "singular" in traj.reason and traj.t_end == pytest.approx(0.05)
-
-
 def test_save_load_round_trip(table1: Snake, tmp_path: Path) -> None:
     """Arrays, signals, params and summary survive save/load exactly."""
     traj = simulate(table1, _wave(10), _x0(10), 0.05)
@@ -126,7 +104,7 @@ def test_passive_snake_runs(rng: np.random.Generator) -> None:
     assert not traj.diverged
 
 
-# ------------------------------------------------------------------ controller boundary
+# ------------------------------------------------- plants and controllers at the boundary
 def _reference(plant: Snake, t_final: float = 0.1) -> Trajectory:
     return simulate(plant, _wave(10), _x0(10), t_final)
 
@@ -150,72 +128,6 @@ def test_plain_function_is_a_controller(table1: Snake) -> None:
     assert simulate(table1, lambda x, t: np.zeros(9), _x0(10), 0.01).meta["controller"] == "lambda"
     with pytest.raises(ParameterError, match="controller"):
         simulate(table1, 3, _x0(10), 0.01)
-
-
-def test_any_controller_exception_keeps_the_run(table1: Snake) -> None:
-    """A ValueError at t = 0.05 ends the run as 'failed' with samples 0..50 kept."""
-    def fragile(x: np.ndarray, t: float) -> np.ndarray:
-        if t >= 0.05 - 1e-12:
-            raise ValueError("gain matrix\nis singular")
-        return 0.01 * np.sin(2 * t + np.arange(9))
-
-    traj = simulate(table1, fragile, _x0(10), 0.1)
-    assert traj.status == "failed" and traj.diverged and len(traj) == 51
-    assert traj.reason == "controller failed at t = 0.0500 s: ValueError: gain matrix is singular"
-    assert _is_prefix(traj, _reference(table1))
-
-
-@pytest.mark.parametrize(("output", "expected"), [
-    (np.zeros(8), "controller returned 8 torques, expected 9"),
-    (np.zeros(1), "controller returned 1 torque, expected 9"),
-    (0.5, "controller returned 1 torque, expected 9"),
-    (np.zeros((9, 1)), "controller returned torques of shape (9, 1), expected 9"),
-    (np.full(9, np.inf), "controller returned a non-finite torque"),
-    (np.zeros(9, dtype=complex), "controller returned a torque of dtype complex128, not numbers"),
-    (["a"] * 9, "controller returned a torque of dtype <U1, not numbers"),
-])
-def test_wrong_torques_are_named(table1: Snake, output: object, expected: str) -> None:
-    """Wrong sizes (one element included: never broadcast), types and non-finite torques."""
-    def controller(x: np.ndarray, t: float) -> object:
-        return output if t >= 0.02 - 1e-12 else np.zeros(9)
-
-    traj = simulate(table1, controller, _x0(10), 0.1)
-    assert traj.status == "failed" and len(traj) == 21
-    assert traj.reason == f"{expected} at t = 0.0200 s"
-
-
-def test_keyboard_interrupt_in_the_controller(table1: Snake) -> None:
-    """Ctrl-C inside the controller at t = 0.05: RunInterrupted with samples 0..50."""
-    def controller(x: np.ndarray, t: float) -> np.ndarray:
-        if t >= 0.05 - 1e-12:
-            raise KeyboardInterrupt
-        return 0.01 * np.sin(2 * t + np.arange(9))
-
-    with pytest.raises(RunInterrupted) as info:
-        simulate(table1, controller, _x0(10), 0.1)
-    partial = info.value.partial
-    assert str(info.value) == "interrupted at t = 0.0500 s" and not isinstance(info.value,
-                                                                                Exception)
-    assert partial.status == "interrupted" and not partial.diverged and len(partial) == 51
-    assert partial.reason == str(info.value) and _is_prefix(partial, _reference(table1))
-
-
-def test_sigint_during_a_run(table1: Snake) -> None:
-    """A real SIGINT raised at t = 0.03 gives a consistent partial run ending there."""
-    def controller(x: np.ndarray, t: float) -> np.ndarray:
-        if abs(t - 0.03) < 1e-9:
-            signal.raise_signal(signal.SIGINT)
-        return 0.01 * np.sin(2 * t + np.arange(9))
-
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        with pytest.raises(RunInterrupted) as info:
-            simulate(table1, controller, _x0(10), 0.1)
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    partial = info.value.partial
-    assert 0.03 - 1e-9 <= partial.t_end <= 0.031 + 1e-9
-    assert _is_prefix(partial, _reference(table1))
 
 
 class _Plant:
@@ -275,24 +187,6 @@ def test_dynamics_errors_end_as_divergence(table1: Snake) -> None:
     traj = simulate(plant, _wave(10), _x0(10), 0.1)
     assert traj.status == "diverged" and len(traj) == 11 and "dynamics failed" in traj.reason
     assert traj.reason.startswith("diverged at t = 0.0110 s")
-
-
-def test_signals_stay_aligned(table1: Snake) -> None:
-    """A signal that first appears at t = 0.01 is NaN before, aligned with t after."""
-    class Late(Controller):
-        name = "late"
-
-        def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-            self._t = t
-            return np.zeros(9)
-
-        def signals(self) -> dict[str, float]:
-            return {"t": self._t} if self._t >= 0.01 - 1e-12 else {}
-
-    traj = simulate(table1, Late(), _x0(10), 0.02)
-    late = traj.signals["t"]
-    assert np.all(np.isnan(late[:10])) and np.allclose(late[10:-1], traj.t[10:-1])
-    assert np.isnan(late[-1])  # no controller call at the last sample
 
 
 def test_max_steps(table1: Snake) -> None:
@@ -369,25 +263,6 @@ def test_unbounded_divergence_limits(table1: Snake) -> None:
     """math.inf switches a divergence bound off."""
     traj = simulate(table1, _wave(10), _x0(10), 0.01, max_speed=math.inf, max_distance=math.inf)
     assert traj.status == "completed"
-
-
-def test_progress_only_on_a_terminal(table1: Snake, capfd: pytest.CaptureFixture[str],
-                                     monkeypatch: pytest.MonkeyPatch) -> None:
-    """progress=True draws nothing into a non-TTY stderr, and a bar on a terminal."""
-    simulate(table1, _wave(10), _x0(10), 0.05, progress=True)
-    assert capfd.readouterr().err == ""
-    master, slave = pty.openpty()
-    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("4H", 24, 80, 0, 0))  # a 24x80 terminal
-    try:
-        with os.fdopen(slave, "w") as tty:
-            monkeypatch.setattr(sys, "stderr", tty)
-            simulate(table1, _wave(10), _x0(10), 0.05, progress=True)
-            tty.flush()
-            ready, _, _ = select.select([master], [], [], 5.0)
-            drawn = os.read(master, 1 << 16).decode(errors="replace") if ready else ""
-    finally:
-        os.close(master)
-    assert "simulate open_loop" in drawn
 
 
 def _torque_line(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:

@@ -13,7 +13,8 @@
 * :class:`DirtyDerivative` estimates velocities from positions with 2 pi f_c s / (s + 2 pi f_c)
   (erratum 4 in docs/errata.md), discretised by backward Euler.
 * :func:`run_engine` runs the Lyapunov-like controller against MuJoCo at 1 kHz: the
-  :class:`EnginePlant` in :func:`snake_pin.sim.closed_loop`, the loop simulate runs.
+  :class:`EnginePlant` in :func:`snake_pin.loop.closed_loop`, the loop
+  :func:`snake_pin.sim.simulate` runs over the viscous model.
 """
 
 from __future__ import annotations
@@ -31,9 +32,10 @@ from ..control import LyapunovController, QuasiStaticLyapunovController, head_fi
 from ..control.reference import HeadReference
 from ..exceptions import ParameterError
 from ..gaits import initial_state
+from ..loop import MAX_STEPS, Plant, closed_loop
 from ..model import Snake
 from ..params import SnakeParams
-from ..sim import MAX_STEPS, Plant, Trajectory, closed_loop
+from ..trajectory import Trajectory
 from .model import GRAVITY, EngineModel, WheelSpec, build_engine_model
 
 __all__ = ["LAWS", "DirtyDerivative", "EnginePlant", "EngineRun", "identify_friction",
@@ -238,7 +240,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     The run ends like :func:`snake_pin.sim.simulate`'s, with a trajectory status:
     "diverged" if the engine state becomes non-finite or the robot leaves the floor,
     "failed" if the controller raises (any exception), "completed" otherwise. At most
-    :data:`snake_pin.sim.MAX_STEPS` control steps (``t_final / wheels.control_dt``).
+    :data:`snake_pin.loop.MAX_STEPS` control steps (``t_final / wheels.control_dt``).
 
     Parameters
     ----------
@@ -326,7 +328,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
 
 
 class EnginePlant(Plant):
-    """The MuJoCo robot as a :class:`~snake_pin.sim.Plant`: the torque held over
+    """The MuJoCo robot as a :class:`~snake_pin.loop.Plant`: the torque held over
     ``wheels.substeps`` engine steps, the sample read from the engine and its velocity
     from a :class:`DirtyDerivative` (what a robot's encoders give).
 
