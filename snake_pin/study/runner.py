@@ -569,7 +569,7 @@ def dask_client(address: str | None, workers: int, *, security: Any = None,
             log: Callable[[str], None] | None = None) -> Iterator[Any]:
     """A Dask client of the scheduler at ``address``, or of a new local cluster.
 
-    The package's one executor (studies and :mod:`snake_pin.experiments.parallel`). The
+    The package's one executor (studies and :mod:`snake_pin.runs.parallel`). The
     local cluster listens on 127.0.0.1 with TLS credentials made for it, and is closed
     with its workers when the block ends, however it ends.
     """
@@ -616,7 +616,7 @@ def _closing(client: Any) -> Iterator[Any]:
 @contextlib.contextmanager
 def _local_cluster(workers: int, *, dashboard: bool = False,
                    log: Callable[[str], None] | None = None) -> Iterator[Any]:
-    """The local cluster (of a study, and of :mod:`snake_pin.experiments.parallel`'s
+    """The local cluster (of a study, and of :mod:`snake_pin.runs.parallel`'s
     jobs): ``workers`` processes on 127.0.0.1, every connection TLS
     with credentials made here (``cluster.security``); HTTP servers with no route (the
     scheduler's dashboard with ``dashboard``) answering local Host headers only."""
