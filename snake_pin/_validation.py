@@ -19,12 +19,17 @@ from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
 __all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "instance",
-           "integer", "model_data", "one_line", "printable_path"]
+           "integer", "mebibytes", "model_data", "one_line", "printable_path"]
 
 _T = TypeVar("_T")
 
 #: The longest text :func:`brief` shows of a value (longer ones are cut, or named by type).
 BRIEF_CHARS = 40
+
+
+def mebibytes(nbytes: int) -> str:
+    """A byte count in MiB for messages (``"16 MiB"``)."""
+    return f"{nbytes / 2**20:.4g} MiB"
 
 
 def brief(value: object) -> str:

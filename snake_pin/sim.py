@@ -36,13 +36,13 @@ from typing import Any
 import numpy as np
 
 from ._blas import gemv
-from ._validation import brief, finite_number, flag
+from ._validation import brief, finite_number, flag, mebibytes
 from .control.base import Controller
 from .exceptions import ConfigurationError, ParameterError
 from .loop import MAX_STEPS, Plant, closed_loop  # re-exported: the loop simulate runs
 from .model import Snake
 from .params import SnakeParams
-from .trajectory import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES, Trajectory, _mib
+from .trajectory import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES, Trajectory
 from .trajectory import STATUSES as STATUSES  # re-exported: the run statuses
 
 # Trajectory, STATUSES and the size bounds are defined (and documented) in
@@ -155,9 +155,9 @@ def _check_size(samples: int, nq: int, n_tau: int, t_final: float) -> None:
     total = samples * (2 * nq + n_tau + 1) * 8
     if largest > MAX_ARRAY_BYTES or total > MAX_TOTAL_BYTES:
         raise ParameterError(f"t_final = {t_final:g} s needs {samples} samples of the "
-                             f"{nq - 2}-link robot ({_mib(total)}), beyond the "
-                             f"{_mib(MAX_ARRAY_BYTES)} per array / {_mib(MAX_TOTAL_BYTES)} "
-                             "a trajectory may hold")
+                             f"{nq - 2}-link robot ({mebibytes(total)}), beyond the "
+                             f"{mebibytes(MAX_ARRAY_BYTES)} per array / "
+                             f"{mebibytes(MAX_TOTAL_BYTES)} a trajectory may hold")
 
 
 def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float], Any],

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from ._io import atomic_group, open_regular_file
-from ._validation import one_line, printable_path
+from ._validation import mebibytes, one_line, printable_path
 from .exceptions import ConfigurationError, ParameterError, TrajectoryFileError
 from .params import SnakeParams
 
@@ -389,8 +389,8 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
             plan[_SIGNAL_PREFIX + name] = member
         total = sum(member.nbytes for member in plan.values())
         if total > MAX_TOTAL_BYTES:
-            raise _Refused(f"its arrays declare {_mib(total)} together, beyond the "
-                           f"{_mib(MAX_TOTAL_BYTES)} bound")
+            raise _Refused(f"its arrays declare {mebibytes(total)} together, beyond the "
+                           f"{mebibytes(MAX_TOTAL_BYTES)} bound")
 
         # 2. the data, each array read to exactly its declared size
         data = {key: _data(archive, member, key) for key, member in plan.items()}
@@ -430,8 +430,8 @@ def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
         raise _Refused(f"array {label} declares the shape {shape}")
     member = _Member(info, tuple(shape), dtype, bool(fortran))
     if member.nbytes > MAX_ARRAY_BYTES:
-        raise _Refused(f"array {label} declares {member.shape} ({_mib(member.nbytes)}), "
-                       f"beyond the {_mib(MAX_ARRAY_BYTES)} bound")
+        raise _Refused(f"array {label} declares {member.shape} ({mebibytes(member.nbytes)}), "
+                       f"beyond the {mebibytes(MAX_ARRAY_BYTES)} bound")
     return member
 
 
@@ -461,10 +461,6 @@ def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
 def _check_shape(shape: tuple[int, ...], expected: tuple[int, ...], name: str) -> None:
     if shape != expected:
         raise _Refused(f"array {name} has shape {shape}, expected {expected}")
-
-
-def _mib(nbytes: int) -> str:
-    return f"{nbytes / 2**20:.4g} MiB"
 
 
 def _parse_header(text: str) -> dict[str, Any]:
