@@ -65,10 +65,10 @@ MAX_SEEDS = 100
 MAX_PERTURBATION = 0.1
 #: The keys of a run's summary (simulate, engine), printed as text without --json and held
 #: by the --json object, whether or not --path is given (errors in m and % of the body
-#: length, over t >= error_window [s]).
+#: length, over t >= error_window [s]; torque_max: the peak |tau_i| over the whole run [N m]).
 SUMMARY_KEYS = ("robot", "n", "controller", "reference", "status", "reason", "t_end",
                 "error_window", "rms_head_error", "max_head_error", "rms_head_error_pct",
-                "max_head_error_pct", "R_min", "D_min")
+                "max_head_error_pct", "R_min", "D_min", "torque_max")
 _ERROR_WINDOW_HELP = ("judge head errors over t >= SECONDS (default: 10 s, or the second half "
                       "of a run shorter than 20 s; in the summary as error_window)")
 
@@ -314,10 +314,19 @@ def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
     traj = exc.partial
     if traj is None or not len(traj):
         return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
+    _add_torque_max(traj)
     npz, summary = traj.save(out / stem)
     payload = {**traj.summary_dict(), "files": [str(npz), str(summary)]}
     return _Outcome(payload, _summary_text(payload), EXIT_INTERRUPTED,
                     f"{exc}; partial run saved to {npz} (status interrupted)")
+
+
+def _add_torque_max(traj: Any) -> None:
+    """Put the run's peak |tau_i| in its summary (every controller's, so that a bound such
+    as the MPC's ``--torque-bound`` can be checked from the summary)."""
+    from .metrics import torque_max
+
+    traj.summary["torque_max"] = torque_max(traj)
 
 
 def _json_text(value: Any, indent: int | None = None) -> str:
@@ -392,6 +401,7 @@ def _save_run(traj: Any, out: Path, stem: str, figures: Callable[[], Iterable[Pa
     from ._io import atomic_write_bytes
     from .metrics import window_note
 
+    _add_torque_max(traj)
     files: list[Path] = list(traj.save(out / stem))  # data first, then the figures
     series = traj.meta.get("criteria")
     if isinstance(series, Mapping) and series.get("t"):  # t and each criterion, whole or not

@@ -500,6 +500,7 @@ def test_run_summaries_have_the_same_keys_with_or_without_path(
         data = json.loads(out)
         assert code == 0 and set(SUMMARY_KEYS) <= set(data) and _no_series(data)
         assert data["rms_head_error"] is not None and data["error_window"] == 0.2
+        assert data["torque_max"] > 0.0  # the peak |tau_i| of every controller's run
         payloads.append(data)
     assert _text_keys(texts[0]) == _text_keys(texts[1]) == [*SUMMARY_KEYS, "files"]
     assert payloads[1]["reference"].startswith("path circle")
