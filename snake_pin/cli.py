@@ -1016,6 +1016,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     from .runs.benchmark import (
         CONTROLLERS,
+        DEFAULT_CONTROLLERS,
         ENGINE_DRAWS,
         SCENARIOS,
         run_benchmark,
@@ -1032,7 +1033,7 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
             raise UsageError(f"argument --scenario: unknown {name!r}; choose from "
                              f"{', '.join(SCENARIOS)}")
     controllers: dict[str, Any] = {}
-    for spec in args.controller or list(CONTROLLERS):
+    for spec in args.controller or list(DEFAULT_CONTROLLERS):
         if ":" in spec:
             cls = _user_controller_class(spec)
             controllers[spec] = lambda snake, reference, path, cls=cls: cls(snake, reference)
@@ -1241,8 +1242,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a scenario (repeatable; default all): line, circle_0.5L, circle_1L, "
                    "circle_2L, lane_change, sinusoid, waypoints")
     p.add_argument("--controller", action="append", metavar="NAME|module:Class",
-                   help="a controller (repeatable; default all built-in): lyapunov, velocity, "
-                   "pfl, pfl_climb, los, or a Controller subclass of your own")
+                   help="a controller (repeatable; default all built-in but mpc): lyapunov, "
+                   "velocity, pfl, pfl_climb, los, mpc (model-predictive, |tau_i| <= 1 N m; "
+                   "about 2.5 s of wall per simulated second), or a Controller subclass of "
+                   "your own")
     p.add_argument("--model", action="append", choices=("viscous", "engine"),
                    help="plant (repeatable; default viscous)")
     p.add_argument("--no-failure", action="store_true", help="skip the runs with joint 5 failed")
