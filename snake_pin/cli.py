@@ -768,9 +768,12 @@ def _mpc_options(args: argparse.Namespace) -> Any:
 def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: Any,
                        t_final: float, start: float) -> Any:
     """The MPC on the tracking run's line w_r = [0.1 t, 0, pi] from its start, its summary
-    that of :func:`snake_pin.runs.tracking.run_tracking` (head error, R_min, D_min) so that
-    the laws compare key for key."""
+    that of :func:`snake_pin.runs.tracking.run_tracking` (head error, R_min, D_min, g_drift)
+    so that the laws compare key for key."""
+    import numpy as np
+
     from .control import MPCController, head_first_reference
+    from .integrability import conserved_quantity_along
     from .metrics import criteria_along, head_error_summary, head_position_error
     from .model import Snake
     from .runs.tracking import CRITERIA_EVERY, REFERENCE, initial_state
@@ -783,6 +786,7 @@ def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: A
                     progress=_progress(args), meta={"reference": REFERENCE})
     error = head_position_error(traj, reference)
     t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
+    g = conserved_quantity_along(snake, traj.q, traj.dq)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
     traj.summary.update({
@@ -790,7 +794,7 @@ def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: A
         "c_y": params.c_y, "passive": list(params.passive),
         **head_error_summary(traj, error, start=start),
         "R_min": float(r.min()), "D_min": float(d.min()), "body_length": params.body_length,
-        "final_head": traj.q[-1, :3].tolist()})
+        "g_drift": float(np.abs(g - g[0]).max()), "final_head": traj.q[-1, :3].tolist()})
     return traj
 
 

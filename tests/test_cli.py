@@ -614,8 +614,8 @@ def test_reproduce_logs_one_line_per_stage_when_stderr_is_not_a_terminal(
 
 def test_simulate_mpc_keeps_its_torque_bound(capsys: pytest.CaptureFixture[str],
                                              tmp_path: Path) -> None:
-    """simulate --controller mpc runs the MPC on the tracking line: the summary's keys,
-    torque_max within the bound, and a passive joint gets exactly zero torque."""
+    """simulate --controller mpc runs the MPC on the tracking line: the Lyapunov run's
+    summary keys, torque_max within the bound, and a passive joint gets exactly zero torque."""
     import numpy as np
 
     from snake_pin.cli import SUMMARY_KEYS
@@ -630,6 +630,9 @@ def test_simulate_mpc_keeps_its_torque_bound(capsys: pytest.CaptureFixture[str],
     assert data["status"] == "completed" and 0.0 < data["torque_max"] <= 0.8 + 1e-9
     traj = Trajectory.load(tmp_path / "mpc.npz")
     assert np.all(traj.tau[:, 4] == 0.0) and np.abs(traj.tau).max() <= 0.8 + 1e-9
+    code, out, err = _run(capsys, "simulate", "--controller", "lyapunov", "--t-final", "0.3",
+                          "--passive", "5", "-o", str(tmp_path / "lyapunov"), "--json")
+    assert code == 0 and set(json.loads(out)) == set(data), err  # the same summary keys
 
 
 @pytest.mark.parametrize(("argv", "fragment"), [
