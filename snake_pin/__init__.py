@@ -39,6 +39,7 @@ _LAZY = {
     "Controller": ".control", "LinearReference": ".control", "LyapunovController": ".control",
     "OpenLoop": ".control", "PFLController": ".control", "head_first_reference": ".control",
     "LyapunovOptions": ".control", "PFLOptions": ".control",
+    "MPCController": ".control", "MPCOptions": ".control",
     "Serpenoid": ".gaits", "arc": ".gaits", "straight": ".gaits",
     "Manipulability": ".manipulability", "dynamic_manipulability": ".manipulability",
     "manipulability": ".manipulability",
@@ -53,9 +54,9 @@ _LAZY = {
 }
 
 __all__ = ["ConfigurationError", "Controller", "DynamicsDerivatives", "LOSController",
-           "LinearReference", "LyapunovController", "LyapunovOptions", "Manipulability",
-           "OpenLoop", "PFLController", "PFLOptions", "ParameterError", "PathFileError",
-           "PathReference", "RobotFileError", "RunInterrupted",
+           "LinearReference", "LyapunovController", "LyapunovOptions", "MPCController",
+           "MPCOptions", "Manipulability", "OpenLoop", "PFLController", "PFLOptions",
+           "ParameterError", "PathFileError", "PathReference", "RobotFileError", "RunInterrupted",
            "Serpenoid", "SingularPostureError", "Snake", "SnakeParams", "SnakePinError",
            "StudyError", "Trajectory", "TrajectoryFileError", "along_track", "arc", "build_urdf",
            "cross_track_error", "dynamic_manipulability", "head_first_reference", "load_path",

@@ -65,10 +65,10 @@ MAX_SEEDS = 100
 MAX_PERTURBATION = 0.1
 #: The keys of a run's summary (simulate, engine), printed as text without --json and held
 #: by the --json object, whether or not --path is given (errors in m and % of the body
-#: length, over t >= error_window [s]).
+#: length, over t >= error_window [s]; torque_max: the peak |tau_i| over the whole run [N m]).
 SUMMARY_KEYS = ("robot", "n", "controller", "reference", "status", "reason", "t_end",
                 "error_window", "rms_head_error", "max_head_error", "rms_head_error_pct",
-                "max_head_error_pct", "R_min", "D_min")
+                "max_head_error_pct", "R_min", "D_min", "torque_max")
 _ERROR_WINDOW_HELP = ("judge head errors over t >= SECONDS (default: 10 s, or the second half "
                       "of a run shorter than 20 s; in the summary as error_window)")
 
@@ -314,10 +314,19 @@ def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
     traj = exc.partial
     if traj is None or not len(traj):
         return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
+    _add_torque_max(traj)
     npz, summary = traj.save(out / stem)
     payload = {**traj.summary_dict(), "files": [str(npz), str(summary)]}
     return _Outcome(payload, _summary_text(payload), EXIT_INTERRUPTED,
                     f"{exc}; partial run saved to {npz} (status interrupted)")
+
+
+def _add_torque_max(traj: Any) -> None:
+    """Put the run's peak |tau_i| in its summary (every controller's, so that a bound such
+    as the MPC's ``--torque-bound`` can be checked from the summary)."""
+    from .metrics import torque_max
+
+    traj.summary["torque_max"] = torque_max(traj)
 
 
 def _json_text(value: Any, indent: int | None = None) -> str:
@@ -392,6 +401,7 @@ def _save_run(traj: Any, out: Path, stem: str, figures: Callable[[], Iterable[Pa
     from ._io import atomic_write_bytes
     from .metrics import window_note
 
+    _add_torque_max(traj)
     files: list[Path] = list(traj.save(out / stem))  # data first, then the figures
     series = traj.meta.get("criteria")
     if isinstance(series, Mapping) and series.get("t"):  # t and each criterion, whole or not
@@ -684,14 +694,15 @@ def _path_figures(traj: Any, reference: Any, out: Path, stem: str) -> list[Path]
 def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
     kind = args.controller
-    on_path = args.path is not None or kind not in ("pfl", "lyapunov")
+    on_path = args.path is not None or kind not in ("pfl", "lyapunov", "mpc")
     if not on_path:
         _path_reference(args)  # --speed/--path-param without a path: refused
-    if kind not in ("pfl", "lyapunov", "los") and ":" not in kind:
-        raise UsageError(f"argument --controller: choose pfl, lyapunov, los or "
+    if kind not in ("pfl", "lyapunov", "los", "mpc") and ":" not in kind:
+        raise UsageError(f"argument --controller: choose pfl, lyapunov, los, mpc or "
                          f"module:Class (a Controller subclass), got {kind!r}")
     if kind != "pfl" and args.climb_r is not None:
         raise UsageError("argument --climb-r: applies to --controller pfl only")
+    mpc_options = _mpc_options(args)
     if kind == "pfl" and params.passive:
         raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
     _check_t_final(args.t_final, SIMULATE_DT)
@@ -702,14 +713,19 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     out = _output_folder(args.output)
     out.mkdir(parents=True, exist_ok=True)
     stem = "run" if user is not None else kind
-    if args.cx is None and args.cy is None and (on_path or kind == "lyapunov"):
+    if args.cx is None and args.cy is None and (on_path or kind in ("lyapunov", "mpc")):
         # the tracking runs' anisotropic default friction (erratum 3)
         from .runs.tracking import tracking_friction
 
         params, _ = tracking_friction(params)
     try:
         if reference is not None:
-            traj = _simulate_on_path(args, params, reference, user, t_final, start)
+            traj = _simulate_on_path(args, params, reference, user, t_final, start,
+                                     mpc_options)
+        elif kind == "mpc":
+            from .runs.tracking import plot_tracking
+
+            traj = _simulate_mpc_line(args, params, mpc_options, t_final, start)
         elif kind == "pfl":
             from .runs.pfl import plot_pfl, run_pfl
 
@@ -733,11 +749,67 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     return _save_run(traj, out, stem, lambda: plot_tracking(traj, out, stem).values())
 
 
+def _mpc_options(args: argparse.Namespace) -> Any:
+    """``--horizon``/``--torque-bound`` as MPCOptions (checked there: one line, exit 2) for
+    ``--controller mpc``; refused with any other controller. None for the other laws."""
+    given = {name: value for name, value in (("horizon", args.horizon),
+                                             ("torque_bound", args.torque_bound))
+             if value is not None}
+    if args.controller != "mpc":
+        if given:
+            option = "--" + next(iter(given)).replace("_", "-")
+            raise UsageError(f"argument {option}: applies to --controller mpc only")
+        return None
+    from .control.mpc import MPCOptions
+
+    return MPCOptions(**given)
+
+
+def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: Any,
+                       t_final: float, start: float) -> Any:
+    """The MPC on the tracking run's line w_r = [0.1 t, 0, pi] from its start, its summary
+    that of :func:`snake_pin.runs.tracking.run_tracking` (head error, R_min, D_min, g_drift)
+    so that the laws compare key for key."""
+    import numpy as np
+
+    from .control import MPCController, head_first_reference
+    from .integrability import conserved_quantity_along
+    from .metrics import criteria_along, head_error_summary, head_position_error
+    from .model import Snake
+    from .runs.tracking import CRITERIA_EVERY, REFERENCE, initial_state
+    from .sim import simulate
+
+    snake = Snake(params)
+    reference = head_first_reference()
+    controller = MPCController(snake, reference, options=options)
+    traj = simulate(snake, controller, initial_state(params), t_final,
+                    progress=_progress(args), meta={"reference": REFERENCE})
+    error = head_position_error(traj, reference)
+    t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
+    g = conserved_quantity_along(snake, traj.q, traj.dq)
+    traj.signals["head_error"] = error
+    traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
+    traj.summary.update({
+        "controller": "mpc", "reference": _LINE_HEAD_FIRST, "c_x": params.c_x,
+        "c_y": params.c_y, "passive": list(params.passive),
+        **head_error_summary(traj, error, start=start),
+        "R_min": float(r.min()), "D_min": float(d.min()), "body_length": params.body_length,
+        "g_drift": float(np.abs(g - g[0]).max()), "final_head": traj.q[-1, :3].tolist()})
+    return traj
+
+
 def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: Any,
-                      user: type | None, t_final: float, start: float) -> Any:
+                      user: type | None, t_final: float, start: float,
+                      mpc_options: Any = None) -> Any:
     """A run along ``--path`` (any controller, a user's ``module:Class`` too), its summary
     filled by :func:`_path_summary`."""
-    from .control import LOSController, LyapunovController, PFLController, PFLOptions
+    from .control import (
+        LOSController,
+        LyapunovController,
+        MPCController,
+        PFLController,
+        PFLOptions,
+    )
     from .model import Snake
     from .runs.tracking import initial_state
     from .sim import simulate
@@ -748,6 +820,8 @@ def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: 
         controller: Any = user(snake, reference)
     elif kind == "lyapunov":
         controller = LyapunovController(snake, reference)
+    elif kind == "mpc":
+        controller = MPCController(snake, reference, options=mpc_options)
     elif kind == "pfl":
         options = PFLOptions() if args.climb_r is None else PFLOptions(climb_R=args.climb_r)
         controller = PFLController(snake, reference, options=options)
@@ -946,6 +1020,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     from .runs.benchmark import (
         CONTROLLERS,
+        DEFAULT_CONTROLLERS,
         ENGINE_DRAWS,
         SCENARIOS,
         run_benchmark,
@@ -962,7 +1037,7 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
             raise UsageError(f"argument --scenario: unknown {name!r}; choose from "
                              f"{', '.join(SCENARIOS)}")
     controllers: dict[str, Any] = {}
-    for spec in args.controller or list(CONTROLLERS):
+    for spec in args.controller or list(DEFAULT_CONTROLLERS):
         if ":" in spec:
             cls = _user_controller_class(spec)
             controllers[spec] = lambda snake, reference, path, cls=cls: cls(snake, reference)
@@ -1068,10 +1143,12 @@ def build_parser() -> argparse.ArgumentParser:
              required=False)
 
     p = sub.add_parser("simulate", help="closed-loop head tracking run (VI.1 / VI.2)")
-    p.add_argument("--controller", required=True, metavar="pfl|lyapunov|los|module:Class",
+    p.add_argument("--controller", required=True,
+                   metavar="pfl|lyapunov|los|mpc|module:Class",
                    help="the law: pfl, lyapunov, los (line-of-sight path following, "
-                   "needs a path: default line) or a Controller subclass of your own, "
-                   "built as Class(snake, reference)")
+                   "needs a path: default line), mpc (model-predictive head tracking, "
+                   "|tau_i| <= --torque-bound; about 2.5 s of wall per simulated second) or "
+                   "a Controller subclass of your own, built as Class(snake, reference)")
     _path_options(p)
     _robot_options(p)
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True),
@@ -1080,6 +1157,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help=_ERROR_WINDOW_HELP)
     p.add_argument("--climb-r", type=_float_in(0.0),
                    help="PFL only: gain of the singularity-aware redundancy term (default 0)")
+    p.add_argument("--horizon", type=_number, metavar="SECONDS",
+                   help="MPC only: the prediction horizon [s] (default 0.5; at least the "
+                   "re-solve period, 0.04)")
+    p.add_argument("--torque-bound", type=_number, metavar="NM",
+                   help="MPC only: |tau_i| <= NM [N m] (default 1)")
     _command(p, _cmd_simulate)
 
     p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)",
@@ -1164,8 +1246,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a scenario (repeatable; default all): line, circle_0.5L, circle_1L, "
                    "circle_2L, lane_change, sinusoid, waypoints")
     p.add_argument("--controller", action="append", metavar="NAME|module:Class",
-                   help="a controller (repeatable; default all built-in): lyapunov, velocity, "
-                   "pfl, pfl_climb, los, or a Controller subclass of your own")
+                   help="a controller (repeatable; default all built-in but mpc): lyapunov, "
+                   "velocity, pfl, pfl_climb, los, mpc (model-predictive, |tau_i| <= 1 N m; "
+                   "about 2.5 s of wall per simulated second), or a Controller subclass of "
+                   "your own")
     p.add_argument("--model", action="append", choices=("viscous", "engine"),
                    help="plant (repeatable; default viscous)")
     p.add_argument("--no-failure", action="store_true", help="skip the runs with joint 5 failed")

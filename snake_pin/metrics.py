@@ -161,3 +161,12 @@ def window(traj: Trajectory, start: float, stop: float | None = None) -> np.ndar
     start = finite_number(start, "start")
     stop = traj.t_end if stop is None else finite_number(stop, "stop")
     return (traj.t >= start) & (traj.t <= stop)
+
+
+def torque_max(traj: Trajectory) -> float | None:
+    """Return the peak ``|tau_i|`` over the applied samples of a whole run [N m], or None
+    when no finite torque was applied; the start-up counts too, since a torque bound holds
+    at every instant."""
+    tau = np.abs(_check_traj(traj).tau[applied(traj)])
+    tau = tau[np.isfinite(tau)]
+    return float(tau.max()) if tau.size else None

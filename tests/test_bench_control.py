@@ -251,3 +251,26 @@ def test_short_runs_have_a_metrics_window() -> None:
     for bad in (1.0, -0.1, math.nan):
         with pytest.raises(ParameterError, match="error_window"):
             bench(error_window=bad)
+
+
+def test_mpc_is_opt_in_and_keeps_its_torque_bound() -> None:
+    """mpc is a built-in controller but not a default one (the report's grid stays as it
+    is); a short viscous cell with joint 5 failed has torque_max within MPCOptions' bound
+    and zero torque on the failed joint."""
+    from snake_pin.control import MPCOptions
+
+    assert "mpc" in bc.CONTROLLERS and "mpc" not in bc.DEFAULT_CONTROLLERS
+    assert set(bc.DEFAULT_CONTROLLERS) == set(bc.CONTROLLERS) - {"mpc"}
+    result = bc.run_benchmark(scenarios=["line"], controllers=["mpc"], failed=(5,),
+                              t_final=0.3, workers=1)
+    row = result.cell("line", "mpc", failed=5)
+    assert row["status"] == "completed" and "torque_max" in bc.METRIC_FIELDS
+    assert 0.0 < row["torque_max"] <= MPCOptions().torque_bound + 1e-9
+    assert np.isfinite(row["head_error_rms"])
+
+
+def test_torque_max_is_the_peak_of_the_applied_torques(snake: Snake) -> None:
+    """Every controller's row has torque_max: the peak |tau_i| over the whole run."""
+    row = bc.run_cell("line", "lyapunov", t_final=0.2, criteria_dt=None)
+    assert np.isfinite(row["torque_max"]) and row["torque_max"] > 0.0
+    assert row["torque_max"] >= row["torque_rms"]

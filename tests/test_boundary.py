@@ -37,7 +37,7 @@ MODULES = ("snake_pin.manipulability", "snake_pin.model", "snake_pin.gaits",
            "snake_pin.friction", "snake_pin.planar_joint", "snake_pin.paper",
            "snake_pin.control", "snake_pin.control.base",
            "snake_pin.control.gains", "snake_pin.control.los",
-           "snake_pin.control.lyapunov", "snake_pin.control.pfl",
+           "snake_pin.control.lyapunov", "snake_pin.control.mpc", "snake_pin.control.pfl",
            "snake_pin.control.quasistatic", "snake_pin.control.reference")
 
 #: The wrong values substituted for each argument: none, text, a list of the wrong
@@ -157,6 +157,20 @@ ROWS: dict[str, Row] = {
                     "lam_shape": 5.0, "k_shape": 0.1}),
         # the joints' gain alone has no size to check ([1.0]: one joint)
         skip={"k_phi": "None short", "lam_shape": "None", "k_shape": "None"}),
+    "snake_pin.control.mpc.MPCController": Row(
+        lambda w: (snake_pin.MPCController,
+                   {"snake": w.snake, "reference": snake_pin.LinearReference(),
+                    "gait": _serpenoid(w), "options": _m("snake_pin.control.mpc").MPCOptions(
+                        horizon=0.02, resolve_period=0.01, first_iterations=1)}),
+        skip={"reference": "None", "gait": "None", "options": "None"}),
+    "snake_pin.control.mpc.MPCOptions": Row(
+        lambda w: (_m("snake_pin.control.mpc").MPCOptions,
+                   {"horizon": 0.5, "node_dt": 0.01, "resolve_period": 0.04,
+                    "torque_bound": 1.0, "joint_limit": 1.5, "iterations": 2,
+                    "first_iterations": 50, "step_halvings": 3, "feedback": True,
+                    "weights": _m("snake_pin.ocp").CostWeights()}),
+        skip={"feedback": "bool"}),
+    "snake_pin.control.mpc.SolveStats": Row(record=RECORD),
     "snake_pin.control.gains.default_k_phi": Row(
         lambda w: (_m("snake_pin.control.gains").default_k_phi, {"joints": 4})),
     "snake_pin.control.base.OpenLoop": Row(

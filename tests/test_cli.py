@@ -481,7 +481,7 @@ def _no_series(value: object) -> bool:
     return True
 
 
-@pytest.mark.parametrize("controller", ["lyapunov", "pfl"])
+@pytest.mark.parametrize("controller", ["lyapunov", "pfl", "mpc"])
 def test_run_summaries_have_the_same_keys_with_or_without_path(
         capsys: pytest.CaptureFixture[str], tmp_path: Path, controller: str) -> None:
     """simulate prints the same summary keys (SUMMARY_KEYS) with and without --path, in
@@ -500,6 +500,7 @@ def test_run_summaries_have_the_same_keys_with_or_without_path(
         data = json.loads(out)
         assert code == 0 and set(SUMMARY_KEYS) <= set(data) and _no_series(data)
         assert data["rms_head_error"] is not None and data["error_window"] == 0.2
+        assert data["torque_max"] > 0.0  # the peak |tau_i| of every controller's run
         payloads.append(data)
     assert _text_keys(texts[0]) == _text_keys(texts[1]) == [*SUMMARY_KEYS, "files"]
     assert payloads[1]["reference"].startswith("path circle")
@@ -609,3 +610,41 @@ def test_reproduce_logs_one_line_per_stage_when_stderr_is_not_a_terminal(
     assert err.splitlines() == ["snake-pin: reproduce [1/3] robot ...",
                                 "snake-pin: reproduce [2/3] manipulability ...",
                                 "snake-pin: reproduce [3/3] pfl ..."]
+
+
+def test_simulate_mpc_keeps_its_torque_bound(capsys: pytest.CaptureFixture[str],
+                                             tmp_path: Path) -> None:
+    """simulate --controller mpc runs the MPC on the tracking line: the Lyapunov run's
+    summary keys, torque_max within the bound, and a passive joint gets exactly zero torque."""
+    import numpy as np
+
+    from snake_pin.cli import SUMMARY_KEYS
+    from snake_pin.trajectory import Trajectory
+
+    code, out, err = _run(capsys, "simulate", "--controller", "mpc", "--t-final", "0.3",
+                          "--passive", "5", "--torque-bound", "0.8", "-o", str(tmp_path),
+                          "--json")
+    data = json.loads(out)
+    assert code == 0, err
+    assert set(SUMMARY_KEYS) <= set(data) and data["controller"] == "mpc"
+    assert data["status"] == "completed" and 0.0 < data["torque_max"] <= 0.8 + 1e-9
+    traj = Trajectory.load(tmp_path / "mpc.npz")
+    assert np.all(traj.tau[:, 4] == 0.0) and np.abs(traj.tau).max() <= 0.8 + 1e-9
+    code, out, err = _run(capsys, "simulate", "--controller", "lyapunov", "--t-final", "0.3",
+                          "--passive", "5", "-o", str(tmp_path / "lyapunov"), "--json")
+    assert code == 0 and set(json.loads(out)) == set(data), err  # the same summary keys
+
+
+@pytest.mark.parametrize(("argv", "fragment"), [
+    (["--controller", "mpc", "--horizon", "0.001"], "horizon"),
+    (["--controller", "mpc", "--torque-bound", "-1"], "torque_bound"),
+    (["--controller", "lyapunov", "--horizon", "0.5"], "--horizon: applies to --controller mpc"),
+])
+def test_simulate_refuses_bad_mpc_options(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                          argv: list[str], fragment: str) -> None:
+    """A bad MPC option (checked by MPCOptions), or one given to another law, is one line
+    on stderr, exit 2, and no folder."""
+    out_dir = tmp_path / "out"
+    code, out, err = _run(capsys, "simulate", *argv, "-o", str(out_dir))
+    assert code == 2 and out == "" and fragment in err and err.count("\n") == 1, err
+    assert not out_dir.exists()

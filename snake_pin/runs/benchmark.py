@@ -17,7 +17,11 @@ heading along +x, where the run starts on the arc of eq. (82), head first): ``li
 Controllers: ``lyapunov`` (torque-level Lyapunov-like law, VI.2), ``velocity`` (its
 velocity-level, quasi-static form), ``pfl`` and ``pfl_climb`` (PFL, and PFL climbing R with
 ``climb_R =`` :data:`PFL_CLIMB_R`; both need every joint actuated, so their failed-joint
-cells are "not applicable"), ``los`` (Liljebäck's LOS path following of the centre of mass). Any
+cells are "not applicable"), ``los`` (Liljebäck's LOS path following of the centre of mass);
+these are :data:`DEFAULT_CONTROLLERS`, what a benchmark runs unless told otherwise.
+``mpc`` (:class:`~snake_pin.control.MPCController` with the default
+:class:`~snake_pin.control.MPCOptions`, ``|tau_i| <= 1`` N m) runs only when named: about
+2.5 s of wall per simulated second, it would multiply the default grid's time. Any
 :class:`~snake_pin.control.Controller` subclass joins by a factory
 ``factory(snake, reference, path) -> Controller``::
 
@@ -60,7 +64,9 @@ every 10 ms (criteria every 0.1 s): head cross-track error (distance from the pa
 max, also in % of the body length; head along-path lag ``s_r(t) - s_h`` RMS (for circles
 wrapped to the nearest lap); time-indexed head error ``|p_h - p_r(t)|`` RMS (head-tracking
 laws only); CM cross-track RMS; R_min, R~_min (joint 5 free) and the lateral-constraint
-criterion's minimum; torque RMS; the status and the time a run diverged.
+criterion's minimum; torque RMS; the peak ``|tau_i|`` over the whole run (``torque_max``,
+start-up included: a torque bound holds at every instant); the status and the time a run
+diverged.
 """
 
 from __future__ import annotations
@@ -82,7 +88,7 @@ from .._io import atomic_group
 from ..control import Controller
 from ..exceptions import ParameterError
 from ..manipulability import lateral_constraint_manipulability, manipulability
-from ..metrics import ERROR_WINDOW, default_error_window
+from ..metrics import ERROR_WINDOW, default_error_window, torque_max
 from ..model import Snake
 from ..params import SnakeParams
 from ..paths import Circle, LaneChange, Line, PathReference, Sinusoid, Timing, Waypoints
@@ -92,10 +98,10 @@ from .engine import PERTURBATION, distribution, perturbations
 from .parallel import SharedCluster, run_jobs
 from .tracking import initial_state, tracking_params
 
-__all__ = ["CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT", "METRIC_FIELDS",
-           "MODELS", "PFL_CLIMB_R", "QUICK_T_FINAL", "SCENARIOS", "SPEED", "WAYPOINTS",
-           "BenchmarkResult", "ControllerFactory", "make_scenario", "path_metrics", "run_benchmark",
-           "run_cell", "write_benchmark"]
+__all__ = ["CONTROLLERS", "DEFAULT_CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT",
+           "METRIC_FIELDS", "MODELS", "PFL_CLIMB_R", "QUICK_T_FINAL", "SCENARIOS", "SPEED",
+           "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "make_scenario", "path_metrics",
+           "run_benchmark", "run_cell", "write_benchmark"]
 
 #: Reference speed along every path [m/s] (the paper's 0.1 m/s).
 SPEED = 0.1
@@ -161,16 +167,25 @@ def _los(snake: Snake, reference: PathReference, path: Curve) -> Controller:
     return LOSController(snake, path)
 
 
+def _mpc(snake: Snake, reference: PathReference, path: Curve) -> Controller:
+    from ..control import MPCController
+
+    return MPCController(snake, reference)
+
+
 #: Built-in controller name -> factory.
 CONTROLLERS: dict[str, ControllerFactory] = {
     "lyapunov": _lyapunov, "velocity": _velocity, "pfl": _pfl, "pfl_climb": _pfl_climb,
-    "los": _los,
+    "los": _los, "mpc": _mpc,
 }
+#: The built-in controllers a benchmark runs when none is named (the report's grid): all
+#: but ``mpc``, whose runs take about 2.5 s of wall per simulated second.
+DEFAULT_CONTROLLERS = ("lyapunov", "velocity", "pfl", "pfl_climb", "los")
 #: Columns of a benchmark row (CSV order).
 METRIC_FIELDS = ("scenario", "controller", "model", "failed_joint", "status", "reason",
                  "t_end", "diverged_at", "head_ct_rms", "head_ct_max", "head_ct_rms_pct",
                  "head_lag_rms", "head_error_rms", "cm_ct_rms", "R_min", "R_tilde_min",
-                 "lateral_min", "torque_rms", "body_length", "draws",
+                 "lateral_min", "torque_rms", "torque_max", "body_length", "draws",
                  "head_ct_rms_pct_p10", "head_ct_rms_pct_p90", "wall_s")
 #: Engine law of each head-tracking controller (:func:`~snake_pin.engine.run.run_engine`).
 ENGINE_LAWS = {"lyapunov": "acceleration", "velocity": "velocity"}
@@ -347,7 +362,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                           initial_offset=offset, reference=reference).trajectory
         metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
                                Snake(traj.params), reference, start=start, criteria_dt=None)
-        runs.append((traj, metrics))
+        runs.append((traj, {**metrics, "torque_max": _torque_max(traj)}))
     spread = distribution([m["head_ct_rms_pct"] for _, m in runs])
     order = sorted(range(len(runs)), key=lambda k: (
         not math.isfinite(runs[k][1]["head_ct_rms_pct"]), runs[k][1]["head_ct_rms_pct"]))
@@ -361,7 +376,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
     else:
         row.update(runs[median][1])
     for key in ("head_ct_rms", "head_ct_max", "head_ct_rms_pct", "head_lag_rms",
-                "head_error_rms", "cm_ct_rms", "torque_rms"):
+                "head_error_rms", "cm_ct_rms", "torque_rms", "torque_max"):
         value = distribution([m[key] for _, m in runs])["median"]
         row[key] = math.nan if value is None else value
     bad = sorted((t for t, _ in runs if t.status != "completed"), key=lambda t: t.t_end)
@@ -375,6 +390,12 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                diverged_at=float(bad[0].t_end) if bad and status in ("diverged", "failed")
                else math.nan)
     return row
+
+
+def _torque_max(traj: Trajectory) -> float:
+    """The run's peak |tau_i| over all its applied samples (NaN when none was applied)."""
+    value = torque_max(traj)
+    return math.nan if value is None else value
 
 
 def _check_draws(draws: object) -> None:
@@ -480,6 +501,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
                             reference, head_tracking=hasattr(ctrl, "reference"),
                             start=start, criteria_dt=criteria_dt))
+    row["torque_max"] = _torque_max(traj)
     _finish(row, traj, traj.status, traj.reason)
     row["wall_s"] = time.perf_counter() - wall
     return row
@@ -570,7 +592,7 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         Names from :data:`SCENARIOS`; default all (quick: ``line`` and ``circle_1L``).
     controllers : iterable of str or mapping, optional
         Built-in names, or a mapping name -> factory (None: the built-in of that name);
-        default all built-ins (quick: ``lyapunov`` and ``los``).
+        default :data:`DEFAULT_CONTROLLERS` (quick: ``lyapunov`` and ``los``).
     models : sequence of str, optional
         From :data:`MODELS`.
     failed : sequence of int or None, optional
@@ -618,7 +640,7 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         make_scenario(name, 1.0)
     chosen: dict[str, ControllerFactory | None] = (
         dict(controllers) if isinstance(controllers, Mapping)
-        else dict.fromkeys(controllers or CONTROLLERS))
+        else dict.fromkeys(controllers or DEFAULT_CONTROLLERS))
     for name, factory in chosen.items():
         if factory is None and name not in CONTROLLERS:
             raise ParameterError(f"unknown controller {name!r} (expected one of "
