@@ -1,49 +1,12 @@
 """The paper's closed-form model (Section II, eqs. 3-20), independent of Pinocchio.
 
-Everything here is plain numpy and serves as the cross-check of
-:class:`snake_pin.model.Snake`. Coordinates: ``q = [x_h, y_h, theta_1, phi]`` (length
-n + 2) and ``q-bar = [x_h, y_h, theta]`` (link orientations, ``theta = L [theta_1, phi]``,
-eq. 17).
-
-The printed equations assume identical links with the centre of mass in the middle.
-They generalise to link i of length 2l_i, mass m_i, inertia J_i about its CM, CM at a
-distance d_i from its front end, and friction c_x,i, c_y,i, c_theta,i, as follows.
-
-* Positions (eqs. 3-4). With ``e_j = (cos theta_j, sin theta_j)``, link i's CM is::
-
-      p_i = p_h + sum_{j<i} 2l_j e_j + d_i e_i = p_h + sum_j K_ij e_j
-
-  so ``K_ij = 2l_j`` (j < i), ``K_ii = d_i``, 0 above the diagonal (the printed K has
-  ``d_i = l``, ``2l_j = 2l``).
-* Velocities (eqs. 5-7). ``p_i' = p_h' + sum_j K_ij theta_j' (-sin theta_j, cos theta_j)``,
-  so ``J_{q-bar x} = [1, 0, -K diag(sin theta)]`` and
-  ``J_{q-bar y} = [0, 1, K diag(cos theta)]``: the printed forms with the per-link K.
-* Kinetic energy (eqs. 8-9). ``T = 1/2 sum_i (m_i |p_i'|^2 + J_i theta_i'^2)`` gives::
-
-      H-bar = J_x^T M J_x + J_y^T M J_y + diag(0, 0, J_1 .. J_n),  M = diag(m_1 .. m_n)
-
-  (the printed m I and J I become diagonal matrices).
-* Coriolis (eqs. 15-16). ``p_i'' = J_{q-bar} q-bar'' - sum_j K_ij theta_j'^2 e_j``, so the
-  centripetal Jacobians are ``J_x = -K diag(cos theta)``, ``J_y = -K diag(sin theta)`` and
-  ``W-bar = J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y``; the term is ``W-bar (q-bar')^2``.
-* Friction (eqs. 10-14). In the world frame link i's force is
-  ``-R_i diag(c_x,i, c_y,i) R_i^T p_i'``, so::
-
-      C-bar = J_xy^T [[C_xx, C_xy], [C_xy, C_yy]] J_xy + diag(0, 0, c_theta)
-      C_xx = diag(c_x cos^2 + c_y sin^2)
-      C_xy = diag((c_x - c_y) sin cos)
-      C_yy = diag(c_x sin^2 + c_y cos^2)        (per link)
-
-* Paper coordinates (eq. 19). ``H = J_q^T H-bar J_q``, ``W = J_q^T W-bar``,
-  ``C = J_q^T C-bar J_q`` with ``J_q = blockdiag(I_2, L)``; ``h = W (J_q q')^2 + C q'``
-  (eq. 20) and ``E = [0; I]``.
-
-Every function that takes a configuration ``q`` wants the paper's
-``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2 numbers, m and rad); velocities ``dq``
-are its plain time derivatives (m/s and rad/s).
-
-``tests/test_paper.py`` checks every one of these against Pinocchio, which knows nothing
-of this derivation, on random states of random heterogeneous robots.
+Plain numpy, the cross-check of :class:`snake_pin.model.Snake`: ``tests/test_paper.py``
+compares the two on random states of random heterogeneous robots. The printed equations
+(identical links, CM in the middle) are generalised to per-link lengths, masses,
+inertias, CM offsets and friction (eqs. 3-4, 5-7, 8-9, 10-14, 15-16, 19, 20) as derived in
+:ref:`derivation-paper`. Configurations are the paper's ``q = [x_h, y_h, theta_1, phi]``
+(n + 2 numbers, m and rad), ``q-bar = [x_h, y_h, theta]`` (eq. 17), velocities their plain
+time derivatives.
 """
 
 from __future__ import annotations

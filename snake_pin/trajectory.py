@@ -1,27 +1,11 @@
 """A run's result and its file format: :class:`Trajectory`, saved and loaded.
 
-This module owns what a run leaves behind: the samples (times, states, held torques,
-signals), the run's status and reason, and the pair of files a trajectory is saved as
-(``PATH.npz`` arrays + ``PATH.json`` summary).
-
-Every run ends with a :attr:`Trajectory.status`:
-
-- ``"completed"``: it reached its final time;
-- ``"diverged"``: the state left its bounds (non-finite, speed or distance beyond a bound);
-- ``"failed"``: the controller raised (any exception) or returned a torque of the wrong
-  size, type or a non-finite one;
-- ``"interrupted"``: a KeyboardInterrupt arrived (the run raised
-  :class:`~snake_pin.exceptions.RunInterrupted` carrying the partial trajectory).
-
-``diverged`` is True for the two faults ("diverged", "failed").
-
-Files are written whole or not at all: :meth:`Trajectory.save` stages both files and
-renames them into place together (:func:`snake_pin._io.atomic_group`). They are read with
-bounds: :meth:`Trajectory.load` reads only the arrays it needs, checks each array's .npy
-header (dtype, shape, declared size against :data:`MAX_ARRAY_BYTES` and
-:data:`MAX_TOTAL_BYTES`) before decompressing any of its data, never unpickles, and
-refuses anything malformed with one :class:`~snake_pin.exceptions.TrajectoryFileError`
-line.
+A run's samples (times, states, held torques, signals), its status and reason, and the
+pair of files it is saved as (``PATH.npz`` arrays + ``PATH.json`` summary). Files are
+written whole or not at all (:func:`snake_pin._io.atomic_group`) and read with bounds:
+each array's .npy header is checked against :data:`MAX_ARRAY_BYTES` and
+:data:`MAX_TOTAL_BYTES` before any data is decompressed, nothing is unpickled, and
+anything malformed raises one :class:`~snake_pin.exceptions.TrajectoryFileError` line.
 """
 
 from __future__ import annotations
@@ -53,7 +37,9 @@ __all__ = ["MAX_ARRAY_BYTES", "MAX_TOTAL_BYTES", "STATUSES", "Trajectory"]
 MAX_ARRAY_BYTES = 512 * 2**20
 #: Largest total of the arrays one load reads (or one run records) [bytes].
 MAX_TOTAL_BYTES = 1024 * 2**20
-#: The run statuses, see the module docstring.
+#: The run statuses: "completed" (reached its final time), "diverged" (the state left its
+#: bounds), "failed" (the controller raised or returned a bad torque), "interrupted" (a
+#: KeyboardInterrupt: :class:`~snake_pin.exceptions.RunInterrupted` carries the partial run).
 STATUSES = ("completed", "diverged", "failed", "interrupted")
 
 _FAULTS = ("diverged", "failed")

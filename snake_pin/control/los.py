@@ -3,50 +3,13 @@
 After Liljebäck, Pettersen, Stavdahl and Gravdahl, *Snake Robots: Modelling,
 Mechatronics, and Control* (Springer, 2013) and Liljebäck, Haugstuen and Pettersen, "Path
 following control of planar snake robots using a cascaded approach" (IEEE TCST 20(1),
-2012), re-derived in this package's conventions (the primary texts were not at hand: the
-law is the book's as stated there and in public reimplementations). It does not track a
-head trajectory: it steers the body so that its centre of mass (CM) converges to a path
-and moves along it at the gait's speed. States are ``x = [q, dq]``.
-
-1. **Gait with a steering offset**: ``phi_ref,i(t) = alpha sin(omega t - (i - 1) delta) +
-   phi_0`` (joints numbered from the head, so the wave runs head to tail); a constant
-   phi_0 bends the body into an arc on average and turns it.
-2. **LOS guidance**: with the CM at signed cross-track distance e from its closest path
-   point, ``theta_los = gamma_p(s*) - atan(e / Delta)`` (look-ahead Delta), smoothed by
-   the third-order filter ``omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s +
-   omega_c^2))`` (zeta = 1, ``omega_c = 2 pi / ref_period``) into theta_ref, theta_ref',
-   theta_ref''.
-3. **Heading control** of the mean heading ``psi = (1 / n) sum theta_i + pi`` (theta_i
-   points head to tail here). ``steering = "cascaded"`` (default) inverts the book's
-   averaged turning model ``psi'' = -lambda_1 psi' - (lambda_2 / (n - 1)) v_t sum phi_i``
-   (the sign of phi_0 flipped by the convention)::
-
-       phi_0 = -(theta_ref'' + lambda_1 theta_ref' + k_theta (theta_ref - psi))
-               / (lambda_2 v_t) - (1 / (n - 1)) sum_i alpha sin(omega t - (i - 1) delta)
-
-   so that ``e_psi'' + lambda_1 e_psi' + k_theta e_psi = 0``, with v_t the CM speed along
-   psi low-pass filtered over one gait period (``speed_period``) and floored at ``v_min``
-   (the instantaneous speed nearly vanishes twice a cycle and 1 / v_t then saturates
-   phi_0). ``steering = "pd"``: ``phi_0 = -(k_p (theta_ref - psi) + k_d (theta_ref' -
-   psi'))``. phi_0 is saturated at ``phi0_max``, rate-limited to ``phi0_rate`` and
-   smoothed by a second third-order filter (``offset_period``) whose derivatives feed
-   phi_ref', phi_ref''.
-4. **Joint control** by collocated partial feedback linearisation: with a the actuated
-   joints and u the rest, ``tau_a = (H_aa - H_au H_uu^-1 H_ua) v + h_a - H_au H_uu^-1 h_u``
-   gives ``q_a'' = v = phi_ref'' + k_d (phi_ref' - phi') + k_p (phi_ref - phi)`` exactly.
-
-Defaults (:class:`LOSParams`) are for the Table 1 robot with c_y = 25 N s/m: alpha = 0.5
-rad, omega = 0.8 rad/s, delta = 0.94 rad (about 0.1 m/s along the path); lambda_2 /
-lambda_1 = 9.3 /m fitted from open-loop runs with constant offsets (lambda_1 = 20 /s,
-lambda_2 = 186 /(m s)); k_theta = 10 /s^2, Delta = 0.6 m, ref_period = 1 s, v_min = 0.03
-m/s, phi0_max = 0.35 rad, phi0_rate = 0.3 rad/s, offset_period = 0.5 s, k_p = 100 /s^2,
-k_d = 20 /s: the lowest CM cross-track errors of the settings tried over circles, a lane
-change and a sinusoid (RMS 1-2 cm). Another robot needs its own lambda_2 / lambda_1 and
-probably its own gait.
-
-Signals per step: ``e_ct`` (CM cross-track error [m]), ``theta_ref``, ``theta_avg`` (psi),
-``phi_0``, ``v_t``, ``v_avg`` (the averaged speed the law uses) and ``s_cm`` (arc length of
-the CM's closest path point).
+2012), re-derived in this package's conventions. It steers the centre of mass (CM) onto a
+path at the gait's speed (no head trajectory): a serpenoid gait with a steering offset
+phi_0, LOS guidance, heading control (``steering = "cascaded"`` or ``"pd"``) and joint
+control by collocated partial feedback linearisation. The law, its defaults
+(:class:`LOSParams`, for the Table 1 robot with c_y = 25 N s/m) and its signals per step
+(``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``):
+:ref:`derivation-los`. States are ``x = [q, dq]``.
 """
 
 from __future__ import annotations
@@ -554,7 +517,7 @@ class LOSController(Controller):
         -------
         dict of str to float
             ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg`` and
-            ``s_cm`` (see the module docstring); empty before the first call.
+            ``s_cm`` (:ref:`derivation-los`); empty before the first call.
         """
         return self._last
 

@@ -1,22 +1,11 @@
 """Model-predictive head tracking: a receding-horizon Box-FDDP on the snake's OCP.
 
-This module owns :class:`MPCOptions` (the law's settings, validated) and
-:class:`MPCController`. Every ``resolve_period`` the controller solves the optimal-control
-problem of :mod:`snake_pin.ocp` over ``horizon`` from the measured state: RK4 nodes of
-``node_dt``, costs on the head's distance to the timed reference ``w_r(t)`` and its
-velocity, a serpenoid gait prior, torque and joint limits, the torques boxed by
-``|u| <= torque_bound`` (Crocoddyl's Box-FDDP). Between re-solves it applies the plan with
-its Riccati feedback, ``u = u_k - K_k (x - x_plan(t))`` (x_plan interpolated linearly
-between nodes), clipped to the bounds; passive joints are not inputs of the problem and
-get exactly zero torque.
-
-Warm start. The tracking trajectories are unstable open loop, so re-simulating the
-shifted torques from the new state drifts away from the plan; the solver starts instead
-from the planned states shifted by the elapsed nodes, with the measured state at node 0
-(a gap there, which FDDP closes), the planned torques shifted alike and the last node
-repeated. The first solve starts from a rollout under zero torque and runs more iterations
-(a rollout under a joint PD towards the gait, clipped, spins the light head link and
-leaves Box-FDDP in a poor local minimum: cost 2811 against 23 on the line's first solve).
+:class:`MPCController` solves the problem of :mod:`snake_pin.ocp` every
+``resolve_period`` from the measured state and applies the plan with its Riccati
+feedback in between (:doc:`/mpc`); passive joints are not inputs and get exactly zero
+torque. The solver is warm-started from the planned states shifted by the elapsed nodes;
+the first solve starts from a zero-torque rollout (a rollout under a joint PD towards the
+gait spins the light head link and leaves Box-FDDP in a poor local minimum).
 """
 
 from __future__ import annotations

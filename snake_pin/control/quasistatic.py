@@ -1,39 +1,11 @@
 """The Lyapunov-like law at velocity level, for friction-dominated robots (wheels).
 
-When friction dominates inertia (time constant m / c_y much shorter than the motion, as
-on wheels, where it is effectively zero), the unactuated rows of (20) reduce to a force
-balance: C_uu u' + C_ua a' = 0, u the unactuated coordinates (w, plus phi_k of a passive
-joint k) and a the actuated joint angles. The head then moves with the joints through the
-quasi-static connection::
-
-    u' = J(q) a',   J = -C_uu^-1 C_ua        (C of eqs. 11-13, the viscous model).
-
-Under it, V of (83) is a quadratic function of the actuated joint velocities::
-
-    V(a') = ||J_w a' - (w_r' + K_w1 e_w)||^2_{K_w2} + ||a' - phi_r,a'||^2_{K_phi,a}
-            + ||J_k a' - phi_r,k'||^2_{K_phi,k}
-
-(J_w, J_k: the w rows and the passive rows of J), since s = e_w' + K_w1 e_w =
-w_r' + K_w1 e_w - w'. The law takes the minimiser ``a'*`` of V (normal equations, positive
-definite because K_phi is), integrates it into a joint reference and lets a PD servo of
-bandwidth omega_s on each actuated joint realise it (as the servo-driven joints of the
-paper's V-REP robot do). Passive joints get no torque. V is not driven to zero - the
-underactuation leaves a positive minimum - but each control step commands the joint
-velocity of least V, and the head follows through J.
-
-C is built link by link (each link's own coefficients at its own CM); the servos' gains,
-the only ones with units, scale per joint with the links it joins (:func:`servo_gains`).
-Every link needs c_x, c_y > 0 (a link without friction has inertia that matters).
-
-Evaluation (the engine loop's hot path): C is the damping twin's Schur complement
-(:func:`~snake_pin.friction.damping_twin`, M_ww = -1), and ``C_uu^-1 C_ua`` the first block
-row of the solution of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa]: one CRBA and one
-solve give J without forming C. The time-only terms are computed in blocks after
-:meth:`~QuasiStaticLyapunovController.prepare`; V only when
-:meth:`~QuasiStaticLyapunovController.signals` asks for it.
-:class:`~snake_pin.control.lyapunov.LyapunovController` is the acceleration-level form of
-the same V; it needs a model that predicts accelerations, which sticking wheels do not
-honour.
+With friction dominating inertia, the unactuated rows of (20) reduce to the force balance
+``C_uu u' + C_ua a' = 0`` (C of eqs. 11-13), so V of (83) is a quadratic in the actuated
+joint velocities; the law takes its minimiser and PD servos (:func:`servo_gains`) realise
+it. Every link needs c_x, c_y > 0. Derivation and evaluation:
+:ref:`derivation-quasistatic`; :class:`~snake_pin.control.lyapunov.LyapunovController` is
+the acceleration-level form of the same V.
 """
 
 from __future__ import annotations
@@ -217,8 +189,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self._gather = (np.minimum.outer(rows, cols) * twin.nv
                         + np.maximum.outer(rows, cols)).ravel()
         self._block = len(rows)
-        # V's weights as square roots (J enters as -sqrt(W_u) C_uu^-1 C_ua, eq. of the
-        # module docstring) and the normal matrix's diagonal, in LAPACK's column order
+        # V's weights as square roots (J enters as -sqrt(W_u) C_uu^-1 C_ua) and the normal
+        # matrix's diagonal, in LAPACK's column order
         self._sqrt_w_u = np.sqrt(self._w_u)
         self._neg_sqrt_w_u = -self._sqrt_w_u[:, None]
         self._diag_w_a = np.asfortranarray(np.diag(self._w_a))

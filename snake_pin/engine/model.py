@@ -1,41 +1,11 @@
 """MuJoCo model of a snake on passive wheels, built from ``SnakeParams`` with MjSpec.
 
-One source of truth: the link frames, lengths, masses and inertias are those of
-:mod:`snake_pin.urdf` / ``SnakeParams``; this module only adds what the engine needs on
-top (a floor, gravity, a wheel pair per link, contacts, motors). Layout:
-
-* the head link is a free body whose frame is the head point (as in Pinocchio);
-  link i + 1 hangs from link i by a hinge about z at x = 2l_i (``joint_i``);
-* each link carries two free-spinning wheels at its CM, one on each side, on axles along
-  the link's y: they roll along the link and must slide sideways, so the floor's Coulomb
-  friction is anisotropic as in the paper's V-REP robot;
-* every link has its own pair, sized to that link (per-link robots: a long heavy head, a
-  short tail): the wheels sit at that link's centre of mass c_i (``com_offsets``), at a
-  lateral distance ``d_i = 0.15 (2l_i) + 1.1 r`` (clear of that link's capsule), and that
-  link's mass m_i and yaw inertia J_i are shared between its body and its wheels
-  (``m_i = m_body,i + 2 m_w``, ``J_i = J_body,i + 2 (m_w d_i^2 + I_w)``), so the chain's
-  mass matrix equals Pinocchio's H of the same ``SnakeParams`` (the wheels' spin DOFs
-  are left out: a sphere's spin about its axle couples to no planar DOF). All wheels are
-  the same part (radius r, mass m_w): the links then ride at one height, as the planar
-  model needs;
-* every active joint has a motor (``motor_i``); passive joints have none;
-* only wheels touch the floor; link bodies do not collide, wheels of neighbouring links
-  do (beyond about 80 degrees of bend with the default wheels), as on a real robot.
-
-Solver settings: 1 ms control period split into ``substeps`` engine steps (default 2,
-0.5 ms), implicit-fast integration, the sparse constraint Jacobian (set explicitly, see
-:data:`JACOBIAN`), elliptic friction cones with impratio 10 (stiffer, less creeping
-tangential constraints), condim 3 wheel contacts (sliding friction only; rolling about the
-axle is the hinge), soft contacts with solref (0.005, 1): critically damped at 5 ms, well
-above the step.
-
-**Elliptic cones are the default**: the Coulomb contact the viscous model is identified
-from, at any heading. A pyramidal cone's friction limit is a square in the world axes
-(``|f_x| + |f_y| <= mu N``): a link sliding at 45 degrees to them feels 26 % less sideways
-friction, and a serpentine gait sweeps its links through such headings. It is faster
-(``scripts/bench.py --only engine`` times both and prints the fidelity table):
-``WheelSpec(cone="pyramidal")`` remains for quick looks. c_theta = 2 d^2 b / r^2 (the
-axle model) is the same for both cones.
+The link frames, lengths, masses and inertias are those of :mod:`snake_pin.urdf` /
+``SnakeParams``; this module adds a floor, gravity, a wheel pair per link (rolling along
+the link, sliding across it: anisotropic Coulomb friction), contacts and motors on active
+joints, sized so the chain's mass matrix equals Pinocchio's H. Elliptic friction cones are
+the default (``WheelSpec(cone="pyramidal")`` for quick looks). Layout and solver settings:
+:ref:`derivation-engine`.
 """
 
 from __future__ import annotations
@@ -329,7 +299,7 @@ def build_engine_model(params: SnakeParams | None = None,
                        wheels: WheelSpec | None = None) -> EngineModel:
     """Compile the MuJoCo model of ``params`` (default: the ``engine`` preset) on wheels.
 
-    Every link gets its own wheel pair, sized to it (see the module docstring); per-link
+    Every link gets its own wheel pair, sized to it (:ref:`derivation-engine`); per-link
     robots are built link by link from ``params.link_lengths``, ``masses``, ``inertias``
     and ``com_offsets``.
 
