@@ -1,21 +1,13 @@
 """The Pinocchio model of a snake in the paper's coordinates q = [x_h, y_h, theta_1, phi].
 
-``Snake`` owns the ``pin.Model``/``pin.Data`` built from the generated URDF (see
-:mod:`snake_pin.urdf`) under a root made of three single-DoF joints in a chain: ``base_x``
-(prismatic x, no body), ``base_y`` (prismatic y, no body) and ``base_yaw`` (revolute z,
-carrying the head link). Its configuration is exactly (x_h, y_h, theta_1) and its velocity
-their plain time derivatives, so nq = nv = n + 2 and no conversion is needed at the
-boundary. (A composite PX·PY·RZ joint gives the same H but wrong analytical derivatives in
-Pinocchio; the chain gives correct ones: ``tests/test_model.py``.)
-
-The equation of motion is eq. (20): H(q) q'' + h(q, q') = E tau, with h the Coriolis and
-centrifugal terms plus viscous friction (:mod:`snake_pin.friction`).
-
-Public methods validate their inputs (shape, finiteness) and raise
-:class:`~snake_pin.exceptions.ConfigurationError`, then run the one implementation of each
-computation: the unchecked ``calc_*`` methods over a :class:`SnakeData` (buffers made once,
-``Snake.create_data()``), as Pinocchio's Model/Data. The simulator's plant and the
-controllers each hold a SnakeData of their own and call ``calc_*`` directly.
+The URDF's tree (:mod:`snake_pin.urdf`) hangs from a chain of three single-DoF root joints
+(``base_x``, ``base_y``, ``base_yaw``), so q and q' are the paper's with nq = nv = n + 2
+and no conversion. (A composite PX·PY·RZ joint gives the same H but wrong analytical
+derivatives in Pinocchio; the chain gives correct ones: ``tests/test_model.py``.) The
+equation of motion is eq. (20), ``H(q) q'' + h(q, q') = E tau``, h holding the Coriolis
+terms and viscous friction (:mod:`snake_pin.friction`). As Pinocchio's Model/Data, the
+unchecked ``calc_*`` methods work on a :class:`SnakeData` of the caller's; the checked
+public methods validate their inputs and call them.
 """
 
 from __future__ import annotations
@@ -48,11 +40,9 @@ _ABA = pin.aba
 def paper_model(params: SnakeParams) -> pin.Model:
     """The robot's Pinocchio model in paper coordinates (PX -> PY -> RZ root chain).
 
-    The fixed-base URDF of ``params`` is parsed by Pinocchio (so the URDF stays the one
-    description of the robot); its tree is then re-rooted on the three single-DoF joints.
-    Joint ``base_yaw`` (index 3) carries link 1; joint i + 3 carries link i + 1 and is the
-    paper's joint i. Each link also gets a body frame named ``link_i``. Passive joints get
-    a zero effort limit, as in the URDF.
+    The fixed-base URDF (the one description of the robot) re-rooted on the three joints:
+    ``base_yaw`` (index 3) carries link 1, joint i + 3 is the paper's joint i and carries
+    link i + 1 (body frame ``link_i``). Passive joints get a zero effort limit.
 
     Parameters
     ----------
@@ -121,6 +111,10 @@ class DynamicsDerivatives:
 class Snake:
     """Rigid-body model of an n-link planar snake with viscous friction (Section II).
 
+    Checked methods raise :class:`~snake_pin.exceptions.ConfigurationError` for an input
+    that is not a finite vector of its length: q and dq (n + 2), tau (n - 1, never
+    broadcast; passive joints' entries ignored), a state ``x = [q, dq]`` (2(n + 2)).
+
     Parameters
     ----------
     params : SnakeParams or None, optional
@@ -167,13 +161,7 @@ class Snake:
         return f"Snake({self.params!r})"
 
     def __getstate__(self) -> dict[str, Any]:
-        """Pickled without its own buffers (made again on use).
-
-        Returns
-        -------
-        dict
-            The attributes to pickle.
-        """
+        """Pickled without its own buffers (made again on use)."""
         state = self.__dict__.copy()
         state.pop("_data", None)
         return state
@@ -248,11 +236,6 @@ class Snake:
         -------
         numpy.ndarray
             ``q`` as floats.
-
-        Raises
-        ------
-        ConfigurationError
-            Not a finite vector of that length.
         """
         return _vector(q, self.nq, name)
 
@@ -270,11 +253,6 @@ class Snake:
         -------
         numpy.ndarray
             ``dq`` as floats.
-
-        Raises
-        ------
-        ConfigurationError
-            Not a finite vector of that length.
         """
         return _vector(dq, self.nv, name)
 
@@ -292,11 +270,6 @@ class Snake:
         -------
         numpy.ndarray
             ``tau`` as floats.
-
-        Raises
-        ------
-        ConfigurationError
-            Not a finite vector of that length.
         """
         return _vector(tau, self.n - 1, name)
 
@@ -314,11 +287,6 @@ class Snake:
         -------
         numpy.ndarray
             ``x`` as floats.
-
-        Raises
-        ------
-        ConfigurationError
-            Not a finite vector of that length.
         """
         return _vector(x, self.nq + self.nv, name)
 
@@ -344,9 +312,8 @@ class Snake:
                           torque: np.ndarray) -> np.ndarray:
         """q'' of eq. (20) under the generalised torque ``E tau`` (unchecked hot path).
 
-        ``q'' = ABA(q, v, E tau + Q(q, v))``, in Pinocchio's WORLD convention (faster than
-        LOCAL here, and the one after which the two-argument ``pin.computeMinverse`` is
-        right).
+        ``ABA(q, v, E tau + Q(q, v))`` in the WORLD convention (faster than LOCAL here, and
+        the one after which the two-argument ``pin.computeMinverse`` is right).
 
         Parameters
         ----------
@@ -518,7 +485,7 @@ class Snake:
         Parameters
         ----------
         tau : numpy.ndarray
-            Joint torques [N m] (n - 1; passive joints' entries ignored).
+            Joint torques [N m] (n - 1).
 
         Returns
         -------
@@ -535,7 +502,7 @@ class Snake:
         q, dq : numpy.ndarray
             Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
         tau : numpy.ndarray
-            Joint torques [N m] (n - 1; passive joints' entries ignored).
+            Joint torques [N m] (n - 1).
 
         Returns
         -------
@@ -550,13 +517,12 @@ class Snake:
                              tau: np.ndarray) -> DynamicsDerivatives:
         """Analytical derivatives of q'' = H^-1 (E tau - h), friction included.
 
-        With ``Q(q, q')`` the friction force, ``q'' = ABA(q, q', E tau + Q)``, so::
+        With Q the friction force, ``q'' = ABA(q, q', E tau + Q)``, so::
 
             d q''/d q  = ABA_q + H^-1 dQ/dq,   d q''/d q' = ABA_v + H^-1 dQ/dq',
             d q''/d tau = H^-1 E,
 
-        where ABA_q, ABA_v and H^-1 come from ``pin.computeABADerivatives`` and the
-        friction's Jacobians from the damping twin's RNEA derivatives
+        from ``pin.computeABADerivatives`` and the damping twin's RNEA derivatives
         (:meth:`snake_pin.friction.FrictionModel.derivatives`), all in Pinocchio's C++.
 
         Parameters
@@ -564,7 +530,7 @@ class Snake:
         q, dq : numpy.ndarray
             Configuration and velocity ``q'`` (n + 2 each, paper coordinates).
         tau : numpy.ndarray
-            Joint torques [N m] (n - 1; passive joints' entries ignored).
+            Joint torques [N m] (n - 1).
 
         Returns
         -------
@@ -622,7 +588,7 @@ class Snake:
         x : numpy.ndarray
             State ``[q, dq]`` (2(n + 2)).
         tau : numpy.ndarray
-            Joint torques [N m] (n - 1; passive joints' entries ignored).
+            Joint torques [N m] (n - 1).
 
         Returns
         -------
@@ -720,8 +686,8 @@ class Snake:
 class SnakeData:
     """Buffers of one caller of a :class:`Snake`'s ``calc_*`` methods (``create_data()``).
 
-    As Pinocchio's Data to its Model: made once, written by each call, read until the
-    next. Pickled as its robot's (the buffers and their views are made again).
+    As Pinocchio's Data: made once, written by each call, read until the next; pickled as
+    its robot's.
 
     Parameters
     ----------
@@ -770,8 +736,7 @@ class SnakeData:
 def _binding_mirrors(model: pin.Model) -> bool:
     """Whether ``pin.crba`` and ``pin.computeMinverse`` (after ABA) fill M and Minv whole.
 
-    Pinocchio's own algorithms fill the upper triangle only; its Python bindings mirror it
-    (this one does). Checked once per robot on a configuration away from symmetries.
+    Pinocchio fills the upper triangle; its bindings mirror it. Checked away from symmetries.
     """
     data = model.createData()
     inverse = data.Minv  # the view the callers read, not the returned copy
