@@ -376,19 +376,6 @@ ROWS: dict[str, Row] = {
     "snake_pin.paper.k_matrix": Row(lambda w: (snake_pin.paper.k_matrix, {"params": w.params})),
     "snake_pin.paper.link_angles": Row(
         lambda w: (snake_pin.paper.link_angles, {"q": w.q}), errors={"q": CONFIG}),
-    # ------------------------------------------------------------- control.base
-    "snake_pin.control.base.TimeTerms": Row(
-        lambda w: (_m("snake_pin.control.base").TimeTerms,
-                   {"rows": lambda times: np.zeros((len(times), 1))})),
-    "snake_pin.control.base.gait_for": Row(
-        lambda w: (_m("snake_pin.control.base").gait_for,
-                   {"n": 5, "gait": None, "default": _serpenoid(w)}),
-        skip={"gait": "None"}),
-    "snake_pin.control.base.reference_rows": Row(
-        lambda w: (_m("snake_pin.control.base").reference_rows,
-                   {"reference": snake_pin.LinearReference(), "gait": _serpenoid(w),
-                    "times": np.linspace(0.0, 1.0, 3)}),
-        skip={"times": "short"}, errors={"times": CONFIG}),
     # ------------------------------------------------------------ control.gains
     "snake_pin.control.gains.gain_matrix": Row(
         lambda w: (_m("snake_pin.control.gains").gain_matrix,
