@@ -29,7 +29,7 @@ from .friction import FrictionModel
 from .model import Snake
 
 __all__ = ["ChainRootActuation", "CostWeights", "FrictionJacobians", "TrackingProblem",
-           "differential_model", "reference_states", "state_model"]
+           "differential_model"]
 
 #: Names of the costs in each node's cost sum (Crocoddyl's CostModelSum keys): the state
 #: tracking terms (head position, heading, head velocity, gait prior) as one weighted
@@ -95,18 +95,7 @@ class CostWeights:
 
 
 def state_model(snake: Snake) -> crocoddyl.StateMultibody:
-    """Crocoddyl's state of ``snake``'s Pinocchio model: ``x = [q, q']``, nx = 2 (n + 2).
-
-    Parameters
-    ----------
-    snake : Snake
-        The robot.
-
-    Returns
-    -------
-    crocoddyl.StateMultibody
-        The state (Euclidean: the chain root has no angle wrapping).
-    """
+    """Crocoddyl's (Euclidean) state of ``snake``'s model: ``x = [q, q']``, nx = 2 (n + 2)."""
     return crocoddyl.StateMultibody(_check_snake(snake).model)
 
 
@@ -461,20 +450,7 @@ class TrackingProblem:
 def reference_states(reference: Any, gait: Any, times: np.ndarray) -> np.ndarray:
     """The reference state ``[w_r, phi_r, w_r', phi_r']`` at each time, (T, 2 (n + 2)).
 
-    Parameters
-    ----------
-    reference : callable
-        A head reference ``t -> (w_r, w_r', w_r'')`` (a PathReference is evaluated at all
-        times at once through its ``at``).
-    gait : Serpenoid
-        The gait prior ``phi_r(t)``.
-    times : numpy.ndarray
-        Times [s], shape (T,).
-
-    Returns
-    -------
-    numpy.ndarray
-        One reference state per time.
+    A reference with ``at`` (a PathReference) is evaluated at all times at once.
     """
     times = np.asarray(times, dtype=float)
     if hasattr(reference, "at"):

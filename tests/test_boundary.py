@@ -157,8 +157,6 @@ ROWS: dict[str, Row] = {
                     "lam_shape": 5.0, "k_shape": 0.1}),
         # the joints' gain alone has no size to check ([1.0]: one joint)
         skip={"k_phi": "None short", "lam_shape": "None", "k_shape": "None"}),
-    "snake_pin.control.gains.default_k_phi": Row(
-        lambda w: (_m("snake_pin.control.gains").default_k_phi, {"joints": 4})),
     "snake_pin.control.base.OpenLoop": Row(
         lambda w: (snake_pin.OpenLoop, {"schedule": lambda t: np.zeros(4)})),
     "snake_pin.control.pfl.PFLController": Row(
@@ -376,11 +374,6 @@ ROWS: dict[str, Row] = {
     "snake_pin.paper.k_matrix": Row(lambda w: (snake_pin.paper.k_matrix, {"params": w.params})),
     "snake_pin.paper.link_angles": Row(
         lambda w: (snake_pin.paper.link_angles, {"q": w.q}), errors={"q": CONFIG}),
-    # ------------------------------------------------------------ control.gains
-    "snake_pin.control.gains.gain_matrix": Row(
-        lambda w: (_m("snake_pin.control.gains").gain_matrix,
-                   {"value": 2.0, "size": 3, "name": "K_test", "definite": True}),
-        skip={"name": "str", "definite": "bool"}, names={"value": "K_test"}),
     # -------------------------------------------------------------- control.los
     "snake_pin.control.los.ReferenceFilter": Row(
         lambda w: (_m("snake_pin.control.los").ReferenceFilter, {"period": 1.0,
