@@ -56,25 +56,20 @@ _HEADER_KEYS = {"params": dict, "reason": str, "meta": dict, "summary": dict, "s
 class Trajectory:
     """A recorded run: samples at every control step (plus the initial state).
 
-    The parameters are kept as attributes of the same names.
-
     Parameters
     ----------
     t : numpy.ndarray
         Sample times [s], shape (N,).
     q : numpy.ndarray
-        Configurations ``[x, y, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-        shape (N, n + 2).
+        Configurations [m, m, rad, rad], shape (N, n + 2).
     dq : numpy.ndarray
         Their velocities [m/s, m/s, rad/s, rad/s], shape (N, n + 2).
     tau : numpy.ndarray
-        Applied joint torques [N m], shape (N, n - 1); ``tau[k]`` is held over
-        ``[t[k], t[k + 1])``.
+        Joint torques [N m], shape (N, n - 1); ``tau[k]`` held over ``[t[k], t[k + 1])``.
     params : SnakeParams
         The robot.
     signals : dict of str to numpy.ndarray, optional
-        Extra per-sample series (controller diagnostics, manipulability, ...), each with N
-        rows; NaN where a value is missing.
+        Extra per-sample series (diagnostics, ...), N rows each; NaN where missing.
     diverged : bool, optional
         Whether the run stopped on a fault (status "diverged" or "failed").
     reason : str, optional
@@ -90,8 +85,7 @@ class Trajectory:
     Raises
     ------
     ParameterError
-        ``status`` is not one of :data:`STATUSES`, or ``diverged=True`` with a status
-        that is not a fault.
+        An unknown ``status``, or ``diverged=True`` with a status that is not a fault.
     """
 
     t: np.ndarray
@@ -128,10 +122,9 @@ class Trajectory:
     def save(self, path: str | os.PathLike[str]) -> tuple[Path, Path]:
         """Write ``PATH.npz`` (arrays) and ``PATH.json`` (summary) as one set.
 
-        The name keeps its whole stem: only a trailing ``.npz`` or ``.json`` is dropped
-        (``run.v2`` -> ``run.v2.npz`` + ``run.v2.json``). Both files are staged and
-        renamed into place together, the .npz first (see :func:`snake_pin._io.atomic_group`).
-        The JSON summary is RFC 8259 JSON: non-finite numbers are written as null.
+        Only a trailing ``.npz`` or ``.json`` is dropped from the name (``run.v2`` ->
+        ``run.v2.npz`` + ``run.v2.json``); both files are renamed into place together. The
+        summary is RFC 8259 JSON (non-finite numbers as null).
 
         Parameters
         ----------

@@ -160,14 +160,13 @@ def _los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
 def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Return the centre of mass and the mean heading of travel at a state.
 
-    ``psi = mean(theta_i) + pi`` is the direction from tail to head averaged over the
-    links (theta_i points from the head towards the tail in the paper's coordinates);
-    theta_i is theta_1 plus the joint angles before link i, so psi is continuous in time.
+    ``psi = mean(theta_i) + pi``, the tail-to-head direction averaged over the links (theta_i
+    points head to tail), is continuous in time (no angle wrapping).
 
     Parameters
     ----------
     snake : Snake
-        The robot (its link masses, lengths and CM offsets).
+        The robot.
     x : array_like, shape (2(n + 2),)
         State ``x = [q, dq]``.
 
@@ -217,10 +216,9 @@ def _kinematics(lever: np.ndarray, nq: int, x: np.ndarray
 class ReferenceFilter:
     """Third-order low-pass reference filter giving a signal and its two derivatives.
 
-    ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2))`` with
-    ``omega_c = 2 pi / period``: state ``z = [y, y', y'']`` with ``z' = F z + b r``. Each
-    :meth:`update` holds the new input over the elapsed time and steps the state exactly
-    (matrix exponential, cached per step length).
+    ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2))``,
+    ``omega_c = 2 pi / period``; :meth:`update` steps ``[y, y', y'']`` exactly (matrix
+    exponential, cached per step length) with the input held over the step.
 
     Parameters
     ----------
@@ -289,17 +287,13 @@ class ReferenceFilter:
 class LOSController(Controller):
     """CM path following by LOS guidance and a steered serpenoid (Liljebäck et al.).
 
-    Called with a state ``x = [q, dq]`` (length 2(n + 2)) and a time t [s], it returns
-    the n - 1 joint torques [N m] (zero on passive joints).
-
     Parameters
     ----------
     snake : Snake
         The plant (passive joints get no torque; the gait still asks them to move).
     path : Path or PathReference or None, optional
-        The path for the CM: a :class:`~snake_pin.paths.Path`, or a
-        :class:`~snake_pin.paths.PathReference` (its timing is ignored: the law has no
-        timing, the gait sets the speed). Default: the x axis.
+        The CM's path (a PathReference's timing is ignored: the gait sets the speed);
+        default the x axis.
     params : LOSParams or None, optional
         :class:`LOSParams`; keyword overrides may be given instead or on top.
     **overrides
@@ -308,9 +302,7 @@ class LOSController(Controller):
     Raises
     ------
     ParameterError
-        If ``snake`` is not a Snake, every joint is passive, ``params`` is not a
-        :class:`LOSParams`, an override is unknown or out of its domain, or ``path`` is
-        not a path.
+        A bad robot (every joint passive), ``params``, override or ``path``.
     """
 
     name = "los"
@@ -532,7 +524,6 @@ class LOSController(Controller):
         Returns
         -------
         numpy.ndarray of shape (n + 2,) or None
-            The acceleration [m/s^2, rad/s^2] at the last call's state, or None when
-            ``snake`` is not this controller's plant (the simulator then computes it).
+            The acceleration at the last call's state, or None for another plant.
         """
         return self._ddq if snake is self.snake else None

@@ -48,15 +48,14 @@ class LyapunovOptions:
     k_w2 : float or array_like, optional
         K_w2 of (84), the weights of the head's error in V (3 x 3, diagonal, positive).
     k_phi : float or array_like or None, optional
-        K_phi of (84), the weights of the joints' error in V ((n - 1) x (n - 1), diagonal,
-        positive); None: 10 on joint 1 and 20 on the others (:func:`default_k_phi`).
+        K_phi of (84), the joints' weights in V (diagonal, positive); None: 10 on joint 1
+        and 20 on the others.
     lam : float, optional
         Decay rate lambda of the head's error s [1/s] (> 0).
     lam_shape : float or None, optional
         Decay rate mu of the joints' velocity error e [1/s] (> 0); None: ``lam / 2``.
     k_shape : float or None, optional
-        Shape spring k_s [1/s^2] (>= 0); None: 0 with every joint actuated, 0.3 with a
-        passive joint.
+        Shape spring k_s [1/s^2] (>= 0); None: 0, or 0.3 with a passive joint.
 
     Raises
     ------
@@ -90,8 +89,7 @@ class LyapunovOptions:
         Returns
         -------
         LyapunovOptions
-            ``k_phi`` of :func:`default_k_phi`, ``lam_shape = lam / 2`` and ``k_shape``
-            0.3 with a passive joint, 0 without, where they were None.
+            The None fields filled in as the class describes.
         """
         k_phi = self.k_phi
         if k_phi is None and joints is not None:
@@ -307,9 +305,7 @@ class LyapunovController(ReferenceLaw):
         return target, s, e
 
     def affine_map(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(A, b)`` with ``q'' = A tau_a + b`` at state x.
-
-        ``A = H^-1 E_a`` and ``b = -H^-1 h``.
+        """``(A, b)`` with ``q'' = A tau_a + b`` at state x: ``A = H^-1 E_a``, ``b = -H^-1 h``.
 
         Parameters
         ----------

@@ -37,8 +37,7 @@ class MPCOptions:
     horizon : float, optional
         Length of the prediction [s]; at least one node.
     node_dt : float, optional
-        Step of the RK4 nodes [s] (the viscous snake's fastest mode is about 8 ms:
-        RK4 diverges beyond about 20 ms).
+        Step of the RK4 nodes [s] (RK4 diverges beyond about 20 ms: :doc:`/mpc`).
     resolve_period : float, optional
         Time between re-solves [s]: a whole number of nodes, at most the horizon.
     torque_bound : float, optional
@@ -50,8 +49,7 @@ class MPCOptions:
     first_iterations : int, optional
         Iterations of the first (cold) solve, >= 1.
     step_halvings : int, optional
-        Line search: the step lengths tried are 1, 1/2, ..., 2^-step_halvings (>= 0; each
-        trial is a pass of the dynamics over the horizon).
+        Line search: steps 1, 1/2, ..., 2^-step_halvings (>= 0).
     feedback : bool, optional
         Apply the Riccati gains between re-solves (False: the planned torques alone).
     weights : CostWeights, optional
@@ -60,9 +58,7 @@ class MPCOptions:
     Raises
     ------
     ParameterError
-        A value out of its domain: a horizon shorter than a node, a re-solve period that
-        is not a whole number of nodes or exceeds the horizon, a bound that excludes zero
-        torque, a negative weight (one line).
+        A value out of its domain (one line).
     """
 
     horizon: float = 0.5
@@ -151,9 +147,7 @@ class MPCController(Controller):
     snake : Snake
         The plant's model (its friction and passive joints are the problem's).
     reference : callable, optional
-        Head reference ``t -> (w_r, w_r', w_r'')`` (a
-        :class:`~snake_pin.paths.PathReference` or a
-        :class:`~snake_pin.control.reference.LinearReference`); default
+        Head reference ``t -> (w_r, w_r', w_r'')``; default
         :func:`~snake_pin.control.reference.head_first_reference`.
     gait : Serpenoid, optional
         The gait prior phi_r(t); default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
@@ -163,8 +157,7 @@ class MPCController(Controller):
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, every joint is passive, the reference is not callable,
-        the gait is not a serpenoid for this robot, or ``options`` is not MPCOptions.
+        A bad robot (or every joint passive), reference, gait or ``options``.
     """
 
     name = "mpc"

@@ -44,8 +44,7 @@ class PFLOptions:
     k_v, k_p : float or array_like, optional
         K_v [1/s] and K_p [1/s^2] of (71) on the head (3 x 3, positive definite).
     r_v, r_p : float or array_like, optional
-        R_v [1/s] and R_p [1/s^2] of (78) on the joints ((n - 1) x (n - 1), positive
-        semi-definite).
+        R_v [1/s] and R_p [1/s^2] of (78) on the joints (positive semi-definite).
     r_min : float, optional
         Smallest R for which the law is defined (>= 0); below it SingularPostureError.
     climb_R : float, optional
@@ -93,16 +92,13 @@ class PFLController(ReferenceLaw):
     options
         :class:`PFLOptions` (gains of (79), r_min, the climb term); default ``PFLOptions()``.
     **overrides
-        Fields of :class:`PFLOptions` to change (e.g. ``climb_R=0.5``); the result is kept
-        as ``self.options``.
+        Fields of :class:`PFLOptions` to change (the result: ``self.options``).
 
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, a joint is passive, n < 4, ``reference`` is not
-        callable, the gait is not a Serpenoid for this robot, a gain is not a valid
-        (semi-)definite matrix, a number is invalid, ``climb_damping`` is given with
-        ``climb_R = 0``, ``options`` is not a PFLOptions or an override is unknown.
+        A bad robot (a passive joint, n < 4), reference, gait, ``options``, override or
+        gain.
     """
 
     name = "pfl"
@@ -256,9 +252,8 @@ class PFLController(ReferenceLaw):
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
         """``q''`` of the last call, if ``snake`` is the robot this law models.
 
-        It is ``[a; H22^-1 (tau - h2 - H21 a)]`` (``w'' = a`` holds there: R > r_min was
-        checked). The array is the controller's own buffer, valid until its next call
-        (as :meth:`Controller.plant_acceleration` allows): copy it to keep it.
+        ``[a; H22^-1 (tau - h2 - H21 a)]`` (R > r_min was checked); the controller's own
+        buffer, valid until its next call.
 
         Parameters
         ----------

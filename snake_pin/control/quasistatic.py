@@ -41,8 +41,7 @@ class QuasiStaticOptions:
     servo_bandwidth : float, optional
         Bandwidth omega_s of the joint servos [rad/s] (> 0).
     max_lead : float, optional
-        Largest distance the integrated joint reference may run ahead of the joint [rad]
-        (> 0).
+        How far the integrated joint reference may run ahead of the joint [rad] (> 0).
     control_dt : float, optional
         The controller's sampling period [s] (> 0).
 
@@ -68,19 +67,14 @@ class QuasiStaticOptions:
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
     """(K_p, K_d) per joint (n - 1 each) of critically damped servos of ``bandwidth`` [rad/s].
 
-    With ``omega = bandwidth``::
-
-        K_p,k = omega^2 I_k,   K_d,k = 2 omega I_k,
-        I_k = (m_k (2 l_k)^2 + m_k+1 (2 l_k+1)^2) / 2,
-
-    the mean inertia scale of the two links joint k joins (each about its own end, as a
-    point mass at the far end would be). It scales with each link's mass times its length
-    squared; on equal links every ``I_k`` is ``m (2l)^2``.
+    ``K_p,k = omega^2 I_k`` and ``K_d,k = 2 omega I_k``, with
+    ``I_k = (m_k (2 l_k)^2 + m_k+1 (2 l_k+1)^2) / 2`` the mean inertia scale of the two links
+    joint k joins (``m (2l)^2`` on equal links): a heavy, long head gets stiffer servos.
 
     Parameters
     ----------
     params : SnakeParams
-        The robot (link masses [kg] and full lengths 2l [m]).
+        The robot.
     bandwidth : float
         Servo bandwidth ``omega`` [rad/s].
 
@@ -111,11 +105,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
     reference, gait
         As for the acceleration-level controller (w_r = [0.1 t, 0, pi], serpenoid of VI.2).
     options
-        :class:`QuasiStaticOptions`: gains of (84), the servos' bandwidth omega_s (joint k
-        gets K_p,k = omega_s^2 I_k and K_d,k = 2 omega_s I_k, critically damped on I_k, the
-        mean of m_i (2l_i)^2 over the two links it joins: a heavy, long head gets stiffer
-        servos next to it; on equal links I_k = m (2l)^2), max_lead and control_dt (the
-        period over which the joint reference is integrated).
+        :class:`QuasiStaticOptions` (gains of (84); servos as :func:`servo_gains`).
     **overrides
         Fields of :class:`QuasiStaticOptions` to change; the result is kept as
         ``self.options``.
@@ -123,10 +113,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, every joint is passive, a link has no lateral or
-        longitudinal friction, ``reference`` is not callable, the gait is not a Serpenoid
-        for this robot, ``options`` is not a QuasiStaticOptions, an override is unknown, or
-        a gain or number is invalid.
+        A bad robot (every joint passive, a link without c_x or c_y), reference, gait,
+        ``options`` or override.
     """
 
     name = "lyapunov_velocity"

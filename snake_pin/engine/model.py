@@ -55,14 +55,12 @@ class WheelSpec:
     max_bend : float, optional
         Joint angle [rad] up to which wheels of neighbouring links must not overlap.
     cone : {"elliptic", "pyramidal"}, optional
-        MuJoCo friction cone; elliptic is the Coulomb cone (the default, see the module
-        docstring), pyramidal is faster but its friction depends on the heading.
+        MuJoCo friction cone: elliptic (Coulomb) or pyramidal (faster, heading-dependent).
 
     Raises
     ------
     ParameterError
-        If ``cone`` is unknown, a number is not finite or out of its range, or
-        ``substeps`` is not a positive integer.
+        ``cone`` is unknown, a number is out of its range, or ``substeps`` is not >= 1.
     """
 
     radius: float = 0.03
@@ -97,8 +95,7 @@ class WheelSpec:
 class EngineModel:
     """A compiled MuJoCo model with the index maps to paper coordinates.
 
-    Built by :func:`build_engine_model`; n links, paper configurations
-    ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+    Built by :func:`build_engine_model`; configurations are the paper's.
 
     Parameters
     ----------
@@ -121,8 +118,7 @@ class EngineModel:
     body_masses : numpy.ndarray, shape (n,)
         ``m_i - 2 m_w``: each link's mass without its wheels [kg].
     body_inertias : numpy.ndarray, shape (n,)
-        ``J_i - 2 (m_w d_i^2 + I_w)``: each link's yaw inertia without its wheels
-        [kg m^2].
+        ``J_i - 2 (m_w d_i^2 + I_w)``: each link's yaw inertia without wheels [kg m^2].
     wheel_offsets : numpy.ndarray, shape (n,)
         d_i: lateral distance of link i's wheel centres from its axis [m].
     meta : dict of str to float, optional
@@ -299,15 +295,12 @@ def build_engine_model(params: SnakeParams | None = None,
                        wheels: WheelSpec | None = None) -> EngineModel:
     """Compile the MuJoCo model of ``params`` (default: the ``engine`` preset) on wheels.
 
-    Every link gets its own wheel pair, sized to it (:ref:`derivation-engine`); per-link
-    robots are built link by link from ``params.link_lengths``, ``masses``, ``inertias``
-    and ``com_offsets``.
+    Every link gets its own wheel pair, sized to it (:ref:`derivation-engine`).
 
     Parameters
     ----------
     params : SnakeParams or None, optional
-        The robot; :meth:`SnakeParams.engine` by default. Its friction coefficients are
-        not used (the wheels make the friction).
+        The robot (default :meth:`SnakeParams.engine`); its friction is not used.
     wheels : WheelSpec or None, optional
         Wheels and solver settings; ``WheelSpec()`` by default.
 
@@ -319,8 +312,8 @@ def build_engine_model(params: SnakeParams | None = None,
     Raises
     ------
     ParameterError
-        If the wheels overlap (naming the two links), are longer than a link, or leave a
-        link no mass or yaw inertia of its own (naming the link).
+        The wheels overlap, are longer than a link, or leave a link no mass or yaw inertia
+        of its own (naming the links).
     """
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
