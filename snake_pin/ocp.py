@@ -235,20 +235,7 @@ class FrictionJacobians:
         self._rows = np.empty((n + 2, 2 * n + 2))
 
     def __call__(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Write ``[dQ/dq, dQ/dq']`` at the state x = [q, q'] into ``out`` (n + 2, 2 (n + 2)).
-
-        Parameters
-        ----------
-        x : numpy.ndarray
-            The state, length 2 (n + 2).
-        out : numpy.ndarray
-            The (n + 2, 2 (n + 2)) Jacobian, written in place.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``out``.
-        """
+        """Write ``[dQ/dq, dQ/dq']`` at the state x = [q, q'] into ``out`` (n + 2, 2 (n + 2))."""
         n, nq = self.n, self.n + 2
         theta, rate = np.cumsum(x[2:nq]), np.cumsum(x[nq + 2:])
         e = np.exp(1j * theta)

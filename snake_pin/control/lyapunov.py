@@ -239,24 +239,9 @@ class LyapunovController(ReferenceLaw):
             acceleration=gemv(1.0, rows.T, tau, 1.0, b))  # q'' = b + A tau_a, in b
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        """Joint torques (length n - 1) at state ``x`` and time ``t``.
+        """Joint torques at (x, t), 0 on passive joints.
 
-        Parameters
-        ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        numpy.ndarray
-            ``tau`` (passive joints' entries 0).
-
-        Raises
-        ------
-        SingularPostureError
-            A^T W A is not positive definite.
+        SingularPostureError if A^T W A is not positive definite.
         """
         work = self._buffers
         self._acceleration = None

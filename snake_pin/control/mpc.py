@@ -195,26 +195,14 @@ class MPCController(Controller):
         self._solver.alphas = [2.0 ** -k for k in range(o.step_halvings + 1)]
 
     def __getstate__(self) -> dict[str, Any]:
-        """The attributes to pickle: all but Crocoddyl's problem and solver.
-
-        Returns
-        -------
-        dict
-            The attributes.
-        """
+        """The attributes to pickle: all but Crocoddyl's problem and solver."""
         state = self.__dict__.copy()
         for key in ("_problem", "_solver"):
             state.pop(key, None)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        """Unpickled: the problem and solver are built again (the plan is kept).
-
-        Parameters
-        ----------
-        state : dict
-            The pickled attributes.
-        """
+        """Unpickled: the problem and solver are built again (the plan is kept)."""
         self.__dict__.update(state)
         self._build()
 
@@ -273,20 +261,7 @@ class MPCController(Controller):
 
     # ---------------------------------------------------------------- control
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        """Joint torques (length n - 1; zero on passive joints) at state x and time t.
-
-        Parameters
-        ----------
-        x : numpy.ndarray
-            The state ``[q, q']``, length 2 (n + 2).
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        numpy.ndarray
-            The torques [N m], within ``+-torque_bound``.
-        """
+        """Joint torques at (x, t): 0 on passive joints, within ``+-torque_bound``."""
         x = np.asarray(x, dtype=float)
         if self._plan is None or t >= self._next_solve - 1e-9 * max(1.0, abs(t)):
             self._solve(x, t)

@@ -175,24 +175,9 @@ class PFLController(ReferenceLaw):
             torque=gemv(1.0, mass[:, 3:], stacked, 1.0, tau, 1))  # H21 a + H22 phi'' + h2
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        """Joint torques (length n - 1) at state ``x`` and time ``t``.
+        """Joint torques at (x, t).
 
-        Parameters
-        ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        numpy.ndarray
-            ``tau``.
-
-        Raises
-        ------
-        SingularPostureError
-            R <= r_min, or H22 or H12 H12^T is not positive definite.
+        SingularPostureError if R <= r_min, or H22 or H12 H12^T is not positive definite.
         """
         work = self._buffers
         self._acceleration = None
