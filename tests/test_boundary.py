@@ -374,17 +374,6 @@ ROWS: dict[str, Row] = {
     "snake_pin.paper.k_matrix": Row(lambda w: (snake_pin.paper.k_matrix, {"params": w.params})),
     "snake_pin.paper.link_angles": Row(
         lambda w: (snake_pin.paper.link_angles, {"q": w.q}), errors={"q": CONFIG}),
-    # -------------------------------------------------------------- control.los
-    "snake_pin.control.los.ReferenceFilter": Row(
-        lambda w: (_m("snake_pin.control.los").ReferenceFilter, {"period": 1.0,
-                                                                 "zeta": 1.0})),
-    "snake_pin.control.los.body_kinematics": Row(
-        lambda w: (_m("snake_pin.control.los").body_kinematics,
-                   {"snake": w.snake, "x": np.r_[w.q, w.dq]}),
-        errors={"x": CONFIG}),
-    "snake_pin.control.los.los_heading": Row(
-        lambda w: (_m("snake_pin.control.los").los_heading,
-                   {"gamma": 0.1, "cross_track": 0.2, "look_ahead": 0.5})),
     # ------------------------------------------------------- control.quasistatic
     "snake_pin.control.quasistatic.QuasiStaticLyapunovController": Row(
         lambda w: (snake_pin.control.QuasiStaticLyapunovController,

@@ -27,7 +27,7 @@ from ..model import Snake
 from ..paths import Line, Path, PathReference
 from .base import Controller
 
-__all__ = ["LOSController", "LOSParams", "ReferenceFilter", "body_kinematics", "los_heading"]
+__all__ = ["LOSController", "LOSParams"]
 
 _STEERING = ("cascaded", "pd")
 #: The fields only one steering law reads: a value other than the default given with the
@@ -127,26 +127,9 @@ class LOSParams:
 
 
 def los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
-    """Return the LOS guidance angle ``theta_los = gamma - atan(e / Delta)``.
+    """The LOS angle ``gamma - atan(e / Delta)`` [rad] (cross-track e left positive, Delta > 0).
 
-    Parameters
-    ----------
-    gamma : float
-        Tangent angle of the path at the closest point [rad].
-    cross_track : float
-        Cross-track error e [m], left of the path positive.
-    look_ahead : float
-        Look-ahead distance Delta [m], > 0.
-
-    Returns
-    -------
-    float
-        The desired heading of travel [rad].
-
-    Raises
-    ------
-    ParameterError
-        A value is not a finite number, or ``look_ahead`` is not positive.
+    ParameterError for a value that is not a finite number or a non-positive ``look_ahead``.
     """
     return _los_heading(finite_number(gamma, "gamma"), finite_number(cross_track, "cross_track"),
                         finite_number(look_ahead, "look_ahead", positive=True))
@@ -158,31 +141,10 @@ def _los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
 
 
 def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Return the centre of mass and the mean heading of travel at a state.
+    """``(p_cm, v_cm, psi, psi')``: the CM's position and velocity and the mean heading of travel.
 
-    ``psi = mean(theta_i) + pi``, the tail-to-head direction averaged over the links (theta_i
-    points head to tail), is continuous in time (no angle wrapping).
-
-    Parameters
-    ----------
-    snake : Snake
-        The robot.
-    x : array_like, shape (2(n + 2),)
-        State ``x = [q, dq]``.
-
-    Returns
-    -------
-    p_cm, v_cm : numpy.ndarray, shape (2,)
-        Position [m] and velocity [m/s] of the whole robot's centre of mass.
-    psi, dpsi : float
-        Mean heading of travel [rad] and its rate [rad/s].
-
-    Raises
-    ------
-    ParameterError
-        ``snake`` is not a Snake.
-    ConfigurationError
-        ``x`` does not have 2(n + 2) finite entries.
+    ``psi = mean(theta_i) + pi`` (theta_i points head to tail) is continuous in time. The
+    arguments are checked (ParameterError, ConfigurationError).
     """
     x = instance(snake, Snake, "snake").check_state(x)
     return _kinematics(_cm_lever(snake), snake.nq, x)
@@ -217,20 +179,7 @@ class ReferenceFilter:
     """Third-order low-pass reference filter giving a signal and its two derivatives.
 
     ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2))``,
-    ``omega_c = 2 pi / period``; :meth:`update` steps ``[y, y', y'']`` exactly (matrix
-    exponential, cached per step length) with the input held over the step.
-
-    Parameters
-    ----------
-    period : float
-        ``2 pi / omega_c`` [s], > 0.
-    zeta : float, optional
-        Damping ratio of the second-order factor (1: critically damped), > 0.
-
-    Raises
-    ------
-    ParameterError
-        ``period`` or ``zeta`` is not a positive number.
+    ``omega_c = 2 pi / period`` (``period``, ``zeta`` > 0, else ParameterError).
     """
 
     def __init__(self, period: float, zeta: float = 1.0) -> None:
@@ -247,29 +196,13 @@ class ReferenceFilter:
         self.state: np.ndarray | None = None
 
     def reset(self, value: float | None = None) -> None:
-        """Start at rest at ``value`` on the next update.
-
-        Parameters
-        ----------
-        value : float or None, optional
-            Initial output; None starts at rest at the next update's input.
-        """
+        """Start at rest at ``value`` (None: at the next update's input)."""
         self.state = None if value is None else np.array([value, 0.0, 0.0])
 
     def update(self, r: float, dt: float) -> np.ndarray:
-        """Advance by ``dt`` with the input ``r`` held over the step.
+        """``[y, y', y'']`` (a fresh array) after ``dt`` [s] with the input ``r`` held over it.
 
-        Parameters
-        ----------
-        r : float
-            Filter input over the step.
-        dt : float
-            Step length [s]; 0 returns the current state.
-
-        Returns
-        -------
-        numpy.ndarray, shape (3,)
-            ``[y, y', y'']`` (a fresh array).
+        Exact (matrix exponential, cached per step length); ``dt = 0`` returns the current state.
         """
         if self.state is None:
             self.state = np.array([r, 0.0, 0.0])
