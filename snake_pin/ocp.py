@@ -62,9 +62,8 @@ class CostWeights:
     joint_limit : float, optional
         On the joint angles beyond the joint limit (a quadratic barrier) [1/rad^2].
     terminal : float, optional
-        Scale of the state costs at the terminal node [s]: the running costs are
-        integrated over time (a node's cost is its rate times ``node_dt``), the terminal
-        one is not, so ``terminal`` weighs the end state as that many seconds of running.
+        Scale of the state costs at the terminal node [s]: the end state weighs as that
+        many seconds of running costs (which are rates).
 
     Raises
     ------
@@ -200,16 +199,8 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
 class FrictionJacobians:
     """``[dQ/dq, dQ/dq']`` of the viscous friction force, vectorised numpy in O(n^2).
 
-    With planar vectors as complex numbers (:mod:`snake_pin.friction`): e_i = exp(j
-    theta_i), link i's CM velocity ``z_i = V + sum_k K_ik j e_k theta_k'`` (V the head
-    point's velocity) and its world force ``F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i)``;
-    the generalised force is ``Q_xy = sum_i F_i`` and ``Q_theta = Im(conj(e) K^T F) -
-    c_theta theta'``, mapped to q by theta = L q[2:] (L lower triangular ones). Every
-    partial derivative of z (``dz_i/dtheta_m = -K_im e_m theta_m'``, ``dz/dV`` = 1 and j,
-    ``dz_i/dtheta_m' = K_im j e_m``) goes through the same two linear maps at once, one
-    column per coordinate; the exact derivative of e_i^2 adds a diagonal term. Agrees with
-    the damping twin's RNEA derivatives
-    (:meth:`~snake_pin.friction.FrictionModel.derivatives`) to round-off, at less Python
+    Derived with planar vectors as complex numbers (:ref:`mpc-friction-jacobians`); agrees
+    with :meth:`~snake_pin.friction.FrictionModel.derivatives` to round-off, at less Python
     cost.
 
     Parameters
