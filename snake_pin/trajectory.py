@@ -196,11 +196,9 @@ class Trajectory:
         Parameters
         ----------
         path
-            The .npz file. If no file has this name and it does not end in ``.npz``,
-            ``PATH.npz`` is tried (the file ``save(PATH)`` writes); no other name is.
+            The .npz file; if none has this name and it lacks ``.npz``, ``PATH.npz``.
         signals
-            Which signal arrays to read: True (all), False (none; the viewer's choice), or
-            an iterable of names. Arrays not asked for are never decompressed.
+            Signals to read: True (all), False (none) or names; others are never decompressed.
 
         Raises
         ------

@@ -113,19 +113,16 @@ class LyapunovController(ReferenceLaw):
     gait
         Serpenoid for phi_r; default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
     options
-        :class:`LyapunovOptions` (gains of (84), the rates lam and lam_shape, the shape
-        spring k_shape); default ``LyapunovOptions()``.
+        :class:`LyapunovOptions`; default ``LyapunovOptions()``.
     **overrides
-        Fields of :class:`LyapunovOptions` to change (e.g. ``lam=5.0``); the robot-dependent
-        defaults are filled in by :meth:`LyapunovOptions.resolved` and kept as
-        ``self.options``.
+        Fields of :class:`LyapunovOptions` to change; the result, resolved for the robot
+        (:meth:`LyapunovOptions.resolved`), is ``self.options``.
 
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, every joint is passive, ``reference`` is not callable,
-        the gait is not a Serpenoid for this robot, ``options`` is not a LyapunovOptions,
-        an override is unknown, or a gain or rate is invalid.
+        A bad robot (every joint passive), reference, gait, ``options``, override, gain
+        or rate.
     """
 
     name = "lyapunov"
@@ -274,8 +271,7 @@ class LyapunovController(ReferenceLaw):
         Returns
         -------
         tuple of numpy.ndarray
-            ``q''*`` (length n + 2), the head's error ``s`` (length 3) and the joint
-            velocity error ``e`` (length n - 1).
+            ``q''*`` (n + 2), the head's error ``s`` (3), the joints' velocity error ``e``.
         """
         nq = self.snake.nq
         w_r, dw_r, ddw_r = self.reference(t)

@@ -90,7 +90,7 @@ class PFLController(ReferenceLaw):
     gait
         Serpenoid for phi_r; default alpha = pi/3, T_s = 1, v = 0.18 (eq. 81).
     options
-        :class:`PFLOptions` (gains of (79), r_min, the climb term); default ``PFLOptions()``.
+        :class:`PFLOptions`; default ``PFLOptions()``.
     **overrides
         Fields of :class:`PFLOptions` to change (the result: ``self.options``).
 
