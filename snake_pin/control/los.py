@@ -151,12 +151,9 @@ def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def _cm_lever(snake: Snake) -> np.ndarray:
-    """a_k with p_cm = p_head + sum_k a_k [cos theta_k, sin theta_k].
-
-    Link i's CM is its front end plus c_i along it, and its front end the head plus
-    sum_{k < i} L_k along the links before it; weighting by w_i = m_i / M and summing
-    gives a_k = w_k c_k + L_k sum_{i > k} w_i.
-    """
+    """a_k with p_cm = p_head + sum_k a_k [cos theta_k, sin theta_k]: weighting each link's CM
+    (head + sum_{k < i} L_k e_k + c_i e_i) by w_i = m_i / M gives
+    a_k = w_k c_k + L_k sum_{i > k} w_i."""
     params = snake.params
     weights = params.masses / params.masses.sum()
     behind = weights[::-1].cumsum()[::-1] - weights  # sum of w_i over i > k

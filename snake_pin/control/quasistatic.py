@@ -202,9 +202,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         """Rows ``[sqrt(W_u) [w_r' + K_w1 w_r, phi_r,passive'], W_a phi_r,actuated',
         phi_r,actuated']``, one per time.
 
-        Many times: the vectorised reference rows (:func:`reference_rows`) through the
-        law's map; one time (a call at an unannounced time): the reference and the gait
-        at that time directly, which is cheaper than building a one-row block.
+        One time (an unannounced call) is evaluated directly: cheaper than a one-row block.
         """
         if len(times) != 1:
             return super()._time_terms(times)

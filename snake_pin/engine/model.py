@@ -95,7 +95,9 @@ class WheelSpec:
 class EngineModel:
     """A compiled MuJoCo model with the index maps to paper coordinates.
 
-    Built by :func:`build_engine_model`; configurations are the paper's.
+    Built by :func:`build_engine_model`; configurations are the paper's. The single-value
+    properties (``body_mass``, ``body_inertia``, ``wheel_offset``) raise ParameterError when
+    the links differ: read the per-link arrays then.
 
     Parameters
     ----------
@@ -144,35 +146,17 @@ class EngineModel:
 
     @property
     def body_mass(self) -> float:
-        """Mass of a link body without its wheels [kg]; equal links only.
-
-        Raises
-        ------
-        ParameterError
-            If the links differ (read :attr:`body_masses`).
-        """
+        """Mass of a link body without its wheels [kg]; equal links only (ParameterError)."""
         return self._same("body_masses")
 
     @property
     def body_inertia(self) -> float:
-        """Yaw inertia of a link body without its wheels [kg m^2]; equal links only.
-
-        Raises
-        ------
-        ParameterError
-            If the links differ (read :attr:`body_inertias`).
-        """
+        """Yaw inertia of a link body without its wheels [kg m^2]; equal links only."""
         return self._same("body_inertias")
 
     @property
     def wheel_offset(self) -> float:
-        """Lateral distance of the wheel centres from the link axis [m]; equal links only.
-
-        Raises
-        ------
-        ParameterError
-            If the links differ (read :attr:`wheel_offsets`).
-        """
+        """Lateral distance of the wheel centres from the link axis [m]; equal links only."""
         return self._same("wheel_offsets")
 
     def _same(self, key: str) -> float:
@@ -192,8 +176,7 @@ class EngineModel:
         Returns
         -------
         numpy.ndarray, shape (n + 2,)
-            ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...], theta_1
-            (the head's yaw) in ``(-pi, pi]``.
+            The paper's ``q``, theta_1 (the head's yaw) in ``(-pi, pi]``.
         """
         head = self.data.xmat[self.link_bodies[0]].reshape(3, 3)
         pos = self.data.xpos[self.link_bodies[0]]
@@ -209,8 +192,7 @@ class EngineModel:
         Parameters
         ----------
         q : numpy.ndarray, shape (n + 2,)
-            Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (not
-            validated).
+            Paper configuration (not validated).
         """
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:3] = (q[0], q[1], self.wheels.radius)
