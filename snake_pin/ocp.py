@@ -1,47 +1,18 @@
 """The snake as a Crocoddyl optimal-control problem: head tracking along a timed reference.
 
-This module owns the optimal-control model of the robot:
+:class:`ChainRootActuation` is the actuation of the PX-PY-RZ chain root (Crocoddyl's
+``ActuationModelFloatingBase`` looks for a joint named ``root_joint`` and silently gets the
+input size wrong here): ``tau = [0_3; E_a u] + Q(q, q')``, u the actuated joints' torques
+and Q the friction of eqs. (10)-(13) with its Jacobians (:class:`FrictionJacobians`).
+:func:`differential_model` is Crocoddyl's C++ free forward dynamics over it, q'' of
+eq. (20) as :meth:`snake_pin.model.Snake.forward_dynamics`, plus the costs of
+:class:`CostWeights`; :class:`TrackingProblem` is the shooting problem (RK4 nodes of
+``node_dt``). The problem, its costs and why RK4 at 10 ms: :doc:`/mpc`.
 
-* :class:`ChainRootActuation` -- Crocoddyl's actuation model for the paper model's
-  PX-PY-RZ chain root (Crocoddyl's ``ActuationModelFloatingBase`` looks for a joint named
-  ``root_joint`` and silently gets the input size wrong here). The generalised force is
-  ``tau = [0_3; E_a u] + Q(q, q')``: u holds the torques of the actuated joints only, so a
-  passive (failed) joint gets no torque by construction, and the viscous friction Q of
-  eqs. (10)-(13) enters as a state-dependent force with its analytic Jacobians
-  (:class:`FrictionJacobians`, vectorised numpy, equal to the damping twin's RNEA
-  derivatives of :meth:`snake_pin.friction.FrictionModel.derivatives`).
-* :func:`differential_model` -- Crocoddyl's C++ free forward dynamics over that actuation:
-  q'' = ABA(q, q', tau) = H^-1 (E tau - h), exactly
-  :meth:`snake_pin.model.Snake.forward_dynamics`, with the derivatives
-  ``d q''/d x = ABA_x + H^-1 dQ/dx`` of
-  :meth:`~snake_pin.model.Snake.dynamics_derivatives`; plus the costs of :class:`CostWeights`.
-* :class:`TrackingProblem` -- the shooting problem: RK4 nodes of ``node_dt``, whose
-  costs' references (head pose and velocity, the gait) are set from a head reference and a
-  serpenoid at the nodes' times.
-
-Costs (weighted quadratics on a state or control residual, in Crocoddyl's C++): head
-position ``(x_h, y_h) - p_r(t)``, heading ``theta_1 - theta_r(t)``, head velocity
-``(x_h', y_h') - p_r'(t)``, gait prior ``phi - phi_r(t)`` and ``phi' - phi_r'(t)`` (these
-five share the residual ``x - x_r(t)``, so they are one cost, ``tracking``, whose
-activation weighs each entry by its term's weight), torque ``|u|^2``, joint limits (a
-quadratic barrier outside ``|phi_i| <= joint_limit``);
-the torque bounds are the box of Box-FDDP (the model's ``u_lb``/``u_ub``). The running
-costs are rates (Crocoddyl integrates them over each node); the terminal node repeats the
-state costs once, scaled by ``terminal`` [s].
-
-Why RK4 at 10 ms: the viscous snake is stiff. At c_y = 50 c_x the linearised dynamics'
-fastest mode decays at 121 /s at the initial arc of eq. (82) and 133 /s at a serpenoid
-posture (8 ms), so explicit Euler at 20 ms and RK4 at 25 ms diverge inside the horizon
-(RK4's stability limit on the negative real axis is ``|lambda dt| < 2.79``). At 10 ms all of
-RK2, RK3 and RK4 are stable, but over 1 s of a sinusoidal torque schedule (0.5 N m,
-held per node) they predict the 1 kHz plant's head to 15, 2.7 and 0.5 mm: RK4's four
-stages per node buy the accuracy a 0.5 s prediction needs.
-
-Why the C++ free forward dynamics rather than a Python action model calling
-:class:`~snake_pin.model.Snake`: both need Python for the friction (a Crocoddyl model in
-Python holds the GIL), but with the C++ model the ABA, its derivatives, the chain rule
-and every cost stay in C++ and only the friction crosses into Python
-(``scripts/bench.py --only mpc`` measures both routes).
+The C++ free forward dynamics rather than a Python action model calling
+:class:`~snake_pin.model.Snake`: both need Python for the friction, but here the ABA, its
+derivatives, the chain rule and every cost stay in C++ and only the friction crosses
+into Python (``scripts/bench.py --only mpc`` measures both routes).
 """
 
 from __future__ import annotations
@@ -58,7 +29,7 @@ from .friction import FrictionModel
 from .model import Snake
 
 __all__ = ["ChainRootActuation", "CostWeights", "FrictionJacobians", "TrackingProblem",
-           "differential_model", "reference_states", "state_model"]
+           "differential_model"]
 
 #: Names of the costs in each node's cost sum (Crocoddyl's CostModelSum keys): the state
 #: tracking terms (head position, heading, head velocity, gait prior) as one weighted
@@ -91,9 +62,8 @@ class CostWeights:
     joint_limit : float, optional
         On the joint angles beyond the joint limit (a quadratic barrier) [1/rad^2].
     terminal : float, optional
-        Scale of the state costs at the terminal node [s]: the running costs are
-        integrated over time (a node's cost is its rate times ``node_dt``), the terminal
-        one is not, so ``terminal`` weighs the end state as that many seconds of running.
+        Scale of the state costs at the terminal node [s]: the end state weighs as that
+        many seconds of running costs (which are rates).
 
     Raises
     ------
@@ -124,18 +94,7 @@ class CostWeights:
 
 
 def state_model(snake: Snake) -> crocoddyl.StateMultibody:
-    """Crocoddyl's state of ``snake``'s Pinocchio model: ``x = [q, q']``, nx = 2 (n + 2).
-
-    Parameters
-    ----------
-    snake : Snake
-        The robot.
-
-    Returns
-    -------
-    crocoddyl.StateMultibody
-        The state (Euclidean: the chain root has no angle wrapping).
-    """
+    """Crocoddyl's (Euclidean) state of ``snake``'s model: ``x = [q, q']``, nx = 2 (n + 2)."""
     return crocoddyl.StateMultibody(_check_snake(snake).model)
 
 
@@ -240,16 +199,8 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
 class FrictionJacobians:
     """``[dQ/dq, dQ/dq']`` of the viscous friction force, vectorised numpy in O(n^2).
 
-    With planar vectors as complex numbers (:mod:`snake_pin.friction`): e_i = exp(j
-    theta_i), link i's CM velocity ``z_i = V + sum_k K_ik j e_k theta_k'`` (V the head
-    point's velocity) and its world force ``F_i = -cbar_i z_i - delta_i e_i^2 conj(z_i)``;
-    the generalised force is ``Q_xy = sum_i F_i`` and ``Q_theta = Im(conj(e) K^T F) -
-    c_theta theta'``, mapped to q by theta = L q[2:] (L lower triangular ones). Every
-    partial derivative of z (``dz_i/dtheta_m = -K_im e_m theta_m'``, ``dz/dV`` = 1 and j,
-    ``dz_i/dtheta_m' = K_im j e_m``) goes through the same two linear maps at once, one
-    column per coordinate; the exact derivative of e_i^2 adds a diagonal term. Agrees with
-    the damping twin's RNEA derivatives
-    (:meth:`~snake_pin.friction.FrictionModel.derivatives`) to round-off, at less Python
+    Derived with planar vectors as complex numbers (:ref:`mpc-friction-jacobians`); agrees
+    with :meth:`~snake_pin.friction.FrictionModel.derivatives` to round-off, at less Python
     cost.
 
     Parameters
@@ -275,20 +226,7 @@ class FrictionJacobians:
         self._rows = np.empty((n + 2, 2 * n + 2))
 
     def __call__(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Write ``[dQ/dq, dQ/dq']`` at the state x = [q, q'] into ``out`` (n + 2, 2 (n + 2)).
-
-        Parameters
-        ----------
-        x : numpy.ndarray
-            The state, length 2 (n + 2).
-        out : numpy.ndarray
-            The (n + 2, 2 (n + 2)) Jacobian, written in place.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``out``.
-        """
+        """Write ``[dQ/dq, dQ/dq']`` at the state x = [q, q'] into ``out`` (n + 2, 2 (n + 2))."""
         n, nq = self.n, self.n + 2
         theta, rate = np.cumsum(x[2:nq]), np.cumsum(x[nq + 2:])
         e = np.exp(1j * theta)
@@ -490,20 +428,7 @@ class TrackingProblem:
 def reference_states(reference: Any, gait: Any, times: np.ndarray) -> np.ndarray:
     """The reference state ``[w_r, phi_r, w_r', phi_r']`` at each time, (T, 2 (n + 2)).
 
-    Parameters
-    ----------
-    reference : callable
-        A head reference ``t -> (w_r, w_r', w_r'')`` (a PathReference is evaluated at all
-        times at once through its ``at``).
-    gait : Serpenoid
-        The gait prior ``phi_r(t)``.
-    times : numpy.ndarray
-        Times [s], shape (T,).
-
-    Returns
-    -------
-    numpy.ndarray
-        One reference state per time.
+    A reference with ``at`` (a PathReference) is evaluated at all times at once.
     """
     times = np.asarray(times, dtype=float)
     if hasattr(reference, "at"):

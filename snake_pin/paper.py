@@ -1,49 +1,15 @@
 """The paper's closed-form model (Section II, eqs. 3-20), independent of Pinocchio.
 
-Everything here is plain numpy and serves as the cross-check of
-:class:`snake_pin.model.Snake`. Coordinates: ``q = [x_h, y_h, theta_1, phi]`` (length
-n + 2) and ``q-bar = [x_h, y_h, theta]`` (link orientations, ``theta = L [theta_1, phi]``,
-eq. 17).
-
-The printed equations assume identical links with the centre of mass in the middle.
-They generalise to link i of length 2l_i, mass m_i, inertia J_i about its CM, CM at a
-distance d_i from its front end, and friction c_x,i, c_y,i, c_theta,i, as follows.
-
-* Positions (eqs. 3-4). With ``e_j = (cos theta_j, sin theta_j)``, link i's CM is::
-
-      p_i = p_h + sum_{j<i} 2l_j e_j + d_i e_i = p_h + sum_j K_ij e_j
-
-  so ``K_ij = 2l_j`` (j < i), ``K_ii = d_i``, 0 above the diagonal (the printed K has
-  ``d_i = l``, ``2l_j = 2l``).
-* Velocities (eqs. 5-7). ``p_i' = p_h' + sum_j K_ij theta_j' (-sin theta_j, cos theta_j)``,
-  so ``J_{q-bar x} = [1, 0, -K diag(sin theta)]`` and
-  ``J_{q-bar y} = [0, 1, K diag(cos theta)]``: the printed forms with the per-link K.
-* Kinetic energy (eqs. 8-9). ``T = 1/2 sum_i (m_i |p_i'|^2 + J_i theta_i'^2)`` gives::
-
-      H-bar = J_x^T M J_x + J_y^T M J_y + diag(0, 0, J_1 .. J_n),  M = diag(m_1 .. m_n)
-
-  (the printed m I and J I become diagonal matrices).
-* Coriolis (eqs. 15-16). ``p_i'' = J_{q-bar} q-bar'' - sum_j K_ij theta_j'^2 e_j``, so the
-  centripetal Jacobians are ``J_x = -K diag(cos theta)``, ``J_y = -K diag(sin theta)`` and
-  ``W-bar = J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y``; the term is ``W-bar (q-bar')^2``.
-* Friction (eqs. 10-14). In the world frame link i's force is
-  ``-R_i diag(c_x,i, c_y,i) R_i^T p_i'``, so::
-
-      C-bar = J_xy^T [[C_xx, C_xy], [C_xy, C_yy]] J_xy + diag(0, 0, c_theta)
-      C_xx = diag(c_x cos^2 + c_y sin^2)
-      C_xy = diag((c_x - c_y) sin cos)
-      C_yy = diag(c_x sin^2 + c_y cos^2)        (per link)
-
-* Paper coordinates (eq. 19). ``H = J_q^T H-bar J_q``, ``W = J_q^T W-bar``,
-  ``C = J_q^T C-bar J_q`` with ``J_q = blockdiag(I_2, L)``; ``h = W (J_q q')^2 + C q'``
-  (eq. 20) and ``E = [0; I]``.
-
-Every function that takes a configuration ``q`` wants the paper's
-``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (n + 2 numbers, m and rad); velocities ``dq``
-are its plain time derivatives (m/s and rad/s).
-
-``tests/test_paper.py`` checks every one of these against Pinocchio, which knows nothing
-of this derivation, on random states of random heterogeneous robots.
+Plain numpy, the cross-check of :class:`snake_pin.model.Snake`: ``tests/test_paper.py``
+compares the two on random states of random heterogeneous robots. The printed equations
+(identical links, CM in the middle) are generalised to per-link lengths, masses,
+inertias, CM offsets and friction (eqs. 3-4, 5-7, 8-9, 10-14, 15-16, 19, 20) as derived in
+:ref:`derivation-paper`. Configurations are the paper's ``q = [x_h, y_h, theta_1, phi]``
+(n + 2 numbers, m and rad), ``q-bar = [x_h, y_h, theta]`` (eq. 17), velocities their plain
+time derivatives. Every function raises :class:`~snake_pin.exceptions.ParameterError`
+for a ``params`` that is not a SnakeParams or an ``n`` that is not an integer >= 2, and
+:class:`~snake_pin.exceptions.ConfigurationError` for a ``q``, ``dq`` or ``theta`` that is
+not a vector of n + 2 (n for theta) finite numbers.
 """
 
 from __future__ import annotations
@@ -87,9 +53,7 @@ def _q(params: object, q: object, name: str = "q") -> tuple[SnakeParams, np.ndar
 def k_matrix(params: SnakeParams) -> np.ndarray:
     """Return K of eq. (4), per link: ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i), else 0.
 
-    Link i's centre of mass is ``p_i = p_h + sum_j K_ij e_j`` with
-    ``e_j = (cos theta_j, sin theta_j)``. For equal links with the CM in the middle,
-    ``d_i = l`` and ``2l_j = 2l``: the printed K (l on the diagonal, 2l below it).
+    Link i's CM is ``p_i = p_h + sum_j K_ij e_j``, ``e_j = (cos theta_j, sin theta_j)``.
 
     Parameters
     ----------
@@ -100,11 +64,6 @@ def k_matrix(params: SnakeParams) -> np.ndarray:
     -------
     numpy.ndarray, shape (n, n)
         Lower-triangular K [m].
-
-    Raises
-    ------
-    ParameterError
-        ``params`` is not a SnakeParams.
     """
     check_params(params)
     lengths = params.link_lengths
@@ -125,11 +84,6 @@ def l_matrix(n: int) -> np.ndarray:
     -------
     numpy.ndarray, shape (n, n)
         Ones on and below the diagonal, zeros above.
-
-    Raises
-    ------
-    ParameterError
-        ``n`` is not an integer >= 2.
     """
     n = integer(n, "n", low=2)
     return np.tril(np.ones((n, n)))
@@ -147,11 +101,6 @@ def jacobian_q(n: int) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         The constant Jacobian from paper coordinates to ``[x_h, y_h, theta_1 .. theta_n]``.
-
-    Raises
-    ------
-    ParameterError
-        ``n`` is not an integer >= 2.
     """
     n = integer(n, "n", low=2)
     out = np.zeros((n + 2, n + 2))
@@ -211,13 +160,6 @@ def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.
     jx, jy : numpy.ndarray, shape (n, n + 2)
         Rows i map ``q-bar' = [x_h', y_h', theta']`` to link i's CM velocity along the
         world x and y axes [m/s].
-
-    Raises
-    ------
-    ParameterError
-        ``params`` is not a SnakeParams.
-    ConfigurationError
-        ``theta`` is not a vector of n finite angles.
     """
     params, theta = _theta(params, theta)
     n = params.n
@@ -243,13 +185,6 @@ def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         Symmetric positive definite H-bar [kg, kg m, kg m^2 blocks].
-
-    Raises
-    ------
-    ParameterError
-        ``params`` is not a SnakeParams.
-    ConfigurationError
-        ``theta`` is not a vector of n finite angles.
     """
     params, theta = _theta(params, theta)
     jx, jy = jacobian_xy(params, theta)
@@ -269,19 +204,12 @@ def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
     params : SnakeParams
         The robot.
     q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        Configuration [m, m, rad, rad...].
 
     Returns
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         Symmetric positive definite H.
-
-    Raises
-    ------
-    ConfigurationError
-        If ``q`` does not have n + 2 finite entries.
-    ParameterError
-        ``params`` is not a SnakeParams.
     """
     params, q = _q(params, q)
     jq = jacobian_q(params.n)
@@ -306,13 +234,6 @@ def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         W-bar; the Coriolis term is ``W-bar (q-bar')^2`` (elementwise square).
-
-    Raises
-    ------
-    ParameterError
-        ``params`` is not a SnakeParams.
-    ConfigurationError
-        ``theta`` is not a vector of n finite angles.
     """
     params, theta = _theta(params, theta)
     n = params.n
@@ -334,7 +255,7 @@ def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     params : SnakeParams
         The robot.
     q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        Configuration [m, m, rad, rad...].
     dq : array_like, shape (n + 2,)
         Its time derivative [m/s, m/s, rad/s, rad/s...].
 
@@ -342,13 +263,6 @@ def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2,)
         Generalised forces [N, N, N m, N m...] (friction excluded).
-
-    Raises
-    ------
-    ConfigurationError
-        If ``q`` or ``dq`` does not have n + 2 finite entries.
-    ParameterError
-        ``params`` is not a SnakeParams.
     """
     params, q = _q(params, q)
     dq = as_vector(dq, params.n + 2, "dq")
@@ -371,13 +285,6 @@ def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         Symmetric positive semi-definite C-bar in q-bar coordinates.
-
-    Raises
-    ------
-    ParameterError
-        ``params`` is not a SnakeParams.
-    ConfigurationError
-        ``theta`` is not a vector of n finite angles.
     """
     params, theta = _theta(params, theta)
     c, s = np.cos(theta), np.sin(theta)
@@ -401,19 +308,12 @@ def friction_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
     params : SnakeParams
         The robot.
     q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        Configuration [m, m, rad, rad...].
 
     Returns
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         Symmetric positive semi-definite C.
-
-    Raises
-    ------
-    ConfigurationError
-        If ``q`` does not have n + 2 finite entries.
-    ParameterError
-        ``params`` is not a SnakeParams.
     """
     params, q = _q(params, q)
     jq = jacobian_q(params.n)
@@ -432,11 +332,6 @@ def actuation_matrix(n: int) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n - 1)
         Maps the joint torques tau to generalised forces (every joint actuated).
-
-    Raises
-    ------
-    ParameterError
-        ``n`` is not an integer >= 2.
     """
     n = integer(n, "n", low=2)
     return np.vstack([np.zeros((3, n - 1)), np.eye(n - 1)])
@@ -453,7 +348,7 @@ def bias(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     params : SnakeParams
         The robot.
     q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        Configuration [m, m, rad, rad...].
     dq : array_like, shape (n + 2,)
         Its time derivative [m/s, m/s, rad/s, rad/s...].
 
@@ -461,13 +356,6 @@ def bias(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2,)
         Coriolis/centrifugal plus viscous-friction generalised forces [N, N, N m, N m...].
-
-    Raises
-    ------
-    ConfigurationError
-        If ``q`` or ``dq`` does not have n + 2 finite entries.
-    ParameterError
-        ``params`` is not a SnakeParams.
     """
     coriolis_term = coriolis(params, q, dq)  # checks params, q and dq
     return coriolis_term + friction_matrix(params, q) @ as_vector(dq, params.n + 2, "dq")
@@ -486,7 +374,7 @@ def g2(params: SnakeParams, q: np.ndarray) -> np.ndarray:
     params : SnakeParams
         The robot; its friction must be isotropic.
     q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
+        Configuration [m, m, rad, rad...].
 
     Returns
     -------
@@ -495,10 +383,8 @@ def g2(params: SnakeParams, q: np.ndarray) -> np.ndarray:
 
     Raises
     ------
-    ConfigurationError
-        If ``q`` does not have n + 2 finite entries.
     ParameterError
-        If the robot's friction is not isotropic.
+        The robot's friction is not isotropic.
     """
     params, q = _q(params, q)
     if not params.isotropic:

@@ -99,41 +99,34 @@ def _per_link(value: object, key: str, n: int, *, zero_ok: bool) -> PerLink:
 class SnakeParams:
     """Parameters of an n-link planar snake robot (links numbered from the head).
 
-    Each physical field is one number for all links or a sequence of ``n`` numbers (one
-    per link, head first); equal per-link values collapse to one number.
-
     Parameters
     ----------
     n : int
         Number of links, ``2 <= n <= MAX_LINKS`` (:data:`MAX_LINKS`).
     link_length : float or sequence of n floats
-        Full link length 2l_i [m] (joint i sits at x = 2l_i of link i); in
-        :data:`LENGTH_RANGE` (1e-4 to 1e2 m).
+        Full link length 2l_i [m] (joint i at x = 2l_i of link i), in :data:`LENGTH_RANGE`.
     mass : float or sequence of n floats
-        Link mass m_i [kg]; in :data:`MASS_RANGE` (1e-6 to 1e4 kg).
+        Link mass m_i [kg], in :data:`MASS_RANGE`.
     inertia : float or sequence of n floats
-        Link moment of inertia about its centre of mass, J_i [kg m^2]; in
-        :data:`INERTIA_RANGE` (1e-16 to 1e7 kg m^2).
+        Link moment of inertia about its CM, J_i [kg m^2], in :data:`INERTIA_RANGE`.
     c_x, c_y : float or sequence of n floats
-        Viscous friction along / across link i [N s/m] (eqs. 10-12); 0 or in
-        :data:`FRICTION_RANGE` (1e-12 to 1e6).
-    c_theta : float or sequence of n floats
-        Rotational viscous friction of link i [N m s] (eq. 13); 0 or in
+        Viscous friction along / across link i [N s/m] (eqs. 10-12), 0 or in the
         :data:`FRICTION_RANGE`.
+    c_theta : float or sequence of n floats
+        Rotational viscous friction of link i [N m s] (eq. 13), likewise.
     passive : sequence of int
-        1-based indices of joints without an actuator (free joints, Section III.2), each
-        in 1..n - 1; stored sorted and without repeats.
+        1-based indices (1..n - 1) of joints without an actuator (Section III.2).
     name : str
         A label carried into file names and reports (letters, digits, underscores). A
         preset's name given to a robot with per-link values becomes ``NAME_custom``.
     com_offset : float or sequence of n floats or None
-        Distance of link i's centre of mass from its front end, along the link [m];
-        ``None`` puts it in the middle (l_i, the paper's robot). ``0 <= offset <= 2l_i``.
+        Distance of link i's CM from its front end [m], in [0, 2l_i]; ``None``: l_i.
 
     Raises
     ------
     ParameterError
-        Naming the field (and the link) that is out of its domain.
+        Naming the field (and the link) out of its domain; also for the changes given to
+        the presets.
     """
 
     n: int = 10
@@ -197,14 +190,12 @@ class SnakeParams:
         Parameters
         ----------
         key : str
-            One of :data:`LINK_FIELDS` (``"link_length"``, ``"mass"``, ``"inertia"``,
-            ``"com_offset"``, ``"c_x"``, ``"c_y"``, ``"c_theta"``).
+            One of :data:`LINK_FIELDS`.
 
         Returns
         -------
         numpy.ndarray, shape (n,)
-            A new array of the field's value for each link, in the field's SI unit; an
-            unset ``com_offset`` gives the link midpoints l_i.
+            A new array, in SI units; an unset ``com_offset`` gives l_i.
 
         Raises
         ------
@@ -297,11 +288,6 @@ class SnakeParams:
         SnakeParams
             n = 10, 2l = 0.12 m, m = 0.182 kg, J = 2.2e-4 kg m^2,
             c_x = c_y = 0.5 N s/m, c_theta = 7.2e-5 N m s, unless changed.
-
-        Raises
-        ------
-        ParameterError
-            If a change is out of its domain or names no field.
         """
         return cls._named("table1", {}, changes)
 
@@ -309,8 +295,7 @@ class SnakeParams:
     def engine(cls, **changes: Any) -> SnakeParams:
         """Return the 8-link robot of Section VI.3 (2l = 0.176 m, m = 0.417 kg, J = 1.2e-3 kg m^2).
 
-        Its viscous coefficients are the controller's model of the wheels; the engine
-        experiment identifies them from the MuJoCo model.
+        Its viscous coefficients model the wheels (identified from the MuJoCo model).
 
         Parameters
         ----------
@@ -320,13 +305,7 @@ class SnakeParams:
         Returns
         -------
         SnakeParams
-            The preset (c_x = 0.5 N s/m, c_y = 5 N s/m, c_theta = 1e-4 N m s), with the
-            changes.
-
-        Raises
-        ------
-        ParameterError
-            If a change is out of its domain or names no field.
+            c_x = 0.5 N s/m, c_y = 5 N s/m, c_theta = 1e-4 N m s, unless changed.
         """
         base = {"n": 8, "link_length": 0.176, "mass": 0.417, "inertia": 1.20e-3,
                 "c_x": 0.5, "c_y": 5.0, "c_theta": 1.0e-4}
@@ -377,7 +356,7 @@ class SnakeParams:
         Raises
         ------
         ParameterError
-            If a name is not a field, or a new value is out of its domain.
+            A name is not a field, or a new value is out of its domain.
         """
         unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
         if unknown:
@@ -415,8 +394,7 @@ class SnakeParams:
         Raises
         ------
         ParameterError
-            If ``data`` is not a dict, names an unknown field, or a value is out of its
-            domain.
+            ``data`` is not a dict, names an unknown field, or a value is out of domain.
         """
         if not isinstance(data, dict):
             raise ParameterError(f"robot parameters must be a table, got {type(data).__name__}")

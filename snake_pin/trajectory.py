@@ -1,27 +1,11 @@
 """A run's result and its file format: :class:`Trajectory`, saved and loaded.
 
-This module owns what a run leaves behind: the samples (times, states, held torques,
-signals), the run's status and reason, and the pair of files a trajectory is saved as
-(``PATH.npz`` arrays + ``PATH.json`` summary).
-
-Every run ends with a :attr:`Trajectory.status`:
-
-- ``"completed"``: it reached its final time;
-- ``"diverged"``: the state left its bounds (non-finite, speed or distance beyond a bound);
-- ``"failed"``: the controller raised (any exception) or returned a torque of the wrong
-  size, type or a non-finite one;
-- ``"interrupted"``: a KeyboardInterrupt arrived (the run raised
-  :class:`~snake_pin.exceptions.RunInterrupted` carrying the partial trajectory).
-
-``diverged`` is True for the two faults ("diverged", "failed").
-
-Files are written whole or not at all: :meth:`Trajectory.save` stages both files and
-renames them into place together (:func:`snake_pin._io.atomic_group`). They are read with
-bounds: :meth:`Trajectory.load` reads only the arrays it needs, checks each array's .npy
-header (dtype, shape, declared size against :data:`MAX_ARRAY_BYTES` and
-:data:`MAX_TOTAL_BYTES`) before decompressing any of its data, never unpickles, and
-refuses anything malformed with one :class:`~snake_pin.exceptions.TrajectoryFileError`
-line.
+A run's samples (times, states, held torques, signals), its status and reason, and the
+pair of files it is saved as (``PATH.npz`` arrays + ``PATH.json`` summary). Files are
+written whole or not at all (:func:`snake_pin._io.atomic_group`) and read with bounds:
+each array's .npy header is checked against :data:`MAX_ARRAY_BYTES` and
+:data:`MAX_TOTAL_BYTES` before any data is decompressed, nothing is unpickled, and
+anything malformed raises one :class:`~snake_pin.exceptions.TrajectoryFileError` line.
 """
 
 from __future__ import annotations
@@ -53,7 +37,9 @@ __all__ = ["MAX_ARRAY_BYTES", "MAX_TOTAL_BYTES", "STATUSES", "Trajectory"]
 MAX_ARRAY_BYTES = 512 * 2**20
 #: Largest total of the arrays one load reads (or one run records) [bytes].
 MAX_TOTAL_BYTES = 1024 * 2**20
-#: The run statuses, see the module docstring.
+#: The run statuses: "completed" (reached its final time), "diverged" (the state left its
+#: bounds), "failed" (the controller raised or returned a bad torque), "interrupted" (a
+#: KeyboardInterrupt: :class:`~snake_pin.exceptions.RunInterrupted` carries the partial run).
 STATUSES = ("completed", "diverged", "failed", "interrupted")
 
 _FAULTS = ("diverged", "failed")
@@ -70,25 +56,20 @@ _HEADER_KEYS = {"params": dict, "reason": str, "meta": dict, "summary": dict, "s
 class Trajectory:
     """A recorded run: samples at every control step (plus the initial state).
 
-    The parameters are kept as attributes of the same names.
-
     Parameters
     ----------
     t : numpy.ndarray
         Sample times [s], shape (N,).
     q : numpy.ndarray
-        Configurations ``[x, y, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad],
-        shape (N, n + 2).
+        Configurations [m, m, rad, rad], shape (N, n + 2).
     dq : numpy.ndarray
         Their velocities [m/s, m/s, rad/s, rad/s], shape (N, n + 2).
     tau : numpy.ndarray
-        Applied joint torques [N m], shape (N, n - 1); ``tau[k]`` is held over
-        ``[t[k], t[k + 1])``.
+        Joint torques [N m], shape (N, n - 1); ``tau[k]`` held over ``[t[k], t[k + 1])``.
     params : SnakeParams
         The robot.
     signals : dict of str to numpy.ndarray, optional
-        Extra per-sample series (controller diagnostics, manipulability, ...), each with N
-        rows; NaN where a value is missing.
+        Extra per-sample series (diagnostics, ...), N rows each; NaN where missing.
     diverged : bool, optional
         Whether the run stopped on a fault (status "diverged" or "failed").
     reason : str, optional
@@ -104,8 +85,7 @@ class Trajectory:
     Raises
     ------
     ParameterError
-        ``status`` is not one of :data:`STATUSES`, or ``diverged=True`` with a status
-        that is not a fault.
+        An unknown ``status``, or ``diverged=True`` with a status that is not a fault.
     """
 
     t: np.ndarray
@@ -142,10 +122,9 @@ class Trajectory:
     def save(self, path: str | os.PathLike[str]) -> tuple[Path, Path]:
         """Write ``PATH.npz`` (arrays) and ``PATH.json`` (summary) as one set.
 
-        The name keeps its whole stem: only a trailing ``.npz`` or ``.json`` is dropped
-        (``run.v2`` -> ``run.v2.npz`` + ``run.v2.json``). Both files are staged and
-        renamed into place together, the .npz first (see :func:`snake_pin._io.atomic_group`).
-        The JSON summary is RFC 8259 JSON: non-finite numbers are written as null.
+        Only a trailing ``.npz`` or ``.json`` is dropped from the name (``run.v2`` ->
+        ``run.v2.npz`` + ``run.v2.json``); both files are renamed into place together. The
+        summary is RFC 8259 JSON (non-finite numbers as null).
 
         Parameters
         ----------
@@ -217,11 +196,9 @@ class Trajectory:
         Parameters
         ----------
         path
-            The .npz file. If no file has this name and it does not end in ``.npz``,
-            ``PATH.npz`` is tried (the file ``save(PATH)`` writes); no other name is.
+            The .npz file; if none has this name and it lacks ``.npz``, ``PATH.npz``.
         signals
-            Which signal arrays to read: True (all), False (none; the viewer's choice), or
-            an iterable of names. Arrays not asked for are never decompressed.
+            Signals to read: True (all), False (none) or names; others are never decompressed.
 
         Raises
         ------

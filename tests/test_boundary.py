@@ -171,8 +171,6 @@ ROWS: dict[str, Row] = {
                     "weights": _m("snake_pin.ocp").CostWeights()}),
         skip={"feedback": "bool"}),
     "snake_pin.control.mpc.SolveStats": Row(record=RECORD),
-    "snake_pin.control.gains.default_k_phi": Row(
-        lambda w: (_m("snake_pin.control.gains").default_k_phi, {"joints": 4})),
     "snake_pin.control.base.OpenLoop": Row(
         lambda w: (snake_pin.OpenLoop, {"schedule": lambda t: np.zeros(4)})),
     "snake_pin.control.pfl.PFLController": Row(
@@ -390,35 +388,6 @@ ROWS: dict[str, Row] = {
     "snake_pin.paper.k_matrix": Row(lambda w: (snake_pin.paper.k_matrix, {"params": w.params})),
     "snake_pin.paper.link_angles": Row(
         lambda w: (snake_pin.paper.link_angles, {"q": w.q}), errors={"q": CONFIG}),
-    # ------------------------------------------------------------- control.base
-    "snake_pin.control.base.TimeTerms": Row(
-        lambda w: (_m("snake_pin.control.base").TimeTerms,
-                   {"rows": lambda times: np.zeros((len(times), 1))})),
-    "snake_pin.control.base.gait_for": Row(
-        lambda w: (_m("snake_pin.control.base").gait_for,
-                   {"n": 5, "gait": None, "default": _serpenoid(w)}),
-        skip={"gait": "None"}),
-    "snake_pin.control.base.reference_rows": Row(
-        lambda w: (_m("snake_pin.control.base").reference_rows,
-                   {"reference": snake_pin.LinearReference(), "gait": _serpenoid(w),
-                    "times": np.linspace(0.0, 1.0, 3)}),
-        skip={"times": "short"}, errors={"times": CONFIG}),
-    # ------------------------------------------------------------ control.gains
-    "snake_pin.control.gains.gain_matrix": Row(
-        lambda w: (_m("snake_pin.control.gains").gain_matrix,
-                   {"value": 2.0, "size": 3, "name": "K_test", "definite": True}),
-        skip={"name": "str", "definite": "bool"}, names={"value": "K_test"}),
-    # -------------------------------------------------------------- control.los
-    "snake_pin.control.los.ReferenceFilter": Row(
-        lambda w: (_m("snake_pin.control.los").ReferenceFilter, {"period": 1.0,
-                                                                 "zeta": 1.0})),
-    "snake_pin.control.los.body_kinematics": Row(
-        lambda w: (_m("snake_pin.control.los").body_kinematics,
-                   {"snake": w.snake, "x": np.r_[w.q, w.dq]}),
-        errors={"x": CONFIG}),
-    "snake_pin.control.los.los_heading": Row(
-        lambda w: (_m("snake_pin.control.los").los_heading,
-                   {"gamma": 0.1, "cross_track": 0.2, "look_ahead": 0.5})),
     # ------------------------------------------------------- control.quasistatic
     "snake_pin.control.quasistatic.QuasiStaticLyapunovController": Row(
         lambda w: (snake_pin.control.QuasiStaticLyapunovController,

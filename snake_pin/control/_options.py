@@ -1,9 +1,7 @@
 """Fields of the controllers' options dataclasses: default, bounds and one-line doc in one place.
 
-:func:`option` declares a field (its metadata holds the doc, the bounds, the unit and,
-for a gain, its matrix symbol and size); :func:`check_fields` validates an instance in
-``__post_init__``; :func:`merged` applies a constructor's keyword overrides to an options
-object. :mod:`snake_pin.study.spec` reads the same metadata to build a study's settings.
+:func:`option` declares a field, :func:`check_fields` validates an instance, :func:`merged`
+applies keyword overrides; :mod:`snake_pin.study.spec` reads the same metadata.
 """
 
 from __future__ import annotations
@@ -24,14 +22,9 @@ def option(default: Any, doc: str, *, unit: str = "", low: float | None = None,
            high: float | None = None, open_low: bool = False, symbol: str = "",
            size: int | None = None, entries: tuple[str, ...] = (),
            default_doc: str = "") -> Any:
-    """A dataclass field with its one-line doc and domain in ``metadata``.
-
-    A field with a ``symbol`` is a gain matrix (a scalar, a diagonal or a matrix, checked
-    by :func:`~snake_pin.control.gains.gain_matrix`; ``size`` 3 for the head, None for the
-    joints, whose number only the robot knows), positive definite if ``open_low`` and
-    semi-definite otherwise. ``entries`` names a head gain's diagonal entries in study
-    files; ``default_doc`` says how a None default is resolved.
-    """
+    """A dataclass field with its one-line doc and domain in ``metadata``; a ``symbol`` makes
+    it a gain matrix (``size`` 3 for the head, None for the joints: only the robot knows),
+    definite if ``open_low``; ``entries`` names a head gain's diagonal in study files."""
     return field(default=default, metadata={
         "doc": doc, "unit": unit, "low": low, "high": high, "open_low": open_low,
         "symbol": symbol, "size": size, "entries": entries, "default_doc": default_doc})

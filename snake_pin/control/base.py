@@ -19,35 +19,14 @@ from ..exceptions import ConfigurationError, ParameterError
 from ..gaits import Serpenoid
 from .reference import LinearReference
 
-__all__ = ["Controller", "OpenLoop", "ReferenceLaw", "TimeTerms", "gait_for", "reference_rows"]
+__all__ = ["Controller", "OpenLoop", "ReferenceLaw"]
 
 #: Time-only terms are computed for this many coming calls at once (see TimeTerms).
 _BLOCK = 1024
 
 
 def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
-    """``gait`` (or ``default``) after checking it is a serpenoid for n links.
-
-    Parameters
-    ----------
-    n : int
-        Number of links of the robot.
-    gait : Serpenoid or None
-        The chosen gait; None takes ``default``.
-    default : Serpenoid
-        The controller's default gait.
-
-    Returns
-    -------
-    Serpenoid
-        ``gait``, or ``default`` when ``gait`` is None.
-
-    Raises
-    ------
-    ParameterError
-        ``n`` is not an integer >= 2, a gait is not a Serpenoid, or the gait is for
-        another number of links.
-    """
+    """``gait`` (``default`` for None), checked to be a serpenoid for n links (ParameterError)."""
     n = integer(n, "n", low=2)
     _check_gait(default, "default")
     chosen = default if gait is None else _check_gait(gait, "gait")
@@ -65,30 +44,8 @@ def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: S
                    times: np.ndarray) -> np.ndarray:
     """One row ``[w_r, phi_r, w_r', phi_r', w_r'', phi_r'']`` (3 (n + 2) values) per time.
 
-    A :class:`LinearReference` and the serpenoid are evaluated for all times at once (the
-    same arithmetic as one call each); any other reference is called once per time.
-
-    Parameters
-    ----------
-    reference : callable
-        The head reference ``t -> (w_r, w_r', w_r'')``, each of shape (3,).
-    gait : Serpenoid
-        The joint reference ``phi_r(t)`` (n - 1 angles [rad]).
-    times : numpy.ndarray
-        Times [s], shape (T,).
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape (T, 3 (n + 2)): per time the reference, then its first and second time
-        derivatives, each as ``[w_r, phi_r]`` (n + 2 values).
-
-    Raises
-    ------
-    ParameterError
-        ``reference`` is not callable or ``gait`` is not a Serpenoid.
-    ConfigurationError
-        ``times`` is not a vector of finite numbers.
+    A :class:`LinearReference` and the serpenoid are evaluated for all times at once;
+    any other reference once per time. Arguments checked (ParameterError, ConfigurationError).
     """
     ReferenceLaw.checked_reference(reference)
     _check_gait(gait, "gait")
@@ -121,19 +78,8 @@ def _reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: 
 class TimeTerms:
     """A controller's time-only terms ``rows(times)``, served one time at a time.
 
-    After :meth:`prepare` with the times of the coming calls, the rows are computed in
-    vectorised blocks of 1024 and a call at the next announced time reads its row; a call
-    at any other time computes its row alone. Either way the values are the same.
-
-    Parameters
-    ----------
-    rows : callable
-        ``rows(times) -> array`` with one row per time of the (T,) array ``times`` [s].
-
-    Raises
-    ------
-    ParameterError
-        ``rows`` is not callable.
+    After :meth:`prepare` the rows of the announced times are computed in vectorised blocks
+    of 1024; a call at any other time computes its row alone, with the same values.
     """
 
     def __init__(self, rows: Callable[[np.ndarray], np.ndarray]) -> None:
@@ -143,13 +89,7 @@ class TimeTerms:
         self.prepare(np.zeros(0))
 
     def prepare(self, times: np.ndarray) -> None:
-        """The times of the coming calls, in order.
-
-        Parameters
-        ----------
-        times : numpy.ndarray
-            Times [s], shape (T,), in the order of the coming calls.
-        """
+        """The times of the coming calls, in order."""
         self._times = np.asarray(times, dtype=float)
         self._start = 0  # where the next block starts
         self._next = float(self._times[0]) if len(self._times) else None
@@ -186,9 +126,8 @@ class Controller(abc.ABC):
     def prepare(self, times: np.ndarray) -> None:  # noqa: B027 - optional hook
         """Learn the times of the coming calls, in order (a run's sampling instants).
 
-        :func:`snake_pin.sim.simulate` calls it after :meth:`reset`. A controller may
-        precompute what depends on time only; its output must not depend on whether
-        this was called. Empty by default.
+        Called after :meth:`reset`; a controller may precompute what depends on time only,
+        but its output must not depend on whether this was called. Empty by default.
 
         Parameters
         ----------
@@ -213,10 +152,8 @@ class Controller(abc.ABC):
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
         """q'' of ``snake`` at the state of the last call under the torque it returned.
 
-        A controller that evaluated exactly that (with ``snake``'s own dynamics) returns
-        it, and :func:`snake_pin.sim.simulate` uses it as RK4's first stage instead of
-        evaluating the dynamics again; None (the default) when it did not. The array is
-        read before the next call and not modified.
+        A controller that evaluated exactly that with ``snake``'s own dynamics returns it
+        (read before the next call, not modified): the simulator's first RK4 stage.
 
         Parameters
         ----------
@@ -300,7 +237,7 @@ class ReferenceLaw(Controller):
         return value
 
     def prepare(self, times: np.ndarray) -> None:
-        """Compute the references' terms for the coming calls in blocks (see TimeTerms).
+        """Compute the references' terms for the coming calls in blocks.
 
         Parameters
         ----------
@@ -318,26 +255,14 @@ class ReferenceLaw(Controller):
         return None
 
     def __getstate__(self) -> dict[str, Any]:
-        """The attributes to pickle: all but the buffers and the last call's outputs.
-
-        Returns
-        -------
-        dict
-            The attributes.
-        """
+        """The attributes to pickle: all but the buffers and the last call's outputs."""
         state = self.__dict__.copy()
         for name in ("_buffers", "_acceleration", "_signals"):
             state.pop(name, None)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        """Unpickled (or copied): the buffers are made again.
-
-        Parameters
-        ----------
-        state : dict
-            The pickled attributes.
-        """
+        """Unpickled (or copied): the buffers are made again."""
         self.__dict__.update(state)
         self._acceleration: np.ndarray | None = None
         self._signals: dict[str, float] = {}

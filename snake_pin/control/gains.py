@@ -7,58 +7,21 @@ import numpy as np
 from .._validation import brief, flag, integer
 from ..exceptions import ParameterError
 
-__all__ = ["K_PHI_FIRST", "K_PHI_REST", "default_k_phi", "gain_matrix"]
+__all__ = ["K_PHI_FIRST", "K_PHI_REST"]
 
 #: K_phi of (84), shared by the Lyapunov-like laws: joint 1, then every other joint.
 K_PHI_FIRST, K_PHI_REST = 10.0, 20.0
 
 
 def default_k_phi(joints: int) -> np.ndarray:
-    """K_phi's diagonal of (84) for ``joints`` joints: 10, then 20 on the others.
-
-    Parameters
-    ----------
-    joints : int
-        The number of joints, n - 1.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``[10, 20, ..., 20]`` of length ``joints``.
-
-    Raises
-    ------
-    ParameterError
-        ``joints`` is not a positive integer.
-    """
+    """K_phi's diagonal of (84) for ``joints`` (n - 1) joints: ``[10, 20, ..., 20]``."""
     return np.r_[K_PHI_FIRST, np.full(integer(joints, "joints", low=1) - 1, K_PHI_REST)]
 
 
 def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -> np.ndarray:
-    """A symmetric size x size gain, positive definite (or semi-definite if not ``definite``).
+    """A symmetric size x size gain from a scalar (times I), a diagonal or a matrix.
 
-    Parameters
-    ----------
-    value : float, array_like of shape (size,) or (size, size)
-        The gain: a scalar (times identity), a vector (the diagonal) or a matrix.
-    size : int
-        The matrix's order (3 for a head gain, n - 1 for a joint gain).
-    name : str
-        The gain's name in error messages (e.g. ``"K_w1"``).
-    definite : bool, optional
-        Require positive definite (True) or only positive semi-definite (False).
-
-    Returns
-    -------
-    numpy.ndarray
-        The gain as a float matrix of shape (size, size).
-
-    Raises
-    ------
-    ParameterError
-        ``value`` is not numeric (a bool or text is not a gain), has the wrong shape, is not
-        finite, not symmetric, or not (semi-)definite; ``size`` is not a positive
-        integer, ``name`` not a string or ``definite`` not a bool.
+    Positive definite (semi-definite unless ``definite``); ParameterError naming ``name``.
     """
     if not isinstance(name, str):
         raise ParameterError(f"name must be the gain's name (a string), got {brief(name)}")

@@ -3,50 +3,13 @@
 After Liljebäck, Pettersen, Stavdahl and Gravdahl, *Snake Robots: Modelling,
 Mechatronics, and Control* (Springer, 2013) and Liljebäck, Haugstuen and Pettersen, "Path
 following control of planar snake robots using a cascaded approach" (IEEE TCST 20(1),
-2012), re-derived in this package's conventions (the primary texts were not at hand: the
-law is the book's as stated there and in public reimplementations). It does not track a
-head trajectory: it steers the body so that its centre of mass (CM) converges to a path
-and moves along it at the gait's speed. States are ``x = [q, dq]``.
-
-1. **Gait with a steering offset**: ``phi_ref,i(t) = alpha sin(omega t - (i - 1) delta) +
-   phi_0`` (joints numbered from the head, so the wave runs head to tail); a constant
-   phi_0 bends the body into an arc on average and turns it.
-2. **LOS guidance**: with the CM at signed cross-track distance e from its closest path
-   point, ``theta_los = gamma_p(s*) - atan(e / Delta)`` (look-ahead Delta), smoothed by
-   the third-order filter ``omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s +
-   omega_c^2))`` (zeta = 1, ``omega_c = 2 pi / ref_period``) into theta_ref, theta_ref',
-   theta_ref''.
-3. **Heading control** of the mean heading ``psi = (1 / n) sum theta_i + pi`` (theta_i
-   points head to tail here). ``steering = "cascaded"`` (default) inverts the book's
-   averaged turning model ``psi'' = -lambda_1 psi' - (lambda_2 / (n - 1)) v_t sum phi_i``
-   (the sign of phi_0 flipped by the convention)::
-
-       phi_0 = -(theta_ref'' + lambda_1 theta_ref' + k_theta (theta_ref - psi))
-               / (lambda_2 v_t) - (1 / (n - 1)) sum_i alpha sin(omega t - (i - 1) delta)
-
-   so that ``e_psi'' + lambda_1 e_psi' + k_theta e_psi = 0``, with v_t the CM speed along
-   psi low-pass filtered over one gait period (``speed_period``) and floored at ``v_min``
-   (the instantaneous speed nearly vanishes twice a cycle and 1 / v_t then saturates
-   phi_0). ``steering = "pd"``: ``phi_0 = -(k_p (theta_ref - psi) + k_d (theta_ref' -
-   psi'))``. phi_0 is saturated at ``phi0_max``, rate-limited to ``phi0_rate`` and
-   smoothed by a second third-order filter (``offset_period``) whose derivatives feed
-   phi_ref', phi_ref''.
-4. **Joint control** by collocated partial feedback linearisation: with a the actuated
-   joints and u the rest, ``tau_a = (H_aa - H_au H_uu^-1 H_ua) v + h_a - H_au H_uu^-1 h_u``
-   gives ``q_a'' = v = phi_ref'' + k_d (phi_ref' - phi') + k_p (phi_ref - phi)`` exactly.
-
-Defaults (:class:`LOSParams`) are for the Table 1 robot with c_y = 25 N s/m: alpha = 0.5
-rad, omega = 0.8 rad/s, delta = 0.94 rad (about 0.1 m/s along the path); lambda_2 /
-lambda_1 = 9.3 /m fitted from open-loop runs with constant offsets (lambda_1 = 20 /s,
-lambda_2 = 186 /(m s)); k_theta = 10 /s^2, Delta = 0.6 m, ref_period = 1 s, v_min = 0.03
-m/s, phi0_max = 0.35 rad, phi0_rate = 0.3 rad/s, offset_period = 0.5 s, k_p = 100 /s^2,
-k_d = 20 /s: the lowest CM cross-track errors of the settings tried over circles, a lane
-change and a sinusoid (RMS 1-2 cm). Another robot needs its own lambda_2 / lambda_1 and
-probably its own gait.
-
-Signals per step: ``e_ct`` (CM cross-track error [m]), ``theta_ref``, ``theta_avg`` (psi),
-``phi_0``, ``v_t``, ``v_avg`` (the averaged speed the law uses) and ``s_cm`` (arc length of
-the CM's closest path point).
+2012), re-derived in this package's conventions. It steers the centre of mass (CM) onto a
+path at the gait's speed (no head trajectory): a serpenoid gait with a steering offset
+phi_0, LOS guidance, heading control (``steering = "cascaded"`` or ``"pd"``) and joint
+control by collocated partial feedback linearisation. The law, its defaults
+(:class:`LOSParams`, for the Table 1 robot with c_y = 25 N s/m) and its signals per step
+(``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``):
+:ref:`derivation-los`. States are ``x = [q, dq]``.
 """
 
 from __future__ import annotations
@@ -64,7 +27,7 @@ from ..model import Snake
 from ..paths import Line, Path, PathReference
 from .base import Controller
 
-__all__ = ["LOSController", "LOSParams", "ReferenceFilter", "body_kinematics", "los_heading"]
+__all__ = ["LOSController", "LOSParams"]
 
 _STEERING = ("cascaded", "pd")
 #: The fields only one steering law reads: a value other than the default given with the
@@ -164,26 +127,9 @@ class LOSParams:
 
 
 def los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
-    """Return the LOS guidance angle ``theta_los = gamma - atan(e / Delta)``.
+    """The LOS angle ``gamma - atan(e / Delta)`` [rad] (cross-track e left positive, Delta > 0).
 
-    Parameters
-    ----------
-    gamma : float
-        Tangent angle of the path at the closest point [rad].
-    cross_track : float
-        Cross-track error e [m], left of the path positive.
-    look_ahead : float
-        Look-ahead distance Delta [m], > 0.
-
-    Returns
-    -------
-    float
-        The desired heading of travel [rad].
-
-    Raises
-    ------
-    ParameterError
-        A value is not a finite number, or ``look_ahead`` is not positive.
+    ParameterError for a value that is not a finite number or a non-positive ``look_ahead``.
     """
     return _los_heading(finite_number(gamma, "gamma"), finite_number(cross_track, "cross_track"),
                         finite_number(look_ahead, "look_ahead", positive=True))
@@ -195,44 +141,19 @@ def _los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
 
 
 def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Return the centre of mass and the mean heading of travel at a state.
+    """``(p_cm, v_cm, psi, psi')``: the CM's position and velocity and the mean heading of travel.
 
-    ``psi = mean(theta_i) + pi`` is the direction from tail to head averaged over the
-    links (theta_i points from the head towards the tail in the paper's coordinates);
-    theta_i is theta_1 plus the joint angles before link i, so psi is continuous in time.
-
-    Parameters
-    ----------
-    snake : Snake
-        The robot (its link masses, lengths and CM offsets).
-    x : array_like, shape (2(n + 2),)
-        State ``x = [q, dq]``.
-
-    Returns
-    -------
-    p_cm, v_cm : numpy.ndarray, shape (2,)
-        Position [m] and velocity [m/s] of the whole robot's centre of mass.
-    psi, dpsi : float
-        Mean heading of travel [rad] and its rate [rad/s].
-
-    Raises
-    ------
-    ParameterError
-        ``snake`` is not a Snake.
-    ConfigurationError
-        ``x`` does not have 2(n + 2) finite entries.
+    ``psi = mean(theta_i) + pi`` (theta_i points head to tail) is continuous in time. The
+    arguments are checked (ParameterError, ConfigurationError).
     """
     x = instance(snake, Snake, "snake").check_state(x)
     return _kinematics(_cm_lever(snake), snake.nq, x)
 
 
 def _cm_lever(snake: Snake) -> np.ndarray:
-    """a_k with p_cm = p_head + sum_k a_k [cos theta_k, sin theta_k].
-
-    Link i's CM is its front end plus c_i along it, and its front end the head plus
-    sum_{k < i} L_k along the links before it; weighting by w_i = m_i / M and summing
-    gives a_k = w_k c_k + L_k sum_{i > k} w_i.
-    """
+    """a_k with p_cm = p_head + sum_k a_k [cos theta_k, sin theta_k]: weighting each link's CM
+    (head + sum_{k < i} L_k e_k + c_i e_i) by w_i = m_i / M gives
+    a_k = w_k c_k + L_k sum_{i > k} w_i."""
     params = snake.params
     weights = params.masses / params.masses.sum()
     behind = weights[::-1].cumsum()[::-1] - weights  # sum of w_i over i > k
@@ -254,22 +175,8 @@ def _kinematics(lever: np.ndarray, nq: int, x: np.ndarray
 class ReferenceFilter:
     """Third-order low-pass reference filter giving a signal and its two derivatives.
 
-    ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2))`` with
-    ``omega_c = 2 pi / period``: state ``z = [y, y', y'']`` with ``z' = F z + b r``. Each
-    :meth:`update` holds the new input over the elapsed time and steps the state exactly
-    (matrix exponential, cached per step length).
-
-    Parameters
-    ----------
-    period : float
-        ``2 pi / omega_c`` [s], > 0.
-    zeta : float, optional
-        Damping ratio of the second-order factor (1: critically damped), > 0.
-
-    Raises
-    ------
-    ParameterError
-        ``period`` or ``zeta`` is not a positive number.
+    ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2))``,
+    ``omega_c = 2 pi / period`` (``period``, ``zeta`` > 0, else ParameterError).
     """
 
     def __init__(self, period: float, zeta: float = 1.0) -> None:
@@ -286,29 +193,13 @@ class ReferenceFilter:
         self.state: np.ndarray | None = None
 
     def reset(self, value: float | None = None) -> None:
-        """Start at rest at ``value`` on the next update.
-
-        Parameters
-        ----------
-        value : float or None, optional
-            Initial output; None starts at rest at the next update's input.
-        """
+        """Start at rest at ``value`` (None: at the next update's input)."""
         self.state = None if value is None else np.array([value, 0.0, 0.0])
 
     def update(self, r: float, dt: float) -> np.ndarray:
-        """Advance by ``dt`` with the input ``r`` held over the step.
+        """``[y, y', y'']`` (a fresh array) after ``dt`` [s] with the input ``r`` held over it.
 
-        Parameters
-        ----------
-        r : float
-            Filter input over the step.
-        dt : float
-            Step length [s]; 0 returns the current state.
-
-        Returns
-        -------
-        numpy.ndarray, shape (3,)
-            ``[y, y', y'']`` (a fresh array).
+        Exact (matrix exponential, cached per step length); ``dt = 0`` returns the current state.
         """
         if self.state is None:
             self.state = np.array([r, 0.0, 0.0])
@@ -326,17 +217,13 @@ class ReferenceFilter:
 class LOSController(Controller):
     """CM path following by LOS guidance and a steered serpenoid (Liljebäck et al.).
 
-    Called with a state ``x = [q, dq]`` (length 2(n + 2)) and a time t [s], it returns
-    the n - 1 joint torques [N m] (zero on passive joints).
-
     Parameters
     ----------
     snake : Snake
         The plant (passive joints get no torque; the gait still asks them to move).
     path : Path or PathReference or None, optional
-        The path for the CM: a :class:`~snake_pin.paths.Path`, or a
-        :class:`~snake_pin.paths.PathReference` (its timing is ignored: the law has no
-        timing, the gait sets the speed). Default: the x axis.
+        The CM's path (a PathReference's timing is ignored: the gait sets the speed);
+        default the x axis.
     params : LOSParams or None, optional
         :class:`LOSParams`; keyword overrides may be given instead or on top.
     **overrides
@@ -345,9 +232,7 @@ class LOSController(Controller):
     Raises
     ------
     ParameterError
-        If ``snake`` is not a Snake, every joint is passive, ``params`` is not a
-        :class:`LOSParams`, an override is unknown or out of its domain, or ``path`` is
-        not a path.
+        A bad robot (every joint passive), ``params``, override or ``path``.
     """
 
     name = "los"
@@ -554,7 +439,7 @@ class LOSController(Controller):
         -------
         dict of str to float
             ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg`` and
-            ``s_cm`` (see the module docstring); empty before the first call.
+            ``s_cm`` (:ref:`derivation-los`); empty before the first call.
         """
         return self._last
 
@@ -569,7 +454,6 @@ class LOSController(Controller):
         Returns
         -------
         numpy.ndarray of shape (n + 2,) or None
-            The acceleration [m/s^2, rad/s^2] at the last call's state, or None when
-            ``snake`` is not this controller's plant (the simulator then computes it).
+            The acceleration at the last call's state, or None for another plant.
         """
         return self._ddq if snake is self.snake else None

@@ -1,46 +1,11 @@
 """Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here.
 
 The paper's reference [27] for this law is not available; only V (83) and the gains (84)
-are. This module's law::
-
-    V = ||s||^2_{K_w2} + ||e||^2_{K_phi},  s = e_w' + K_w1 e_w,  e = phi_r' - phi'   (83)
-
-with e_w = w_r - w. Along the dynamics::
-
-    V' = 2 s^T K_w2 (w_r'' + K_w1 e_w' - w'') + 2 e^T K_phi (phi_r'' - phi'').
-
-The accelerations are affine in the actuated torques: q'' = H^-1 (E_a tau_a - h) =
-A tau_a + b, A = H^-1 E_a (E_a: the columns of E of the actuated joints; a passive joint
-is a dropped column). Take the targets::
-
-    w''*   = w_r'' + K_w1 e_w' + lam s          (then s' = -lam s)
-    phi''* = phi_r'' + mu e + k_s (phi_r - phi)  (then e' = -mu e)
-
-and ``tau_a = argmin ||A tau_a + b - q''*||^2_W``, ``W = blockdiag(K_w2, K_phi)``: a weighted least
-squares, solved by Cholesky on A^T W A (positive definite: H^-1 is invertible).
-
-With the residual ``rho = A tau_a + b - q''*``::
-
-    V' = -2 lam ||s||^2_{K_w2} - 2 mu ||e||^2_{K_phi} - 2 [s; e]^T W rho
-         - 2 k_s e^T K_phi (phi_r - phi).
-
-With an input per coordinate rho = 0 and V decays at least as exp(-2 min(lam, mu) t); the
-snake has at most n - 1 inputs for n + 2 rows, and the law gives up exactly the W-smallest
-part of the target no torque can reach (A^T W rho = 0): V "reduced where the
-underactuation allows" (the tests check this identity for V'). A weak shape spring
-(k_s > 0) keeps the body from drifting when a joint has failed. The head's error must
-decay faster than the gait's (lam = 10/s, mu = lam / 2); one rate for both lets the head
-swing slowly about the reference. The gains are rates and weights on accelerations, with
-no mass or length in them: they stay those of (84) for every robot, whose own H and h
-(per-link values included) scale the torques.
-
-Evaluation (the hot path): b and H^-1 from :meth:`~snake_pin.model.Snake.calc_affine` on
-the law's own data; the targets, s and e are one product with [q, q', b, time terms]; the
-stack S = [W^(1/2) A, W^(1/2) (q''* - b), W^(1/2) [s; e]]^T times its transpose gives
-A^T W A, the right-hand side and V at once (BLAS/LAPACK in place, :mod:`snake_pin._blas`).
-A passive joint keeps its row of A^T with weight 0 and a 1 in a column of its own, so its
-normal equation reads tau_j = 0 exactly. q'' = A tau_a + b is kept for the simulator's
-first RK4 stage (:meth:`plant_acceleration`).
+are. The law takes the actuated torques whose accelerations come closest, in the
+``W = blockdiag(K_w2, K_phi)`` norm, to making ``s = e_w' + K_w1 e_w`` decay at rate lam
+and the joints follow the gait (a weighted least squares, by Cholesky), so V decreases
+where the underactuation allows; a passive joint is a dropped column of E. Derivation,
+gains and evaluation: :ref:`derivation-lyapunov`.
 
 Convention: in the paper's coordinates (3) theta_1 points from the head towards the
 tail, so a head-first run along +x has theta_1 = pi; see
@@ -83,15 +48,14 @@ class LyapunovOptions:
     k_w2 : float or array_like, optional
         K_w2 of (84), the weights of the head's error in V (3 x 3, diagonal, positive).
     k_phi : float or array_like or None, optional
-        K_phi of (84), the weights of the joints' error in V ((n - 1) x (n - 1), diagonal,
-        positive); None: 10 on joint 1 and 20 on the others (:func:`default_k_phi`).
+        K_phi of (84), the joints' weights in V (diagonal, positive); None: 10 on joint 1
+        and 20 on the others.
     lam : float, optional
         Decay rate lambda of the head's error s [1/s] (> 0).
     lam_shape : float or None, optional
         Decay rate mu of the joints' velocity error e [1/s] (> 0); None: ``lam / 2``.
     k_shape : float or None, optional
-        Shape spring k_s [1/s^2] (>= 0); None: 0 with every joint actuated, 0.3 with a
-        passive joint.
+        Shape spring k_s [1/s^2] (>= 0); None: 0, or 0.3 with a passive joint.
 
     Raises
     ------
@@ -125,8 +89,7 @@ class LyapunovOptions:
         Returns
         -------
         LyapunovOptions
-            ``k_phi`` of :func:`default_k_phi`, ``lam_shape = lam / 2`` and ``k_shape``
-            0.3 with a passive joint, 0 without, where they were None.
+            The None fields filled in as the class describes.
         """
         k_phi = self.k_phi
         if k_phi is None and joints is not None:
@@ -150,19 +113,16 @@ class LyapunovController(ReferenceLaw):
     gait
         Serpenoid for phi_r; default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
     options
-        :class:`LyapunovOptions` (gains of (84), the rates lam and lam_shape, the shape
-        spring k_shape); default ``LyapunovOptions()``.
+        :class:`LyapunovOptions`; default ``LyapunovOptions()``.
     **overrides
-        Fields of :class:`LyapunovOptions` to change (e.g. ``lam=5.0``); the robot-dependent
-        defaults are filled in by :meth:`LyapunovOptions.resolved` and kept as
-        ``self.options``.
+        Fields of :class:`LyapunovOptions` to change; the result, resolved for the robot
+        (:meth:`LyapunovOptions.resolved`), is ``self.options``.
 
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, every joint is passive, ``reference`` is not callable,
-        the gait is not a Serpenoid for this robot, ``options`` is not a LyapunovOptions,
-        an override is unknown, or a gain or rate is invalid.
+        A bad robot (every joint passive), reference, gait, ``options``, override, gain
+        or rate.
     """
 
     name = "lyapunov"
@@ -199,13 +159,13 @@ class LyapunovController(ReferenceLaw):
         self._buffers = self._allocate()
 
     def _build_law(self) -> None:
-        """Constant matrices of the hot path (see the module docstring)."""
+        """Constant matrices of the hot path (:ref:`derivation-lyapunov`)."""
         snake, nq, n = self.snake, self.snake.nq, self.snake.n
         m, eye3 = n - 1, np.eye(3)
         k_w1, lam, mu, k_s = self.k_w1, self.lam, self.lam_shape, self.k_shape
         sqrt_w = np.sqrt(self._weights)
         # rows: [W^(1/2) (q''* - b); s; e]; columns: [w_r, phi_r, w_r', phi_r', w_r'',
-        # phi_r'', q, q', b], each block nq wide (eqs. of the module docstring)
+        # phi_r'', q, q', b], each block nq wide (eqs. of docs/equations.rst)
         law = np.zeros((2 * nq, 6 * nq))
         r, dr, ddr, q, v, b = (slice(k * nq, (k + 1) * nq) for k in range(6))
         rows_w, rows_phi = slice(0, 3), slice(3, nq)
@@ -276,24 +236,9 @@ class LyapunovController(ReferenceLaw):
             acceleration=gemv(1.0, rows.T, tau, 1.0, b))  # q'' = b + A tau_a, in b
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        """Joint torques (length n - 1) at state ``x`` and time ``t``.
+        """Joint torques at (x, t), 0 on passive joints.
 
-        Parameters
-        ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        numpy.ndarray
-            ``tau`` (passive joints' entries 0).
-
-        Raises
-        ------
-        SingularPostureError
-            A^T W A is not positive definite.
+        SingularPostureError if A^T W A is not positive definite.
         """
         work = self._buffers
         self._acceleration = None
@@ -326,8 +271,7 @@ class LyapunovController(ReferenceLaw):
         Returns
         -------
         tuple of numpy.ndarray
-            ``q''*`` (length n + 2), the head's error ``s`` (length 3) and the joint
-            velocity error ``e`` (length n - 1).
+            ``q''*`` (n + 2), the head's error ``s`` (3), the joints' velocity error ``e``.
         """
         nq = self.snake.nq
         w_r, dw_r, ddw_r = self.reference(t)
@@ -342,9 +286,7 @@ class LyapunovController(ReferenceLaw):
         return target, s, e
 
     def affine_map(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(A, b)`` with ``q'' = A tau_a + b`` at state x.
-
-        ``A = H^-1 E_a`` and ``b = -H^-1 h``.
+        """``(A, b)`` with ``q'' = A tau_a + b`` at state x: ``A = H^-1 E_a``, ``b = -H^-1 h``.
 
         Parameters
         ----------

@@ -1,22 +1,11 @@
 """Model-predictive head tracking: a receding-horizon Box-FDDP on the snake's OCP.
 
-This module owns :class:`MPCOptions` (the law's settings, validated) and
-:class:`MPCController`. Every ``resolve_period`` the controller solves the optimal-control
-problem of :mod:`snake_pin.ocp` over ``horizon`` from the measured state: RK4 nodes of
-``node_dt``, costs on the head's distance to the timed reference ``w_r(t)`` and its
-velocity, a serpenoid gait prior, torque and joint limits, the torques boxed by
-``|u| <= torque_bound`` (Crocoddyl's Box-FDDP). Between re-solves it applies the plan with
-its Riccati feedback, ``u = u_k - K_k (x - x_plan(t))`` (x_plan interpolated linearly
-between nodes), clipped to the bounds; passive joints are not inputs of the problem and
-get exactly zero torque.
-
-Warm start. The tracking trajectories are unstable open loop, so re-simulating the
-shifted torques from the new state drifts away from the plan; the solver starts instead
-from the planned states shifted by the elapsed nodes, with the measured state at node 0
-(a gap there, which FDDP closes), the planned torques shifted alike and the last node
-repeated. The first solve starts from a rollout under zero torque and runs more iterations
-(a rollout under a joint PD towards the gait, clipped, spins the light head link and
-leaves Box-FDDP in a poor local minimum: cost 2811 against 23 on the line's first solve).
+:class:`MPCController` solves the problem of :mod:`snake_pin.ocp` every
+``resolve_period`` from the measured state and applies the plan with its Riccati
+feedback in between (:doc:`/mpc`); passive joints are not inputs and get exactly zero
+torque. The solver is warm-started from the planned states shifted by the elapsed nodes;
+the first solve starts from a zero-torque rollout (a rollout under a joint PD towards the
+gait spins the light head link and leaves Box-FDDP in a poor local minimum).
 """
 
 from __future__ import annotations
@@ -48,8 +37,7 @@ class MPCOptions:
     horizon : float, optional
         Length of the prediction [s]; at least one node.
     node_dt : float, optional
-        Step of the RK4 nodes [s] (the viscous snake's fastest mode is about 8 ms:
-        RK4 diverges beyond about 20 ms).
+        Step of the RK4 nodes [s] (RK4 diverges beyond about 20 ms: :doc:`/mpc`).
     resolve_period : float, optional
         Time between re-solves [s]: a whole number of nodes, at most the horizon.
     torque_bound : float, optional
@@ -61,8 +49,7 @@ class MPCOptions:
     first_iterations : int, optional
         Iterations of the first (cold) solve, >= 1.
     step_halvings : int, optional
-        Line search: the step lengths tried are 1, 1/2, ..., 2^-step_halvings (>= 0; each
-        trial is a pass of the dynamics over the horizon).
+        Line search: steps 1, 1/2, ..., 2^-step_halvings (>= 0).
     feedback : bool, optional
         Apply the Riccati gains between re-solves (False: the planned torques alone).
     weights : CostWeights, optional
@@ -71,9 +58,7 @@ class MPCOptions:
     Raises
     ------
     ParameterError
-        A value out of its domain: a horizon shorter than a node, a re-solve period that
-        is not a whole number of nodes or exceeds the horizon, a bound that excludes zero
-        torque, a negative weight (one line).
+        A value out of its domain (one line).
     """
 
     horizon: float = 0.5
@@ -162,9 +147,7 @@ class MPCController(Controller):
     snake : Snake
         The plant's model (its friction and passive joints are the problem's).
     reference : callable, optional
-        Head reference ``t -> (w_r, w_r', w_r'')`` (a
-        :class:`~snake_pin.paths.PathReference` or a
-        :class:`~snake_pin.control.reference.LinearReference`); default
+        Head reference ``t -> (w_r, w_r', w_r'')``; default
         :func:`~snake_pin.control.reference.head_first_reference`.
     gait : Serpenoid, optional
         The gait prior phi_r(t); default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
@@ -174,8 +157,7 @@ class MPCController(Controller):
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, every joint is passive, the reference is not callable,
-        the gait is not a serpenoid for this robot, or ``options`` is not MPCOptions.
+        A bad robot (or every joint passive), reference, gait or ``options``.
     """
 
     name = "mpc"
@@ -213,26 +195,14 @@ class MPCController(Controller):
         self._solver.alphas = [2.0 ** -k for k in range(o.step_halvings + 1)]
 
     def __getstate__(self) -> dict[str, Any]:
-        """The attributes to pickle: all but Crocoddyl's problem and solver.
-
-        Returns
-        -------
-        dict
-            The attributes.
-        """
+        """The attributes to pickle: all but Crocoddyl's problem and solver."""
         state = self.__dict__.copy()
         for key in ("_problem", "_solver"):
             state.pop(key, None)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        """Unpickled: the problem and solver are built again (the plan is kept).
-
-        Parameters
-        ----------
-        state : dict
-            The pickled attributes.
-        """
+        """Unpickled: the problem and solver are built again (the plan is kept)."""
         self.__dict__.update(state)
         self._build()
 
@@ -291,20 +261,7 @@ class MPCController(Controller):
 
     # ---------------------------------------------------------------- control
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        """Joint torques (length n - 1; zero on passive joints) at state x and time t.
-
-        Parameters
-        ----------
-        x : numpy.ndarray
-            The state ``[q, q']``, length 2 (n + 2).
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        numpy.ndarray
-            The torques [N m], within ``+-torque_bound``.
-        """
+        """Joint torques at (x, t): 0 on passive joints, within ``+-torque_bound``."""
         x = np.asarray(x, dtype=float)
         if self._plan is None or t >= self._next_solve - 1e-9 * max(1.0, abs(t)):
             self._solve(x, t)

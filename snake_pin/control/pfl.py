@@ -1,35 +1,10 @@
 """Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected.
 
-Derivation (eq. 70 is misprinted; the law is derived again from (27)). Solving (25) for
-phi'' and substituting into (24)::
-
-    Hs w'' = -h1 + H12 H22^-1 (h2 - tau),      Hs = H11 - H12 H22^-1 H21   (27, 68)
-
-For w'' = a we need H12 H22^-1 tau = -Hs a - h1 + H12 H22^-1 h2. With
-tau = H22 [H12^+ y + (I - H12^+ H12) kappa], H12 H22^-1 tau = y whenever H12 has full
-row rank (R > 0), so::
-
-    tau = H22 H12^+ (-Hs a - h1 + H12 H22^-1 h2) + H22 (I - H12^+ H12) kappa.
-
-The printed (70) has +Hs a, which drives the head against the command. Here
-a = w_r'' + K_v (w_r' - w') + K_p (w_r - w) (71), kappa = H22^-1 h2 - u with
-u = -phi_r'' - R_v (phi_r' - phi') - R_p (phi_r - phi) (75, 78) and phi_r a serpenoid.
-
-Beyond the paper, ``climb_R = gamma > 0`` uses the redundancy to climb log R: u gets
--k_d (gamma grad_phi log R - phi'), so that in the null space of H12 the joints accelerate
-towards the velocity gamma grad log R (a damped gradient flow; it does not disturb
-w'' = a). The report shows what it does to the breakdown.
-
-Evaluation (the hot path): expanded, the law is ``tau = h2 + H22 w``, ``w = H12^+ z - u``,
-``z = -H11 a - h1 + H12 (H22^-1 H21 a + u)``: one Cholesky solve of a vector
-(p = H22^-1 H21 a), ``H12^+ z = H12^T (H12 H12^T)^-1 z`` by a 3 x 3 Cholesky solve, and R
-from the closed-form smallest eigenvalue of H12 H12^T
-(:func:`~snake_pin._symmetric.smallest_eigenvalue_3x3`; a full SVD costs 4x more), on H
-and h of :meth:`~snake_pin.model.Snake.calc_mass_and_bias` (the law's own data). The
-closed loop's q'' is then known, ``[a; w - p]``: the simulator's first RK4 stage
-(:meth:`PFLController.plant_acceleration`). The law reads only the robot's own H and h and
-the per-link closed form of R, so w'' = a holds for any robot; its gains are rates on
-accelerations and serve every robot.
+Eq. (70) is misprinted (+Hs a drives the head against the command); the law is derived
+again from (27): ``tau = H22 H12^+ (-Hs a - h1 + H12 H22^-1 h2) + H22 (I - H12^+ H12) kappa``
+with a of (71) and kappa of (75, 78), needing R > 0. ``climb_R`` adds a damped gradient
+flow up log R in the null space of H12. Derivation and evaluation:
+:ref:`derivation-pfl`.
 """
 
 from __future__ import annotations
@@ -69,8 +44,7 @@ class PFLOptions:
     k_v, k_p : float or array_like, optional
         K_v [1/s] and K_p [1/s^2] of (71) on the head (3 x 3, positive definite).
     r_v, r_p : float or array_like, optional
-        R_v [1/s] and R_p [1/s^2] of (78) on the joints ((n - 1) x (n - 1), positive
-        semi-definite).
+        R_v [1/s] and R_p [1/s^2] of (78) on the joints (positive semi-definite).
     r_min : float, optional
         Smallest R for which the law is defined (>= 0); below it SingularPostureError.
     climb_R : float, optional
@@ -116,18 +90,15 @@ class PFLController(ReferenceLaw):
     gait
         Serpenoid for phi_r; default alpha = pi/3, T_s = 1, v = 0.18 (eq. 81).
     options
-        :class:`PFLOptions` (gains of (79), r_min, the climb term); default ``PFLOptions()``.
+        :class:`PFLOptions`; default ``PFLOptions()``.
     **overrides
-        Fields of :class:`PFLOptions` to change (e.g. ``climb_R=0.5``); the result is kept
-        as ``self.options``.
+        Fields of :class:`PFLOptions` to change (the result: ``self.options``).
 
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, a joint is passive, n < 4, ``reference`` is not
-        callable, the gait is not a Serpenoid for this robot, a gain is not a valid
-        (semi-)definite matrix, a number is invalid, ``climb_damping`` is given with
-        ``climb_R = 0``, ``options`` is not a PFLOptions or an override is unknown.
+        A bad robot (a passive joint, n < 4), reference, gait, ``options``, override or
+        gain.
     """
 
     name = "pfl"
@@ -204,24 +175,9 @@ class PFLController(ReferenceLaw):
             torque=gemv(1.0, mass[:, 3:], stacked, 1.0, tau, 1))  # H21 a + H22 phi'' + h2
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        """Joint torques (length n - 1) at state ``x`` and time ``t``.
+        """Joint torques at (x, t).
 
-        Parameters
-        ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        numpy.ndarray
-            ``tau``.
-
-        Raises
-        ------
-        SingularPostureError
-            R <= r_min, or H22 or H12 H12^T is not positive definite.
+        SingularPostureError if R <= r_min, or H22 or H12 H12^T is not positive definite.
         """
         work = self._buffers
         self._acceleration = None
@@ -281,9 +237,8 @@ class PFLController(ReferenceLaw):
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
         """``q''`` of the last call, if ``snake`` is the robot this law models.
 
-        It is ``[a; H22^-1 (tau - h2 - H21 a)]`` (``w'' = a`` holds there: R > r_min was
-        checked). The array is the controller's own buffer, valid until its next call
-        (as :meth:`Controller.plant_acceleration` allows): copy it to keep it.
+        ``[a; H22^-1 (tau - h2 - H21 a)]`` (R > r_min was checked); the controller's own
+        buffer, valid until its next call.
 
         Parameters
         ----------

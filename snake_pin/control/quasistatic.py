@@ -1,39 +1,11 @@
 """The Lyapunov-like law at velocity level, for friction-dominated robots (wheels).
 
-When friction dominates inertia (time constant m / c_y much shorter than the motion, as
-on wheels, where it is effectively zero), the unactuated rows of (20) reduce to a force
-balance: C_uu u' + C_ua a' = 0, u the unactuated coordinates (w, plus phi_k of a passive
-joint k) and a the actuated joint angles. The head then moves with the joints through the
-quasi-static connection::
-
-    u' = J(q) a',   J = -C_uu^-1 C_ua        (C of eqs. 11-13, the viscous model).
-
-Under it, V of (83) is a quadratic function of the actuated joint velocities::
-
-    V(a') = ||J_w a' - (w_r' + K_w1 e_w)||^2_{K_w2} + ||a' - phi_r,a'||^2_{K_phi,a}
-            + ||J_k a' - phi_r,k'||^2_{K_phi,k}
-
-(J_w, J_k: the w rows and the passive rows of J), since s = e_w' + K_w1 e_w =
-w_r' + K_w1 e_w - w'. The law takes the minimiser ``a'*`` of V (normal equations, positive
-definite because K_phi is), integrates it into a joint reference and lets a PD servo of
-bandwidth omega_s on each actuated joint realise it (as the servo-driven joints of the
-paper's V-REP robot do). Passive joints get no torque. V is not driven to zero - the
-underactuation leaves a positive minimum - but each control step commands the joint
-velocity of least V, and the head follows through J.
-
-C is built link by link (each link's own coefficients at its own CM); the servos' gains,
-the only ones with units, scale per joint with the links it joins (:func:`servo_gains`).
-Every link needs c_x, c_y > 0 (a link without friction has inertia that matters).
-
-Evaluation (the engine loop's hot path): C is the damping twin's Schur complement
-(:func:`~snake_pin.friction.damping_twin`, M_ww = -1), and ``C_uu^-1 C_ua`` the first block
-row of the solution of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa]: one CRBA and one
-solve give J without forming C. The time-only terms are computed in blocks after
-:meth:`~QuasiStaticLyapunovController.prepare`; V only when
-:meth:`~QuasiStaticLyapunovController.signals` asks for it.
-:class:`~snake_pin.control.lyapunov.LyapunovController` is the acceleration-level form of
-the same V; it needs a model that predicts accelerations, which sticking wheels do not
-honour.
+With friction dominating inertia, the unactuated rows of (20) reduce to the force balance
+``C_uu u' + C_ua a' = 0`` (C of eqs. 11-13), so V of (83) is a quadratic in the actuated
+joint velocities; the law takes its minimiser and PD servos (:func:`servo_gains`) realise
+it. Every link needs c_x, c_y > 0. Derivation and evaluation:
+:ref:`derivation-quasistatic`; :class:`~snake_pin.control.lyapunov.LyapunovController` is
+the acceleration-level form of the same V.
 """
 
 from __future__ import annotations
@@ -69,8 +41,7 @@ class QuasiStaticOptions:
     servo_bandwidth : float, optional
         Bandwidth omega_s of the joint servos [rad/s] (> 0).
     max_lead : float, optional
-        Largest distance the integrated joint reference may run ahead of the joint [rad]
-        (> 0).
+        How far the integrated joint reference may run ahead of the joint [rad] (> 0).
     control_dt : float, optional
         The controller's sampling period [s] (> 0).
 
@@ -96,19 +67,14 @@ class QuasiStaticOptions:
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
     """(K_p, K_d) per joint (n - 1 each) of critically damped servos of ``bandwidth`` [rad/s].
 
-    With ``omega = bandwidth``::
-
-        K_p,k = omega^2 I_k,   K_d,k = 2 omega I_k,
-        I_k = (m_k (2 l_k)^2 + m_k+1 (2 l_k+1)^2) / 2,
-
-    the mean inertia scale of the two links joint k joins (each about its own end, as a
-    point mass at the far end would be). It scales with each link's mass times its length
-    squared; on equal links every ``I_k`` is ``m (2l)^2``.
+    ``K_p,k = omega^2 I_k`` and ``K_d,k = 2 omega I_k``, with
+    ``I_k = (m_k (2 l_k)^2 + m_k+1 (2 l_k+1)^2) / 2`` the mean inertia scale of the two links
+    joint k joins (``m (2l)^2`` on equal links): a heavy, long head gets stiffer servos.
 
     Parameters
     ----------
     params : SnakeParams
-        The robot (link masses [kg] and full lengths 2l [m]).
+        The robot.
     bandwidth : float
         Servo bandwidth ``omega`` [rad/s].
 
@@ -139,11 +105,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
     reference, gait
         As for the acceleration-level controller (w_r = [0.1 t, 0, pi], serpenoid of VI.2).
     options
-        :class:`QuasiStaticOptions`: gains of (84), the servos' bandwidth omega_s (joint k
-        gets K_p,k = omega_s^2 I_k and K_d,k = 2 omega_s I_k, critically damped on I_k, the
-        mean of m_i (2l_i)^2 over the two links it joins: a heavy, long head gets stiffer
-        servos next to it; on equal links I_k = m (2l)^2), max_lead and control_dt (the
-        period over which the joint reference is integrated).
+        :class:`QuasiStaticOptions` (gains of (84); servos as :func:`servo_gains`).
     **overrides
         Fields of :class:`QuasiStaticOptions` to change; the result is kept as
         ``self.options``.
@@ -151,10 +113,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake, every joint is passive, a link has no lateral or
-        longitudinal friction, ``reference`` is not callable, the gait is not a Serpenoid
-        for this robot, ``options`` is not a QuasiStaticOptions, an override is unknown, or
-        a gain or number is invalid.
+        A bad robot (every joint passive, a link without c_x or c_y), reference, gait,
+        ``options`` or override.
     """
 
     name = "lyapunov_velocity"
@@ -217,8 +177,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self._gather = (np.minimum.outer(rows, cols) * twin.nv
                         + np.maximum.outer(rows, cols)).ravel()
         self._block = len(rows)
-        # V's weights as square roots (J enters as -sqrt(W_u) C_uu^-1 C_ua, eq. of the
-        # module docstring) and the normal matrix's diagonal, in LAPACK's column order
+        # V's weights as square roots (J enters as -sqrt(W_u) C_uu^-1 C_ua) and the normal
+        # matrix's diagonal, in LAPACK's column order
         self._sqrt_w_u = np.sqrt(self._w_u)
         self._neg_sqrt_w_u = -self._sqrt_w_u[:, None]
         self._diag_w_a = np.asfortranarray(np.diag(self._w_a))
@@ -242,9 +202,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         """Rows ``[sqrt(W_u) [w_r' + K_w1 w_r, phi_r,passive'], W_a phi_r,actuated',
         phi_r,actuated']``, one per time.
 
-        Many times: the vectorised reference rows (:func:`reference_rows`) through the
-        law's map; one time (a call at an unannounced time): the reference and the gait
-        at that time directly, which is cheaper than building a one-row block.
+        One time (an unannounced call) is evaluated directly: cheaper than a one-row block.
         """
         if len(times) != 1:
             return super()._time_terms(times)

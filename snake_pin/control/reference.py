@@ -21,19 +21,7 @@ class HeadReference(Protocol):
     """
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The reference and its first two time derivatives at time ``t``.
-
-        Parameters
-        ----------
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        tuple of numpy.ndarray
-            ``(w_r, w_r', w_r'')``, each of shape (3,): head position [m] and heading
-            [rad], then their rates [m/s, rad/s] and accelerations [m/s^2, rad/s^2].
-        """
+        """``(w_r, w_r', w_r'')`` at time ``t``, each (3,): pose [m, m, rad], rate, acceleration."""
         ...
 
 

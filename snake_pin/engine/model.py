@@ -1,41 +1,11 @@
 """MuJoCo model of a snake on passive wheels, built from ``SnakeParams`` with MjSpec.
 
-One source of truth: the link frames, lengths, masses and inertias are those of
-:mod:`snake_pin.urdf` / ``SnakeParams``; this module only adds what the engine needs on
-top (a floor, gravity, a wheel pair per link, contacts, motors). Layout:
-
-* the head link is a free body whose frame is the head point (as in Pinocchio);
-  link i + 1 hangs from link i by a hinge about z at x = 2l_i (``joint_i``);
-* each link carries two free-spinning wheels at its CM, one on each side, on axles along
-  the link's y: they roll along the link and must slide sideways, so the floor's Coulomb
-  friction is anisotropic as in the paper's V-REP robot;
-* every link has its own pair, sized to that link (per-link robots: a long heavy head, a
-  short tail): the wheels sit at that link's centre of mass c_i (``com_offsets``), at a
-  lateral distance ``d_i = 0.15 (2l_i) + 1.1 r`` (clear of that link's capsule), and that
-  link's mass m_i and yaw inertia J_i are shared between its body and its wheels
-  (``m_i = m_body,i + 2 m_w``, ``J_i = J_body,i + 2 (m_w d_i^2 + I_w)``), so the chain's
-  mass matrix equals Pinocchio's H of the same ``SnakeParams`` (the wheels' spin DOFs
-  are left out: a sphere's spin about its axle couples to no planar DOF). All wheels are
-  the same part (radius r, mass m_w): the links then ride at one height, as the planar
-  model needs;
-* every active joint has a motor (``motor_i``); passive joints have none;
-* only wheels touch the floor; link bodies do not collide, wheels of neighbouring links
-  do (beyond about 80 degrees of bend with the default wheels), as on a real robot.
-
-Solver settings: 1 ms control period split into ``substeps`` engine steps (default 2,
-0.5 ms), implicit-fast integration, the sparse constraint Jacobian (set explicitly, see
-:data:`JACOBIAN`), elliptic friction cones with impratio 10 (stiffer, less creeping
-tangential constraints), condim 3 wheel contacts (sliding friction only; rolling about the
-axle is the hinge), soft contacts with solref (0.005, 1): critically damped at 5 ms, well
-above the step.
-
-**Elliptic cones are the default**: the Coulomb contact the viscous model is identified
-from, at any heading. A pyramidal cone's friction limit is a square in the world axes
-(``|f_x| + |f_y| <= mu N``): a link sliding at 45 degrees to them feels 26 % less sideways
-friction, and a serpentine gait sweeps its links through such headings. It is faster
-(``scripts/bench.py --only engine`` times both and prints the fidelity table):
-``WheelSpec(cone="pyramidal")`` remains for quick looks. c_theta = 2 d^2 b / r^2 (the
-axle model) is the same for both cones.
+The link frames, lengths, masses and inertias are those of :mod:`snake_pin.urdf` /
+``SnakeParams``; this module adds a floor, gravity, a wheel pair per link (rolling along
+the link, sliding across it: anisotropic Coulomb friction), contacts and motors on active
+joints, sized so the chain's mass matrix equals Pinocchio's H. Elliptic friction cones are
+the default (``WheelSpec(cone="pyramidal")`` for quick looks). Layout and solver settings:
+:ref:`derivation-engine`.
 """
 
 from __future__ import annotations
@@ -85,14 +55,12 @@ class WheelSpec:
     max_bend : float, optional
         Joint angle [rad] up to which wheels of neighbouring links must not overlap.
     cone : {"elliptic", "pyramidal"}, optional
-        MuJoCo friction cone; elliptic is the Coulomb cone (the default, see the module
-        docstring), pyramidal is faster but its friction depends on the heading.
+        MuJoCo friction cone: elliptic (Coulomb) or pyramidal (faster, heading-dependent).
 
     Raises
     ------
     ParameterError
-        If ``cone`` is unknown, a number is not finite or out of its range, or
-        ``substeps`` is not a positive integer.
+        ``cone`` is unknown, a number is out of its range, or ``substeps`` is not >= 1.
     """
 
     radius: float = 0.03
@@ -127,8 +95,9 @@ class WheelSpec:
 class EngineModel:
     """A compiled MuJoCo model with the index maps to paper coordinates.
 
-    Built by :func:`build_engine_model`; n links, paper configurations
-    ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+    Built by :func:`build_engine_model`; configurations are the paper's. The single-value
+    properties (``body_mass``, ``body_inertia``, ``wheel_offset``) raise ParameterError when
+    the links differ: read the per-link arrays then.
 
     Parameters
     ----------
@@ -151,8 +120,7 @@ class EngineModel:
     body_masses : numpy.ndarray, shape (n,)
         ``m_i - 2 m_w``: each link's mass without its wheels [kg].
     body_inertias : numpy.ndarray, shape (n,)
-        ``J_i - 2 (m_w d_i^2 + I_w)``: each link's yaw inertia without its wheels
-        [kg m^2].
+        ``J_i - 2 (m_w d_i^2 + I_w)``: each link's yaw inertia without wheels [kg m^2].
     wheel_offsets : numpy.ndarray, shape (n,)
         d_i: lateral distance of link i's wheel centres from its axis [m].
     meta : dict of str to float, optional
@@ -178,35 +146,17 @@ class EngineModel:
 
     @property
     def body_mass(self) -> float:
-        """Mass of a link body without its wheels [kg]; equal links only.
-
-        Raises
-        ------
-        ParameterError
-            If the links differ (read :attr:`body_masses`).
-        """
+        """Mass of a link body without its wheels [kg]; equal links only (ParameterError)."""
         return self._same("body_masses")
 
     @property
     def body_inertia(self) -> float:
-        """Yaw inertia of a link body without its wheels [kg m^2]; equal links only.
-
-        Raises
-        ------
-        ParameterError
-            If the links differ (read :attr:`body_inertias`).
-        """
+        """Yaw inertia of a link body without its wheels [kg m^2]; equal links only."""
         return self._same("body_inertias")
 
     @property
     def wheel_offset(self) -> float:
-        """Lateral distance of the wheel centres from the link axis [m]; equal links only.
-
-        Raises
-        ------
-        ParameterError
-            If the links differ (read :attr:`wheel_offsets`).
-        """
+        """Lateral distance of the wheel centres from the link axis [m]; equal links only."""
         return self._same("wheel_offsets")
 
     def _same(self, key: str) -> float:
@@ -226,8 +176,7 @@ class EngineModel:
         Returns
         -------
         numpy.ndarray, shape (n + 2,)
-            ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...], theta_1
-            (the head's yaw) in ``(-pi, pi]``.
+            The paper's ``q``, theta_1 (the head's yaw) in ``(-pi, pi]``.
         """
         head = self.data.xmat[self.link_bodies[0]].reshape(3, 3)
         pos = self.data.xpos[self.link_bodies[0]]
@@ -243,8 +192,7 @@ class EngineModel:
         Parameters
         ----------
         q : numpy.ndarray, shape (n + 2,)
-            Paper configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` (not
-            validated).
+            Paper configuration (not validated).
         """
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:3] = (q[0], q[1], self.wheels.radius)
@@ -329,15 +277,12 @@ def build_engine_model(params: SnakeParams | None = None,
                        wheels: WheelSpec | None = None) -> EngineModel:
     """Compile the MuJoCo model of ``params`` (default: the ``engine`` preset) on wheels.
 
-    Every link gets its own wheel pair, sized to it (see the module docstring); per-link
-    robots are built link by link from ``params.link_lengths``, ``masses``, ``inertias``
-    and ``com_offsets``.
+    Every link gets its own wheel pair, sized to it (:ref:`derivation-engine`).
 
     Parameters
     ----------
     params : SnakeParams or None, optional
-        The robot; :meth:`SnakeParams.engine` by default. Its friction coefficients are
-        not used (the wheels make the friction).
+        The robot (default :meth:`SnakeParams.engine`); its friction is not used.
     wheels : WheelSpec or None, optional
         Wheels and solver settings; ``WheelSpec()`` by default.
 
@@ -349,8 +294,8 @@ def build_engine_model(params: SnakeParams | None = None,
     Raises
     ------
     ParameterError
-        If the wheels overlap (naming the two links), are longer than a link, or leave a
-        link no mass or yaw inertia of its own (naming the link).
+        The wheels overlap, are longer than a link, or leave a link no mass or yaw inertia
+        of its own (naming the links).
     """
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
