@@ -65,7 +65,8 @@ MAX_SEEDS = 100
 MAX_PERTURBATION = 0.1
 #: The keys of a run's summary (simulate, engine), printed as text without --json and held
 #: by the --json object, whether or not --path is given (errors in m and % of the body
-#: length, over t >= error_window [s]; torque_max: the peak |tau_i| over the whole run [N m]).
+#: length, over t >= error_window [s]; torque_max: the peak ``|tau_i|`` over the whole run
+#: [N m]).
 SUMMARY_KEYS = ("robot", "n", "controller", "reference", "status", "reason", "t_end",
                 "error_window", "rms_head_error", "max_head_error", "rms_head_error_pct",
                 "max_head_error_pct", "R_min", "D_min", "torque_max")
@@ -322,7 +323,7 @@ def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
 
 
 def _add_torque_max(traj: Any) -> None:
-    """Put the run's peak |tau_i| in its summary (every controller's, so that a bound such
+    """Put the run's peak ``|tau_i|`` in its summary (every controller's, so that a bound such
     as the MPC's ``--torque-bound`` can be checked from the summary)."""
     from .metrics import torque_max
 

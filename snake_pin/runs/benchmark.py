@@ -393,7 +393,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
 
 
 def _torque_max(traj: Trajectory) -> float:
-    """The run's peak |tau_i| over all its applied samples (NaN when none was applied)."""
+    """The run's peak ``|tau_i|`` over all its applied samples (NaN when none was applied)."""
     value = torque_max(traj)
     return math.nan if value is None else value
 
