@@ -11,6 +11,7 @@ element (and the link where it applies).
 
 from __future__ import annotations
 
+import functools
 import importlib.resources
 import io
 import math
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ._io import atomic_write_bytes, decode_utf8, parse_toml, read_regular_file
+from ._validation import one_line, output_file
 from .exceptions import ParameterError, RobotFileError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
@@ -61,8 +63,7 @@ _MOVABLE_TAG = re.compile(
 # --------------------------------------------------------------------------- helpers
 def _short(value: object) -> str:
     """``repr(value)`` on one line, cut to a readable length."""
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= _REPR_CHARS else text[:_REPR_CHARS - 3] + "..."
+    return one_line(repr(value), _REPR_CHARS)
 
 
 def _error(path: object, message: str) -> RobotFileError:
@@ -111,19 +112,20 @@ def _sanitise_name(name: str, fallback: str) -> str:
 
 # ----------------------------------------------------------------------- TOML reading
 def _parse_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    def error(message: str) -> RobotFileError:
-        return _error(path, message)
-
+    error = functools.partial(_error, path)
     data = _read_limited(path, MAX_ROBOT_FILE_BYTES, "robot file")
     return parse_toml(decode_utf8(data, error=error), error=error)
 
 
 def _check_keys(path: str | os.PathLike[str], table: Mapping[str, Any], allowed: tuple[str, ...],
-                where: str) -> None:
+                where: str, required: tuple[str, ...] = ()) -> None:
     for key in table:
         if key not in allowed:
             raise _error(path, f"{where}unknown key {_short(key)} "
                                f"(expected one of {', '.join(allowed)})")
+    for key in required:
+        if key not in table:
+            raise _error(path, f"{where}{key} is missing")
 
 
 def _table(path: str | os.PathLike[str], doc: Mapping[str, Any], key: str,
@@ -145,14 +147,9 @@ def _link_tables(path: str | os.PathLike[str], entries: object) -> dict[str, Any
     any_offset = any("com_offset" in entry for entry in entries)
     for i, entry in enumerate(entries, start=1):
         where = f"[[link]] {i}: "
-        _check_keys(path, entry, _GEOMETRY_KEYS, where)
-        for key in _GEOMETRY_KEYS:
-            if key not in entry:
-                if key == "com_offset":
-                    continue
-                raise _error(path, f"{where}{key} is missing")
-            value = _float_or_raise(entry[key], path, f"{where}{key}")
-            if not _is_number(value):
+        _check_keys(path, entry, _GEOMETRY_KEYS, where, _REQUIRED_GEOMETRY)
+        for key, value in entry.items():
+            if not _is_number(_float_or_raise(value, path, f"{where}{key}")):
                 raise _error(path, f"{where}{key} must be a number, got {_short(value)}")
         if any_offset:
             offset = entry.get("com_offset", 0.5 * float(entry["link_length"]))
@@ -174,27 +171,20 @@ def _fields_from_doc(path: str | os.PathLike[str], doc: dict[str, Any]
         raise _error(path, "give the links either as [links] or as [[link]] tables, not both")
     if "urdf" in doc and (links is not None or "link" in doc):
         raise _error(path, "urdf takes the links from the URDF: remove [links]/[[link]]")
-    if links is not None:
-        _check_keys(path, links, _GEOMETRY_KEYS, "[links] ")
-        for key in _REQUIRED_GEOMETRY:
-            if key not in links:
-                raise _error(path, f"[links] {key} is missing")
-        for key, value in links.items():
-            fields[key] = _numbers(value, path, f"[links] {key}")
-            where[key] = f"[links] {key}"
-    elif "link" in doc:
+    if "link" in doc and links is None:
         for key, value in _link_tables(path, doc["link"]).items():
-            fields[key] = value
-            where[key] = f"[[link]] {key}"
-    elif "urdf" not in doc:
+            fields[key], where[key] = value, f"[[link]] {key}"
+    elif links is None and "urdf" not in doc:
         raise _error(path, "the links are missing: give a [links] table, [[link]] tables "
                            "or urdf = \"FILE.urdf\"")
-    friction = _table(path, doc, "friction", "[friction]")
-    if friction is not None:
-        _check_keys(path, friction, FRICTION_KEYS, "[friction] ")
-        for key, value in friction.items():
-            fields[key] = _numbers(value, path, f"[friction] {key}")
-            where[key] = f"[friction] {key}"
+    for header, table, keys, required in (
+            ("[links]", links, _GEOMETRY_KEYS, _REQUIRED_GEOMETRY),
+            ("[friction]", _table(path, doc, "friction", "[friction]"), FRICTION_KEYS, ())):
+        if table is not None:
+            _check_keys(path, table, keys, f"{header} ", required)
+            for key, value in table.items():
+                fields[key] = _numbers(value, path, f"{header} {key}")
+                where[key] = f"{header} {key}"
     return fields, where
 
 
@@ -340,15 +330,7 @@ def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     OSError
         The file cannot be written.
     """
-    if not isinstance(params, SnakeParams):
-        raise ParameterError(f"write_robot_file needs SnakeParams, got {type(params).__name__}")
-    if not isinstance(path, (str, os.PathLike)):
-        raise ParameterError(f"path must be a file path, got {_short(path)}")
-    path = Path(path)
-    if path.suffix != ".toml":
-        raise ParameterError(f"robot file must end in .toml: {path}")
-    if not path.parent.is_dir():
-        raise ParameterError(f"output directory does not exist: {path.parent}")
+    path = output_file(params, path, ".toml", "robot file")
     atomic_write_bytes(path, robot_file_string(params).encode())
     return path
 
@@ -401,14 +383,21 @@ def _finite(array: object) -> bool:
     return array is None or bool(np.all(np.isfinite(np.asarray(array, dtype=float))))
 
 
+def _by_name(path: str | os.PathLike[str], items: list[Any], tag: str) -> dict[str, Any]:
+    """``<link>`` or ``<joint>`` elements by name: each named, no name twice."""
+    found: dict[str, Any] = {}
+    for item in items:
+        if not item.name:
+            raise _error(path, f"a <{tag}> has no name")
+        if item.name in found:
+            raise _error(path, f"{tag} {item.name!r} is defined twice")
+        found[item.name] = item
+    return found
+
+
 def _check_links(path: str | os.PathLike[str], robot: Any) -> dict[str, Any]:
-    links: dict[str, Any] = {}
-    for link in robot.links:
-        if not link.name:
-            raise _error(path, "a <link> has no name")
-        if link.name in links:
-            raise _error(path, f"link {link.name!r} is defined twice")
-        links[link.name] = link
+    links = _by_name(path, robot.links, "link")
+    for link in links.values():
         inertial = link.inertial
         if inertial is None:
             continue
@@ -427,14 +416,9 @@ def _check_links(path: str | os.PathLike[str], robot: Any) -> dict[str, Any]:
 
 def _check_joints(path: str | os.PathLike[str], robot: Any, links: dict[str, Any]
                   ) -> dict[str, Any]:
-    joints: dict[str, Any] = {}
+    joints = _by_name(path, robot.joints, "joint")
     parent_of: dict[str, str] = {}
-    for joint in robot.joints:
-        if not joint.name:
-            raise _error(path, "a <joint> has no name")
-        if joint.name in joints:
-            raise _error(path, f"joint {joint.name!r} is defined twice")
-        joints[joint.name] = joint
+    for joint in joints.values():
         if joint.type not in _JOINT_TYPES:
             raise _error(path, f"joint {joint.name!r} has unknown type {_short(joint.type)}")
         for role in ("parent", "child"):
