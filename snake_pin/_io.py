@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, NoReturn
 
+from ._validation import one_line
 from .exceptions import ParameterError
 
 __all__ = ["MAX_TOML_DEPTH", "TEMP_MARKER", "AtomicGroup", "atomic_group", "atomic_save",
@@ -454,7 +455,4 @@ def parse_toml(text: str, *, error: Callable[[str], Exception],
     try:
         return tomllib.loads(text)
     except (ValueError, RecursionError) as exc:  # TOMLDecodeError, an over-long integer
-        reason = " ".join(str(exc).split())
-        if len(reason) > 200:
-            reason = reason[:197] + "..."
-        raise error(f"not valid TOML: {reason}") from None
+        raise error(f"not valid TOML: {one_line(str(exc))}") from None
