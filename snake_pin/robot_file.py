@@ -18,6 +18,7 @@ import math
 import numbers
 import os
 import re
+import textwrap
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -270,23 +271,13 @@ def _robot_from_urdf(path: str | os.PathLike[str], doc: dict[str, Any], n: int |
 
 
 # ----------------------------------------------------------------------- TOML writing
-def _toml_float(value: float) -> str:
-    """A finite float in TOML syntax: Python's shortest round-trip repr is valid TOML."""
-    return repr(float(value))
-
-
 def _toml_per_link(key: str, value: float | tuple[float, ...]) -> str:
+    """``key = value`` in TOML (Python's shortest round-trip float repr is valid TOML), a
+    per-link array wrapped at 86 characters."""
     if not isinstance(value, tuple):
-        return f"{key} = {_toml_float(value)}"
-    items = [_toml_float(v) for v in value]
-    lines, line = [], ""
-    for item in items:
-        if line and len(line) + len(item) > 80:
-            lines.append(line)
-            line = ""
-        line = f"{line} {item}," if line else f"{item},"
-    lines.append(line)
-    body = "\n".join(f"    {chunk}" for chunk in lines)
+        return f"{key} = {float(value)!r}"
+    body = textwrap.fill(" ".join(f"{float(v)!r}," for v in value), 86,
+                         initial_indent="    ", subsequent_indent="    ")
     return f"{key} = [\n{body}\n]"
 
 
@@ -694,7 +685,7 @@ def read_urdf(path: str | os.PathLike[str],
     chain = [body.link for body in bodies]
     n = len(bodies)
     caller = _friction_argument(friction, n)
-    lengths, masses, inertias, offsets = [], [], [], []
+    rows = []  # (2l, m, J, CM offset) of each body
     for body in bodies:
         name = body.link
         mass, centre, yaw = _planar_inertia(body)
@@ -715,26 +706,18 @@ def read_urdf(path: str | os.PathLike[str],
         if not -scale <= centre[0] <= length + scale:
             raise _error(path, f"link {name!r}: the centre of mass x = {centre[0]:g} m lies "
                                f"outside the link (0..{length:g} m)")
-        lengths.append(length)
-        masses.append(mass)
-        inertias.append(yaw)
-        offsets.append(min(max(float(centre[0]), 0.0), length))
-    ext_name, ext_friction = _our_extension(path, root, chain)
-    passive = [k for k, body in enumerate(bodies[:-1], start=1)
-               if body.joint.limit is not None and body.joint.limit.effort == 0.0]
-    if ext_name is not None:
-        name = ext_name
-    else:
-        name = _sanitise_name(root.get("name"), Path(path).stem)
-        if name in ROBOTS:
-            name = f"{name}_urdf"
-    values: dict[str, Any] = {key: 0.0 for key in FRICTION_KEYS}
-    values.update(ext_friction)
-    values.update(caller)
+        rows.append((length, mass, yaw, min(max(float(centre[0]), 0.0), length)))
+    label, ext_friction = _our_extension(path, root, chain)
+    if label is None:
+        label = _sanitise_name(root.get("name"), Path(path).stem)
+        label = f"{label}_urdf" if label in ROBOTS else label
+    passive = tuple(k for k, body in enumerate(bodies[:-1], start=1)
+                    if body.joint.limit is not None and body.joint.limit.effort == 0.0)
+    lengths, masses, inertias, offsets = zip(*rows, strict=True)
     try:
-        return SnakeParams(n=n, link_length=tuple(lengths), mass=tuple(masses),
-                           inertia=tuple(inertias), com_offset=tuple(offsets),
-                           passive=tuple(passive), name=name, **values)
+        return SnakeParams(n=n, link_length=lengths, mass=masses, inertia=inertias,
+                           com_offset=offsets, passive=passive, name=label,
+                           **{**dict.fromkeys(FRICTION_KEYS, 0.0), **ext_friction, **caller})
     except ParameterError as exc:
         raise _error(path, _link_names(str(exc), chain)) from None
 
