@@ -194,9 +194,7 @@ class AtomicGroup:
     def write_bytes(self, name: str | os.PathLike[str], data: bytes, *,
                     figure: bool = False) -> Path:
         """Stage ``data`` as ``name`` (as :meth:`open`); return the final path."""
-        with self.open(name, figure=figure) as handle:
-            handle.write(data)
-        return self.folder / name
+        return self.save(name, lambda handle: handle.write(data), figure=figure)
 
     def save(self, name: str | os.PathLike[str], save: Callable[[IO[bytes]], object], *,
              figure: bool = False) -> Path:
@@ -273,8 +271,7 @@ def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` whole or not at all."""
-    with atomic_writer(path) as handle:
-        handle.write(data)
+    atomic_save(path, lambda handle: handle.write(data))
 
 
 def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object]) -> None:
@@ -289,9 +286,16 @@ _FILE_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
                (stat.S_ISBLK, "a block device"))
 
 
-def _not_regular(mode: int) -> str:
-    """What a non-regular file is, in words."""
-    return next((name for test, name in _FILE_KINDS if test(mode)), "not a regular file")
+def _not_regular(mode: int, kind: str) -> str:
+    """Why a file of ``mode`` is not a ``kind``, or "" for a regular file."""
+    if stat.S_ISREG(mode):
+        return ""
+    if stat.S_ISLNK(mode):
+        return f"is a symbolic link (not followed), not a regular file: not a {kind}"
+    if stat.S_ISDIR(mode):
+        return f"is a folder, not a {kind}"
+    name = next((name for test, name in _FILE_KINDS if test(mode)), "not a regular file")
+    return f"is {name}, not a regular file: not a {kind}"
 
 
 def _refusal(exc: OSError | ValueError, kind: str) -> str:
@@ -318,17 +322,12 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
     """
     if not isinstance(path, (str, os.PathLike)):
         raise error(f"not a file path: {type(path).__name__}")
-    link = f"is a symbolic link (not followed), not a regular file: not a {kind}"
     try:
-        mode = os.stat(path, follow_symlinks=follow_symlinks).st_mode
+        problem = _not_regular(os.stat(path, follow_symlinks=follow_symlinks).st_mode, kind)
     except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
         raise error(_refusal(exc, kind)) from None
-    if stat.S_ISLNK(mode):
-        raise error(link)
-    if stat.S_ISDIR(mode):
-        raise error(f"is a folder, not a {kind}")
-    if not stat.S_ISREG(mode):
-        raise error(f"is {_not_regular(mode)}, not a regular file: not a {kind}")
+    if problem:
+        raise error(problem)
     flags = (os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0)
              | getattr(os, "O_CLOEXEC", 0))
     if not follow_symlinks:
@@ -338,18 +337,16 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
     except (OSError, ValueError) as exc:
         if not follow_symlinks and isinstance(exc, OSError) and \
                 exc.errno in (errno.ELOOP, errno.EMLINK):  # EMLINK: the BSDs' word for it
-            raise error(link) from None
+            raise error(_not_regular(stat.S_IFLNK, kind)) from None
         raise error(_refusal(exc, kind)) from None
     try:
         info = os.fstat(fd)
     except OSError as exc:
         os.close(fd)
         raise error(_refusal(exc, kind)) from None
-    problem = ""
-    if not stat.S_ISREG(info.st_mode):
-        problem = f"is {_not_regular(info.st_mode)}, not a regular file: not a {kind}"
-    elif info.st_size > limit:
-        problem = f"is larger than {limit} bytes ({info.st_size} bytes): not a {kind}"
+    problem = _not_regular(info.st_mode, kind) or (
+        f"is larger than {limit} bytes ({info.st_size} bytes): not a {kind}"
+        if info.st_size > limit else "")
     if problem:
         os.close(fd)
         raise error(problem)
