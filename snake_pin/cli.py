@@ -378,9 +378,8 @@ def _path_text(args: argparse.Namespace) -> str:
 
 def _save_run(traj: Any, out: Path, stem: str, figures: Callable[[], Iterable[Path]],
               extra: Mapping[str, Any] | None = None) -> _Outcome:
-    """Save a finished run (npz + JSON, its criteria series as CSV when it has one), then
-    its ``figures()``; its outcome: the summary (+ ``extra`` and the files) as JSON payload
-    and text, status 3 for a diverged or failed run, a note when the error window is empty."""
+    """Save a finished run (npz, JSON, criteria CSV), then its ``figures()``; its outcome: the
+    summary, ``extra`` and the files, status 3 if it failed, a note if its window is empty."""
     from ._io import atomic_write_bytes
     from .metrics import window_note
 
@@ -566,8 +565,7 @@ def _cmd_singular(args: argparse.Namespace) -> _Outcome:
                                         bound=args.bound, free_joint=free, seed=args.seed,
                                         progress=_progress(args))
     except RunInterrupted as exc:
-        search, status = exc.partial, EXIT_INTERRUPTED
-        note = str(exc)
+        search, status, note = exc.partial, EXIT_INTERRUPTED, str(exc)
     payload = search.to_dict()
     if out is not None:
         files = write_singular(search, out)
@@ -613,12 +611,8 @@ def _path_parameters(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _path_reference(args: argparse.Namespace, default: str | None = None) -> Any:
-    """The head reference that ``--path``/``--path-param``/``--speed`` name (simulate, engine).
-
-    ``load_path(args.path or default, ...)``; without ``--path`` and without a default,
-    None (the caller's own straight line), and ``--speed``/``--path-param`` are refused.
-    A bad path or parameter is one line (ParameterError, PathFileError: exit 2).
-    """
+    """The head reference ``--path`` (else ``default``) names with its settings; without
+    either, None (the caller's own line) and ``--speed``/``--path-param`` are refused."""
     if args.path is None and default is None:
         if args.speed is not None or args.path_param:
             raise UsageError("arguments --speed/--path-param: apply with --path")
@@ -642,10 +636,8 @@ def _path_options(parser: argparse.ArgumentParser) -> None:
 
 def _path_summary(traj: Any, reference: Any, start: float, *,
                   head_tracking: bool = True) -> None:
-    """Fill a path run's summary: the head error to the reference's point at the same time
-    (:func:`snake_pin.metrics.head_error_summary`), the path metrics of
-    :func:`snake_pin.runs.benchmark.path_metrics` (cross-track, lag, criteria)
-    and its criteria series in ``traj.meta["criteria"]`` (not in the summary)."""
+    """Fill a path run's summary: the head error to the reference's point at the same time,
+    the path metrics of :func:`snake_pin.runs.benchmark.path_metrics` (series in meta)."""
     import numpy as np
 
     from .metrics import head_error_summary
@@ -749,9 +741,8 @@ def _mpc_options(args: argparse.Namespace) -> Any:
 
 def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: Any,
                        t_final: float, start: float) -> Any:
-    """The MPC on the tracking run's line w_r = [0.1 t, 0, pi] from its start, its summary
-    that of :func:`snake_pin.runs.tracking.run_tracking` (head error, R_min, D_min, g_drift)
-    so that the laws compare key for key."""
+    """The MPC on the tracking line, summarised as :func:`snake_pin.runs.tracking.run_tracking`
+    summarises the Lyapunov law's run (the laws compare key for key)."""
     import numpy as np
 
     from .control import MPCController, head_first_reference
@@ -857,11 +848,8 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
                   friction: dict[str, Any], out: Path, reference: Any = None,
                   start: float | None = None) -> _Outcome:
-    """``engine --seeds N``: N runs from perturbed initial joint angles (along ``--path`` if
-    given), each saved as it finishes (``engine_seedK``), their distribution in
-    ``engine_seeds.json``, the figures of the median run; interrupted, the runs finished and
-    their distribution (status "interrupted").
-    """
+    """``engine --seeds N``: each run saved as it finishes, their distribution (what finished,
+    when interrupted) in ``engine_seeds.json``, the figures of the median run."""
     from tqdm import tqdm
 
     from ._io import atomic_write_bytes
@@ -1249,10 +1237,8 @@ _SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
 
 @contextlib.contextmanager
 def _signals_as_interrupts() -> Iterator[list[str]]:
-    """SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (named after the signal) while
-    the block runs; after the first, further ones are ignored so that the partial results
-    get written. Yields the names of the signals received. The previous handlers come
-    back at the end (main thread only)."""
+    """SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (named after the signal) while the
+    block runs, further ones ignored so that partial results get written (main thread only)."""
     received: list[str] = []
     if threading.current_thread() is not threading.main_thread():
         yield received
