@@ -49,11 +49,8 @@ def _translation(x: float) -> np.ndarray:
     return pose
 
 
-def _link(params: SnakeParams, index: int) -> yourdfpy.Link:
-    length = float(params.link_lengths[index - 1])
-    mass = float(params.masses[index - 1])
-    yaw_inertia = float(params.inertias[index - 1])
-    com = float(params.com_offsets[index - 1])
+def _link(index: int, length: float, mass: float, yaw_inertia: float, com: float
+          ) -> yourdfpy.Link:
     radius = RADIUS_RATIO * length
     # A cylinder's axis is z in URDF: turn it onto the link's x axis, centred at x = l_i.
     pose = np.array([[0.0, 0.0, 1.0, 0.5 * length], [0.0, 1.0, 0.0, 0.0],
@@ -98,7 +95,9 @@ def build_urdf(params: SnakeParams, *, floating_base: bool = True) -> yourdfpy.U
     """
     check_params(params)
     flag(floating_base, "floating_base")
-    links = [_link(params, i) for i in range(1, params.n + 1)]
+    links = [_link(i, *map(float, row)) for i, row in enumerate(zip(
+        params.link_lengths, params.masses, params.inertias, params.com_offsets, strict=True),
+        start=1)]
     joints = []
     for i in range(1, params.n):
         effort = 0.0 if i in params.passive else EFFORT_LIMIT
