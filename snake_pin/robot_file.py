@@ -228,46 +228,33 @@ def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
         the file and the field (and link).
     """
     doc = _parse_toml(path)
-    _check_keys(path, doc, _TOP_KEYS, "")
-    if "name" not in doc:
-        raise _error(path, "name is missing")
-    name = doc["name"]
-    if not isinstance(name, str):
-        raise _error(path, f"name must be a string, got {_short(name)}")
+    _check_keys(path, doc, _TOP_KEYS, "", ("name",))
+    if not isinstance(doc["name"], str):
+        raise _error(path, f"name must be a string, got {_short(doc['name'])}")
     fields, where = _fields_from_doc(path, doc)
     n = _link_count(path, doc, fields, where)
-    passive = doc.get("passive")
-    if "urdf" in doc:
-        return _robot_from_urdf(path, doc, n, fields)
-    if n is None:
-        raise _error(path, "n is missing and no per-link array gives it")
+    changes = {key: doc[key] for key in ("name", "passive") if key in doc}
     try:
-        return SnakeParams(n=n, name=name, passive=() if passive is None else passive,
-                           **fields)
+        if "urdf" in doc:
+            return _urdf_robot(path, doc["urdf"], n).replace(**changes, **fields)
+        if n is None:
+            raise _error(path, "n is missing and no per-link array gives it")
+        return SnakeParams(n=n, **changes, **fields)
     except ParameterError as exc:
         raise _error(path, str(exc)) from None
 
 
-def _robot_from_urdf(path: str | os.PathLike[str], doc: dict[str, Any], n: int | None,
-                     friction: dict[str, Any]) -> SnakeParams:
-    """A robot file's ``urdf = ...``: geometry from the URDF, the rest from the file."""
-    ref = doc["urdf"]
+def _urdf_robot(path: str | os.PathLike[str], ref: object, n: int | None) -> SnakeParams:
+    """The robot of a robot file's ``urdf = ref`` (beside the file), which must have n links."""
     if not isinstance(ref, str) or not ref:
         raise _error(path, f"urdf must be a file name (a string), got {_short(ref)}")
-    urdf_path = Path(path).parent / ref
     try:
-        params = read_urdf(urdf_path)
+        params = read_urdf(Path(path).parent / ref)
     except RobotFileError as exc:
         raise _error(path, f"urdf = {ref!r}: {exc}") from None
     if n is not None and n != params.n:
         raise _error(path, f"n = {n} but the URDF {ref!r} has {params.n} links")
-    changes: dict[str, Any] = {"name": doc["name"], **friction}
-    if "passive" in doc:
-        changes["passive"] = doc["passive"]
-    try:
-        return params.replace(**changes)
-    except ParameterError as exc:
-        raise _error(path, str(exc)) from None
+    return params
 
 
 # ----------------------------------------------------------------------- TOML writing
