@@ -75,31 +75,25 @@ def _error(path: object, message: str) -> RobotFileError:
 
 def _read_limited(path: str | os.PathLike[str], limit: int, kind: str) -> bytes:
     """The bytes of ``path`` (a regular file of at most ``limit``), or RobotFileError."""
-    return read_regular_file(path, limit=limit, kind=kind,
-                             error=lambda message: _error(path, message))
+    return read_regular_file(path, limit=limit, kind=kind, error=functools.partial(_error, path))
 
 
 def _is_number(value: object) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
-def _float_or_raise(value: object, path: str | os.PathLike[str], where: str) -> object:
-    """TOML integers too large for a float become an error here (not an OverflowError)."""
-    if isinstance(value, int) and not isinstance(value, bool):
-        try:
-            float(value)
-        except OverflowError:
-            raise _error(path, f"{where} must be a finite number, "
-                               f"got an integer of {len(str(value))} digits") from None
-    return value
-
-
 def _numbers(value: object, path: str | os.PathLike[str], where: str) -> object:
-    """``value`` with every over-large integer refused (types are checked by SnakeParams)."""
-    if isinstance(value, list):
-        return [_float_or_raise(item, path, f"{where}, link {i}")
-                for i, item in enumerate(value, start=1)]
-    return _float_or_raise(value, path, where)
+    """``value`` (a number or a list), with a TOML integer too large for a float refused here
+    rather than as an OverflowError (types are checked by SnakeParams)."""
+    for i, item in enumerate(value if isinstance(value, list) else [value], start=1):
+        if isinstance(item, int) and not isinstance(item, bool):
+            try:
+                float(item)
+            except OverflowError:
+                at = f"{where}, link {i}" if isinstance(value, list) else where
+                raise _error(path, f"{at} must be a finite number, "
+                                   f"got an integer of {len(str(item))} digits") from None
+    return value
 
 
 def _sanitise_name(name: str, fallback: str) -> str:
@@ -150,8 +144,9 @@ def _link_tables(path: str | os.PathLike[str], entries: object) -> dict[str, Any
         where = f"[[link]] {i}: "
         _check_keys(path, entry, _GEOMETRY_KEYS, where, _REQUIRED_GEOMETRY)
         for key, value in entry.items():
-            if not _is_number(_float_or_raise(value, path, f"{where}{key}")):
+            if not _is_number(value):
                 raise _error(path, f"{where}{key} must be a number, got {_short(value)}")
+            _numbers(value, path, f"{where}{key}")
         if any_offset:
             offset = entry.get("com_offset", 0.5 * float(entry["link_length"]))
             columns["com_offset"].append(offset)
