@@ -694,8 +694,10 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
         params, _ = tracking_friction(params)
     try:
         if reference is not None:
-            traj = _simulate_on_path(args, params, reference, user, t_final, start,
-                                     mpc_options)
+            traj = _simulate_law(args, params, reference, user, t_final, mpc_options,
+                                 {"path": repr(reference)})
+            _path_summary(traj, reference, start, head_tracking=kind != "los")
+            traj.summary.update(controller=kind, reference=_path_text(args))
         elif kind == "mpc":
             traj = _simulate_mpc_line(args, params, mpc_options, t_final, start)
         elif kind == "pfl":
@@ -745,21 +747,18 @@ def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: A
     summarises the Lyapunov law's run (the laws compare key for key)."""
     import numpy as np
 
-    from .control import MPCController, head_first_reference
+    from .control import head_first_reference
     from .integrability import conserved_quantity_along
     from .metrics import criteria_along, head_error_summary, head_position_error
     from .model import Snake
-    from .runs.tracking import CRITERIA_EVERY, REFERENCE, initial_state
-    from .sim import simulate
+    from .runs.tracking import CRITERIA_EVERY, REFERENCE
 
-    snake = Snake(params)
     reference = head_first_reference()
-    controller = MPCController(snake, reference, options=options)
-    traj = simulate(snake, controller, initial_state(params), t_final,
-                    progress=_progress(args), meta={"reference": REFERENCE})
+    traj = _simulate_law(args, params, reference, None, t_final, options,
+                         {"reference": REFERENCE})
     error = head_position_error(traj, reference)
     t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
-    g = conserved_quantity_along(snake, traj.q, traj.dq)
+    g = conserved_quantity_along(Snake(params), traj.q, traj.dq)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
     traj.summary.update({
@@ -771,11 +770,10 @@ def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: A
     return traj
 
 
-def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: Any,
-                      user: type | None, t_final: float, start: float,
-                      mpc_options: Any = None) -> Any:
-    """A run along ``--path`` (any controller, a user's ``module:Class`` too), its summary
-    filled by :func:`_path_summary`."""
+def _simulate_law(args: argparse.Namespace, params: SnakeParams, reference: Any,
+                  user: type | None, t_final: float, mpc_options: Any, meta: dict[str, Any]
+                  ) -> Any:
+    """A run of ``--controller`` (a user's ``module:Class`` too) on the viscous model."""
     from .control import (
         LOSController,
         LyapunovController,
@@ -800,11 +798,8 @@ def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: 
         controller = PFLController(snake, reference, options=options)
     else:
         controller = LOSController(snake, reference)
-    traj = simulate(snake, controller, initial_state(params), t_final,
-                    progress=_progress(args), meta={"path": repr(reference)})
-    _path_summary(traj, reference, start, head_tracking=kind != "los")
-    traj.summary.update(controller=kind, reference=_path_text(args))
-    return traj
+    return simulate(snake, controller, initial_state(params), t_final,
+                    progress=_progress(args), meta=meta)
 
 
 def _cmd_engine(args: argparse.Namespace) -> _Outcome:
