@@ -30,9 +30,8 @@ from ._validation import one_line
 from .exceptions import ParameterError
 
 __all__ = ["MAX_TOML_DEPTH", "TEMP_MARKER", "AtomicGroup", "atomic_group", "atomic_save",
-           "atomic_write_bytes", "atomic_writer", "clean_stale_temporaries", "current_umask",
-           "decode_utf8", "open_regular_file", "parse_toml", "read_regular_file",
-           "toml_nesting_problem"]
+           "atomic_write_bytes", "clean_stale_temporaries", "current_umask", "decode_utf8",
+           "open_regular_file", "parse_toml", "read_regular_file", "toml_nesting_problem"]
 
 #: The marker every temporary name carries: ``.NAME.snake_pin-PID-XXXXXXXX.tmp``.
 TEMP_MARKER = ".snake_pin-"
@@ -261,14 +260,6 @@ def atomic_group(folder: str | os.PathLike[str]) -> Iterator[AtomicGroup]:
         group._discard()
 
 
-@contextlib.contextmanager
-def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
-    """Yield a temporary file beside ``path``, renamed onto it when the body succeeds."""
-    path = Path(path)
-    with atomic_group(path.parent) as group, group.open(path.name) as handle:
-        yield handle
-
-
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` whole or not at all."""
     atomic_save(path, lambda handle: handle.write(data))
@@ -276,8 +267,9 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
 
 def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object]) -> None:
     """Write ``path`` whole or not at all by ``save(handle)`` (e.g. ``np.savez``)."""
-    with atomic_writer(path) as handle:
-        save(handle)
+    path = Path(path)
+    with atomic_group(path.parent) as group:
+        group.save(path.name, save)
 
 
 # --------------------------------------------------------------------------- reading
