@@ -586,17 +586,14 @@ def _our_extension(path: str | os.PathLike[str], root: Any, chain: list[str]
                            f"(this snake_pin reads version {EXTENSION_VERSION})")
     index = {name: i for i, name in enumerate(chain)}
     friction = {key: [0.0] * len(chain) for key in FRICTION_KEYS}
-    seen: set[str] = set()
     for item in ext:
         if item.tag != "link_friction":
             raise _error(path, f"<{EXTENSION_TAG}> has an unknown element <{item.tag}>")
         link = item.get("link")
-        if link not in index:
-            raise _error(path, f"<link_friction link={_short(link)}> names no link of "
-                               f"the chain")
-        if link in seen:
-            raise _error(path, f"<link_friction link={link!r}> appears twice")
-        seen.add(link)
+        if link not in index:  # each link's index is taken once
+            problem = "appears twice" if link in chain else "names no link of the chain"
+            raise _error(path, f"<link_friction link={_short(link)}> {problem}")
+        i = index.pop(link)
         for attribute in item.attrib:
             if attribute not in ("link", *FRICTION_KEYS):
                 raise _error(path, f"<link_friction link={link!r}> has an unknown attribute "
@@ -608,10 +605,9 @@ def _our_extension(path: str | os.PathLike[str], root: Any, chain: list[str]
             except (TypeError, ValueError):
                 raise _error(path, f"<link_friction link={link!r}> {key} must be a number, "
                                    f"got {_short(text)}") from None
-            friction[key][index[link]] = value
-    for name in chain:
-        if name not in seen:
-            raise _error(path, f"<{EXTENSION_TAG}> has no <link_friction> for link {name!r}")
+            friction[key][i] = value
+    for name in index:  # the first link without one
+        raise _error(path, f"<{EXTENSION_TAG}> has no <link_friction> for link {name!r}")
     return ext.get("name"), friction
 
 
