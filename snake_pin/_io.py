@@ -26,12 +26,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, NoReturn
 
+from ._validation import one_line
 from .exceptions import ParameterError
 
 __all__ = ["MAX_TOML_DEPTH", "TEMP_MARKER", "AtomicGroup", "atomic_group", "atomic_save",
-           "atomic_write_bytes", "atomic_writer", "clean_stale_temporaries", "current_umask",
-           "decode_utf8", "open_regular_file", "parse_toml", "read_regular_file",
-           "toml_nesting_problem"]
+           "atomic_write_bytes", "clean_stale_temporaries", "current_umask", "decode_utf8",
+           "open_regular_file", "parse_toml", "read_regular_file", "toml_nesting_problem"]
 
 #: The marker every temporary name carries: ``.NAME.snake_pin-PID-XXXXXXXX.tmp``.
 TEMP_MARKER = ".snake_pin-"
@@ -193,9 +193,7 @@ class AtomicGroup:
     def write_bytes(self, name: str | os.PathLike[str], data: bytes, *,
                     figure: bool = False) -> Path:
         """Stage ``data`` as ``name`` (as :meth:`open`); return the final path."""
-        with self.open(name, figure=figure) as handle:
-            handle.write(data)
-        return self.folder / name
+        return self.save(name, lambda handle: handle.write(data), figure=figure)
 
     def save(self, name: str | os.PathLike[str], save: Callable[[IO[bytes]], object], *,
              figure: bool = False) -> Path:
@@ -262,24 +260,16 @@ def atomic_group(folder: str | os.PathLike[str]) -> Iterator[AtomicGroup]:
         group._discard()
 
 
-@contextlib.contextmanager
-def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
-    """Yield a temporary file beside ``path``, renamed onto it when the body succeeds."""
-    path = Path(path)
-    with atomic_group(path.parent) as group, group.open(path.name) as handle:
-        yield handle
-
-
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` whole or not at all."""
-    with atomic_writer(path) as handle:
-        handle.write(data)
+    atomic_save(path, lambda handle: handle.write(data))
 
 
 def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object]) -> None:
     """Write ``path`` whole or not at all by ``save(handle)`` (e.g. ``np.savez``)."""
-    with atomic_writer(path) as handle:
-        save(handle)
+    path = Path(path)
+    with atomic_group(path.parent) as group:
+        group.save(path.name, save)
 
 
 # --------------------------------------------------------------------------- reading
@@ -288,9 +278,16 @@ _FILE_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
                (stat.S_ISBLK, "a block device"))
 
 
-def _not_regular(mode: int) -> str:
-    """What a non-regular file is, in words."""
-    return next((name for test, name in _FILE_KINDS if test(mode)), "not a regular file")
+def _not_regular(mode: int, kind: str) -> str:
+    """Why a file of ``mode`` is not a ``kind``, or "" for a regular file."""
+    if stat.S_ISREG(mode):
+        return ""
+    if stat.S_ISLNK(mode):
+        return f"is a symbolic link (not followed), not a regular file: not a {kind}"
+    if stat.S_ISDIR(mode):
+        return f"is a folder, not a {kind}"
+    name = next((name for test, name in _FILE_KINDS if test(mode)), "not a regular file")
+    return f"is {name}, not a regular file: not a {kind}"
 
 
 def _refusal(exc: OSError | ValueError, kind: str) -> str:
@@ -317,17 +314,12 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
     """
     if not isinstance(path, (str, os.PathLike)):
         raise error(f"not a file path: {type(path).__name__}")
-    link = f"is a symbolic link (not followed), not a regular file: not a {kind}"
     try:
-        mode = os.stat(path, follow_symlinks=follow_symlinks).st_mode
+        problem = _not_regular(os.stat(path, follow_symlinks=follow_symlinks).st_mode, kind)
     except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
         raise error(_refusal(exc, kind)) from None
-    if stat.S_ISLNK(mode):
-        raise error(link)
-    if stat.S_ISDIR(mode):
-        raise error(f"is a folder, not a {kind}")
-    if not stat.S_ISREG(mode):
-        raise error(f"is {_not_regular(mode)}, not a regular file: not a {kind}")
+    if problem:
+        raise error(problem)
     flags = (os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0)
              | getattr(os, "O_CLOEXEC", 0))
     if not follow_symlinks:
@@ -337,18 +329,16 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
     except (OSError, ValueError) as exc:
         if not follow_symlinks and isinstance(exc, OSError) and \
                 exc.errno in (errno.ELOOP, errno.EMLINK):  # EMLINK: the BSDs' word for it
-            raise error(link) from None
+            raise error(_not_regular(stat.S_IFLNK, kind)) from None
         raise error(_refusal(exc, kind)) from None
     try:
         info = os.fstat(fd)
     except OSError as exc:
         os.close(fd)
         raise error(_refusal(exc, kind)) from None
-    problem = ""
-    if not stat.S_ISREG(info.st_mode):
-        problem = f"is {_not_regular(info.st_mode)}, not a regular file: not a {kind}"
-    elif info.st_size > limit:
-        problem = f"is larger than {limit} bytes ({info.st_size} bytes): not a {kind}"
+    problem = _not_regular(info.st_mode, kind) or (
+        f"is larger than {limit} bytes ({info.st_size} bytes): not a {kind}"
+        if info.st_size > limit else "")
     if problem:
         os.close(fd)
         raise error(problem)
@@ -454,7 +444,4 @@ def parse_toml(text: str, *, error: Callable[[str], Exception],
     try:
         return tomllib.loads(text)
     except (ValueError, RecursionError) as exc:  # TOMLDecodeError, an over-long integer
-        reason = " ".join(str(exc).split())
-        if len(reason) > 200:
-            reason = reason[:197] + "..."
-        raise error(f"not valid TOML: {reason}") from None
+        raise error(f"not valid TOML: {one_line(str(exc))}") from None

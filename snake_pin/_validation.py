@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -19,7 +20,7 @@ from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
 __all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "instance",
-           "integer", "mebibytes", "model_data", "one_line", "printable_path"]
+           "integer", "mebibytes", "model_data", "one_line", "output_file", "printable_path"]
 
 _T = TypeVar("_T")
 
@@ -93,6 +94,20 @@ def instance(value: object, kind: type[_T], name: str, what: str | None = None) 
 def check_params(value: object, name: str = "params") -> SnakeParams:
     """``value`` if it is a :class:`~snake_pin.params.SnakeParams`, else ParameterError."""
     return instance(value, SnakeParams, name)
+
+
+def output_file(params: object, path: object, suffix: str, what: str) -> Path:
+    """``path`` to write ``params`` (a SnakeParams) to: a ``suffix`` file in an existing
+    folder, or ParameterError naming the argument (nothing is written)."""
+    check_params(params)
+    if not isinstance(path, (str, os.PathLike)):
+        raise ParameterError(f"path must be a file path, got {brief(path)}")
+    path = Path(path)
+    if path.suffix != suffix:
+        raise ParameterError(f"{what} must end in {suffix}: {path}")
+    if not path.parent.is_dir():
+        raise ParameterError(f"output directory does not exist: {path.parent}")
+    return path
 
 
 def model_data(value: object, model: Any, kind: type, name: str = "data") -> Any:

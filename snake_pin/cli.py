@@ -37,6 +37,7 @@ from typing import Any, NoReturn
 from urllib.parse import urlparse
 
 from . import __version__
+from ._json import json_text
 from .exceptions import RunInterrupted, SnakePinError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
@@ -238,43 +239,35 @@ def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = True,
         parser.add_argument("--ctheta", type=_float_in(0.0), help="c_theta [N m s]")
 
 
-def _load_robot(spec: str, **changes: Any) -> SnakeParams:
-    """:func:`snake_pin.robot_file.load_robot`: a preset, a .toml or a .urdf (one-line
-    RobotFileError/ParameterError naming the file)."""
-    from .robot_file import load_robot
-
-    return load_robot(spec, **changes)
+def _joint(option: str, k: int, n: int) -> int:
+    """Joint ``k`` of ``--option`` if the n-link robot has it, else a UsageError naming both."""
+    if not 1 <= k <= n - 1:
+        raise UsageError(f"argument {option}: joint {k} is outside 1..{n - 1} "
+                         f"for the {n}-link robot")
+    return k
 
 
 def _params(args: argparse.Namespace, default: str = "table1") -> SnakeParams:
-    """The robot the options describe (--robot, then --n, --passive and friction applied);
-    a joint index out of range names its option, a bad robot file is one line naming it."""
-    spec = getattr(args, "robot", None) or default
-    base = _load_robot(spec)
-    n = args.n if getattr(args, "n", None) is not None else base.n
-    for k in getattr(args, "passive", None) or []:
-        if not 1 <= k <= n - 1:
-            raise UsageError(f"argument --passive: joint {k} is outside 1..{n - 1} "
-                             f"for the {n}-link robot")
-    changes: dict[str, Any] = {}
-    if getattr(args, "n", None) is not None:
-        changes["n"] = args.n
-    if getattr(args, "passive", None):
-        changes["passive"] = tuple(args.passive)
-    for flag, key in _FRICTION_FLAGS.items():
-        if getattr(args, flag, None) is not None:
-            changes[key] = getattr(args, flag)
-    return _load_robot(spec, **changes) if changes else base
+    """The robot the options describe (--robot, then --n, --passive and friction applied,
+    through :func:`snake_pin.robot_file.load_robot`: a bad robot file is one line naming it)."""
+    from .robot_file import load_robot
+
+    spec = args.robot or default
+    base = load_robot(spec)
+    changes: dict[str, Any] = {key: getattr(args, flag) for flag, key in
+                               {"n": "n", **_FRICTION_FLAGS}.items()
+                               if getattr(args, flag, None) is not None}
+    if args.passive:
+        changes["passive"] = tuple(_joint("--passive", k, changes.get("n", base.n))
+                                   for k in args.passive)
+    return load_robot(spec, **changes) if changes else base
 
 
 def _free_joints(args: argparse.Namespace, params: SnakeParams) -> int | tuple[int, ...] | None:
     """The joints without an actuator for manipulability: --passive ones and --free-joint."""
     free = set(params.passive)
     if args.free_joint is not None:
-        if not 1 <= args.free_joint <= params.n - 1:
-            raise UsageError(f"argument --free-joint: joint {args.free_joint} is outside "
-                             f"1..{params.n - 1} for the {params.n}-link robot")
-        free.add(args.free_joint)
+        free.add(_joint("--free-joint", args.free_joint, params.n))
     if not free:
         return None
     return min(free) if len(free) == 1 else tuple(sorted(free))
@@ -293,21 +286,20 @@ def _progress(args: argparse.Namespace) -> bool:
     return not getattr(args, "json", False) and sys.stderr.isatty()
 
 
-def _t_final_limit(dt: float) -> float:
-    return _max_steps() * dt
-
-
 def _check_t_final(value: float | None, dt: float) -> None:
-    if value is not None and value > _t_final_limit(dt) * (1 + 1e-12):
-        raise UsageError(f"argument --t-final: at most {_t_final_limit(dt):g} s "
-                         f"({_max_steps()} control steps of {dt:g} s), got {value:g}")
+    steps = _max_steps()
+    if value is not None and value > steps * dt * (1 + 1e-12):
+        raise UsageError(f"argument --t-final: at most {steps * dt:g} s "
+                         f"({steps} control steps of {dt:g} s), got {value:g}")
 
 
-def _run_note(traj: Any, where: Path) -> tuple[int, str]:
-    """Exit status and stderr note for a finished run (diverged/failed: status 3)."""
-    if getattr(traj, "status", "completed") in ("diverged", "failed") or traj.diverged:
-        return EXIT_FAILED, f"run {traj.status}: {traj.reason} (results in {where})"
-    return EXIT_OK, ""
+def _save_trajectory(traj: Any, out: Path, stem: str) -> list[Path]:
+    """Save a run (npz + JSON) with its peak ``|tau_i|`` in the summary (every controller's,
+    so that a bound such as the MPC's ``--torque-bound`` can be checked from the summary)."""
+    from .metrics import torque_max
+
+    traj.summary["torque_max"] = torque_max(traj)
+    return list(traj.save(out / stem))
 
 
 def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
@@ -315,25 +307,10 @@ def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
     traj = exc.partial
     if traj is None or not len(traj):
         return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
-    _add_torque_max(traj)
-    npz, summary = traj.save(out / stem)
-    payload = {**traj.summary_dict(), "files": [str(npz), str(summary)]}
+    files = _save_trajectory(traj, out, stem)
+    payload = {**traj.summary_dict(), "files": [str(f) for f in files]}
     return _Outcome(payload, _summary_text(payload), EXIT_INTERRUPTED,
-                    f"{exc}; partial run saved to {npz} (status interrupted)")
-
-
-def _add_torque_max(traj: Any) -> None:
-    """Put the run's peak ``|tau_i|`` in its summary (every controller's, so that a bound such
-    as the MPC's ``--torque-bound`` can be checked from the summary)."""
-    from .metrics import torque_max
-
-    traj.summary["torque_max"] = torque_max(traj)
-
-
-def _json_text(value: Any, indent: int | None = None) -> str:
-    from ._json import json_text
-
-    return json_text(value, indent=indent)
+                    f"{exc}; partial run saved to {files[0]} (status interrupted)")
 
 
 def _plain(value: Any) -> str:
@@ -354,6 +331,11 @@ def _plain(value: Any) -> str:
     if isinstance(value, Iterable):
         return "[" + ", ".join(_plain(v) for v in value) + "]"
     return str(value)
+
+
+def _wrote(paths: Mapping[str, Path]) -> tuple[dict[str, str], str]:
+    """Files written, by role: as the payload's ``files`` and as the text's first line."""
+    return {k: str(v) for k, v in paths.items()}, f"wrote {', '.join(map(str, paths.values()))}"
 
 
 def _summary_text(payload: Mapping[str, Any]) -> str:
@@ -396,14 +378,12 @@ def _path_text(args: argparse.Namespace) -> str:
 
 def _save_run(traj: Any, out: Path, stem: str, figures: Callable[[], Iterable[Path]],
               extra: Mapping[str, Any] | None = None) -> _Outcome:
-    """Save a finished run (npz + JSON, its criteria series as CSV when it has one), then
-    its ``figures()``; its outcome: the summary (+ ``extra`` and the files) as JSON payload
-    and text, status 3 for a diverged or failed run, a note when the error window is empty."""
+    """Save a finished run (npz, JSON, criteria CSV), then its ``figures()``; its outcome: the
+    summary, ``extra`` and the files, status 3 if it failed, a note if its window is empty."""
     from ._io import atomic_write_bytes
     from .metrics import window_note
 
-    _add_torque_max(traj)
-    files: list[Path] = list(traj.save(out / stem))  # data first, then the figures
+    files = _save_trajectory(traj, out, stem)  # data first, then the figures
     series = traj.meta.get("criteria")
     if isinstance(series, Mapping) and series.get("t"):  # t and each criterion, whole or not
         names = [k for k, v in series.items() if len(v) == len(series["t"])]
@@ -413,9 +393,10 @@ def _save_run(traj: Any, out: Path, stem: str, figures: Callable[[], Iterable[Pa
         files.append(out / f"{stem}_criteria.csv")
     files += figures()
     payload = {**traj.summary_dict(), **(extra or {}), "files": [str(f) for f in files]}
-    status, note = _run_note(traj, out)
-    note = "; ".join(part for part in (note, window_note(payload)) if part)
-    return _Outcome(payload, _summary_text(payload), status, note)
+    failed = traj.status in ("diverged", "failed") or traj.diverged
+    fault = f"run {traj.status}: {traj.reason} (results in {out})" if failed else ""
+    note = "; ".join(part for part in (fault, window_note(payload)) if part)
+    return _Outcome(payload, _summary_text(payload), EXIT_FAILED if failed else EXIT_OK, note)
 
 
 # ----------------------------------------------------------------- subcommands
@@ -536,24 +517,23 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
         if partial is None or not len(partial.values):
             return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
         paths = write_sweep(partial, out)
-        payload = {**partial.to_dict(), "files": {k: str(v) for k, v in paths.items()}}
-        return _Outcome(payload, f"wrote {', '.join(map(str, paths.values()))}\n"
-                        f"{len(partial.values)} of {args.points} postures (interrupted)",
+        files, wrote = _wrote(paths)
+        return _Outcome({**partial.to_dict(), "files": files},
+                        f"{wrote}\n{len(partial.values)} of {args.points} postures (interrupted)",
                         EXIT_INTERRUPTED, f"{exc}; partial sweep saved to {paths['json']} "
                                           "(status interrupted)")
-    paths = write_sweep(result, out)
+    files, wrote = _wrote(write_sweep(result, out))
     zeros = result.zeros().tolist()
     low, high = float(result.values[0]), float(result.values[-1])
     payload = {"family": args.family, "free_joint": result.to_dict()["free_joint"],
                "status": result.status, "range": [low, high], "points": len(result.values),
                "zeros": zeros, "R_min": float(result.R.min()), "D_min": float(result.D.min()),
-               "files": {k: str(v) for k, v in paths.items()}}
+               "files": files}
     name = result.label.split(" [")[0]
     found = f"R = 0 at {name} = {_plain(zeros)}" if zeros else \
         f"R > 0 everywhere (smallest {float(result.R.min()):.6g})"
-    return _Outcome(payload, f"wrote {', '.join(str(p) for p in paths.values())}\n"
-                             f"{len(result.values)} postures, {name} from {low:.6g} to "
-                             f"{high:.6g}: {found}")
+    return _Outcome(payload, f"{wrote}\n{len(result.values)} postures, {name} from {low:.6g} "
+                             f"to {high:.6g}: {found}")
 
 
 def _singular_text(search: Any) -> str:
@@ -585,8 +565,7 @@ def _cmd_singular(args: argparse.Namespace) -> _Outcome:
                                         bound=args.bound, free_joint=free, seed=args.seed,
                                         progress=_progress(args))
     except RunInterrupted as exc:
-        search, status = exc.partial, EXIT_INTERRUPTED
-        note = str(exc)
+        search, status, note = exc.partial, EXIT_INTERRUPTED, str(exc)
     payload = search.to_dict()
     if out is not None:
         files = write_singular(search, out)
@@ -632,12 +611,8 @@ def _path_parameters(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _path_reference(args: argparse.Namespace, default: str | None = None) -> Any:
-    """The head reference that ``--path``/``--path-param``/``--speed`` name (simulate, engine).
-
-    ``load_path(args.path or default, ...)``; without ``--path`` and without a default,
-    None (the caller's own straight line), and ``--speed``/``--path-param`` are refused.
-    A bad path or parameter is one line (ParameterError, PathFileError: exit 2).
-    """
+    """The head reference ``--path`` (else ``default``) names with its settings; without
+    either, None (the caller's own line) and ``--speed``/``--path-param`` are refused."""
     if args.path is None and default is None:
         if args.speed is not None or args.path_param:
             raise UsageError("arguments --speed/--path-param: apply with --path")
@@ -661,10 +636,8 @@ def _path_options(parser: argparse.ArgumentParser) -> None:
 
 def _path_summary(traj: Any, reference: Any, start: float, *,
                   head_tracking: bool = True) -> None:
-    """Fill a path run's summary: the head error to the reference's point at the same time
-    (:func:`snake_pin.metrics.head_error_summary`), the path metrics of
-    :func:`snake_pin.runs.benchmark.path_metrics` (cross-track, lag, criteria)
-    and its criteria series in ``traj.meta["criteria"]`` (not in the summary)."""
+    """Fill a path run's summary: the head error to the reference's point at the same time,
+    the path metrics of :func:`snake_pin.runs.benchmark.path_metrics` (series in meta)."""
     import numpy as np
 
     from .metrics import head_error_summary
@@ -721,14 +694,14 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
         params, _ = tracking_friction(params)
     try:
         if reference is not None:
-            traj = _simulate_on_path(args, params, reference, user, t_final, start,
-                                     mpc_options)
+            traj = _simulate_law(args, params, reference, user, t_final, mpc_options,
+                                 {"path": repr(reference)})
+            _path_summary(traj, reference, start, head_tracking=kind != "los")
+            traj.summary.update(controller=kind, reference=_path_text(args))
         elif kind == "mpc":
-            from .runs.tracking import plot_tracking
-
             traj = _simulate_mpc_line(args, params, mpc_options, t_final, start)
         elif kind == "pfl":
-            from .runs.pfl import plot_pfl, run_pfl
+            from .runs.pfl import run_pfl
 
             run = run_pfl(params, t_final=t_final, climb_R=args.climb_r,
                           control_dt=SIMULATE_DT, error_window=start,
@@ -736,18 +709,20 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
             traj = run.trajectory
             traj.summary["reference"] = _LINE_PFL
         else:
-            from .runs.tracking import plot_tracking, run_tracking
+            from .runs.tracking import run_tracking
 
             traj = run_tracking(params, t_final=t_final, error_window=start,
                                 progress=_progress(args))
             traj.summary["reference"] = _LINE_HEAD_FIRST
     except RunInterrupted as exc:
         return _interrupted_run(exc, out, stem)
-    if reference is not None:
-        return _save_run(traj, out, stem, lambda: _path_figures(traj, reference, out, stem))
-    if kind == "pfl":
-        return _save_run(traj, out, stem, lambda: plot_pfl(run, out, stem).values())
-    return _save_run(traj, out, stem, lambda: plot_tracking(traj, out, stem).values())
+    from .runs.pfl import plot_pfl
+    from .runs.tracking import plot_tracking
+
+    return _save_run(traj, out, stem, lambda: (
+        _path_figures(traj, reference, out, stem) if reference is not None
+        else plot_pfl(run, out, stem).values() if kind == "pfl"
+        else plot_tracking(traj, out, stem).values()))
 
 
 def _mpc_options(args: argparse.Namespace) -> Any:
@@ -768,26 +743,22 @@ def _mpc_options(args: argparse.Namespace) -> Any:
 
 def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: Any,
                        t_final: float, start: float) -> Any:
-    """The MPC on the tracking run's line w_r = [0.1 t, 0, pi] from its start, its summary
-    that of :func:`snake_pin.runs.tracking.run_tracking` (head error, R_min, D_min, g_drift)
-    so that the laws compare key for key."""
+    """The MPC on the tracking line, summarised as :func:`snake_pin.runs.tracking.run_tracking`
+    summarises the Lyapunov law's run (the laws compare key for key)."""
     import numpy as np
 
-    from .control import MPCController, head_first_reference
+    from .control import head_first_reference
     from .integrability import conserved_quantity_along
     from .metrics import criteria_along, head_error_summary, head_position_error
     from .model import Snake
-    from .runs.tracking import CRITERIA_EVERY, REFERENCE, initial_state
-    from .sim import simulate
+    from .runs.tracking import CRITERIA_EVERY, REFERENCE
 
-    snake = Snake(params)
     reference = head_first_reference()
-    controller = MPCController(snake, reference, options=options)
-    traj = simulate(snake, controller, initial_state(params), t_final,
-                    progress=_progress(args), meta={"reference": REFERENCE})
+    traj = _simulate_law(args, params, reference, None, t_final, options,
+                         {"reference": REFERENCE})
     error = head_position_error(traj, reference)
     t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
-    g = conserved_quantity_along(snake, traj.q, traj.dq)
+    g = conserved_quantity_along(Snake(params), traj.q, traj.dq)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
     traj.summary.update({
@@ -799,11 +770,10 @@ def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: A
     return traj
 
 
-def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: Any,
-                      user: type | None, t_final: float, start: float,
-                      mpc_options: Any = None) -> Any:
-    """A run along ``--path`` (any controller, a user's ``module:Class`` too), its summary
-    filled by :func:`_path_summary`."""
+def _simulate_law(args: argparse.Namespace, params: SnakeParams, reference: Any,
+                  user: type | None, t_final: float, mpc_options: Any, meta: dict[str, Any]
+                  ) -> Any:
+    """A run of ``--controller`` (a user's ``module:Class`` too) on the viscous model."""
     from .control import (
         LOSController,
         LyapunovController,
@@ -828,11 +798,8 @@ def _simulate_on_path(args: argparse.Namespace, params: SnakeParams, reference: 
         controller = PFLController(snake, reference, options=options)
     else:
         controller = LOSController(snake, reference)
-    traj = simulate(snake, controller, initial_state(params), t_final,
-                    progress=_progress(args), meta={"path": repr(reference)})
-    _path_summary(traj, reference, start, head_tracking=kind != "los")
-    traj.summary.update(controller=kind, reference=_path_text(args))
-    return traj
+    return simulate(snake, controller, initial_state(params), t_final,
+                    progress=_progress(args), meta=meta)
 
 
 def _cmd_engine(args: argparse.Namespace) -> _Outcome:
@@ -865,22 +832,21 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
     summarize(traj, reference=reference, start=start)
     if reference is None:
         traj.summary["reference"] = _LINE_HEAD_FIRST
-        return _save_run(traj, out, "engine", lambda: plot_engine(run, None, out, "engine")
-                         .values(), {"friction": friction})
-    _path_summary(traj, reference, start)
-    traj.summary.update(path=repr(reference), reference=_path_text(args))
-    return _save_run(traj, out, "engine", lambda: _path_figures(traj, reference, out, "engine"),
-                     {"friction": friction})
+    else:
+        _path_summary(traj, reference, start)
+        traj.summary.update(path=repr(reference), reference=_path_text(args))
+    return _save_run(traj, out, "engine", lambda: (
+        plot_engine(run, None, out, "engine").values() if reference is None
+        else _path_figures(traj, reference, out, "engine")), {"friction": friction})
 
 
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
                   friction: dict[str, Any], out: Path, reference: Any = None,
                   start: float | None = None) -> _Outcome:
-    """``engine --seeds N``: N runs from perturbed initial joint angles (along ``--path`` if
-    given), each saved as it finishes (``engine_seedK``), their distribution in
-    ``engine_seeds.json``, the figures of the median run; interrupted, the runs finished and
-    their distribution (status "interrupted").
-    """
+    """``engine --seeds N``: each run saved as it finishes, their distribution (what finished,
+    when interrupted) in ``engine_seeds.json``, the figures of the median run."""
+    from tqdm import tqdm
+
     from ._io import atomic_write_bytes
     from .runs.engine import PERTURBATION, Draws, engine_draw, perturbations, plot_engine
     from .runs.parallel import iter_jobs
@@ -897,22 +863,16 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
                                              "friction": friction, "law": args.law,
                                              "reference": reference, "error_window": start})
             for offset in draws.offsets]
-    bar, interrupted = None, False
-    if _progress(args):
-        from tqdm import tqdm
-
-        bar = tqdm(total=args.seeds, desc="engine runs", unit="run", leave=False, disable=None)
-    try:
-        for k, run in iter_jobs(jobs):
-            npz, summary = run.trajectory.save(out / stems[k])
-            draws.record(k, run.trajectory.summary_dict(), [npz, summary])
-            if bar is not None:
+    interrupted = False
+    with tqdm(total=args.seeds, desc="engine runs", unit="run", leave=False,
+              disable=not _progress(args)) as bar:
+        try:
+            for k, run in iter_jobs(jobs):
+                npz, summary = run.trajectory.save(out / stems[k])
+                draws.record(k, run.trajectory.summary_dict(), [npz, summary])
                 bar.update(1)
-    except KeyboardInterrupt:  # RunInterrupted included: a run in progress is dropped
-        interrupted = True
-    finally:
-        if bar is not None:
-            bar.close()
+        except KeyboardInterrupt:  # RunInterrupted included: a run in progress is dropped
+            interrupted = True
     files: list[str] = [f for k in draws.done for f in draws.files[k]]
     median = draws.median_draw()
     if median is not None:
@@ -927,7 +887,7 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     if median is not None:
         data["median_run"] = stems[median]
     table = out / "engine_seeds.json"
-    atomic_write_bytes(table, (_json_text(data, indent=2) + "\n").encode())
+    atomic_write_bytes(table, (json_text(data, indent=2) + "\n").encode())
     files.insert(0, str(table))
     payload = {**data, "files": files}
     text = (draws.text() + (f"\n  head errors and torques over t >= {start:g} s"
@@ -956,10 +916,11 @@ def _cmd_view(args: argparse.Namespace) -> _Outcome:
             raise UsageError(f"argument --html: must end in .html, got {args.html}")
         if not html.parent.is_dir():
             raise UsageError(f"argument --html: no folder {html.parent}")
+    from .robot_file import load_robot
     from .trajectory import Trajectory
     from .viz.meshcat_view import view, write_html
 
-    expected = _load_robot(args.robot).name if args.robot is not None else None
+    expected = load_robot(args.robot).name if args.robot is not None else None
     traj = Trajectory.load(args.trajectory, signals=False)
     if expected is not None and traj.params.name != expected:
         raise UsageError(f"view: {args.trajectory} is a run of the '{traj.params.name}' robot, "
@@ -1023,14 +984,13 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
         CONTROLLERS,
         DEFAULT_CONTROLLERS,
         ENGINE_DRAWS,
+        QUICK_T_FINAL,
         SCENARIOS,
         run_benchmark,
         write_benchmark,
     )
 
     _check_t_final(args.t_final, SIMULATE_DT)
-    from .runs.benchmark import QUICK_T_FINAL
-
     start = _error_window(args, min(args.t_final, QUICK_T_FINAL) if args.quick
                           else args.t_final)
     for name in args.scenario or []:
@@ -1054,11 +1014,9 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
                            failed=(None,) if args.no_failure else (None, 5),
                            t_final=args.t_final, quick=args.quick, error_window=start,
                            draws=args.draws or ENGINE_DRAWS)
-    files = write_benchmark(result, out)
-    payload = {"error_window": start, "rows": result.table(),
-               "files": {k: str(v) for k, v in files.items()}}
-    return _Outcome(payload, f"wrote {', '.join(str(v) for v in files.values())}\n"
-                             f"{len(result.rows)} runs, path metrics over t >= {start:g} s")
+    files, wrote = _wrote(write_benchmark(result, out))
+    return _Outcome({"error_window": start, "rows": result.table(), "files": files},
+                    f"{wrote}\n{len(result.rows)} runs, path metrics over t >= {start:g} s")
 
 
 def _command(parser: argparse.ArgumentParser, func: Callable[[argparse.Namespace], _Outcome],
@@ -1247,7 +1205,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a scenario (repeatable; default all): line, circle_0.5L, circle_1L, "
                    "circle_2L, lane_change, sinusoid, waypoints")
     p.add_argument("--controller", action="append", metavar="NAME|module:Class",
-                   help="a controller (repeatable; default all built-in but mpc): lyapunov, "
+                   help="a controller (repeatable; default every built-in one): lyapunov, "
                    "velocity, pfl, pfl_climb, los, mpc (model-predictive, |tau_i| <= 1 N m; "
                    "about 2.5 s of wall per simulated second), or a Controller subclass of "
                    "your own")
@@ -1274,10 +1232,8 @@ _SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
 
 @contextlib.contextmanager
 def _signals_as_interrupts() -> Iterator[list[str]]:
-    """SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (named after the signal) while
-    the block runs; after the first, further ones are ignored so that the partial results
-    get written. Yields the names of the signals received. The previous handlers come
-    back at the end (main thread only)."""
+    """SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (named after the signal) while the
+    block runs, further ones ignored so that partial results get written (main thread only)."""
     received: list[str] = []
     if threading.current_thread() is not threading.main_thread():
         yield received
@@ -1363,7 +1319,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             with _stdout_to_stderr(json_mode):
                 outcome = args.func(args)
             if json_mode and outcome.payload:
-                print(_json_text(outcome.payload), flush=True)
+                print(json_text(outcome.payload), flush=True)
             elif not json_mode and outcome.text:
                 print(outcome.text, flush=True)
             if outcome.note:

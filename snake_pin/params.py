@@ -289,7 +289,7 @@ class SnakeParams:
             n = 10, 2l = 0.12 m, m = 0.182 kg, J = 2.2e-4 kg m^2,
             c_x = c_y = 0.5 N s/m, c_theta = 7.2e-5 N m s, unless changed.
         """
-        return cls._named("table1", {}, changes)
+        return cls(**{"name": "table1", **changes})
 
     @classmethod
     def engine(cls, **changes: Any) -> SnakeParams:
@@ -307,13 +307,8 @@ class SnakeParams:
         SnakeParams
             c_x = 0.5 N s/m, c_y = 5 N s/m, c_theta = 1e-4 N m s, unless changed.
         """
-        base = {"n": 8, "link_length": 0.176, "mass": 0.417, "inertia": 1.20e-3,
-                "c_x": 0.5, "c_y": 5.0, "c_theta": 1.0e-4}
-        return cls._named("engine", base, changes)
-
-    @classmethod
-    def _named(cls, name: str, base: dict[str, Any], changes: dict[str, Any]) -> SnakeParams:
-        return cls(**{"name": name, **base, **changes})
+        return cls(**{"name": "engine", "n": 8, "link_length": 0.176, "mass": 0.417,
+                      "inertia": 1.20e-3, "c_x": 0.5, "c_y": 5.0, "c_theta": 1.0e-4, **changes})
 
     @classmethod
     def preset(cls, name: str, **changes: Any) -> SnakeParams:
@@ -398,11 +393,7 @@ class SnakeParams:
         """
         if not isinstance(data, dict):
             raise ParameterError(f"robot parameters must be a table, got {type(data).__name__}")
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(data) - known
-        if unknown:
-            raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
-        return cls(**data)
+        return cls().replace(**data)  # the defaults with ``data``'s fields, checked by name
 
 
 ROBOTS: tuple[str, ...] = ("table1", "engine")

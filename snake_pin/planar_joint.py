@@ -25,8 +25,8 @@ __all__ = ["PlanarLayout", "paper_dynamics", "paper_to_planar", "paper_to_planar
            "paper_to_planar_force", "planar_layout", "planar_to_paper",
            "planar_to_paper_acceleration", "velocity_map"]
 
-_BOUNDED = {"JointModelRZ": 1.0}
-_UNBOUNDED = {"JointModelRUBZ": 1.0}
+#: Pinocchio's joints about +z, and whether each is unbounded (stored as cos, sin).
+_ABOUT_Z = {"JointModelRZ": False, "JointModelRUBZ": True}
 _TOLERANCE = 1e-12
 
 
@@ -79,10 +79,8 @@ class PlanarLayout:
 def _axis_sign(joint: pin.JointModel, name: str) -> tuple[float, bool]:
     """(s_i, unbounded) of a revolute joint about +-z, or ParameterError."""
     kind = joint.shortname()
-    if kind in _BOUNDED:
-        return _BOUNDED[kind], False
-    if kind in _UNBOUNDED:
-        return _UNBOUNDED[kind], True
+    if kind in _ABOUT_Z:
+        return 1.0, _ABOUT_Z[kind]
     if kind in ("JointModelRevoluteUnaligned", "JointModelRevoluteUnboundedUnaligned"):
         axis = np.asarray(joint.extract().axis, dtype=float)
         if np.allclose(axis[:2], 0.0, atol=_TOLERANCE) and abs(abs(axis[2]) - 1.0) < 1e-9:

@@ -11,12 +11,14 @@ element (and the link where it applies).
 
 from __future__ import annotations
 
+import functools
 import importlib.resources
 import io
 import math
 import numbers
 import os
 import re
+import textwrap
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ._io import atomic_write_bytes, decode_utf8, parse_toml, read_regular_file
+from ._validation import one_line, output_file
 from .exceptions import ParameterError, RobotFileError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
@@ -61,8 +64,7 @@ _MOVABLE_TAG = re.compile(
 # --------------------------------------------------------------------------- helpers
 def _short(value: object) -> str:
     """``repr(value)`` on one line, cut to a readable length."""
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= _REPR_CHARS else text[:_REPR_CHARS - 3] + "..."
+    return one_line(repr(value), _REPR_CHARS)
 
 
 def _error(path: object, message: str) -> RobotFileError:
@@ -73,31 +75,25 @@ def _error(path: object, message: str) -> RobotFileError:
 
 def _read_limited(path: str | os.PathLike[str], limit: int, kind: str) -> bytes:
     """The bytes of ``path`` (a regular file of at most ``limit``), or RobotFileError."""
-    return read_regular_file(path, limit=limit, kind=kind,
-                             error=lambda message: _error(path, message))
+    return read_regular_file(path, limit=limit, kind=kind, error=functools.partial(_error, path))
 
 
 def _is_number(value: object) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
-def _float_or_raise(value: object, path: str | os.PathLike[str], where: str) -> object:
-    """TOML integers too large for a float become an error here (not an OverflowError)."""
-    if isinstance(value, int) and not isinstance(value, bool):
-        try:
-            float(value)
-        except OverflowError:
-            raise _error(path, f"{where} must be a finite number, "
-                               f"got an integer of {len(str(value))} digits") from None
-    return value
-
-
 def _numbers(value: object, path: str | os.PathLike[str], where: str) -> object:
-    """``value`` with every over-large integer refused (types are checked by SnakeParams)."""
-    if isinstance(value, list):
-        return [_float_or_raise(item, path, f"{where}, link {i}")
-                for i, item in enumerate(value, start=1)]
-    return _float_or_raise(value, path, where)
+    """``value`` (a number or a list), with a TOML integer too large for a float refused here
+    rather than as an OverflowError (types are checked by SnakeParams)."""
+    for i, item in enumerate(value if isinstance(value, list) else [value], start=1):
+        if isinstance(item, int) and not isinstance(item, bool):
+            try:
+                float(item)
+            except OverflowError:
+                at = f"{where}, link {i}" if isinstance(value, list) else where
+                raise _error(path, f"{at} must be a finite number, "
+                                   f"got an integer of {len(str(item))} digits") from None
+    return value
 
 
 def _sanitise_name(name: str, fallback: str) -> str:
@@ -111,19 +107,20 @@ def _sanitise_name(name: str, fallback: str) -> str:
 
 # ----------------------------------------------------------------------- TOML reading
 def _parse_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    def error(message: str) -> RobotFileError:
-        return _error(path, message)
-
+    error = functools.partial(_error, path)
     data = _read_limited(path, MAX_ROBOT_FILE_BYTES, "robot file")
     return parse_toml(decode_utf8(data, error=error), error=error)
 
 
 def _check_keys(path: str | os.PathLike[str], table: Mapping[str, Any], allowed: tuple[str, ...],
-                where: str) -> None:
+                where: str, required: tuple[str, ...] = ()) -> None:
     for key in table:
         if key not in allowed:
             raise _error(path, f"{where}unknown key {_short(key)} "
                                f"(expected one of {', '.join(allowed)})")
+    for key in required:
+        if key not in table:
+            raise _error(path, f"{where}{key} is missing")
 
 
 def _table(path: str | os.PathLike[str], doc: Mapping[str, Any], key: str,
@@ -145,15 +142,11 @@ def _link_tables(path: str | os.PathLike[str], entries: object) -> dict[str, Any
     any_offset = any("com_offset" in entry for entry in entries)
     for i, entry in enumerate(entries, start=1):
         where = f"[[link]] {i}: "
-        _check_keys(path, entry, _GEOMETRY_KEYS, where)
-        for key in _GEOMETRY_KEYS:
-            if key not in entry:
-                if key == "com_offset":
-                    continue
-                raise _error(path, f"{where}{key} is missing")
-            value = _float_or_raise(entry[key], path, f"{where}{key}")
+        _check_keys(path, entry, _GEOMETRY_KEYS, where, _REQUIRED_GEOMETRY)
+        for key, value in entry.items():
             if not _is_number(value):
                 raise _error(path, f"{where}{key} must be a number, got {_short(value)}")
+            _numbers(value, path, f"{where}{key}")
         if any_offset:
             offset = entry.get("com_offset", 0.5 * float(entry["link_length"]))
             columns["com_offset"].append(offset)
@@ -174,27 +167,20 @@ def _fields_from_doc(path: str | os.PathLike[str], doc: dict[str, Any]
         raise _error(path, "give the links either as [links] or as [[link]] tables, not both")
     if "urdf" in doc and (links is not None or "link" in doc):
         raise _error(path, "urdf takes the links from the URDF: remove [links]/[[link]]")
-    if links is not None:
-        _check_keys(path, links, _GEOMETRY_KEYS, "[links] ")
-        for key in _REQUIRED_GEOMETRY:
-            if key not in links:
-                raise _error(path, f"[links] {key} is missing")
-        for key, value in links.items():
-            fields[key] = _numbers(value, path, f"[links] {key}")
-            where[key] = f"[links] {key}"
-    elif "link" in doc:
+    if "link" in doc and links is None:
         for key, value in _link_tables(path, doc["link"]).items():
-            fields[key] = value
-            where[key] = f"[[link]] {key}"
-    elif "urdf" not in doc:
+            fields[key], where[key] = value, f"[[link]] {key}"
+    elif links is None and "urdf" not in doc:
         raise _error(path, "the links are missing: give a [links] table, [[link]] tables "
                            "or urdf = \"FILE.urdf\"")
-    friction = _table(path, doc, "friction", "[friction]")
-    if friction is not None:
-        _check_keys(path, friction, FRICTION_KEYS, "[friction] ")
-        for key, value in friction.items():
-            fields[key] = _numbers(value, path, f"[friction] {key}")
-            where[key] = f"[friction] {key}"
+    for header, table, keys, required in (
+            ("[links]", links, _GEOMETRY_KEYS, _REQUIRED_GEOMETRY),
+            ("[friction]", _table(path, doc, "friction", "[friction]"), FRICTION_KEYS, ())):
+        if table is not None:
+            _check_keys(path, table, keys, f"{header} ", required)
+            for key, value in table.items():
+                fields[key] = _numbers(value, path, f"{header} {key}")
+                where[key] = f"{header} {key}"
     return fields, where
 
 
@@ -237,66 +223,43 @@ def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
         the file and the field (and link).
     """
     doc = _parse_toml(path)
-    _check_keys(path, doc, _TOP_KEYS, "")
-    if "name" not in doc:
-        raise _error(path, "name is missing")
-    name = doc["name"]
-    if not isinstance(name, str):
-        raise _error(path, f"name must be a string, got {_short(name)}")
+    _check_keys(path, doc, _TOP_KEYS, "", ("name",))
+    if not isinstance(doc["name"], str):
+        raise _error(path, f"name must be a string, got {_short(doc['name'])}")
     fields, where = _fields_from_doc(path, doc)
     n = _link_count(path, doc, fields, where)
-    passive = doc.get("passive")
-    if "urdf" in doc:
-        return _robot_from_urdf(path, doc, n, fields)
-    if n is None:
-        raise _error(path, "n is missing and no per-link array gives it")
+    changes = {key: doc[key] for key in ("name", "passive") if key in doc}
     try:
-        return SnakeParams(n=n, name=name, passive=() if passive is None else passive,
-                           **fields)
+        if "urdf" in doc:
+            return _urdf_robot(path, doc["urdf"], n).replace(**changes, **fields)
+        if n is None:
+            raise _error(path, "n is missing and no per-link array gives it")
+        return SnakeParams(n=n, **changes, **fields)
     except ParameterError as exc:
         raise _error(path, str(exc)) from None
 
 
-def _robot_from_urdf(path: str | os.PathLike[str], doc: dict[str, Any], n: int | None,
-                     friction: dict[str, Any]) -> SnakeParams:
-    """A robot file's ``urdf = ...``: geometry from the URDF, the rest from the file."""
-    ref = doc["urdf"]
+def _urdf_robot(path: str | os.PathLike[str], ref: object, n: int | None) -> SnakeParams:
+    """The robot of a robot file's ``urdf = ref`` (beside the file), which must have n links."""
     if not isinstance(ref, str) or not ref:
         raise _error(path, f"urdf must be a file name (a string), got {_short(ref)}")
-    urdf_path = Path(path).parent / ref
     try:
-        params = read_urdf(urdf_path)
+        params = read_urdf(Path(path).parent / ref)
     except RobotFileError as exc:
         raise _error(path, f"urdf = {ref!r}: {exc}") from None
     if n is not None and n != params.n:
         raise _error(path, f"n = {n} but the URDF {ref!r} has {params.n} links")
-    changes: dict[str, Any] = {"name": doc["name"], **friction}
-    if "passive" in doc:
-        changes["passive"] = doc["passive"]
-    try:
-        return params.replace(**changes)
-    except ParameterError as exc:
-        raise _error(path, str(exc)) from None
+    return params
 
 
 # ----------------------------------------------------------------------- TOML writing
-def _toml_float(value: float) -> str:
-    """A finite float in TOML syntax: Python's shortest round-trip repr is valid TOML."""
-    return repr(float(value))
-
-
 def _toml_per_link(key: str, value: float | tuple[float, ...]) -> str:
+    """``key = value`` in TOML (Python's shortest round-trip float repr is valid TOML), a
+    per-link array wrapped at 86 characters."""
     if not isinstance(value, tuple):
-        return f"{key} = {_toml_float(value)}"
-    items = [_toml_float(v) for v in value]
-    lines, line = [], ""
-    for item in items:
-        if line and len(line) + len(item) > 80:
-            lines.append(line)
-            line = ""
-        line = f"{line} {item}," if line else f"{item},"
-    lines.append(line)
-    body = "\n".join(f"    {chunk}" for chunk in lines)
+        return f"{key} = {float(value)!r}"
+    body = textwrap.fill(" ".join(f"{float(v)!r}," for v in value), 86,
+                         initial_indent="    ", subsequent_indent="    ")
     return f"{key} = [\n{body}\n]"
 
 
@@ -340,15 +303,7 @@ def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     OSError
         The file cannot be written.
     """
-    if not isinstance(params, SnakeParams):
-        raise ParameterError(f"write_robot_file needs SnakeParams, got {type(params).__name__}")
-    if not isinstance(path, (str, os.PathLike)):
-        raise ParameterError(f"path must be a file path, got {_short(path)}")
-    path = Path(path)
-    if path.suffix != ".toml":
-        raise ParameterError(f"robot file must end in .toml: {path}")
-    if not path.parent.is_dir():
-        raise ParameterError(f"output directory does not exist: {path.parent}")
+    path = output_file(params, path, ".toml", "robot file")
     atomic_write_bytes(path, robot_file_string(params).encode())
     return path
 
@@ -401,14 +356,21 @@ def _finite(array: object) -> bool:
     return array is None or bool(np.all(np.isfinite(np.asarray(array, dtype=float))))
 
 
+def _by_name(path: str | os.PathLike[str], items: list[Any], tag: str) -> dict[str, Any]:
+    """``<link>`` or ``<joint>`` elements by name: each named, no name twice."""
+    found: dict[str, Any] = {}
+    for item in items:
+        if not item.name:
+            raise _error(path, f"a <{tag}> has no name")
+        if item.name in found:
+            raise _error(path, f"{tag} {item.name!r} is defined twice")
+        found[item.name] = item
+    return found
+
+
 def _check_links(path: str | os.PathLike[str], robot: Any) -> dict[str, Any]:
-    links: dict[str, Any] = {}
-    for link in robot.links:
-        if not link.name:
-            raise _error(path, "a <link> has no name")
-        if link.name in links:
-            raise _error(path, f"link {link.name!r} is defined twice")
-        links[link.name] = link
+    links = _by_name(path, robot.links, "link")
+    for link in links.values():
         inertial = link.inertial
         if inertial is None:
             continue
@@ -427,14 +389,9 @@ def _check_links(path: str | os.PathLike[str], robot: Any) -> dict[str, Any]:
 
 def _check_joints(path: str | os.PathLike[str], robot: Any, links: dict[str, Any]
                   ) -> dict[str, Any]:
-    joints: dict[str, Any] = {}
+    joints = _by_name(path, robot.joints, "joint")
     parent_of: dict[str, str] = {}
-    for joint in robot.joints:
-        if not joint.name:
-            raise _error(path, "a <joint> has no name")
-        if joint.name in joints:
-            raise _error(path, f"joint {joint.name!r} is defined twice")
-        joints[joint.name] = joint
+    for joint in joints.values():
         if joint.type not in _JOINT_TYPES:
             raise _error(path, f"joint {joint.name!r} has unknown type {_short(joint.type)}")
         for role in ("parent", "child"):
@@ -629,17 +586,14 @@ def _our_extension(path: str | os.PathLike[str], root: Any, chain: list[str]
                            f"(this snake_pin reads version {EXTENSION_VERSION})")
     index = {name: i for i, name in enumerate(chain)}
     friction = {key: [0.0] * len(chain) for key in FRICTION_KEYS}
-    seen: set[str] = set()
     for item in ext:
         if item.tag != "link_friction":
             raise _error(path, f"<{EXTENSION_TAG}> has an unknown element <{item.tag}>")
         link = item.get("link")
-        if link not in index:
-            raise _error(path, f"<link_friction link={_short(link)}> names no link of "
-                               f"the chain")
-        if link in seen:
-            raise _error(path, f"<link_friction link={link!r}> appears twice")
-        seen.add(link)
+        if link not in index:  # each link's index is taken once
+            problem = "appears twice" if link in chain else "names no link of the chain"
+            raise _error(path, f"<link_friction link={_short(link)}> {problem}")
+        i = index.pop(link)
         for attribute in item.attrib:
             if attribute not in ("link", *FRICTION_KEYS):
                 raise _error(path, f"<link_friction link={link!r}> has an unknown attribute "
@@ -651,10 +605,9 @@ def _our_extension(path: str | os.PathLike[str], root: Any, chain: list[str]
             except (TypeError, ValueError):
                 raise _error(path, f"<link_friction link={link!r}> {key} must be a number, "
                                    f"got {_short(text)}") from None
-            friction[key][index[link]] = value
-    for name in chain:
-        if name not in seen:
-            raise _error(path, f"<{EXTENSION_TAG}> has no <link_friction> for link {name!r}")
+            friction[key][i] = value
+    for name in index:  # the first link without one
+        raise _error(path, f"<{EXTENSION_TAG}> has no <link_friction> for link {name!r}")
     return ext.get("name"), friction
 
 
@@ -710,7 +663,7 @@ def read_urdf(path: str | os.PathLike[str],
     chain = [body.link for body in bodies]
     n = len(bodies)
     caller = _friction_argument(friction, n)
-    lengths, masses, inertias, offsets = [], [], [], []
+    rows = []  # (2l, m, J, CM offset) of each body
     for body in bodies:
         name = body.link
         mass, centre, yaw = _planar_inertia(body)
@@ -731,26 +684,18 @@ def read_urdf(path: str | os.PathLike[str],
         if not -scale <= centre[0] <= length + scale:
             raise _error(path, f"link {name!r}: the centre of mass x = {centre[0]:g} m lies "
                                f"outside the link (0..{length:g} m)")
-        lengths.append(length)
-        masses.append(mass)
-        inertias.append(yaw)
-        offsets.append(min(max(float(centre[0]), 0.0), length))
-    ext_name, ext_friction = _our_extension(path, root, chain)
-    passive = [k for k, body in enumerate(bodies[:-1], start=1)
-               if body.joint.limit is not None and body.joint.limit.effort == 0.0]
-    if ext_name is not None:
-        name = ext_name
-    else:
-        name = _sanitise_name(root.get("name"), Path(path).stem)
-        if name in ROBOTS:
-            name = f"{name}_urdf"
-    values: dict[str, Any] = {key: 0.0 for key in FRICTION_KEYS}
-    values.update(ext_friction)
-    values.update(caller)
+        rows.append((length, mass, yaw, min(max(float(centre[0]), 0.0), length)))
+    label, ext_friction = _our_extension(path, root, chain)
+    if label is None:
+        label = _sanitise_name(root.get("name"), Path(path).stem)
+        label = f"{label}_urdf" if label in ROBOTS else label
+    passive = tuple(k for k, body in enumerate(bodies[:-1], start=1)
+                    if body.joint.limit is not None and body.joint.limit.effort == 0.0)
+    lengths, masses, inertias, offsets = zip(*rows, strict=True)
     try:
-        return SnakeParams(n=n, link_length=tuple(lengths), mass=tuple(masses),
-                           inertia=tuple(inertias), com_offset=tuple(offsets),
-                           passive=tuple(passive), name=name, **values)
+        return SnakeParams(n=n, link_length=lengths, mass=masses, inertia=inertias,
+                           com_offset=offsets, passive=passive, name=label,
+                           **{**dict.fromkeys(FRICTION_KEYS, 0.0), **ext_friction, **caller})
     except ParameterError as exc:
         raise _error(path, _link_names(str(exc), chain)) from None
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 import io
 import os
 import re
-import reprlib
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +20,8 @@ import yourdfpy
 from lxml import etree
 
 from ._io import atomic_write_bytes
-from .exceptions import ParameterError, SnakePinError
+from ._validation import check_params, flag, output_file
+from .exceptions import SnakePinError
 from .params import SnakeParams
 
 __all__ = ["EFFORT_LIMIT", "EXTENSION_TAG", "EXTENSION_VERSION", "JOINT_LIMIT", "build_urdf",
@@ -43,22 +43,14 @@ _BODY_RGBA = np.array([0.13, 0.55, 0.13, 1.0])
 _HEAD_RGBA = np.array([0.85, 0.33, 0.10, 1.0])
 
 
-def _check_params(params: object) -> None:
-    if not isinstance(params, SnakeParams):
-        raise ParameterError(f"params must be SnakeParams, got {reprlib.repr(params)}")
-
-
 def _translation(x: float) -> np.ndarray:
     pose = np.eye(4)
     pose[0, 3] = x
     return pose
 
 
-def _link(params: SnakeParams, index: int) -> yourdfpy.Link:
-    length = float(params.link_lengths[index - 1])
-    mass = float(params.masses[index - 1])
-    yaw_inertia = float(params.inertias[index - 1])
-    com = float(params.com_offsets[index - 1])
+def _link(index: int, length: float, mass: float, yaw_inertia: float, com: float
+          ) -> yourdfpy.Link:
     radius = RADIUS_RATIO * length
     # A cylinder's axis is z in URDF: turn it onto the link's x axis, centred at x = l_i.
     pose = np.array([[0.0, 0.0, 1.0, 0.5 * length], [0.0, 1.0, 0.0, 0.0],
@@ -101,10 +93,11 @@ def build_urdf(params: SnakeParams, *, floating_base: bool = True) -> yourdfpy.U
         If ``params`` is not a :class:`~snake_pin.params.SnakeParams` or
         ``floating_base`` not a bool.
     """
-    _check_params(params)
-    if not isinstance(floating_base, (bool, np.bool_)):
-        raise ParameterError(f"floating_base must be true or false, got {floating_base!r}")
-    links = [_link(params, i) for i in range(1, params.n + 1)]
+    check_params(params)
+    flag(floating_base, "floating_base")
+    links = [_link(i, *map(float, row)) for i, row in enumerate(zip(
+        params.link_lengths, params.masses, params.inertias, params.com_offsets, strict=True),
+        start=1)]
     joints = []
     for i in range(1, params.n):
         effort = 0.0 if i in params.passive else EFFORT_LIMIT
@@ -198,17 +191,9 @@ def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     OSError
         The file cannot be written.
     """
-    _check_params(params)
-    if not isinstance(path, (str, os.PathLike)):
-        raise ParameterError(f"path must be a file path, got {reprlib.repr(path)}")
-    urdf = build_urdf(params)
-    if not urdf.validate():
+    path = output_file(params, path, ".urdf", "output file")
+    if not build_urdf(params).validate():
         raise SnakePinError(f"yourdfpy rejected the generated description of {params.name}")
-    path = Path(path)
-    if path.suffix != ".urdf":
-        raise ParameterError(f"output file must end in .urdf: {path}")
-    if not path.parent.exists():
-        raise ParameterError(f"output directory does not exist: {path.parent}")
     atomic_write_bytes(path, urdf_string(params).encode())
     return path
 

@@ -212,12 +212,13 @@ def test_a_file_written_twice_in_a_group_is_refused(tmp_path: Path) -> None:
 
 _WRITER = textwrap.dedent("""
     import sys, time
-    from snake_pin._io import atomic_writer
-    with atomic_writer(sys.argv[1]) as handle:
+    from snake_pin._io import atomic_save
+    def save(handle):
         handle.write(b"partial")
         handle.flush()
         print("ready", flush=True)
         time.sleep(60)
+    atomic_save(sys.argv[1], save)
 """)
 
 

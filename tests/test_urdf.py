@@ -88,11 +88,11 @@ def test_bad_arguments_are_one_line_naming_them(build: Callable[..., object],
     from snake_pin import ParameterError
 
     for params in (None, "table1", {"n": 3}, SnakeParams.table1().to_dict()):
-        with pytest.raises(ParameterError, match=r"^params must be SnakeParams, got "):
+        with pytest.raises(ParameterError, match=r"^params must be a SnakeParams, got "):
             build(params)
-        with pytest.raises(ParameterError, match=r"^params must be SnakeParams, got "):
+        with pytest.raises(ParameterError, match=r"^params must be a SnakeParams, got "):
             write_urdf(params, tmp_path / "robot.urdf")  # type: ignore[arg-type]
     for flag in (None, "yes", 1, [True]):
-        with pytest.raises(ParameterError, match=r"^floating_base must be true or false"):
+        with pytest.raises(ParameterError, match=r"^floating_base must be True or False"):
             build(SnakeParams.table1(), floating_base=flag)
     assert list(tmp_path.iterdir()) == []

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from snake_pin._validation import (
     instance,
     integer,
     one_line,
+    output_file,
     printable_path,
 )
 from snake_pin.exceptions import ConfigurationError, ParameterError
@@ -101,6 +103,23 @@ def test_instance_names_the_argument_and_the_wanted_kind() -> None:
         instance(None, SnakeParams, "robot")
     with pytest.raises(ParameterError, match=r"^model must be a Pinocchio model, got 'x'$"):
         instance("x", SnakeParams, "model", "a Pinocchio model")
+
+
+def test_output_file_refuses_before_anything_is_written(tmp_path: Path) -> None:
+    """output_file gives the path of a SnakeParams file of the right suffix in an existing
+    folder, and refuses every other case in one line naming what is wrong."""
+    params = SnakeParams.table1(n=3)
+    assert output_file(params, str(tmp_path / "r.toml"), ".toml", "robot file") == \
+        tmp_path / "r.toml"
+    (tmp_path / "file").write_text("")
+    for args, words in [((None, tmp_path / "r.toml"), "^params must be a SnakeParams"),
+                        ((params, 3), "^path must be a file path, got 3$"),
+                        ((params, tmp_path / "r.txt"), "^robot file must end in .toml: "),
+                        ((params, tmp_path / "no" / "r.toml"), "^output directory does not"),
+                        ((params, tmp_path / "file" / "r.toml"), "^output directory does not")]:
+        with pytest.raises(ParameterError, match=words):
+            output_file(*args, ".toml", "robot file")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
 
 
 def test_as_vector_errors_are_configuration_errors() -> None:
