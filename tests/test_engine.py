@@ -274,3 +274,83 @@ def test_run_engine_prepares_the_controllers_sampling_instants(
     assert traj.status == "completed" and len(traj) == 301 and alone == []
     clock = np.r_[0.0, np.cumsum(np.full(600, wheels.timestep))[1::2]]
     assert np.array_equal(traj.t, clock)
+
+
+@pytest.fixture(scope="module")
+def engine_friction() -> dict:
+    return identify_friction()
+
+
+@pytest.fixture(scope="module")
+def mpc_failed_joint(engine_friction: dict):
+    """1 s of the MPC on the engine, joint 5 failed, torques bounded by 1.5 N m (below what
+    the first second asks for unbounded: about 2.3 N m), from a perturbed start."""
+    from snake_pin.control import MPCOptions
+    from snake_pin.engine.run import run_engine
+
+    offset = np.linspace(-1e-6, 1e-6, 7)
+    return run_engine(SnakeParams.engine(passive=(5,)), t_final=1.0, friction=engine_friction,
+                      law="mpc", initial_offset=offset,
+                      mpc_options=MPCOptions(torque_bound=1.5)).trajectory
+
+
+def test_engine_mpc_torques_stay_within_the_bound(mpc_failed_joint) -> None:
+    """Every torque the MPC sends to the motors is within its bound, and the bound is met
+    (the run needs more: the box constrains the plan, it is not idle)."""
+    traj = mpc_failed_joint
+    assert traj.status == "completed" and traj.meta["law"] == "mpc"
+    assert traj.meta["mpc"]["torque_bound"] == 1.5 and traj.meta["mpc"]["solves"] == 25
+    peak = np.abs(traj.tau).max()
+    assert peak <= 1.5 and peak > 1.5 * (1 - 1e-6)
+    assert traj.q[-1, 0] > 0.03  # the head moved forward along the line
+
+
+def test_engine_mpc_gives_a_failed_joint_no_torque(mpc_failed_joint) -> None:
+    """Joint 5 (failed, no motor on the engine) gets exactly zero torque while the others
+    work, and it still bends (moved by its neighbours)."""
+    traj = mpc_failed_joint
+    assert np.all(traj.tau[:, 4] == 0.0)
+    assert np.all(np.abs(traj.tau[:, [0, 1, 2, 3, 5, 6]]).max(axis=0) > 0.05)
+    assert np.ptp(traj.q[:, 3 + 4]) > 1e-3
+
+
+def test_engine_mpc_is_deterministic(engine_friction: dict, mpc_failed_joint) -> None:
+    """The same robot, start, friction and options give the same run bit for bit."""
+    from snake_pin.control import MPCOptions
+    from snake_pin.engine.run import run_engine
+
+    again = run_engine(SnakeParams.engine(passive=(5,)), t_final=1.0, friction=engine_friction,
+                       law="mpc", initial_offset=np.linspace(-1e-6, 1e-6, 7),
+                       mpc_options=MPCOptions(torque_bound=1.5)).trajectory
+    assert np.array_equal(again.q, mpc_failed_joint.q)
+    assert np.array_equal(again.dq, mpc_failed_joint.dq)
+    assert np.array_equal(again.tau, mpc_failed_joint.tau)
+
+
+def test_engine_mpc_bound_is_the_motors_saturation() -> None:
+    """The MPC's default bound on the engine is the motors' control range, which MuJoCo
+    enforces: the MPC plans within exactly what the motors deliver."""
+    from snake_pin.engine.run import ENGINE_TORQUE_BOUND
+
+    model = build_engine_model().model
+    assert np.all(model.actuator_ctrllimited == 1)
+    assert np.all(model.actuator_ctrlrange == [-ENGINE_TORQUE_BOUND, ENGINE_TORQUE_BOUND])
+
+
+@pytest.mark.parametrize(("kwargs", "words"), [
+    ({"law": "pid"}, "law must be one of velocity, acceleration, mpc, got 'pid'"),
+    ({"law": "velocity", "mpc_options": "x"}, "mpc_options are for law 'mpc'"),
+    ({"law": "mpc", "mpc_options": {"torque_bound": 1.0}}, "mpc_options must be MPCOptions"),
+    ({"law": "mpc", "mpc_options": "big"}, "exceeds the engine motors' 10 N m"),
+])
+def test_bad_engine_law_or_mpc_options_refused_in_one_line(kwargs: dict, words: str) -> None:
+    """An unknown law, MPC options for another law or not MPCOptions, and a torque bound
+    above the motors' are refused before any run, in one line."""
+    from snake_pin.control import MPCOptions
+    from snake_pin.engine.run import run_engine
+
+    if kwargs.get("mpc_options") == "big":
+        kwargs = {**kwargs, "mpc_options": MPCOptions(torque_bound=12.0)}
+    with pytest.raises(ParameterError) as info:
+        run_engine(t_final=1.0, **kwargs)
+    assert words in str(info.value) and "\n" not in str(info.value)

@@ -12,9 +12,10 @@
   each link's mass (the load on its wheels), c_theta from each link's own wheel offset.
 * :class:`DirtyDerivative` estimates velocities from positions with 2 pi f_c s / (s + 2 pi f_c)
   (erratum 4 in docs/errata.md), discretised by backward Euler.
-* :func:`run_engine` runs the Lyapunov-like controller against MuJoCo at 1 kHz: the
-  :class:`EnginePlant` in :func:`snake_pin.loop.closed_loop`, the loop
-  :func:`snake_pin.sim.simulate` runs over the viscous model.
+* :func:`run_engine` runs the Lyapunov-like controller (either form) or the MPC against
+  MuJoCo at 1 kHz: the :class:`EnginePlant` in :func:`snake_pin.loop.closed_loop`, the
+  loop :func:`snake_pin.sim.simulate` runs over the viscous model. Each law's internal
+  model is the identified viscous one.
 """
 
 from __future__ import annotations
@@ -27,8 +28,14 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .._validation import finite_number
-from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
+from .._validation import brief, finite_number
+from ..control import (
+    LyapunovController,
+    MPCController,
+    MPCOptions,
+    QuasiStaticLyapunovController,
+    head_first_reference,
+)
 from ..control.reference import HeadReference
 from ..exceptions import ParameterError
 from ..gaits import initial_state
@@ -36,10 +43,11 @@ from ..loop import MAX_STEPS, Plant, closed_loop
 from ..model import Snake
 from ..params import SnakeParams
 from ..trajectory import Trajectory
+from ..urdf import EFFORT_LIMIT
 from .model import GRAVITY, EngineModel, WheelSpec, build_engine_model
 
-__all__ = ["LAWS", "DirtyDerivative", "EnginePlant", "EngineRun", "identify_friction",
-           "run_engine"]
+__all__ = ["ENGINE_TORQUE_BOUND", "LAWS", "DirtyDerivative", "EnginePlant", "EngineRun",
+           "identify_friction", "run_engine"]
 
 
 class DirtyDerivative:
@@ -216,7 +224,10 @@ class EngineRun:
     friction: dict[str, float]
 
 
-LAWS = ("velocity", "acceleration")
+LAWS = ("velocity", "acceleration", "mpc")
+#: The MPC's torque bound on the engine [N m]: the engine robot's motors saturate at
+#: EFFORT_LIMIT (their ``ctrlrange``), so the MPC plans within exactly what they deliver.
+ENGINE_TORQUE_BOUND = EFFORT_LIMIT
 
 
 def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = None,
@@ -224,13 +235,17 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                cutoff: float = 10.0, law: str = "velocity",
                initial_offset: Sequence[float] | np.ndarray | None = None,
                reference: HeadReference | None = None,
+               mpc_options: MPCOptions | None = None,
                progress: bool = False) -> EngineRun:
-    """Lyapunov-like head tracking on MuJoCo, control at 1 kHz, velocities from the filter.
+    """Head tracking on MuJoCo, control at 1 kHz, velocities from the filter.
 
     The controller's internal model is ``params`` with the identified viscous friction.
     ``law="velocity"`` uses the quasi-static, velocity-level form of V's minimisation with
     joint servos (:class:`QuasiStaticLyapunovController`); ``law="acceleration"`` the
-    torque-level form of VI.2 (:class:`LyapunovController`).
+    torque-level form of VI.2 (:class:`LyapunovController`); ``law="mpc"`` the
+    receding-horizon Box-FDDP (:class:`MPCController`) on that same viscous model, its
+    torques bounded by :data:`ENGINE_TORQUE_BOUND` (the motors' saturation) unless
+    ``mpc_options`` says otherwise. Every law reads the filtered velocities.
 
     The run starts at rest on the arc of eq. (82), head first (theta_1 = pi), with
     ``initial_offset`` (n - 1 angles [rad], default zeros) added to its joint angles: the
@@ -256,7 +271,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     cutoff
         Cut-off of the velocity filter [Hz].
     law
-        "velocity" or "acceleration" (see above).
+        "velocity", "acceleration" or "mpc" (see above).
     initial_offset
         n - 1 offsets added to the initial joint angles [rad] (see above).
     reference
@@ -264,6 +279,10 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         :func:`~snake_pin.control.head_first_reference`: 0.1 m/s along +x); any path of
         :mod:`snake_pin.paths` with its timing law. The run starts with the head at the
         origin leading along +x (theta_1 = pi), so a reference should start there.
+    mpc_options
+        The MPC's settings with ``law="mpc"`` (default :class:`MPCOptions` with
+        ``torque_bound`` = :data:`ENGINE_TORQUE_BOUND`); a torque bound above the motors'
+        saturation is refused (the engine would clip what the MPC plans).
     progress
         Show a progress bar on stderr when it is a terminal.
 
@@ -280,10 +299,19 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         status "interrupted" and the time in its reason.
     ParameterError
         An unknown law, a non-positive ``t_final`` or more than ``MAX_STEPS`` steps, an
-        ``initial_offset`` of the wrong size or not finite.
+        ``initial_offset`` of the wrong size or not finite, ``mpc_options`` not
+        MPCOptions, with a torque bound above the motors', or given to another law.
     """
     if law not in LAWS:
         raise ParameterError(f"law must be one of {', '.join(LAWS)}, got {law!r}")
+    if mpc_options is not None:
+        if law != "mpc":
+            raise ParameterError(f"mpc_options are for law 'mpc', not {law!r}")
+        if not isinstance(mpc_options, MPCOptions):
+            raise ParameterError(f"mpc_options must be MPCOptions, got {brief(mpc_options)}")
+        if mpc_options.torque_bound > ENGINE_TORQUE_BOUND:
+            raise ParameterError(f"the MPC's torque_bound {mpc_options.torque_bound:g} N m "
+                                 f"exceeds the engine motors' {ENGINE_TORQUE_BOUND:g} N m")
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
     t_final = finite_number(t_final, "t_final", positive=True)
@@ -306,10 +334,13 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                                   c_theta=friction["c_theta"])
     snake = Snake(model_params)
     head_reference = reference if reference is not None else head_first_reference()
-    controller: QuasiStaticLyapunovController | LyapunovController
+    controller: QuasiStaticLyapunovController | LyapunovController | MPCController
     if law == "velocity":
         controller = QuasiStaticLyapunovController(snake, head_reference,
                                                    control_dt=wheels.control_dt)
+    elif law == "mpc":
+        controller = MPCController(snake, head_reference, options=mpc_options or MPCOptions(
+            torque_bound=ENGINE_TORQUE_BOUND))
     else:
         controller = LyapunovController(snake, head_reference)
     q0 = initial_state(params.n, theta_1=math.pi)[: params.n + 2]
@@ -322,8 +353,16 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         meta["initial_offset"] = offset.tolist()
     if reference is not None:
         meta["reference"] = repr(reference)
+    if isinstance(controller, MPCController):
+        o = controller.options
+        meta["mpc"] = {"torque_bound": o.torque_bound, "horizon": o.horizon,
+                       "node_dt": o.node_dt, "resolve_period": o.resolve_period}
     traj = closed_loop(plant, controller, np.r_[q0, np.zeros(len(q0))], steps,
                        progress=progress, meta=meta, label="engine", record_signals=False)
+    if isinstance(controller, MPCController):
+        stats = controller.stats
+        traj.meta["mpc"].update(solves=stats.solves, iterations=stats.iterations,
+                                solver_wall=stats.wall)
     return EngineRun(traj, plant.true_dq[:len(traj)].copy(), friction)
 
 

@@ -1,6 +1,6 @@
 """Report stage of Section VI.3 on MuJoCo: the Lyapunov-like controller on a wheeled snake
 with Coulomb contacts (Figs. 19-21), beside the same controller on the viscous Pinocchio
-model.
+model, and the MPC on the same robot along the benchmark's line and circle.
 
 The engine runs are chaotic, so the stage reports distributions over perturbed starts
 (:mod:`snake_pin.runs.engine`), and checks the viscous model's runs the same way.
@@ -15,15 +15,17 @@ import numpy as np
 
 from ..control import LyapunovController, QuasiStaticLyapunovController, head_first_reference
 from ..engine.model import WheelSpec
-from ..engine.run import identify_friction
+from ..engine.run import ENGINE_TORQUE_BOUND, identify_friction
 from ..gaits import initial_state
 from ..metrics import default_error_window
 from ..model import Snake
 from ..params import ROBOTS, SnakeParams
+from ..runs.benchmark import SPEED, make_scenario
 from ..runs.engine import (
     METRICS,
     PERTURBATION,
     Draws,
+    distribution,
     engine_draw,
     engine_robot,
     perturbations,
@@ -34,7 +36,8 @@ from ..runs.parallel import run_jobs
 from ..sim import Trajectory, simulate
 from .context import Context
 
-__all__ = ["DRAWS", "QUICK_DRAWS", "SENSITIVE", "VISCOUS_DRAWS", "engine_stage"]
+__all__ = ["DRAWS", "MPC_DRAWS", "MPC_SCENARIOS", "MPC_T_FINAL", "QUICK_DRAWS",
+           "QUICK_MPC_T_FINAL", "SENSITIVE", "VISCOUS_DRAWS", "engine_stage"]
 
 #: Draws per configuration in the report (full run, ``--quick``) and of the viscous check.
 DRAWS, QUICK_DRAWS, VISCOUS_DRAWS = 11, 3, 3
@@ -42,6 +45,12 @@ DRAWS, QUICK_DRAWS, VISCOUS_DRAWS = 11, 3, 3
 #: more than this fraction of itself: a run that keeps small offsets small moves it by
 #: about the offset (1e-6 .. 1e-5), a chaotic one by percents.
 SENSITIVE = 1e-3
+#: The MPC on the engine: the benchmark's paths it follows (scaled to the engine robot's
+#: body length), its duration (full report, ``--quick``) [s] and its perturbed starts. The
+#: MPC re-solves its horizon every 40 ms, several times slower than the other laws.
+MPC_SCENARIOS = ("line", "circle_1L")
+MPC_T_FINAL, QUICK_MPC_T_FINAL = 25.0, 2.0
+MPC_DRAWS = 3
 
 
 def _cell(dist: dict[str, Any]) -> str:
@@ -49,6 +58,13 @@ def _cell(dist: dict[str, Any]) -> str:
     if dist["median"] is None:
         return "-"
     return f"{dist['median']:.4g} [{dist['p10']:.4g}, {dist['p90']:.4g}]"
+
+
+def _span(dist: dict[str, Any]) -> str:
+    """A report table cell: median [min, max]."""
+    if dist["median"] is None:
+        return "-"
+    return f"{dist['median']:.3g} [{dist['min']:.3g}, {dist['max']:.3g}]"
 
 
 def _passive_joint(n: int) -> int:
@@ -113,7 +129,8 @@ def _friction_section(sec: Any, base: SnakeParams, wheels: WheelSpec,
 
 def engine_stage(ctx: Context) -> None:
     """Identification, the engine runs as distributions (both forms of the law), the
-    viscous twin and its sensitivity check.
+    viscous twin and its sensitivity check, and the MPC's runs along the line and the
+    circle (:data:`MPC_SCENARIOS`) from perturbed starts.
 
     Parameters
     ----------
@@ -165,7 +182,18 @@ def engine_stage(ctx: Context) -> None:
              for offset in viscous_offsets]
     jobs.append((engine_draw, (base, None), {**options, "t_final": min(t_final, 20.0),
                                              "law": "acceleration"}))
-    results = run_jobs(jobs, cluster=ctx.cluster)
+    mpc_t = QUICK_MPC_T_FINAL if ctx.quick else MPC_T_FINAL
+    mpc_window = default_error_window(mpc_t)
+    mpc_offsets = perturbations(MPC_DRAWS, base.n - 1, PERTURBATION, seed=0)
+    mpc_references = {name: make_scenario(name, base.body_length) for name in MPC_SCENARIOS}
+    # the MPC's runs are the longest: first, so that the others fill the workers behind them
+    mpc_jobs: list[tuple[Any, tuple[Any, ...], dict[str, Any]]] = [
+        (engine_draw, (base, offset), {**options, "t_final": mpc_t, "law": "mpc",
+                                       "reference": mpc_references[name],
+                                       "error_window": mpc_window})
+        for name in MPC_SCENARIOS for offset in mpc_offsets]
+    results = run_jobs(mpc_jobs + jobs, cluster=ctx.cluster)
+    mpc_results, results = results[:len(mpc_jobs)], results[len(mpc_jobs):]
     engine_results = results[:len(configs) * count]
     twin, *viscous = results[len(configs) * count:-1]
     contrast = results[-1]
@@ -258,3 +286,47 @@ def engine_stage(ctx: Context) -> None:
              "torque-level law.")
     sec.numbers["target_met"] = {label: (rms is not None and rms <= 10.0)
                                  for label, rms in target_rows}
+    _mpc_section(sec, mpc_results, mpc_references, mpc_offsets, mpc_t, mpc_window, ctx)
+
+
+def _mpc_section(sec: Any, runs: list[Any], references: dict[str, Any], offsets: np.ndarray,
+                 t_final: float, error_window: float, ctx: Context) -> None:
+    """The MPC's engine runs: per path, the status of each draw and the median [min, max]
+    of the head error and the peak torque, and the median draw's head path."""
+    from ..viz.plots import plot_head_path
+
+    sec.text(f"The MPC on the engine: the receding-horizon Box-FDDP of "
+             "snake_pin/control/mpc.py, its "
+             "internal model the same identified viscous model as the law above, reading the "
+             f"filtered velocities, its torques bounded by {ENGINE_TORQUE_BOUND:g} N m (the "
+             "saturation of the engine robot's motors: the MPC plans within what they "
+             "deliver), every joint actuated. It follows the benchmark's line and circle of "
+             f"radius L at {SPEED:g} m/s for {t_final:g} s from {len(offsets)} starts, the arc of "
+             f"(82) with its joint angles offset by U(-{PERTURBATION:g}, {PERTURBATION:g}) "
+             f"rad (seed 0, the first {len(offsets)} offsets above). Head errors over t >= "
+             f"{error_window:g} s against the timed reference, in % of the body; the peak "
+             "torque over the whole run. Each cell is the median [min, max] over the runs.")
+    rows, numbers = [], {}
+    for k, name in enumerate(MPC_SCENARIOS):
+        batch = runs[k * len(offsets):(k + 1) * len(offsets)]
+        draws = Draws(f"MPC, {name}", PERTURBATION, 0, offsets)
+        for i, run in enumerate(batch):
+            draws.record(i, run.trajectory.summary_dict())
+        statuses = [str(run.trajectory.status) for run in batch]
+        dists = {key: distribution(draws.values(key))
+                 for key in ("rms_percent", "max_percent", "torque_max")}
+        rows.append([name, ", ".join(statuses), *(_span(dists[key]) for key in dists)])
+        median = batch[draws.median_draw() or 0].trajectory
+        reference = references[name]
+        figure = ctx.folder / f"engine_mpc_{name}.png"
+        plot_head_path(median, reference.at(median.t)[0][:, :2], figure,
+                       title=f"MPC on the engine, {name}: the median of {len(batch)} runs")
+        sec.figure(figure, f"MPC on the engine along the {name} path: the head of the median "
+                           "run (by RMS error) against its reference, with body snapshots")
+        numbers[name] = {"t_final": t_final, "error_window": error_window,
+                         "torque_bound": ENGINE_TORQUE_BOUND, "statuses": statuses,
+                         "distribution": dists, "draws": draws.to_dict(),
+                         "solves": [run.trajectory.meta.get("mpc", {}) for run in batch]}
+    sec.table(["path", "status of each run", "RMS head error [% of body]",
+               "max head error [% of body]", "peak torque [N m]"], rows)
+    sec.numbers["mpc"] = numbers

@@ -188,7 +188,7 @@ METRIC_FIELDS = ("scenario", "controller", "model", "failed_joint", "status", "r
                  "lateral_min", "torque_rms", "torque_max", "body_length", "draws",
                  "head_ct_rms_pct_p10", "head_ct_rms_pct_p90", "wall_s")
 #: Engine law of each head-tracking controller (:func:`~snake_pin.engine.run.run_engine`).
-ENGINE_LAWS = {"lyapunov": "acceleration", "velocity": "velocity"}
+ENGINE_LAWS = {"lyapunov": "acceleration", "velocity": "velocity", "mpc": "mpc"}
 #: Perturbed starts per engine cell: the engine is chaotic, its figures are medians.
 ENGINE_DRAWS = 3
 

@@ -1,6 +1,6 @@
-"""Section VI.3's runs on MuJoCo: the Lyapunov-like controller on a wheeled snake with
-Coulomb contacts (Figs. 19-21), and the summary and figures of such runs (on the viscous
-Pinocchio model too).
+"""Section VI.3's runs on MuJoCo: the Lyapunov-like controller (or the MPC) on a wheeled
+snake with Coulomb contacts (Figs. 19-21), and the summary and figures of such runs (on the
+viscous Pinocchio model too).
 
 The engine runs are chaotic (with joint 5 passive, offsets of 1e-12..1e-4 rad on the
 initial joint angles moved the RMS head error between 9 % and 11.5 % of the body), so
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..control import head_first_reference
+from ..control import MPCOptions, head_first_reference
 from ..control.reference import HeadReference
 from ..engine.model import WheelSpec
 from ..engine.run import EngineRun, run_engine
@@ -34,6 +34,7 @@ from ..metrics import (
     head_error_summary,
     head_position_error,
     percent,
+    torque_max,
     window,
 )
 from ..model import Snake
@@ -85,8 +86,9 @@ def summarize(traj: Trajectory, *, every: int = 10,
         rms_head_error_pct, max_head_error_pct, rms_relative (fraction of the body
         length), the metrics of :data:`METRICS` (``rms_percent``, ``max_percent``: % of
         the body length; ``torque_rms``: RMS over the window's applied torques of the
-        actuated joints [N m]; None when the window holds no sample), R_min, D_min,
-        body_length, passive, final_head.
+        actuated joints [N m]; None when the window holds no sample), ``torque_max`` (the
+        peak ``|tau_i|`` over the whole run, :func:`~snake_pin.metrics.torque_max`), R_min,
+        D_min, body_length, passive, final_head.
     """
     error = head_position_error(
         traj, head_first_reference() if reference is None else reference)
@@ -105,6 +107,7 @@ def summarize(traj: Trajectory, *, every: int = 10,
         "rms_percent": percent(errors["rms_relative"]),
         "max_percent": None if max_error is None else 100.0 * max_error / body,
         "torque_rms": torque,
+        "torque_max": torque_max(traj),
         "R_min": float(r.min()), "D_min": float(d.min()),
         "body_length": body,
         "passive": list(traj.params.passive),
@@ -326,7 +329,8 @@ def _range_text(dist: dict[str, Any]) -> str:
 def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None, *,
                 wheels: WheelSpec, t_final: float, friction: dict[str, Any],
                 law: str = "velocity", reference: HeadReference | None = None,
-                error_window: float | None = None) -> EngineRun:
+                error_window: float | None = None,
+                mpc_options: MPCOptions | None = None) -> EngineRun:
     """One engine run from the arc of (82) with ``offset`` added to its joint angles.
 
     A job for :mod:`snake_pin.runs.parallel` (module-level, picklable).
@@ -344,12 +348,14 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
     friction
         The identified viscous model (:func:`~snake_pin.engine.run.identify_friction`).
     law
-        "velocity" or "acceleration" (see :func:`~snake_pin.engine.run.run_engine`).
+        "velocity", "acceleration" or "mpc" (see :func:`~snake_pin.engine.run.run_engine`).
     reference
         The head reference (default the straight line of
         :func:`~snake_pin.control.head_first_reference`).
     error_window
         Start of the head-error window [s] (None: :func:`summarize`'s default).
+    mpc_options
+        The MPC's settings with ``law="mpc"`` (None: run_engine's default).
 
     Returns
     -------
@@ -357,7 +363,7 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
         The run, its trajectory passed through :func:`summarize`.
     """
     run = run_engine(params, wheels=wheels, t_final=t_final, friction=friction, law=law,
-                     initial_offset=offset, reference=reference)
+                     initial_offset=offset, reference=reference, mpc_options=mpc_options)
     summarize(run.trajectory, reference=reference, start=error_window)
     return run
 
