@@ -22,7 +22,6 @@ import bisect
 import csv
 import io
 import math
-import numbers
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
@@ -35,7 +34,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from ._io import decode_utf8, parse_toml, read_regular_file
-from ._validation import finite_number
+from ._validation import brief, finite_number
 from .exceptions import ParameterError, PathFileError
 
 __all__ = ["DEFAULT_EXTENT", "HINT_RADIUS", "MAX_ANGLE", "MAX_COORDINATE", "MAX_PATH_FILE_BYTES",
@@ -121,23 +120,10 @@ class _Samples(NamedTuple):
 
 
 # --------------------------------------------------------------------------- checks
-def _number(value: object, name: str, *, positive: bool = False,
-            non_negative: bool = False) -> float:
-    """A finite float (optionally > 0 or >= 0) or one ParameterError line naming ``name``."""
-    if not isinstance(value, numbers.Real) or isinstance(value, bool):
-        raise ParameterError(f"{name} must be a number, got {_short(value)}")
-    try:
-        float(value)
-    except OverflowError:
-        raise ParameterError(f"{name} must be finite, got an integer of "
-                             f"{len(str(value))} digits") from None
-    return finite_number(value, name, positive=positive, non_negative=non_negative)
-
-
 def _length(value: object, name: str, *, positive: bool = False,
             non_negative: bool = False) -> float:
     """A coordinate or length [m] within +-MAX_COORDINATE (>= MIN_LENGTH if positive)."""
-    x = _number(value, name, positive=positive, non_negative=non_negative)
+    x = finite_number(value, name, positive=positive, non_negative=non_negative)
     if abs(x) > MAX_COORDINATE:
         raise ParameterError(f"{name} must lie within +-{MAX_COORDINATE:g} m, got {x:g}")
     if positive and x < MIN_LENGTH:
@@ -147,7 +133,7 @@ def _length(value: object, name: str, *, positive: bool = False,
 
 def _angle(value: object, name: str, *, positive: bool = False) -> float:
     """An angle [rad] within +-MAX_ANGLE."""
-    x = _number(value, name, positive=positive)
+    x = finite_number(value, name, positive=positive)
     if abs(x) > MAX_ANGLE:
         raise ParameterError(f"{name} must lie within +-{MAX_ANGLE:g} rad, got {x:g}")
     return x
@@ -156,29 +142,20 @@ def _angle(value: object, name: str, *, positive: bool = False) -> float:
 def _point(value: object, name: str) -> tuple[float, float]:
     """A finite 2-vector [x, y] within +-MAX_COORDINATE or one ParameterError line."""
     if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
-        raise ParameterError(f"{name} must be a point [x, y], got {_short(value)}")
+        raise ParameterError(f"{name} must be a point [x, y], got {brief(value)}")
     return (_length(value[0], f"{name}[0]"), _length(value[1], f"{name}[1]"))
 
 
 def _flag(value: object, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
-        raise ParameterError(f"{name} must be true or false, got {_short(value)}")
+        raise ParameterError(f"{name} must be true or false, got {brief(value)}")
     return bool(value)
-
-
-def _short(value: object, limit: int = 60) -> str:
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _rotate(vectors: np.ndarray, angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.stack((c * vectors[..., 0] - s * vectors[..., 1],
                      s * vectors[..., 0] + c * vectors[..., 1]), axis=-1)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
 # ---------------------------------------------------------------------- arc length
@@ -251,16 +228,13 @@ class _ArcLength:
         return u
 
 
-def _curve_terms(d1: np.ndarray, d2: np.ndarray, d3: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(tangent angle wrapped, kappa, dkappa/ds) from p', p'', p''' in any parameter."""
-    speed2 = np.einsum("...i,...i->...", d1, d1)
-    speed = np.sqrt(speed2)
-    c12 = _cross(d1, d2)
-    kappa = c12 / (speed2 * speed)
-    dkappa = (_cross(d1, d3) * speed2 - 3.0 * c12 * np.einsum("...i,...i->...", d1, d2)) \
-        / (speed2 * speed2 * speed2)
-    return np.arctan2(d1[..., 1], d1[..., 0]), kappa, dkappa
+def _bend(x1: Any, y1: Any, x2: Any, y2: Any, x3: Any, y3: Any) -> tuple[Any, Any]:
+    """(kappa, dkappa/ds) from the components of p', p'', p''' in any parameter (floats or
+    arrays: one formula for both)."""
+    v2 = x1 * x1 + y1 * y1
+    c12 = x1 * y2 - y1 * x2
+    return (c12 / (v2 * v2**0.5),
+            ((x1 * y3 - y1 * x3) * v2 - 3.0 * c12 * (x1 * x2 + y1 * y2)) / (v2 * v2 * v2))
 
 
 def _clip_float(x: float, lo: float, hi: float) -> float:
@@ -316,8 +290,7 @@ class Path(abc.ABC):
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         """(x, y, gamma, kappa, dkappa) at one arc length (overridden by fast paths)."""
         g = self._geometry(np.array([s]))
-        return (float(g.p[0, 0]), float(g.p[0, 1]), float(g.gamma[0]), float(g.kappa[0]),
-                float(g.dkappa[0]))
+        return (*g.p[0].tolist(), float(g.gamma[0]), float(g.kappa[0]), float(g.dkappa[0]))
 
     def geometry(self, s: object) -> PathPoint:
         """Return the point, tangent angle, curvature and its rate at arc length(s) ``s`` [m].
@@ -379,11 +352,11 @@ class Path(abc.ABC):
             return (-margin, self.length + margin)
         return (-1.0, DEFAULT_EXTENT)
 
-    def _projection_step(self, lo: float, hi: float) -> float:
-        """Grid step of the coarse search: 5 mm, finer where the curve bends tightly."""
-        probe = np.linspace(lo, hi, 2001)
-        kappa_max = float(np.max(np.abs(self._geometry(probe).kappa)))
-        return min(0.005, 0.1 / kappa_max) if kappa_max > 0 else 0.005
+    def _step(self, lo: float, hi: float, count: int, step: float, bend: float) -> float:
+        """``step``, or ``bend`` over the largest |kappa| of ``count`` samples of [lo, hi]
+        where that is smaller (finer where the curve bends tightly)."""
+        kappa_max = float(np.max(np.abs(self._geometry(np.linspace(lo, hi, count)).kappa)))
+        return min(step, bend / kappa_max) if kappa_max > 0 else step
 
     def project(self, points: object, *, span: tuple[float, float] | None = None,
                 hint: object = None) -> np.ndarray:
@@ -416,15 +389,11 @@ class Path(abc.ABC):
         pts = np.asarray(points, dtype=float)
         if pts.ndim == 0 or pts.shape[-1] != 2 or not np.isfinite(pts).all():
             raise ParameterError("points must be a finite (..., 2) array")
+        span = _span(span)
         exact = self._exact_projection(pts, span, hint)
         if exact is not None:
             return exact
-        if span is None:
-            lo, hi = (-math.inf, math.inf) if hint is not None else self.default_span()
-        else:
-            lo, hi = _number(span[0], "span[0]"), _number(span[1], "span[1]")
-        if not hi > lo:
-            raise ParameterError(f"span must be increasing, got ({lo}, {hi})")
+        lo, hi = span or ((-math.inf, math.inf) if hint is not None else self.default_span())
         flat = pts.reshape(-1, 2)
         if hint is not None:
             guess = np.asarray(hint, dtype=float)
@@ -433,7 +402,7 @@ class Path(abc.ABC):
             if not np.isfinite(guess).all():
                 raise ParameterError("hint must be finite")
             return self._project_near(flat, guess, lo, hi).reshape(pts.shape[:-1])
-        step = self._projection_step(lo, hi)
+        step = self._step(lo, hi, 2001, 0.005, 0.1)  # the coarse search's grid step
         count = min(math.ceil((hi - lo) / step) + 1, 1_000_001)
         grid = np.linspace(lo, hi, count)
         _, nearest = cKDTree(self._geometry(grid).p).query(flat)
@@ -463,9 +432,8 @@ class Path(abc.ABC):
         else:
             grow = max(2.0, 0.5 * (table.end - table.s0))
             a, b = lo - grow, hi + grow
-        kappa_max = float(np.max(np.abs(self._geometry(np.linspace(a, b, 4001)).kappa)))
-        step = min(SAMPLE_STEP, 0.05 / kappa_max) if kappa_max > 0 else SAMPLE_STEP
-        count = min(math.ceil((b - a) / step) + 1, 4_000_001)
+        count = min(math.ceil((b - a) / self._step(a, b, 4001, SAMPLE_STEP, 0.05)) + 1,
+                    4_000_001)
         s = np.linspace(a, b, count)
         g = self._geometry(s)
         h = float(s[1] - s[0])
@@ -621,14 +589,13 @@ class _Finite(Path):
         if not np.any(beyond):
             return g
         ends = beyond != 0.0
-        p = g.p + beyond[:, None] * np.stack((np.cos(g.gamma), np.sin(g.gamma)), axis=-1)
+        p = g.p + beyond[:, None] * g.tangent
         return PathPoint(p, g.gamma, np.where(ends, 0.0, g.kappa),
                          np.where(ends, 0.0, g.dkappa))
 
+    @abc.abstractmethod
     def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        g = self._inside(np.array([s]))
-        return (float(g.p[0, 0]), float(g.p[0, 1]), float(g.gamma[0]), float(g.kappa[0]),
-                float(g.dkappa[0]))
+        """:meth:`_scalar` for 0 <= s <= length."""
 
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         inner = min(max(s, 0.0), self.length)
@@ -756,7 +723,7 @@ class Circle(Path):
         """One lap, ``2 pi radius`` [m] (s itself runs on over any number of laps)."""
         return 2.0 * math.pi * self.radius
 
-    def _circle(self, s: np.ndarray) -> PathPoint:
+    def _geometry(self, s: np.ndarray) -> PathPoint:
         side, radius = self.side, self.radius
         polar = self._a0 + side * s / radius
         p = np.stack((self._c[0] + radius * np.cos(polar),
@@ -764,18 +731,12 @@ class Circle(Path):
         zero = np.zeros_like(s)
         return PathPoint(p, polar + side * _HALF_PI, zero + side / radius, zero)
 
-    def _geometry(self, s: np.ndarray) -> PathPoint:
-        return self._circle(s)
-
-    def _circle_scalar(self, s: float) -> tuple[float, float, float, float, float]:
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         side, radius = self.side, self.radius
         polar = self._a0 + side * s / radius
         return (self._c[0] + radius * math.cos(polar),
                 self._c[1] + radius * math.sin(polar), polar + side * _HALF_PI,
                 side / radius, 0.0)
-
-    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        return self._circle_scalar(s)
 
     def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
         s = float(self.project(np.array([x, y]), hint=hint))
@@ -835,19 +796,10 @@ class Arc(_Finite, Circle):
         """Length of the arc, ``radius angle`` [m]."""
         return self.radius * self.angle
 
-    def _inside(self, s: np.ndarray) -> PathPoint:
-        return self._circle(s)
-
-    def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        return self._circle_scalar(s)
-
-    def _geometry(self, s: np.ndarray) -> PathPoint:
-        return _Finite._geometry(self, s)
-
-    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        return _Finite._scalar(self, s)
-
-    # the arc's own span and search (margins, straight ends), not the circle's laps
+    # the circle inside, straight beyond; the arc's own span and search (margins,
+    # straight ends), not the circle's laps
+    _inside, _inside_scalar = Circle._geometry, Circle._scalar
+    _geometry, _scalar = _Finite._geometry, _Finite._scalar
     default_span = Path.default_span
     _exact_projection = Path._exact_projection
 
@@ -865,23 +817,16 @@ class _GraphCurve(Path):
 
     def _place_scalar(self, x: float, y: float, f1: float, f2: float, f3: float
                       ) -> tuple[float, float, float, float, float]:
-        """One point of the graph, placed (kappa = f2 / w^3, dkappa/ds = (f3 w^2 - 3 f1 f2^2) / w^6,
-        w^2 = 1 + f1^2, fk the k-th derivative of f)."""
-        w2 = 1.0 + f1 * f1
-        w = math.sqrt(w2)
+        """One point of the graph, placed (fk the k-th derivative of f)."""
         c, s = math.cos(self.direction), math.sin(self.direction)
         return (self.origin[0] + c * x - s * y, self.origin[1] + s * x + c * y,
-                math.atan(f1) + self.direction, f2 / (w2 * w),
-                (f3 * w2 - 3.0 * f1 * f2 * f2) / (w2 * w2 * w2))
+                math.atan(f1) + self.direction, *_bend(1.0, f1, 0.0, f2, 0.0, f3))
 
     @staticmethod
     def _terms(f1: np.ndarray, f2: np.ndarray, f3: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """gamma = atan f' (continuous: x' = 1 > 0), kappa and dkappa/ds of a graph."""
-        ones, zeros = np.ones_like(f1), np.zeros_like(f1)
-        _, kappa, dkappa = _curve_terms(np.stack((ones, f1), -1), np.stack((zeros, f2), -1),
-                                        np.stack((zeros, f3), -1))
-        return np.arctan(f1), kappa, dkappa
+        return (np.arctan(f1), *_bend(1.0, f1, 0.0, f2, 0.0, f3))
 
 
 @dataclass(frozen=True)
@@ -1069,7 +1014,6 @@ class Waypoints(_Finite):
     points: tuple[tuple[float, float], ...] = field(default=())
     knots_s: np.ndarray = field(init=False, repr=False, compare=False)
     _spline: CubicSpline = field(init=False, repr=False, compare=False)
-    _derivs: tuple[Any, ...] = field(init=False, repr=False, compare=False)
     _table: _ArcLength = field(init=False, repr=False, compare=False)
     _gamma_nodes: np.ndarray = field(init=False, repr=False, compare=False)
     _knots_list: list[float] = field(init=False, repr=False, compare=False)
@@ -1084,11 +1028,11 @@ class Waypoints(_Finite):
         chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         knots = np.r_[0.0, np.cumsum(chords)]
         spline = CubicSpline(knots, pts, bc_type="natural")
-        derivs = tuple(spline.derivative(k) for k in (1, 2, 3))
+        tangent = spline.derivative()
         sub = 16
         nodes = (knots[:-1, None] + np.diff(knots)[:, None] * np.arange(sub) / sub).reshape(-1)
         nodes = np.r_[nodes, knots[-1]]
-        d1 = derivs[0](nodes)
+        d1 = tangent(nodes)
         speed = np.linalg.norm(d1, axis=1)
         if speed.min() <= 1e-9 * max(1.0, knots[-1]):
             k = int(np.searchsorted(knots, nodes[int(np.argmin(speed))], side="right"))
@@ -1097,9 +1041,8 @@ class Waypoints(_Finite):
         if np.any(np.abs(np.diff(gamma_nodes)) > 1.0):
             raise ParameterError("points: the spline turns too sharply between waypoints "
                                  "(add waypoints or space them out)")
-        table = _ArcLength(lambda u: np.linalg.norm(derivs[0](u), axis=1), nodes)
+        table = _ArcLength(lambda u: np.linalg.norm(tangent(u), axis=1), nodes)
         object.__setattr__(self, "_spline", spline)
-        object.__setattr__(self, "_derivs", derivs)
         object.__setattr__(self, "_table", table)
         object.__setattr__(self, "_gamma_nodes", gamma_nodes)
         object.__setattr__(self, "knots_s", table.length(knots))
@@ -1118,8 +1061,9 @@ class Waypoints(_Finite):
     def _inside(self, s: np.ndarray) -> PathPoint:
         table = self._table
         u = table.parameter(s)
-        d1, d2, d3 = (d(u) for d in self._derivs)
-        wrapped, kappa, dkappa = _curve_terms(d1, d2, d3)
+        d1, d2, d3 = (self._spline(u, k) for k in (1, 2, 3))
+        kappa, dkappa = _bend(d1[:, 0], d1[:, 1], d2[:, 0], d2[:, 1], d3[:, 0], d3[:, 1])
+        wrapped = np.arctan2(d1[:, 1], d1[:, 0])
         k = np.clip(np.searchsorted(table.u, u, side="right") - 1, 0, len(table.u) - 1)
         near = self._gamma_nodes[k]
         gamma = near + np.mod(wrapped - near + math.pi, 2.0 * math.pi) - math.pi
@@ -1135,12 +1079,7 @@ class Waypoints(_Finite):
         x, y = ((ax * d + bx) * d + cx) * d + ex, ((ay * d + by) * d + cy) * d + ey
         x1, y1 = (3.0 * ax * d + 2.0 * bx) * d + cx, (3.0 * ay * d + 2.0 * by) * d + cy
         x2, y2 = 6.0 * ax * d + 2.0 * bx, 6.0 * ay * d + 2.0 * by
-        x3, y3 = 6.0 * ax, 6.0 * ay
-        v2 = x1 * x1 + y1 * y1
-        v = math.sqrt(v2)
-        c12 = x1 * y2 - y1 * x2
-        kappa = c12 / (v2 * v)
-        dkappa = ((x1 * y3 - y1 * x3) * v2 - 3.0 * c12 * (x1 * x2 + y1 * y2)) / (v2 * v2 * v2)
+        kappa, dkappa = _bend(x1, y1, x2, y2, 6.0 * ax, 6.0 * ay)
         nodes = table._u_list
         k = min(max(bisect.bisect_right(nodes, u) - 1, 0), len(nodes) - 1)
         near = self._gamma_list[k]
@@ -1153,7 +1092,7 @@ def _waypoints(points: object) -> np.ndarray:
     try:
         pts = np.asarray(points, dtype=float)
     except (TypeError, ValueError, OverflowError) as exc:
-        raise ParameterError(f"points must be a list of [x, y] pairs, got {_short(points)}") \
+        raise ParameterError(f"points must be a list of [x, y] pairs, got {brief(points)}") \
             from exc
     if pts.ndim != 2 or pts.shape[1] != 2:
         raise ParameterError(f"points must be a list of [x, y] pairs, got shape {pts.shape}")
@@ -1208,11 +1147,11 @@ class Timing:
     start: float = 0.0
 
     def __post_init__(self) -> None:
-        speed = _number(self.speed, "speed", positive=True)
+        speed = finite_number(self.speed, "speed", positive=True)
         if speed > MAX_PATH_SPEED:
             raise ParameterError(f"speed must be at most {MAX_PATH_SPEED:g} m/s, got {speed:g}")
         object.__setattr__(self, "speed", speed)
-        object.__setattr__(self, "ramp", _number(self.ramp, "ramp", non_negative=True))
+        object.__setattr__(self, "ramp", finite_number(self.ramp, "ramp", non_negative=True))
         object.__setattr__(self, "start", _length(self.start, "start"))
 
     def __call__(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1406,20 +1345,25 @@ def _distance_arguments(path: object, points: object, span: object
     if isinstance(path, PathReference):
         path = path.path
     if not isinstance(path, Path):
-        raise ParameterError(f"path must be a Path or a PathReference, got {_short(path)}")
+        raise ParameterError(f"path must be a Path or a PathReference, got {brief(path)}")
     try:
         pts = np.asarray(points, dtype=float)
     except (TypeError, ValueError, OverflowError):
         raise ParameterError(f"points must be a finite (..., 2) array, "
-                             f"got {_short(points)}") from None
+                             f"got {brief(points)}") from None
+    return path, pts, _span(span)
+
+
+def _span(span: object) -> tuple[float, float] | None:
+    """A checked ``(s_min, s_max)`` (None stays None), or one ParameterError line."""
     if span is None:
-        return path, pts, None
+        return None
     if not isinstance(span, (tuple, list, np.ndarray)) or len(span) != 2:
-        raise ParameterError(f"span must be (s_min, s_max), got {_short(span)}")
-    low, high = _number(span[0], "span[0]"), _number(span[1], "span[1]")
+        raise ParameterError(f"span must be (s_min, s_max), got {brief(span)}")
+    low, high = finite_number(span[0], "span[0]"), finite_number(span[1], "span[1]")
     if not high > low:
         raise ParameterError(f"span must be increasing, got ({low}, {high})")
-    return path, pts, (low, high)
+    return low, high
 
 
 # ------------------------------------------------------------------- construction
@@ -1463,12 +1407,12 @@ def make_path(name: str, **params: Any) -> Path:
         An unknown name or parameter, missing waypoints, or a value out of its domain.
     """
     if not isinstance(name, str) or name not in _SHAPES:
-        raise ParameterError(f"unknown path {_short(name)}: expected one of "
+        raise ParameterError(f"unknown path {brief(name)}: expected one of "
                              f"{', '.join(PATH_NAMES)} or a .toml/.csv path file")
     allowed = _shape_keys(name)
     for key in params:
         if key not in allowed:
-            raise ParameterError(f"unknown parameter {_short(key)} for path {name!r} "
+            raise ParameterError(f"unknown parameter {brief(key)} for path {name!r} "
                                  f"(expected one of {', '.join(allowed)})")
     if name == "waypoints" and "points" not in params:
         raise ParameterError("waypoints: points is required")
@@ -1494,12 +1438,12 @@ def _parse_toml(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
     if kind is None:
         raise _file_error(path, f"type is required (one of {', '.join(PATH_NAMES)})")
     if not isinstance(kind, str) or kind not in _SHAPES:
-        raise _file_error(path, f"type: unknown path type {_short(kind)} "
+        raise _file_error(path, f"type: unknown path type {brief(kind)} "
                                 f"(expected one of {', '.join(PATH_NAMES)})")
     allowed = (*_shape_keys(kind), *_TIMING_KEYS)
     for key, value in doc.items():
         if key not in allowed:
-            raise _file_error(path, f"unknown key {_short(key)} for type {kind!r} "
+            raise _file_error(path, f"unknown key {brief(key)} for type {kind!r} "
                                     f"(expected one of {', '.join(allowed)})")
         if isinstance(value, dict):
             raise _file_error(path, f"{key} must be a value, not a table")
@@ -1525,7 +1469,7 @@ def _parse_csv(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
                 if first and not _any_number(cells):
                     continue  # the header
                 raise _file_error(path, f"waypoint {len(rows) + 1}: not a number pair "
-                                        f"{_short(','.join(cells))}") from None
+                                        f"{brief(','.join(cells))}") from None
             if not (math.isfinite(x) and math.isfinite(y)):
                 raise _file_error(path, f"waypoint {len(rows) + 1}: not finite ({x}, {y})")
             rows.append((x, y))
@@ -1585,11 +1529,11 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
         return PathReference(make_path(spec, **params), Timing(**timing))
     if not isinstance(spec, (str, os.PathLike)):
         raise ParameterError(f"path must be a name ({', '.join(PATH_NAMES)}) or a file, "
-                             f"got {_short(spec)}")
+                             f"got {brief(spec)}")
     file_name = os.fspath(spec)
     suffix = FilePath(file_name).suffix.lower()
     if suffix not in (".toml", ".csv"):
-        raise ParameterError(f"unknown path {_short(file_name)}: expected one of "
+        raise ParameterError(f"unknown path {brief(file_name)}: expected one of "
                              f"{', '.join(PATH_NAMES)} or a .toml/.csv path file")
     text = _read_file(spec)
     doc = _parse_toml(spec, text) if suffix == ".toml" else _parse_csv(spec, text)
