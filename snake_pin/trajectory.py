@@ -277,10 +277,8 @@ def _reason(exc: OSError | ValueError) -> str:
 
 def _wanted_signals(signals: object) -> frozenset[str] | None:
     """None for every signal, else the names asked for."""
-    if signals is True or (isinstance(signals, np.bool_) and signals):
-        return None
-    if signals is False or (isinstance(signals, np.bool_) and not signals):
-        return frozenset()
+    if isinstance(signals, (bool, np.bool_)):
+        return None if signals else frozenset()
     if isinstance(signals, (str, bytes)) or not isinstance(signals, Iterable):
         raise ParameterError(f"signals must be True, False or a list of names, "
                              f"got {reprlib.repr(signals)}")
@@ -351,12 +349,12 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
         for name in _CORE:
             plan[name] = _inspect(archive, members[f"{name}.npy"], name, kinds="f8")
         samples = plan["t"].shape[0] if len(plan["t"].shape) == 1 else -1
-        _check_shape(plan["t"].shape, (samples,), "t")
+        for name, shape in (("t", (samples,)), ("q", (samples, n + 2)),
+                            ("dq", (samples, n + 2)), ("tau", (samples, n - 1))):
+            if plan[name].shape != shape:
+                raise _Refused(f"array {name} has shape {plan[name].shape}, expected {shape}")
         if samples < 1:
             raise _Refused("it has no samples")
-        _check_shape(plan["q"].shape, (samples, n + 2), "q")
-        _check_shape(plan["dq"].shape, (samples, n + 2), "dq")
-        _check_shape(plan["tau"].shape, (samples, n - 1), "tau")
         for name in chosen:
             member = _inspect(archive, members[f"{_SIGNAL_PREFIX}{name}.npy"],
                               f"signal {name!r}", kinds="biuf")
@@ -387,15 +385,8 @@ def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
 
     ``kinds`` is "f8" (float64), "U" (a string) or "biuf" (any real numbers).
     """
-    fmt = np.lib.format
     with archive.open(info) as stream:
-        version = fmt.read_magic(stream)
-        if version == (1, 0):
-            shape, fortran, dtype = fmt.read_array_header_1_0(stream)
-        elif version == (2, 0):
-            shape, fortran, dtype = fmt.read_array_header_2_0(stream)
-        else:
-            raise _Refused(f"array {label} has .npy format {version} (1.0 or 2.0 expected)")
+        shape, fortran, dtype = _npy_header(stream, label)
     dtype = np.dtype(dtype)
     if dtype.hasobject:
         raise _Refused(f"array {label} holds Python objects (pickles are refused)")
@@ -412,6 +403,15 @@ def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
     return member
 
 
+def _npy_header(stream: Any, label: str) -> tuple[Any, bool, Any]:
+    """(shape, fortran order, dtype) from a .npy header of format 1.0 or 2.0."""
+    version = np.lib.format.read_magic(stream)
+    if version not in ((1, 0), (2, 0)):
+        raise _Refused(f"array {label} has .npy format {version} (1.0 or 2.0 expected)")
+    return (np.lib.format.read_array_header_1_0 if version == (1, 0)
+            else np.lib.format.read_array_header_2_0)(stream)
+
+
 def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
     """Read a checked member's data: exactly its declared size, and nothing after it."""
     assert member.dtype is not None
@@ -419,10 +419,7 @@ def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
     view = memoryview(buffer)
     with archive.open(member.info) as stream:
         assert isinstance(stream, io.BufferedIOBase)  # a ZipExtFile: it has readinto
-        version = np.lib.format.read_magic(stream)
-        reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                  else np.lib.format.read_array_header_2_0)
-        reader(stream)
+        _npy_header(stream, label)
         got = 0
         while got < member.nbytes:
             count = stream.readinto(view[got: got + _CHUNK])
@@ -433,11 +430,6 @@ def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
             raise _Refused(f"array {label} has data beyond its declared shape")
     array = np.frombuffer(buffer, dtype=member.dtype)
     return array.reshape(member.shape, order="F" if member.fortran else "C")
-
-
-def _check_shape(shape: tuple[int, ...], expected: tuple[int, ...], name: str) -> None:
-    if shape != expected:
-        raise _Refused(f"array {name} has shape {shape}, expected {expected}")
 
 
 def _parse_header(text: str) -> dict[str, Any]:
