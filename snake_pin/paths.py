@@ -152,12 +152,6 @@ def _flag(value: object, name: str) -> bool:
     return bool(value)
 
 
-def _rotate(vectors: np.ndarray, angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.stack((c * vectors[..., 0] - s * vectors[..., 1],
-                     s * vectors[..., 0] + c * vectors[..., 1]), axis=-1)
-
-
 # ---------------------------------------------------------------------- arc length
 class _ArcLength:
     """s(u) = int_{u_0}^u speed, tabulated at ``nodes`` (Gauss-Legendre), and its inverse."""
@@ -810,23 +804,14 @@ class _GraphCurve(Path):
     origin: tuple[float, float]
     direction: float
 
-    def _place(self, p_local: np.ndarray, gamma_local: np.ndarray, kappa: np.ndarray,
-               dkappa: np.ndarray) -> PathPoint:
-        p = _rotate(p_local, self.direction) + np.asarray(self.origin)
-        return PathPoint(p, gamma_local + self.direction, kappa, dkappa)
-
-    def _place_scalar(self, x: float, y: float, f1: float, f2: float, f3: float
-                      ) -> tuple[float, float, float, float, float]:
-        """One point of the graph, placed (fk the k-th derivative of f)."""
+    def _place(self, x: Any, y: Any, f1: Any, f2: Any, f3: Any, m: Any = np) -> Any:
+        """The point (x, f(x)) placed, gamma = atan f' (continuous: x' = 1 > 0), kappa and
+        dkappa/ds (fk the k-th derivative of f): a PathPoint of arrays with ``m`` numpy,
+        or the tuple of :meth:`Path._scalar` of floats with ``m`` math."""
         c, s = math.cos(self.direction), math.sin(self.direction)
-        return (self.origin[0] + c * x - s * y, self.origin[1] + s * x + c * y,
-                math.atan(f1) + self.direction, *_bend(1.0, f1, 0.0, f2, 0.0, f3))
-
-    @staticmethod
-    def _terms(f1: np.ndarray, f2: np.ndarray, f3: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """gamma = atan f' (continuous: x' = 1 > 0), kappa and dkappa/ds of a graph."""
-        return (np.arctan(f1), *_bend(1.0, f1, 0.0, f2, 0.0, f3))
+        p_x, p_y = c * x - s * y + self.origin[0], s * x + c * y + self.origin[1]
+        terms = (m.atan(f1) + self.direction, *_bend(1.0, f1, 0.0, f2, 0.0, f3))
+        return (p_x, p_y, *terms) if m is math else PathPoint(np.stack((p_x, p_y), -1), *terms)
 
 
 @dataclass(frozen=True)
@@ -902,32 +887,22 @@ class LaneChange(_GraphCurve):
         local = s - start
         inside = (local > 0.0) & (local < curve)
         x = np.where(local <= 0.0, s, start + self.length_x + (local - curve))
-        y = np.where(local <= 0.0, 0.0, self.offset)
-        gamma = np.zeros_like(s)
-        kappa = np.zeros_like(s)
-        dkappa = np.zeros_like(s)
+        f = [np.where(local <= 0.0, 0.0, self.offset), *np.zeros((3, len(s)))]
         if np.any(inside):
             u = self._table.parameter(local[inside])
-            (p0, c0), (p1, c1), (p2, c2), (p3, c3) = self._f
-            xi = u / self.length_x
             x[inside] = start + u
-            y[inside] = c0 * p0(xi)
-            gamma[inside], kappa[inside], dkappa[inside] = self._terms(
-                c1 * p1(xi), c2 * p2(xi), c3 * p3(xi))
-        return self._place(np.stack((x, y), axis=-1), gamma, kappa, dkappa)
+            for f_k, (poly, c) in zip(f, self._f, strict=True):
+                f_k[inside] = c * poly(u / self.length_x)
+        return self._place(x, *f)
 
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        local = s - self.start
-        if local <= 0.0:
-            return self._place_scalar(s, 0.0, 0.0, 0.0, 0.0)
-        curve = self._table.total
-        if local >= curve:
-            return self._place_scalar(self.start + self.length_x + (local - curve),
-                                      self.offset, 0.0, 0.0, 0.0)
+        local, curve = s - self.start, self._table.total
+        if local <= 0.0 or local >= curve:
+            x = s if local <= 0.0 else self.start + self.length_x + (local - curve)
+            return self._place(x, 0.0 if local <= 0.0 else self.offset, 0.0, 0.0, 0.0, math)
         u = self._table.parameter_scalar(local)
-        xi = u / self.length_x
-        f = [c * poly(xi) for poly, c in self._f]
-        return self._place_scalar(self.start + u, f[0], f[1], f[2], f[3])
+        y, f1, f2, f3 = (c * poly(u / self.length_x) for poly, c in self._f)
+        return self._place(self.start + u, y, f1, f2, f3, math)
 
 
 @dataclass(frozen=True)
@@ -970,25 +945,21 @@ class Sinusoid(_GraphCurve):
                            np.linspace(0.0, self.wavelength, 129))
         object.__setattr__(self, "_table", table)
 
-    def _geometry(self, s: np.ndarray) -> PathPoint:
-        table = self._table
-        laps = np.floor(s / table.total)
-        u = table.parameter(s - laps * table.total)
-        x = u + laps * self.wavelength
+    def _graph(self, x: Any, m: Any) -> Any:
+        """:meth:`_place` of the sine at x (arrays with ``m`` numpy, floats with math)."""
         k, a = 2.0 * math.pi / self.wavelength, self.amplitude
-        sine, cosine = np.sin(k * x), np.cos(k * x)
-        gamma, kappa, dkappa = self._terms(a * k * cosine, -a * k**2 * sine,
-                                           -a * k**3 * cosine)
-        return self._place(np.stack((x, a * sine), axis=-1), gamma, kappa, dkappa)
+        sine, cosine = m.sin(k * x), m.cos(k * x)
+        return self._place(x, a * sine, a * k * cosine, -a * k * k * sine, -a * k**3 * cosine, m)
+
+    def _geometry(self, s: np.ndarray) -> PathPoint:
+        laps = np.floor(s / self._table.total)
+        return self._graph(self._table.parameter(s - laps * self._table.total)
+                           + laps * self.wavelength, np)
 
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        total = self._table.total
-        laps = math.floor(s / total)
-        x = self._table.parameter_scalar(s - laps * total) + laps * self.wavelength
-        k, a = 2.0 * math.pi / self.wavelength, self.amplitude
-        sine, cosine = math.sin(k * x), math.cos(k * x)
-        return self._place_scalar(x, a * sine, a * k * cosine, -a * k * k * sine,
-                                  -a * k**3 * cosine)
+        laps = math.floor(s / self._table.total)
+        return self._graph(self._table.parameter_scalar(s - laps * self._table.total)
+                           + laps * self.wavelength, math)
 
 
 @dataclass(frozen=True)
