@@ -187,11 +187,8 @@ class _ArcLength:
                 + x * x * (3.0 - 2.0 * x) * self.u[k + 1] + x * x * (x - 1.0) * h * self.du[k + 1])
 
     def parameter(self, s: np.ndarray) -> np.ndarray:
-        """u(s) for 0 <= s <= total: Newton's method from the Hermite start, to round-off.
-
-        Newton converges quadratically: once a step is below 1e-7 (relative), the next
-        would be below ~1e-13 and is skipped.
-        """
+        """u(s) for 0 <= s <= total: Newton from the Hermite start, to round-off (quadratic:
+        after a step below 1e-7, relative, the next would be below ~1e-13 and is skipped)."""
         u = self._start(s)
         lo, hi = self.u[0], self.u[-1]
         for _ in range(8):
@@ -237,12 +234,11 @@ def _clip_float(x: float, lo: float, hi: float) -> float:
 
 def _expansion_newton(a: Any, b: Any, kappa: Any, dkappa: Any, h: float,
                       clip: Callable[..., Any]) -> Any:
-    """sigma of the closest point of the cubic expansion about a sample (floats or arrays).
-
-    Two Newton steps on f(sigma) = (p(sigma) - x) . p'(sigma) from sigma = 0 (see
-    :meth:`Path._project_near`), each clipped to one spacing ``h``; ``clip`` is
-    ``numpy.clip`` for arrays or :func:`_clip_float` for floats: one formula for both.
-    """
+    """sigma of the point of the expansion about a sample k, in its frame (t, n),
+    ``p(sigma) = p_k + (sigma - kappa^2 sigma^3 / 6) t + (kappa sigma^2 / 2 + kappa' sigma^3
+    / 6) n``, closest to ``x = p_k + a t + b n``: two Newton steps on (p - x) . p' = 0, the
+    first the exact one at 0, each within one spacing ``h``; ``clip`` is ``numpy.clip`` for
+    arrays or :func:`_clip_float` for floats."""
     sigma = clip(a / clip(1.0 - kappa * b, 0.2, math.inf), -h, h)
     k2s = kappa * kappa * sigma
     # e = p(sigma) - x and v = p'(sigma) along t and n; slope = f'(sigma)
@@ -409,14 +405,9 @@ class Path(abc.ABC):
         return None
 
     def _samples(self, lo: float, hi: float) -> _Samples:
-        """The path sampled over at least [lo, hi], built once and moved when asked beyond.
-
-        The first table covers :meth:`default_span` and [lo, hi]; a request beyond it builds a
-        new window reaching half the old window's length (at least 2 m) beyond [lo, hi] on each
-        side: a point moving along an unbounded path costs an occasional rebuild, and the
-        table's size stays bounded. Spacing: :data:`SAMPLE_STEP`, finer (0.05 over the largest
-        curvature) where the path bends tighter.
-        """
+        """The path sampled over at least [lo, hi] (first :meth:`default_span` too), every
+        :data:`SAMPLE_STEP` or finer where it bends; a request beyond it moves the window
+        (half its length, at least 2 m, beyond [lo, hi]): its size stays bounded."""
         table: _Samples | None = self.__dict__.get("_near_table")
         if table is not None and table.s0 <= lo and table.end >= hi:
             return table
@@ -443,23 +434,11 @@ class Path(abc.ABC):
 
     def _project_near(self, points: np.ndarray, hint: np.ndarray, lo: float,
                       hi: float) -> np.ndarray:
-        """Closest point within :data:`HINT_RADIUS` of each hint (see :meth:`project`).
-
-        The nearest sample of the table (every ``stride``-th sample over the radius,
-        then each sample around the best of those), then two Newton steps on
-        f(sigma) = (p(sigma) - x) . p'(sigma) = 0 with the path's third-order expansion
-        about that sample k, in its frame (t, n)::
-
-            p(sigma) = p_k + (sigma - kappa^2 sigma^3 / 6) t
-                           + (kappa sigma^2 / 2 + kappa' sigma^3 / 6) n.
-
-        The first step is the exact one at sigma = 0, sigma = a / (1 - kappa b) with
-        a = (x - p_k) . t and b = (x - p_k) . n; each step is kept within one spacing.
-        The expansion's error is O(h^4) inside a sample's neighbourhood (O(h^2) at an
-        arc's ends, where kappa jumps). Many points: vectorised over the points (gathered
-        windows); one point (a controller's step): the same search on slices of the
-        table and the same Newton formula (:func:`_expansion_newton`) in floats. No
-        Python loop over points or samples either way.
+        """Closest point within :data:`HINT_RADIUS` of each hint (see :meth:`project`): the
+        nearest sample of the table (every ``stride``-th over the radius, then each around
+        the best), then :func:`_expansion_newton` about it (error O(h^4), O(h^2) at an
+        arc's ends). Vectorised over many points; one point (a controller's step) goes
+        through :meth:`_track_in` on slices of the table, in floats.
         """
         table = self._samples(max(lo, float(hint.min()) - HINT_RADIUS),
                               min(hi, float(hint.max()) + HINT_RADIUS))
@@ -486,13 +465,8 @@ class Path(abc.ABC):
         return np.clip(s0 + k_arr * h + sigma_arr, lo, hi)
 
     def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
-        """``(s, x_p, y_p, gamma)``: the closest point within :data:`HINT_RADIUS` of ``hint``.
-
-        One point, no span, no checks: the LOS law's step. ``s`` is
-        ``project((x, y), hint=hint)``; the point and its tangent angle come from the same
-        expansion (no evaluation of the curve itself); gamma is continuous like
-        :meth:`geometry`'s.
-        """
+        """``(s, x_p, y_p, gamma)`` of ``project((x, y), hint=hint)``, unchecked (the LOS
+        law's step); the point and its (continuous) tangent angle from the same expansion."""
         table = self._samples(hint - HINT_RADIUS, hint + HINT_RADIUS)
         return self._track_in(table, np.array([x, y]), hint, 0, len(table.kappa) - 1,
                               -math.inf, math.inf)
