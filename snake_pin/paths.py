@@ -152,6 +152,12 @@ def _flag(value: object, name: str) -> bool:
     return bool(value)
 
 
+def _set(obj: object, **values: Any) -> None:
+    """Set attributes of a frozen dataclass: its checked fields and tables."""
+    for name, value in values.items():
+        object.__setattr__(obj, name, value)
+
+
 # ---------------------------------------------------------------------- arc length
 class _ArcLength:
     """s(u) = int_{u_0}^u speed, tabulated at ``nodes`` (Gauss-Legendre), and its inverse."""
@@ -596,8 +602,8 @@ class Line(Path):
     name = "line"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "start", _point(self.start, "start"))
-        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
+        _set(self, start=_point(self.start, "start"),
+             direction=_angle(self.direction, "direction"))
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
         c, d = math.cos(self.direction), math.sin(self.direction)
@@ -620,22 +626,6 @@ class Line(Path):
         s = (pts[..., 0] - self.start[0]) * math.cos(self.direction) \
             + (pts[..., 1] - self.start[1]) * math.sin(self.direction)
         return s if span is None else np.clip(s, span[0], span[1])
-
-
-def _circle_defaults(radius: float, centre: object, start_angle: object,
-                     clockwise: bool) -> tuple[tuple[float, float], float]:
-    """Centre and start angle: by default the circle through the origin heading along +x."""
-    side = -1.0 if clockwise else 1.0
-    if start_angle is None:
-        start = -side * _HALF_PI if centre is None else 0.0
-    else:
-        start = _angle(start_angle, "start_angle")
-    if centre is None:
-        # the start point is at the origin: centre = -radius [cos start, sin start]
-        centre_xy = (-radius * math.cos(start), -radius * math.sin(start))
-    else:
-        centre_xy = _point(centre, "centre")
-    return centre_xy, start
 
 
 @dataclass(frozen=True)
@@ -672,14 +662,15 @@ class Circle(Path):
 
     def __post_init__(self) -> None:
         radius = _length(self.radius, "radius", positive=True)
-        clockwise = _flag(self.clockwise, "clockwise")
-        centre, start = _circle_defaults(radius, self.centre, self.start_angle, clockwise)
-        object.__setattr__(self, "radius", radius)
-        object.__setattr__(self, "clockwise", clockwise)
-        object.__setattr__(self, "centre", centre)
-        object.__setattr__(self, "start_angle", start)
-        object.__setattr__(self, "_c", centre)  # the same values, typed as never None
-        object.__setattr__(self, "_a0", start)
+        side = -1.0 if _flag(self.clockwise, "clockwise") else 1.0
+        # by default the circle through the origin heading along +x
+        start = (_angle(self.start_angle, "start_angle") if self.start_angle is not None
+                 else -side * _HALF_PI if self.centre is None else 0.0)
+        centre = (_point(self.centre, "centre") if self.centre is not None
+                  else (-radius * math.cos(start), -radius * math.sin(start)))
+        # _c and _a0: the same values as centre and start_angle, typed as never None
+        _set(self, radius=radius, clockwise=side < 0, centre=centre, start_angle=start,
+             _c=centre, _a0=start)
 
     @property
     def side(self) -> float:
@@ -757,7 +748,7 @@ class Arc(_Finite, Circle):
 
     def __post_init__(self) -> None:
         Circle.__post_init__(self)
-        object.__setattr__(self, "angle", _angle(self.angle, "angle", positive=True))
+        _set(self, angle=_angle(self.angle, "angle", positive=True))
 
     @property
     def length(self) -> float:
@@ -825,21 +816,16 @@ class LaneChange(_GraphCurve):
     _P = Polynomial([0, 0, 0, 0, 35, -84, 70, -20])
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "offset", _length(self.offset, "offset"))
-        object.__setattr__(self, "length_x", _length(self.length_x, "length", positive=True))
-        object.__setattr__(self, "start", _length(self.start, "start", non_negative=True))
-        object.__setattr__(self, "origin", _point(self.origin, "origin"))
-        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
+        _set(self, offset=_length(self.offset, "offset"),
+             length_x=_length(self.length_x, "length", positive=True),
+             start=_length(self.start, "start", non_negative=True),
+             origin=_point(self.origin, "origin"), direction=_angle(self.direction, "direction"))
         scale = self.offset / self.length_x
-        polys = [self._P]
-        for _ in range(3):
-            polys.append(polys[-1].deriv())
+        polys = [self._P.deriv(k) for k in range(4)]
         # derivatives in x: P^(k)(x / L) * offset / L^k
-        object.__setattr__(self, "_f", tuple(
-            (poly, self.offset / self.length_x**k) for k, poly in enumerate(polys)))
-        table = _ArcLength(lambda x: np.sqrt(1.0 + (polys[1](x / self.length_x) * scale) ** 2),
-                           np.linspace(0.0, self.length_x, 257))
-        object.__setattr__(self, "_table", table)
+        _set(self, _f=tuple((poly, self.offset / self.length_x**k) for k, poly in enumerate(polys)),
+             _table=_ArcLength(lambda x: np.sqrt(1.0 + (polys[1](x / self.length_x) * scale) ** 2),
+                               np.linspace(0.0, self.length_x, 257)))
 
     @property
     def s_length(self) -> float:
@@ -908,16 +894,13 @@ class Sinusoid(_GraphCurve):
     name = "sinusoid"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "amplitude", _length(self.amplitude, "amplitude"))
-        object.__setattr__(self, "wavelength",
-                           _length(self.wavelength, "wavelength", positive=True))
-        object.__setattr__(self, "origin", _point(self.origin, "origin"))
-        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
+        _set(self, amplitude=_length(self.amplitude, "amplitude"),
+             wavelength=_length(self.wavelength, "wavelength", positive=True),
+             origin=_point(self.origin, "origin"), direction=_angle(self.direction, "direction"))
         k = 2.0 * math.pi / self.wavelength
         slope = self.amplitude * k
-        table = _ArcLength(lambda x: np.sqrt(1.0 + (slope * np.cos(k * x)) ** 2),
-                           np.linspace(0.0, self.wavelength, 129))
-        object.__setattr__(self, "_table", table)
+        _set(self, _table=_ArcLength(lambda x: np.sqrt(1.0 + (slope * np.cos(k * x)) ** 2),
+                                     np.linspace(0.0, self.wavelength, 129)))
 
     def _graph(self, x: Any, m: Any) -> Any:
         """:meth:`_place` of the sine at x (arrays with ``m`` numpy, floats with math)."""
@@ -969,7 +952,7 @@ class Waypoints(_Finite):
 
     def __post_init__(self) -> None:
         pts = _waypoints(self.points)
-        object.__setattr__(self, "points", tuple(map(tuple, pts.tolist())))
+        _set(self, points=tuple(map(tuple, pts.tolist())))
         chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         knots = np.r_[0.0, np.cumsum(chords)]
         spline = CubicSpline(knots, pts, bc_type="natural")
@@ -987,16 +970,11 @@ class Waypoints(_Finite):
             raise ParameterError("points: the spline turns too sharply between waypoints "
                                  "(add waypoints or space them out)")
         table = _ArcLength(lambda u: np.linalg.norm(tangent(u), axis=1), nodes)
-        object.__setattr__(self, "_spline", spline)
-        object.__setattr__(self, "_table", table)
-        object.__setattr__(self, "_gamma_nodes", gamma_nodes)
-        object.__setattr__(self, "knots_s", table.length(knots))
-        # per knot interval: cubic coefficients of x and y (highest first) as floats
-        object.__setattr__(self, "_knots_list", knots.tolist())
-        object.__setattr__(self, "_coefficients", [
-            (tuple(spline.c[:, i, 0].tolist()), tuple(spline.c[:, i, 1].tolist()))
-            for i in range(len(knots) - 1)])
-        object.__setattr__(self, "_gamma_list", gamma_nodes.tolist())
+        # _coefficients: per knot interval, the cubics of x and y (highest first) as floats
+        _set(self, _spline=spline, _table=table, _gamma_nodes=gamma_nodes,
+             knots_s=table.length(knots), _knots_list=knots.tolist(),
+             _coefficients=[(tuple(spline.c[:, i, 0].tolist()), tuple(spline.c[:, i, 1].tolist()))
+                            for i in range(len(knots) - 1)], _gamma_list=gamma_nodes.tolist())
 
     @property
     def length(self) -> float:
@@ -1095,9 +1073,8 @@ class Timing:
         speed = finite_number(self.speed, "speed", positive=True)
         if speed > MAX_PATH_SPEED:
             raise ParameterError(f"speed must be at most {MAX_PATH_SPEED:g} m/s, got {speed:g}")
-        object.__setattr__(self, "speed", speed)
-        object.__setattr__(self, "ramp", finite_number(self.ramp, "ramp", non_negative=True))
-        object.__setattr__(self, "start", _length(self.start, "start"))
+        _set(self, speed=speed, ramp=finite_number(self.ramp, "ramp", non_negative=True),
+             start=_length(self.start, "start"))
 
     def __call__(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (s, s', s'') at time(s) ``t`` [s], arrays shaped like ``t`` [m, m/s, m/s^2]."""
