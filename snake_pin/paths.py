@@ -20,6 +20,7 @@ from __future__ import annotations
 import abc
 import bisect
 import csv
+import functools
 import io
 import math
 import os
@@ -309,10 +310,8 @@ class Path(abc.ABC):
         arr = np.asarray(s, dtype=float)
         if not np.all(np.isfinite(arr)):
             raise ParameterError("arc lengths must be finite")
-        flat = self._geometry(arr.reshape(-1))
-        shape = arr.shape
-        return PathPoint(flat.p.reshape((*shape, 2)), flat.gamma.reshape(shape),
-                         flat.kappa.reshape(shape), flat.dkappa.reshape(shape))
+        return PathPoint(*(v.reshape(arr.shape + v.shape[1:])
+                           for v in self._geometry(arr.reshape(-1))))
 
     def point(self, s: object) -> np.ndarray:
         """Return the point p(s) [m], shape s.shape + (2,), of arc length(s) ``s`` [m].
@@ -1347,15 +1346,13 @@ def _file_error(path: str | os.PathLike[str], message: str) -> PathFileError:
 
 
 def _read_file(path: str | os.PathLike[str]) -> str:
-    def error(message: str) -> PathFileError:
-        return _file_error(path, message)
-
-    data = read_regular_file(path, limit=MAX_PATH_FILE_BYTES, kind="path file", error=error)
-    return decode_utf8(data, error=error)
+    error = functools.partial(_file_error, path)
+    return decode_utf8(read_regular_file(path, limit=MAX_PATH_FILE_BYTES, kind="path file",
+                                         error=error), error=error)
 
 
 def _parse_toml(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
-    doc = parse_toml(text, error=lambda message: _file_error(path, message))
+    doc = parse_toml(text, error=functools.partial(_file_error, path))
     kind = doc.pop("type", None)
     if kind is None:
         raise _file_error(path, f"type is required (one of {', '.join(PATH_NAMES)})")
