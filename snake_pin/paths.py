@@ -980,33 +980,31 @@ class Waypoints(_Finite):
         """Arc length of the spline from the first to the last waypoint [m]."""
         return self._table.total
 
+    @staticmethod
+    def _cubic(d: Any, xs: Any, ys: Any, near: Any, m: Any) -> Any:
+        """(x, y, gamma, kappa, dkappa) at ``d`` into a knot interval of cubics ``xs``, ``ys``
+        (highest first), gamma the turn nearest ``near`` (floats with ``m`` math, arrays
+        with numpy)."""
+        (ax, bx, cx, ex), (ay, by, cy, ey) = xs, ys
+        x1, y1 = (3.0 * ax * d + 2.0 * bx) * d + cx, (3.0 * ay * d + 2.0 * by) * d + cy
+        return (((ax * d + bx) * d + cx) * d + ex, ((ay * d + by) * d + cy) * d + ey,
+                near + (m.atan2(y1, x1) - near + math.pi) % (2.0 * math.pi) - math.pi,
+                *_bend(x1, y1, 6.0 * ax * d + 2.0 * bx, 6.0 * ay * d + 2.0 * by, 6.0 * ax,
+                       6.0 * ay))
+
     def _inside(self, s: np.ndarray) -> PathPoint:
-        table = self._table
-        u = table.parameter(s)
-        d1, d2, d3 = (self._spline(u, k) for k in (1, 2, 3))
-        kappa, dkappa = _bend(d1[:, 0], d1[:, 1], d2[:, 0], d2[:, 1], d3[:, 0], d3[:, 1])
-        wrapped = np.arctan2(d1[:, 1], d1[:, 0])
-        k = np.clip(np.searchsorted(table.u, u, side="right") - 1, 0, len(table.u) - 1)
-        near = self._gamma_nodes[k]
-        gamma = near + np.mod(wrapped - near + math.pi, 2.0 * math.pi) - math.pi
-        return PathPoint(self._spline(u), gamma, kappa, dkappa)
+        u, knots, nodes = self._table.parameter(s), self._spline.x, self._table.u
+        i = np.clip(np.searchsorted(knots, u, side="right") - 1, 0, len(knots) - 2)
+        k = np.clip(np.searchsorted(nodes, u, side="right") - 1, 0, len(nodes) - 1)
+        c = self._spline.c[:, i]
+        x, y, *terms = self._cubic(u - knots[i], c[..., 0], c[..., 1], self._gamma_nodes[k], np)
+        return PathPoint(np.stack((x, y), -1), *terms)
 
     def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        table = self._table
-        u = table.parameter_scalar(s)
-        knots = self._knots_list
+        u, knots, nodes = self._table.parameter_scalar(s), self._knots_list, self._table._u_list
         i = min(max(bisect.bisect_right(knots, u) - 1, 0), len(knots) - 2)
-        d = u - knots[i]
-        (ax, bx, cx, ex), (ay, by, cy, ey) = self._coefficients[i]
-        x, y = ((ax * d + bx) * d + cx) * d + ex, ((ay * d + by) * d + cy) * d + ey
-        x1, y1 = (3.0 * ax * d + 2.0 * bx) * d + cx, (3.0 * ay * d + 2.0 * by) * d + cy
-        x2, y2 = 6.0 * ax * d + 2.0 * bx, 6.0 * ay * d + 2.0 * by
-        kappa, dkappa = _bend(x1, y1, x2, y2, 6.0 * ax, 6.0 * ay)
-        nodes = table._u_list
         k = min(max(bisect.bisect_right(nodes, u) - 1, 0), len(nodes) - 1)
-        near = self._gamma_list[k]
-        gamma = near + (math.atan2(y1, x1) - near + math.pi) % (2.0 * math.pi) - math.pi
-        return x, y, gamma, kappa, dkappa
+        return self._cubic(u - knots[i], *self._coefficients[i], self._gamma_list[k], math)
 
 
 def _waypoints(points: object) -> np.ndarray:
