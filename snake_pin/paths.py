@@ -381,22 +381,30 @@ class Path(abc.ABC):
         ParameterError
             The points are not a finite (..., 2) array, or the span or the hint is invalid.
         """
-        pts = np.asarray(points, dtype=float)
-        if pts.ndim == 0 or pts.shape[-1] != 2 or not np.isfinite(pts).all():
+        try:
+            pts = np.asarray(points, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            pts = np.empty(0)
+        if pts.ndim == 0 or pts.shape[-1:] != (2,) or not np.isfinite(pts).all():
             raise ParameterError("points must be a finite (..., 2) array")
+        try:
+            guess = None if hint is None else np.broadcast_to(np.asarray(hint, dtype=float),
+                                                              pts.shape[:-1])
+        except (TypeError, ValueError, OverflowError):
+            guess = np.array(math.nan)
+        if guess is not None and not np.isfinite(guess).all():
+            raise ParameterError(f"hint must be finite arc lengths, one or one per point, "
+                                 f"got {brief(hint)}")
         span = _span(span)
-        exact = self._exact_projection(pts, span, hint)
+        if pts.size == 0:
+            return np.zeros(pts.shape[:-1])
+        exact = self._exact_projection(pts, span, guess)
         if exact is not None:
             return exact
-        lo, hi = span or ((-math.inf, math.inf) if hint is not None else self.default_span())
+        lo, hi = span or ((-math.inf, math.inf) if guess is not None else self.default_span())
         flat = pts.reshape(-1, 2)
-        if hint is not None:
-            guess = np.asarray(hint, dtype=float)
-            if guess.shape != (len(flat),):
-                guess = np.broadcast_to(guess, (len(flat),))
-            if not np.isfinite(guess).all():
-                raise ParameterError("hint must be finite")
-            return self._project_near(flat, guess, lo, hi).reshape(pts.shape[:-1])
+        if guess is not None:
+            return self._project_near(flat, guess.reshape(-1), lo, hi).reshape(pts.shape[:-1])
         step = self._step(lo, hi, 2001, 0.005, 0.1)  # the coarse search's grid step
         count = min(math.ceil((hi - lo) / step) + 1, 1_000_001)
         grid = np.linspace(lo, hi, count)
