@@ -26,10 +26,6 @@ __all__ = ["Serpenoid", "arc", "configuration", "initial_state", "straight"]
 _HEAD = ("x_h", "y_h", "theta_1")
 
 
-def _check_n(n: int) -> int:
-    return integer(n, "n", low=2)
-
-
 def _head(head: Mapping[str, object]) -> dict[str, float]:
     """The head pose keywords, each a finite number; unknown keywords are refused."""
     unknown = sorted(set(head) - set(_HEAD))
@@ -100,7 +96,7 @@ def straight(n: int, **head: float) -> np.ndarray:
     ParameterError
         A bad argument (see the module docstring).
     """
-    return configuration(np.zeros(_check_n(n) - 1), **_head(head))
+    return configuration(np.zeros(integer(n, "n", low=2) - 1), **_head(head))
 
 
 def arc(n: int, phi0: float, **head: float) -> np.ndarray:
@@ -127,7 +123,7 @@ def arc(n: int, phi0: float, **head: float) -> np.ndarray:
     ParameterError
         A bad argument (see the module docstring).
     """
-    count = _check_n(n) - 1
+    count = integer(n, "n", low=2) - 1
     phi0 = finite_number(phi0, "phi0")
     return configuration(np.full(count, phi0), **_head(head))
 
@@ -163,7 +159,7 @@ class Serpenoid:
     v: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_n(self.n)
+        integer(self.n, "n", low=2)
         for name in ("alpha", "ts", "v"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name))
 
@@ -296,4 +292,4 @@ def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
     ParameterError
         A bad argument (see the module docstring).
     """
-    return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(_check_n(n) + 2)]
+    return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(integer(n, "n", low=2) + 2)]

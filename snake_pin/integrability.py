@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -87,6 +88,13 @@ def _friction_matrix(snake: Snake, q: np.ndarray) -> np.ndarray:
     return -np.column_stack([snake.friction(q, eye[j]) for j in range(snake.nv)])
 
 
+def _central(f: Callable[[np.ndarray], Any], x: np.ndarray, j: int, step: float) -> Any:
+    """Central difference of ``f`` at ``x`` along coordinate ``j``."""
+    e = np.zeros(len(x))
+    e[j] = step
+    return (f(x + e) - f(x - e)) / (2 * step)
+
+
 def _random_state(snake: Snake, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     q = np.r_[rng.uniform(-1, 1, 2), rng.uniform(-np.pi, np.pi),
               rng.uniform(-1.5, 1.5, snake.n - 1)]
@@ -130,18 +138,12 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
         q, dq = _random_state(snake, rng)
         energy = dq @ snake.inertia_matrix(q) @ dq
         for j in range(k):
-            e = np.zeros(nv)
-            e[j] = _STEP
-            d = (dq @ snake.inertia_matrix(q + e) @ dq
-                 - dq @ snake.inertia_matrix(q - e) @ dq) / (2 * _STEP)
+            d = _central(lambda p: dq @ snake.inertia_matrix(p) @ dq, q, j, _STEP)  # noqa: B023
             cyclic = max(cyclic, abs(d) / energy)
         # dC1[a, i] / dq_j for all a < k, i, j
         jac = np.empty((k, nv, nv))
         for j in range(nv):
-            e = np.zeros(nv)
-            e[j] = _STEP
-            jac[:, :, j] = (_friction_matrix(snake, q + e)[:k]
-                            - _friction_matrix(snake, q - e)[:k]) / (2 * _STEP)
+            jac[:, :, j] = _central(lambda p: _friction_matrix(snake, p)[:k], q, j, _STEP)
         scale = max(np.abs(jac).max(), 1e-300)
         gradient = max(gradient, np.abs(jac - jac.transpose(0, 2, 1)).max() / scale)
     return PartialIntegrability(k, cyclic, gradient, tolerance)
@@ -222,10 +224,8 @@ def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.
     params = snake.params
     m, c = params.masses, params.per_link("c_x")
     k = paper.k_matrix(params)
-    theta = q[:, 2:3] + np.concatenate([np.zeros((len(q), 1)), np.cumsum(q[:, 3:], axis=1)],
-                                       axis=1)
-    theta_dot = dq[:, 2:3] + np.concatenate([np.zeros((len(q), 1)),
-                                             np.cumsum(dq[:, 3:], axis=1)], axis=1)
+    theta, theta_dot = (v[:, 2:3] + np.cumsum(np.pad(v[:, 3:], ((0, 0), (1, 0))), axis=1)
+                        for v in (q, dq))
     # weighted sums over links of the CM coordinates p_i = p_h + sum_j K_ij e_j
     def weighted(w: np.ndarray) -> tuple[np.ndarray, ...]:
         a = w @ k  # w^T K
@@ -263,9 +263,7 @@ def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
     x0 = fields(z)
     deriv = np.empty((d, d, d))  # deriv[:, i, l] = d X_i / d z_l
     for l_idx in range(d):
-        e = np.zeros(d)
-        e[l_idx] = step
-        deriv[:, :, l_idx] = (fields(z + e) - fields(z - e)) / (2 * step)
+        deriv[:, :, l_idx] = _central(fields, z, l_idx, step)
     a = forms(z)
     worst = 0.0
     for i in range(d):

@@ -99,13 +99,8 @@ def free_joints(n: int, free_joint: int | Sequence[int] | None) -> tuple[int, ..
     """The free joints (1-based, sorted, distinct) of an n-link robot, or ParameterError."""
     if free_joint is None:
         return ()
-    if isinstance(free_joint, numbers.Integral) and not isinstance(free_joint,
-                                                                   (bool, np.bool_)):
-        free = [int(free_joint)]
-    elif isinstance(free_joint, np.ndarray) and free_joint.ndim == 0:
-        free = _integers([free_joint.item()], "free_joint")
-    else:
-        free = _integers(free_joint, "free_joint")
+    single = isinstance(free_joint, (numbers.Integral, np.ndarray)) and np.ndim(free_joint) == 0
+    free = _integers([np.asarray(free_joint).item()] if single else free_joint, "free_joint")
     for k in free:
         if not 1 <= k <= n - 1:
             raise ParameterError(f"free joint {k} is outside 1..{n - 1}")
@@ -348,8 +343,6 @@ def r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
     if coupling.shape[2] < len(task):  # fewer inputs than task directions
         return np.zeros(len(phi))
     return np.linalg.svd(coupling, compute_uv=False)[:, -1]
-
-
 
 
 def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:

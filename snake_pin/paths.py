@@ -20,9 +20,9 @@ from __future__ import annotations
 import abc
 import bisect
 import csv
+import functools
 import io
 import math
-import numbers
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
@@ -35,7 +35,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from ._io import decode_utf8, parse_toml, read_regular_file
-from ._validation import finite_number
+from ._validation import brief, finite_number
 from .exceptions import ParameterError, PathFileError
 
 __all__ = ["DEFAULT_EXTENT", "HINT_RADIUS", "MAX_ANGLE", "MAX_COORDINATE", "MAX_PATH_FILE_BYTES",
@@ -121,23 +121,10 @@ class _Samples(NamedTuple):
 
 
 # --------------------------------------------------------------------------- checks
-def _number(value: object, name: str, *, positive: bool = False,
-            non_negative: bool = False) -> float:
-    """A finite float (optionally > 0 or >= 0) or one ParameterError line naming ``name``."""
-    if not isinstance(value, numbers.Real) or isinstance(value, bool):
-        raise ParameterError(f"{name} must be a number, got {_short(value)}")
-    try:
-        float(value)
-    except OverflowError:
-        raise ParameterError(f"{name} must be finite, got an integer of "
-                             f"{len(str(value))} digits") from None
-    return finite_number(value, name, positive=positive, non_negative=non_negative)
-
-
 def _length(value: object, name: str, *, positive: bool = False,
             non_negative: bool = False) -> float:
     """A coordinate or length [m] within +-MAX_COORDINATE (>= MIN_LENGTH if positive)."""
-    x = _number(value, name, positive=positive, non_negative=non_negative)
+    x = finite_number(value, name, positive=positive, non_negative=non_negative)
     if abs(x) > MAX_COORDINATE:
         raise ParameterError(f"{name} must lie within +-{MAX_COORDINATE:g} m, got {x:g}")
     if positive and x < MIN_LENGTH:
@@ -147,7 +134,7 @@ def _length(value: object, name: str, *, positive: bool = False,
 
 def _angle(value: object, name: str, *, positive: bool = False) -> float:
     """An angle [rad] within +-MAX_ANGLE."""
-    x = _number(value, name, positive=positive)
+    x = finite_number(value, name, positive=positive)
     if abs(x) > MAX_ANGLE:
         raise ParameterError(f"{name} must lie within +-{MAX_ANGLE:g} rad, got {x:g}")
     return x
@@ -156,29 +143,20 @@ def _angle(value: object, name: str, *, positive: bool = False) -> float:
 def _point(value: object, name: str) -> tuple[float, float]:
     """A finite 2-vector [x, y] within +-MAX_COORDINATE or one ParameterError line."""
     if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
-        raise ParameterError(f"{name} must be a point [x, y], got {_short(value)}")
+        raise ParameterError(f"{name} must be a point [x, y], got {brief(value)}")
     return (_length(value[0], f"{name}[0]"), _length(value[1], f"{name}[1]"))
 
 
 def _flag(value: object, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
-        raise ParameterError(f"{name} must be true or false, got {_short(value)}")
+        raise ParameterError(f"{name} must be true or false, got {brief(value)}")
     return bool(value)
 
 
-def _short(value: object, limit: int = 60) -> str:
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _rotate(vectors: np.ndarray, angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.stack((c * vectors[..., 0] - s * vectors[..., 1],
-                     s * vectors[..., 0] + c * vectors[..., 1]), axis=-1)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+def _set(obj: object, **values: Any) -> None:
+    """Set attributes of a frozen dataclass: its checked fields and tables."""
+    for name, value in values.items():
+        object.__setattr__(obj, name, value)
 
 
 # ---------------------------------------------------------------------- arc length
@@ -216,11 +194,8 @@ class _ArcLength:
                 + x * x * (3.0 - 2.0 * x) * self.u[k + 1] + x * x * (x - 1.0) * h * self.du[k + 1])
 
     def parameter(self, s: np.ndarray) -> np.ndarray:
-        """u(s) for 0 <= s <= total: Newton's method from the Hermite start, to round-off.
-
-        Newton converges quadratically: once a step is below 1e-7 (relative), the next
-        would be below ~1e-13 and is skipped.
-        """
+        """u(s) for 0 <= s <= total: Newton from the Hermite start, to round-off (quadratic:
+        after a step below 1e-7, relative, the next would be below ~1e-13 and is skipped)."""
         u = self._start(s)
         lo, hi = self.u[0], self.u[-1]
         for _ in range(8):
@@ -251,16 +226,13 @@ class _ArcLength:
         return u
 
 
-def _curve_terms(d1: np.ndarray, d2: np.ndarray, d3: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(tangent angle wrapped, kappa, dkappa/ds) from p', p'', p''' in any parameter."""
-    speed2 = np.einsum("...i,...i->...", d1, d1)
-    speed = np.sqrt(speed2)
-    c12 = _cross(d1, d2)
-    kappa = c12 / (speed2 * speed)
-    dkappa = (_cross(d1, d3) * speed2 - 3.0 * c12 * np.einsum("...i,...i->...", d1, d2)) \
-        / (speed2 * speed2 * speed2)
-    return np.arctan2(d1[..., 1], d1[..., 0]), kappa, dkappa
+def _bend(x1: Any, y1: Any, x2: Any, y2: Any, x3: Any, y3: Any) -> tuple[Any, Any]:
+    """(kappa, dkappa/ds) from the components of p', p'', p''' in any parameter (floats or
+    arrays: one formula for both)."""
+    v2 = x1 * x1 + y1 * y1
+    c12 = x1 * y2 - y1 * x2
+    return (c12 / (v2 * v2**0.5),
+            ((x1 * y3 - y1 * x3) * v2 - 3.0 * c12 * (x1 * x2 + y1 * y2)) / (v2 * v2 * v2))
 
 
 def _clip_float(x: float, lo: float, hi: float) -> float:
@@ -269,12 +241,11 @@ def _clip_float(x: float, lo: float, hi: float) -> float:
 
 def _expansion_newton(a: Any, b: Any, kappa: Any, dkappa: Any, h: float,
                       clip: Callable[..., Any]) -> Any:
-    """sigma of the closest point of the cubic expansion about a sample (floats or arrays).
-
-    Two Newton steps on f(sigma) = (p(sigma) - x) . p'(sigma) from sigma = 0 (see
-    :meth:`Path._project_near`), each clipped to one spacing ``h``; ``clip`` is
-    ``numpy.clip`` for arrays or :func:`_clip_float` for floats: one formula for both.
-    """
+    """sigma of the point of the expansion about a sample k, in its frame (t, n),
+    ``p(sigma) = p_k + (sigma - kappa^2 sigma^3 / 6) t + (kappa sigma^2 / 2 + kappa' sigma^3
+    / 6) n``, closest to ``x = p_k + a t + b n``: two Newton steps on (p - x) . p' = 0, the
+    first the exact one at 0, each within one spacing ``h``; ``clip`` is ``numpy.clip`` for
+    arrays or :func:`_clip_float` for floats."""
     sigma = clip(a / clip(1.0 - kappa * b, 0.2, math.inf), -h, h)
     k2s = kappa * kappa * sigma
     # e = p(sigma) - x and v = p'(sigma) along t and n; slope = f'(sigma)
@@ -316,8 +287,7 @@ class Path(abc.ABC):
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         """(x, y, gamma, kappa, dkappa) at one arc length (overridden by fast paths)."""
         g = self._geometry(np.array([s]))
-        return (float(g.p[0, 0]), float(g.p[0, 1]), float(g.gamma[0]), float(g.kappa[0]),
-                float(g.dkappa[0]))
+        return (*g.p[0].tolist(), float(g.gamma[0]), float(g.kappa[0]), float(g.dkappa[0]))
 
     def geometry(self, s: object) -> PathPoint:
         """Return the point, tangent angle, curvature and its rate at arc length(s) ``s`` [m].
@@ -340,10 +310,8 @@ class Path(abc.ABC):
         arr = np.asarray(s, dtype=float)
         if not np.all(np.isfinite(arr)):
             raise ParameterError("arc lengths must be finite")
-        flat = self._geometry(arr.reshape(-1))
-        shape = arr.shape
-        return PathPoint(flat.p.reshape((*shape, 2)), flat.gamma.reshape(shape),
-                         flat.kappa.reshape(shape), flat.dkappa.reshape(shape))
+        return PathPoint(*(v.reshape(arr.shape + v.shape[1:])
+                           for v in self._geometry(arr.reshape(-1))))
 
     def point(self, s: object) -> np.ndarray:
         """Return the point p(s) [m], shape s.shape + (2,), of arc length(s) ``s`` [m].
@@ -379,11 +347,11 @@ class Path(abc.ABC):
             return (-margin, self.length + margin)
         return (-1.0, DEFAULT_EXTENT)
 
-    def _projection_step(self, lo: float, hi: float) -> float:
-        """Grid step of the coarse search: 5 mm, finer where the curve bends tightly."""
-        probe = np.linspace(lo, hi, 2001)
-        kappa_max = float(np.max(np.abs(self._geometry(probe).kappa)))
-        return min(0.005, 0.1 / kappa_max) if kappa_max > 0 else 0.005
+    def _step(self, lo: float, hi: float, count: int, step: float, bend: float) -> float:
+        """``step``, or ``bend`` over the largest |kappa| of ``count`` samples of [lo, hi]
+        where that is smaller (finer where the curve bends tightly)."""
+        kappa_max = float(np.max(np.abs(self._geometry(np.linspace(lo, hi, count)).kappa)))
+        return min(step, bend / kappa_max) if kappa_max > 0 else step
 
     def project(self, points: object, *, span: tuple[float, float] | None = None,
                 hint: object = None) -> np.ndarray:
@@ -413,27 +381,31 @@ class Path(abc.ABC):
         ParameterError
             The points are not a finite (..., 2) array, or the span or the hint is invalid.
         """
-        pts = np.asarray(points, dtype=float)
-        if pts.ndim == 0 or pts.shape[-1] != 2 or not np.isfinite(pts).all():
+        try:
+            pts = np.asarray(points, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            pts = np.empty(0)
+        if pts.ndim == 0 or pts.shape[-1:] != (2,) or not np.isfinite(pts).all():
             raise ParameterError("points must be a finite (..., 2) array")
-        exact = self._exact_projection(pts, span, hint)
+        try:
+            guess = None if hint is None else np.broadcast_to(np.asarray(hint, dtype=float),
+                                                              pts.shape[:-1])
+        except (TypeError, ValueError, OverflowError):
+            guess = np.array(math.nan)
+        if guess is not None and not np.isfinite(guess).all():
+            raise ParameterError(f"hint must be finite arc lengths, one or one per point, "
+                                 f"got {brief(hint)}")
+        span = _span(span)
+        if pts.size == 0:
+            return np.zeros(pts.shape[:-1])
+        exact = self._exact_projection(pts, span, guess)
         if exact is not None:
             return exact
-        if span is None:
-            lo, hi = (-math.inf, math.inf) if hint is not None else self.default_span()
-        else:
-            lo, hi = _number(span[0], "span[0]"), _number(span[1], "span[1]")
-        if not hi > lo:
-            raise ParameterError(f"span must be increasing, got ({lo}, {hi})")
+        lo, hi = span or ((-math.inf, math.inf) if guess is not None else self.default_span())
         flat = pts.reshape(-1, 2)
-        if hint is not None:
-            guess = np.asarray(hint, dtype=float)
-            if guess.shape != (len(flat),):
-                guess = np.broadcast_to(guess, (len(flat),))
-            if not np.isfinite(guess).all():
-                raise ParameterError("hint must be finite")
-            return self._project_near(flat, guess, lo, hi).reshape(pts.shape[:-1])
-        step = self._projection_step(lo, hi)
+        if guess is not None:
+            return self._project_near(flat, guess.reshape(-1), lo, hi).reshape(pts.shape[:-1])
+        step = self._step(lo, hi, 2001, 0.005, 0.1)  # the coarse search's grid step
         count = min(math.ceil((hi - lo) / step) + 1, 1_000_001)
         grid = np.linspace(lo, hi, count)
         _, nearest = cKDTree(self._geometry(grid).p).query(flat)
@@ -446,14 +418,9 @@ class Path(abc.ABC):
         return None
 
     def _samples(self, lo: float, hi: float) -> _Samples:
-        """The path sampled over at least [lo, hi], built once and moved when asked beyond.
-
-        The first table covers :meth:`default_span` and [lo, hi]; a request beyond it builds a
-        new window reaching half the old window's length (at least 2 m) beyond [lo, hi] on each
-        side: a point moving along an unbounded path costs an occasional rebuild, and the
-        table's size stays bounded. Spacing: :data:`SAMPLE_STEP`, finer (0.05 over the largest
-        curvature) where the path bends tighter.
-        """
+        """The path sampled over at least [lo, hi] (first :meth:`default_span` too), every
+        :data:`SAMPLE_STEP` or finer where it bends; a request beyond it moves the window
+        (half its length, at least 2 m, beyond [lo, hi]): its size stays bounded."""
         table: _Samples | None = self.__dict__.get("_near_table")
         if table is not None and table.s0 <= lo and table.end >= hi:
             return table
@@ -463,9 +430,8 @@ class Path(abc.ABC):
         else:
             grow = max(2.0, 0.5 * (table.end - table.s0))
             a, b = lo - grow, hi + grow
-        kappa_max = float(np.max(np.abs(self._geometry(np.linspace(a, b, 4001)).kappa)))
-        step = min(SAMPLE_STEP, 0.05 / kappa_max) if kappa_max > 0 else SAMPLE_STEP
-        count = min(math.ceil((b - a) / step) + 1, 4_000_001)
+        count = min(math.ceil((b - a) / self._step(a, b, 4001, SAMPLE_STEP, 0.05)) + 1,
+                    4_000_001)
         s = np.linspace(a, b, count)
         g = self._geometry(s)
         h = float(s[1] - s[0])
@@ -481,23 +447,11 @@ class Path(abc.ABC):
 
     def _project_near(self, points: np.ndarray, hint: np.ndarray, lo: float,
                       hi: float) -> np.ndarray:
-        """Closest point within :data:`HINT_RADIUS` of each hint (see :meth:`project`).
-
-        The nearest sample of the table (every ``stride``-th sample over the radius,
-        then each sample around the best of those), then two Newton steps on
-        f(sigma) = (p(sigma) - x) . p'(sigma) = 0 with the path's third-order expansion
-        about that sample k, in its frame (t, n)::
-
-            p(sigma) = p_k + (sigma - kappa^2 sigma^3 / 6) t
-                           + (kappa sigma^2 / 2 + kappa' sigma^3 / 6) n.
-
-        The first step is the exact one at sigma = 0, sigma = a / (1 - kappa b) with
-        a = (x - p_k) . t and b = (x - p_k) . n; each step is kept within one spacing.
-        The expansion's error is O(h^4) inside a sample's neighbourhood (O(h^2) at an
-        arc's ends, where kappa jumps). Many points: vectorised over the points (gathered
-        windows); one point (a controller's step): the same search on slices of the
-        table and the same Newton formula (:func:`_expansion_newton`) in floats. No
-        Python loop over points or samples either way.
+        """Closest point within :data:`HINT_RADIUS` of each hint (see :meth:`project`): the
+        nearest sample of the table (every ``stride``-th over the radius, then each around
+        the best), then :func:`_expansion_newton` about it (error O(h^4), O(h^2) at an
+        arc's ends). Vectorised over many points; one point (a controller's step) goes
+        through :meth:`_track_in` on slices of the table, in floats.
         """
         table = self._samples(max(lo, float(hint.min()) - HINT_RADIUS),
                               min(hi, float(hint.max()) + HINT_RADIUS))
@@ -524,13 +478,8 @@ class Path(abc.ABC):
         return np.clip(s0 + k_arr * h + sigma_arr, lo, hi)
 
     def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
-        """``(s, x_p, y_p, gamma)``: the closest point within :data:`HINT_RADIUS` of ``hint``.
-
-        One point, no span, no checks: the LOS law's step. ``s`` is
-        ``project((x, y), hint=hint)``; the point and its tangent angle come from the same
-        expansion (no evaluation of the curve itself); gamma is continuous like
-        :meth:`geometry`'s.
-        """
+        """``(s, x_p, y_p, gamma)`` of ``project((x, y), hint=hint)``, unchecked (the LOS
+        law's step); the point and its (continuous) tangent angle from the same expansion."""
         table = self._samples(hint - HINT_RADIUS, hint + HINT_RADIUS)
         return self._track_in(table, np.array([x, y]), hint, 0, len(table.kappa) - 1,
                               -math.inf, math.inf)
@@ -621,14 +570,13 @@ class _Finite(Path):
         if not np.any(beyond):
             return g
         ends = beyond != 0.0
-        p = g.p + beyond[:, None] * np.stack((np.cos(g.gamma), np.sin(g.gamma)), axis=-1)
+        p = g.p + beyond[:, None] * g.tangent
         return PathPoint(p, g.gamma, np.where(ends, 0.0, g.kappa),
                          np.where(ends, 0.0, g.dkappa))
 
+    @abc.abstractmethod
     def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        g = self._inside(np.array([s]))
-        return (float(g.p[0, 0]), float(g.p[0, 1]), float(g.gamma[0]), float(g.kappa[0]),
-                float(g.dkappa[0]))
+        """:meth:`_scalar` for 0 <= s <= length."""
 
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         inner = min(max(s, 0.0), self.length)
@@ -661,8 +609,8 @@ class Line(Path):
     name = "line"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "start", _point(self.start, "start"))
-        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
+        _set(self, start=_point(self.start, "start"),
+             direction=_angle(self.direction, "direction"))
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
         c, d = math.cos(self.direction), math.sin(self.direction)
@@ -685,22 +633,6 @@ class Line(Path):
         s = (pts[..., 0] - self.start[0]) * math.cos(self.direction) \
             + (pts[..., 1] - self.start[1]) * math.sin(self.direction)
         return s if span is None else np.clip(s, span[0], span[1])
-
-
-def _circle_defaults(radius: float, centre: object, start_angle: object,
-                     clockwise: bool) -> tuple[tuple[float, float], float]:
-    """Centre and start angle: by default the circle through the origin heading along +x."""
-    side = -1.0 if clockwise else 1.0
-    if start_angle is None:
-        start = -side * _HALF_PI if centre is None else 0.0
-    else:
-        start = _angle(start_angle, "start_angle")
-    if centre is None:
-        # the start point is at the origin: centre = -radius [cos start, sin start]
-        centre_xy = (-radius * math.cos(start), -radius * math.sin(start))
-    else:
-        centre_xy = _point(centre, "centre")
-    return centre_xy, start
 
 
 @dataclass(frozen=True)
@@ -737,14 +669,15 @@ class Circle(Path):
 
     def __post_init__(self) -> None:
         radius = _length(self.radius, "radius", positive=True)
-        clockwise = _flag(self.clockwise, "clockwise")
-        centre, start = _circle_defaults(radius, self.centre, self.start_angle, clockwise)
-        object.__setattr__(self, "radius", radius)
-        object.__setattr__(self, "clockwise", clockwise)
-        object.__setattr__(self, "centre", centre)
-        object.__setattr__(self, "start_angle", start)
-        object.__setattr__(self, "_c", centre)  # the same values, typed as never None
-        object.__setattr__(self, "_a0", start)
+        side = -1.0 if _flag(self.clockwise, "clockwise") else 1.0
+        # by default the circle through the origin heading along +x
+        start = (_angle(self.start_angle, "start_angle") if self.start_angle is not None
+                 else -side * _HALF_PI if self.centre is None else 0.0)
+        centre = (_point(self.centre, "centre") if self.centre is not None
+                  else (-radius * math.cos(start), -radius * math.sin(start)))
+        # _c and _a0: the same values as centre and start_angle, typed as never None
+        _set(self, radius=radius, clockwise=side < 0, centre=centre, start_angle=start,
+             _c=centre, _a0=start)
 
     @property
     def side(self) -> float:
@@ -756,7 +689,7 @@ class Circle(Path):
         """One lap, ``2 pi radius`` [m] (s itself runs on over any number of laps)."""
         return 2.0 * math.pi * self.radius
 
-    def _circle(self, s: np.ndarray) -> PathPoint:
+    def _geometry(self, s: np.ndarray) -> PathPoint:
         side, radius = self.side, self.radius
         polar = self._a0 + side * s / radius
         p = np.stack((self._c[0] + radius * np.cos(polar),
@@ -764,18 +697,12 @@ class Circle(Path):
         zero = np.zeros_like(s)
         return PathPoint(p, polar + side * _HALF_PI, zero + side / radius, zero)
 
-    def _geometry(self, s: np.ndarray) -> PathPoint:
-        return self._circle(s)
-
-    def _circle_scalar(self, s: float) -> tuple[float, float, float, float, float]:
+    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
         side, radius = self.side, self.radius
         polar = self._a0 + side * s / radius
         return (self._c[0] + radius * math.cos(polar),
                 self._c[1] + radius * math.sin(polar), polar + side * _HALF_PI,
                 side / radius, 0.0)
-
-    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        return self._circle_scalar(s)
 
     def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
         s = float(self.project(np.array([x, y]), hint=hint))
@@ -828,26 +755,17 @@ class Arc(_Finite, Circle):
 
     def __post_init__(self) -> None:
         Circle.__post_init__(self)
-        object.__setattr__(self, "angle", _angle(self.angle, "angle", positive=True))
+        _set(self, angle=_angle(self.angle, "angle", positive=True))
 
     @property
     def length(self) -> float:
         """Length of the arc, ``radius angle`` [m]."""
         return self.radius * self.angle
 
-    def _inside(self, s: np.ndarray) -> PathPoint:
-        return self._circle(s)
-
-    def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        return self._circle_scalar(s)
-
-    def _geometry(self, s: np.ndarray) -> PathPoint:
-        return _Finite._geometry(self, s)
-
-    def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        return _Finite._scalar(self, s)
-
-    # the arc's own span and search (margins, straight ends), not the circle's laps
+    # the circle inside, straight beyond; the arc's own span and search (margins,
+    # straight ends), not the circle's laps
+    _inside, _inside_scalar = Circle._geometry, Circle._scalar
+    _geometry, _scalar = _Finite._geometry, _Finite._scalar
     default_span = Path.default_span
     _exact_projection = Path._exact_projection
 
@@ -858,30 +776,14 @@ class _GraphCurve(Path):
     origin: tuple[float, float]
     direction: float
 
-    def _place(self, p_local: np.ndarray, gamma_local: np.ndarray, kappa: np.ndarray,
-               dkappa: np.ndarray) -> PathPoint:
-        p = _rotate(p_local, self.direction) + np.asarray(self.origin)
-        return PathPoint(p, gamma_local + self.direction, kappa, dkappa)
-
-    def _place_scalar(self, x: float, y: float, f1: float, f2: float, f3: float
-                      ) -> tuple[float, float, float, float, float]:
-        """One point of the graph, placed (kappa = f2 / w^3, dkappa/ds = (f3 w^2 - 3 f1 f2^2) / w^6,
-        w^2 = 1 + f1^2, fk the k-th derivative of f)."""
-        w2 = 1.0 + f1 * f1
-        w = math.sqrt(w2)
+    def _place(self, x: Any, y: Any, f1: Any, f2: Any, f3: Any, m: Any = np) -> Any:
+        """The point (x, f(x)) placed, gamma = atan f' (continuous: x' = 1 > 0), kappa and
+        dkappa/ds (fk the k-th derivative of f): a PathPoint of arrays with ``m`` numpy,
+        or the tuple of :meth:`Path._scalar` of floats with ``m`` math."""
         c, s = math.cos(self.direction), math.sin(self.direction)
-        return (self.origin[0] + c * x - s * y, self.origin[1] + s * x + c * y,
-                math.atan(f1) + self.direction, f2 / (w2 * w),
-                (f3 * w2 - 3.0 * f1 * f2 * f2) / (w2 * w2 * w2))
-
-    @staticmethod
-    def _terms(f1: np.ndarray, f2: np.ndarray, f3: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """gamma = atan f' (continuous: x' = 1 > 0), kappa and dkappa/ds of a graph."""
-        ones, zeros = np.ones_like(f1), np.zeros_like(f1)
-        _, kappa, dkappa = _curve_terms(np.stack((ones, f1), -1), np.stack((zeros, f2), -1),
-                                        np.stack((zeros, f3), -1))
-        return np.arctan(f1), kappa, dkappa
+        p_x, p_y = c * x - s * y + self.origin[0], s * x + c * y + self.origin[1]
+        terms = (m.atan(f1) + self.direction, *_bend(1.0, f1, 0.0, f2, 0.0, f3))
+        return (p_x, p_y, *terms) if m is math else PathPoint(np.stack((p_x, p_y), -1), *terms)
 
 
 @dataclass(frozen=True)
@@ -921,21 +823,16 @@ class LaneChange(_GraphCurve):
     _P = Polynomial([0, 0, 0, 0, 35, -84, 70, -20])
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "offset", _length(self.offset, "offset"))
-        object.__setattr__(self, "length_x", _length(self.length_x, "length", positive=True))
-        object.__setattr__(self, "start", _length(self.start, "start", non_negative=True))
-        object.__setattr__(self, "origin", _point(self.origin, "origin"))
-        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
+        _set(self, offset=_length(self.offset, "offset"),
+             length_x=_length(self.length_x, "length", positive=True),
+             start=_length(self.start, "start", non_negative=True),
+             origin=_point(self.origin, "origin"), direction=_angle(self.direction, "direction"))
         scale = self.offset / self.length_x
-        polys = [self._P]
-        for _ in range(3):
-            polys.append(polys[-1].deriv())
+        polys = [self._P.deriv(k) for k in range(4)]
         # derivatives in x: P^(k)(x / L) * offset / L^k
-        object.__setattr__(self, "_f", tuple(
-            (poly, self.offset / self.length_x**k) for k, poly in enumerate(polys)))
-        table = _ArcLength(lambda x: np.sqrt(1.0 + (polys[1](x / self.length_x) * scale) ** 2),
-                           np.linspace(0.0, self.length_x, 257))
-        object.__setattr__(self, "_table", table)
+        _set(self, _f=tuple((poly, self.offset / self.length_x**k) for k, poly in enumerate(polys)),
+             _table=_ArcLength(lambda x: np.sqrt(1.0 + (polys[1](x / self.length_x) * scale) ** 2),
+                               np.linspace(0.0, self.length_x, 257)))
 
     @property
     def s_length(self) -> float:
@@ -957,32 +854,22 @@ class LaneChange(_GraphCurve):
         local = s - start
         inside = (local > 0.0) & (local < curve)
         x = np.where(local <= 0.0, s, start + self.length_x + (local - curve))
-        y = np.where(local <= 0.0, 0.0, self.offset)
-        gamma = np.zeros_like(s)
-        kappa = np.zeros_like(s)
-        dkappa = np.zeros_like(s)
+        f = [np.where(local <= 0.0, 0.0, self.offset), *np.zeros((3, len(s)))]
         if np.any(inside):
             u = self._table.parameter(local[inside])
-            (p0, c0), (p1, c1), (p2, c2), (p3, c3) = self._f
-            xi = u / self.length_x
             x[inside] = start + u
-            y[inside] = c0 * p0(xi)
-            gamma[inside], kappa[inside], dkappa[inside] = self._terms(
-                c1 * p1(xi), c2 * p2(xi), c3 * p3(xi))
-        return self._place(np.stack((x, y), axis=-1), gamma, kappa, dkappa)
+            for f_k, (poly, c) in zip(f, self._f, strict=True):
+                f_k[inside] = c * poly(u / self.length_x)
+        return self._place(x, *f)
 
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        local = s - self.start
-        if local <= 0.0:
-            return self._place_scalar(s, 0.0, 0.0, 0.0, 0.0)
-        curve = self._table.total
-        if local >= curve:
-            return self._place_scalar(self.start + self.length_x + (local - curve),
-                                      self.offset, 0.0, 0.0, 0.0)
+        local, curve = s - self.start, self._table.total
+        if local <= 0.0 or local >= curve:
+            x = s if local <= 0.0 else self.start + self.length_x + (local - curve)
+            return self._place(x, 0.0 if local <= 0.0 else self.offset, 0.0, 0.0, 0.0, math)
         u = self._table.parameter_scalar(local)
-        xi = u / self.length_x
-        f = [c * poly(xi) for poly, c in self._f]
-        return self._place_scalar(self.start + u, f[0], f[1], f[2], f[3])
+        y, f1, f2, f3 = (c * poly(u / self.length_x) for poly, c in self._f)
+        return self._place(self.start + u, y, f1, f2, f3, math)
 
 
 @dataclass(frozen=True)
@@ -1014,36 +901,29 @@ class Sinusoid(_GraphCurve):
     name = "sinusoid"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "amplitude", _length(self.amplitude, "amplitude"))
-        object.__setattr__(self, "wavelength",
-                           _length(self.wavelength, "wavelength", positive=True))
-        object.__setattr__(self, "origin", _point(self.origin, "origin"))
-        object.__setattr__(self, "direction", _angle(self.direction, "direction"))
+        _set(self, amplitude=_length(self.amplitude, "amplitude"),
+             wavelength=_length(self.wavelength, "wavelength", positive=True),
+             origin=_point(self.origin, "origin"), direction=_angle(self.direction, "direction"))
         k = 2.0 * math.pi / self.wavelength
         slope = self.amplitude * k
-        table = _ArcLength(lambda x: np.sqrt(1.0 + (slope * np.cos(k * x)) ** 2),
-                           np.linspace(0.0, self.wavelength, 129))
-        object.__setattr__(self, "_table", table)
+        _set(self, _table=_ArcLength(lambda x: np.sqrt(1.0 + (slope * np.cos(k * x)) ** 2),
+                                     np.linspace(0.0, self.wavelength, 129)))
+
+    def _graph(self, x: Any, m: Any) -> Any:
+        """:meth:`_place` of the sine at x (arrays with ``m`` numpy, floats with math)."""
+        k, a = 2.0 * math.pi / self.wavelength, self.amplitude
+        sine, cosine = m.sin(k * x), m.cos(k * x)
+        return self._place(x, a * sine, a * k * cosine, -a * k * k * sine, -a * k**3 * cosine, m)
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
-        table = self._table
-        laps = np.floor(s / table.total)
-        u = table.parameter(s - laps * table.total)
-        x = u + laps * self.wavelength
-        k, a = 2.0 * math.pi / self.wavelength, self.amplitude
-        sine, cosine = np.sin(k * x), np.cos(k * x)
-        gamma, kappa, dkappa = self._terms(a * k * cosine, -a * k**2 * sine,
-                                           -a * k**3 * cosine)
-        return self._place(np.stack((x, a * sine), axis=-1), gamma, kappa, dkappa)
+        laps = np.floor(s / self._table.total)
+        return self._graph(self._table.parameter(s - laps * self._table.total)
+                           + laps * self.wavelength, np)
 
     def _scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        total = self._table.total
-        laps = math.floor(s / total)
-        x = self._table.parameter_scalar(s - laps * total) + laps * self.wavelength
-        k, a = 2.0 * math.pi / self.wavelength, self.amplitude
-        sine, cosine = math.sin(k * x), math.cos(k * x)
-        return self._place_scalar(x, a * sine, a * k * cosine, -a * k * k * sine,
-                                  -a * k**3 * cosine)
+        laps = math.floor(s / self._table.total)
+        return self._graph(self._table.parameter_scalar(s - laps * self._table.total)
+                           + laps * self.wavelength, math)
 
 
 @dataclass(frozen=True)
@@ -1069,7 +949,6 @@ class Waypoints(_Finite):
     points: tuple[tuple[float, float], ...] = field(default=())
     knots_s: np.ndarray = field(init=False, repr=False, compare=False)
     _spline: CubicSpline = field(init=False, repr=False, compare=False)
-    _derivs: tuple[Any, ...] = field(init=False, repr=False, compare=False)
     _table: _ArcLength = field(init=False, repr=False, compare=False)
     _gamma_nodes: np.ndarray = field(init=False, repr=False, compare=False)
     _knots_list: list[float] = field(init=False, repr=False, compare=False)
@@ -1080,15 +959,15 @@ class Waypoints(_Finite):
 
     def __post_init__(self) -> None:
         pts = _waypoints(self.points)
-        object.__setattr__(self, "points", tuple(map(tuple, pts.tolist())))
+        _set(self, points=tuple(map(tuple, pts.tolist())))
         chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         knots = np.r_[0.0, np.cumsum(chords)]
         spline = CubicSpline(knots, pts, bc_type="natural")
-        derivs = tuple(spline.derivative(k) for k in (1, 2, 3))
+        tangent = spline.derivative()
         sub = 16
         nodes = (knots[:-1, None] + np.diff(knots)[:, None] * np.arange(sub) / sub).reshape(-1)
         nodes = np.r_[nodes, knots[-1]]
-        d1 = derivs[0](nodes)
+        d1 = tangent(nodes)
         speed = np.linalg.norm(d1, axis=1)
         if speed.min() <= 1e-9 * max(1.0, knots[-1]):
             k = int(np.searchsorted(knots, nodes[int(np.argmin(speed))], side="right"))
@@ -1097,55 +976,43 @@ class Waypoints(_Finite):
         if np.any(np.abs(np.diff(gamma_nodes)) > 1.0):
             raise ParameterError("points: the spline turns too sharply between waypoints "
                                  "(add waypoints or space them out)")
-        table = _ArcLength(lambda u: np.linalg.norm(derivs[0](u), axis=1), nodes)
-        object.__setattr__(self, "_spline", spline)
-        object.__setattr__(self, "_derivs", derivs)
-        object.__setattr__(self, "_table", table)
-        object.__setattr__(self, "_gamma_nodes", gamma_nodes)
-        object.__setattr__(self, "knots_s", table.length(knots))
-        # per knot interval: cubic coefficients of x and y (highest first) as floats
-        object.__setattr__(self, "_knots_list", knots.tolist())
-        object.__setattr__(self, "_coefficients", [
-            (tuple(spline.c[:, i, 0].tolist()), tuple(spline.c[:, i, 1].tolist()))
-            for i in range(len(knots) - 1)])
-        object.__setattr__(self, "_gamma_list", gamma_nodes.tolist())
+        table = _ArcLength(lambda u: np.linalg.norm(tangent(u), axis=1), nodes)
+        # _coefficients: per knot interval, the cubics of x and y (highest first) as floats
+        _set(self, _spline=spline, _table=table, _gamma_nodes=gamma_nodes,
+             knots_s=table.length(knots), _knots_list=knots.tolist(),
+             _coefficients=[(tuple(spline.c[:, i, 0].tolist()), tuple(spline.c[:, i, 1].tolist()))
+                            for i in range(len(knots) - 1)], _gamma_list=gamma_nodes.tolist())
 
     @property
     def length(self) -> float:
         """Arc length of the spline from the first to the last waypoint [m]."""
         return self._table.total
 
+    @staticmethod
+    def _cubic(d: Any, xs: Any, ys: Any, near: Any, m: Any) -> Any:
+        """(x, y, gamma, kappa, dkappa) at ``d`` into a knot interval of cubics ``xs``, ``ys``
+        (highest first), gamma the turn nearest ``near`` (floats with ``m`` math, arrays
+        with numpy)."""
+        (ax, bx, cx, ex), (ay, by, cy, ey) = xs, ys
+        x1, y1 = (3.0 * ax * d + 2.0 * bx) * d + cx, (3.0 * ay * d + 2.0 * by) * d + cy
+        return (((ax * d + bx) * d + cx) * d + ex, ((ay * d + by) * d + cy) * d + ey,
+                near + (m.atan2(y1, x1) - near + math.pi) % (2.0 * math.pi) - math.pi,
+                *_bend(x1, y1, 6.0 * ax * d + 2.0 * bx, 6.0 * ay * d + 2.0 * by, 6.0 * ax,
+                       6.0 * ay))
+
     def _inside(self, s: np.ndarray) -> PathPoint:
-        table = self._table
-        u = table.parameter(s)
-        d1, d2, d3 = (d(u) for d in self._derivs)
-        wrapped, kappa, dkappa = _curve_terms(d1, d2, d3)
-        k = np.clip(np.searchsorted(table.u, u, side="right") - 1, 0, len(table.u) - 1)
-        near = self._gamma_nodes[k]
-        gamma = near + np.mod(wrapped - near + math.pi, 2.0 * math.pi) - math.pi
-        return PathPoint(self._spline(u), gamma, kappa, dkappa)
+        u, knots, nodes = self._table.parameter(s), self._spline.x, self._table.u
+        i = np.clip(np.searchsorted(knots, u, side="right") - 1, 0, len(knots) - 2)
+        k = np.clip(np.searchsorted(nodes, u, side="right") - 1, 0, len(nodes) - 1)
+        c = self._spline.c[:, i]
+        x, y, *terms = self._cubic(u - knots[i], c[..., 0], c[..., 1], self._gamma_nodes[k], np)
+        return PathPoint(np.stack((x, y), -1), *terms)
 
     def _inside_scalar(self, s: float) -> tuple[float, float, float, float, float]:
-        table = self._table
-        u = table.parameter_scalar(s)
-        knots = self._knots_list
+        u, knots, nodes = self._table.parameter_scalar(s), self._knots_list, self._table._u_list
         i = min(max(bisect.bisect_right(knots, u) - 1, 0), len(knots) - 2)
-        d = u - knots[i]
-        (ax, bx, cx, ex), (ay, by, cy, ey) = self._coefficients[i]
-        x, y = ((ax * d + bx) * d + cx) * d + ex, ((ay * d + by) * d + cy) * d + ey
-        x1, y1 = (3.0 * ax * d + 2.0 * bx) * d + cx, (3.0 * ay * d + 2.0 * by) * d + cy
-        x2, y2 = 6.0 * ax * d + 2.0 * bx, 6.0 * ay * d + 2.0 * by
-        x3, y3 = 6.0 * ax, 6.0 * ay
-        v2 = x1 * x1 + y1 * y1
-        v = math.sqrt(v2)
-        c12 = x1 * y2 - y1 * x2
-        kappa = c12 / (v2 * v)
-        dkappa = ((x1 * y3 - y1 * x3) * v2 - 3.0 * c12 * (x1 * x2 + y1 * y2)) / (v2 * v2 * v2)
-        nodes = table._u_list
         k = min(max(bisect.bisect_right(nodes, u) - 1, 0), len(nodes) - 1)
-        near = self._gamma_list[k]
-        gamma = near + (math.atan2(y1, x1) - near + math.pi) % (2.0 * math.pi) - math.pi
-        return x, y, gamma, kappa, dkappa
+        return self._cubic(u - knots[i], *self._coefficients[i], self._gamma_list[k], math)
 
 
 def _waypoints(points: object) -> np.ndarray:
@@ -1153,7 +1020,7 @@ def _waypoints(points: object) -> np.ndarray:
     try:
         pts = np.asarray(points, dtype=float)
     except (TypeError, ValueError, OverflowError) as exc:
-        raise ParameterError(f"points must be a list of [x, y] pairs, got {_short(points)}") \
+        raise ParameterError(f"points must be a list of [x, y] pairs, got {brief(points)}") \
             from exc
     if pts.ndim != 2 or pts.shape[1] != 2:
         raise ParameterError(f"points must be a list of [x, y] pairs, got shape {pts.shape}")
@@ -1208,12 +1075,11 @@ class Timing:
     start: float = 0.0
 
     def __post_init__(self) -> None:
-        speed = _number(self.speed, "speed", positive=True)
+        speed = finite_number(self.speed, "speed", positive=True)
         if speed > MAX_PATH_SPEED:
             raise ParameterError(f"speed must be at most {MAX_PATH_SPEED:g} m/s, got {speed:g}")
-        object.__setattr__(self, "speed", speed)
-        object.__setattr__(self, "ramp", _number(self.ramp, "ramp", non_negative=True))
-        object.__setattr__(self, "start", _length(self.start, "start"))
+        _set(self, speed=speed, ramp=finite_number(self.ramp, "ramp", non_negative=True),
+             start=_length(self.start, "start"))
 
     def __call__(self, t: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (s, s', s'') at time(s) ``t`` [s], arrays shaped like ``t`` [m, m/s, m/s^2]."""
@@ -1406,20 +1272,25 @@ def _distance_arguments(path: object, points: object, span: object
     if isinstance(path, PathReference):
         path = path.path
     if not isinstance(path, Path):
-        raise ParameterError(f"path must be a Path or a PathReference, got {_short(path)}")
+        raise ParameterError(f"path must be a Path or a PathReference, got {brief(path)}")
     try:
         pts = np.asarray(points, dtype=float)
     except (TypeError, ValueError, OverflowError):
         raise ParameterError(f"points must be a finite (..., 2) array, "
-                             f"got {_short(points)}") from None
+                             f"got {brief(points)}") from None
+    return path, pts, _span(span)
+
+
+def _span(span: object) -> tuple[float, float] | None:
+    """A checked ``(s_min, s_max)`` (None stays None), or one ParameterError line."""
     if span is None:
-        return path, pts, None
+        return None
     if not isinstance(span, (tuple, list, np.ndarray)) or len(span) != 2:
-        raise ParameterError(f"span must be (s_min, s_max), got {_short(span)}")
-    low, high = _number(span[0], "span[0]"), _number(span[1], "span[1]")
+        raise ParameterError(f"span must be (s_min, s_max), got {brief(span)}")
+    low, high = finite_number(span[0], "span[0]"), finite_number(span[1], "span[1]")
     if not high > low:
         raise ParameterError(f"span must be increasing, got ({low}, {high})")
-    return path, pts, (low, high)
+    return low, high
 
 
 # ------------------------------------------------------------------- construction
@@ -1463,12 +1334,12 @@ def make_path(name: str, **params: Any) -> Path:
         An unknown name or parameter, missing waypoints, or a value out of its domain.
     """
     if not isinstance(name, str) or name not in _SHAPES:
-        raise ParameterError(f"unknown path {_short(name)}: expected one of "
+        raise ParameterError(f"unknown path {brief(name)}: expected one of "
                              f"{', '.join(PATH_NAMES)} or a .toml/.csv path file")
     allowed = _shape_keys(name)
     for key in params:
         if key not in allowed:
-            raise ParameterError(f"unknown parameter {_short(key)} for path {name!r} "
+            raise ParameterError(f"unknown parameter {brief(key)} for path {name!r} "
                                  f"(expected one of {', '.join(allowed)})")
     if name == "waypoints" and "points" not in params:
         raise ParameterError("waypoints: points is required")
@@ -1481,25 +1352,23 @@ def _file_error(path: str | os.PathLike[str], message: str) -> PathFileError:
 
 
 def _read_file(path: str | os.PathLike[str]) -> str:
-    def error(message: str) -> PathFileError:
-        return _file_error(path, message)
-
-    data = read_regular_file(path, limit=MAX_PATH_FILE_BYTES, kind="path file", error=error)
-    return decode_utf8(data, error=error)
+    error = functools.partial(_file_error, path)
+    return decode_utf8(read_regular_file(path, limit=MAX_PATH_FILE_BYTES, kind="path file",
+                                         error=error), error=error)
 
 
 def _parse_toml(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
-    doc = parse_toml(text, error=lambda message: _file_error(path, message))
+    doc = parse_toml(text, error=functools.partial(_file_error, path))
     kind = doc.pop("type", None)
     if kind is None:
         raise _file_error(path, f"type is required (one of {', '.join(PATH_NAMES)})")
     if not isinstance(kind, str) or kind not in _SHAPES:
-        raise _file_error(path, f"type: unknown path type {_short(kind)} "
+        raise _file_error(path, f"type: unknown path type {brief(kind)} "
                                 f"(expected one of {', '.join(PATH_NAMES)})")
     allowed = (*_shape_keys(kind), *_TIMING_KEYS)
     for key, value in doc.items():
         if key not in allowed:
-            raise _file_error(path, f"unknown key {_short(key)} for type {kind!r} "
+            raise _file_error(path, f"unknown key {brief(key)} for type {kind!r} "
                                     f"(expected one of {', '.join(allowed)})")
         if isinstance(value, dict):
             raise _file_error(path, f"{key} must be a value, not a table")
@@ -1525,7 +1394,7 @@ def _parse_csv(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
                 if first and not _any_number(cells):
                     continue  # the header
                 raise _file_error(path, f"waypoint {len(rows) + 1}: not a number pair "
-                                        f"{_short(','.join(cells))}") from None
+                                        f"{brief(','.join(cells))}") from None
             if not (math.isfinite(x) and math.isfinite(y)):
                 raise _file_error(path, f"waypoint {len(rows) + 1}: not finite ({x}, {y})")
             rows.append((x, y))
@@ -1585,11 +1454,11 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
         return PathReference(make_path(spec, **params), Timing(**timing))
     if not isinstance(spec, (str, os.PathLike)):
         raise ParameterError(f"path must be a name ({', '.join(PATH_NAMES)}) or a file, "
-                             f"got {_short(spec)}")
+                             f"got {brief(spec)}")
     file_name = os.fspath(spec)
     suffix = FilePath(file_name).suffix.lower()
     if suffix not in (".toml", ".csv"):
-        raise ParameterError(f"unknown path {_short(file_name)}: expected one of "
+        raise ParameterError(f"unknown path {brief(file_name)}: expected one of "
                              f"{', '.join(PATH_NAMES)} or a .toml/.csv path file")
     text = _read_file(spec)
     doc = _parse_toml(spec, text) if suffix == ".toml" else _parse_csv(spec, text)

@@ -76,8 +76,9 @@ class Sweep:
     @property
     def stem(self) -> str:
         """File stem, e.g. ``sweep_arc``, ``sweep_arc_free5`` or ``sweep_arc_free3_5``."""
-        free = _free_tuple(self.free_joint)
-        return f"sweep_{self.family}" + (f"_free{'_'.join(map(str, free))}" if free else "")
+        free = self.free_joint
+        joints = (free,) if isinstance(free, (int, numbers.Integral)) else tuple(free or ())
+        return f"sweep_{self.family}" + (f"_free{'_'.join(map(str, joints))}" if joints else "")
 
     def zeros(self, relative: float = 1e-9) -> np.ndarray:
         """Parameter values where R is numerically zero.
@@ -142,14 +143,6 @@ def _bounds(bounds: object) -> tuple[float, float]:
     if not low < high:
         raise ParameterError(f"bounds must have low < high, got ({low:g}, {high:g})")
     return low, high
-
-
-def _free_tuple(free_joint: FreeJoints) -> tuple[int, ...]:
-    if free_joint is None:
-        return ()
-    if isinstance(free_joint, numbers.Integral):
-        return (int(free_joint),)
-    return tuple(int(k) for k in free_joint)  # type: ignore[union-attr]
 
 
 def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None = None,

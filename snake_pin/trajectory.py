@@ -46,6 +46,8 @@ _FAULTS = ("diverged", "failed")
 _CORE = ("t", "q", "dq", "tau")
 _SIGNAL_PREFIX = "signal__"
 _SIGNAL_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
+_MEMBER_NAME = re.compile(rf"({'|'.join(_CORE)}|header|{_SIGNAL_PREFIX}{_SIGNAL_NAME.pattern})"
+                          r"\.npy")
 _MAX_HEADER_CHARS = 1 << 20
 _MAX_MEMBERS = 1024
 _CHUNK = 1 << 20
@@ -277,10 +279,8 @@ def _reason(exc: OSError | ValueError) -> str:
 
 def _wanted_signals(signals: object) -> frozenset[str] | None:
     """None for every signal, else the names asked for."""
-    if signals is True or (isinstance(signals, np.bool_) and signals):
-        return None
-    if signals is False or (isinstance(signals, np.bool_) and not signals):
-        return frozenset()
+    if isinstance(signals, (bool, np.bool_)):
+        return None if signals else frozenset()
     if isinstance(signals, (str, bytes)) or not isinstance(signals, Iterable):
         raise ParameterError(f"signals must be True, False or a list of names, "
                              f"got {reprlib.repr(signals)}")
@@ -317,11 +317,7 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
         if len(members) != len(infos):
             raise _Refused("two members share a name")
         for name in members:
-            stem = name.removesuffix(".npy")
-            if not name.endswith(".npy") or not (
-                    stem in (*_CORE, "header") or (stem.startswith(_SIGNAL_PREFIX) and
-                                                   _SIGNAL_NAME.fullmatch(
-                                                       stem.removeprefix(_SIGNAL_PREFIX)))):
+            if not _MEMBER_NAME.fullmatch(name):
                 raise _Refused(f"unexpected member {one_line(repr(name), 80)}")
         if "header.npy" not in members:
             raise _Refused("no header")
@@ -351,12 +347,12 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
         for name in _CORE:
             plan[name] = _inspect(archive, members[f"{name}.npy"], name, kinds="f8")
         samples = plan["t"].shape[0] if len(plan["t"].shape) == 1 else -1
-        _check_shape(plan["t"].shape, (samples,), "t")
+        for name, shape in (("t", (samples,)), ("q", (samples, n + 2)),
+                            ("dq", (samples, n + 2)), ("tau", (samples, n - 1))):
+            if plan[name].shape != shape:
+                raise _Refused(f"array {name} has shape {plan[name].shape}, expected {shape}")
         if samples < 1:
             raise _Refused("it has no samples")
-        _check_shape(plan["q"].shape, (samples, n + 2), "q")
-        _check_shape(plan["dq"].shape, (samples, n + 2), "dq")
-        _check_shape(plan["tau"].shape, (samples, n - 1), "tau")
         for name in chosen:
             member = _inspect(archive, members[f"{_SIGNAL_PREFIX}{name}.npy"],
                               f"signal {name!r}", kinds="biuf")
@@ -387,15 +383,8 @@ def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
 
     ``kinds`` is "f8" (float64), "U" (a string) or "biuf" (any real numbers).
     """
-    fmt = np.lib.format
     with archive.open(info) as stream:
-        version = fmt.read_magic(stream)
-        if version == (1, 0):
-            shape, fortran, dtype = fmt.read_array_header_1_0(stream)
-        elif version == (2, 0):
-            shape, fortran, dtype = fmt.read_array_header_2_0(stream)
-        else:
-            raise _Refused(f"array {label} has .npy format {version} (1.0 or 2.0 expected)")
+        shape, fortran, dtype = _npy_header(stream, label)
     dtype = np.dtype(dtype)
     if dtype.hasobject:
         raise _Refused(f"array {label} holds Python objects (pickles are refused)")
@@ -412,6 +401,15 @@ def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
     return member
 
 
+def _npy_header(stream: Any, label: str) -> tuple[Any, bool, Any]:
+    """(shape, fortran order, dtype) from a .npy header of format 1.0 or 2.0."""
+    version = np.lib.format.read_magic(stream)
+    if version not in ((1, 0), (2, 0)):
+        raise _Refused(f"array {label} has .npy format {version} (1.0 or 2.0 expected)")
+    return (np.lib.format.read_array_header_1_0 if version == (1, 0)
+            else np.lib.format.read_array_header_2_0)(stream)
+
+
 def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
     """Read a checked member's data: exactly its declared size, and nothing after it."""
     assert member.dtype is not None
@@ -419,10 +417,7 @@ def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
     view = memoryview(buffer)
     with archive.open(member.info) as stream:
         assert isinstance(stream, io.BufferedIOBase)  # a ZipExtFile: it has readinto
-        version = np.lib.format.read_magic(stream)
-        reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                  else np.lib.format.read_array_header_2_0)
-        reader(stream)
+        _npy_header(stream, label)
         got = 0
         while got < member.nbytes:
             count = stream.readinto(view[got: got + _CHUNK])
@@ -433,11 +428,6 @@ def _data(archive: zipfile.ZipFile, member: _Member, label: str) -> np.ndarray:
             raise _Refused(f"array {label} has data beyond its declared shape")
     array = np.frombuffer(buffer, dtype=member.dtype)
     return array.reshape(member.shape, order="F" if member.fortran else "C")
-
-
-def _check_shape(shape: tuple[int, ...], expected: tuple[int, ...], name: str) -> None:
-    if shape != expected:
-        raise _Refused(f"array {name} has shape {shape}, expected {expected}")
 
 
 def _parse_header(text: str) -> dict[str, Any]:

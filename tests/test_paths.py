@@ -423,3 +423,19 @@ def test_distance_arguments_are_checked(measure: object) -> None:
             measure(Circle(), points, span=span)  # type: ignore[operator]
     reference = load_path("line")
     assert measure(reference, points, span=[0.0, 1.0]).shape == (2,)  # type: ignore[operator]
+
+
+@pytest.mark.parametrize("path", [Line(), Circle(), Sinusoid()], ids=lambda p: p.name)
+def test_project_refuses_bad_points_and_hints_in_one_line(path: Path) -> None:
+    """Points that are not a finite (..., 2) array and hints that are not finite arc lengths
+    (one, or one per point) are one ParameterError line naming the argument, whether the
+    shape projects in closed form or by its table; no points project to no arc lengths."""
+    points = np.zeros((2, 2))
+    for bad in ("abc", [[1.0, "x"]], np.zeros((2, 3)), [[np.nan, 0.0]]):
+        with pytest.raises(ParameterError, match=r"^points must be a finite"):
+            path.project(bad)
+    for hint in ("a", [1.0, 2.0, 3.0], np.nan, {}):
+        with pytest.raises(ParameterError, match=r"^hint must be finite"):
+            path.project(points, hint=hint)
+    assert path.project(np.zeros((0, 2)), hint=0.1).shape == (0,)
+    assert path.project(np.zeros((3, 4, 2)), hint=np.zeros((3, 4))).shape == (3, 4)

@@ -284,14 +284,12 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, fps: float, reference: boo
                                        g.LineBasicMaterial(color=HEAD_COLOR)))
     # Fit the run into a top-down view of the origin: centre it and scale it to about 3 m
     # (moving meshcat's camera target is not kept by its orbit controls in a static page).
-    points = np.vstack([head, traj.q[0, :2] + [[0.0, 0.0]]])
-    low, high = points.min(axis=0) - traj.params.body_length / 2, points.max(axis=0) \
-        + traj.params.body_length / 2
+    margin = 0.5 * traj.params.body_length
+    low, high = head.min(axis=0) - margin, head.max(axis=0) + margin
     scale = min(1.0, 3.0 / max(high - low))
     centre_x, centre_y = 0.5 * (low + high)
-    fit = np.diag([scale, scale, scale, 1.0]) @ _translation(-float(centre_x), -float(centre_y),
-                                                             0.0)
-    vis.set_transform(fit)
+    vis.set_transform(np.diag([scale, scale, scale, 1.0])
+                      @ _translation(-float(centre_x), -float(centre_y), 0.0))
     # camera straight above the origin (meshcat's camera frame is y-up)
     vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 3.0, 0.01])
     for i, pose in enumerate(_link_transforms(snake, traj.q[0], z), start=1):

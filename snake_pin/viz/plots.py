@@ -127,9 +127,8 @@ def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None
     run that did not diverge never was: it is left out, not drawn as zero).
     """
     fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True, layout="constrained")
-    axes[0].plot(traj.t, traj.q[:, 0], label="x_h [m]")
-    axes[0].plot(traj.t, traj.q[:, 1], label="y_h [m]")
-    axes[0].plot(traj.t, traj.q[:, 2], label="theta_1 [rad]")
+    for i, label in enumerate(("x_h [m]", "y_h [m]", "theta_1 [rad]")):
+        axes[0].plot(traj.t, traj.q[:, i], label=label)
     axes[0].legend(loc="best", fontsize=8)
     axes[1].plot(traj.t, traj.q[:, 3:], lw=0.8)
     axes[1].set_ylabel("phi [rad]")
@@ -179,19 +178,15 @@ def plot_head_path(traj: Trajectory, reference: np.ndarray,
     return save_figure(fig, path)
 
 
-def _positive(values: np.ndarray, floor: float) -> np.ndarray:
-    return np.maximum(values, floor)
-
-
 def plot_sweep(sweep: Any, path: str | os.PathLike[str] | None = None) -> plt.Figure:
     """Plot D and R against the swept parameter, log scale (zeros drawn at the floor)."""
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), layout="constrained")
     suffix = f", joint {sweep.free_joint} free" if sweep.free_joint else ""
-    for ax, key, name in ((axes[0], "D", "D"), (axes[1], "R", "R")):
-        values = getattr(sweep, key)
+    for ax, name in zip(axes, "DR", strict=True):
+        values = getattr(sweep, name)
         positive = values[values > 0]
         floor = positive.min() / 10 if positive.size else 1e-20
-        ax.semilogy(sweep.values, _positive(values, floor), "-", color="#1f4fd1")
+        ax.semilogy(sweep.values, np.maximum(values, floor), "-", color="#1f4fd1")
         zero = values <= 1e-9 * values.max()
         if np.any(zero):
             ax.semilogy(sweep.values[zero], np.full(zero.sum(), floor), "v", color="firebrick",
