@@ -725,19 +725,27 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
         else plot_tracking(traj, out, stem).values()))
 
 
-def _mpc_options(args: argparse.Namespace) -> Any:
+def _mpc_options(args: argparse.Namespace, *, engine: bool = False) -> Any:
     """``--horizon``/``--torque-bound`` as MPCOptions (checked there: one line, exit 2) for
-    ``--controller mpc``; refused with any other controller. None for the other laws."""
+    ``simulate --controller mpc`` or ``engine --law mpc`` (there the bound defaults to the
+    motors' saturation); refused with any other law. None for the other laws."""
     given = {name: value for name, value in (("horizon", args.horizon),
                                              ("torque_bound", args.torque_bound))
              if value is not None}
-    if args.controller != "mpc":
+    choice = "--law" if engine else "--controller"
+    if (args.law if engine else args.controller) != "mpc":
         if given:
             option = "--" + next(iter(given)).replace("_", "-")
-            raise UsageError(f"argument {option}: applies to --controller mpc only")
+            raise UsageError(f"argument {option}: applies to {choice} mpc only")
         return None
     from .control.mpc import MPCOptions
 
+    if engine:
+        from .engine.run import ENGINE_TORQUE_BOUND
+
+        if given.setdefault("torque_bound", ENGINE_TORQUE_BOUND) > ENGINE_TORQUE_BOUND:
+            raise UsageError(f"argument --torque-bound: at most the engine motors' "
+                             f"{ENGINE_TORQUE_BOUND:g} N m")
     return MPCOptions(**given)
 
 
@@ -813,6 +821,7 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
     _check_t_final(args.t_final, wheels.control_dt)
     start = _error_window(args, args.t_final)
     reference = _path_reference(args)  # a bad path: refused here, before any folder
+    mpc_options = _mpc_options(args, engine=True)
     out = _output_folder(args.output)
     build_engine_model(params, wheels)  # wheels that do not fit the robot: refused here
     from .engine.run import identify_friction, run_engine
@@ -821,14 +830,16 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
     out.mkdir(parents=True, exist_ok=True)
     friction = identify_friction(params.replace(passive=()), wheels)
     if args.seeds is not None:
-        return _engine_seeds(args, params, wheels, friction, out, reference, start)
+        return _engine_seeds(args, params, wheels, friction, out, reference, start,
+                             mpc_options)
     try:
         run = run_engine(params, wheels=wheels, t_final=args.t_final, friction=friction,
-                         law=args.law, reference=reference, progress=_progress(args))
+                         law=args.law, reference=reference, progress=_progress(args),
+                         mpc_options=mpc_options)
     except RunInterrupted as exc:
         return _interrupted_run(exc, out, "engine")
     traj = run.trajectory
-    traj.summary["controller"] = f"lyapunov ({args.law} law)"
+    traj.summary["controller"] = "mpc" if args.law == "mpc" else f"lyapunov ({args.law} law)"
     summarize(traj, reference=reference, start=start)
     if reference is None:
         traj.summary["reference"] = _LINE_HEAD_FIRST
@@ -842,7 +853,7 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
 
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
                   friction: dict[str, Any], out: Path, reference: Any = None,
-                  start: float | None = None) -> _Outcome:
+                  start: float | None = None, mpc_options: Any = None) -> _Outcome:
     """``engine --seeds N``: each run saved as it finishes, their distribution (what finished,
     when interrupted) in ``engine_seeds.json``, the figures of the median run."""
     from tqdm import tqdm
@@ -861,6 +872,7 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     stems = [f"engine_seed{k + 1:0{width}d}" for k in range(args.seeds)]
     jobs = [(engine_draw, (params, offset), {"wheels": wheels, "t_final": args.t_final,
                                              "friction": friction, "law": args.law,
+                                             "mpc_options": mpc_options,
                                              "reference": reference, "error_window": start})
             for offset in draws.offsets]
     interrupted = False
@@ -1124,17 +1136,17 @@ def build_parser() -> argparse.ArgumentParser:
     _command(p, _cmd_simulate)
 
     p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)",
-                       description="The Lyapunov-like law on MuJoCo, a wheel pair per link "
-                       "(Section VI.3). The runs are chaotic: --seeds N runs N times from the "
-                       "initial posture with every joint angle offset by a uniform draw in "
-                       "[-EPS, EPS] (--perturbation, default 1e-6 rad; seed 0) and reports the"
-                       " median and 10-90 % range of each metric (RMS and max head error in "
-                       "% of the body length, R min or R~ min, torque RMS). Every run is saved "
-                       "(engine_seedK), the figures show the median run, engine_seeds.json "
-                       "holds the distribution. --path NAME|FILE follows a path (as simulate "
-                       "--path): one run with the path metrics in its summary, or with --seeds "
-                       "N draws on that path, the head error measured to the reference's "
-                       "point at the same time).")
+                       description="The Lyapunov-like law (or the MPC: --law mpc) on MuJoCo, a "
+                       "wheel pair per link (Section VI.3). The runs are chaotic: --seeds N runs "
+                       "N times from the initial posture with every joint angle offset by a "
+                       "uniform draw in [-EPS, EPS] (--perturbation, default 1e-6 rad; seed 0) "
+                       "and reports the median and 10-90 % range of each metric (RMS and max "
+                       "head error in % of the body length, R min or R~ min, torque RMS). Every "
+                       "run is saved (engine_seedK), the figures show the median run, "
+                       "engine_seeds.json holds the distribution. --path NAME|FILE follows a "
+                       "path (as simulate --path): one run with the path metrics in its "
+                       "summary, or with --seeds N draws on that path, the head error measured "
+                       "to the reference's point at the same time).")
     _robot_options(p, friction=False, default="engine")  # friction: identified from wheels
     _path_options(p)
     p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
@@ -1145,8 +1157,13 @@ def build_parser() -> argparse.ArgumentParser:
                    default=0.03, help=f"[m], at most {MAX_WHEEL_RADIUS:g}")
     p.add_argument("--mu", type=_float_in(0.0, MAX_MU, open_low=True), default=1.0,
                    help=f"wheel-floor friction, at most {MAX_MU:g}")
-    p.add_argument("--law", choices=("velocity", "acceleration"), default="velocity",
-                   help="form of the Lyapunov-like law (velocity level with servos by default)")
+    p.add_argument("--law", choices=("velocity", "acceleration", "mpc"), default="velocity",
+                   help="form of the Lyapunov-like law (velocity level with servos by default), "
+                   "or mpc: model-predictive head tracking, |tau_i| <= --torque-bound")
+    p.add_argument("--horizon", type=_number, metavar="SECONDS",
+                   help="MPC only: the prediction horizon [s] (default 0.5)")
+    p.add_argument("--torque-bound", type=_number, metavar="NM",
+                   help="MPC only: |tau_i| <= NM [N m] (default and at most the motors' 10)")
     p.add_argument("--cone", choices=("elliptic", "pyramidal"), default="elliptic",
                    help="MuJoCo friction cone (default elliptic; pyramidal: faster, but its "
                    "sideways friction depends on the heading, 26 %% weaker at 45 degrees)")

@@ -218,6 +218,28 @@ def test_engine_json_with_pyramidal_cones(capsys: pytest.CaptureFixture[str],
     assert (tmp_path / "engine.npz").is_file()
 
 
+def test_engine_mpc_keeps_its_bound(capsys: pytest.CaptureFixture[str],
+                                    tmp_path: Path) -> None:
+    """engine --law mpc --torque-bound 3: the MPC on MuJoCo, its peak torque within 3 N m and
+    the saved torques' own maximum; a bound above the motors' or an MPC option without
+    --law mpc is one line, exit 2, no folder."""
+    import numpy as np
+
+    from snake_pin.sim import Trajectory
+
+    code, out, _ = _run(capsys, "engine", "--law", "mpc", "--torque-bound", "3",
+                        "--t-final", "0.3", "-o", str(tmp_path / "run"), "--json")
+    data = json.loads(out)
+    traj = Trajectory.load(tmp_path / "run" / "engine.npz")
+    assert code == 0 and data["controller"] == "mpc"
+    assert data["torque_max"] == pytest.approx(float(np.abs(traj.tau).max()), abs=1e-12)
+    assert data["torque_max"] <= 3.0 + 1e-9
+    for argv in (["--law", "mpc", "--torque-bound", "20"], ["--horizon", "1"]):
+        code, _, err = _run(capsys, "engine", *argv, "-o", str(tmp_path / "bad"))
+        assert code == 2 and len(err.strip().splitlines()) == 1
+        assert not (tmp_path / "bad").exists()
+
+
 def _window_rms(npz: Path, start: float) -> tuple[float, float]:
     """RMS and max of the saved run's head error over t >= start."""
     import numpy as np
