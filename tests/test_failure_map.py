@@ -14,11 +14,13 @@ from snake_pin.exceptions import RunInterrupted
 from snake_pin.experiments import failure_map
 from snake_pin.experiments.failure_map import (
     FULL,
+    MPC_FULL,
     MapPlan,
     failure_map_stage,
     failure_map_study,
     findings,
     map_tables,
+    mpc_findings,
 )
 from snake_pin.experiments.reproduce import Context
 from snake_pin.report import Report
@@ -28,6 +30,8 @@ from snake_pin.study import load_study
 REPO = Path(__file__).resolve().parent.parent
 #: A tiny map: 3 failed joints x 2 ratios, 1 s, errors judged from 0.5 s.
 TINY = MapPlan(1.0, (0, 1, 5), (25.0, 50.0), error_window=0.5)
+#: A tiny MPC line: no failure and joint 5 failed, 0.4 s, errors judged from 0.2 s.
+TINY_MPC = MapPlan(0.4, (0, 5), (50.0,), error_window=0.2)
 
 
 def test_the_full_plan_on_table1_is_the_shipped_study(tmp_path: Path) -> None:
@@ -36,6 +40,26 @@ def test_the_full_plan_on_table1_is_the_shipped_study(tmp_path: Path) -> None:
     shipped = load_study(REPO / "studies" / "failure_map.toml")
     assert load_study(path).study_hash == shipped.study_hash
     assert len(shipped.scenarios) == 40
+
+
+def test_the_full_mpc_line_on_table1_is_the_shipped_study(tmp_path: Path) -> None:
+    """The stage's full MPC study on Table 1 is studies/failure_map_mpc.toml: the MPC,
+    60 s, failed joint 0..9 at c_y = 50 c_x, the Lyapunov-like map's line and reference."""
+    path = failure_map_study(SnakeParams.table1(), MPC_FULL, tmp_path, controller="mpc")
+    assert path.name == "failure_map_mpc.toml"
+    shipped = load_study(REPO / "studies" / "failure_map_mpc.toml")
+    assert load_study(path).study_hash == shipped.study_hash
+    assert [s["failed_joint"] for s in shipped.scenarios] == list(range(10))
+    lyapunov = load_study(REPO / "studies" / "failure_map.toml").scenarios
+    for scenario in shipped.scenarios:
+        assert scenario.controller == "mpc" and scenario["t_final"] == 60.0
+        assert scenario.params.c_y == 50 * scenario.params.c_x == 25.0
+        line = next(s for s in lyapunov if s["c_y"] == 25.0
+                    and s["failed_joint"] == scenario["failed_joint"])
+        assert line.params == scenario.params
+        for name in ("ref_speed", "init_phi", "gait_alpha", "gait_ts", "gait_v", "dt",
+                     "control_dt", "error_window"):
+            assert scenario[name] == line[name], name
 
 
 def test_a_robot_of_ones_own_is_written_beside_the_study(tmp_path: Path) -> None:
@@ -83,6 +107,30 @@ def test_findings_name_the_lost_ratio_the_broken_and_the_zero_R_joints() -> None
     assert "joint 2 and 5 failed" in text[1] and "the worst is joint 2" in text[1]
 
 
+def test_mpc_findings_compare_the_laws_joint_by_joint() -> None:
+    """Synthetic line: the MPC tracks with joint 5, not with 1 and 2 (worst 2), joint 3's
+    run diverged; it is lower than the Lyapunov-like law with none and 1, higher with 5;
+    joint 2 has no Lyapunov-like value and is left out of the comparison."""
+    def rows(rms: dict[int, float | None], status: dict[int, str]) -> list[dict[str, Any]]:
+        return [{"failed_joint": j, "c_x": 0.5, "c_y": 25.0, "status": status.get(j, "ok"),
+                 "rms_head_error_pct": v, "R_tilde_min": 1e-3} for j, v in rms.items()]
+
+    joints = [0, 1, 2, 3, 5]
+    mpc = map_tables(rows({0: 2.0, 1: 30.0, 2: 80.0, 3: 500.0, 5: 6.0}, {3: "diverged"}),
+                     joints, (50.0,))
+    lyapunov = map_tables(rows({0: 3.2, 1: 40.0, 3: 7.0, 5: 5.9}, {}), [0, 1, 3, 5],
+                          (50.0,))
+    text, numbers = mpc_findings(mpc, lyapunov, joints, 50.0)
+    assert numbers["tracking_joints"] == [5] and numbers["broken_joints"] == [1, 2]
+    assert numbers["worst_joint"] == 2 and numbers["not_ok"] == {"3": "diverged"}
+    assert numbers["lower_than_lyapunov"] == [0, 1]
+    assert numbers["higher_than_lyapunov"] == [5]
+    assert (numbers["none_rms_pct"], numbers["lyapunov_none_rms_pct"]) == (2.0, 3.2)
+    assert "RMS 2.0 % (the Lyapunov-like law: 3.2 %)" in text
+    assert "joint 1 and 2 failed it does not (30.0, 80.0 %); the worst is joint 2" in text
+    assert "joint 3: diverged" in text and "lower in 2 (no failure, joint 1)" in text
+
+
 def test_map_tables_key_every_cell_and_keep_failed_runs_as_their_status() -> None:
     """Every (joint, ratio) cell exists; a diverged run has no value but its status."""
     rows = [{"failed_joint": 0, "c_x": 0.5, "c_y": 25.0, "status": "ok",
@@ -98,8 +146,10 @@ def test_map_tables_key_every_cell_and_keep_failed_runs_as_their_status() -> Non
 def test_the_stage_runs_the_study_and_reports_its_numbers(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A tiny quick map: study folder, heatmaps, series, tables equal to the Parquet rows,
-    joint 1's R~ found zero, numbers JSON-safe."""
+    joint 1's R~ found zero, the MPC's line beside the law's from its own rows, numbers
+    JSON-safe."""
     monkeypatch.setattr(failure_map, "QUICK", TINY)
+    monkeypatch.setattr(failure_map, "MPC_QUICK", TINY_MPC)
     report = Report("test")
     ctx = Context(folder=tmp_path, params=SnakeParams.table1(), report=report, quick=True,
                   options={"study_workers": 1})
@@ -124,6 +174,19 @@ def test_the_stage_runs_the_study_and_reports_its_numbers(
                                           "joint 1 failed"} or \
         set(sec.numbers["series"]) == {"no failure", "joint 1 failed (worst here)"}
     assert sec.numbers["study"]["status"] == "complete"
+    mpc = sec.numbers["mpc"]
+    assert mpc["study"]["status"] == "complete" and mpc["plan"]["failed_joints"] == [0, 5]
+    frame = pd.read_parquet(tmp_path / "failure_map_mpc" / "runs")
+    assert len(frame) == 2 and set(frame["controller"]) == {"mpc"}
+    for _, row in frame.iterrows():
+        assert row["status"] == "ok" and row["t_end"] == 0.4
+        assert mpc["rms_head_error_pct"][str(row["failed_joint"])]["50"] == \
+            row["rms_head_error_pct"]
+    assert mpc["findings"]["none_rms_pct"] == mpc["rms_head_error_pct"]["0"]["50"]
+    assert mpc["findings"]["lyapunov_none_rms_pct"] == \
+        sec.numbers["rms_head_error_pct"]["0"]["50"]
+    assert (tmp_path / "failure_map_mpc.png").is_file()
+    assert (tmp_path / "failure_map_mpc.toml").is_file()
     json.dumps(report.summary(), allow_nan=False)
     assert any("failed joint" in " ".join(map(str, h)) for h, _ in sec.tables)
     text = " ".join([sec.title, *sec.paragraphs])

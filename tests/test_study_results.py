@@ -55,7 +55,7 @@ def test_schema_has_every_setting_and_the_metrics() -> None:
     for name, setting in SETTINGS.items():
         kind = str(SCHEMA.field(name).type)
         assert kind == {"float": "double", "int": "int64", "str": "string",
-                        "joints": "string"}[setting.kind], name
+                        "joints": "string", "bool": "bool"}[setting.kind], name
     for name in ("key", "status", "reason", "rms_head_error_pct", "R_min", "R_tilde_min",
                  "D_min", "t_end", "torque_rms", "wall_time", "robot_params"):
         assert name in SCHEMA.names
@@ -379,6 +379,27 @@ def test_a_part_file_missing_columns_or_with_bad_rows_is_refused_not_counted(
         path.unlink()
     assert folder.done_keys() == {s.key for s in first}
     assert folder.read_table(["key", "c_y"]).num_rows == 2
+
+
+def test_a_batch_without_the_mpc_columns_reads_them_as_null(tmp_path: Path) -> None:
+    """A batch file written before the MPC's settings were columns is read, every MPC column
+    null and the others as written; lacking any other column it is refused."""
+    from snake_pin.study.results import _OPTIONAL
+
+    folder, spec = _prepared(tmp_path)
+    first = spec.scenarios[:2]
+    full = rows_table(_rows(spec, first))
+    assert {"horizon", "feedback", "weight_torque"} <= _OPTIONAL
+    older = full.drop_columns(sorted(_OPTIONAL))
+    _write_part(folder, "batch-older.parquet", older)
+    assert folder.done_keys() == {s.key for s in first}
+    table = folder.read_table()
+    assert table.schema == SCHEMA
+    assert table.select(older.column_names).equals(older)
+    assert all(table.column(name).null_count == 2 for name in _OPTIONAL)
+    _write_part(folder, "batch-older-still.parquet", older.drop_columns(["c_y"]))
+    with pytest.raises(StudyError, match="1 columns missing: c_y"):
+        folder.read_table()
 
 
 def test_part_files_that_are_not_regular_files_are_refused(tmp_path: Path) -> None:

@@ -131,6 +131,63 @@ def test_cluster_results_equal_the_single_runs(tmp_path: Path, scheduler: str) -
     assert (tmp_path / "out" / "index.html").is_file()
 
 
+MPC_STUDY = """
+[study]
+name = "mpc"
+[base]
+controller = "mpc"
+t_final = 0.5
+error_window = 0.25
+c_x = 0.5
+c_y = 25.0
+horizon = 0.3
+torque_bound = 1.5
+weight_torque = 0.3
+[axes.failed_joint]
+values = [0, 5]
+"""
+
+
+def test_an_mpc_study_run_is_the_direct_simulation(tmp_path: Path, scheduler: str) -> None:
+    """The two runs of a 0.5 s MPC study, on the cluster, give the metrics of simulate with an
+    MPCController built here by hand (the study's reference, gait, start and options) to
+    1e-9."""
+    import numpy as np
+
+    from snake_pin import Snake
+    from snake_pin.control import LinearReference, MPCController, MPCOptions
+    from snake_pin.gaits import Serpenoid, arc
+    from snake_pin.ocp import CostWeights
+    from snake_pin.sim import simulate
+
+    study = _study(tmp_path, MPC_STUDY)
+    summary = run_study(study, tmp_path / "out", scheduler=scheduler)
+    assert summary.statuses == {"ok": 2, "diverged": 0, "failed": 0}
+    frame = pd.read_parquet(tmp_path / "out" / "runs")
+    options = MPCOptions(horizon=0.3, torque_bound=1.5, weights=CostWeights(torque=0.3))
+    reference = LinearReference(velocity=(0.1, 0.0, 0.0), start=(0.0, 0.0, math.pi))
+    for scenario in load_study(study).scenarios:
+        params = scenario.params
+        assert params.passive == ((5,) if scenario["failed_joint"] else ())
+        assert (params.c_x, params.c_y) == (0.5, 25.0)
+        snake = Snake(params)
+        law = MPCController(snake, reference, Serpenoid(10, math.pi / 6, 1.5, 2.0), options)
+        x0 = np.r_[arc(10, math.pi / 6, theta_1=math.pi), np.zeros(12)]
+        traj = simulate(snake, law, x0, 0.5)
+        late = traj.t >= 0.25
+        target = np.array([reference(t)[0][:2] for t in traj.t[late]])
+        error = np.linalg.norm(traj.q[late, :2] - target, axis=1)
+        got = frame[frame["key"] == scenario.key].iloc[0]
+        assert got["horizon"] == 0.3 and got["feedback"]
+        assert got["t_end"] == traj.t_end == 0.5
+        assert got["rms_head_error"] == pytest.approx(np.sqrt(np.mean(error**2)), rel=1e-9)
+        assert got["max_head_error"] == pytest.approx(error.max(), rel=1e-9)
+        assert got["torque_rms"] == pytest.approx(np.sqrt(np.mean(traj.tau[:-1]**2)),
+                                                  rel=1e-9)
+        if scenario["failed_joint"]:
+            assert not np.any(traj.tau[:, 4])
+
+
 def test_a_rerun_executes_only_the_missing_runs(tmp_path: Path, scheduler: str) -> None:
     """Delete one batch file: the re-run executes exactly its runs, touches no other file."""
     study, out = _study(tmp_path), tmp_path / "out"

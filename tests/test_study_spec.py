@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -55,8 +56,8 @@ BAD = {
     "boolean for a number": ("[base]\nc_y = true", "[base] c_y must be a number"),
     "float for an integer": ("[base]\nfailed_joint = 2.0", "[base] failed_joint must be an "
                              "integer"),
-    "unknown choice": ("[base]\ncontroller = \"mpc\"", "[base] controller must be one of "
-                       "lyapunov, velocity, pfl"),
+    "unknown choice": ("[base]\ncontroller = \"lqr\"", "[base] controller must be one of "
+                       "lyapunov, velocity, pfl, mpc"),
     "negative friction": ("[base]\nc_y = -1.0", "[base] c_y must be >= 0"),
     "batch size": ("[study]\nbatch_size = 4", "[study] batch_size is no longer a setting: "
                    "every run is one task"),
@@ -100,6 +101,29 @@ BAD = {
                           "controller pfl runs on the viscous model only"),
     "pfl with a failed joint": ("[base]\ncontroller = \"pfl\"\n[axes.failed_joint]\n"
                                 "values = [0, 3]", "controller pfl needs every joint actuated"),
+    "MPC horizon shorter than a node": ("[base]\ncontroller = \"mpc\"\nnode_dt = 0.02\n"
+                                        "[axes.horizon]\nvalues = [0.5, 0.01]",
+                                        "[axes.horizon] MPC horizon 0.01 s is shorter than one "
+                                        "node (0.02 s)"),
+    "MPC re-solve not whole nodes": ("[base]\ncontroller = \"mpc\"\nresolve_period = 0.035",
+                                     "[base] MPC resolve_period 0.035 s is not a whole number "
+                                     "of nodes of 0.01 s"),
+    "MPC negative weight": ("[base]\ncontroller = \"mpc\"\nweight_torque = -0.5",
+                            "[base] weight_torque must be >= 0, got -0.5"),
+    "MPC zero torque bound": ("[base]\ncontroller = \"mpc\"\n[axes.torque_bound]\n"
+                              "values = [1.0, 0.0]", "[axes.torque_bound] values[1] must be > 0, "
+                              "got 0.0"),
+    "MPC zero iterations": ("[base]\ncontroller = \"mpc\"\niterations = 0",
+                            "[base] iterations must be >= 1, got 0"),
+    "MPC feedback not a switch": ("[base]\ncontroller = \"mpc\"\nfeedback = 1",
+                                  "[base] feedback must be true or false, got an integer 1"),
+    "MPC failed joint out of range": ("[base]\ncontroller = \"mpc\"\n[axes.failed_joint]\n"
+                                      "values = [0, 10]", "[axes.failed_joint] failed_joint 10 "
+                                      "is outside 0..9"),
+    "MPC on the engine": ("[base]\nmodel = \"engine\"\ncontroller = \"mpc\"\n"
+                          "robot = \"engine\"", "controller mpc runs on the viscous model only"),
+    "MPC setting for another law": ("[base]\nhorizon = 0.3", "[base] horizon applies to "
+                                    "controller mpc only"),
     "missing robot file": ("[base]\nrobot = \"nowhere.toml\"", "[base] robot 'nowhere.toml'"),
     "deep arrays": ("[axes.c_y]\nvalues = " + "[" * 100_000 + "]" * 100_000,
                     "nested deeper than 32 levels (arrays, inline tables and dotted keys "
@@ -242,7 +266,7 @@ def _changed(value: object, setting: str) -> object:
     return next(c for c in choices if c != value) if choices else value + "x"
 
 
-@pytest.mark.parametrize("controller", ["lyapunov", "velocity", "pfl"])
+@pytest.mark.parametrize("controller", ["lyapunov", "velocity", "pfl", "mpc"])
 def test_run_key_changes_with_every_setting_and_the_robot(controller: str) -> None:
     """Changing any one setting, or any robot parameter, gives another key; the robot's
     spelling alone (its content unchanged) does not."""
@@ -346,6 +370,8 @@ def test_law_settings_are_the_options_fields() -> None:
 
     seen = set()
     for controller, cls in LAW_OPTIONS.items():
+        if controller == "mpc":
+            continue  # test_mpc_settings_are_its_options_and_cost_weights
         for f in fields(cls):
             if f.name in ("control_dt", "r_min", "climb_damping"):
                 assert f.name not in SETTINGS or f.name == "control_dt"
@@ -365,15 +391,61 @@ def test_law_settings_are_the_options_fields() -> None:
                 assert controller in setting.controllers, name
                 seen.add(name)
     owned = {name for name, s in SETTINGS.items() if set(s.controllers) != set(LAW_OPTIONS)
-             and s.models == ("viscous",)}
+             and s.models == ("viscous",) and s.controllers != ("mpc",)}
     assert owned == seen
 
 
+def test_mpc_settings_are_its_options_and_cost_weights() -> None:
+    """Every MPCOptions field but weights, and each cost weight as weight_<name>, is an
+    mpc-only setting with the field's default and kind; its lower bound is where the class
+    itself starts refusing (the bound accepted unless open, below it refused), and a run's
+    settings build those options."""
+    from dataclasses import fields, replace
+
+    from snake_pin.control import MPCOptions
+    from snake_pin.ocp import CostWeights
+
+    expected = {f.name: (MPCOptions, f.name, f.default) for f in fields(MPCOptions)
+                if f.name != "weights"}
+    expected |= {f"weight_{f.name}": (CostWeights, f.name, f.default)
+                 for f in fields(CostWeights)}
+    mpc_only = {name for name, s in SETTINGS.items() if s.controllers == ("mpc",)}
+    assert mpc_only == set(expected)
+    for name, (cls, field, default) in expected.items():
+        setting = SETTINGS[name]
+        assert setting.default == default and type(setting.default) is type(default), name
+        assert setting.models == ("viscous",) and setting.help, name
+        if setting.kind == "bool":
+            continue
+        assert setting.low is not None and setting.high is None, name
+        low = int(setting.low) if setting.kind == "int" else setting.low
+        below = low - 1 if setting.kind == "int" else low - 1e-9
+        if setting.open_low:
+            with pytest.raises(SnakePinError):
+                replace(cls(), **{field: low})
+        else:
+            replace(cls(), **{field: low})
+        with pytest.raises(SnakePinError):
+            replace(cls(), **{field: below})
+    spec = parse_study(QUICK + 'controller = "mpc"\nhorizon = 0.3\nfeedback = false\n'
+                       "weight_torque = 0.25\niterations = 3\n")
+    options = law_options_of(spec)
+    assert options == MPCOptions(horizon=0.3, feedback=False, iterations=3,
+                                 weights=CostWeights(torque=0.25))
+
+
+def law_options_of(spec: Any) -> Any:
+    from snake_pin.study.spec import law_options
+
+    scenario = spec.scenarios[0]
+    return law_options(scenario.settings, scenario.params.n - 1)
+
+
 @pytest.mark.parametrize(("controller", "passive"), [("lyapunov", "[3]"), ("velocity", "[]"),
-                                                     ("pfl", "[]")])
+                                                     ("pfl", "[]"), ("mpc", "[3]")])
 def test_a_run_builds_the_default_options(controller: str, passive: str) -> None:
     """A study run without gains builds its controller from the options' own defaults."""
-    from snake_pin.control import LyapunovOptions, PFLOptions, QuasiStaticOptions
+    from snake_pin.control import LyapunovOptions, MPCOptions, PFLOptions, QuasiStaticOptions
     from snake_pin.study.spec import law_options
 
     spec = parse_study(QUICK + f'controller = "{controller}"\npassive = {passive}\n')
@@ -382,5 +454,5 @@ def test_a_run_builds_the_default_options(controller: str, passive: str) -> None
     expected = {"lyapunov": LyapunovOptions().resolved(joints, passive=True),
                 "velocity": QuasiStaticOptions(k_phi=tuple(
                     LyapunovOptions().resolved(joints).k_phi)),
-                "pfl": PFLOptions()}[controller]
+                "pfl": PFLOptions(), "mpc": MPCOptions()}[controller]
     assert law_options(scenario.settings, joints) == expected

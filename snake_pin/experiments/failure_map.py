@@ -19,17 +19,26 @@ the report folder:
   without a failure, with the worst failure and with joint 1 failed (rerun through
   :func:`snake_pin.sim.simulate`, as Dask tasks of
   :func:`~snake_pin.runs.parallel.run_jobs`), at the reference ratio
-  :data:`SERIES_RATIO`.
+  :data:`SERIES_RATIO`;
+- ``failure_map_mpc.toml`` and ``failure_map_mpc/``: the MPC's line of the map, its own
+  study (the Lyapunov-like study and its hash stay as they are): the receding-horizon MPC
+  (:class:`~snake_pin.control.mpc.MPCController`, default options) with no failed joint
+  and each single failed joint at c_y/c_x = 50, on the same reference; for Table 1 and the
+  full plan it is the shipped ``studies/failure_map_mpc.toml``. Its table and
+  ``failure_map_mpc.png`` put its RMS head error beside the Lyapunov-like law's on that
+  line (:func:`mpc_findings` reads the comparison from the two studies' rows).
 
 The section's numbers (``summary.json``): the tables keyed by failed joint and ratio, the
-study's summary, the series' statistics and the findings' figures. The text states what
-the map shows from those numbers (:func:`findings`); the mechanisms and the retuning
-study are in ``docs/failure_map.rst``.
+study's summary, the series' statistics and the findings' figures; under ``mpc`` the same
+for the MPC's line. The text states what the map shows from those numbers
+(:func:`findings`); the mechanisms and the retuning study are in ``docs/failure_map.rst``.
 
-With ``ctx.quick`` the plan is :data:`QUICK` (11 s, failed joints 0, 1, 2, 5, 9, ratios
-10 and 50); the full plan is :data:`FULL`. An interrupt (KeyboardInterrupt, or the
-study's :class:`~snake_pin.exceptions.RunInterrupted`) propagates: the report machinery
-keeps the stages done.
+With ``ctx.quick`` the plans are :data:`QUICK` (11 s, failed joints 0, 1, 2, 5, 9, ratios
+10 and 50) and :data:`MPC_QUICK` (3 s, failed joints 0 and 5); the full plans are
+:data:`FULL` and :data:`MPC_FULL` (the MPC re-solves its problem every 40 ms: its 10 runs
+are the stage's longest part, ``docs/failure_map.rst``). An interrupt (KeyboardInterrupt,
+or the study's :class:`~snake_pin.exceptions.RunInterrupted`) propagates: the report
+machinery keeps the stages done.
 
 Options read from ``ctx.options``: ``study_workers`` (local worker processes, default one
 per core) and ``study_scheduler`` (the address of an existing Dask scheduler). On a
@@ -53,8 +62,8 @@ from ..exceptions import ConfigurationError
 from ..params import SnakeParams
 from .context import Context
 
-__all__ = ["C_X", "FULL", "QUICK", "SERIES_RATIO", "TRACKING_LIMIT", "MapPlan",
-           "failure_map_stage", "failure_map_study"]
+__all__ = ["C_X", "FULL", "MPC_FULL", "MPC_QUICK", "QUICK", "SERIES_RATIO", "TRACKING_LIMIT",
+           "MapPlan", "failure_map_stage", "failure_map_study", "mpc_findings"]
 
 #: Friction along each link in the map [N s/m] when the robot has no single positive
 #: c_x of its own (Table 1's is this); ``c_y = ratio * c_x``.
@@ -92,10 +101,18 @@ class MapPlan:
 FULL = MapPlan(60.0, None, (10.0, 25.0, 50.0, 100.0))
 #: ``reproduce --quick``: just past the 10 s error window, 5 failed joints x 2 ratios.
 QUICK = MapPlan(11.0, (0, 1, 2, 5, 9), (10.0, 50.0))
+#: The MPC's line of the map: 60 s, every joint failed in turn, at c_y/c_x = 50.
+MPC_FULL = MapPlan(60.0, None, (50.0,))
+#: ``reproduce --quick``: 3 s MPC runs (errors from 1 s), no failure and joint 5 failed.
+MPC_QUICK = MapPlan(3.0, (0, 5), (50.0,), error_window=1.0)
+#: The map's study of each law: its name (and file stem), the law in words.
+_LAWS = {"lyapunov": ("failure_map", "Lyapunov-like law"),
+         "mpc": ("failure_map_mpc", "MPC (receding-horizon Box-FDDP)")}
 
 
 # ----------------------------------------------------------------- the study
-def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) -> Path:
+def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path,
+                      controller: str = "lyapunov") -> Path:
     """Write the study file of the map for ``params`` into ``folder``.
 
     The Table 1 preset is named (``robot = "table1"``, as the shipped file does); any
@@ -107,14 +124,17 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
     params
         The robot (its friction is replaced by the map's, its passive joints cleared).
     plan
-        Duration, failed joints and ratios (:data:`FULL`, :data:`QUICK`).
+        Duration, failed joints and ratios (:data:`FULL`, :data:`QUICK`; for the MPC
+        :data:`MPC_FULL`, :data:`MPC_QUICK`).
     folder
         An existing folder.
+    controller
+        ``"lyapunov"`` (the Lyapunov-like law) or ``"mpc"``.
 
     Returns
     -------
     Path
-        ``folder/failure_map.toml``.
+        ``folder/failure_map.toml`` (``failure_map_mpc.toml`` for the MPC).
     """
     from ..robot_file import write_robot_file
 
@@ -129,7 +149,8 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
                           else range(robot.n)) if 0 <= k <= robot.n - 1]
     c_x = map_c_x(robot)
     c_y = [_number(ratio * c_x) for ratio in plan.ratios]
-    description = (f"Actuator-failure map: robot {robot.name}, Lyapunov-like law, "
+    study, law = _LAWS[controller]
+    description = (f"Actuator-failure map: robot {robot.name}, {law}, "
                    f"{plan.t_final:g} s, failed joint {', '.join(map(str, joints))} "
                    f"(0: none) against c_y/c_x = "
                    f"{', '.join(f'{r:g}' for r in plan.ratios)} (c_x = {c_x:g} N s/m).")
@@ -137,11 +158,11 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
         f"error_window = {_number(plan.error_window)}\n"
     text = ("# The actuator-failure map, written by snake-pin reproduce.\n"
             "[study]\n"
-            'name = "failure_map"\n'
+            f"name = {json.dumps(study)}\n"
             f"description = {json.dumps(description)}\n\n"
             "[base]\n"
             f"robot = {json.dumps(name)}\n"
-            'controller = "lyapunov"\n'
+            f"controller = {json.dumps(controller)}\n"
             'model = "viscous"\n'
             f"t_final = {_number(plan.t_final)}\n"
             f"{window}"
@@ -152,7 +173,7 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path) ->
             f"values = [{', '.join(c_y)}]\n")
     from .._io import atomic_write_bytes
 
-    path = folder / "failure_map.toml"
+    path = folder / f"{study}.toml"
     atomic_write_bytes(path, text.encode())
     return path
 
@@ -283,6 +304,105 @@ def findings(tables: dict[str, dict[str, dict[str, Any]]], joints: Sequence[int]
     return text, numbers
 
 
+def mpc_findings(mpc: dict[str, dict[str, Any]], lyapunov: dict[str, dict[str, Any]],
+                 joints: Sequence[int], ratio: float) -> tuple[str, dict[str, Any]]:
+    """What the MPC's line of the map shows beside the Lyapunov-like law's at one ratio.
+
+    Parameters
+    ----------
+    mpc, lyapunov
+        :func:`map_tables` of the two laws' runs (the Lyapunov-like law's may lack joints:
+        their comparison is left out).
+    joints
+        The MPC's failed joints (0: none).
+    ratio
+        The line's c_y/c_x.
+
+    Returns
+    -------
+    tuple of str and dict
+        The paragraph, and its figures: the RMS errors without a failure, the failed joints
+        with which the MPC tracks within :data:`TRACKING_LIMIT` and those it does not (or
+        whose run is not ``ok``), its worst, and the joints where it has the lower and the
+        higher error of the two laws.
+    """
+    key = f"{ratio:g}"
+
+    def value(table: dict[str, dict[str, Any]], joint: int) -> float | None:
+        cell = table["rms_head_error_pct"].get(str(joint), {}).get(key)
+        return None if cell is None else float(cell)
+
+    none, other = value(mpc, 0), value(lyapunov, 0)
+    errors = {j: v for j in joints if j and (v := value(mpc, j)) is not None}
+    tracking = [j for j, v in errors.items() if v <= TRACKING_LIMIT]
+    broken = [j for j, v in errors.items() if v > TRACKING_LIMIT]
+    not_ok = {j: mpc["status"][str(j)][key] for j in joints
+              if mpc["status"][str(j)][key] != "ok"}
+    pairs = {j: (a, b) for j in joints
+             if (a := value(mpc, j)) is not None and (b := value(lyapunov, j)) is not None}
+    compared = list(pairs)
+    lower = [j for j, (a, b) in pairs.items() if a < b]
+    higher = [j for j in compared if j not in lower]
+    numbers: dict[str, Any] = {
+        "ratio": ratio, "none_rms_pct": none, "lyapunov_none_rms_pct": other,
+        "tracking_joints": tracking, "broken_joints": broken, "not_ok": {str(j): v for j, v in
+                                                                         not_ok.items()},
+        "lower_than_lyapunov": lower, "higher_than_lyapunov": higher}
+    parts = [f"The MPC on the same line at c_y/c_x = {ratio:g}: without a failure RMS "
+             + (f"{none:.1f} %" if none is not None else f"none ({not_ok.get(0)})")
+             + (f" (the Lyapunov-like law: {other:.1f} %)." if other is not None else ".")]
+    if tracking:
+        parts.append(f"With joint {_joined(tracking)} failed it tracks within "
+                     f"{TRACKING_LIMIT:g} % (" + ", ".join(f"{errors[j]:.1f}" for j in tracking)
+                     + " %).")
+    if broken:
+        worst = max(broken, key=errors.__getitem__)
+        numbers["worst_joint"] = worst
+        parts.append(f"With joint {_joined(broken)} failed it does not ("
+                     + ", ".join(f"{errors[j]:.1f}" for j in broken)
+                     + f" %); the worst is joint {worst}.")
+    if not_ok:
+        parts.append("Runs that did not complete: " + "; ".join(
+            f"{'no failure' if j == 0 else f'joint {j}'}: {v}" for j, v in not_ok.items())
+            + ".")
+    if compared:
+        def named(items: list[int]) -> str:
+            words = ["no failure" if j == 0 else f"joint {j}" for j in items]
+            return ", ".join(words)
+
+        parts.append(f"Of the {len(compared)} runs both laws completed, the MPC's error is the "
+                     f"lower in {len(lower)}" + (f" ({named(lower)})" if lower else "")
+                     + f" and the higher in {len(higher)}"
+                     + (f" ({named(higher)})" if higher else "") + ".")
+    return " ".join(parts), numbers
+
+
+def _plot_laws(joints: Sequence[int], mpc: dict[str, Any], lyapunov: dict[str, Any],
+               ratio: float, path: Path) -> None:
+    """Bars of the RMS head error per failed joint, the two laws side by side (log scale)."""
+    import matplotlib.pyplot as plt
+
+    from ..viz.plots import save_figure
+
+    key = f"{ratio:g}"
+    fig, ax = plt.subplots(figsize=(8, 3.8), layout="constrained")
+    x = np.arange(len(joints))
+    for offset, (label, table, color) in zip((-0.2, 0.2), (
+            ("Lyapunov-like law", lyapunov, "#1f4fd1"), ("MPC", mpc, "#d9541a")), strict=True):
+        values = [table["rms_head_error_pct"].get(str(j), {}).get(key) for j in joints]
+        heights = [np.nan if v is None else v for v in values]
+        ax.bar(x + offset, heights, width=0.4, color=color, label=label)
+    ax.axhline(TRACKING_LIMIT, color="0.4", lw=0.8, ls="--")
+    ax.set_yscale("log")
+    ax.set_xticks(x, ["none" if j == 0 else str(j) for j in joints])
+    ax.set_xlabel("failed joint")
+    ax.set_ylabel("RMS head error [% of body]")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, which="both", axis="y")
+    ax.set_title(f"The line at c_y/c_x = {ratio:g}: Lyapunov-like law and MPC", fontsize=10)
+    save_figure(fig, path)
+
+
 def _joined(items: Sequence[int]) -> str:
     names = [str(i) for i in items]
     return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
@@ -371,6 +491,59 @@ def _plot_series(series: list[tuple[str, dict[str, Any]]], ratio: float, path: P
 
 
 # -------------------------------------------------------------------- stage
+def _mpc_line(ctx: Context, sec: Any, base: SnakeParams, plan: MapPlan,
+              lyapunov: dict[str, Any], lyapunov_spec: Any) -> dict[str, Any]:
+    """Run the MPC's study of the map and add its table, figure and paragraph to ``sec``;
+    return its numbers for ``summary.json``."""
+    from ..study import load_study, run_study
+    from ..study.results import StudyFolder
+
+    study_file = failure_map_study(base, plan, ctx.folder, controller="mpc")
+    spec = load_study(study_file)
+    out = ctx.folder / "failure_map_mpc"
+    summary = run_study(study_file, out, workers=ctx.options.get("study_workers"),
+                        scheduler=ctx.options.get("study_scheduler"), progress=None)
+    keys = {s.key for s in spec.scenarios}
+    rows = [r for r in StudyFolder(out).read_table().to_pylist() if r["key"] in keys]
+    joints = sorted({s["failed_joint"] for s in spec.scenarios})
+    ratio = plan.ratios[0]
+    tables = map_tables(rows, joints, plan.ratios)
+    paragraph, numbers = mpc_findings(tables, lyapunov, joints, ratio)
+    window = spec.scenarios[0]["error_window"]
+    other = lyapunov_spec.scenarios[0]
+    options = spec.scenarios[0]
+    sec.text(f"The MPC (docs/mpc.rst: Box-FDDP on the snake's optimal-control problem, "
+             f"horizon {options['horizon']:g} s of {options['node_dt'] * 1e3:g} ms RK4 nodes, "
+             f"re-solved every {options['resolve_period'] * 1e3:g} ms, |tau_i| <= "
+             f"{options['torque_bound']:g} N m) on the same line, with no failed joint and "
+             f"each single failed joint at c_y/c_x = {ratio:g}: {plan.t_final:g} s runs, "
+             f"errors from t = {window:g} s (the Lyapunov-like law's: {other['t_final']:g} s, "
+             f"from {other['error_window']:g} s). {summary.runs} runs as their own study "
+             f"(failure_map_mpc.toml, results in failure_map_mpc/), "
+             f"{summary.wall_time:.0f} s of wall time.")
+    line_rows = []
+    key = f"{ratio:g}"
+    for joint in joints:
+        cells = []
+        for table in (lyapunov, tables):
+            value = table["rms_head_error_pct"].get(str(joint), {}).get(key)
+            status = table["status"].get(str(joint), {}).get(key, "missing")
+            cells.append(value if value is not None else status)
+        line_rows.append(["none" if joint == 0 else joint, *cells])
+    sec.table([f"failed joint (RMS head error [% of body], c_y/c_x = {ratio:g})",
+               "Lyapunov-like law", "MPC"], line_rows)
+    figure = ctx.folder / "failure_map_mpc.png"
+    _plot_laws(joints, tables, lyapunov, ratio, figure)
+    sec.figure(figure, f"RMS head error per failed joint at c_y/c_x = {ratio:g}: the "
+               "Lyapunov-like law and the MPC (log scale; dashed: the tracking limit)")
+    sec.text(paragraph)
+    return {"plan": {"t_final": plan.t_final, "failed_joints": joints, "ratio": ratio,
+                     "error_window": window},
+            **tables, "findings": numbers,
+            "study": {k: v for k, v in summary.to_dict().items()
+                      if k not in ("files", "folder")}}
+
+
 def _singular_workers(scheduler: str) -> str:
     """The study's scheduler in words, in the singular for one worker ("local (1 worker)")."""
     return re.sub(r"\b1 workers\b", "1 worker", scheduler)
@@ -390,7 +563,7 @@ def failure_map_stage(ctx: Context) -> None:
     from ..study.report import save_figures
     from ..study.results import StudyFolder
 
-    plan = QUICK if ctx.quick else FULL
+    plan, mpc_plan = (QUICK, MPC_QUICK) if ctx.quick else (FULL, MPC_FULL)
     base = ctx.params.replace(passive=())
     study_file = failure_map_study(base, plan, ctx.folder)
     spec = load_study(study_file)
@@ -468,7 +641,9 @@ def failure_map_stage(ctx: Context) -> None:
              "break tracking as well: medians 6.1 % without a failure, 32 and 38 % with joint "
              "1 or 2 failed (23-45 % across starts), 21 % with joint 3, 5.6-10.9 % with joints "
              "4-7. See docs/failure_map.rst.")
+    mpc_numbers = _mpc_line(ctx, sec, base, mpc_plan, tables, spec)
     sec.numbers.update({
+        "mpc": mpc_numbers,
         "plan": {"t_final": plan.t_final, "failed_joints": joints,
                  "ratios": list(plan.ratios), "c_x": map_c_x(base)},
         **tables,

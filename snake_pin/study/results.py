@@ -35,7 +35,8 @@ __all__ = ["RUNS", "SCHEMA", "STATUSES"]
 RUNS = "runs"
 #: Row statuses.
 STATUSES = ("ok", "diverged", "failed")
-_KINDS = {"float": pa.float64(), "int": pa.int64(), "str": pa.string(), "joints": pa.string()}
+_KINDS = {"float": pa.float64(), "int": pa.int64(), "str": pa.string(), "joints": pa.string(),
+          "bool": pa.bool_()}
 #: The columns of every batch file, in order.
 SCHEMA = pa.schema(
     [pa.field(name, _KINDS[s.kind]) for name, s in SETTINGS.items()]
@@ -46,6 +47,9 @@ SCHEMA = pa.schema(
     + [pa.field(name, pa.float64()) for name in (
         "rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_error_pct",
         "R_min", "R_tilde_min", "D_min", "t_end", "torque_rms", "wall_time")])
+#: Columns a batch file may lack (null in its rows): the MPC's settings, which no run of
+#: another controller has.
+_OPTIONAL = frozenset(name for name, s in SETTINGS.items() if s.controllers == ("mpc",))
 _IDENTITY = "study.json"
 _FORMAT = 1
 #: Largest study.json read [bytes] (a normalised study is far smaller).
@@ -253,16 +257,20 @@ def _read_batch(file: Path, columns: Sequence[str]) -> pa.Table:
                                error=refuse, follow_symlinks=False) as handle:
             parquet = pq.ParquetFile(handle)
             schema = parquet.schema_arrow
-            missing = [n for n in SCHEMA.names if n not in schema.names]
+            absent = [n for n in SCHEMA.names if n not in schema.names]
+            missing = [n for n in absent if n not in _OPTIONAL]
             if missing:
                 shown = ", ".join(missing[:4]) + (", ..." if len(missing) > 4 else "")
                 raise refuse(f"{len(missing)} columns missing: {shown}")
-            for name in SCHEMA.names:
+            for name in (n for n in SCHEMA.names if n not in absent):
                 found, expected = schema.field(name).type, SCHEMA.field(name).type
                 if not _compatible(found, expected):
                     raise refuse(f"column {name} is {found}, not {expected}")
             wanted = list(dict.fromkeys([*columns, "key", "status"]))
-            table = parquet.read(columns=wanted)
+            table = parquet.read(columns=[n for n in wanted if n not in absent])
+            for name in (n for n in wanted if n in absent):
+                table = table.append_column(SCHEMA.field(name),
+                                            pa.nulls(table.num_rows, SCHEMA.field(name).type))
     except StudyError:
         raise
     except (OSError, ValueError, pa.ArrowException) as exc:

@@ -8,7 +8,7 @@ A study file is TOML (read with :mod:`tomllib`) with three tables::
 
     [base]                       # the scenario every run starts from (see SETTINGS)
     robot = "table1"             # a preset, or a .toml/.urdf robot file (relative to this file)
-    controller = "lyapunov"      # lyapunov | velocity | pfl
+    controller = "lyapunov"      # lyapunov | velocity | pfl | mpc
     model = "viscous"            # viscous | engine
     t_final = 60.0
     c_x = 0.5
@@ -32,12 +32,13 @@ state the same ``samples`` S, each draws its S values from its own ``seed``
 k-th random point. The study is the product of the grid with those S points:
 ``runs = (product of grid sizes) * S``, at most :data:`MAX_RUNS`.
 
-**Settings** (:data:`SETTINGS`) are scalars: numbers (``float``/``int``) or names
-(``str``). Any scalar setting may be an axis: ``values`` for every kind, ``linspace`` and
-the random forms for real-valued ones only. ``passive`` (a list of joints, base only) is
-the exception; vary ``failed_joint`` (one joint whose actuator gives no torque, 0 = none,
-joined to the passive joints) instead. Settings belong to a model and to controllers
-(e.g. ``lam`` to the torque-level Lyapunov-like law, ``mu`` to the engine): giving one
+**Settings** (:data:`SETTINGS`) are scalars: numbers (``float``/``int``), names
+(``str``) or switches (``bool``). Any scalar setting may be an axis: ``values`` for every
+kind, ``linspace`` and the random forms for real-valued ones only. ``passive`` (a list of
+joints, base only) is the exception; vary ``failed_joint`` (one joint whose actuator gives
+no torque, 0 = none, joined to the passive joints) instead. Settings belong to a model and
+to controllers (e.g. ``lam`` to the torque-level Lyapunov-like law, ``horizon`` and the
+``weight_*`` costs to the MPC, ``mu`` to the engine): giving one
 that does not apply to some run of the study is an error, as is giving the same setting
 in ``[base]`` and as an axis.
 
@@ -86,10 +87,11 @@ import numpy as np
 
 from .._io import decode_utf8, parse_toml, read_regular_file
 from .._validation import one_line, printable_path
-from ..control import LyapunovOptions, PFLOptions, QuasiStaticOptions
+from ..control import LyapunovOptions, MPCOptions, PFLOptions, QuasiStaticOptions
 from ..control.gains import K_PHI_FIRST, K_PHI_REST
 from ..exceptions import SnakePinError
 from ..metrics import ERROR_WINDOW
+from ..ocp import CostWeights
 from ..params import SnakeParams
 from ..sim import MAX_ARRAY_BYTES, MAX_STEPS, MAX_SUBSTEPS, MAX_TOTAL_BYTES
 from .errors import StudyError
@@ -103,6 +105,7 @@ __all__ = [
     "MAX_STUDY_BYTES",
     "MODELS",
     "SETTINGS",
+    "WEIGHT_PREFIX",
     "Axis",
     "Scenario",
     "Setting",
@@ -125,7 +128,7 @@ KEY_FORMAT = 2
 #: Engine control period [s] (``WheelSpec().control_dt``), for the t_final bound.
 ENGINE_CONTROL_DT = 1e-3
 MODELS = ("viscous", "engine")
-CONTROLLERS = ("lyapunov", "velocity", "pfl")
+CONTROLLERS = ("lyapunov", "velocity", "pfl", "mpc")
 _TRACKING = ("lyapunov", "velocity")
 _TABLES = ("study", "base", "axes")
 _STUDY_KEYS = ("name", "description")
@@ -144,8 +147,8 @@ class Setting:
     Parameters
     ----------
     name, kind, default
-        Key in the study file; ``"float"``, ``"int"``, ``"str"`` or ``"joints"`` (a list
-        of joint numbers, base only); the default (None: resolved per run, see
+        Key in the study file; ``"float"``, ``"int"``, ``"str"``, ``"bool"`` or
+        ``"joints"`` (a list of joint numbers, base only); the default (None: resolved per run, see
         :func:`_resolve_defaults`, or "the robot's own" for friction).
     help
         One line for the documentation.
@@ -190,6 +193,8 @@ class Setting:
         str
             E.g. ``"> 0"``, ``"in [0, 10]"``, ``"one of a, b"``.
         """
+        if self.kind == "bool":
+            return "true or false"
         if self.choices:
             return "one of " + ", ".join(self.choices)
         if self.low is not None and self.high is not None:
@@ -211,6 +216,8 @@ class Setting:
         str
             The reason, or "" when the value is inside.
         """
+        if self.kind == "bool":
+            return ""
         if self.kind == "str":
             return "" if not self.choices or value in self.choices else \
                 f"must be {self.domain()}, got {_short(value)}"
@@ -230,18 +237,22 @@ def _settings(*items: Setting) -> dict[str, Setting]:
 
 #: The options dataclass of each controller: their fields are the laws' settings.
 LAW_OPTIONS: dict[str, type] = {"lyapunov": LyapunovOptions, "velocity": QuasiStaticOptions,
-                                "pfl": PFLOptions}
+                                "pfl": PFLOptions, "mpc": MPCOptions}
 #: Option fields a study does not set: the controller's period is the run's own
 #: ``control_dt``; r_min and climb_damping keep their defaults.
 _NOT_IN_STUDIES = frozenset({"control_dt", "r_min", "climb_damping"})
 #: Words for a head gain's diagonal entries in the settings' help.
 _ENTRY_WORDS = {"x": "x_h", "y": "y_h", "theta": "theta_1"}
+#: The MPC's cost weights (:class:`~snake_pin.ocp.CostWeights`) are settings with this prefix.
+WEIGHT_PREFIX = "weight_"
 
 
 def _law_fields() -> dict[str, tuple[Field[Any], tuple[str, ...]]]:
     """Each option field a study sets, with the controllers whose dataclass declares it."""
     found: dict[str, tuple[Field[Any], tuple[str, ...]]] = {}
     for controller, cls in LAW_OPTIONS.items():
+        if cls is MPCOptions:
+            continue  # its fields carry no option metadata: _mpc_settings
         for f in fields(cls):
             if f.name not in _NOT_IN_STUDIES:
                 first, owners = found.get(f.name, (f, ()))
@@ -280,6 +291,71 @@ def _law_settings() -> list[Setting]:
     return out
 
 
+def _mpc_settings() -> list[Setting]:
+    """The MPC's settings, generated from :class:`~snake_pin.control.mpc.MPCOptions` and
+    its :class:`~snake_pin.ocp.CostWeights` (each weight ``weight_<name>``).
+
+    Each takes its field's default, kind and one-line doc (the first sentence of the class's
+    parameter description); the lower bound is the one the class itself accepts (probed at
+    0: ``>= 0`` where it accepts 0, else ``> 0`` for reals and ``>= 1`` for integers).
+    Settings that only fail together (a horizon shorter than a node) are checked per run
+    by building the options (:func:`_check_run`).
+    """
+    out = []
+    for cls, prefix in ((MPCOptions, ""), (CostWeights, WEIGHT_PREFIX)):
+        docs = _parameter_docs(cls)
+        for f in fields(cls):
+            if f.name == "weights":
+                continue
+            default = f.default
+            kind = {bool: "bool", int: "int", float: "float"}[type(default)]
+            made = functools.partial(Setting, name=prefix + f.name, kind=kind, default=default,
+                                     help=docs.get(f.name, f.name), models=("viscous",),
+                                     controllers=("mpc",))
+            if kind == "bool":
+                out.append(made())
+                continue
+            zero_ok = _accepts(cls, f.name, 0 if kind == "int" else 0.0)
+            low = 0.0 if zero_ok or kind == "float" else 1.0
+            out.append(made(low=low, open_low=kind == "float" and not zero_ok))
+    return out
+
+
+def _accepts(cls: type, name: str, value: Any) -> bool:
+    """Whether ``cls(name=value)`` is valid (its own check of one field)."""
+    try:
+        cls(**{name: value})
+    except SnakePinError:
+        return False
+    return True
+
+
+def _parameter_docs(cls: type) -> dict[str, str]:
+    """The first sentence of each parameter's description in a NumPy-style docstring."""
+    lines = (cls.__doc__ or "").splitlines()
+    out: dict[str, str] = {}
+    names: list[str] = []
+    text: list[str] = []
+
+    def flush() -> None:
+        sentence = " ".join(text).split(". ")[0].rstrip(".")
+        for name in names:
+            out[name] = sentence
+    for line in lines:
+        stripped = line.strip()
+        if " : " in stripped and not line.startswith(" " * 8):
+            flush()
+            names = [n.strip() for n in stripped.split(" : ")[0].split(",")]
+            text = []
+        elif stripped and names and line.startswith(" " * 8):
+            text.append(stripped)
+        elif not stripped and names:
+            flush()
+            names = []
+    flush()
+    return out
+
+
 def law_options(settings: Mapping[str, Any], joints: int) -> Any:
     """The options of a run's controller from its (resolved) settings.
 
@@ -292,11 +368,21 @@ def law_options(settings: Mapping[str, Any], joints: int) -> Any:
 
     Returns
     -------
-    LyapunovOptions or QuasiStaticOptions or PFLOptions
+    LyapunovOptions or QuasiStaticOptions or PFLOptions or MPCOptions
         The options, the inverse of the settings' generation from their fields.
+
+    Raises
+    ------
+    ParameterError
+        MPC settings that do not combine (e.g. a horizon shorter than a node).
     """
     controller = settings["controller"]
     cls = LAW_OPTIONS[controller]
+    if cls is MPCOptions:
+        weights = CostWeights(**{f.name: settings[WEIGHT_PREFIX + f.name]
+                                 for f in fields(CostWeights)})
+        return MPCOptions(**{f.name: settings[f.name] for f in fields(MPCOptions)
+                             if f.name != "weights"}, weights=weights)
     values: dict[str, Any] = {}
     for f in fields(cls):
         meta = f.metadata
@@ -321,7 +407,8 @@ SETTINGS: dict[str, Setting] = _settings(
     Setting("model", "str", "viscous", "viscous (Pinocchio, RK4) or engine (MuJoCo, wheels)",
             choices=MODELS),
     Setting("controller", "str", "lyapunov", "lyapunov (torque level), velocity (velocity "
-            "level with joint servos) or pfl", choices=CONTROLLERS),
+            "level with joint servos), pfl or mpc (receding-horizon Box-FDDP)",
+            choices=CONTROLLERS),
     Setting("t_final", "float", 60.0, "duration [s]", 0.0, open_low=True),
     Setting("error_window", "float", ERROR_WINDOW, "head errors are judged over "
             "t >= error_window [s]", 0.0),
@@ -342,7 +429,7 @@ SETTINGS: dict[str, Setting] = _settings(
     # reference, gait and initial posture (viscous model)
     Setting("ref_speed", "float", 0.1, "head reference speed along +x [m/s]",
             models=("viscous",)),
-    Setting("gait_alpha", "float", None, "serpenoid winding angle [rad] (lyapunov/velocity "
+    Setting("gait_alpha", "float", None, "serpenoid winding angle [rad] (lyapunov/velocity/mpc "
             "pi/6, pfl pi/3)", models=("viscous",)),
     Setting("gait_ts", "float", None, "serpenoid periods along the body (1.5; pfl 1)",
             0.0, open_low=True, models=("viscous",)),
@@ -356,6 +443,7 @@ SETTINGS: dict[str, Setting] = _settings(
     Setting("init_seed", "int", 0, "seed of that noise", 0.0, MAX_SEED),
     # the control laws: generated from their options dataclasses (snake_pin.control)
     *_law_settings(),
+    *_mpc_settings(),
     # engine (MuJoCo)
     Setting("mu", "float", 1.0, "wheel-floor Coulomb friction", 0.0, _MAX_MU, open_low=True,
             models=("engine",), controllers=_TRACKING),
@@ -371,7 +459,7 @@ SETTINGS: dict[str, Setting] = _settings(
 
 #: Gait defaults per controller: (alpha, T_s, v) of Sections VI.2 and VI.1.
 GAIT_DEFAULTS = {"lyapunov": (math.pi / 6, 1.5, 2.0), "velocity": (math.pi / 6, 1.5, 2.0),
-                 "pfl": (math.pi / 3, 1.0, 0.18)}
+                 "pfl": (math.pi / 3, 1.0, 0.18), "mpc": (math.pi / 6, 1.5, 2.0)}
 
 
 # ------------------------------------------------------------------ the parsed study
@@ -688,6 +776,10 @@ def _typed(where: _Where, label: str, setting: Setting, value: Any) -> Any:
         if not _is_int(value):
             raise where.error(f"{label} must be an integer, got {_kind_name(value)} "
                               f"{_short(value)}")
+    elif setting.kind == "bool":
+        if not isinstance(value, bool):
+            raise where.error(f"{label} must be true or false, got {_kind_name(value)} "
+                              f"{_short(value)}")
     elif setting.kind == "str":
         if not isinstance(value, str):
             raise where.error(f"{label} must be a string, got {_kind_name(value)} "
@@ -854,9 +946,9 @@ def _check_applicability(where: _Where, base: Mapping[str, Any], axes: Sequence[
 
     pairs = list(itertools.product(values("model"), values("controller")))
     for model, controller in pairs:
-        if model == "engine" and controller == "pfl":
-            raise where.error(f"{place('controller')} controller pfl runs on the viscous model "
-                              f"only, but {place('model')} has model engine")
+        if model == "engine" and controller in ("pfl", "mpc"):
+            raise where.error(f"{place('controller')} controller {controller} runs on the "
+                              f"viscous model only, but {place('model')} has model engine")
     for name in sorted(explicit, key=list(SETTINGS).index):
         setting = SETTINGS[name]
         for model, controller in pairs:
@@ -969,6 +1061,18 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
         if n < 4:
             raise where.error(f"{place('controller')} controller pfl needs n >= 4 links, robot "
                               f"{_short(settings['robot'])} has {n}")
+    if controller == "mpc":
+        try:
+            law_options(settings, n - 1)
+        except SnakePinError as exc:
+            message = one_line(str(exc), 300)
+            words = set(message.split())
+            if message.startswith("cost weight"):
+                words = {WEIGHT_PREFIX + word for word in words}
+            named = [name for name in settings
+                     if SETTINGS[name].controllers == ("mpc",) and name in words]
+            raise where.error(f"{place(named[0]) if named else place('controller')} "
+                              f"{message}") from None
     if controller == "velocity" and model == "viscous":
         for key in ("c_x", "c_y"):
             if np.any(params.per_link(key) <= 0):

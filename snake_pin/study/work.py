@@ -105,14 +105,19 @@ def initial_noise(scenario: Scenario) -> np.ndarray:
 
 def build_controller(scenario: Scenario, snake: Any) -> Any:
     """The controller of a run."""
-    from ..control import LyapunovController, PFLController, QuasiStaticLyapunovController
+    from ..control import (
+        LyapunovController,
+        MPCController,
+        PFLController,
+        QuasiStaticLyapunovController,
+    )
     from ..gaits import Serpenoid
 
     s = scenario.settings
     n = scenario.params.n
     gait = Serpenoid(n, s["gait_alpha"], s["gait_ts"], s["gait_v"])
-    law = {"pfl": PFLController, "velocity": QuasiStaticLyapunovController}.get(
-        scenario.controller, LyapunovController)
+    law = {"pfl": PFLController, "velocity": QuasiStaticLyapunovController,
+           "mpc": MPCController}.get(scenario.controller, LyapunovController)
     return law(snake, reference(scenario), gait, options=law_options(s, n - 1))
 
 
