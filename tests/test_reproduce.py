@@ -112,6 +112,12 @@ def test_engine_results_are_distributions(report: Path) -> None:
     check = engine["viscous_sensitivity"]
     assert check["sensitive"] is False and len(check["rms_percent_perturbed"]) == 3
     assert check["relative_change"] < 1e-3
+    for name, mpc in engine["mpc"].items():  # the MPC on MuJoCo: line and circle_1L
+        assert mpc["statuses"] == ["completed"] * 3, name
+        peaks = [run["summary"]["torque_max"] for run in mpc["draws"]["runs"]]
+        assert max(peaks) <= mpc["torque_bound"] + 1e-9
+        assert mpc["distribution"]["torque_max"]["median"] == pytest.approx(np.median(peaks))
+    assert set(engine["mpc"]) == {"line", "circle_1L"}
 
 
 def test_which_stages_honour_which_robot() -> None:
