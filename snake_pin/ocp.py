@@ -18,12 +18,13 @@ into Python (``scripts/bench.py --only mpc`` measures both routes).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import crocoddyl
 import numpy as np
 
+from ._validation import finite_number
 from .exceptions import ParameterError
 from .friction import FrictionModel
 from .model import Snake
@@ -37,6 +38,13 @@ __all__ = ["ChainRootActuation", "CostWeights", "FrictionJacobians", "TrackingPr
 COSTS = ("tracking", "torque", "joint_limit")
 #: Bound used for the coordinates a barrier does not limit (Crocoddyl needs finite bounds).
 _FREE = 1e9
+
+
+def _weight(default: float, doc: str, unit: str) -> Any:
+    """A cost weight's field: >= 0, with the one-line doc and unit that study files show
+    (the metadata keys of :func:`snake_pin.control._options.option`)."""
+    return field(default=default, metadata={"doc": doc, "unit": unit, "low": 0.0,
+                                            "high": None, "open_low": False})
 
 
 @dataclass(frozen=True)
@@ -71,26 +79,21 @@ class CostWeights:
         A weight is not a finite number >= 0.
     """
 
-    head_position: float = 2000.0
-    heading: float = 1.0
-    head_velocity: float = 20.0
-    gait: float = 2.0
-    gait_velocity: float = 0.05
-    torque: float = 0.5
-    joint_limit: float = 1000.0
-    terminal: float = 1.0
+    head_position: float = _weight(2000.0, "on the head point's error", "1/m^2")
+    heading: float = _weight(1.0, "on the head link's angle error", "1/rad^2")
+    head_velocity: float = _weight(20.0, "on the head velocity's error", "s^2/m^2")
+    gait: float = _weight(2.0, "on the joints' error to the gait prior", "1/rad^2")
+    gait_velocity: float = _weight(0.05, "on the joints' velocity error to the gait prior",
+                                   "s^2/rad^2")
+    torque: float = _weight(0.5, "on the actuated torques", "1/(N m)^2")
+    joint_limit: float = _weight(1000.0, "on the joint angles beyond the joint limit",
+                                 "1/rad^2")
+    terminal: float = _weight(1.0, "scale of the state costs at the terminal node", "s")
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, (bool, np.bool_)) or not isinstance(
-                    value, (int, float, np.integer, np.floating)):
-                raise ParameterError(f"cost weight {f.name} must be a number, got {value!r}")
-            value = float(value)
-            if not math.isfinite(value) or value < 0.0:
-                raise ParameterError(f"cost weight {f.name} must be a finite number >= 0, "
-                                     f"got {value}")
-            object.__setattr__(self, f.name, value)
+            object.__setattr__(self, f.name, finite_number(
+                getattr(self, f.name), f"cost weight {f.name}", non_negative=True))
 
 
 def state_model(snake: Snake) -> crocoddyl.StateMultibody:

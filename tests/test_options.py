@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from snake_pin import ParameterError
-from snake_pin.control import LyapunovOptions, PFLOptions, QuasiStaticOptions
+from snake_pin.control import LyapunovOptions, MPCOptions, PFLOptions, QuasiStaticOptions
+from snake_pin.ocp import CostWeights
 
-OPTIONS = (LyapunovOptions, PFLOptions, QuasiStaticOptions)
+OPTIONS = (LyapunovOptions, PFLOptions, QuasiStaticOptions, MPCOptions, CostWeights)
 
 
 @pytest.mark.parametrize("cls", OPTIONS)
@@ -44,3 +45,17 @@ def test_a_bad_gain_is_one_line_naming_it(value: object) -> None:
     with pytest.raises(ParameterError) as info:
         PFLOptions(r_v=value)
     assert "\n" not in str(info.value) and "R_v" in str(info.value)
+
+
+def test_a_field_has_its_default_s_kind() -> None:
+    """An int field takes any integer and stores an int, a bool field True or False only; a
+    real, a bool or text in an int field, 1 in a bool field: one line naming the field."""
+    options = MPCOptions(iterations=np.int64(4), feedback=np.bool_(False))
+    assert type(options.iterations) is int and options.iterations == 4
+    assert options.feedback is False
+    for changes in ({"iterations": 2.0}, {"iterations": True}, {"step_halvings": "3"},
+                    {"feedback": 1}, {"first_iterations": 0}):
+        with pytest.raises(ParameterError) as info:
+            MPCOptions(**changes)  # type: ignore[arg-type]
+        name = next(iter(changes))
+        assert "\n" not in str(info.value) and str(info.value).startswith(name), changes

@@ -362,59 +362,57 @@ def test_a_physically_meaningless_robot_file_names_the_study_robot_and_field(
 
 
 def test_law_settings_are_the_options_fields() -> None:
-    """Each law's settings take their defaults, bounds and controllers from its options class."""
-    from dataclasses import fields
+    """Each law's settings take their defaults, kinds, bounds and controllers from its options
+    class (the MPC's cost weights as weight_<name>)."""
+    from dataclasses import fields, is_dataclass
 
     from snake_pin.control.gains import default_k_phi
     from snake_pin.study.spec import LAW_OPTIONS
 
     seen = set()
     for controller, cls in LAW_OPTIONS.items():
-        if controller == "mpc":
-            continue  # test_mpc_settings_are_its_options_and_cost_weights
         for f in fields(cls):
             if f.name in ("control_dt", "r_min", "climb_damping"):
                 assert f.name not in SETTINGS or f.name == "control_dt"
                 continue
             meta = f.metadata
-            if meta["entries"]:
-                names = [f"{f.name}_{e}" for e in meta["entries"]]
-                defaults = list(f.default)
+            if is_dataclass(f.default):
+                rows = [(f"weight_{g.name}", g.default, g.metadata) for g in fields(f.default)]
+            elif meta["entries"]:
+                rows = [(f"{f.name}_{e}", v, meta) for e, v in zip(meta["entries"], f.default,
+                                                                   strict=True)]
             elif f.name == "k_phi":
-                names, defaults = ["k_phi_1", "k_phi"], list(default_k_phi(2))
+                rows = [(name, v, meta) for name, v in zip(["k_phi_1", "k_phi"],
+                                                           default_k_phi(2), strict=True)]
             else:
-                names, defaults = [f.name], [f.default]
-            for name, default in zip(names, defaults, strict=True):
+                rows = [(f.name, f.default, meta)]
+            for name, default, m in rows:
                 setting = SETTINGS[name]
                 assert (setting.default, setting.low, setting.high, setting.open_low) == \
-                    (default, meta["low"], meta["high"], meta["open_low"]), name
+                    (default, m["low"], m["high"], m["open_low"]), name
+                assert setting.kind == {bool: "bool", int: "int"}.get(type(default), "float"), name
                 assert controller in setting.controllers, name
                 seen.add(name)
     owned = {name for name, s in SETTINGS.items() if set(s.controllers) != set(LAW_OPTIONS)
-             and s.models == ("viscous",) and s.controllers != ("mpc",)}
+             and s.models == ("viscous",)}
     assert owned == seen
 
 
 def test_mpc_settings_are_its_options_and_cost_weights() -> None:
-    """Every MPCOptions field but weights, and each cost weight as weight_<name>, is an
-    mpc-only setting with the field's default and kind; its lower bound is where the class
-    itself starts refusing (the bound accepted unless open, below it refused), and a run's
-    settings build those options."""
+    """Every MPC setting's lower bound is where its class itself starts refusing (the bound
+    accepted unless open, below it refused), and a run's settings build those options."""
     from dataclasses import fields, replace
 
     from snake_pin.control import MPCOptions
     from snake_pin.ocp import CostWeights
 
-    expected = {f.name: (MPCOptions, f.name, f.default) for f in fields(MPCOptions)
-                if f.name != "weights"}
-    expected |= {f"weight_{f.name}": (CostWeights, f.name, f.default)
-                 for f in fields(CostWeights)}
+    expected = {f.name: (MPCOptions, f.name) for f in fields(MPCOptions) if f.name != "weights"}
+    expected |= {f"weight_{f.name}": (CostWeights, f.name) for f in fields(CostWeights)}
     mpc_only = {name for name, s in SETTINGS.items() if s.controllers == ("mpc",)}
     assert mpc_only == set(expected)
-    for name, (cls, field, default) in expected.items():
+    for name, (cls, field) in expected.items():
         setting = SETTINGS[name]
-        assert setting.default == default and type(setting.default) is type(default), name
-        assert setting.models == ("viscous",) and setting.help, name
+        assert setting.help, name
         if setting.kind == "bool":
             continue
         assert setting.low is not None and setting.high is None, name

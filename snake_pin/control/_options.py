@@ -1,17 +1,19 @@
 """Fields of the controllers' options dataclasses: default, bounds and one-line doc in one place.
 
 :func:`option` declares a field, :func:`check_fields` validates an instance, :func:`merged`
-applies keyword overrides; :mod:`snake_pin.study.spec` reads the same metadata.
+applies keyword overrides; :mod:`snake_pin.study.spec` reads the same metadata. A field's
+kind is its default's type: a bool is a switch, an int an integer, a dataclass (the MPC's
+cost weights) an instance of that class, anything else a real number or a gain.
 """
 
 from __future__ import annotations
 
-from dataclasses import field, fields, replace
+from dataclasses import field, fields, is_dataclass, replace
 from typing import Any, TypeVar
 
 import numpy as np
 
-from .._validation import brief, finite_number
+from .._validation import brief, finite_number, flag, instance, integer
 from ..exceptions import ParameterError
 from .gains import K_PHI_FIRST, K_PHI_REST, gain_matrix
 
@@ -72,11 +74,18 @@ def check_fields(options: Any) -> None:
         meta, value = f.metadata, getattr(options, f.name)
         if value is None and f.default is None:
             continue  # resolved per robot
-        if meta.get("symbol"):
+        low, high = meta["low"], meta["high"]
+        if meta["symbol"]:
             value = _frozen_gain(value, meta["symbol"], meta["size"], meta["open_low"])
+        elif isinstance(f.default, bool):
+            value = flag(value, f.name)
+        elif isinstance(f.default, int):
+            value = integer(value, f.name, low=None if low is None else int(low),
+                            high=None if high is None else int(high))
+        elif is_dataclass(f.default):
+            value = instance(value, type(f.default), f.name)
         else:
             value = finite_number(value, f.name)
-            low, high = meta.get("low"), meta.get("high")
             if low is not None and (value < low or (meta["open_low"] and value == low)):
                 word = ("positive" if meta["open_low"] else "non-negative") if low == 0 else \
                     f"{'>' if meta['open_low'] else '>='} {low:g}"

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 from typing import Any
 
 import crocoddyl
@@ -23,10 +23,12 @@ from ..exceptions import ParameterError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..ocp import CostWeights, TrackingProblem, reference_states
+from ._options import check_fields, merged, option
 from .base import Controller, gait_for
 from .reference import HeadReference, head_first_reference
 
 __all__ = ["MPCController", "MPCOptions", "SolveStats"]
+
 
 @dataclass(frozen=True)
 class MPCOptions:
@@ -61,43 +63,22 @@ class MPCOptions:
         A value out of its domain (one line).
     """
 
-    horizon: float = 0.5
-    node_dt: float = 0.01
-    resolve_period: float = 0.04
-    torque_bound: float = 1.0
-    joint_limit: float = math.pi / 2
-    iterations: int = 2
-    first_iterations: int = 50
-    step_halvings: int = 3
-    feedback: bool = True
-    weights: CostWeights = field(default_factory=CostWeights)
+    horizon: float = option(0.5, "length of the prediction", unit="s", low=0.0, open_low=True)
+    node_dt: float = option(0.01, "step of the RK4 nodes", unit="s", low=0.0, open_low=True)
+    resolve_period: float = option(0.04, "time between re-solves", unit="s", low=0.0,
+                                   open_low=True)
+    torque_bound: float = option(1.0, "bound on each |tau_i|", unit="N m", low=0.0,
+                                 open_low=True)
+    joint_limit: float = option(math.pi / 2, "the joint-limit barrier's |phi_i|", unit="rad",
+                                low=0.0, open_low=True)
+    iterations: int = option(2, "Box-FDDP iterations per warm-started re-solve", low=1)
+    first_iterations: int = option(50, "iterations of the first (cold) solve", low=1)
+    step_halvings: int = option(3, "line search: steps 1, 1/2, ..., 2^-step_halvings", low=0)
+    feedback: bool = option(True, "apply the Riccati gains between re-solves")
+    weights: CostWeights = option(CostWeights(), "the costs' weights")  # noqa: RUF009 (frozen)
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name == "weights":
-                if not isinstance(value, CostWeights):
-                    raise ParameterError(f"MPC option weights must be CostWeights, "
-                                         f"got {brief(value)}")
-            elif f.name == "feedback":
-                if not isinstance(value, (bool, np.bool_)):
-                    raise ParameterError(f"MPC option feedback must be True or False, "
-                                         f"got {brief(value)}")
-                object.__setattr__(self, f.name, bool(value))
-            elif f.name in ("iterations", "first_iterations", "step_halvings"):
-                low = 0 if f.name == "step_halvings" else 1
-                if isinstance(value, (bool, np.bool_)) or not isinstance(
-                        value, (int, np.integer)) or value < low:
-                    raise ParameterError(f"MPC option {f.name} must be an integer >= {low}, "
-                                         f"got {brief(value)}")
-                object.__setattr__(self, f.name, int(value))
-            else:
-                if isinstance(value, (bool, np.bool_)) or not isinstance(
-                        value, (int, float, np.integer, np.floating)) \
-                        or not math.isfinite(value) or value <= 0.0:
-                    raise ParameterError(f"MPC option {f.name} must be a finite number > 0, "
-                                         f"got {brief(value)}")
-                object.__setattr__(self, f.name, float(value))
+        check_fields(self)
         if self.horizon < self.node_dt * (1.0 - 1e-9):
             raise ParameterError(f"MPC horizon {self.horizon} s is shorter than one node "
                                  f"({self.node_dt} s)")
@@ -175,11 +156,7 @@ class MPCController(Controller):
                                  f"got {brief(reference)}")
         self.reference = head_first_reference() if reference is None else reference
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
-        if options is None:
-            options = MPCOptions()
-        if not isinstance(options, MPCOptions):
-            raise ParameterError(f"options must be MPCOptions, got {brief(options)}")
-        self.options = options
+        self.options = merged(MPCOptions, options, {})
         self._actuated = np.array(snake.params.actuated, dtype=int) - 1  # entries of tau
         self._build()
         self.reset()

@@ -79,7 +79,7 @@ import math
 import os
 import reprlib
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import Field, dataclass, field, fields
+from dataclasses import Field, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any, cast
 
@@ -91,7 +91,6 @@ from ..control import LyapunovOptions, MPCOptions, PFLOptions, QuasiStaticOption
 from ..control.gains import K_PHI_FIRST, K_PHI_REST
 from ..exceptions import SnakePinError
 from ..metrics import ERROR_WINDOW
-from ..ocp import CostWeights
 from ..params import SnakeParams
 from ..sim import MAX_ARRAY_BYTES, MAX_STEPS, MAX_SUBSTEPS, MAX_TOTAL_BYTES
 from .errors import StudyError
@@ -248,15 +247,18 @@ WEIGHT_PREFIX = "weight_"
 
 
 def _law_fields() -> dict[str, tuple[Field[Any], tuple[str, ...]]]:
-    """Each option field a study sets, with the controllers whose dataclass declares it."""
+    """Each option field a study sets, by setting name, with the controllers whose dataclass
+    declares it; a field holding a dataclass (the MPC's cost weights) gives its own fields,
+    each named ``weight_<name>``."""
     found: dict[str, tuple[Field[Any], tuple[str, ...]]] = {}
     for controller, cls in LAW_OPTIONS.items():
-        if cls is MPCOptions:
-            continue  # its fields carry no option metadata: _mpc_settings
         for f in fields(cls):
-            if f.name not in _NOT_IN_STUDIES:
-                first, owners = found.get(f.name, (f, ()))
-                found[f.name] = first, (*owners, controller)
+            if f.name in _NOT_IN_STUDIES:
+                continue
+            inner = fields(f.default) if is_dataclass(f.default) else ()
+            for name, g in [(WEIGHT_PREFIX + g.name, g) for g in inner] or [(f.name, f)]:
+                first, owners = found.get(name, (g, ()))
+                found[name] = first, (*owners, controller)
     return found
 
 
@@ -265,16 +267,19 @@ def _law_settings() -> list[Setting]:
 
     A head gain is one setting per diagonal entry (``k_w1_x``, ...), K_phi two
     (``k_phi_1`` for joint 1, ``k_phi`` for the others), another gain one scalar (times
-    identity); each takes its field's default, bounds and doc.
+    identity); each takes its field's default, kind (its default's type), bounds and doc.
+    Settings that only fail together (an MPC horizon shorter than a node) are checked per
+    run by building the options (:func:`_check_run`).
     """
     out = []
     for name, (f, controllers) in _law_fields().items():
         meta, default = f.metadata, f.default
-        made = functools.partial(Setting, kind="float", low=meta["low"], high=meta["high"],
+        kind = {bool: "bool", int: "int"}.get(type(default), "float")
+        made = functools.partial(Setting, kind=kind, low=meta["low"], high=meta["high"],
                                  open_low=meta["open_low"], models=("viscous",),
                                  controllers=controllers)
-        symbol, unit = meta["symbol"], f" [{meta['unit']}]" if meta["unit"] else ""
-        if meta["entries"]:
+        symbol, unit = meta.get("symbol"), f" [{meta['unit']}]" if meta["unit"] else ""
+        if meta.get("entries"):
             out += [made(name=f"{name}_{entry}", default=value,
                          help=f"{symbol} entry of {_ENTRY_WORDS[entry]}")
                     for entry, value in zip(meta["entries"], cast("tuple[float, ...]", default),
@@ -286,73 +291,8 @@ def _law_settings() -> list[Setting]:
         elif symbol:
             out.append(made(name=name, default=default, help=f"{symbol} (times identity)"))
         else:
-            extra = f" ({meta['default_doc']})" if meta["default_doc"] else ""
+            extra = f" ({meta['default_doc']})" if meta.get("default_doc") else ""
             out.append(made(name=name, default=default, help=meta["doc"] + unit + extra))
-    return out
-
-
-def _mpc_settings() -> list[Setting]:
-    """The MPC's settings, generated from :class:`~snake_pin.control.mpc.MPCOptions` and
-    its :class:`~snake_pin.ocp.CostWeights` (each weight ``weight_<name>``).
-
-    Each takes its field's default, kind and one-line doc (the first sentence of the class's
-    parameter description); the lower bound is the one the class itself accepts (probed at
-    0: ``>= 0`` where it accepts 0, else ``> 0`` for reals and ``>= 1`` for integers).
-    Settings that only fail together (a horizon shorter than a node) are checked per run
-    by building the options (:func:`_check_run`).
-    """
-    out = []
-    for cls, prefix in ((MPCOptions, ""), (CostWeights, WEIGHT_PREFIX)):
-        docs = _parameter_docs(cls)
-        for f in fields(cls):
-            if f.name == "weights":
-                continue
-            default = f.default
-            kind = {bool: "bool", int: "int", float: "float"}[type(default)]
-            made = functools.partial(Setting, name=prefix + f.name, kind=kind, default=default,
-                                     help=docs.get(f.name, f.name), models=("viscous",),
-                                     controllers=("mpc",))
-            if kind == "bool":
-                out.append(made())
-                continue
-            zero_ok = _accepts(cls, f.name, 0 if kind == "int" else 0.0)
-            low = 0.0 if zero_ok or kind == "float" else 1.0
-            out.append(made(low=low, open_low=kind == "float" and not zero_ok))
-    return out
-
-
-def _accepts(cls: type, name: str, value: Any) -> bool:
-    """Whether ``cls(name=value)`` is valid (its own check of one field)."""
-    try:
-        cls(**{name: value})
-    except SnakePinError:
-        return False
-    return True
-
-
-def _parameter_docs(cls: type) -> dict[str, str]:
-    """The first sentence of each parameter's description in a NumPy-style docstring."""
-    lines = (cls.__doc__ or "").splitlines()
-    out: dict[str, str] = {}
-    names: list[str] = []
-    text: list[str] = []
-
-    def flush() -> None:
-        sentence = " ".join(text).split(". ")[0].rstrip(".")
-        for name in names:
-            out[name] = sentence
-    for line in lines:
-        stripped = line.strip()
-        if " : " in stripped and not line.startswith(" " * 8):
-            flush()
-            names = [n.strip() for n in stripped.split(" : ")[0].split(",")]
-            text = []
-        elif stripped and names and line.startswith(" " * 8):
-            text.append(stripped)
-        elif not stripped and names:
-            flush()
-            names = []
-    flush()
     return out
 
 
@@ -378,15 +318,13 @@ def law_options(settings: Mapping[str, Any], joints: int) -> Any:
     """
     controller = settings["controller"]
     cls = LAW_OPTIONS[controller]
-    if cls is MPCOptions:
-        weights = CostWeights(**{f.name: settings[WEIGHT_PREFIX + f.name]
-                                 for f in fields(CostWeights)})
-        return MPCOptions(**{f.name: settings[f.name] for f in fields(MPCOptions)
-                             if f.name != "weights"}, weights=weights)
     values: dict[str, Any] = {}
     for f in fields(cls):
         meta = f.metadata
-        if f.name == "control_dt":
+        if is_dataclass(f.default) and not isinstance(f.default, type):
+            values[f.name] = replace(f.default, **{g.name: settings[WEIGHT_PREFIX + g.name]
+                                                   for g in fields(f.default)})
+        elif f.name == "control_dt":
             values[f.name] = settings["control_dt"]
         elif f.name in _NOT_IN_STUDIES:
             continue
@@ -443,7 +381,6 @@ SETTINGS: dict[str, Setting] = _settings(
     Setting("init_seed", "int", 0, "seed of that noise", 0.0, MAX_SEED),
     # the control laws: generated from their options dataclasses (snake_pin.control)
     *_law_settings(),
-    *_mpc_settings(),
     # engine (MuJoCo)
     Setting("mu", "float", 1.0, "wheel-floor Coulomb friction", 0.0, _MAX_MU, open_low=True,
             models=("engine",), controllers=_TRACKING),
@@ -1066,9 +1003,7 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
             law_options(settings, n - 1)
         except SnakePinError as exc:
             message = one_line(str(exc), 300)
-            words = set(message.split())
-            if message.startswith("cost weight"):
-                words = {WEIGHT_PREFIX + word for word in words}
+            words = set(message.split())  # a cross-field check: each field was parsed
             named = [name for name in settings
                      if SETTINGS[name].controllers == ("mpc",) and name in words]
             raise where.error(f"{place(named[0]) if named else place('controller')} "
