@@ -728,8 +728,8 @@ def _figure_bytes(fig: Any) -> bytes:
 #: The table figures: name prefix -> (row metric, title); ``error_`` cells add the peak
 #: ``|tau_i|`` (torque_max) under the head error.
 _TABLES = {"table": ("head_ct_rms_pct", "Head cross-track RMS [% of body]"),
-           "error": ("head_error_rms_pct", "Head error to the timed reference RMS [% of body], "
-                                           "peak |tau_i| [N m] below")}
+           "error": ("head_error_rms_pct", "Head error to the timed reference RMS [% of body]"
+                                           "\nand peak |tau_i| [N m]")}
 
 
 def _table_figure(result: BenchmarkResult, model: str, failed: int,
@@ -753,7 +753,8 @@ def _table_figure(result: BenchmarkResult, model: str, failed: int,
                 continue
             r = cell[s, c]
             text = "n/a" if r["status"] == "not applicable" else (
-                f"{grid[i, j]:.1f}" if np.isfinite(grid[i, j]) else "-")
+                "-" if not np.isfinite(grid[i, j]) else
+                f"{grid[i, j]:.2f}" if grid[i, j] < 1.0 else f"{grid[i, j]:.1f}")
             if r["draws"] > 1 and np.isfinite(grid[i, j]) and kind == "table":
                 text += f"\n[{r['head_ct_rms_pct_p10']:.1f}, {r['head_ct_rms_pct_p90']:.1f}]"
             if kind == "error" and np.isfinite(r["torque_max"]):
@@ -768,7 +769,7 @@ def _table_figure(result: BenchmarkResult, model: str, failed: int,
     spread = (f"\nmedian of {draws} perturbed starts" if draws > 1 else "")
     spread += " [10-90 % range]" if draws > 1 and kind == "table" else ""
     start = result.settings.get("window_start", ERROR_WINDOW)
-    ax.set_title(f"{title}, {model}{where}, t >= {start:g} s{spread}", fontsize=9)
+    ax.set_title(f"{title}\n{model}{where}, t >= {start:g} s{spread}", fontsize=9)
     return fig
 
 
