@@ -253,20 +253,105 @@ def test_short_runs_have_a_metrics_window() -> None:
             bench(error_window=bad)
 
 
-def test_mpc_is_opt_in_and_keeps_its_torque_bound() -> None:
-    """mpc is a built-in controller but not a default one (the report's grid stays as it
-    is); a short viscous cell with joint 5 failed has torque_max within MPCOptions' bound
-    and zero torque on the failed joint."""
+def test_default_controllers_include_mpc() -> None:
+    """Every built-in controller, mpc included, is a default one and reaches the grid of a
+    benchmark that names none (an empty failure list: no cell runs)."""
+    assert "mpc" in bc.DEFAULT_CONTROLLERS
+    assert set(bc.DEFAULT_CONTROLLERS) == set(bc.CONTROLLERS)
+    empty = bc.run_benchmark(failed=(), t_final=1.0, workers=1)
+    assert empty.rows == [] and empty.settings["controllers"] == list(bc.DEFAULT_CONTROLLERS)
+
+
+def test_mpc_keeps_its_torque_bound() -> None:
+    """A short viscous mpc cell with joint 5 failed has torque_max within MPCOptions' bound,
+    and its head error in % of L is its time-indexed error over the body length."""
     from snake_pin.control import MPCOptions
 
-    assert "mpc" in bc.CONTROLLERS and "mpc" not in bc.DEFAULT_CONTROLLERS
-    assert set(bc.DEFAULT_CONTROLLERS) == set(bc.CONTROLLERS) - {"mpc"}
     result = bc.run_benchmark(scenarios=["line"], controllers=["mpc"], failed=(5,),
                               t_final=0.3, workers=1)
     row = result.cell("line", "mpc", failed=5)
     assert row["status"] == "completed" and "torque_max" in bc.METRIC_FIELDS
     assert 0.0 < row["torque_max"] <= MPCOptions().torque_bound + 1e-9
+    assert row["head_error_rms_pct"] == pytest.approx(
+        100.0 * row["head_error_rms"] / row["body_length"], rel=1e-12)
     assert np.isfinite(row["head_error_rms"])
+
+
+def _target_row(scenario: str, controller: str, failed: int, error: float,
+                status: str = "completed") -> dict:
+    return {"scenario": scenario, "controller": controller, "model": "viscous",
+            "failed_joint": failed, "status": status, "head_error_rms_pct": error,
+            "torque_max": 0.9}
+
+
+def test_mpc_targets_pair_each_mpc_row_with_its_lyapunov_cell() -> None:
+    """The targets pair an mpc row with the lyapunov row of the same scenario and failed
+    joint; met needs <= 2.5 % and below the Lyapunov-like error; a missing or diverged
+    partner, or an MPC above the limit, is not met."""
+    from snake_pin.experiments.bench_control import mpc_targets
+
+    rows = [_target_row("line", "lyapunov", 0, 3.0), _target_row("line", "mpc", 0, 0.4),
+            _target_row("line", "lyapunov", 5, 0.3), _target_row("line", "mpc", 5, 0.4),
+            _target_row("circle_1L", "mpc", 0, 0.5),
+            _target_row("lane_change", "lyapunov", 0, 9.0, "diverged"),
+            _target_row("lane_change", "mpc", 0, 0.5),
+            _target_row("circle_2L", "lyapunov", 0, 9.0), _target_row("circle_2L", "mpc", 0, 3.0)]
+    got = {(t["scenario"], t["failed_joint"]): t for t in mpc_targets(rows)}
+    assert list(got) == [("line", 0), ("line", 5), ("circle_1L", 0), ("lane_change", 0),
+                         ("circle_2L", 0)]
+    assert (got["line", 0]["mpc"], got["line", 0]["lyapunov"]) == (0.4, 3.0)
+    assert [got[k]["met"] for k in got] == [True, False, False, False, False]
+    assert math.isnan(got["circle_1L", 0]["lyapunov"])
+    assert math.isnan(got["lane_change", 0]["lyapunov"])
+
+
+def test_report_stage_mpc_rows_and_targets(tmp_path, monkeypatch) -> None:
+    """The report's stage (quick, every run cut to 0.4 s) has an mpc row within the torque
+    bound; its targets table equals the rows' head errors in % of L; the page's tables
+    show the head error and torque_max of every controller."""
+    import matplotlib.pyplot as plt
+
+    from snake_pin import SnakeParams
+    from snake_pin.control import MPCOptions
+    from snake_pin.experiments import bench_control as stage
+    from snake_pin.experiments.context import Context
+    from snake_pin.report import Report
+
+    original = stage.run_benchmark
+    monkeypatch.setattr(stage, "run_benchmark",
+                        lambda *a, **k: original(*a, **{**k, "t_final": 0.4, "workers": 1}))
+    # the figures are drawn but not rendered to PNG (other tests render them)
+    monkeypatch.setattr(bc, "_figure_bytes", lambda fig: plt.close(fig) or b"")
+    report = Report("test")
+    stage.bench_control_stage(Context(folder=tmp_path, params=SnakeParams.table1(),
+                                      report=report, quick=True))
+    (sec,) = report.sections
+    rows = {r["controller"]: r for r in sec.numbers["mpc_rows"]}
+    assert set(rows) == {"lyapunov", "mpc"} and rows["mpc"]["status"] == "completed"
+    assert 0.0 < rows["mpc"]["torque_max"] <= MPCOptions().torque_bound + 1e-9
+    (target,) = sec.numbers["mpc_targets"]
+    for name in ("mpc", "lyapunov"):
+        assert target[name] == pytest.approx(
+            100.0 * rows[name]["head_error_rms"] / rows[name]["body_length"], rel=1e-12)
+    assert target["torque_max"] == rows["mpc"]["torque_max"]
+    assert target["met"] == (target["mpc"] <= stage.MPC_TARGET_PCT
+                             and target["mpc"] < target["lyapunov"])
+    header, table = next(t for t in sec.tables if "MPC head error [% L]" in t[0])
+    assert table == [["line", "-", float(f"{target['mpc']:.3g}"),
+                      float(f"{target['lyapunov']:.3g}"), float(f"{target['torque_max']:.3g}"),
+                      "yes" if target["met"] else "no"]]
+    # the grid's, the MPC's and the engine's tables: head error and torque max for every
+    # controller
+    grids = [t for t in sec.tables if "torque max [N m]" in t[0]]
+    assert len(grids) == 3
+    for header, table in grids:
+        col = header.index("torque max [N m]")
+        assert all(isinstance(r[col], float) and r[col] > 0.0 for r in table)
+    col = grids[1][0].index("head error RMS [% L]")
+    assert {r[1]: r[col] for r in grids[1][1]} == {
+        c: float(f"{rows[c]['head_error_rms_pct']:.3g}") for c in rows}
+    assert (tmp_path / "mpc" / "error_viscous_0.png").is_file()
+    assert any("error_viscous_0" in str(path) for path, _ in sec.figures)
 
 
 def test_torque_max_is_the_peak_of_the_applied_torques(snake: Snake) -> None:

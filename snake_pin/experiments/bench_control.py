@@ -1,24 +1,38 @@
 """Report stage: the controller benchmark on paths (:mod:`snake_pin.runs.benchmark`) on
-the viscous model and a few engine rows, its tables and figures, and the paper's claim on
-curved paths.
+the viscous model and a few engine rows, its tables and figures, the MPC's targets against
+the Lyapunov-like law, and the paper's claim on curved paths.
+
+The full report runs the MPC on :data:`REPORT_MPC_SCENARIOS` (line, circle 1 L, lane
+change), with and without joint 5 failed: 6 cells of 60 s at about 2.5 s of wall per
+simulated second, some 900 s of one core (about 450 s of wall on 2 cores), against some
+1500 s (750 s) for all five :data:`REPORT_SCENARIOS`. The three are the cells of the MPC's
+targets (:func:`mpc_targets`); the circles of 0.5 L and 2 L are left to ``snake-pin
+bench-control``, whose default controllers include the MPC.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from .._json import json_safe
 from ..params import ROBOTS
-from ..runs.benchmark import SPEED, BenchmarkResult, run_benchmark, write_benchmark
+from ..runs.benchmark import (
+    DEFAULT_CONTROLLERS,
+    SPEED,
+    BenchmarkResult,
+    run_benchmark,
+    write_benchmark,
+)
 from ..runs.engine import engine_robot
 from ..runs.tracking import tracking_friction
 from .context import Context
 
-__all__ = ["REPORT_ENGINE_SCENARIOS", "REPORT_ENGINE_T", "REPORT_SCENARIOS",
-           "bench_control_stage"]
+__all__ = ["MPC_TARGET_PCT", "QUICK_MPC_T", "REPORT_ENGINE_SCENARIOS", "REPORT_ENGINE_T",
+           "REPORT_MPC_SCENARIOS", "REPORT_SCENARIOS", "bench_control_stage", "mpc_targets"]
 
 #: Duration of the report's engine rows [s] (the stage's budget: about 30 s of wall).
 REPORT_ENGINE_T = 30.0
@@ -34,16 +48,86 @@ def _fmt(value: Any, digits: int = 3) -> Any:
 
 #: Scenarios of the report's full stage (all of :data:`SCENARIOS` in ``bench-control``).
 REPORT_SCENARIOS = ("line", "circle_0.5L", "circle_1L", "circle_2L", "lane_change")
+#: Scenarios of the full report's MPC rows: the cells of the MPC's targets.
+REPORT_MPC_SCENARIOS = ("line", "circle_1L", "lane_change")
+#: Duration of the quick report's MPC row on the line, and of the Lyapunov-like row it is
+#: compared with [s] (the targets' 60 s runs are the full report's).
+QUICK_MPC_T = 3.0
+#: The MPC's target: head error to the timed reference, RMS over the metrics' window, at most
+#: this % of the body length (and below the Lyapunov-like law's on the same cell).
+MPC_TARGET_PCT = 2.5
+
+
+def mpc_targets(rows: Sequence[dict[str, Any]],
+                limit: float = MPC_TARGET_PCT) -> list[dict[str, Any]]:
+    """Compare each viscous ``mpc`` row with the ``lyapunov`` row of the same cell.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Benchmark rows (:func:`~snake_pin.runs.benchmark.run_cell`) of one benchmark: the
+        same duration and metrics window for every row.
+    limit : float, optional
+        The target on the MPC's head error [% of the body length].
+
+    Returns
+    -------
+    list of dict
+        One per ``mpc`` row, in row order: ``scenario``, ``failed_joint``, ``mpc`` and
+        ``lyapunov`` (head error to the timed reference, RMS, % of L; NaN for a missing or
+        unfinished Lyapunov-like row), ``torque_max`` (the MPC's peak ``|tau_i|`` [N m]),
+        ``limit`` and ``met``: the MPC run completed within ``limit`` and below the
+        Lyapunov-like law's error.
+    """
+    viscous = [r for r in rows if r["model"] == "viscous"]
+    lyapunov = {(r["scenario"], r["failed_joint"]): r for r in viscous
+                if r["controller"] == "lyapunov"}
+    out = []
+    for r in viscous:
+        if r["controller"] != "mpc":
+            continue
+        mpc = float(r["head_error_rms_pct"]) if r["status"] == "completed" else math.nan
+        other = lyapunov.get((r["scenario"], r["failed_joint"]))
+        lyap = (float(other["head_error_rms_pct"])
+                if other is not None and other["status"] == "completed" else math.nan)
+        out.append({"scenario": r["scenario"], "failed_joint": r["failed_joint"],
+                    "mpc": mpc, "lyapunov": lyap, "torque_max": float(r["torque_max"]),
+                    "limit": limit, "met": bool(mpc <= limit and mpc < lyap)})
+    return out
+
+
+def _cost_ratio(rows: Sequence[dict[str, Any]]) -> float:
+    """The MPC cells' wall over the Lyapunov-like law's on the same viscous cells."""
+    wall = {(r["scenario"], r["failed_joint"], r["controller"]): r["wall_s"] for r in rows
+            if r["model"] == "viscous" and r["controller"] in ("mpc", "lyapunov")}
+    pairs = [(w, wall[s, f, "lyapunov"]) for (s, f, c), w in wall.items()
+             if c == "mpc" and (s, f, "lyapunov") in wall]
+    return sum(m for m, _ in pairs) / sum(lyap for _, lyap in pairs) if pairs else math.nan
+
+
+def _merge(grid: BenchmarkResult, mpc: BenchmarkResult) -> BenchmarkResult:
+    """One benchmark of the grid's rows and the MPC rows of the same duration and window, in
+    grid order (failures, scenarios, controllers)."""
+    controllers = [*grid.settings["controllers"], "mpc"]
+    scenarios = grid.settings["scenarios"]
+    rows = sorted(grid.rows + mpc.rows, key=lambda r: (
+        r["failed_joint"], scenarios.index(r["scenario"]), controllers.index(r["controller"])))
+    return BenchmarkResult(rows, {**grid.settings, "controllers": controllers,
+                                  "mpc_scenarios": mpc.settings["scenarios"],
+                                  "wall_s": grid.settings["wall_s"] + mpc.settings["wall_s"]})
 
 
 def bench_control_stage(ctx: Context) -> None:
-    """The ``reproduce`` stage: the benchmark on the viscous model, its table, the claim.
+    """The ``reproduce`` stage: the benchmark on the viscous model, its table, the MPC's
+    targets, the claim.
 
-    Quick: line and circle 1L x lyapunov and los, 12 s, no failure, and one engine row
-    (circle 1L, velocity law, 12 s, one draw). Full: :data:`REPORT_SCENARIOS` x every
-    built-in controller, with and without joint 5 failed, 60 s, and the engine rows:
-    :data:`REPORT_ENGINE_SCENARIOS` with the velocity-level law on the engine robot,
-    :data:`REPORT_ENGINE_T` s runs (shorter than the viscous runs, for the stage's
+    Quick: line and circle 1L x lyapunov and los, 12 s, no failure; the MPC and the
+    Lyapunov-like law on the line for :data:`QUICK_MPC_T` s (written to ``mpc/``); one
+    engine row (circle 1L, velocity law, 12 s, one draw). Full: :data:`REPORT_SCENARIOS` x
+    every built-in controller but the MPC, and the MPC on :data:`REPORT_MPC_SCENARIOS`
+    (see the module's note on the cost), with and without joint 5 failed, 60 s; and the
+    engine rows: :data:`REPORT_ENGINE_SCENARIOS` with the velocity-level law on the engine
+    robot, :data:`REPORT_ENGINE_T` s runs (shorter than the viscous runs, for the stage's
     budget), each the median of :data:`ENGINE_DRAWS` perturbed starts.
 
     Parameters
@@ -58,6 +142,10 @@ def bench_control_stage(ctx: Context) -> None:
     wheeled = engine_robot(ctx.params)  # the engine preset, or one's own robot on wheels
     if ctx.quick:
         result = run_benchmark(quick=True, failed=(None,), robot=robot, cluster=ctx.cluster)
+        # the MPC and the law it is compared with, on the same short cell
+        mpc = run_benchmark(scenarios=("line",), controllers=("lyapunov", "mpc"),
+                            failed=(None,), t_final=QUICK_MPC_T, robot=robot,
+                            cluster=ctx.cluster)
         engine = run_benchmark(scenarios=("circle_1L",), controllers=("velocity",),
                                models=("engine",), failed=(None,), t_final=12.0, draws=1,
                                engine_robot=wheeled, cluster=ctx.cluster)
@@ -65,8 +153,12 @@ def bench_control_stage(ctx: Context) -> None:
         # The report runs the cells behind the paper's claim and the 5 % targets (circles,
         # the lane change, the line) for every law; the sinusoid and waypoint scenarios
         # (LOS about 2x a Lyapunov run there) are left to `snake-pin bench-control`.
-        result = run_benchmark(scenarios=REPORT_SCENARIOS, t_final=60.0, robot=robot,
-                               cluster=ctx.cluster)
+        mpc = run_benchmark(scenarios=REPORT_MPC_SCENARIOS, controllers=("mpc",),
+                            t_final=60.0, robot=robot, cluster=ctx.cluster)
+        result = run_benchmark(scenarios=REPORT_SCENARIOS,
+                               controllers=[c for c in DEFAULT_CONTROLLERS if c != "mpc"],
+                               t_final=60.0, robot=robot, cluster=ctx.cluster)
+        result = _merge(result, mpc)
         engine = run_benchmark(scenarios=REPORT_ENGINE_SCENARIOS, controllers=("velocity",),
                                models=("engine",), failed=(None,), t_final=REPORT_ENGINE_T,
                                engine_robot=wheeled, cluster=ctx.cluster)
@@ -74,29 +166,54 @@ def bench_control_stage(ctx: Context) -> None:
                              {**result.settings, "engine_robot": wheeled.to_dict(),
                               "engine": engine.settings})
     files = write_benchmark(result, ctx.folder)
+    if ctx.quick:
+        files.update({f"mpc_{k}": v for k, v in write_benchmark(mpc, ctx.folder / "mpc").items()})
+    else:
+        mpc = result  # the MPC rows sit in the grid, beside the Lyapunov-like rows
     sec = ctx.report.section("bench_control", "Controller benchmark on paths")
     s = result.settings
+    m = mpc.settings
     sec.text(f"Scenarios {', '.join(s['scenarios'])}; controllers "
              f"{', '.join(s['controllers'])}; viscous Table 1 robot, c_x = 0.5, c_y = 25 N s/m "
              f"(c_y / c_x = 50); head reference along each path at {SPEED} m/s; "
              f"{s['t_final']:g} s runs, metrics over t >= {s['window_start']:g} s; "
              f"{sum(r['model'] == 'viscous' for r in result.rows)} runs in "
-             f"{s['wall_s']:.0f} s wall. LOS follows the path with"
-             " its centre of mass at the gait's own speed (no timing law): its lag and time-"
-             "indexed error are not what it is designed for.")
+             f"{s['wall_s']:.0f} s wall. "
+             + (f"The MPC (|tau_i| <= 1 N m) runs on {', '.join(s['mpc_scenarios'])} only: "
+                f"its cells took {_cost_ratio(result.rows):.0f} times the wall of the "
+                "Lyapunov-like law's on the same cells. " if "mpc_scenarios" in s else "")
+             + "Head error: the time-indexed head error |p_h - p_r(t)| RMS in % of the body "
+             "length (head-tracking laws); torque max: the peak |tau_i| over the whole run. "
+             "LOS follows the path with its centre of mass at the gait's own speed (no timing "
+             "law): its lag and head error are not what it is designed for.")
     header = ["scenario", "controller", "failed joint", "status", "head ct RMS [% L]",
-              "head ct max [m]", "lag RMS [m]", "time-indexed RMS [m]", "CM ct RMS [m]",
-              "R min", "R~ min", "lateral min", "torque RMS [N m]"]
+              "head ct max [m]", "lag RMS [m]", "head error RMS [% L]", "CM ct RMS [m]",
+              "R min", "R~ min", "lateral min", "torque RMS [N m]", "torque max [N m]"]
 
     def cells(r: dict[str, Any]) -> list[Any]:
         return [r["scenario"], r["controller"], r["failed_joint"] or "-",
                 r["status"] + (f" at {r['t_end']:.1f} s"
                                if r["status"] in ("diverged", "failed") else ""),
                 _fmt(r["head_ct_rms_pct"]), _fmt(r["head_ct_max"]), _fmt(r["head_lag_rms"]),
-                _fmt(r["head_error_rms"]), _fmt(r["cm_ct_rms"]), _fmt(r["R_min"]),
-                _fmt(r["R_tilde_min"]), _fmt(r["lateral_min"]), _fmt(r["torque_rms"])]
+                _fmt(r["head_error_rms_pct"]), _fmt(r["cm_ct_rms"]), _fmt(r["R_min"]),
+                _fmt(r["R_tilde_min"]), _fmt(r["lateral_min"]), _fmt(r["torque_rms"]),
+                _fmt(r["torque_max"])]
 
     sec.table(header, [cells(r) for r in result.rows if r["model"] == "viscous"])
+    if ctx.quick:
+        sec.text(f"The MPC and the Lyapunov-like law on the line, {m['t_final']:g} s runs "
+                 f"(short, for the quick report), metrics over t >= {m['window_start']:g} s; "
+                 f"{len(mpc.rows)} runs in {m['wall_s']:.0f} s wall (files in mpc/):")
+        sec.table(header, [cells(r) for r in mpc.rows])
+    targets = mpc_targets(mpc.rows)
+    sec.text(f"The MPC's targets: head error to the timed reference at most "
+             f"{MPC_TARGET_PCT:g} % of L (RMS over t >= {m['window_start']:g} s, "
+             f"{m['t_final']:g} s runs) and below the Lyapunov-like law's on the same cell: "
+             f"met on {sum(t['met'] for t in targets)} of {len(targets)} cells.")
+    sec.table(["scenario", "failed joint", "MPC head error [% L]",
+               "Lyapunov-like head error [% L]", "MPC torque max [N m]", "target met"],
+              [[t["scenario"], t["failed_joint"] or "-", _fmt(t["mpc"]), _fmt(t["lyapunov"]),
+                _fmt(t["torque_max"]), "yes" if t["met"] else "no"] for t in targets])
     on_engine = [r for r in result.rows if r["model"] == "engine"]
     e = engine.settings
     draws = (f"each figure the median of {e['engine_draws']} runs from initial joint angles "
@@ -118,6 +235,13 @@ def bench_control_stage(ctx: Context) -> None:
     for name, path in files.items():
         if name.startswith("table_"):
             sec.figure(path, f"Head cross-track RMS, % of body length ({name[6:]})")
+    for name, path in files.items():
+        kind, _, where = name.removeprefix("mpc_").partition("_")
+        if kind == "error":
+            sec.figure(path, "Head error to the timed reference RMS, % of body length, and "
+                             f"the peak |tau_i| ({where}"
+                             + (f", {m['t_final']:g} s MPC runs" if name.startswith("mpc_")
+                                else "") + ")")
     for name, path in files.items():
         if name.startswith("path_"):
             sec.figure(path, f"Paths with body snapshots ({name[5:]})")
@@ -142,4 +266,7 @@ def bench_control_stage(ctx: Context) -> None:
                  "body is never a pure arc, so on these circles the lateral-constraint "
                  "criterion does not approach zero after the start: the runs show the "
                  "singular arc only at t = 0, not along the circle itself.")
-    sec.numbers.update({"settings": s, "rows": json_safe(result.table())})
+    sec.numbers.update({"settings": s, "rows": json_safe(result.table()),
+                        "mpc_targets": json_safe(targets)}
+                       | ({"mpc_settings": m, "mpc_rows": json_safe(mpc.table())}
+                          if ctx.quick else {}))

@@ -17,11 +17,12 @@ heading along +x, where the run starts on the arc of eq. (82), head first): ``li
 Controllers: ``lyapunov`` (torque-level Lyapunov-like law, VI.2), ``velocity`` (its
 velocity-level, quasi-static form), ``pfl`` and ``pfl_climb`` (PFL, and PFL climbing R with
 ``climb_R =`` :data:`PFL_CLIMB_R`; both need every joint actuated, so their failed-joint
-cells are "not applicable"), ``los`` (Liljebäck's LOS path following of the centre of mass);
-these are :data:`DEFAULT_CONTROLLERS`, what a benchmark runs unless told otherwise.
-``mpc`` (:class:`~snake_pin.control.MPCController` with the default
-:class:`~snake_pin.control.MPCOptions`, ``|tau_i| <= 1`` N m) runs only when named: about
-2.5 s of wall per simulated second, it would multiply the default grid's time. Any
+cells are "not applicable"), ``los`` (Liljebäck's LOS path following of the centre of mass)
+and ``mpc`` (:class:`~snake_pin.control.MPCController` with the default
+:class:`~snake_pin.control.MPCOptions`, ``|tau_i| <= 1`` N m); these are
+:data:`DEFAULT_CONTROLLERS`, what a benchmark runs unless told otherwise. An ``mpc`` cell
+costs about 2.5 s of wall per simulated second (a 60 s cell some 150 s of one core, about
+25 times a Lyapunov-like one): the MPC cells dominate a default grid's time. Any
 :class:`~snake_pin.control.Controller` subclass joins by a factory
 ``factory(snake, reference, path) -> Controller``::
 
@@ -63,10 +64,10 @@ half of runs shorter than 20 s: :func:`~snake_pin.metrics.default_error_window`)
 every 10 ms (criteria every 0.1 s): head cross-track error (distance from the path) RMS and
 max, also in % of the body length; head along-path lag ``s_r(t) - s_h`` RMS (for circles
 wrapped to the nearest lap); time-indexed head error ``|p_h - p_r(t)|`` RMS (head-tracking
-laws only); CM cross-track RMS; R_min, R~_min (joint 5 free) and the lateral-constraint
-criterion's minimum; torque RMS; the peak ``|tau_i|`` over the whole run (``torque_max``,
-start-up included: a torque bound holds at every instant); the status and the time a run
-diverged.
+laws only), also in % of the body length; CM cross-track RMS; R_min, R~_min (joint 5 free)
+and the lateral-constraint criterion's minimum; torque RMS; the peak ``|tau_i|`` over the
+whole run (``torque_max``, start-up included: a torque bound holds at every instant); the
+status and the time a run diverged.
 """
 
 from __future__ import annotations
@@ -178,15 +179,14 @@ CONTROLLERS: dict[str, ControllerFactory] = {
     "lyapunov": _lyapunov, "velocity": _velocity, "pfl": _pfl, "pfl_climb": _pfl_climb,
     "los": _los, "mpc": _mpc,
 }
-#: The built-in controllers a benchmark runs when none is named (the report's grid): all
-#: but ``mpc``, whose runs take about 2.5 s of wall per simulated second.
-DEFAULT_CONTROLLERS = ("lyapunov", "velocity", "pfl", "pfl_climb", "los")
+#: The built-in controllers a benchmark runs when none is named: all of :data:`CONTROLLERS`.
+DEFAULT_CONTROLLERS = ("lyapunov", "velocity", "pfl", "pfl_climb", "los", "mpc")
 #: Columns of a benchmark row (CSV order).
 METRIC_FIELDS = ("scenario", "controller", "model", "failed_joint", "status", "reason",
                  "t_end", "diverged_at", "head_ct_rms", "head_ct_max", "head_ct_rms_pct",
-                 "head_lag_rms", "head_error_rms", "cm_ct_rms", "R_min", "R_tilde_min",
-                 "lateral_min", "torque_rms", "torque_max", "body_length", "draws",
-                 "head_ct_rms_pct_p10", "head_ct_rms_pct_p90", "wall_s")
+                 "head_lag_rms", "head_error_rms", "head_error_rms_pct", "cm_ct_rms", "R_min",
+                 "R_tilde_min", "lateral_min", "torque_rms", "torque_max", "body_length",
+                 "draws", "head_ct_rms_pct_p10", "head_ct_rms_pct_p90", "wall_s")
 #: Engine law of each head-tracking controller (:func:`~snake_pin.engine.run.run_engine`).
 ENGINE_LAWS = {"lyapunov": "acceleration", "velocity": "velocity", "mpc": "mpc"}
 #: Perturbed starts per engine cell: the engine is chaotic, its figures are medians.
@@ -487,7 +487,8 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     if model == "engine":
         _engine_cell(row, scenario, controller, failed, t_final, factory, criteria_dt,
                      draws, engine_robot, start)
-        row["wall_s"] = time.perf_counter() - wall
+        row.update(head_error_rms_pct=_percent_of_body(row),
+                   wall_s=time.perf_counter() - wall)
         return row
     snake = Snake(params)
     try:
@@ -501,10 +502,15 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
                             reference, head_tracking=hasattr(ctrl, "reference"),
                             start=start, criteria_dt=criteria_dt))
-    row["torque_max"] = _torque_max(traj)
+    row.update(torque_max=_torque_max(traj), head_error_rms_pct=_percent_of_body(row))
     _finish(row, traj, traj.status, traj.reason)
     row["wall_s"] = time.perf_counter() - wall
     return row
+
+
+def _percent_of_body(row: dict[str, Any]) -> float:
+    """The row's time-indexed head error RMS in % of its body length (NaN without one)."""
+    return 100.0 * row["head_error_rms"] / row["body_length"]
 
 
 @dataclass
@@ -719,25 +725,40 @@ def _figure_bytes(fig: Any) -> bytes:
     return buf.getvalue()
 
 
-def _table_figure(result: BenchmarkResult, model: str, failed: int) -> Any:
+#: The table figures: name prefix -> (row metric, title); ``error_`` cells add the peak
+#: ``|tau_i|`` (torque_max) under the head error.
+_TABLES = {"table": ("head_ct_rms_pct", "Head cross-track RMS [% of body]"),
+           "error": ("head_error_rms_pct", "Head error to the timed reference RMS [% of body]"
+                                           "\nand peak |tau_i| [N m]")}
+
+
+def _table_figure(result: BenchmarkResult, model: str, failed: int,
+                  kind: str = "table") -> Any:
     import matplotlib.pyplot as plt
 
+    metric, title = _TABLES[kind]
     rows = [r for r in result.rows if r["model"] == model and r["failed_joint"] == failed]
     scen = list(dict.fromkeys(r["scenario"] for r in rows))
     ctrl = list(dict.fromkeys(r["controller"] for r in rows))
+    cell = {(r["scenario"], r["controller"]): r for r in rows}  # a grid may leave cells out
     grid = np.full((len(scen), len(ctrl)), np.nan)
     for r in rows:
-        grid[scen.index(r["scenario"]), ctrl.index(r["controller"])] = r["head_ct_rms_pct"]
+        grid[scen.index(r["scenario"]), ctrl.index(r["controller"])] = r[metric]
     fig, ax = plt.subplots(figsize=(1.4 * len(ctrl) + 2.5, 0.5 * len(scen) + 1.5))
     shown = np.log10(np.clip(grid, 0.1, 1000.0))
     ax.imshow(np.ma.masked_invalid(shown), cmap="RdYlGn_r", vmin=0.0, vmax=2.0, aspect="auto")
     for i, s in enumerate(scen):
         for j, c in enumerate(ctrl):
-            r = next(x for x in rows if x["scenario"] == s and x["controller"] == c)
+            if (s, c) not in cell:
+                continue
+            r = cell[s, c]
             text = "n/a" if r["status"] == "not applicable" else (
-                f"{grid[i, j]:.1f}" if np.isfinite(grid[i, j]) else "-")
-            if r["draws"] > 1 and np.isfinite(grid[i, j]):
+                "-" if not np.isfinite(grid[i, j]) else
+                f"{grid[i, j]:.2f}" if grid[i, j] < 1.0 else f"{grid[i, j]:.1f}")
+            if r["draws"] > 1 and np.isfinite(grid[i, j]) and kind == "table":
                 text += f"\n[{r['head_ct_rms_pct_p10']:.1f}, {r['head_ct_rms_pct_p90']:.1f}]"
+            if kind == "error" and np.isfinite(r["torque_max"]):
+                text += f"\n{r['torque_max']:.2g} N m"
             if r["status"] in ("diverged", "failed"):
                 text += f"\n({r['status']} {r['t_end']:.0f} s)"
             ax.text(j, i, text, ha="center", va="center", fontsize=8)
@@ -745,10 +766,10 @@ def _table_figure(result: BenchmarkResult, model: str, failed: int) -> Any:
     ax.set_yticks(range(len(scen)), scen)
     where = f", joint {failed} failed" if failed else ""
     draws = max((r["draws"] for r in rows), default=1)
-    spread = (f"\nmedian of {draws} perturbed starts [10-90 % range]" if draws > 1 else "")
+    spread = (f"\nmedian of {draws} perturbed starts" if draws > 1 else "")
+    spread += " [10-90 % range]" if draws > 1 and kind == "table" else ""
     start = result.settings.get("window_start", ERROR_WINDOW)
-    ax.set_title(f"Head cross-track RMS [% of body], {model}{where}, t >= "
-                 f"{start:g} s{spread}", fontsize=9)
+    ax.set_title(f"{title}\n{model}{where}, t >= {start:g} s{spread}", fontsize=9)
     return fig
 
 
@@ -813,10 +834,12 @@ def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Pa
     """Write ``benchmark.csv``, ``benchmark.json`` and the figures into ``folder`` (one set).
 
     Figures: ``table_<model>_<failed>.png`` (scenario x controller, head cross-track
-    RMS % of body), ``path_<scenario>_<model>_<failed>.png`` (the path, the head and the
-    body at a few times, one panel per controller), ``claim_<scenario>.png`` for the
-    circles run by ``lyapunov`` on the viscous model without failure (R and the
-    lateral-constraint criterion along the run, log scale).
+    RMS % of body), ``error_<model>_<failed>.png`` (the time-indexed head error RMS % of
+    body and the peak ``|tau_i|``; blank cells: not run),
+    ``path_<scenario>_<model>_<failed>.png`` (the path, the head and the body at a few
+    times, one panel per controller), ``claim_<scenario>.png`` for the circles run by
+    ``lyapunov`` on the viscous model without failure (R and the lateral-constraint
+    criterion along the run, log scale).
 
     Parameters
     ----------
@@ -838,10 +861,10 @@ def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Pa
         out["json"] = group.write_bytes("benchmark.json", _json_bytes(result))
         combos = list(dict.fromkeys((r["model"], r["failed_joint"]) for r in result.rows))
         for model, failed in combos:
-            name = f"table_{model}_{failed}"
-            out[name] = group.write_bytes(f"{name}.png",
-                                          _figure_bytes(_table_figure(result, model, failed)),
-                                          figure=True)
+            for kind in _TABLES:
+                name = f"{kind}_{model}_{failed}"
+                fig = _table_figure(result, model, failed, kind)
+                out[name] = group.write_bytes(f"{name}.png", _figure_bytes(fig), figure=True)
             for scenario in dict.fromkeys(r["scenario"] for r in result.rows):
                 if any(r["snapshots"] for r in result.rows if r["scenario"] == scenario
                        and r["model"] == model and r["failed_joint"] == failed):
