@@ -51,7 +51,8 @@ Models: ``viscous`` (the Table 1 robot with c_x = 0.5, c_y = 25 N s/m, i.e.
 c_y / c_x = 50, through :func:`snake_pin.sim.simulate` at 1 kHz) and ``engine`` (the
 engine robot of VI.3 on MuJoCo through :func:`snake_pin.engine.run.run_engine` with the
 scenario's path as its reference, scaled to that robot's body length: ``lyapunov`` is the
-torque-level law, ``velocity`` the velocity-level one; PFL, LOS and user controllers are
+torque-level law, ``velocity`` the velocity-level one, ``mpc`` the MPC within the motors'
+10 N m (:data:`~snake_pin.engine.run.ENGINE_TORQUE_BOUND`); PFL, LOS and user controllers are
 "not applicable" there, run_engine runs the head-tracking laws only). The engine runs are
 chaotic: an engine cell is :data:`ENGINE_DRAWS` runs from initial joint angles offset by
 :func:`~snake_pin.runs.engine.perturbations` (1e-6 rad, seed 0), each metric the
@@ -344,7 +345,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
     law = ENGINE_LAWS.get(controller)
     if factory is not None or law is None:
         row.update(status="not applicable",
-                   reason="the engine runs the head-tracking laws (lyapunov, velocity) only: "
+                   reason="the engine runs the head-tracking laws (lyapunov, velocity, mpc) only: "
                           "run_engine has no PFL, LOS or user controller")
         return row
     params = robot if robot is not None else SnakeParams.engine()
@@ -425,7 +426,8 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
 
     On the engine (MuJoCo, :func:`~snake_pin.engine.run.run_engine` with the scenario as
     its reference), ``lyapunov`` runs the torque-level law (``law="acceleration"``) and
-    ``velocity`` the velocity-level one; the cell is ``draws`` runs from perturbed
+    ``velocity`` the velocity-level one and ``mpc`` the MPC (|tau_i| <= 10 N m, the motors'
+    saturation); the cell is ``draws`` runs from perturbed
     starts and each metric is their median (the engine is chaotic), with the 10-90 %
     range of the head cross-track RMS. Other controllers are "not applicable" there.
 
