@@ -426,7 +426,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
 
     On the engine (MuJoCo, :func:`~snake_pin.engine.run.run_engine` with the scenario as
     its reference), ``lyapunov`` runs the torque-level law (``law="acceleration"``) and
-    ``velocity`` the velocity-level one and ``mpc`` the MPC (|tau_i| <= 10 N m, the motors'
+    ``velocity`` the velocity-level one and ``mpc`` the MPC (``|tau_i| <= 10`` N m, the motors'
     saturation); the cell is ``draws`` runs from perturbed
     starts and each metric is their median (the engine is chaotic), with the 10-90 %
     range of the head cross-track RMS. Other controllers are "not applicable" there.
