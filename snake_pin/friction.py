@@ -52,6 +52,8 @@ WHEELED_TWIN_MAX_LINKS = 40
 
 _WORLD = pin.Convention.WORLD
 _RNEA = pin.rnea
+# read once: numpy's module __getattr__ keeps Python from caching ``np.<name>`` lookups
+_NEGATIVE, _SUBTRACT = np.negative, np.subtract
 
 #: Pinocchio joint index of the head link in the paper model (after base_x, base_y).
 _HEAD_JOINT = 3
@@ -333,9 +335,9 @@ class FrictionModel:
             twin, twin_data, zero = data.rnea_route
             minus = _RNEA(twin, twin_data, q, zero, v)
         if base is None:
-            np.negative(minus, force)
+            _NEGATIVE(minus, force)
         else:
-            np.subtract(base, minus, force)
+            _SUBTRACT(base, minus, force)
         return force
 
     def __call__(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:

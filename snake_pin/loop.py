@@ -140,13 +140,14 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
         call = ctrl.__call__
         signals_of = ctrl.signals if record_signals else dict
         plant_acceleration = ctrl.plant_acceleration if plant.takes_first_stage else None
+        robot, step = plant.snake, plant.step
         # one BLAS thread for the run's tiny matrices, entered once (not per step)
         with _thread_pools().limit(limits=1):
             for k, t in enumerate(times.tolist() if status == "completed" else ()):
                 tau, known = None, len(signals)
                 try:
                     raw = call(x, t)
-                    if late_check and type(raw) is np.ndarray and raw.dtype is _FLOAT \
+                    if late_check and type(raw) is _NDARRAY and raw.dtype is _FLOAT \
                             and raw.shape == torque_shape:
                         tau = raw  # whether it is finite: checked with the new state
                     else:
@@ -160,7 +161,7 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
                         if series is None:
                             series = signals[name] = np.full(steps + 1, np.nan)
                         series[k] = value
-                    first = plant_acceleration(plant.snake) if plant_acceleration else None
+                    first = plant_acceleration(robot) if plant_acceleration else None
                 except Exception as exc:
                     if tau is not None and not np.isfinite(tau).all():
                         status, reason = "failed", refuse(k, t, known)
@@ -170,7 +171,7 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
                 taus[k] = tau
                 after = xs[k + 1]
                 try:
-                    problem = plant.step(tau, first, after, t)
+                    problem = step(tau, first, after, t)
                 except (SnakePinError, ArithmeticError, np.linalg.LinAlgError) as exc:
                     problem = f"the dynamics failed ({type(exc).__name__}: " \
                               f"{one_line(str(exc))})"
@@ -313,6 +314,8 @@ class _TorqueCheck:
 
 
 _FLOAT = np.dtype(np.float64)
+# read once: numpy's module __getattr__ keeps Python from caching ``np.<name>`` lookups
+_NDARRAY = np.ndarray
 
 
 def _failure(t: float, exc: BaseException) -> str:

@@ -35,6 +35,9 @@ BASE_JOINTS = ("base_x", "base_y", "base_yaw")
 
 _WORLD = pin.Convention.WORLD
 _ABA = pin.aba
+_NONLINEAR_EFFECTS = pin.nonLinearEffects
+# read once: numpy's module __getattr__ keeps Python from caching ``np.<name>`` lookups
+_SUBTRACT = np.subtract
 
 
 def paper_model(params: SnakeParams) -> pin.Model:
@@ -345,9 +348,9 @@ class Snake:
         tuple of numpy.ndarray
             ``b`` (new) and ``H^-1`` whole (``data.inverse_mass``, until the next call).
         """
-        force = self.friction.calc_force(data.friction, q, v)
-        b = pin.aba(self.model, data.pin, q, v, force, _WORLD)
-        data.minverse(self.model, data.pin)
+        model, pin_data, calc_force, friction = data.dynamics
+        b = _ABA(model, pin_data, q, v, calc_force(friction, q, v), _WORLD)
+        data.minverse(model, pin_data)
         return b, data.inverse_mass
 
     def calc_mass_and_bias(self, data: SnakeData, q: np.ndarray,
@@ -366,10 +369,12 @@ class Snake:
         tuple of numpy.ndarray
             ``H`` whole (``data.mass``) and ``h`` (``data.bias``), until the next call.
         """
-        force = self.friction.calc_force(data.friction, q, v)
-        data.crba(self.model, data.pin, q, _WORLD)
-        np.subtract(pin.nonLinearEffects(self.model, data.pin, q, v), force, data.bias)
-        return data.mass, data.bias
+        model, pin_data, calc_force, friction = data.dynamics
+        force = calc_force(friction, q, v)
+        data.crba(model, pin_data, q, _WORLD)
+        bias = data.bias
+        _SUBTRACT(_NONLINEAR_EFFECTS(model, pin_data, q, v), force, bias)
+        return data.mass, bias
 
     def calc_torque(self, data: SnakeData, tau: np.ndarray) -> np.ndarray:
         """``E tau`` into ``data.torque`` (passive joints' entries 0; unchecked).
@@ -717,7 +722,7 @@ class SnakeData:
         nq = snake.nq
         self.bias, self.torque = np.zeros(nq), np.zeros(nq)
         self.friction = snake.friction.create_data()
-        # what calc_acceleration reads, in one tuple (one attribute lookup per call)
+        # what the calc_* methods read, in one tuple (one attribute lookup per call)
         self.dynamics = (snake.model, self.pin, snake.friction.calc_force, self.friction)
         mirrors = snake.binding_mirrors
         self.crba = whole(pin.crba, self.mass, mirrors)

@@ -57,6 +57,9 @@ MAX_DISTANCE = 1.0e3
 #: Most integration steps per control step (control_dt / dt).
 MAX_SUBSTEPS = 1_000
 
+# read once: numpy's module __getattr__ keeps Python from caching ``np.<name>`` lookups
+_ABSOLUTE, _LESS_EQUAL = np.absolute, np.less_equal
+
 
 # ----------------------------------------------------------------------- simulate
 class _FunctionController(Controller):
@@ -277,42 +280,45 @@ class ViscousPlant(Plant):
         self._own = isinstance(snake, Snake) and \
             type(snake).state_derivative is Snake.state_derivative
         self.takes_first_stage = self._own and method == "rk4"
-        self._slopes = np.zeros((5, 2 * nq))  # Y = [Z; d1; d2; d3; d4]
-        self._state = self._slopes[0]
+        slopes = np.zeros((5, 2 * nq))  # Y = [Z; d1; d2; d3; d4]
+        self._state = state = slopes[0]
         stages = np.zeros((4, 2 * nq))
         stages[0] = np.nan  # stage 1's state is Z itself
         # the new state right before E tau: one pass checks both (see step)
-        self._checked = np.zeros(3 * nq)
-        self._new, torque = self._checked[:2 * nq], self._checked[2 * nq:]
+        checked = np.zeros(3 * nq)
+        new, torque = checked[:2 * nq], checked[2 * nq:]
         self._joint_torque = torque[3:]
         self._passive = tuple(k - 1 for k in snake.params.passive)
-        rows = [self._state, *stages[1:]]
+        rows = [state, *stages[1:]]
+        evaluate: Callable[..., np.ndarray]
         if self._own:
             data = snake.create_data()
-            self._evaluate: Callable[..., np.ndarray] = snake.calc_acceleration
-            self._arguments: list[tuple[Any, ...]] = [(data, row[:nq], row[nq:], torque)
-                                                      for row in rows]
+            evaluate = snake.calc_acceleration
+            arguments: list[tuple[Any, ...]] = [(data, row[:nq], row[nq:], torque)
+                                                for row in rows]
         else:
-            self._evaluate = snake.state_derivative
-            self._arguments = [(row, self._joint_torque) for row in rows]
-        h, columns = dt, self._slopes.T  # Y^T: Fortran-ordered
+            evaluate = snake.state_derivative
+            arguments = [(row, self._joint_torque) for row in rows]
+        h, columns = dt, slopes.T  # Y^T: Fortran-ordered
         coefficients = [np.array(row) for row in (
             (1.0, 0.5 * h, 0.0, 0.0, 0.0), (1.0, 0.0, 0.5 * h, 0.0, 0.0),
             (1.0, 0.0, 0.0, h, 0.0), (1.0, h / 6.0, h / 3.0, h / 3.0, h / 6.0))]
-        # per later stage: its state's product with Y, and where its slope goes in Y; then
-        # the new state's product
-        self._stages = [(gemv(1.0, columns, coefficients[i - 1], 0.0, rows[i]),
-                         self._slopes[i + 1, :nq], self._slopes[i + 1, nq:], rows[i][nq:])
-                        for i in (1, 2, 3)]
-        self._final = gemv(1.0, columns, coefficients[3], 0.0, self._new)
+        # per later stage: its state's product with Y, and where its slope goes in Y
+        later = [(gemv(1.0, columns, coefficients[i - 1], 0.0, rows[i]), slopes[i + 1, :nq],
+                  slopes[i + 1, nq:], rows[i][nq:]) for i in (1, 2, 3)]
         # bounds of |z|, then of |E tau|: the largest float (false for inf and NaN)
-        self._limits = np.full(3 * nq, np.finfo(float).max)
-        self._limits[:2] = max_distance
-        self._limits[2:nq] = np.inf
-        self._limits[nq:2 * nq] = max_speed
-        self._magnitude = np.zeros(3 * nq)
-        self._within = np.zeros(3 * nq, dtype=bool)
-        self._all_within = np.ones(3 * nq, dtype=bool).tobytes()
+        limits = np.full(3 * nq, np.finfo(float).max)
+        limits[:2] = max_distance
+        limits[2:nq] = np.inf
+        limits[nq:2 * nq] = max_speed
+        # what an RK4 step reads, views made once, in the order step unpacks them (one
+        # unpacking of a tuple costs less than a lookup per name): the evaluator and its
+        # arguments per stage, the later stages, the new state's product with Y and the
+        # new state, the first stage's slope and Z's velocity, and the bounds' check
+        self._rk4 = (evaluate, *arguments, *later, gemv(1.0, columns, coefficients[3], 0.0, new),
+                     new, slopes[1, :nq], slopes[1, nq:], state[nq:], substeps, checked,
+                     np.zeros(3 * nq), limits, np.zeros(3 * nq, dtype=bool),
+                     np.ones(3 * nq, dtype=bool).tobytes())
 
     def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
         """Calls at k control_dt; sample k + 1 at t_k + control_dt.
@@ -371,16 +377,16 @@ class ViscousPlant(Plant):
             if not math.isfinite(joint_torque[joint]):
                 return "the torque is not finite"  # nothing stepped
             joint_torque[joint] = 0.0
-        state, nq = self._state, self.nq
+        state = self._state
         if self._method != "rk4":
+            nq = self.nq
             out[...] = _solve_ivp_step(self._rhs, state, t, self._control_dt)
             state[...] = out
             return _divergence(out, nq, self._max_speed, self._max_distance)
-        evaluate, new, final, slopes = self._evaluate, self._new, self._final, self._slopes
-        d0, a0, velocity = slopes[1, :nq], slopes[1, nq:], state[nq:]
-        (stage1, v1, a1, s1), (stage2, v2, a2, s2), (stage3, v3, a3, s3) = self._stages
-        arguments0, arguments1, arguments2, arguments3 = self._arguments
-        for sub in range(self._substeps):
+        (evaluate, arguments0, arguments1, arguments2, arguments3, (stage1, v1, a1, s1),
+         (stage2, v2, a2, s2), (stage3, v3, a3, s3), final, new, d0, a0, velocity, substeps,
+         checked, magnitude, limits, within, all_within) = self._rk4
+        for sub in range(substeps):
             d0[...] = velocity
             a0[...] = evaluate(*arguments0) if sub or first is None else first
             stage1()
@@ -397,10 +403,9 @@ class ViscousPlant(Plant):
         out[...] = new
         # every |z| and |E tau| within its bound (NaN is not), in one pass over the new
         # state and the torque: compared as bytes, cheaper than .all()
-        if np.less_equal(np.absolute(self._checked, self._magnitude), self._limits,
-                         self._within).tobytes() == self._all_within:
+        if _LESS_EQUAL(_ABSOLUTE(checked, magnitude), limits, within).tobytes() == all_within:
             return ""
-        return _divergence(out, nq, self._max_speed, self._max_distance) or \
+        return _divergence(out, self.nq, self._max_speed, self._max_distance) or \
             "the torque is not finite"
 
     def _rhs(self, _t: float, x: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ tail, so a head-first run along +x has theta_1 = pi; see
 from __future__ import annotations
 
 from dataclasses import dataclass
-from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 
@@ -30,6 +30,9 @@ from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
 
 __all__ = ["LyapunovController", "LyapunovOptions"]
+
+# read once: numpy's module __getattr__ keeps Python from caching ``np.<name>`` lookups
+_MULTIPLY = np.multiply
 
 #: The shape spring k_s when the robot has a passive (or failed) joint [1/s^2].
 K_SHAPE_PASSIVE = 0.3
@@ -212,51 +215,57 @@ class LyapunovController(ReferenceLaw):
         self._sqrt_w = np.tile(sqrt_w, (m, 1))
         self._sqrt_w[passive] = 0.0
 
-    def _allocate(self) -> SimpleNamespace:
-        """The call's buffers and their views, made once (and again on unpickling)."""
-        nq, m = self.snake.nq, self.snake.n - 1
+    def _allocate(self) -> tuple[Any, ...]:
+        """The call's buffers, views and prepared products, made once (and again on
+        unpickling), in the order :meth:`__call__` unpacks them (one unpacking of a tuple
+        costs less than a lookup per name)."""
+        snake = self.snake
+        nq, m = snake.nq, snake.n - 1
         inputs, stack = np.zeros(5 * nq), self._stack.copy()  # a copy's own buffers
-        data = self.snake.create_data()
+        data = snake.create_data()
         # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas):
         # [A^T W A, rhs, V] = stack stack^T (upper triangle), and its A^T W A block copied
         # whole for the solve. A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a
         # contiguous view of the data's (Pinocchio stores it row-major), and A = rows.T
         normal = np.zeros((m + 2, m + 2), order="F")
-        gram, tau = np.zeros((m, m), order="F"), np.zeros(m)
+        gram = np.zeros((m, m), order="F")
         rows = data.inverse_mass[3:]
-        b = inputs[2 * nq:3 * nq]
-        return SimpleNamespace(
-            data=data, x=inputs[:2 * nq], q=inputs[:nq], v=inputs[nq:2 * nq], b=b,
-            time=inputs[3 * nq:], weighted_t=stack[:m, :nq], normal=normal, gram=gram,
-            gram_block=normal[:m, :m], rhs=normal[:m, m], last=m + 1, rows=rows, tau=tau,
+        b, tau = inputs[2 * nq:3 * nq], normal[:m, m]  # tau: solved in place of the rhs
+        return (
+            snake.calc_affine, data, inputs[:2 * nq], inputs[:nq], inputs[nq:2 * nq], b,
+            inputs[3 * nq:], self._time_row,
             # [W^(1/2) (q''* - b); W^(1/2) [s; e]] from [q, q', b, time row]
-            errors=gemv(1.0, self._law_state.T, inputs, 0.0, stack[m:].reshape(-1), 1),
-            normal_equations=syrk(1.0, stack.T, 0.0, normal, 1),  # [A^T W A, rhs, V]
-            solve=posv(gram, tau),  # its upper triangle; tau in place
-            acceleration=gemv(1.0, rows.T, tau, 1.0, b))  # q'' = b + A tau_a, in b
+            gemv(1.0, self._law_state.T, inputs, 0.0, stack[m:].reshape(-1), 1),
+            rows, self._sqrt_w, stack[:m, :nq],
+            syrk(1.0, stack.T, 0.0, normal, 1),  # [A^T W A, rhs, V]
+            gram, normal[:m, :m], tau,
+            posv(gram, tau),  # its upper triangle; tau in place of the rhs
+            gemv(1.0, rows.T, tau, 1.0, b),  # q'' = b + A tau_a, in b
+            normal, m + 1)
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques at (x, t), 0 on passive joints.
 
         SingularPostureError if A^T W A is not positive definite.
         """
-        work = self._buffers
+        (affine, data, x_slot, q, v, b, time_slot, time_row, errors, rows, sqrt_w,
+         weighted_t, normal_equations, gram, gram_block, tau, solve, acceleration, normal,
+         last) = self._buffers
         self._acceleration = None
-        work.x[...] = x
-        work.b[...] = self.snake.calc_affine(work.data, work.q, work.v)[0]  # and H^-1
-        work.time[...] = self._time_row(t)
-        work.errors()
-        np.multiply(work.rows, self._sqrt_w, work.weighted_t)  # (W^(1/2) A)^T
-        work.normal_equations()
-        work.gram[...] = work.gram_block
-        work.tau[...] = work.rhs
-        info = work.solve()[2]
+        x_slot[...] = x
+        b[...] = affine(data, q, v)[0]  # and H^-1, read through rows
+        time_slot[...] = time_row(t)
+        errors()
+        _MULTIPLY(rows, sqrt_w, weighted_t)  # (W^(1/2) A)^T
+        normal_equations()
+        gram[...] = gram_block
+        info = solve()[2]
         if info != 0:
             raise SingularPostureError(f"A^T W A is not positive definite (LAPACK info {info})")
-        work.acceleration()
-        self._acceleration = work.b
-        self._signals = {"V": work.normal.item(work.last, work.last)}
-        return work.tau.copy()
+        acceleration()
+        self._acceleration = b
+        self._signals = {"V": normal.item(last, last)}
+        return tau.copy()
 
     def targets(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q''*, s, e)``: the target accelerations and the errors of V at (x, t).

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 
@@ -28,6 +28,9 @@ from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
 __all__ = ["PFLController", "PFLOptions"]
+
+# read once: numpy's module __getattr__ keeps Python from caching ``np.<name>`` lookups
+_NEGATIVE, _SUBTRACT = np.negative, np.subtract
 
 #: The climb term's damping k_d when climb_R > 0 and none is given [1/s].
 CLIMB_DAMPING = 2.0
@@ -147,73 +150,76 @@ class PFLController(ReferenceLaw):
         self._stacked = np.zeros(nq)
         self._buffers = self._allocate()
 
-    def _allocate(self) -> SimpleNamespace:
-        """The call's buffers and their views, made once (and again on unpickling)."""
-        nq = self._nq
+    def _allocate(self) -> tuple[Any, ...]:
+        """The call's buffers, views and prepared products, made once (and again on
+        unpickling), in the order :meth:`__call__` unpacks them (one unpacking of a tuple
+        costs less than a lookup per name)."""
+        nq, snake = self._nq, self.snake
         m = nq - 3
-        data = self.snake.create_data()
-        mass, stacked = data.mass, self._stacked  # H (Fortran-ordered, whole)
+        data = snake.create_data()
+        mass, bias, stacked = data.mass, data.bias, self._stacked  # H (Fortran-ordered, whole)
         state = np.zeros(2 * nq)
         # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas): H12
-        # and H22 are copied into them per call; H's columns are its rows (symmetric)
+        # and H22 are copied into them per call; H's columns are its rows (symmetric). h is
+        # the call's own (data.bias): its head's rows become z, its joints' the torque
         h12, h22 = np.zeros((3, m), order="F"), np.zeros((m, m), order="F")
-        gram, p_rhs, z, tau = np.zeros((3, 3), order="F"), np.zeros(m), np.zeros(3), np.zeros(m)
-        minus_a, u = stacked[:3], stacked[3:]
-        return SimpleNamespace(
-            data=data, state=state, q=state[:nq], v=state[nq:], h12=h12, h22=h22, gram=gram,
-            z=z, tau=tau, h12_block=mass[:3, 3:], h22_block=mass[3:, 3:],
-            h_head=data.bias[:3], h_joints=data.bias[3:], minus_a=minus_a, u=u,
-            gram_of_h12=syrk(1.0, h12, 0.0, gram),  # H12 H12^T (upper triangle)
-            targets=gemv(1.0, self._gain.T, state, 1.0, stacked, 1),  # [-a; u] (71, 78)
-            minus_p=gemv(1.0, h12, minus_a, 0.0, p_rhs, 1),  # -H21 a
-            solve_p=posv(h22, p_rhs),  # -p = -H22^-1 H21 a, in p_rhs
-            p_rhs=p_rhs,
-            # -H11 a + H12 u - h1, then (H12 H12^T)^-1 of it, in z
-            z_rhs=gemv(1.0, mass[:, :3], stacked, -1.0, z, 1),
-            solve_z=posv(gram, z),
-            joint_rates=gemv(1.0, h12, z, -1.0, u, 1),  # phi'' = H12^+ z - (u + p)
-            torque=gemv(1.0, mass[:, 3:], stacked, 1.0, tau, 1))  # H21 a + H22 phi'' + h2
+        gram, p_rhs = np.zeros((3, 3), order="F"), np.zeros(m)
+        minus_a, u, z, h_joints = stacked[:3], stacked[3:], bias[:3], bias[3:]
+        return (
+            snake.calc_mass_and_bias, data, state, state[:nq], state[nq:], h12, mass[:3, 3:],
+            syrk(1.0, h12, 0.0, gram),  # H12 H12^T (upper triangle)
+            gram, stacked, self._time_row,
+            gemv(1.0, self._gain.T, state, 1.0, stacked, 1),  # [-a; u] (71, 78)
+            minus_a, u,
+            gemv(1.0, h12, minus_a, 0.0, p_rhs, 1),  # -H21 a
+            h22, mass[3:, 3:],
+            posv(h22, p_rhs),  # -p = -H22^-1 H21 a, in p_rhs
+            p_rhs,
+            gemv(1.0, mass[:, :3], stacked, -1.0, z, 1),  # z = -H11 a + H12 u - h1
+            posv(gram, z),  # (H12 H12^T)^-1 z, in z
+            gemv(1.0, h12, z, -1.0, u, 1),  # phi'' = H12^+ z - (u + p)
+            gemv(1.0, mass[:, 3:], stacked, 1.0, h_joints, 1),  # H21 a + H22 phi'' + h2
+            h_joints)
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques at (x, t).
 
         SingularPostureError if R <= r_min, or H22 or H12 H12^T is not positive definite.
         """
-        work = self._buffers
+        (mass_and_bias, data, state, q, v, h12, h12_block, gram_of_h12, gram, stacked,
+         time_row, targets, minus_a, u, minus_p, h22, h22_block, solve_p, p_rhs, z_rhs,
+         solve_z, joint_rates, torque, tau) = self._buffers
         self._acceleration = None
-        work.state[...] = x
-        self.snake.calc_mass_and_bias(work.data, work.q, work.v)  # H (whole) and h
-        work.h12[...] = work.h12_block
-        work.gram_of_h12()
-        r = math.sqrt(max(smallest_eigenvalue_3x3(work.gram), 0.0))  # H12's least singular value
+        state[...] = x
+        mass_and_bias(data, q, v)  # H (whole) and h
+        h12[...] = h12_block
+        gram_of_h12()
+        r = math.sqrt(max(smallest_eigenvalue_3x3(gram), 0.0))  # H12's least singular value
         if not r > self.r_min:
             raise SingularPostureError(f"R = {r:.3g} <= {self.r_min:g}: PFL is undefined here")
-        stacked, u = self._stacked, work.u
-        stacked[...] = self._time_row(t)
-        work.targets()
+        stacked[...] = time_row(t)
+        targets()
         if self.climb_R:
             nq = self._nq
             np.subtract(u, self.climb_damping * (self.climb_R * self._grad_log_r(x[3:nq])
                                                  - x[nq + 3:]), u)
-        work.minus_p()
-        work.h22[...] = work.h22_block
-        info = work.solve_p()[2]
+        minus_p()
+        h22[...] = h22_block
+        info = solve_p()[2]
         if info != 0:
             raise SingularPostureError(f"H22 is not positive definite (LAPACK info {info})")
-        np.subtract(u, work.p_rhs, u)  # stacked = [-a; p + u]
-        work.z[...] = work.h_head
-        work.z_rhs()
-        info = work.solve_z()[2]
+        _SUBTRACT(u, p_rhs, u)  # stacked = [-a; p + u]
+        z_rhs()
+        info = solve_z()[2]
         if info != 0:
             raise SingularPostureError(
                 f"H12 H12^T is not positive definite (LAPACK info {info})")
-        work.joint_rates()
-        np.negative(work.minus_a, work.minus_a)  # w'' = a: stacked is q'' now
-        work.tau[...] = work.h_joints
-        work.torque()
+        joint_rates()
+        _NEGATIVE(minus_a, minus_a)  # w'' = a: stacked is q'' now
+        torque()
         self._acceleration = stacked
         self._signals = {"R": r}
-        return work.tau.copy()
+        return tau.copy()
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
         """The head acceleration a of eq. (71) at state x and time t.
