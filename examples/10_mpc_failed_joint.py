@@ -27,7 +27,7 @@ from snake_pin.control import MPCOptions
 from snake_pin.engine.run import run_engine
 from snake_pin.paths import Circle, PathReference, Timing
 
-T_FINAL = 5.0
+T_FINAL = 4.0
 FAILED = 5
 BOUND = 3.0                                      # [N m]; the motors saturate at 10 N m
 params = SnakeParams.engine(passive=(FAILED,))

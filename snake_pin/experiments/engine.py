@@ -49,7 +49,7 @@ SENSITIVE = 1e-3
 #: body length), its duration (full report, ``--quick``) [s] and its perturbed starts. The
 #: MPC re-solves its horizon every 40 ms, several times slower than the other laws.
 MPC_SCENARIOS = ("line", "circle_1L")
-MPC_T_FINAL, QUICK_MPC_T_FINAL = 25.0, 2.0
+MPC_T_FINAL, QUICK_MPC_T_FINAL = 25.0, 1.0
 MPC_DRAWS = 3
 
 

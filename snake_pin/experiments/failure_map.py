@@ -34,7 +34,7 @@ for the MPC's line. The text states what the map shows from those numbers
 (:func:`findings`); the mechanisms and the retuning study are in ``docs/failure_map.rst``.
 
 With ``ctx.quick`` the plans are :data:`QUICK` (11 s, failed joints 0, 1, 2, 5, 9, ratios
-10 and 50) and :data:`MPC_QUICK` (3 s, failed joints 0 and 5); the full plans are
+10 and 50) and :data:`MPC_QUICK` (2 s, failed joints 0 and 5); the full plans are
 :data:`FULL` and :data:`MPC_FULL` (the MPC re-solves its problem every 40 ms: its 10 runs
 are the stage's longest part, ``docs/failure_map.rst``). An interrupt (KeyboardInterrupt,
 or the study's :class:`~snake_pin.exceptions.RunInterrupted`) propagates: the report
@@ -103,8 +103,8 @@ FULL = MapPlan(60.0, None, (10.0, 25.0, 50.0, 100.0))
 QUICK = MapPlan(11.0, (0, 1, 2, 5, 9), (10.0, 50.0))
 #: The MPC's line of the map: 60 s, every joint failed in turn, at c_y/c_x = 50.
 MPC_FULL = MapPlan(60.0, None, (50.0,))
-#: ``reproduce --quick``: 3 s MPC runs (errors from 1 s), no failure and joint 5 failed.
-MPC_QUICK = MapPlan(3.0, (0, 5), (50.0,), error_window=1.0)
+#: ``reproduce --quick``: 2 s MPC runs (errors from 1 s), no failure and joint 5 failed.
+MPC_QUICK = MapPlan(2.0, (0, 5), (50.0,), error_window=1.0)
 #: The map's study of each law: its name (and file stem), the law in words.
 _LAWS = {"lyapunov": ("failure_map", "Lyapunov-like law"),
          "mpc": ("failure_map_mpc", "MPC (receding-horizon Box-FDDP)")}
