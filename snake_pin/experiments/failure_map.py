@@ -491,21 +491,32 @@ def _plot_series(series: list[tuple[str, dict[str, Any]]], ratio: float, path: P
 
 
 # -------------------------------------------------------------------- stage
-def _mpc_line(ctx: Context, sec: Any, base: SnakeParams, plan: MapPlan,
-              lyapunov: dict[str, Any], lyapunov_spec: Any) -> dict[str, Any]:
-    """Run the MPC's study of the map and add its table, figure and paragraph to ``sec``;
-    return its numbers for ``summary.json``."""
+def _run_map(ctx: Context, base: SnakeParams, plan: MapPlan,
+             controller: str) -> tuple[Any, Any, list[dict[str, Any]], list[int]]:
+    """Write and run the map's study of ``controller`` into ``ctx.folder`` (the Lyapunov-like
+    law's as ``failure_map``, another's as ``failure_map_<controller>``); return its spec,
+    its summary, its rows and its failed joints."""
     from ..study import load_study, run_study
     from ..study.results import StudyFolder
 
-    study_file = failure_map_study(base, plan, ctx.folder, controller="mpc")
+    study_file = failure_map_study(base, plan, ctx.folder, controller=controller)
     spec = load_study(study_file)
-    out = ctx.folder / "failure_map_mpc"
+    out = ctx.folder / ("failure_map" if controller == "lyapunov" else
+                        f"failure_map_{controller}")
+    # progress=None: the study's bar (runs done, failures, ETA) on a terminal only
     summary = run_study(study_file, out, workers=ctx.options.get("study_workers"),
                         scheduler=ctx.options.get("study_scheduler"), progress=None)
     keys = {s.key for s in spec.scenarios}
     rows = [r for r in StudyFolder(out).read_table().to_pylist() if r["key"] in keys]
     joints = sorted({s["failed_joint"] for s in spec.scenarios})
+    return spec, summary, rows, joints
+
+
+def _mpc_line(ctx: Context, sec: Any, base: SnakeParams, plan: MapPlan,
+              lyapunov: dict[str, Any], lyapunov_spec: Any) -> dict[str, Any]:
+    """Run the MPC's study of the map and add its table, figure and paragraph to ``sec``;
+    return its numbers for ``summary.json``."""
+    spec, summary, rows, joints = _run_map(ctx, base, plan, "mpc")
     ratio = plan.ratios[0]
     tables = map_tables(rows, joints, plan.ratios)
     paragraph, numbers = mpc_findings(tables, lyapunov, joints, ratio)
@@ -559,21 +570,11 @@ def failure_map_stage(ctx: Context) -> None:
         ``ctx.folder``, the section to ``ctx.report``; ``ctx.quick`` picks :data:`QUICK`.
     """
     from ..runs.parallel import run_jobs
-    from ..study import load_study, run_study
     from ..study.report import save_figures
-    from ..study.results import StudyFolder
 
     plan, mpc_plan = (QUICK, MPC_QUICK) if ctx.quick else (FULL, MPC_FULL)
     base = ctx.params.replace(passive=())
-    study_file = failure_map_study(base, plan, ctx.folder)
-    spec = load_study(study_file)
-    out = ctx.folder / "failure_map"
-    # progress=None: the study's bar (runs done, failures, ETA) on a terminal only
-    summary = run_study(study_file, out, workers=ctx.options.get("study_workers"),
-                        scheduler=ctx.options.get("study_scheduler"), progress=None)
-    keys = {s.key for s in spec.scenarios}
-    rows = [r for r in StudyFolder(out).read_table().to_pylist() if r["key"] in keys]
-    joints = sorted({s["failed_joint"] for s in spec.scenarios})
+    spec, summary, rows, joints = _run_map(ctx, base, plan, "lyapunov")
     tables = map_tables(rows, joints, plan.ratios)
     paragraphs, numbers = findings(tables, joints, plan.ratios)
 
