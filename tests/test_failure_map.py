@@ -11,11 +11,9 @@ import pytest
 
 from snake_pin import SnakeParams
 from snake_pin.exceptions import RunInterrupted
-from snake_pin.experiments import failure_map
 from snake_pin.experiments.failure_map import (
     FULL,
     MPC_FULL,
-    MapPlan,
     failure_map_stage,
     failure_map_study,
     findings,
@@ -28,10 +26,6 @@ from snake_pin.robot_file import load_robot
 from snake_pin.study import load_study
 
 REPO = Path(__file__).resolve().parent.parent
-#: A tiny map: 3 failed joints x 2 ratios, 1 s, errors judged from 0.5 s.
-TINY = MapPlan(1.0, (0, 1, 5), (25.0, 50.0), error_window=0.5)
-#: A tiny MPC line: no failure and joint 5 failed, 0.4 s, errors judged from 0.2 s.
-TINY_MPC = MapPlan(0.4, (0, 5), (50.0,), error_window=0.2)
 
 
 def test_the_full_plan_on_table1_is_the_shipped_study(tmp_path: Path) -> None:
@@ -143,13 +137,11 @@ def test_map_tables_key_every_cell_and_keep_failed_runs_as_their_status() -> Non
     assert tables["status"]["3"] == {"50": "diverged", "100": "missing"}
 
 
-def test_the_stage_runs_the_study_and_reports_its_numbers(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.usefixtures("tiny_report")
+def test_the_stage_runs_the_study_and_reports_its_numbers(tmp_path: Path) -> None:
     """A tiny quick map: study folder, heatmaps, series, tables equal to the Parquet rows,
     joint 1's R~ found zero, the MPC's line beside the law's from its own rows, numbers
     JSON-safe."""
-    monkeypatch.setattr(failure_map, "QUICK", TINY)
-    monkeypatch.setattr(failure_map, "MPC_QUICK", TINY_MPC)
     report = Report("test")
     ctx = Context(folder=tmp_path, params=SnakeParams.table1(), report=report, quick=True,
                   options={"study_workers": 1})
@@ -193,6 +185,7 @@ def test_the_stage_runs_the_study_and_reports_its_numbers(
     assert "(1 worker)" in text and "1 workers" not in text and "issue" not in text
 
 
+@pytest.mark.usefixtures("tiny_report")
 def test_an_interrupted_study_propagates(tmp_path: Path,
                                          monkeypatch: pytest.MonkeyPatch) -> None:
     """RunInterrupted from the study leaves the stage unchanged (nothing swallowed)."""
@@ -202,13 +195,13 @@ def test_an_interrupted_study_propagates(tmp_path: Path,
         raise RunInterrupted("study failure_map interrupted", partial=None)
 
     monkeypatch.setattr(snake_pin.study, "run_study", interrupted)
-    monkeypatch.setattr(failure_map, "QUICK", TINY)
     report = Report("test")
     ctx = Context(folder=tmp_path, params=SnakeParams.table1(), report=report, quick=True)
     with pytest.raises(RunInterrupted):
         failure_map_stage(ctx)
 
 
+@pytest.mark.usefixtures("tiny_report")
 def test_the_study_shows_its_bar_on_a_terminal_only(tmp_path: Path,
                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     """The stage leaves the study's progress bar to the terminal test (progress=None: drawn
@@ -222,7 +215,6 @@ def test_the_study_shows_its_bar_on_a_terminal_only(tmp_path: Path,
         raise RunInterrupted("study failure_map interrupted", partial=None)
 
     monkeypatch.setattr(snake_pin.study, "run_study", interrupted)
-    monkeypatch.setattr(failure_map, "QUICK", TINY)
     ctx = Context(folder=tmp_path, params=SnakeParams.table1(), report=Report("test"),
                   quick=True, options={"study_workers": 1, "study_scheduler": None})
     with pytest.raises(RunInterrupted):

@@ -195,12 +195,14 @@ def test_report_is_complete_strict_json_and_in_place(report: Path) -> None:
         <= {0o777 & ~umask}
 
 
+@pytest.mark.usefixtures("tiny_report")
 def test_reproduce_runs_every_stage_on_a_robot_file(tmp_path: Path) -> None:
     """reproduce --quick --robot camera_head_snake.toml (a shipped robot by bare file name):
     every stage runs on that robot (the failure map and the path benchmark too) and the
     report is complete; the robot stage lists its per-link values, and the engine stage
     puts that robot itself on wheels (10 links, friction identified per link) and reports
-    its distributions."""
+    its distributions. The failure maps and MPC runs are the tiny ones (how stages honour
+    a robot, not their numbers)."""
     from snake_pin.experiments import stages
     from snake_pin.robot_file import load_robot
     from snake_pin.trajectory import Trajectory
@@ -226,8 +228,10 @@ def test_reproduce_runs_every_stage_on_a_robot_file(tmp_path: Path) -> None:
     assert "camera_head_snake" in html and "median" in html
 
 
+@pytest.mark.usefixtures("tiny_report")
 def test_reproduce_twice_into_the_same_folder(tmp_path: Path) -> None:
-    """A second reproduce replaces the first, stage folders (the failure map's study) too."""
+    """A second reproduce replaces the first, stage folders (the failure map's studies,
+    tiny) too."""
     argv = ["reproduce", "--quick", "--only", "failure_map", "-o", str(tmp_path)]
     assert main(argv) == 0
     first = (tmp_path / "failure_map").stat().st_ino
