@@ -240,9 +240,8 @@ def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object
 
 
 # --------------------------------------------------------------------------- reading
-_FILE_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
-               (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
-               (stat.S_ISBLK, "a block device"))
+_FILE_KINDS = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
+               (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
 
 
 def _not_regular(mode: int, kind: str) -> str:

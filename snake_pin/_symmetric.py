@@ -69,7 +69,7 @@ def whole(algorithm: Callable[..., Any], matrix: np.ndarray,
     view) whole, else a wrapper that also mirrors its upper triangle in place."""
     if mirrors:
         return algorithm
-    lower = np.tril(np.ones(matrix.shape, dtype=bool), -1)
+    lower = _strict_lower(matrix.shape[0])
 
     def whole(*arguments: Any) -> np.ndarray:
         algorithm(*arguments)

@@ -148,10 +148,8 @@ class Snake:
         self.friction = FrictionModel(self.params, self.model)
         self._actuated = np.array([k - 1 for k in self.params.actuated], dtype=int)
         # 1 on actuated joints, 0 on passive ones (None: all actuated, skip the product)
-        self._mask: np.ndarray | None = None
-        if self.params.passive:
-            self._mask = np.zeros(self.n - 1)
-            self._mask[self._actuated] = 1.0
+        self._mask = (np.isin(np.arange(self.n - 1), self._actuated).astype(float)
+                      if self.params.passive else None)
 
     def __repr__(self) -> str:
         return f"Snake({self.params!r})"
@@ -615,11 +613,8 @@ class Snake:
         """
         theta, ends = self._chain(self.check_q(q))
         offsets = self.params.com_offsets
-        out = np.empty((self.n, 3))
-        out[:, 0] = ends[:-1, 0] + offsets * np.cos(theta)
-        out[:, 1] = ends[:-1, 1] + offsets * np.sin(theta)
-        out[:, 2] = theta
-        return out
+        return np.column_stack([ends[:-1, 0] + offsets * np.cos(theta),
+                                ends[:-1, 1] + offsets * np.sin(theta), theta])
 
     def joint_points(self, q: np.ndarray) -> np.ndarray:
         """(n + 1, 2) array: head point, the n - 1 joints, then the tail end, for drawing.
