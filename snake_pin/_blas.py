@@ -1,19 +1,9 @@
 """In-place BLAS and LAPACK for the closed loop's hot path, behind named helpers.
 
-On the hot path's tiny arrays (n + 2 = 12 to 24 rows) a call costs its overhead, not its
-flops. scipy's f2py wrappers are the cheapest route when they neither parse a keyword nor
-copy an array: every argument by position (a keyword costs some 0.35 us), ``overwrite_*``
-set and the arrays Fortran-ordered, contiguous float64. :func:`gemv`, :func:`syrk` and
-:func:`posv` prepare exactly such a call on buffers made once and return it: calling the
-result (no arguments) runs it in place, with no Python frame of its own. A C-ordered
-matrix is passed as its transpose (``a.T`` is Fortran-ordered) with ``trans`` set. Outputs
-are written with beta = 0 over whatever a buffer held (a NaN included), as BLAS specifies.
-:func:`solve_spd` is the copying solve of the slower paths. The f2py argument lists live
-here only.
-
-:func:`in_place_calls_hold` checks the helpers once, when the module is imported, against
-numpy: a scipy whose wrappers differ fails the import with one line instead of stepping
-with wrong numbers.
+On tiny arrays a call costs its overhead, so :func:`gemv`, :func:`syrk` and :func:`posv`
+prepare scipy's f2py call once (arguments by position, Fortran-ordered buffers,
+``overwrite_*`` set) and return it: calling the result runs it in place. The f2py argument
+lists live here only; :func:`in_place_calls_hold` checks them against numpy at import.
 """
 
 from __future__ import annotations
@@ -35,37 +25,29 @@ dposv = lapack.dposv
 
 def gemv(alpha: float, a: np.ndarray, x: np.ndarray, beta: float, y: np.ndarray,
          trans: int = 0) -> Callable[[], Any]:
-    """``y = alpha op(a) x + beta y`` in place (op(a) = a, or a^T with ``trans=1``),
-    prepared: the returned callable runs it. ``a`` Fortran-ordered, ``x`` and ``y``
-    contiguous float64; ``y`` is not read when ``beta`` is 0."""
+    """Prepared ``y = alpha op(a) x + beta y`` in place (op(a) = a^T with ``trans=1``)."""
     return functools.partial(dgemv, alpha, a, x, beta, y, 0, 1, 0, 1, trans, 1)
 
 
 def syrk(alpha: float, a: np.ndarray, beta: float, c: np.ndarray,
          trans: int = 0) -> Callable[[], Any]:
-    """The upper triangle of ``c = alpha op(a) op(a)^T + beta c`` in place (op(a) = a, or
-    a^T with ``trans=1``), prepared: the returned callable runs it. ``a`` and ``c``
-    Fortran-ordered float64; c's strict lower triangle is not written."""
+    """Prepared upper triangle of ``c = alpha op(a) op(a)^T + beta c`` in place."""
     return functools.partial(dsyrk, alpha, a, beta, c, trans, 0, 1)
 
 
 def posv(a: np.ndarray, b: np.ndarray) -> Callable[[], tuple[Any, Any, int]]:
-    """``a x = b`` by Cholesky from a's upper triangle, prepared: the returned callable
-    writes x into ``b`` and the factor into ``a`` and returns LAPACK's
-    ``(factor, solution, info)``, info > 0 when ``a`` is not positive definite."""
+    """Prepared Cholesky solve of ``a x = b`` into ``b``; returns ``(factor, x, info)``."""
     return functools.partial(dposv, a, b, 0, 1, 1)
 
 
 def solve_spd(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
-    """``a x = b`` by Cholesky from a's upper triangle into new arrays (``a`` and ``b``
-    unchanged): the solution and LAPACK's info (> 0 when ``a`` is not definite)."""
+    """``a x = b`` by Cholesky into new arrays: the solution and LAPACK's info (> 0: not SPD)."""
     _, solution, info = dposv(a, b)
     return solution, int(info)
 
 
 def in_place_calls_hold() -> bool:
-    """Whether :func:`gemv`, :func:`syrk` and :func:`posv` give numpy's numbers in the
-    caller's buffers (checked once, at import)."""
+    """Whether :func:`gemv`, :func:`syrk` and :func:`posv` give numpy's numbers in place."""
     rng = np.random.default_rng(5)
     a = np.asfortranarray(rng.normal(size=(5, 3)))
     x3, x5 = rng.normal(size=3), rng.normal(size=5)

@@ -1,13 +1,7 @@
 """Files in and out: whole-or-absent writes, and bounded reads that never block.
 
-Every file snake_pin writes goes through this module (temporary sibling, fsync, rename,
-folder fsync; mode from the umask; temporaries removed on any exception and, after a
-kill, by the next write in the folder), and every file it reads is opened by
-:func:`open_regular_file` (regular files only, never blocking, size-bounded; TOML nesting
-bounded before it is parsed). The promises and why: :doc:`/promises` (Files in and out).
-Errors of writes are ``OSError`` naming the file the caller asked for, never a temporary;
-errors of reads are built by the caller's ``error`` function from one line that does not
-name the file, so each loader raises its own :class:`~snake_pin.exceptions.SnakePinError`.
+Every file snake_pin writes or reads goes through this module; what it promises and
+why, and the errors it raises: :ref:`files`.
 """
 
 from __future__ import annotations
@@ -39,18 +33,13 @@ _TEMP_NAME = re.compile(r"\..*\.snake_pin-(\d+)-\w+\.tmp", re.DOTALL)
 #: Characters of the target's name kept in a temporary name (NAME_MAX is 255 bytes).
 _NAME_KEPT = 64
 _UMASK_LOCK = threading.Lock()
-#: Deepest nesting a TOML file snake_pin reads may have: arrays and inline tables inside
-#: each other, each adding one level plus the dots of the key it is the value of; a key's
-#: own dots count too (``a.b.c = 1`` nests two tables: 2 levels). snake_pin's files need 3.
+#: Deepest nesting of a TOML file snake_pin reads: each array or inline table adds one level
+#: plus its key's dots (``a.b.c = 1`` is 2 levels). snake_pin's files need 3.
 MAX_TOML_DEPTH = 32
 
 
 def current_umask() -> int:
-    """The process's umask, read without a window in which files get a wider mode.
-
-    Linux reports it in ``/proc/self/status``; elsewhere it is swapped with 077 and back
-    under a lock (a file another thread creates in that instant is private, not wider).
-    """
+    """The process's umask, read without a window in which files get a wider mode."""
     try:
         with open("/proc/self/status", "rb") as status:
             for line in status:
@@ -85,12 +74,7 @@ def _pid_alive(pid: int) -> bool:
 
 
 def clean_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
-    """Remove the temporaries in ``folder`` (not recursively) whose writer is gone; return them.
-
-    Only regular files named ``.NAME.snake_pin-PID-XXXXXXXX.tmp`` whose process PID is gone
-    (or a zombie) go; a reused pid keeps its file until that process ends. Errors are
-    ignored: cleaning is best effort.
-    """
+    """Remove the temporaries in ``folder`` whose writer is gone (best effort); return them."""
     removed: list[Path] = []
     try:
         entries = list(os.scandir(folder))
@@ -153,12 +137,8 @@ class AtomicGroup:
 
     @contextlib.contextmanager
     def open(self, name: str | os.PathLike[str], *, figure: bool = False) -> Iterator[IO[bytes]]:
-        """Stage ``name`` (relative to the folder): yield a binary handle on its temporary.
-
-        The temporary is flushed, given the umask's mode and fsync-ed when the body ends, and
-        removed at once if the body raises. ``figure=True`` renames it after every data file.
-        ParameterError if ``name`` is already staged; OSError (naming ``name``) on a write error.
-        """
+        """Stage ``name`` (relative to the folder): yield a binary handle on its temporary
+        (``figure=True``: renamed after the data files; ParameterError if staged twice)."""
         target = self.folder / name
         if any(s.target == target for s in self._staged):
             raise ParameterError(f"{target} is written twice in one group")
@@ -237,21 +217,8 @@ def _unlink_quietly(path: Path) -> None:
 
 @contextlib.contextmanager
 def atomic_group(folder: str | os.PathLike[str]) -> Iterator[AtomicGroup]:
-    """Write a set of files in ``folder`` that appear together, data before figures.
-
-    Inside the block, stage files on the yielded :class:`AtomicGroup` (``figure=True`` for
-    figures). Each is written to a fsync-ed temporary sibling; nothing is renamed while the
-    block runs. When it succeeds, the data files are renamed into place in the order staged,
-    then the figures, then each folder is fsync-ed. If it raises (KeyboardInterrupt
-    included), every temporary is removed and no file of the set changes.
-
-    What a reader can see: POSIX renames are atomic one by one, not as a set. While the
-    block runs, and if it fails, the old files only. During the renames (or forever if the
-    process is killed in the middle), the new files form a prefix of that order: a new
-    figure implies new data, while later files may still be old. After the block, all are
-    new and durable. A rename that fails (OSError naming the file) stops there: the files
-    before it are in place, the remaining temporaries are removed.
-    """
+    """Write a set of files in ``folder`` staged on the yielded :class:`AtomicGroup`,
+    renamed into place when the block succeeds, data before figures (:ref:`files`)."""
     group = AtomicGroup(folder)
     try:
         yield group
@@ -273,9 +240,8 @@ def atomic_save(path: str | os.PathLike[str], save: Callable[[IO[bytes]], object
 
 
 # --------------------------------------------------------------------------- reading
-_FILE_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
-               (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
-               (stat.S_ISBLK, "a block device"))
+_FILE_KINDS = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
+               (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
 
 
 def _not_regular(mode: int, kind: str) -> str:
@@ -303,15 +269,8 @@ def _refusal(exc: OSError | ValueError, kind: str) -> str:
 def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
                       error: Callable[[str], Exception],
                       follow_symlinks: bool = True) -> io.BufferedReader:
-    """Open ``path`` for binary reading if it is a regular file of at most ``limit`` bytes.
-
-    Never blocks and never reads a byte of anything else: the name is stat-ed and refused
-    unless it is a regular file, then opened with ``O_NONBLOCK`` (a FIFO put in its place
-    meanwhile does not block either) and the descriptor is fstat-ed and checked again, size
-    included. ``follow_symlinks=False`` refuses a link by ``O_NOFOLLOW`` in the open itself
-    (no window between check and open; only the last component). Every refusal is
-    ``error(line)``, a line naming ``kind`` but not the file (the caller prefixes it).
-    """
+    """Open ``path`` for binary reading if it is a regular file of at most ``limit`` bytes,
+    never blocking (:ref:`files`); a refusal is ``error(line)``, naming ``kind``, not the file."""
     if not isinstance(path, (str, os.PathLike)):
         raise error(f"not a file path: {type(path).__name__}")
     try:
@@ -355,9 +314,7 @@ def open_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
 def read_regular_file(path: str | os.PathLike[str], *, limit: int, kind: str,
                       error: Callable[[str], Exception],
                       follow_symlinks: bool = True) -> bytes:
-    """The bytes of ``path`` opened by :func:`open_regular_file`; ``limit`` is checked again
-    on what is read, in case the file grew meanwhile.
-    """
+    """The bytes of ``path`` opened by :func:`open_regular_file` (``limit`` checked again)."""
     with open_regular_file(path, limit=limit, kind=kind, error=error,
                            follow_symlinks=follow_symlinks) as handle:
         try:
@@ -392,12 +349,8 @@ _TOML_IGNORED = re.compile(r"[^\[\]{}.,\n]+")
 
 
 def toml_nesting_problem(text: str, max_depth: int = MAX_TOML_DEPTH) -> str | None:
-    """Why ``text`` nests deeper than ``max_depth`` levels, or None: one linear scan, no parse.
-
-    Levels are those :data:`MAX_TOML_DEPTH` describes; strings and comments are skipped.
-    The count may exceed the depth by one (a float's dot) and fall short by the dots of a
-    table header, which are bounded on their own.
-    """
+    """Why ``text`` nests deeper than ``max_depth`` levels, or None: one linear scan, no parse
+    (strings and comments skipped; a float's dot may count one level too many)."""
     pieces: list[str] = []
     end = 0
     for match in _TOML_SKIPPED.finditer(text):
@@ -433,11 +386,7 @@ def toml_nesting_problem(text: str, max_depth: int = MAX_TOML_DEPTH) -> str | No
 
 def parse_toml(text: str, *, error: Callable[[str], Exception],
                max_depth: int = MAX_TOML_DEPTH) -> dict[str, Any]:
-    """Parse TOML text after bounding its nesting, or ``error("not valid TOML: ...")``.
-
-    tomllib recurses once per nested array or inline table, so the nesting is checked
-    first (:func:`toml_nesting_problem`).
-    """
+    """Parse TOML text after bounding its nesting (tomllib recurses per level), or ``error``."""
     problem = toml_nesting_problem(text, max_depth)
     if problem is not None:
         raise error(problem)

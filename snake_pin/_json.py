@@ -1,10 +1,4 @@
-"""JSON text of results: the one way snake_pin turns numbers into JSON (RFC 8259).
-
-A low-level module (it imports nothing from the package): the report's summary, the
-sweep and search files, the command line's ``--json`` and the studies all go through
-:func:`json_text`, so NaN and infinities always become ``null`` and NumPy values, paths
-and dataclasses become plain JSON data.
-"""
+"""JSON text of results (RFC 8259): the one way snake_pin writes JSON, NaN as ``null``."""
 
 from __future__ import annotations
 
@@ -24,15 +18,12 @@ def json_safe(value: Any) -> Any:
     Parameters
     ----------
     value
-        None, bools, strings, numbers, mappings, sequences and sets of them, NumPy
-        arrays and scalars, paths or dataclass instances, nested in any way.
+        JSON data, NumPy arrays and scalars, paths or dataclasses, nested in any way.
 
     Returns
     -------
     Any
-        The same data with NaN and infinities as None, NumPy values and arrays as
-        numbers and lists, paths as strings, dataclasses as dicts, mapping keys as
-        strings.
+        The same as plain JSON data (NaN and infinities as None, keys as strings).
 
     Raises
     ------

@@ -1,7 +1,5 @@
-"""Small helpers for symmetric matrices: full matrices from the upper triangles that
-Pinocchio's CRBA and computeMinverse fill (their strict lower triangles are not computed),
-in a copy or in the Data's own buffer, and the smallest eigenvalue of a 3x3 one in closed
-form (PFL's R, every step)."""
+"""Symmetric matrices: whole ones from the upper triangles Pinocchio's CRBA and
+computeMinverse fill, and the smallest eigenvalue of a 3x3 one in closed form (PFL's R)."""
 
 from __future__ import annotations
 
@@ -16,13 +14,9 @@ from scipy.linalg import lapack
 
 __all__ = ["crba_mirrors", "smallest_eigenvalue_3x3", "symmetric_from_upper", "whole"]
 
-#: Beyond this |cos(3 phi)| two eigenvalues nearly coincide, where acos loses digits (it
-#: amplifies rounding by 1 / sqrt(1 - cos^2), at most 700 within it). PFL's Gram matrices
-#: sit at 1 - 1e-3 (median) to 1 - 1.5e-5: their two small eigenvalues are close next to
-#: the largest.
+#: Beyond this |cos(3 phi)| two eigenvalues nearly coincide and acos loses digits.
 _NEAR_DOUBLE = 1.0 - 1e-6
-#: Below this fraction of the largest eigenvalue the smallest is left to LAPACK, which
-#: resolves it better (a near-singular posture: R near r_min). PFL's: 4e-4 to 1e-3.
+#: Below this fraction of the largest eigenvalue the smallest is left to LAPACK.
 _SMALL = 1e-6
 _TWO_THIRDS_PI = 2.0 * math.pi / 3.0
 #: A spread p^2 below this (p^3 would underflow) is left to LAPACK.
@@ -45,18 +39,11 @@ def symmetric_from_upper(upper: np.ndarray) -> np.ndarray:
 
 
 def smallest_eigenvalue_3x3(upper: np.ndarray) -> float:
-    """The smallest eigenvalue of a symmetric 3x3 matrix given by its upper triangle.
+    """The smallest eigenvalue of a symmetric 3x3 matrix (upper triangle), NaN if one is.
 
-    The trigonometric closed form of the characteristic cubic: with q = tr(G)/3,
-    ``p^2 = ||G - q I||_F^2 / 6`` and ``cos(3 phi) = det(G - q I) / (2 p^3)``, the eigenvalues are
-    q + 2 p cos(phi + 2 pi k / 3), the smallest at k = 1 (phi in [0, pi/3]). Its error is a
-    few rounding units of the largest eigenvalue, up to some 700 where two eigenvalues come
-    close (acos amplifies rounding there), against a few for LAPACK: 1e-13 of the largest
-    at most, 1e-7 of the smallest. LAPACK's ``dsyev`` takes over where the form would lose
-    more: two eigenvalues nearly coincide (``|cos(3 phi)| > 1 - 1e-6``), the smallest is below
-    1e-6 of the largest (near-singular: PFL's check of R against r_min stays LAPACK's), or
-    the spread p is too small to divide by. Twice as fast as ``dsyev`` through scipy. NaN
-    if an entry is NaN.
+    The characteristic cubic's trigonometric form (q = tr/3, ``p^2 = ||G - q I||_F^2 / 6``,
+    ``cos(3 phi) = det(G - q I) / (2 p^3)``, smallest ``q + 2 p cos(phi + 2 pi / 3)``); LAPACK's
+    ``dsyev`` where it would lose digits (near-double or near-zero eigenvalues, tiny p).
     """
     (a, b, c), (_, d, e), (_, _, f) = upper.tolist()
     q = (a + d + f) / 3.0
@@ -78,13 +65,11 @@ def smallest_eigenvalue_3x3(upper: np.ndarray) -> float:
 
 def whole(algorithm: Callable[..., Any], matrix: np.ndarray,
            mirrors: bool) -> Callable[..., Any]:
-    """``algorithm`` (``pin.crba`` or ``pin.computeMinverse``) itself when the bindings fill
-    ``matrix`` (a view of the Data's M or Minv) whole, else a wrapper of the same signature
-    that also mirrors its upper triangle into the lower one, in place.
-    """
+    """``algorithm`` (``pin.crba``, ``pin.computeMinverse``) if it fills ``matrix`` (the Data's
+    view) whole, else a wrapper that also mirrors its upper triangle in place."""
     if mirrors:
         return algorithm
-    lower = np.tril(np.ones(matrix.shape, dtype=bool), -1)
+    lower = _strict_lower(matrix.shape[0])
 
     def whole(*arguments: Any) -> np.ndarray:
         algorithm(*arguments)
@@ -95,11 +80,7 @@ def whole(algorithm: Callable[..., Any], matrix: np.ndarray,
 
 
 def crba_mirrors(model: pin.Model) -> bool:
-    """Whether ``pin.crba`` fills ``data.M`` whole (both triangles).
-
-    Pinocchio's algorithm fills the upper triangle; its Python bindings mirror it. Probed
-    once per model, on a configuration away from symmetries.
-    """
+    """Whether ``pin.crba`` fills ``data.M`` whole (the bindings mirror the upper triangle)."""
     data = model.createData()
     mass = data.M  # the view the callers read, not the returned copy
     returned = pin.crba(model, data, np.linspace(0.3, 0.9, model.nq), pin.Convention.WORLD)

@@ -1,9 +1,6 @@
-"""Boundary checks shared by the public functions, and the words their messages use.
+"""The package's generic argument checkers, each raising one line naming the argument.
 
-The package's one home of generic argument checkers: numbers, integers, flags, vectors
-and robot parameters, each raising one line of the package's own errors that names the
-argument. It imports neither Pinocchio nor :mod:`snake_pin.model`, so that the
-closed-form :mod:`snake_pin.paper` can use it.
+It imports neither Pinocchio nor :mod:`snake_pin.model`, so :mod:`snake_pin.paper` can use it.
 """
 
 from __future__ import annotations
@@ -34,12 +31,7 @@ def mebibytes(nbytes: int) -> str:
 
 
 def brief(value: object) -> str:
-    """``value`` for a one-line message: the repr of a scalar or text, else its type.
-
-    A repr longer than :data:`BRIEF_CHARS` is cut (``'abcdefgh...``); an array, a list, a
-    mapping or any other object is named by its type (``an array of shape (3, 3)``,
-    ``a dict``).
-    """
+    """``value`` for a one-line message: a scalar's or text's repr (cut), else its type."""
     if value is None or isinstance(value, (bool, int, float, str, bytes, np.generic)):
         return one_line(repr(value), BRIEF_CHARS)
     if isinstance(value, np.ndarray):
@@ -111,8 +103,7 @@ def output_file(params: object, path: object, suffix: str, what: str) -> Path:
 
 
 def model_data(value: object, model: Any, kind: type, name: str = "data") -> Any:
-    """``value`` if it is a ``kind`` (``pinocchio.Data``, passed in so that this module does
-    not import Pinocchio) sized for ``model``, else ParameterError naming ``name``."""
+    """``value`` if it is a ``kind`` (``pinocchio.Data``) of ``model``, else ParameterError."""
     data: Any = instance(value, kind, name, "a pinocchio.Data")
     if len(data.oMi) != model.njoints:
         raise ParameterError(f"{name} has {len(data.oMi)} joints, the model "
@@ -121,9 +112,7 @@ def model_data(value: object, model: Any, kind: type, name: str = "data") -> Any
 
 
 def as_vector(value: object, size: int, name: str) -> np.ndarray:
-    """``value`` as a finite float vector of ``size`` entries (flattened; a view when it
-    already is one), or ConfigurationError naming ``name``.
-    """
+    """``value`` as a finite float vector of ``size`` entries (flattened), or ConfigurationError."""
     try:
         vec = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
@@ -137,10 +126,8 @@ def as_vector(value: object, size: int, name: str) -> np.ndarray:
 
 def finite_number(value: object, name: str, *, positive: bool = False,
                   non_negative: bool = False) -> float:
-    """``value`` as a finite float, > 0 if ``positive``, >= 0 if ``non_negative``, or
-    ParameterError naming ``name`` (a bool, and text even when it reads as a number, are
-    refused).
-    """
+    """``value`` as a finite float (> 0 if ``positive``, >= 0 if ``non_negative``; no bool or
+    text), or ParameterError naming ``name``."""
     if isinstance(value, (bool, np.bool_, str, bytes, bytearray)) or \
             (isinstance(value, np.ndarray) and value.ndim != 0):
         raise ParameterError(f"{name} must be a number, got {brief(value)}")

@@ -1,30 +1,13 @@
-r"""Anisotropic viscous friction of eqs. (10)-(13) as generalised forces on the Pinocchio model.
+"""Anisotropic viscous friction of eqs. (10)-(13) as generalised forces on the Pinocchio model.
 
-Each link i feels, at its centre of mass and in its own frame, the force
-``-diag(c_x, c_y) v_cm`` and the torque ``-c_theta * omega`` (README, conventions).
-
-The *damping twin* computes it in Pinocchio's C++. A link's friction wrench with
-c_x = c_y = c is its spatial velocity times a rigid-body inertia of "mass" c at the CM
-and rotational "inertia" c_theta, so C(q) of eq. (11) is the twin's mass matrix and
-Q = -C(q) q' = -RNEA_twin(q, 0, q'). A rigid-body inertia is isotropic in translation, so
-with c_x != c_y link i carries the larger of its two coefficients and a *wheel* takes the
-difference back: a prismatic joint at the CM, along the direction of the larger
-coefficient, of "mass" ``-|c_y,i - c_x,i|`` and axis ``1/sqrt|c_y,i - c_x,i|`` long (Pinocchio
-keeps a prismatic axis as given), so that its block of the twin's mass matrix is
-M_ww = -1. The wheels are appended after the chain, tail first (link k's subtree is links
-k..n and wheels n..k: depth-first, as CRBA and the RNEA derivatives need), so the twin's
-configuration is ``[q, 0_w]``. A wheel rolling at ``w = M_wc q'`` cancels its share of
-the motion along its axis, and
-
-.. math:: C = M_{cc} + M_{cw} M_{wc}, \qquad -Q = M_{cc} q' + M_{cw} w,
-
-a Schur complement over the wheels. Two routes evaluate Q, chosen by
-:data:`WHEELED_TWIN_MAX_LINKS`: up to that many links (with wheels) one CRBA of the twin
-and two products; otherwise RNEA passes, one without wheels, two with them (the locked
-pass gives w in the wheels' rows, the rolling pass -Q in the chain's). The derivatives
-are those of the same two passes (``pin.computeRNEADerivatives``).
-:func:`friction_forces` (one ``pin.Force`` per link) is the reference the tests compare
-to; :func:`snake_pin.paper.friction_matrix` is the independent closed form.
+Q = -C(q) q' is computed in Pinocchio's C++ by the *damping twin* (:ref:`friction`): the
+snake's tree with each link's inertia replaced by its damping, and, where c_x != c_y, a
+wheel per link of "mass" ``-|c_y,i - c_x,i|`` scaled so that M_ww = -1, appended after
+the chain tail first (depth-first, as CRBA and the RNEA derivatives need), so that the
+twin's configuration is ``[q, 0_w]`` and ``C = M_cc + M_cw M_wc``. Two routes evaluate Q,
+chosen by :data:`WHEELED_TWIN_MAX_LINKS`. :func:`friction_forces` (one ``pin.Force`` per
+link) is the reference the tests compare to; :func:`snake_pin.paper.friction_matrix` is
+the independent closed form.
 """
 
 from __future__ import annotations
@@ -38,7 +21,7 @@ import pinocchio as pin
 
 from ._blas import gemv
 from ._symmetric import crba_mirrors, symmetric_from_upper, whole
-from ._validation import as_vector, check_params, instance
+from ._validation import as_vector, check_params, instance, model_data
 from .exceptions import ParameterError
 from .params import SnakeParams
 
@@ -59,25 +42,10 @@ _NEGATIVE, _SUBTRACT = np.negative, np.subtract
 _HEAD_JOINT = 3
 
 
-def _check_model(value: object, name: str = "model") -> pin.Model:
-    """``value`` if it is a ``pinocchio.Model``, else ParameterError naming ``name``."""
-    return instance(value, pin.Model, name, "a pinocchio.Model")
-
-
-def _check_data(value: object, model: pin.Model, name: str = "data") -> pin.Data:
-    """``value`` if it is a ``pinocchio.Data`` of ``model``'s size, else ParameterError."""
-    data = instance(value, pin.Data, name, "a pinocchio.Data")
-    if len(data.oMi) != model.njoints:
-        raise ParameterError(f"{name} has {len(data.oMi)} joints, the model "
-                             f"{model.njoints}: use model.createData()")
-    return data
-
-
 def _paper_model_of(model: object, params: object) -> tuple[pin.Model, SnakeParams]:
-    """``model`` and ``params`` checked: a Pinocchio model with the joints of the paper model
-    of ``params`` (:func:`snake_pin.model.paper_model`)."""
+    """``model`` and ``params`` checked: the paper model of ``params`` and the robot."""
     checked = check_params(params)
-    pinocchio_model = _check_model(model)
+    pinocchio_model = instance(model, pin.Model, "model", "a pinocchio.Model")
     if pinocchio_model.njoints != checked.n + _HEAD_JOINT or pinocchio_model.nv != checked.n + 2:
         raise ParameterError(f"model must be the paper model of the {checked.n}-link snake, "
                              f"got {pinocchio_model.njoints} joints")
@@ -93,10 +61,9 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
     Parameters
     ----------
     model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); required (the
-        default None is refused).
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
     params : SnakeParams
-        The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
+        The robot, with its friction coefficients.
 
     Returns
     -------
@@ -115,9 +82,7 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
 
 def _appended_twin(model: pin.Model, c_x: np.ndarray, c_y: np.ndarray, c_theta: np.ndarray,
                    wheels: bool) -> pin.Model:
-    """The hot path's damping twin: links of the larger of c_x and c_y, each with a wheel
-    that takes the difference back with M_ww = -1, appended after the chain, tail first
-    (so that the joints stay in depth-first order), or no wheels (module docstring)."""
+    """The damping twin of ``model`` (module docstring), with wheels if ``wheels``."""
     twin = pin.Model()
     twin.name = f"{model.name}_damping_twin"
     larger = np.maximum(c_x, c_y) if wheels else c_x
@@ -160,11 +125,8 @@ def _appended_twin(model: pin.Model, c_x: np.ndarray, c_y: np.ndarray, c_theta: 
 
 @functools.cache
 def _scaled_axis_kept() -> bool:
-    """Whether Pinocchio keeps a prismatic joint's axis as given (4.1 does not normalise
-    it): then a wheel slides at the CM itself along a scaled axis, its centre of mass is
-    the link's to the last bit, and a link of zero total "mass" (c_x or c_y = 0) stays
-    exact far from the origin. Otherwise (a Pinocchio that normalises) the wheel turns on
-    a lever, whose centre of mass differs from the link's by rounding."""
+    """Whether Pinocchio keeps a prismatic axis as given (then a wheel slides at the CM
+    exactly; else it turns on a lever, whose centre of mass is off by rounding)."""
     probe = pin.Model()
     joint = probe.addJoint(0, pin.JointModelPrismaticUnaligned(np.array([0.0, 2.0, 0.0])),
                            pin.SE3.Identity(), "probe")
@@ -227,8 +189,7 @@ class FrictionModel:
     params : SnakeParams
         The robot and its (per-link) friction coefficients.
     model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); required (the
-        default None is refused).
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); required.
 
     Raises
     ------
@@ -266,13 +227,7 @@ class FrictionModel:
         return {"params": self.params, "model": self._model}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        """Rebuilt from the pickled robot.
-
-        Parameters
-        ----------
-        state : dict
-            The pickled attributes.
-        """
+        """Rebuilt from the pickled robot."""
         self.__init__(state["params"], state["model"])  # type: ignore[misc]
 
     def create_data(self) -> FrictionData:
@@ -345,10 +300,7 @@ class FrictionModel:
         return self.calc_force(self._data, q, dq).copy()
 
     def matrix(self, q: np.ndarray) -> np.ndarray:
-        """C(q) of eq. (11) such that the friction force is -C(q) dq.
-
-        The twin's mass matrix by CRBA, and with wheels the Schur complement
-        ``M_cc + M_cw M_wc`` over them (M_ww = -1).
+        """C(q) of eq. (11) such that the friction force is -C(q) dq (the twin's CRBA).
 
         Parameters
         ----------
@@ -370,18 +322,12 @@ class FrictionModel:
                     dq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Q(q, dq) and its Jacobians dQ/dq and dQ/ddq, from the twin's RNEA derivatives.
 
-        Without wheels Q = -RNEA(q, 0, dq), so dQ/dq = -dRNEA/dq and dQ/ddq = -M. With
-        them (module docstring) the locked pass gives ``w = RNEA_w(q, 0, [dq; 0])`` and the
-        rolling pass ``-Q = RNEA_c(q, 0, [dq; w])``; the chain rule over the two passes
-        gives dQ/dq = -(R2_q + M_cw R1_q) (R1_q: the locked pass's wheel rows) and
-        dQ/ddq = -(M_cc + M_cw M_wc).
+        With wheels, the chain rule over the locked and rolling passes (:ref:`friction`).
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Configuration, length n + 2.
-        dq : numpy.ndarray
-            Velocity, length n + 2.
+        q, dq : numpy.ndarray
+            Configuration and velocity, length n + 2 each.
 
         Returns
         -------
@@ -416,22 +362,18 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
                     q: np.ndarray, dq: np.ndarray) -> pin.StdVec_Force:
     """Per-joint friction forces in the joint frames, for ``pin.rnea``/``pin.aba`` (reference).
 
-    Runs ``pin.forwardKinematics`` on ``data``. Joint i + 2 of the paper model carries
-    link i, whose frame is at its front end; the CM sits at x = d_i on the link axis.
+    Link i's frame is at its front end; its CM sits at x = d_i on the link axis.
 
     Parameters
     ----------
     model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); required (the
-        default None is refused).
-    params : SnakeParams
-        The robot, with its friction coefficients c_x, c_y [N s/m] and c_theta [N m s].
+        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
     data : pinocchio.Data
-        The model's workspace (its kinematics are updated).
-    q : numpy.ndarray
-        Configuration, length n + 2.
-    dq : numpy.ndarray
-        Velocity, length n + 2.
+        The model's workspace (``pin.forwardKinematics`` updates it).
+    params : SnakeParams
+        The robot, with its friction coefficients.
+    q, dq : numpy.ndarray
+        Configuration and velocity, length n + 2 each.
 
     Returns
     -------
@@ -441,13 +383,12 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
     Raises
     ------
     ParameterError
-        ``params`` is not a SnakeParams, ``model`` is not its paper model, or ``data``
-        is not the model's.
+        ``params``, ``model`` or ``data`` is not the robot's.
     ConfigurationError
         ``q`` or ``dq`` does not have n + 2 finite entries.
     """
     model, params = _paper_model_of(model, params)
-    _check_data(data, model)
+    model_data(data, model, pin.Data)
     q = as_vector(q, params.n + 2, "q")
     dq = as_vector(dq, params.n + 2, "dq")
     c_x, c_y, c_theta = (params.per_link(key) for key in ("c_x", "c_y", "c_theta"))

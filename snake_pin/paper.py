@@ -1,13 +1,10 @@
 """The paper's closed-form model (Section II, eqs. 3-20), independent of Pinocchio.
 
-Plain numpy, the cross-check of :class:`snake_pin.model.Snake`: ``tests/test_paper.py``
-compares the two on random states of random heterogeneous robots. The printed equations
-(identical links, CM in the middle) are generalised to per-link lengths, masses,
-inertias, CM offsets and friction (eqs. 3-4, 5-7, 8-9, 10-14, 15-16, 19, 20) as derived in
-:ref:`derivation-paper`. Configurations are the paper's ``q = [x_h, y_h, theta_1, phi]``
-(n + 2 numbers, m and rad), ``q-bar = [x_h, y_h, theta]`` (eq. 17), velocities their plain
-time derivatives. Every function raises :class:`~snake_pin.exceptions.ParameterError`
-for a ``params`` that is not a SnakeParams or an ``n`` that is not an integer >= 2, and
+Plain numpy, the cross-check of :class:`snake_pin.model.Snake`, with the printed
+equations generalised to per-link parameters as derived in :ref:`derivation-paper`.
+Configurations are ``q = [x_h, y_h, theta_1, phi]`` and ``q-bar = [x_h, y_h, theta]``
+(eq. 17). Every function raises :class:`~snake_pin.exceptions.ParameterError` for a
+``params`` that is not a SnakeParams or an ``n`` that is not an integer >= 2, and
 :class:`~snake_pin.exceptions.ConfigurationError` for a ``q``, ``dq`` or ``theta`` that is
 not a vector of n + 2 (n for theta) finite numbers.
 """
@@ -51,14 +48,12 @@ def _q(params: object, q: object, name: str = "q") -> tuple[SnakeParams, np.ndar
 
 
 def k_matrix(params: SnakeParams) -> np.ndarray:
-    """Return K of eq. (4), per link: ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i), else 0.
-
-    Link i's CM is ``p_i = p_h + sum_j K_ij e_j``, ``e_j = (cos theta_j, sin theta_j)``.
+    """Return K of eq. (4): ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i), else 0.
 
     Parameters
     ----------
     params : SnakeParams
-        The robot (link lengths 2l_j and CM offsets d_i are read).
+        The robot.
 
     Returns
     -------
@@ -115,8 +110,7 @@ def link_angles(q: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     q : array_like, shape (n + 2,)
-        Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...]
-        (n >= 2).
+        Configuration (n >= 2).
 
     Returns
     -------
@@ -158,8 +152,7 @@ def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.
     Returns
     -------
     jx, jy : numpy.ndarray, shape (n, n + 2)
-        Rows i map ``q-bar' = [x_h', y_h', theta']`` to link i's CM velocity along the
-        world x and y axes [m/s].
+        Row i maps ``q-bar'`` to link i's CM velocity along world x and y [m/s].
     """
     params, theta = _theta(params, theta)
     n = params.n
@@ -170,9 +163,7 @@ def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """Return H-bar of eq. (9), the inertia matrix in q-bar coordinates.
-
-    ``H-bar = Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_1, ..., J_n)`` with ``M = diag(m_i)``.
+    """Return H-bar of eq. (9): ``Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_i)``, M = diag(m_i).
 
     Parameters
     ----------
@@ -194,10 +185,7 @@ def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
 
 
 def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
-    """Return H of eq. (19), the inertia matrix in paper coordinates.
-
-    ``H = J_{q-bar q}^T H-bar J_{q-bar q}``; Pinocchio's CRBA in
-    :meth:`snake_pin.model.Snake.inertia_matrix` must agree with it.
+    """Return H of eq. (19), ``J_{q-bar q}^T H-bar J_{q-bar q}`` (paper coordinates).
 
     Parameters
     ----------
@@ -217,11 +205,10 @@ def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
 
 
 def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """Return W-bar of eq. (16), the centripetal matrix in q-bar coordinates.
+    """Return W-bar of eq. (16), ``J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y``.
 
-    ``W-bar = J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y`` with ``M = diag(m_i)``;
-    ``J_x = -K diag(cos theta)`` and ``J_y = -K diag(sin theta)`` (padded with two zero
-    columns) map ``theta'^2`` to the centripetal part of the CM accelerations.
+    ``J_x = -K diag(cos theta)`` and ``J_y = -K diag(sin theta)`` (two zero columns first)
+    map ``theta'^2`` to the centripetal CM accelerations.
 
     Parameters
     ----------
@@ -246,18 +233,14 @@ def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
 
 
 def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """Return the Coriolis/centrifugal term ``W diag(J dq) J dq`` of eq. (18).
-
-    ``W = J_{q-bar q}^T W-bar`` and ``J = J_{q-bar q}``.
+    """Return the Coriolis term ``W diag(J dq) J dq`` of eq. (18), W = J^T W-bar, J = J_{q-bar q}.
 
     Parameters
     ----------
     params : SnakeParams
         The robot.
-    q : array_like, shape (n + 2,)
-        Configuration [m, m, rad, rad...].
-    dq : array_like, shape (n + 2,)
-        Its time derivative [m/s, m/s, rad/s, rad/s...].
+    q, dq : array_like, shape (n + 2,)
+        Configuration [m, m, rad, rad...] and its time derivative.
 
     Returns
     -------
@@ -298,10 +281,7 @@ def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
 
 
 def friction_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
-    """Return the friction matrix C in paper coordinates (after eq. 19).
-
-    ``C = J_{q-bar q}^T C-bar J_{q-bar q}``; the dissipation function is
-    ``dq^T C dq / 2`` and the friction forces are ``-C dq``.
+    """Return C of eq. (19), ``J_{q-bar q}^T C-bar J_{q-bar q}``: the friction force is -C dq.
 
     Parameters
     ----------
@@ -338,19 +318,14 @@ def actuation_matrix(n: int) -> np.ndarray:
 
 
 def bias(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """Return the bias h of eq. (20): ``W diag(J dq) J dq + C dq``.
-
-    The dynamics read ``H q'' + h = E tau``; Pinocchio's
-    :meth:`snake_pin.model.Snake.bias` must agree with it.
+    """Return the bias h of eq. (20), ``W diag(J dq) J dq + C dq`` (``H q'' + h = E tau``).
 
     Parameters
     ----------
     params : SnakeParams
         The robot.
-    q : array_like, shape (n + 2,)
-        Configuration [m, m, rad, rad...].
-    dq : array_like, shape (n + 2,)
-        Its time derivative [m/s, m/s, rad/s, rad/s...].
+    q, dq : array_like, shape (n + 2,)
+        Configuration [m, m, rad, rad...] and its time derivative.
 
     Returns
     -------
@@ -364,10 +339,8 @@ def bias(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
 def g2(params: SnakeParams, q: np.ndarray) -> np.ndarray:
     """Return g_2 of eq. (67) for isotropic friction (``c_x,i = c_y,i = c_i`` on every link).
 
-    ``g_2 = sum_i c_i p_i``, the friction-weighted sum of the links' CM positions: total
-    momentum plus g_2 is conserved, since ``d/dt sum_i m_i p_i' = -sum_i c_i p_i'``. For
-    equal links this is the printed ``g21 = n c x_h + c l sum_j (2n - 2j + 1) cos(theta_j)``
-    (and g22 with y_h and sin).
+    ``g_2 = sum_i c_i p_i`` (CM positions p_i): momentum plus g_2 is conserved. For equal
+    links, the printed ``g21 = n c x_h + c l sum_j (2n - 2j + 1) cos(theta_j)`` (g22: y, sin).
 
     Parameters
     ----------

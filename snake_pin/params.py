@@ -1,11 +1,8 @@
 """Robot parameters: the frozen, validated ``SnakeParams`` and its named presets.
 
-Every physical field is one number (all links alike) or one value per link, head first;
-equal per-link values collapse to the number, so two descriptions of one robot compare
-equal. Code for any robot reads the per-link arrays (:meth:`SnakeParams.per_link`,
-:attr:`~SnakeParams.link_lengths`, ...). Every value must lie in its range of
-:data:`FIELD_RANGES`, or the dynamics would overflow or underflow while a run still
-"completes" (:ref:`concepts`).
+Every physical field is one number (all links alike) or one value per link, head first
+(equal values collapse to the number, so two descriptions of one robot compare equal),
+within its range of :data:`FIELD_RANGES` (:ref:`concepts`).
 """
 
 from __future__ import annotations
@@ -109,24 +106,21 @@ class SnakeParams:
         Link mass m_i [kg], in :data:`MASS_RANGE`.
     inertia : float or sequence of n floats
         Link moment of inertia about its CM, J_i [kg m^2], in :data:`INERTIA_RANGE`.
-    c_x, c_y : float or sequence of n floats
-        Viscous friction along / across link i [N s/m] (eqs. 10-12), 0 or in the
-        :data:`FRICTION_RANGE`.
-    c_theta : float or sequence of n floats
-        Rotational viscous friction of link i [N m s] (eq. 13), likewise.
+    c_x, c_y, c_theta : float or sequence of n floats
+        Viscous friction along / across link i [N s/m] and rotational [N m s] (eqs. 10-13),
+        0 or in :data:`FRICTION_RANGE`.
     passive : sequence of int
         1-based indices (1..n - 1) of joints without an actuator (Section III.2).
     name : str
-        A label carried into file names and reports (letters, digits, underscores). A
-        preset's name given to a robot with per-link values becomes ``NAME_custom``.
+        A label for file names and reports (letters, digits, underscores); a preset's name
+        on a robot with per-link values becomes ``NAME_custom``.
     com_offset : float or sequence of n floats or None
         Distance of link i's CM from its front end [m], in [0, 2l_i]; ``None``: l_i.
 
     Raises
     ------
     ParameterError
-        Naming the field (and the link) out of its domain; also for the changes given to
-        the presets.
+        Naming the field (and the link) out of its domain.
     """
 
     n: int = 10
@@ -276,36 +270,33 @@ class SnakeParams:
     # ----------------------------------------------------------------- presets
     @classmethod
     def table1(cls, **changes: Any) -> SnakeParams:
-        """Return the robot of Table 1 (Sections IV and VI.1), J in kg m^2 (erratum 1).
+        """Return the robot of Table 1 (Sections IV and VI.1; the class's defaults).
 
         Parameters
         ----------
         **changes
-            Fields to change from the preset (validated as in :class:`SnakeParams`).
+            Fields to change from the preset.
 
         Returns
         -------
         SnakeParams
-            n = 10, 2l = 0.12 m, m = 0.182 kg, J = 2.2e-4 kg m^2,
-            c_x = c_y = 0.5 N s/m, c_theta = 7.2e-5 N m s, unless changed.
+            The robot.
         """
         return cls(**{"name": "table1", **changes})
 
     @classmethod
     def engine(cls, **changes: Any) -> SnakeParams:
-        """Return the 8-link robot of Section VI.3 (2l = 0.176 m, m = 0.417 kg, J = 1.2e-3 kg m^2).
-
-        Its viscous coefficients model the wheels (identified from the MuJoCo model).
+        """Return the 8-link wheeled robot of Section VI.3 (friction identified from MuJoCo).
 
         Parameters
         ----------
         **changes
-            Fields to change from the preset (validated as in :class:`SnakeParams`).
+            Fields to change from the preset.
 
         Returns
         -------
         SnakeParams
-            c_x = 0.5 N s/m, c_y = 5 N s/m, c_theta = 1e-4 N m s, unless changed.
+            The robot.
         """
         return cls(**{"name": "engine", "n": 8, "link_length": 0.176, "mass": 0.417,
                       "inertia": 1.20e-3, "c_x": 0.5, "c_y": 5.0, "c_theta": 1.0e-4, **changes})
@@ -324,7 +315,7 @@ class SnakeParams:
         Returns
         -------
         SnakeParams
-            ``SnakeParams.table1(**changes)`` or ``SnakeParams.engine(**changes)``.
+            The robot.
 
         Raises
         ------
@@ -346,7 +337,7 @@ class SnakeParams:
         Returns
         -------
         SnakeParams
-            A new, validated instance; ``self`` is unchanged (frozen).
+            A new, validated instance.
 
         Raises
         ------

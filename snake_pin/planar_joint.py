@@ -4,10 +4,11 @@ A plain ``pin.buildModelFromUrdf`` of our URDFs gives a ``JointModelPlanar`` bas
 coordinates are not the paper's; the maps (``v_planar = T q'``, ``H = T^T M T``, ...)
 are derived in :ref:`concepts` (Pinocchio's planar joint). Also accepted: ``continuous``
 joints (two coordinates cos q_i, sin q_i; angles read back in ``(-pi, pi]``) and revolute
-joints about -z. Models of other shapes (another root joint, a rotated joint placement, a
-branch) are refused with :class:`~snake_pin.exceptions.ParameterError` naming the joint;
-vectors of the wrong size or with non-finite entries with
-:class:`~snake_pin.exceptions.ConfigurationError`.
+joints about -z. Every function raises :class:`~snake_pin.exceptions.ParameterError`
+naming the joint for a model of another shape (another root joint, a rotated joint
+placement, a branch; :func:`planar_layout`), and
+:class:`~snake_pin.exceptions.ConfigurationError` for a vector of the wrong size or with
+non-finite entries.
 """
 
 from __future__ import annotations
@@ -105,8 +106,7 @@ def planar_layout(model: pin.Model) -> PlanarLayout:
     Raises
     ------
     ParameterError
-        Naming the joint that is not as the module docstring says, or ``model`` is not a
-        ``pinocchio.Model``.
+        ``model`` is not a ``pinocchio.Model``, or naming the joint that is not as said.
     """
     instance(model, pin.Model, "model", "a pinocchio.Model")
     if model.njoints < 3:
@@ -159,13 +159,6 @@ def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         ``blockdiag(R(theta_1)^T, 1, S)``; orthogonal, so ``T^-1 = T^T``.
-
-    Raises
-    ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -199,13 +192,6 @@ def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarr
         ``[x_h, y_h, cos theta_1, sin theta_1, s_i phi_i ..]``.
     v_planar : numpy.ndarray, shape (n + 2,)
         ``T q'``.
-
-    Raises
-    ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -237,13 +223,6 @@ def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
     -------
     q, dq : numpy.ndarray, shape (n + 2,)
         Paper configuration and ``T^T v_planar``.
-
-    Raises
-    ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q_planar = as_vector(q_planar, layout.nq, "q_planar")
@@ -273,13 +252,6 @@ def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
     -------
     numpy.ndarray, shape (n + 2,)
         The planar model's acceleration.
-
-    Raises
-    ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     _, v_planar = paper_to_planar(layout, q, dq)
@@ -303,13 +275,6 @@ def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.n
     -------
     numpy.ndarray, shape (n + 2,)
         Paper acceleration q''.
-
-    Raises
-    ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q, dq = planar_to_paper(layout, q_planar, v_planar)
@@ -336,13 +301,6 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
     -------
     numpy.ndarray, shape (n + 2,)
         The same force for the planar model (equal power).
-
-    Raises
-    ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     force = as_vector(force, layout.n + 2, "force")
@@ -375,9 +333,7 @@ def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarr
     Raises
     ------
     ParameterError
-        ``model`` is not a planar-root serial snake, or ``data`` not its Data.
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+        ``data`` is not ``model``'s Data (other errors: the module docstring).
     """
     layout = planar_layout(model)
     model_data(data, model, pin.Data)

@@ -1,12 +1,10 @@
 """Robot descriptions on disk: TOML robot files, URDF import, and the ``--robot`` lookup.
 
 A file (or a preset name) becomes a validated :class:`~snake_pin.params.SnakeParams`, and
-a robot file is written back. The formats, what a URDF may contain and how it maps onto
-the parameters are in :doc:`/robot_files`. Every value is checked before the robot is
-built, files are regular files of bounded size, and a URDF's links and joints are
-counted on its bytes before any XML is parsed. Every problem with a file is one
-:class:`~snake_pin.exceptions.RobotFileError` line naming the file, then the field or
-element (and the link where it applies).
+a robot file is written back; formats and the URDF mapping: :doc:`/robot_files`. Files are
+bounded regular files (a URDF's elements counted on its bytes before parsing), and every
+problem is one :class:`~snake_pin.exceptions.RobotFileError` line naming the file, then
+the field or element (and the link).
 """
 
 from __future__ import annotations
@@ -83,8 +81,7 @@ def _is_number(value: object) -> bool:
 
 
 def _numbers(value: object, path: str | os.PathLike[str], where: str) -> object:
-    """``value`` (a number or a list), with a TOML integer too large for a float refused here
-    rather than as an OverflowError (types are checked by SnakeParams)."""
+    """``value`` (a number or a list), refusing a TOML integer too large for a float."""
     for i, item in enumerate(value if isinstance(value, list) else [value], start=1):
         if isinstance(item, int) and not isinstance(item, bool):
             try:
@@ -254,8 +251,7 @@ def _urdf_robot(path: str | os.PathLike[str], ref: object, n: int | None) -> Sna
 
 # ----------------------------------------------------------------------- TOML writing
 def _toml_per_link(key: str, value: float | tuple[float, ...]) -> str:
-    """``key = value`` in TOML (Python's shortest round-trip float repr is valid TOML), a
-    per-link array wrapped at 86 characters."""
+    """``key = value`` in TOML (a float's repr is valid TOML), arrays wrapped at 86 columns."""
     if not isinstance(value, tuple):
         return f"{key} = {float(value)!r}"
     body = textwrap.fill(" ".join(f"{float(v)!r}," for v in value), 86,
@@ -264,8 +260,7 @@ def _toml_per_link(key: str, value: float | tuple[float, ...]) -> str:
 
 
 def robot_file_string(params: SnakeParams) -> str:
-    """Return the TOML robot file of ``params`` (:func:`read_robot_file` reads it back equal).
-    """
+    """Return the TOML robot file of ``params`` (:func:`read_robot_file` reads it back equal)."""
     lines = ["# snake_pin robot file (snake_pin.robot_file.read_robot_file reads it)",
              f'name = "{params.name}"', f"n = {params.n}"]
     if params.passive:
@@ -298,8 +293,7 @@ def write_robot_file(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     Raises
     ------
     ParameterError
-        ``params`` is not a SnakeParams, or ``path`` is not a ``.toml`` file in an
-        existing folder (nothing written).
+        ``params`` is not a SnakeParams, or ``path`` not a ``.toml`` file in a folder.
     OSError
         The file cannot be written.
     """
@@ -410,12 +404,8 @@ def _check_joints(path: str | os.PathLike[str], robot: Any, links: dict[str, Any
 
 @dataclass
 class _Body:
-    """One rigid body of the chain: its main link and the links fixed onto it.
-
-    ``members`` pairs each link with its pose in the main link's frame; ``joint`` is the
-    movable joint to the next body (None for the tail) and ``joint_pose`` that joint's
-    origin in the main link's frame.
-    """
+    """One rigid body of the chain: its main link, the (link, pose) fixed onto it, and the
+    movable joint to the next body (None for the tail) with its pose, in the link's frame."""
 
     link: str
     members: list[tuple[Any, np.ndarray]] = field(default_factory=list)
@@ -495,12 +485,8 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[_Body], str |
 
 
 def _planar_inertia(body: _Body) -> tuple[float, np.ndarray, float]:
-    """Mass, CM (in the main link's frame) and yaw inertia about the CM of a rigid body.
-
-    Fixed links are merged by the parallel-axis theorem in the plane (heights and the
-    tensor's off-diagonal terms do not enter planar dynamics). A body of one link gets
-    its URDF numbers unchanged (no arithmetic on them, so they round-trip exactly).
-    """
+    """Mass, CM (in the main link's frame) and yaw inertia about the CM of a rigid body:
+    fixed links merged by the planar parallel-axis theorem, one link's numbers unchanged."""
     parts = []
     for link, pose in body.members:
         inertial = link.inertial
@@ -631,18 +617,15 @@ def _friction_argument(friction: Mapping[str, Any] | None, n: int) -> dict[str, 
 
 def read_urdf(path: str | os.PathLike[str],
               friction: Mapping[str, Any] | None = None) -> SnakeParams:
-    """Read the parameters of the planar snake described by a URDF (ours or anyone's).
-
-    What is accepted, and how each parameter is read: :doc:`/robot_files` (URDF import).
+    """Read the planar snake a URDF describes (ours or anyone's; :doc:`/robot_files`).
 
     Parameters
     ----------
     path : str or os.PathLike
         The ``.urdf`` file (at most :data:`MAX_URDF_BYTES`).
     friction : Mapping of str to float or sequence of float, optional
-        Any of ``c_x``, ``c_y``, ``c_theta`` (one number or n); each wins over the file's
-        ``<snake_pin>`` element, and a coefficient in neither is **zero** (URDF itself has
-        no viscous ground friction).
+        Any of ``c_x``, ``c_y``, ``c_theta`` (one number or n), winning over the file's
+        ``<snake_pin>`` element; a coefficient in neither is **zero**.
 
     Returns
     -------
@@ -731,11 +714,8 @@ def _link_names(message: str, chain: list[str]) -> str:
 def robot_paths() -> dict[str, Path]:
     """Return the shipped URDFs and example robot files, by file name.
 
-    Installed from a wheel, they are package data: ``snake_pin/robots/urdf/*.urdf`` (the
-    repository's ``urdf/``) and ``snake_pin/robots/examples/*.toml`` (the repository's
-    ``examples/robots/``), found through :mod:`importlib.resources`. From a source
-    checkout (an editable install) where those folders are absent, the repository's own
-    ``urdf/`` and ``examples/robots/`` are used.
+    Package data ``snake_pin/robots/{urdf,examples}`` when installed, else the checkout's
+    ``urdf/`` and ``examples/robots/``.
 
     Returns
     -------
@@ -763,12 +743,10 @@ def load_robot(spec: str | os.PathLike[str], **overrides: Any) -> SnakeParams:
     Parameters
     ----------
     spec : str or os.PathLike
-        A preset name (``table1``, ``engine``), a ``.toml`` robot file, a ``.urdf`` file,
-        or the bare file name of a shipped robot (:func:`robot_paths`) when no such file
-        exists in the working directory.
+        A preset name, a ``.toml`` or ``.urdf`` file, or a shipped robot's file name
+        (:func:`robot_paths`) when no such file is in the working directory.
     **overrides
-        Field changes (e.g. ``passive=(3,)``): keyword arguments of the preset, or
-        :meth:`SnakeParams.replace` applied to a file's robot.
+        Field changes (e.g. ``passive=(3,)``).
 
     Returns
     -------

@@ -1,11 +1,8 @@
 """URDF generation: a planar n-link snake with a floating planar base (Fig. 1), via yourdfpy.
 
-The generated description is the single source of truth for the robot's geometry and
-inertia: :class:`snake_pin.model.Snake` builds its Pinocchio model from it. Links and
-joints follow the frames of :ref:`coordinates`; a ``world`` link and a ``planar`` joint
-``base`` carry the head, so that generic tools see the floating planar base. Passive
-joints are marked by ``<limit effort="0">`` (no actuation), which Pinocchio reads into
-``model.effortLimit`` and :func:`passive_joints` recovers.
+The one description of the robot's geometry and inertia (:class:`snake_pin.model.Snake`
+builds its model from it), in the frames of :ref:`coordinates`; a ``world`` link and a
+``planar`` joint ``base`` carry the head. Passive joints have ``<limit effort="0">``.
 """
 
 from __future__ import annotations
@@ -77,21 +74,17 @@ def build_urdf(params: SnakeParams, *, floating_base: bool = True) -> yourdfpy.U
     params : SnakeParams
         Robot parameters; ``params.passive`` joints get a zero effort limit.
     floating_base : bool, optional
-        Include the ``world`` link and the ``planar`` joint ``base`` (default). Without
-        it the head link is the root, ready for a custom root joint (Pinocchio).
+        Include the ``world`` link and the ``planar`` joint ``base`` (else the head is root).
 
     Returns
     -------
     yourdfpy.URDF
-        Links ``link_1`` .. ``link_n`` (head first) joined by revolute z joints
-        ``joint_1`` .. ``joint_{n-1}`` limited to ``[-JOINT_LIMIT, JOINT_LIMIT]``; no meshes.
-        The friction coefficients are not in it (see :func:`urdf_string`).
+        Links ``link_i`` (head first) joined by revolute z joints ``joint_i`` (no friction).
 
     Raises
     ------
     ParameterError
-        If ``params`` is not a :class:`~snake_pin.params.SnakeParams` or
-        ``floating_base`` not a bool.
+        If ``params`` is not a SnakeParams or ``floating_base`` not a bool.
     """
     check_params(params)
     flag(floating_base, "floating_base")
@@ -133,9 +126,7 @@ def urdf_string(params: SnakeParams, *, floating_base: bool = True) -> str:
     Returns
     -------
     str
-        The XML document, with a ``<snake_pin>`` element carrying each link's friction
-        coefficients and the robot's name (read back by
-        :func:`snake_pin.robot_file.read_urdf`; other tools ignore it).
+        The XML document, with a ``<snake_pin>`` element carrying the friction and name.
 
     Raises
     ------
@@ -151,13 +142,8 @@ def urdf_string(params: SnakeParams, *, floating_base: bool = True) -> str:
 
 
 def _add_extension(robot: etree._Element, params: SnakeParams) -> None:
-    """Append the ``<snake_pin>`` element: what a URDF cannot say, read back by us only.
-
-    URDF has no viscous ground friction; Pinocchio, yourdfpy and MuJoCo ignore unknown
-    top-level elements, so the friction of every link (and the robot's name) travel in
-    ``<snake_pin version="1" name=...><link_friction link="link_i" c_x=... c_y=...
-    c_theta=.../>...</snake_pin>``. :func:`snake_pin.robot_file.read_urdf` restores them.
-    """
+    """Append ``<snake_pin version name><link_friction link c_x c_y c_theta/>...</snake_pin>``:
+    the friction and name a URDF cannot say (other tools ignore the element)."""
     ext = etree.SubElement(robot, EXTENSION_TAG, version=str(EXTENSION_VERSION),
                            name=params.name)
     friction = {key: params.per_link(key) for key in ("c_x", "c_y", "c_theta")}
@@ -184,8 +170,7 @@ def write_urdf(params: SnakeParams, path: str | os.PathLike[str]) -> Path:
     Raises
     ------
     ParameterError
-        ``params`` is not a SnakeParams, or ``path`` not a ``.urdf`` file in an existing
-        folder.
+        ``params`` is not a SnakeParams, or ``path`` not a ``.urdf`` file in a folder.
     SnakePinError
         yourdfpy rejects the generated description (a bug, not a user error).
     OSError
