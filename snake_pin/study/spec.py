@@ -759,13 +759,9 @@ def _scenarios(where: _Where, file: Path, base: Mapping[str, Any],
 def _check_applicability(where: _Where, base: Mapping[str, Any], axes: Sequence[Axis],
                          explicit: set[str], place: Any) -> None:
     """Every explicit setting must apply to every (model, controller) the study has."""
-    def values(name: str) -> tuple[Any, ...]:
-        for axis in axes:
-            if axis.setting == name:
-                return axis.values
-        return (base.get(name, SETTINGS[name].default),)
-
-    pairs = list(itertools.product(values("model"), values("controller")))
+    varied = {a.setting: a.values for a in axes}
+    pairs = list(itertools.product(*(varied.get(name, (base.get(name, SETTINGS[name].default),))
+                                     for name in ("model", "controller"))))
     for model, controller in pairs:
         if model == "engine" and controller in ("pfl", "mpc"):
             raise where(f"{place('controller')} controller {controller} runs on the "
