@@ -869,14 +869,11 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
             + (f"\nmedian run: {stems[median]}" if median is not None else ""))
     if interrupted:
         return _Outcome(payload, text, EXIT_INTERRUPTED,
-                        f"engine runs interrupted; {len(draws.done)} of "
-                        f"{args.seeds} runs finished, saved with their distribution in {table}"
-                        " (status interrupted)")
-    faults = draws.faults()
-    if faults:
-        return _Outcome(payload, text, EXIT_FAILED,
-                        f"{len(faults)} of {args.seeds} runs diverged or failed (results in {out})")
-    return _Outcome(payload, text)
+                        f"engine runs interrupted; {len(draws.done)} of {args.seeds} runs "
+                        f"finished, saved with their distribution in {table} (status interrupted)")
+    faults = len(draws.faults())
+    return _Outcome(payload, text, EXIT_FAILED if faults else EXIT_OK, f"{faults} of {args.seeds} "
+                    f"runs diverged or failed (results in {out})" if faults else "")
 
 
 def _cmd_view(args: argparse.Namespace) -> _Outcome:
