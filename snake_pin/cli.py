@@ -1,19 +1,8 @@
 """The ``snake-pin`` console script: one parser, one subcommand per job, one contract.
 
-Heavy imports happen inside the subcommand that needs them. The contract every
-subcommand keeps (README, "Security and robustness"):
-
-- every argument is checked before anything is computed or any folder is created; a
-  wrong one ends as one line on stderr naming it, exit status 2;
-- every option a command accepts is honoured or refused, never silently ignored;
-- ``--json`` prints exactly one RFC 8259 object on stdout (NaN and infinities as null)
-  and nothing else goes to stdout meanwhile; without it stdout gets plain text (plain
-  numbers, no Python or NumPy reprs);
-- a run (simulate, engine) reports the same summary keys (:data:`SUMMARY_KEYS`) with or
-  without ``--path``; time series go to files (npz, CSV), never to stdout; head errors are
-  judged over ``t >= --error-window``, whose default exists for any run length;
-- SIGTERM and SIGHUP act like Ctrl-C for the duration of a command: a run stops, writes
-  what it computed (marked interrupted), says so in one line and exits with status 130.
+Heavy imports happen inside the subcommand that needs them. The contract every subcommand
+keeps (arguments checked first, one line and exit 2 when wrong, ``--json``, the run
+summary, signals): :ref:`cli`, README "Security and robustness".
 """
 
 from __future__ import annotations
@@ -50,8 +39,7 @@ EXIT_USAGE = 2
 EXIT_FAILED = 3
 EXIT_INTERRUPTED = 130
 
-#: Largest |value| of a configuration entry given with ``--q`` (positions in m, angles in
-#: rad): manipulability is translation invariant up to |x_h| = 1e9 m.
+#: Largest |entry| of ``--q`` [m, rad] (manipulability is translation invariant up to it).
 MAX_COORDINATE = 1e9
 #: Control period of ``simulate`` [s]; with sim.MAX_STEPS it bounds --t-final.
 SIMULATE_DT = 1e-3
@@ -60,14 +48,10 @@ MIN_FPS, MAX_FPS = 1.0, 120.0
 #: Engine options' ranges: a wheel bigger than the link collides with its neighbours.
 MAX_WHEEL_RADIUS = 0.1
 MAX_MU = 10.0
-#: ``engine --seeds``: most runs of one distribution (each 60 s run writes ~13 MB), and
-#: the largest offset of the initial joint angles [rad] (a perturbation, not a new posture).
+#: ``engine --seeds``: most runs (each 60 s run writes ~13 MB), largest offset [rad].
 MAX_SEEDS = 100
 MAX_PERTURBATION = 0.1
-#: The keys of a run's summary (simulate, engine), printed as text without --json and held
-#: by the --json object, whether or not --path is given (errors in m and % of the body
-#: length, over t >= error_window [s]; torque_max: the peak ``|tau_i|`` over the whole run
-#: [N m]).
+#: The keys of a run's summary (simulate, engine), with or without --json and --path.
 SUMMARY_KEYS = ("robot", "n", "controller", "reference", "status", "reason", "t_end",
                 "error_window", "rms_head_error", "max_head_error", "rms_head_error_pct",
                 "max_head_error_pct", "R_min", "D_min", "torque_max")
@@ -106,13 +90,11 @@ class UsageError(SnakePinError):
 
 
 class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose errors are one line and exit status 2, and which takes values
-    that start with '-' when they are numbers, angles or lists (``--q -0.8,0``)."""
+    """ArgumentParser with one-line errors (exit 2) that takes ``--q -0.8,0`` and ``-pi/5``."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        # argparse consults this (since 2.7, unchanged through 3.13) in _parse_optional to
-        # decide that an argument starting with '-' is a value, not an option.
+        # argparse's _parse_optional reads a '-' argument matching this as a value
         self._negative_number_matcher = _NEGATIVE_VALUE
 
     def error(self, message: str) -> NoReturn:
@@ -126,8 +108,8 @@ class _Outcome:
     payload: dict[str, Any] = field(default_factory=dict)
     text: str = ""
     status: int = EXIT_OK
-    note: str = ""  # one line for stderr (diverged or interrupted runs)
-    after: Callable[[], None] | None = None  # runs once the output is printed (live viewer)
+    note: str = ""  # one line for stderr
+    after: Callable[[], None] | None = None  # run once the output is printed
 
 
 # ------------------------------------------------------------------- argument types
@@ -147,7 +129,7 @@ def parse_angle(text: str) -> float:
     Raises
     ------
     argparse.ArgumentTypeError
-        Not an angle, a division by zero, or not finite.
+        Not a finite angle.
     """
     match = _ANGLE.match(text)
     if not match or not (match.group(2) or match.group(3)):
@@ -225,18 +207,16 @@ _ROBOT_HELP = ("a preset (" + ", ".join(ROBOTS) + "), a .toml robot file or a .u
 
 def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = True,
                    default: str = "table1") -> None:
-    """The robot options of every subcommand that takes a robot (:func:`_params` reads them):
-    --robot, --n, --passive and, unless the command sets friction itself (``engine``
-    identifies it from its wheels), --cx, --cy, --ctheta."""
+    """--robot, --n, --passive and (unless ``engine``'s wheels set it) the friction options."""
     parser.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default {default}")
     parser.add_argument("--n", type=_int_in(2, MAX_LINKS),
                         help=f"number of links, 2..{MAX_LINKS} (overrides the preset)")
     parser.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
                         metavar="K", help="make joint K passive (repeatable)")
     if friction:
-        parser.add_argument("--cx", type=_float_in(0.0), help="c_x [N s/m]")
-        parser.add_argument("--cy", type=_float_in(0.0), help="c_y [N s/m]")
-        parser.add_argument("--ctheta", type=_float_in(0.0), help="c_theta [N m s]")
+        for flag, key, unit in (("cx", "c_x", "N s/m"), ("cy", "c_y", "N s/m"),
+                                ("ctheta", "c_theta", "N m s")):
+            parser.add_argument(f"--{flag}", type=_float_in(0.0), help=f"{key} [{unit}]")
 
 
 def _joint(option: str, k: int, n: int) -> int:
@@ -248,8 +228,7 @@ def _joint(option: str, k: int, n: int) -> int:
 
 
 def _params(args: argparse.Namespace, default: str = "table1") -> SnakeParams:
-    """The robot the options describe (--robot, then --n, --passive and friction applied,
-    through :func:`snake_pin.robot_file.load_robot`: a bad robot file is one line naming it)."""
+    """The robot of --robot with --n, --passive and friction applied (a bad file: one line)."""
     from .robot_file import load_robot
 
     spec = args.robot or default
@@ -294,8 +273,7 @@ def _check_t_final(value: float | None, dt: float) -> None:
 
 
 def _save_trajectory(traj: Any, out: Path, stem: str) -> list[Path]:
-    """Save a run (npz + JSON) with its peak ``|tau_i|`` in the summary (every controller's,
-    so that a bound such as the MPC's ``--torque-bound`` can be checked from the summary)."""
+    """Save a run (npz + JSON) with its peak ``|tau_i|`` in the summary."""
     from .metrics import torque_max
 
     traj.summary["torque_max"] = torque_max(traj)
@@ -314,8 +292,7 @@ def _interrupted_run(exc: RunInterrupted, out: Path, stem: str) -> _Outcome:
 
 
 def _plain(value: Any) -> str:
-    """A value as plain text: numbers with 6 significant digits (no NumPy reprs), None as
-    "none", lists as [a, b, ...], an empty string as "-"."""
+    """A value as plain text (6 significant digits, "none", [a, b], "-" for "")."""
     if value is None:
         return "none"
     if isinstance(value, str):
@@ -339,8 +316,7 @@ def _wrote(paths: Mapping[str, Path]) -> tuple[dict[str, str], str]:
 
 
 def _summary_text(payload: Mapping[str, Any]) -> str:
-    """The text form of a run's summary: one line per key of :data:`SUMMARY_KEYS`, then
-    the files written."""
+    """A run's summary as text: one line per key of :data:`SUMMARY_KEYS`, then the files."""
     width = max(len(key) for key in SUMMARY_KEYS)
     lines = [f"{key:>{width}}: {_plain(payload.get(key))}" for key in SUMMARY_KEYS]
     files = payload.get("files") or []
@@ -350,8 +326,7 @@ def _summary_text(payload: Mapping[str, Any]) -> str:
 
 
 def _error_window(args: argparse.Namespace, t_final: float) -> float:
-    """The start of the head-error window: ``--error-window``, which must lie below the
-    run's duration, or :func:`snake_pin.metrics.default_error_window`."""
+    """``--error-window`` (below the run's duration), else the default window's start."""
     from .metrics import default_error_window
 
     if args.error_window is None:
@@ -378,8 +353,7 @@ def _path_text(args: argparse.Namespace) -> str:
 
 def _save_run(traj: Any, out: Path, stem: str, figures: Callable[[], Iterable[Path]],
               extra: Mapping[str, Any] | None = None) -> _Outcome:
-    """Save a finished run (npz, JSON, criteria CSV), then its ``figures()``; its outcome: the
-    summary, ``extra`` and the files, status 3 if it failed, a note if its window is empty."""
+    """Save a finished run (npz, JSON, criteria CSV) then its ``figures()``; its outcome."""
     from ._io import atomic_write_bytes
     from .metrics import window_note
 
@@ -588,8 +562,7 @@ def _user_controller_class(spec: str) -> type:
         raise UsageError(f"argument --controller: cannot import {spec!r} "
                          f"({type(exc).__name__}: {exc})") from None
     if not (isinstance(cls, type) and issubclass(cls, Controller)):
-        raise UsageError(f"argument --controller: {spec!r} is not a snake_pin Controller "
-                         "subclass")
+        raise UsageError(f"argument --controller: {spec!r} is not a snake_pin Controller subclass")
     return cls
 
 
@@ -611,8 +584,7 @@ def _path_parameters(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _path_reference(args: argparse.Namespace, default: str | None = None) -> Any:
-    """The head reference ``--path`` (else ``default``) names with its settings; without
-    either, None (the caller's own line) and ``--speed``/``--path-param`` are refused."""
+    """The head reference of ``--path`` (else ``default``); None without either."""
     if args.path is None and default is None:
         if args.speed is not None or args.path_param:
             raise UsageError("arguments --speed/--path-param: apply with --path")
@@ -636,8 +608,7 @@ def _path_options(parser: argparse.ArgumentParser) -> None:
 
 def _path_summary(traj: Any, reference: Any, start: float, *,
                   head_tracking: bool = True) -> None:
-    """Fill a path run's summary: the head error to the reference's point at the same time,
-    the path metrics of :func:`snake_pin.runs.benchmark.path_metrics` (series in meta)."""
+    """Fill a path run's summary: head error and :func:`~snake_pin.runs.benchmark.path_metrics`."""
     import numpy as np
 
     from .metrics import head_error_summary
@@ -726,9 +697,7 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
 
 
 def _mpc_options(args: argparse.Namespace, *, engine: bool = False) -> Any:
-    """``--horizon``/``--torque-bound`` as MPCOptions (checked there: one line, exit 2) for
-    ``simulate --controller mpc`` or ``engine --law mpc`` (there the bound defaults to the
-    motors' saturation); refused with any other law. None for the other laws."""
+    """``--horizon``/``--torque-bound`` as MPCOptions for the MPC (else refused; None)."""
     given = {name: value for name, value in (("horizon", args.horizon),
                                              ("torque_bound", args.torque_bound))
              if value is not None}
@@ -751,8 +720,7 @@ def _mpc_options(args: argparse.Namespace, *, engine: bool = False) -> Any:
 
 def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: Any,
                        t_final: float, start: float) -> Any:
-    """The MPC on the tracking line, summarised as :func:`snake_pin.runs.tracking.run_tracking`
-    summarises the Lyapunov law's run (the laws compare key for key)."""
+    """The MPC on the tracking line, summarised as :func:`~snake_pin.runs.tracking.run_tracking`."""
     import numpy as np
 
     from .control import head_first_reference
@@ -794,18 +762,13 @@ def _simulate_law(args: argparse.Namespace, params: SnakeParams, reference: Any,
     from .sim import simulate
 
     snake = Snake(params)
-    kind = args.controller
-    if user is not None:
-        controller: Any = user(snake, reference)
-    elif kind == "lyapunov":
-        controller = LyapunovController(snake, reference)
-    elif kind == "mpc":
-        controller = MPCController(snake, reference, options=mpc_options)
-    elif kind == "pfl":
-        options = PFLOptions() if args.climb_r is None else PFLOptions(climb_R=args.climb_r)
-        controller = PFLController(snake, reference, options=options)
-    else:
-        controller = LOSController(snake, reference)
+    pfl = PFLOptions() if args.climb_r is None else PFLOptions(climb_R=args.climb_r)
+    laws: dict[str, tuple[Any, dict[str, Any]]] = {
+        "lyapunov": (LyapunovController, {}), "los": (LOSController, {}),
+        "mpc": (MPCController, {"options": mpc_options}),
+        "pfl": (PFLController, {"options": pfl})}
+    law, options = laws.get(args.controller, (user, {}))
+    controller = law(snake, reference, **options)
     return simulate(snake, controller, initial_state(params), t_final,
                     progress=_progress(args), meta=meta)
 
@@ -854,8 +817,7 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
                   friction: dict[str, Any], out: Path, reference: Any = None,
                   start: float | None = None, mpc_options: Any = None) -> _Outcome:
-    """``engine --seeds N``: each run saved as it finishes, their distribution (what finished,
-    when interrupted) in ``engine_seeds.json``, the figures of the median run."""
+    """``engine --seeds N``: the runs, their distribution (engine_seeds.json), median figures."""
     from tqdm import tqdm
 
     from ._io import atomic_write_bytes
@@ -907,22 +869,17 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
             + (f"\nmedian run: {stems[median]}" if median is not None else ""))
     if interrupted:
         return _Outcome(payload, text, EXIT_INTERRUPTED,
-                        f"engine runs interrupted; {len(draws.done)} of "
-                        f"{args.seeds} runs finished, saved with their distribution in {table}"
-                        " (status interrupted)")
-    faults = draws.faults()
-    if faults:
-        return _Outcome(payload, text, EXIT_FAILED,
-                        f"{len(faults)} of {args.seeds} runs diverged or failed (results in "
-                        f"{out})")
-    return _Outcome(payload, text)
+                        f"engine runs interrupted; {len(draws.done)} of {args.seeds} runs "
+                        f"finished, saved with their distribution in {table} (status interrupted)")
+    faults = len(draws.faults())
+    return _Outcome(payload, text, EXIT_FAILED if faults else EXIT_OK, f"{faults} of {args.seeds} "
+                    f"runs diverged or failed (results in {out})" if faults else "")
 
 
 def _cmd_view(args: argparse.Namespace) -> _Outcome:
     if args.html is not None:
         if args.port is not None:
-            raise UsageError("argument --port: the live viewer's port; --html starts no "
-                             "server")
+            raise UsageError("argument --port: the live viewer's port; --html starts no server")
         html = Path(args.html)
         if html.suffix.lower() not in (".html", ".htm"):
             raise UsageError(f"argument --html: must end in .html, got {args.html}")
@@ -970,8 +927,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
     known = [name for name, _ in stages()]
     for name in args.only or []:
         if name not in known:
-            raise UsageError(f"argument --only: unknown stage {name!r}; "
-                             f"stages: {', '.join(known)}")
+            raise UsageError(f"argument --only: unknown stage {name!r}; stages: {', '.join(known)}")
     params = _params(args)
     flags = {"robot": "--robot", "n": "--n", "passive": "--passive",
              **{key: f"--{flag}" for flag, key in _FRICTION_FLAGS.items()}}
@@ -1031,10 +987,31 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
                     f"{wrote}\n{len(result.rows)} runs, path metrics over t >= {start:g} s")
 
 
+#: ``--free-joint`` of manip, sweep and singular.
+_FREE_JOINT: dict[str, Any] = {"type": _int_in(1, MAX_LINKS), "metavar": "K",
+                               "help": "joint K is free (beside any --passive joints)"}
+
+
+def _run_options(parser: argparse.ArgumentParser, t_final: float | None, help_t: str,
+                 help_window: str = _ERROR_WINDOW_HELP) -> None:
+    """``--t-final`` and ``--error-window`` of the commands that run."""
+    parser.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=t_final,
+                        help=help_t)
+    parser.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
+                        help=help_window)
+
+
+def _mpc_flags(parser: argparse.ArgumentParser, horizon: str, bound: str) -> None:
+    """``--horizon`` and ``--torque-bound`` (read by :func:`_mpc_options`)."""
+    parser.add_argument("--horizon", type=_number, metavar="SECONDS",
+                        help=f"MPC only: the prediction horizon [s] (default 0.5{horizon})")
+    parser.add_argument("--torque-bound", type=_number, metavar="NM",
+                        help=f"MPC only: |tau_i| <= NM [N m] (default {bound})")
+
+
 def _command(parser: argparse.ArgumentParser, func: Callable[[argparse.Namespace], _Outcome],
              output: str | None = "output folder", *, required: bool = True) -> None:
-    """A subcommand's last options (``-o/--output`` unless ``output`` is None, ``--json``)
-    and the function that runs it."""
+    """A subcommand's ``-o/--output`` (unless None), ``--json`` and handler."""
     if output is not None:
         parser.add_argument("-o", "--output", required=required, help=output)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -1083,16 +1060,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ts", type=_number, help="serpenoid T_s (default 1.5)")
     p.add_argument("--q", type=_parse_q, help="full configuration x,y,theta1,phi1,... "
                    "(angles may be written pi/5; |entries| <= 1e9)")
-    p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
-                   help="joint K is free (beside any --passive joints)")
+    p.add_argument("--free-joint", **_FREE_JOINT)
     p.add_argument("--no-heading", action="store_true", help="leave theta_1 out of the task")
     _command(p, _cmd_manip, output=None)
 
     p = sub.add_parser("sweep", help="D and R along a posture family (Figs. 2-9)")
     p.add_argument("family", choices=("arc", "alpha", "ts"))
     _robot_options(p)
-    p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
-                   help="joint K is free (beside any --passive joints)")
+    p.add_argument("--free-joint", **_FREE_JOINT)
     p.add_argument("--points", type=_int_in(2, MAX_POINTS), default=201,
                    help=f"postures along the family, 2..{MAX_POINTS} (0, the straight "
                    "posture, is added when the range holds it and the grid misses it)")
@@ -1107,8 +1082,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"random starts, 1..{MAX_STARTS}")
     p.add_argument("--bound", type=parse_angle, default=math.pi / 2,
                    help="|phi_i| <= bound, in (0, pi]")
-    p.add_argument("--free-joint", type=_int_in(1, MAX_LINKS), metavar="K",
-                   help="joint K is free (beside any --passive joints)")
+    p.add_argument("--free-joint", **_FREE_JOINT)
     p.add_argument("--seed", type=_int_in(0, MAX_SEED), default=0, help="0..2**32-1")
     _command(p, _cmd_singular, output="folder for the families (drawing and JSON)",
              required=False)
@@ -1122,37 +1096,20 @@ def build_parser() -> argparse.ArgumentParser:
                    "a Controller subclass of your own, built as Class(snake, reference)")
     _path_options(p)
     _robot_options(p)
-    p.add_argument("--t-final", type=_float_in(0.0, open_low=True),
-                   help=f"duration [s], at most {steps * SIMULATE_DT:g} (pfl 10, lyapunov 60)")
-    p.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
-                   help=_ERROR_WINDOW_HELP)
+    _run_options(p, None, f"duration [s], at most {steps * SIMULATE_DT:g} (pfl 10, lyapunov 60)")
     p.add_argument("--climb-r", type=_float_in(0.0),
                    help="PFL only: gain of the singularity-aware redundancy term (default 0)")
-    p.add_argument("--horizon", type=_number, metavar="SECONDS",
-                   help="MPC only: the prediction horizon [s] (default 0.5; at least the "
-                   "re-solve period, 0.04)")
-    p.add_argument("--torque-bound", type=_number, metavar="NM",
-                   help="MPC only: |tau_i| <= NM [N m] (default 1)")
+    _mpc_flags(p, "; at least the re-solve period, 0.04", "1")
     _command(p, _cmd_simulate)
 
     p = sub.add_parser("engine", help="the VI.3 run on MuJoCo (wheels, Coulomb contacts)",
                        description="The Lyapunov-like law (or the MPC: --law mpc) on MuJoCo, a "
-                       "wheel pair per link (Section VI.3). The runs are chaotic: --seeds N runs "
-                       "N times from the initial posture with every joint angle offset by a "
-                       "uniform draw in [-EPS, EPS] (--perturbation, default 1e-6 rad; seed 0) "
-                       "and reports the median and 10-90 % range of each metric (RMS and max "
-                       "head error in % of the body length, R min or R~ min, torque RMS). Every "
-                       "run is saved (engine_seedK), the figures show the median run, "
-                       "engine_seeds.json holds the distribution. --path NAME|FILE follows a "
-                       "path (as simulate --path): one run with the path metrics in its "
-                       "summary, or with --seeds N draws on that path, the head error measured "
-                       "to the reference's point at the same time).")
+                       "wheel pair per link (Section VI.3). The runs are chaotic: --seeds N "
+                       "runs N perturbed starts and reports the distribution (documentation: "
+                       "Concepts, The engine model); --path follows a path as simulate does.")
     _robot_options(p, friction=False, default="engine")  # friction: identified from wheels
     _path_options(p)
-    p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
-                   help=f"duration [s], at most {steps * SIMULATE_DT:g}")
-    p.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
-                   help=_ERROR_WINDOW_HELP)
+    _run_options(p, 60.0, f"duration [s], at most {steps * SIMULATE_DT:g}")
     p.add_argument("--wheel-radius", type=_float_in(0.0, MAX_WHEEL_RADIUS, open_low=True),
                    default=0.03, help=f"[m], at most {MAX_WHEEL_RADIUS:g}")
     p.add_argument("--mu", type=_float_in(0.0, MAX_MU, open_low=True), default=1.0,
@@ -1160,10 +1117,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--law", choices=("velocity", "acceleration", "mpc"), default="velocity",
                    help="form of the Lyapunov-like law (velocity level with servos by default), "
                    "or mpc: model-predictive head tracking, |tau_i| <= --torque-bound")
-    p.add_argument("--horizon", type=_number, metavar="SECONDS",
-                   help="MPC only: the prediction horizon [s] (default 0.5)")
-    p.add_argument("--torque-bound", type=_number, metavar="NM",
-                   help="MPC only: |tau_i| <= NM [N m] (default and at most the motors' 10)")
+    _mpc_flags(p, "", "and at most the motors' 10")
     p.add_argument("--cone", choices=("elliptic", "pyramidal"), default="elliptic",
                    help="MuJoCo friction cone (default elliptic; pyramidal: faster, but its "
                    "sideways friction depends on the heading, 26 %% weaker at 45 degrees)")
@@ -1189,19 +1143,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_view)
 
     p = sub.add_parser("reproduce", help="run every experiment and write the HTML report",
-                       description="Run the report stages into a staging folder and move the "
-                       "report into place when all are done. Interrupted, the stages done so "
-                       "far are written with an index marked interrupted: in the output folder,"
-                       " or in its interrupted/ subfolder when it already holds a complete "
-                       "report (left untouched). Robot options apply to the stages that use "
-                       "them; a stage that sets one itself refuses it. A robot file or URDF "
-                       "(--robot FILE) runs in every stage, and the report says what a stage "
-                       "changes: integrability sets c_y itself and checks involutivity on the "
-                       "robot's first 4 and 5 links; pfl actuates every joint; tracking uses "
-                       "the robot's friction if it is anisotropic on every link (c_y > c_x), "
-                       "else c_x = 0.5, c_y = 25 N s/m; engine puts the robot itself on wheels "
-                       "and identifies its friction. With a preset, the engine stage runs the "
-                       "8-link engine robot of VI.3.")
+                       description="Run the report stages and move the report into place when "
+                       "all are done (interrupted: the stages done so far, marked so). Robot "
+                       "options apply to the stages that use them; a stage that sets one itself "
+                       "refuses it (documentation: The paper's experiments, How it runs).")
     _robot_options(p)
     p.add_argument("-o", "--output", default="results", help="output folder")
     p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")
@@ -1229,11 +1174,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", action="append", choices=("viscous", "engine"),
                    help="plant (repeatable; default viscous)")
     p.add_argument("--no-failure", action="store_true", help="skip the runs with joint 5 failed")
-    p.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=60.0,
-                   help="duration of each run [s] (--quick: at most 12)")
-    p.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
-                   help="judge the path metrics over t >= SECONDS (default: 10 s, or the "
-                   "second half of runs shorter than 20 s; in the settings as window_start)")
+    _run_options(p, 60.0, "duration of each run [s] (--quick: at most 12)",
+                 "judge the path metrics over t >= SECONDS (default: 10 s, or the second "
+                 "half of runs shorter than 20 s; in the settings as window_start)")
     p.add_argument("--draws", type=_int_in(1, 100), metavar="N",
                    help="engine runs per cell from perturbed starts, 1..100 (the engine is "
                    "chaotic: a cell reports their median and 10-90 %% range; default: "
@@ -1249,13 +1192,14 @@ _SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
 
 @contextlib.contextmanager
 def _signals_as_interrupts() -> Iterator[list[str]]:
-    """SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (named after the signal) while the
-    block runs, further ones ignored so that partial results get written (main thread only)."""
+    """SIGINT, SIGTERM, SIGHUP raise KeyboardInterrupt once in the block (main thread only)."""
     received: list[str] = []
     if threading.current_thread() is not threading.main_thread():
         yield received
         return
-    previous: dict[int, Any] = {}
+    previous = {sig: signal.getsignal(sig) for sig in (getattr(signal, name, None)
+                                                       for name in _SIGNALS)
+                if sig is not None and signal.getsignal(sig) != signal.SIG_IGN}  # nohup: deaf
 
     def interrupt(signum: int, _frame: object) -> None:
         for sig in previous:
@@ -1263,11 +1207,6 @@ def _signals_as_interrupts() -> Iterator[list[str]]:
         received.append(signal.Signals(signum).name)
         raise KeyboardInterrupt(received[-1])
 
-    for name in _SIGNALS:
-        sig = getattr(signal, name, None)
-        if sig is None or signal.getsignal(sig) == signal.SIG_IGN:
-            continue  # e.g. started with nohup: stay deaf to it
-        previous[sig] = signal.getsignal(sig)
     for sig in previous:
         signal.signal(sig, interrupt)
     try:
@@ -1279,8 +1218,7 @@ def _signals_as_interrupts() -> Iterator[list[str]]:
 
 @contextlib.contextmanager
 def _stdout_to_stderr(active: bool) -> Iterator[None]:
-    """With ``active``, everything written to stdout (Python or C, e.g. LAPACK's messages)
-    goes to stderr while the block runs, so --json's stdout holds the JSON only."""
+    """With ``active``, stdout (Python's and C's) goes to stderr while the block runs."""
     if not active:
         yield
         return

@@ -1,16 +1,7 @@
 """The ``snake-pin study`` subcommand: its options and handler, for the CLI to mount.
 
-``snake_pin/cli.py`` wires it with one line in ``build_parser``::
-
-    add_study_parser(sub, outcome=_Outcome)
-
-``outcome`` is the CLI's result type (called with ``payload``, ``text``, ``status`` and
-``note``). The handler keeps the CLI's contract: a bad study file, output folder,
-scheduler address (or one that does not complete Dask's handshake within
-``--connect-timeout``) or security file is a :class:`~snake_pin.study.errors.StudyError`
-(one line, exit 2, nothing run, nothing created for a scheduler); an interrupted study
-returns ``interrupted_status`` with the partial summary; a study whose runs were lost with
-a worker returns ``failed_status``.
+A bad study file, folder, scheduler or security file is a
+:class:`~snake_pin.study.errors.StudyError` (one line, exit 2, nothing run).
 """
 
 from __future__ import annotations
@@ -27,16 +18,10 @@ from .runner import CONNECT_TIMEOUT, MAX_CONNECT_TIMEOUT, MAX_WORKERS, run_study
 __all__ = ["add_study_parser"]
 
 _DESCRIPTION = """\
-Run every run a study file describes (a base scenario and axes: grids and seeded random
-samples over its settings) on Dask, one Parquet row per run in DIR/runs, the page in
-DIR/index.html and the summary in DIR/summary.json. Runs already recorded in DIR are not
-run again: after an interrupt, run the same command to finish. By default a local cluster
-of one worker process per core, on 127.0.0.1 only, every connection TLS with credentials
-made for this run (another local user cannot connect to it). --scheduler uses an existing
-cluster: a tls:// scheduler takes its credentials from --security FILE (a YAML file of
-Dask config: distributed.comm.tls.ca-file, client.cert, client.key) or from Dask's own
-config; the address must complete Dask's handshake within --connect-timeout seconds,
-checked before DIR is created."""
+Run every run a study file describes on Dask, one Parquet row per run in DIR/runs, the page
+in DIR/index.html, the summary in DIR/summary.json; runs already recorded are not run again
+(after an interrupt, run the same command to finish). By default a local TLS cluster on
+127.0.0.1; --scheduler uses an existing one (documentation: Concepts, Studies)."""
 
 
 def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int = 130,
@@ -48,8 +33,7 @@ def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int =
     subparsers
         The CLI's ``add_subparsers()`` action.
     outcome
-        Called as ``outcome(payload=..., text=..., status=..., note=...)`` to build the
-        handler's result (the CLI's ``_Outcome``).
+        The handler's result type, called with ``payload``, ``text``, ``status``, ``note``.
     interrupted_status, failed_status
         Exit statuses of an interrupted study and of one with runs lost with a worker.
 
@@ -105,8 +89,7 @@ def _seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") \
             from None
     if not 0 < value <= MAX_CONNECT_TIMEOUT:  # NaN fails too
-        raise argparse.ArgumentTypeError(f"must lie in (0, {MAX_CONNECT_TIMEOUT:g}], got "
-                                         f"{text}")
+        raise argparse.ArgumentTypeError(f"must lie in (0, {MAX_CONNECT_TIMEOUT:g}], got {text}")
     return value
 
 
@@ -116,15 +99,14 @@ def _log(message: str) -> None:
 
 def _cmd_study(args: argparse.Namespace, *, outcome: Any, interrupted_status: int,
                failed_status: int) -> Any:
-    if args.scheduler is not None and args.workers is not None:
-        raise StudyError("argument --workers: applies to the local cluster, not with "
-                         "--scheduler")
-    if args.scheduler is not None and args.dashboard:
-        raise StudyError("argument --dashboard: applies to the local cluster, not with "
-                         "--scheduler")
-    if args.scheduler is None and args.security is not None:
-        raise StudyError("argument --security: applies with --scheduler (the local cluster "
-                         "makes its own credentials)")
+    local = "applies to the local cluster, not with --scheduler"
+    for flag, wrong, why in (
+            ("workers", args.scheduler is not None and args.workers is not None, local),
+            ("dashboard", args.scheduler is not None and args.dashboard, local),
+            ("security", args.scheduler is None and args.security is not None,
+             "applies with --scheduler (the local cluster makes its own credentials)")):
+        if wrong:
+            raise StudyError(f"argument --{flag}: {why}")
     verbose = bool(args.verbose) or bool(args.dashboard) or sys.stderr.isatty()
     try:
         summary = run_study(args.study, args.output, scheduler=args.scheduler,

@@ -1,9 +1,7 @@
 """A study's page: ``DIR/index.html`` (self-contained) and ``DIR/summary.json``.
 
-The figures follow the axes (heatmaps over two grid axes, medians with bands over one,
-histograms over none; replicate axes aggregated), as :ref:`studies` (The study page)
-describes; :func:`save_figures` writes the same figures as PNG files for the
-actuator-failure map's report.
+The figures follow the axes (:ref:`studies`, The study page); :func:`save_figures` writes
+them as PNG files for the actuator-failure map's report.
 """
 
 from __future__ import annotations
@@ -11,7 +9,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import json
 import math
 import os
 from collections.abc import Sequence
@@ -21,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._io import atomic_group, atomic_write_bytes
+from .._json import json_text
 from .results import RUNS, StudyFolder
 from .spec import SETTINGS, StudySpec
 from .summary import StudySummary
@@ -86,8 +84,7 @@ def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> 
     figures = _figures(kind, plotted, spec, rows)
     page = _page(spec, summary, rows, figures, replicate)
     with atomic_group(folder.path) as group:
-        group.write_bytes("summary.json", (json.dumps(summary.to_dict(), indent=2,
-                                                      allow_nan=False) + "\n").encode())
+        group.write_bytes("summary.json", (json_text(summary, indent=2) + "\n").encode())
         group.write_bytes("index.html", page.encode(), figure=True)
     return folder.path / "index.html"
 
@@ -236,8 +233,7 @@ def _lines(ax: Any, name: str, spec: StudySpec, xs: list[Any], rows: Sequence[di
     positions = [float(x_shown(v)) for v in xs] if numeric else list(range(len(xs)))
     med, low, high = [], [], []
     for v in xs:
-        data = [r[metric] for r in rows
-                if r[name] == v and r["status"] == "ok" and _finite(r[metric])]
+        data = _ok_values([r for r in rows if r[name] == v], metric)
         if data:
             q10, q50, q90 = np.percentile(data, [10, 50, 90])
         else:
@@ -314,20 +310,15 @@ def _page(spec: StudySpec, summary: StudySummary, rows: Sequence[dict[str, Any]]
                      f"<figcaption>{_e(caption)}</figcaption></figure>")
     shown_axes = [a.setting for a in spec.axes]
     header = ["index", "key", *shown_axes, "status", "reason", *_TABLE_METRICS]
-    parts.append(f"<h2>Runs</h2><p>Click a column header to sort.{_truncation(rows)}</p>"
+    cut = (f" The first {MAX_TABLE_ROWS} of {len(rows)} runs are listed; all are in the "
+           "Parquet dataset." if len(rows) > MAX_TABLE_ROWS else "")
+    parts.append(f"<h2>Runs</h2><p>Click a column header to sort.{cut}</p>"
                  "<table class='sortable'><thead><tr>"
                  + "".join(f"<th>{_e(h)}</th>" for h in header) + "</tr></thead><tbody>")
     for r in rows[:MAX_TABLE_ROWS]:
         cells = [r["index"], r["key"][:12], *(r[a] for a in shown_axes), r["status"],
                  (r["reason"] or "")[:120], *(r[m] for m in _TABLE_METRICS)]
         parts.append("<tr>" + "".join(_cell(c) for c in cells) + "</tr>")
-    parts.append("</tbody></table>")
-    parts.append(_JS + "</body></html>\n")
+    parts.append("</tbody></table>" + _JS + "</body></html>\n")
     return "".join(parts)
 
-
-def _truncation(rows: Sequence[dict[str, Any]]) -> str:
-    if len(rows) <= MAX_TABLE_ROWS:
-        return ""
-    return (f" The first {MAX_TABLE_ROWS} of {len(rows)} runs are listed; all are in the "
-            "Parquet dataset.")

@@ -1,10 +1,5 @@
-"""A study's output folder and its Parquet dataset of results (one row per run).
-
-``pandas.read_parquet(DIR / "runs")`` (or pyarrow, or polars) opens the results directly;
-every batch file has the schema :data:`SCHEMA`. A folder belongs to one study and a study
-writes only inside it (no symbolic links where it writes, writing tried before any run);
-every batch file is read through one check, a bad one refused by name, never counted as
-done. Layout and columns: :ref:`studies` (The study folder).
+"""A study's output folder and its Parquet dataset of results (one row per run, schema
+:data:`SCHEMA`); layout, columns and checks: :ref:`studies` (The study folder).
 """
 
 from __future__ import annotations
@@ -52,10 +47,8 @@ SCHEMA = pa.schema(
 _OPTIONAL = frozenset(name for name, s in SETTINGS.items() if s.controllers == ("mpc",))
 _IDENTITY = "study.json"
 _FORMAT = 1
-#: Largest study.json read [bytes] (a normalised study is far smaller).
+#: Largest study.json and batch file read [bytes].
 _MAX_IDENTITY_BYTES = 1 << 24
-#: Largest batch file read [bytes] (a batch holds at most MAX_BATCH rows of a few hundred
-#: bytes each).
 _MAX_BATCH_FILE_BYTES = 1 << 26
 
 
@@ -127,8 +120,7 @@ class StudyFolder:
         def refuse(problem: str) -> StudyError:
             return StudyError(f"{shown} is not a readable study identity: {one_line(problem)}")
 
-        try:
-            # a link is refused by the open itself: a study reads only inside its own folder
+        try:  # a link is refused by the open itself
             with open_regular_file(file, limit=_MAX_IDENTITY_BYTES, kind="study identity",
                                    error=refuse, follow_symlinks=False) as handle:
                 data = json.loads(handle.read(_MAX_IDENTITY_BYTES))
@@ -164,18 +156,11 @@ class StudyFolder:
 
     # ------------------------------------------------------------- writing
     def prepare(self, spec: StudySpec) -> None:
-        """Create the folder, take its lock, check it again and write ``study.json`` (if new).
-
-        Writing is tried for real (a probe file in the folder and in ``runs/``, removed at
-        once), so a folder where writing fails is refused here, before any run.
-        """
+        """Create the folder, take its lock, check it again, write ``study.json`` (if new) and
+        try writing (a probe file in the folder and in ``runs/``), before any run."""
         shown = printable_path(self.path)
         self.check(spec)
-        try:
-            self.path.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise StudyError(f"{shown}: cannot create the folder "
-                             f"({exc.strerror or exc})") from None
+        _mkdir(self.path, parents=True)
         try:
             fd = os.open(self.path / ".lock", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW
                          | os.O_NONBLOCK, 0o666)
@@ -188,8 +173,7 @@ class StudyFolder:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
-            raise StudyError(f"{shown}: another study run is writing to this "
-                             "folder") from None
+            raise StudyError(f"{shown}: another study run is writing to this folder") from None
         except BaseException:
             os.close(fd)
             raise
@@ -201,11 +185,7 @@ class StudyFolder:
                 payload = {"format": _FORMAT, **spec.to_dict()}
                 _write_or_refuse(self.path / _IDENTITY, (json.dumps(
                     payload, indent=2, allow_nan=False) + "\n").encode())
-            try:
-                self.runs.mkdir(exist_ok=True)
-            except OSError as exc:
-                raise StudyError(f"{printable_path(self.runs)}: cannot create the folder "
-                                 f"({exc.strerror or exc})") from None
+            _mkdir(self.runs)
             self._check_runs()
             _probe_writable(self.runs)
         except BaseException:
@@ -315,6 +295,15 @@ def _probe_writable(folder: Path) -> None:
     except OSError as exc:
         raise StudyError(f"{printable_path(folder)}: cannot write here ({exc.strerror or exc})") \
             from None
+
+
+def _mkdir(folder: Path, parents: bool = False) -> None:
+    """Create ``folder`` (it may exist), or raise a StudyError."""
+    try:
+        folder.mkdir(parents=parents, exist_ok=True)
+    except OSError as exc:
+        raise StudyError(f"{printable_path(folder)}: cannot create the folder "
+                         f"({exc.strerror or exc})") from None
 
 
 def _write_or_refuse(path: Path, data: bytes) -> None:

@@ -17,6 +17,7 @@ import os
 import socket
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 from urllib.parse import urlsplit
@@ -66,18 +67,14 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
 
     Parameters
     ----------
-    spec_path
-        The study file (:mod:`snake_pin.study.spec`).
-    out_dir
-        Its folder (:mod:`snake_pin.study.results`); created if missing.
+    spec_path, out_dir
+        The study file; its folder (created if missing).
     scheduler
-        An existing Dask scheduler (``tcp://`` or ``tls://host:port``); None starts the
-        authenticated local cluster.
+        An existing Dask scheduler (``tcp://`` or ``tls://host:port``); None: a local cluster.
     workers
         Local worker processes (default: one per core).
     security
-        The scheduler's credentials: a ``distributed.security.Security``, a YAML file of
-        Dask config (:func:`load_security`), or None (Dask's own config).
+        A ``distributed.security.Security``, a YAML file (:func:`load_security`) or None.
     connect_timeout
         Longest wait [s] for the scheduler's handshake (at most :data:`MAX_CONNECT_TIMEOUT`).
     dashboard
@@ -85,10 +82,9 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     progress
         A tqdm bar on stderr, drawn only on a terminal; False: none.
     log
-        Receives a few one-line messages (what runs where); None: silent.
+        Receives a few one-line messages; None: silent.
     batch_function
-        The task (default :func:`snake_pin.study.work.run_batch`), importable by the
-        workers: for tests and for plugging in other simulators.
+        The task (default :func:`snake_pin.study.work.run_batch`), importable by the workers.
 
     Returns
     -------
@@ -98,8 +94,7 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     Raises
     ------
     StudyError
-        Before anything runs: a bad study file, folder, scheduler or argument
-        (``workers``, ``security`` and ``dashboard`` belong to one kind of cluster).
+        Before anything runs: a bad study file, folder, scheduler or argument.
     RunInterrupted
         On KeyboardInterrupt; ``partial`` is the summary (status ``interrupted``).
     """
@@ -162,14 +157,13 @@ def _finish(spec: StudySpec, folder: StudyFolder, summary: StudySummary, started
 
     keys = {s.key for s in spec.scenarios}
     table = folder.read_table(["key", "status"])
-    statuses = dict.fromkeys(("ok", "diverged", "failed"), 0)
-    seen: set[str] = set()
+    first: dict[str, str] = {}  # each run's first recorded row
     for key, status in zip(table.column("key").to_pylist(), table.column("status").to_pylist(),
                            strict=True):
-        if key in keys and key not in seen:
-            seen.add(key)
-            statuses[status] = statuses.get(status, 0) + 1
-    summary.recorded = len(seen)
+        if key in keys:
+            first.setdefault(key, status)
+    statuses = {**dict.fromkeys(("ok", "diverged", "failed"), 0), **Counter(first.values())}
+    summary.recorded = len(first)
     summary.statuses = statuses
     missing = summary.runs - summary.recorded
     if interrupted:
@@ -258,18 +252,14 @@ def _is_killed_worker(error: BaseException | None) -> bool:
 
 
 def plan_batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
-    """The study's tasks: one run each, in study order (viscous and engine runs alike)."""
+    """The study's tasks: one run each, in study order."""
     return [[s] for s in scenarios]
 
 
 def check_scheduler(address: str, *, security: Any = None,
                     timeout: float = CONNECT_TIMEOUT) -> str:
-    """``address`` normalised, once the scheduler there has completed Dask's handshake.
-
-    TCP first (a refused address fails at once), then Dask's connection, handshake and an
-    identity request, on a deadline of ``timeout`` that does not rely on Dask's own
-    timeouts: a server that accepts connections but never answers is abandoned.
-    """
+    """``address`` normalised, once the scheduler there has completed Dask's handshake (TCP,
+    then Dask's handshake and identity, on a deadline of ``timeout`` of its own)."""
     text, scheme, host, port = _parse_address(address)
     timeout = _check_timeout(timeout)
     credentials = _security(security)
@@ -306,11 +296,7 @@ def check_scheduler(address: str, *, security: Any = None,
 
 
 def load_security(path: str | os.PathLike[str]) -> Any:
-    """A Dask cluster's credentials from a YAML file of Dask config.
-
-    Its ``distributed.comm`` TLS settings are read (the format is in :ref:`studies`; also
-    ``ciphers``, ``min-version``, ``max-version``; ``scheduler`` and ``worker`` entries
-    are accepted and unused), file paths relative to the working folder as Dask reads them.
+    """A Dask cluster's credentials from a YAML file of Dask config (format: :ref:`studies`).
 
     Parameters
     ----------
@@ -325,8 +311,7 @@ def load_security(path: str | os.PathLike[str]) -> Any:
     Raises
     ------
     StudyError
-        The file cannot be read as YAML, or a ``distributed.comm.tls`` setting is missing,
-        unknown or of the wrong type.
+        Not YAML, or a ``distributed.comm.tls`` setting missing, unknown or mistyped.
     """
     import dask
     import yaml  # PyYAML, a dependency of Dask
@@ -337,9 +322,7 @@ def load_security(path: str | os.PathLike[str]) -> Any:
     def refuse(problem: str) -> StudyError:
         return StudyError(f"security file {shown}: {one_line(problem)}")
 
-    # Read once, checked (a regular file of bounded size, never a FIFO or a device), and
-    # parsed as Dask parses its config files (yaml.safe_load of the text): Dask's own
-    # collect_yaml would open the path again.
+    # read once, checked, and parsed as Dask parses its config files (yaml.safe_load)
     raw = read_regular_file(path, limit=_MAX_SECURITY_BYTES, kind="security file",
                             error=refuse)
     try:
@@ -453,11 +436,8 @@ def _check_timeout(value: Any) -> float:
 
 
 def _handshake(address: str, security: Any, timeout: float) -> Any:
-    """Dask's connection and handshake to ``address``, then its identity, within ``timeout``.
-
-    Runs in a thread of its own with its own event loop, joined for ``timeout`` plus a
-    second at most: whatever the connection does, this returns or raises by then.
-    """
+    """Dask's handshake with ``address`` and its identity, in a thread waited on for
+    ``timeout`` plus a second at most."""
     import asyncio
 
     from distributed.comm import connect
@@ -472,19 +452,11 @@ def _handshake(address: str, security: Any, timeout: float) -> Any:
         finally:
             comm.abort()
 
-    outcome: dict[str, Any] = {}
-
-    def target() -> None:
-        try:
-            outcome["identity"] = asyncio.run(asyncio.wait_for(exchange(), timeout))
-        except BaseException as exc:  # handed to the caller's thread
-            outcome["error"] = exc
-
-    thread = threading.Thread(target=target, name="snake-pin-scheduler-check", daemon=True)
-    thread.start()
-    thread.join(timeout + 1.0)
-    if "identity" in outcome:
-        return outcome["identity"]
+    outcome, done = _in_thread(lambda: asyncio.run(asyncio.wait_for(exchange(), timeout)),
+                               "snake-pin-scheduler-check")
+    done.wait(timeout + 1.0)
+    if "value" in outcome:
+        return outcome["value"]
     error = outcome.get("error")
     if error is None or isinstance(error, asyncio.CancelledError):
         raise TimeoutError
@@ -492,13 +464,8 @@ def _handshake(address: str, security: Any, timeout: float) -> Any:
 
 
 def _finish_tls(probe: socket.socket, security: Any, deadline: float) -> None:
-    """Complete a TLS handshake on the probe's connection, ignoring any failure.
-
-    A TLS listener logs a warning for a connection closed before its handshake (as a
-    bare TCP probe is); after one it stays quiet. A failure here (credentials refused, a
-    silent or plain-TCP server) is left to Dask's own handshake, which reports it. Takes at
-    most half the time left before ``deadline`` (and at most 1 s).
-    """
+    """Complete a TLS handshake on the probe (a TLS listener warns of a connection closed
+    before one), failures left to Dask's handshake; at most 1 s or half the time left."""
     left = min(1.0, (deadline - time.monotonic()) / 2)
     context = security.get_connection_args("client").get("ssl_context")
     if left <= 0.01 or context is None:
@@ -567,35 +534,20 @@ def _slots(client: Any) -> int:
 def dask_client(address: str | None, workers: int, *, security: Any = None,
             timeout: float = CONNECT_TIMEOUT, dashboard: bool = False,
             log: Callable[[str], None] | None = None) -> Iterator[Any]:
-    """A Dask client of the scheduler at ``address``, or of a new local cluster.
-
-    The package's one executor (studies and :mod:`snake_pin.runs.parallel`). The
-    local cluster listens on 127.0.0.1 with TLS credentials made for it, and is closed
-    with its workers when the block ends, however it ends.
-    """
+    """A Dask client of the scheduler at ``address``, or of a new local cluster (TLS on
+    127.0.0.1, closed with its workers when the block ends): the package's one executor."""
     from distributed import Client
 
     if address is not None:
-        # on a deadline of its own: a Client to a server that accepts connections but
-        # never speaks Dask waits past its timeout (the server may have changed since
-        # check_scheduler)
-        made: dict[str, Any] = {}
-
-        def connect() -> None:
-            try:
-                made["client"] = Client(address, security=security, timeout=f"{timeout:g}s",
-                                        set_as_default=False)
-            except Exception as exc:
-                made["error"] = exc
-
-        thread = threading.Thread(target=connect, name="snake-pin-client", daemon=True)
-        thread.start()
-        thread.join(timeout + 2.0)
-        if "client" not in made:
+        # on a deadline of its own: a Client to a silent server waits past its timeout
+        made, done = _in_thread(lambda: Client(address, security=security, set_as_default=False,
+                                               timeout=f"{timeout:g}s"), "snake-pin-client")
+        done.wait(timeout + 2.0)
+        if "value" not in made:
             reason = one_line(str(made["error"])) if "error" in made else \
                 f"no answer within {timeout:g} s"
             raise StudyError(f"scheduler {address}: no Dask scheduler answered ({reason})")
-        with _closing(made["client"]) as client:
+        with _closing(made["value"]) as client:
             yield client
         return
     with _local_cluster(workers, dashboard=dashboard, log=log) as cluster, \
@@ -616,10 +568,8 @@ def _closing(client: Any) -> Iterator[Any]:
 @contextlib.contextmanager
 def _local_cluster(workers: int, *, dashboard: bool = False,
                    log: Callable[[str], None] | None = None) -> Iterator[Any]:
-    """The local cluster (of a study, and of :mod:`snake_pin.runs.parallel`'s
-    jobs): ``workers`` processes on 127.0.0.1, every connection TLS
-    with credentials made here (``cluster.security``); HTTP servers with no route (the
-    scheduler's dashboard with ``dashboard``) answering local Host headers only."""
+    """``workers`` processes on 127.0.0.1, TLS with credentials made here, HTTP servers with no
+    route but the optional dashboard, answering local Host headers only."""
     import dask
     from distributed import LocalCluster
     from distributed.security import Security
@@ -662,9 +612,7 @@ def _dashboard_link(scheduler: Any) -> str:
 
 
 def _guard_hosts(server: Any) -> None:
-    """Make ``server``'s HTTP server answer 403 to a Host header outside
-    :data:`LOCAL_HOSTS` (a page of another site that resolves its name to 127.0.0.1
-    cannot read it)."""
+    """Make ``server``'s HTTP server answer 403 to a Host header outside :data:`LOCAL_HOSTS`."""
     from tornado import web
 
     app = getattr(server, "http_application", None)
@@ -681,21 +629,9 @@ def _guard_hosts(server: Any) -> None:
 
 
 def _started(make: Callable[[], Any]) -> Any:
-    """The cluster ``make()`` starts, started in a thread of its own: a KeyboardInterrupt
-    that arrives meanwhile waits for the start to finish (a half-started cluster cannot be
-    closed, and Dask's exit hook then fails on it), then stops the cluster and goes on."""
-    made: dict[str, Any] = {}
-    done = threading.Event()  # not Thread.join: an interrupted join can mark it stopped
-
-    def target() -> None:
-        try:
-            made["cluster"] = make()
-        except BaseException as exc:  # handed to the caller's thread
-            made["error"] = exc
-        finally:
-            done.set()
-
-    threading.Thread(target=target, name="snake-pin-cluster-start", daemon=True).start()
+    """The cluster ``make()`` starts in a thread: a KeyboardInterrupt meanwhile waits for the
+    start to finish (a half-started cluster cannot be closed), then stops it and goes on."""
+    made, done = _in_thread(make, "snake-pin-cluster-start")
     interrupt: BaseException | None = None
     while not done.is_set():
         try:
@@ -704,7 +640,7 @@ def _started(make: Callable[[], Any]) -> Any:
             interrupt = exc
     if "error" in made:
         raise interrupt if interrupt is not None else made["error"]
-    cluster = made["cluster"]
+    cluster = made["value"]
     if interrupt is not None:
         with contextlib.suppress(Exception):
             cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)
@@ -712,6 +648,23 @@ def _started(make: Callable[[], Any]) -> Any:
             cluster.close(timeout=_CLOSE_TIMEOUT)
         raise interrupt
     return cluster
+
+
+def _in_thread(make: Callable[[], Any], name: str) -> tuple[dict[str, Any], threading.Event]:
+    """``make()`` in a daemon thread: its ``value`` or ``error`` once the event is set."""
+    made: dict[str, Any] = {}
+    done = threading.Event()  # not Thread.join: an interrupted join can mark it stopped
+
+    def target() -> None:
+        try:
+            made["value"] = make()
+        except BaseException as exc:  # handed to the caller's thread
+            made["error"] = exc
+        finally:
+            done.set()
+
+    threading.Thread(target=target, name=name, daemon=True).start()
+    return made, done
 
 
 async def _close_nannies(nannies: Sequence[Any], timeout: float) -> None:

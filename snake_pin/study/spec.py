@@ -1,71 +1,6 @@
 """The study file: a base scenario, axes over its settings, and the runs they expand to.
 
-A study file is TOML (read with :mod:`tomllib`) with three tables::
-
-    [study]                      # optional
-    name = "friction_and_gains"  # a label for the page
-    description = "..."
-
-    [base]                       # the scenario every run starts from (see SETTINGS)
-    robot = "table1"             # a preset, or a .toml/.urdf robot file (relative to this file)
-    controller = "lyapunov"      # lyapunov | velocity | pfl | mpc
-    model = "viscous"            # viscous | engine
-    t_final = 60.0
-    c_x = 0.5
-    c_y = 25.0
-
-    [axes.c_y]                   # a grid axis: values = [...] or linspace = [a, b, n]
-    values = [5.0, 25.0, 50.0]
-
-    [axes.failed_joint]          # 0 = no failed joint
-    values = [0, 1, 2]
-
-    [axes.init_noise]            # a random axis: uniform = [a, b] or normal = [mu, sigma]
-    uniform = [0.0, 0.05]
-    samples = 4
-    seed = 7
-
-**Combination.** The grid axes are crossed (full product, in the order the file declares
-them, the first varying slowest). The random axes are sampled *jointly*: they must all
-state the same ``samples`` S, each draws its S values from its own ``seed``
-(``numpy.random.default_rng(seed)``), and the k-th values of all random axes form the
-k-th random point. The study is the product of the grid with those S points:
-``runs = (product of grid sizes) * S``, at most :data:`MAX_RUNS`.
-
-**Settings** (:data:`SETTINGS`) are scalars: numbers (``float``/``int``), names
-(``str``) or switches (``bool``). Any scalar setting may be an axis: ``values`` for every
-kind, ``linspace`` and the random forms for real-valued ones only. ``passive`` (a list of
-joints, base only) is the exception; vary ``failed_joint`` (one joint whose actuator gives
-no torque, 0 = none, joined to the passive joints) instead. Settings belong to a model and
-to controllers (e.g. ``lam`` to the torque-level Lyapunov-like law, ``horizon`` and the
-``weight_*`` costs to the MPC, ``mu`` to the engine): giving one
-that does not apply to some run of the study is an error, as is giving the same setting
-in ``[base]`` and as an axis.
-
-**Validation.** :func:`load_study` checks the whole file before anything runs and raises
-:class:`~snake_pin.study.errors.StudyError` with one line naming the file and the key:
-unknown tables and keys (with the closest known name; ``batch_size`` is refused: every
-run is one task), wrong types, values out of their domain,
-empty axes, an axis over a setting that does not exist, settings that do not
-apply, a failed or passive joint out of range for the robot, a ``t_final`` beyond
-:data:`snake_pin.sim.MAX_STEPS` control steps or the trajectory size bounds, robot files
-that do not load, and more than :data:`MAX_RUNS` runs.
-
-**Keys.** Each run is keyed by :func:`run_key`: the SHA-256 of a canonical JSON text
-(sorted keys, no spaces, floats as Python's shortest round-trip ``repr``, -0.0 written as
-0.0) of its full normalised settings (defaults filled in, every setting that applies to
-its model and controller) except ``robot``, and of its resolved robot
-(:meth:`SnakeParams.to_dict`). The robot counts by its content, never by how it was
-named: a robot file given as ``robots/a.toml``, ``./robots/../robots/a.toml``, an
-absolute path or a symbolic link to it is one robot and gives the same keys, and two
-values of a ``robot`` axis that load the same robot are refused as one run given twice.
-The study's identity, :attr:`StudySpec.study_hash`, hashes the sorted run keys: two study
-files that expand to the same runs are the same study, whatever their layout, name or
-spelling of robot files.
-
-**Files.** A study file is a regular file (a FIFO or a device is refused unread) of at
-most :data:`MAX_STUDY_BYTES`, UTF-8, nested at most :data:`snake_pin._io.MAX_TOML_DEPTH`
-levels (checked before the TOML is parsed).
+Format, combination of axes, validation and run keys: :ref:`study-file`.
 """
 
 from __future__ import annotations
@@ -78,7 +13,7 @@ import json
 import math
 import os
 import reprlib
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import Field, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any, cast
@@ -146,14 +81,11 @@ class Setting:
     Parameters
     ----------
     name, kind, default
-        Key in the study file; ``"float"``, ``"int"``, ``"str"``, ``"bool"`` or
-        ``"joints"`` (a list of joint numbers, base only); the default (None: resolved per run, see
-        :func:`_resolve_defaults`, or "the robot's own" for friction).
+        Key; ``float``, ``int``, ``str``, ``bool`` or ``joints``; default (None: per run).
     help
         One line for the documentation.
     low, high, open_low, choices
-        The domain: ``low <= value <= high`` (``low < value`` if ``open_low``), or one of
-        ``choices`` for names.
+        The domain: ``low <= value <= high`` (``low <`` if ``open_low``), or ``choices``.
     models, controllers
         Where it applies.
     """
@@ -170,7 +102,7 @@ class Setting:
     controllers: tuple[str, ...] = CONTROLLERS
 
     def applies(self, model: str, controller: str) -> bool:
-        """Whether this setting means something for a run of ``model`` and ``controller``.
+        """Whether this setting applies to a run of ``model`` and ``controller``.
 
         Parameters
         ----------
@@ -226,12 +158,7 @@ class Setting:
         below = self.low is not None and (value < self.low or
                                           (self.open_low and value == self.low))
         above = self.high is not None and value > self.high
-        bad = below or above
-        return f"must be {self.domain()}, got {value!r}" if bad else ""
-
-
-def _settings(*items: Setting) -> dict[str, Setting]:
-    return {s.name: s for s in items}
+        return f"must be {self.domain()}, got {value!r}" if below or above else ""
 
 
 #: The options dataclass of each controller: their fields are the laws' settings.
@@ -247,9 +174,8 @@ WEIGHT_PREFIX = "weight_"
 
 
 def _law_fields() -> dict[str, tuple[Field[Any], tuple[str, ...]]]:
-    """Each option field a study sets, by setting name, with the controllers whose dataclass
-    declares it; a field holding a dataclass (the MPC's cost weights) gives its own fields,
-    each named ``weight_<name>``."""
+    """Each option field a study sets (``weight_<name>`` for the MPC's cost weights), with the
+    controllers that declare it."""
     found: dict[str, tuple[Field[Any], tuple[str, ...]]] = {}
     for controller, cls in LAW_OPTIONS.items():
         for f in fields(cls):
@@ -263,14 +189,8 @@ def _law_fields() -> dict[str, tuple[Field[Any], tuple[str, ...]]]:
 
 
 def _law_settings() -> list[Setting]:
-    """The laws' settings, generated from their options dataclasses' fields.
-
-    A head gain is one setting per diagonal entry (``k_w1_x``, ...), K_phi two
-    (``k_phi_1`` for joint 1, ``k_phi`` for the others), another gain one scalar (times
-    identity); each takes its field's default, kind (its default's type), bounds and doc.
-    Settings that only fail together (an MPC horizon shorter than a node) are checked per
-    run by building the options (:func:`_check_run`).
-    """
+    """The laws' settings from their options' fields: a head gain one per diagonal entry,
+    K_phi two (``k_phi_1``, ``k_phi``), another gain one scalar (times identity)."""
     out = []
     for name, (f, controllers) in _law_fields().items():
         meta, default = f.metadata, f.default
@@ -309,7 +229,7 @@ def law_options(settings: Mapping[str, Any], joints: int) -> Any:
     Returns
     -------
     LyapunovOptions or QuasiStaticOptions or PFLOptions or MPCOptions
-        The options, the inverse of the settings' generation from their fields.
+        The options.
 
     Raises
     ------
@@ -339,7 +259,7 @@ def law_options(settings: Mapping[str, Any], joints: int) -> Any:
 
 
 #: Every setting a study can give in ``[base]`` or vary on an axis.
-SETTINGS: dict[str, Setting] = _settings(
+SETTINGS: dict[str, Setting] = {s.name: s for s in (
     # the run
     Setting("robot", "str", "table1", "a preset (table1, engine) or a .toml/.urdf robot file"),
     Setting("model", "str", "viscous", "viscous (Pinocchio, RK4) or engine (MuJoCo, wheels)",
@@ -392,7 +312,7 @@ SETTINGS: dict[str, Setting] = _settings(
             models=("engine",), controllers=_TRACKING),
     Setting("cutoff", "float", 10.0, "cut-off of the velocity filter [Hz]", 0.0, open_low=True,
             models=("engine",), controllers=_TRACKING),
-)
+)}
 
 #: Gait defaults per controller: (alpha, T_s, v) of Sections VI.2 and VI.1.
 GAIT_DEFAULTS = {"lyapunov": (math.pi / 6, 1.5, 2.0), "velocity": (math.pi / 6, 1.5, 2.0),
@@ -406,10 +326,8 @@ class Axis:
 
     Parameters
     ----------
-    setting
-        The setting it varies.
-    form
-        ``values``, ``linspace``, ``uniform`` or ``normal``.
+    setting, form
+        The setting it varies; ``values``, ``linspace``, ``uniform`` or ``normal``.
     values
         Its values, in order (drawn ones for the random forms).
     source
@@ -433,16 +351,12 @@ class Scenario:
 
     Parameters
     ----------
-    index
-        Position in the study (grid order, random point innermost).
-    key
-        :func:`run_key` of ``settings`` and ``params``.
+    index, key
+        Position in the study (random point innermost); :func:`run_key`.
     settings
-        Every setting that applies to its model and controller, defaults filled in
-        (friction None = the robot's own; ``passive`` a sorted list).
+        Every setting that applies to its model and controller, defaults filled in.
     params
-        The robot the run simulates: friction overrides applied, passive joints =
-        ``passive`` plus ``failed_joint``.
+        The robot it simulates (friction applied, ``passive`` plus ``failed_joint``).
     """
 
     index: int
@@ -457,7 +371,7 @@ class Scenario:
 
     @property
     def controller(self) -> str:
-        """``lyapunov``, ``velocity`` or ``pfl``."""
+        """``lyapunov``, ``velocity``, ``pfl`` or ``mpc``."""
         return self.settings["controller"]
 
     def __getitem__(self, name: str) -> Any:
@@ -470,18 +384,12 @@ class StudySpec:
 
     Parameters
     ----------
-    path
-        The study file.
-    name, description
-        From ``[study]``.
-    base
-        The settings ``[base]`` gives explicitly (typed).
-    axes
-        Grid axes first (in file order), then random axes.
-    scenarios
-        Every run, in study order.
-    study_hash
-        SHA-256 (hex) of the sorted run keys.
+    path, name, description
+        The study file; ``[study]`` name and description.
+    base, axes
+        The settings ``[base]`` gives; grid axes (in file order), then random axes.
+    scenarios, study_hash
+        Every run, in study order; SHA-256 (hex) of the sorted run keys.
     """
 
     path: Path
@@ -533,7 +441,7 @@ def canonical_json(value: Any) -> str:
     Raises
     ------
     ValueError
-        For NaN or infinities (never part of a normalised run).
+        For NaN or infinities.
     """
     return json.dumps(_plain(value), sort_keys=True, separators=(",", ":"), ensure_ascii=True,
                       allow_nan=False)
@@ -545,8 +453,7 @@ def run_key(settings: Mapping[str, Any], params: SnakeParams) -> str:
     Parameters
     ----------
     settings
-        The run's normalised settings; ``robot`` (how the robot was named) is left out:
-        the robot counts by its content, ``params``.
+        The run's normalised settings (``robot`` left out: the robot counts by ``params``).
     params
         The robot it simulates.
 
@@ -599,9 +506,9 @@ def load_study(path: str | os.PathLike[str]) -> StudySpec:
         file = Path(path)
     except TypeError:
         raise StudyError(f"study file must be a path, got {_short(path)}") from None
-    where = _Where(printable_path(file))
-    data = read_regular_file(file, limit=MAX_STUDY_BYTES, kind="study file", error=where.error)
-    return parse_study(decode_utf8(data, error=where.error), file)
+    where = functools.partial(_error, printable_path(file))
+    data = read_regular_file(file, limit=MAX_STUDY_BYTES, kind="study file", error=where)
+    return parse_study(decode_utf8(data, error=where), file)
 
 
 def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpec:
@@ -625,28 +532,27 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
         One line naming ``path`` and the key at fault.
     """
     file = Path(path)
-    where = _Where(printable_path(file))
+    where = functools.partial(_error, printable_path(file))
     if not isinstance(text, str):
-        raise where.error(f"study text must be a string, got {_kind_name(text)}")
+        raise where(f"study text must be a string, got {_kind_name(text)}")
     if len(text) > MAX_STUDY_BYTES:
-        raise where.error(f"is larger than {MAX_STUDY_BYTES} characters: not a study file")
-    doc = parse_toml(text, error=where.error)
+        raise where(f"is larger than {MAX_STUDY_BYTES} characters: not a study file")
+    doc = parse_toml(text, error=where)
     _check_keys(where, "", doc, _TABLES, "table")
     study = _table(where, doc, "study")
     if "batch_size" in study:
-        raise where.error("[study] batch_size is no longer a setting: every run is one task "
-                          "(remove the line)")
+        raise where("[study] batch_size is no longer a setting: every run is one task "
+                    "(remove the line)")
     _check_keys(where, "[study]", study, _STUDY_KEYS, "key")
     name = study.get("name", file.stem)
     description = study.get("description", "")
     for key, value in (("name", name), ("description", description)):
         if not isinstance(value, str) or not value.isprintable() or len(value) > 2000:
-            raise where.error(f"[study] {key} must be one line of printable text, "
-                              f"got {_short(value)}")
+            raise where(f"[study] {key} must be one line of printable text, got {_short(value)}")
     base_doc = _table(where, doc, "base")
     base = {}
     for key, value in base_doc.items():
-        setting = _known(where, "[base]", key)
+        setting = _known(where, key, "[base] unknown setting")
         base[key] = _typed(where, f"[base] {key}", setting, value)
     axes_doc = _table(where, doc, "axes")
     axes = [_axis(where, name_, spec, base) for name_, spec in axes_doc.items()]
@@ -654,7 +560,7 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
     sizes = _sizes(where, axes)
     total = math.prod(sizes)
     if total > MAX_RUNS:
-        raise where.error(f"[axes] the study expands to {total} runs, at most {MAX_RUNS}")
+        raise where(f"[axes] the study expands to {total} runs, at most {MAX_RUNS}")
     scenarios = _scenarios(where, file, base, axes)
     keys = sorted(s.key for s in scenarios)
     study_hash = hashlib.sha256(canonical_json(keys).encode("ascii")).hexdigest()
@@ -662,14 +568,12 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
                      axes=tuple(axes), scenarios=tuple(scenarios), study_hash=study_hash)
 
 
-class _Where:
-    """Builds the one-line errors of one study file."""
+def _error(shown: str, message: str) -> StudyError:
+    """A one-line error of the study file ``shown``."""
+    return StudyError(one_line(f"{shown}: {message}", 400))
 
-    def __init__(self, shown: str) -> None:
-        self.shown = shown
 
-    def error(self, message: str) -> StudyError:
-        return StudyError(one_line(f"{self.shown}: {message}", 400))
+_Where = Callable[[str], StudyError]
 
 
 def _check_keys(where: _Where, table: str, doc: Mapping[str, Any], allowed: Sequence[str],
@@ -680,130 +584,113 @@ def _check_keys(where: _Where, table: str, doc: Mapping[str, Any], allowed: Sequ
             hint = f" (did you mean '{close[0]}'?)" if close else \
                 f" (known: {', '.join(allowed)})"
             place = f"{table} " if table else ""
-            raise where.error(f"{place}unknown {kind} {_short(key)}{hint}")
+            raise where(f"{place}unknown {kind} {_short(key)}{hint}")
 
 
 def _table(where: _Where, doc: Mapping[str, Any], key: str) -> dict[str, Any]:
     value = doc.get(key, {})
     if not isinstance(value, dict):
-        raise where.error(f"[{key}] must be a table, got {_kind_name(value)}")
+        raise where(f"[{key}] must be a table, got {_kind_name(value)}")
     return value
 
 
-def _known(where: _Where, table: str, key: str) -> Setting:
+def _known(where: _Where, key: str, message: str, after: str = "") -> Setting:
+    """The setting ``key``, else an error naming it and the closest known name."""
     setting = SETTINGS.get(key)
     if setting is None:
         close = difflib.get_close_matches(key, list(SETTINGS), n=1)
         hint = f" (did you mean '{close[0]}'?)" if close else ""
-        raise where.error(f"{table} unknown setting {_short(key)}{hint}")
+        raise where(f"{message} {_short(key)}{after}{hint}")
     return setting
 
 
 def _typed(where: _Where, label: str, setting: Setting, value: Any) -> Any:
     """``value`` converted to the setting's kind and checked against its domain."""
+    if setting.kind in _SCALARS:
+        accepts, words = _SCALARS[setting.kind]
+        if not accepts(value):
+            raise where(f"{label} must be {words}, got {_kind_name(value)} {_short(value)}")
     if setting.kind == "float":
-        if not _is_number(value):
-            raise where.error(f"{label} must be a number, got {_kind_name(value)} "
-                              f"{_short(value)}")
         value = float(value)
         if not math.isfinite(value):
-            raise where.error(f"{label} must be finite, got {value}")
+            raise where(f"{label} must be finite, got {value}")
         value = 0.0 if value == 0.0 else value
-    elif setting.kind == "int":
-        if not _is_int(value):
-            raise where.error(f"{label} must be an integer, got {_kind_name(value)} "
-                              f"{_short(value)}")
-    elif setting.kind == "bool":
-        if not isinstance(value, bool):
-            raise where.error(f"{label} must be true or false, got {_kind_name(value)} "
-                              f"{_short(value)}")
-    elif setting.kind == "str":
-        if not isinstance(value, str):
-            raise where.error(f"{label} must be a string, got {_kind_name(value)} "
-                              f"{_short(value)}")
-    else:  # joints
+    elif setting.kind == "joints":
         if not isinstance(value, list) or not all(_is_int(k) for k in value):
-            raise where.error(f"{label} must be a list of joint numbers, got {_short(value)}")
+            raise where(f"{label} must be a list of joint numbers, got {_short(value)}")
         if len(set(value)) != len(value):
-            raise where.error(f"{label} lists a joint twice: {_short(value)}")
+            raise where(f"{label} lists a joint twice: {_short(value)}")
         value = tuple(sorted(value))
     problem = setting.problem(value)
     if problem:
-        raise where.error(f"{label} {problem}")
+        raise where(f"{label} {problem}")
     return value
 
 
 def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
     label = f"[axes.{name}]"
-    setting = SETTINGS.get(name)
-    if setting is None:
-        close = difflib.get_close_matches(name, list(SETTINGS), n=1)
-        hint = f" (did you mean '{close[0]}'?)" if close else ""
-        raise where.error(f"{label} there is no setting {_short(name)} to vary{hint}")
+    setting = _known(where, name, f"{label} there is no setting", " to vary")
     if not isinstance(spec, dict):
-        raise where.error(f"{label} must be a table such as {{ values = [...] }}, got "
-                          f"{_kind_name(spec)}")
+        raise where(f"{label} must be a table such as {{ values = [...] }}, got {_kind_name(spec)}")
     if setting.kind == "joints":
-        raise where.error(f"{label} passive is a list (base only); vary failed_joint instead")
+        raise where(f"{label} passive is a list (base only); vary failed_joint instead")
     if name in base:
-        raise where.error(f"{label} {name} is also set in [base]; give it in one place")
+        raise where(f"{label} {name} is also set in [base]; give it in one place")
     _check_keys(where, label, spec, _AXIS_KEYS, "key")
     forms = [f for f in (*_GRID_FORMS, *_RANDOM_FORMS) if f in spec]
     if len(forms) != 1:
-        raise where.error(f"{label} needs exactly one of values, linspace, uniform, normal; "
-                          f"got {', '.join(forms) or 'none'}")
+        raise where(f"{label} needs exactly one of values, linspace, uniform, normal; "
+                    f"got {', '.join(forms) or 'none'}")
     form = forms[0]
     random = form in _RANDOM_FORMS
     for key in ("samples", "seed"):
         if key in spec and not random:
-            raise where.error(f"{label} {key} applies to uniform/normal axes, not {form}")
+            raise where(f"{label} {key} applies to uniform/normal axes, not {form}")
     if form != "values" and setting.kind != "float":
-        raise where.error(f"{label} {name} takes {setting.kind} values: use values = [...]")
+        raise where(f"{label} {name} takes {setting.kind} values: use values = [...]")
     raw = spec[form]
     if form == "values":
         if not isinstance(raw, list):
-            raise where.error(f"{label} values must be a list, got {_kind_name(raw)}")
+            raise where(f"{label} values must be a list, got {_kind_name(raw)}")
         if not raw:
-            raise where.error(f"{label} values is empty")
+            raise where(f"{label} values is empty")
         values = [_typed(where, f"{label} values[{i}]", setting, v) for i, v in enumerate(raw)]
         seen: dict[Any, int] = {}
         for i, v in enumerate(values):
             if v in seen:
-                raise where.error(f"{label} values[{i}] repeats values[{seen[v]}] = {v!r}")
+                raise where(f"{label} values[{i}] repeats values[{seen[v]}] = {v!r}")
             seen[v] = i
         return Axis(name, form, tuple(values), {"values": list(values)})
     numbers = _numbers(where, f"{label} {form}", raw, 3 if form == "linspace" else 2)
     if form == "linspace":
         low, high, count = numbers
         if not _is_int(raw[2]) or count < 1:
-            raise where.error(f"{label} linspace = [a, b, n] needs an integer n >= 1, "
-                              f"got {_short(raw[2])}")
+            raise where(f"{label} linspace = [a, b, n] needs an integer n >= 1, "
+                        f"got {_short(raw[2])}")
         if count > MAX_RUNS:
-            raise where.error(f"{label} linspace has {int(count)} points, at most {MAX_RUNS}")
+            raise where(f"{label} linspace has {int(count)} points, at most {MAX_RUNS}")
         if count > 1 and low == high:
-            raise where.error(f"{label} linspace from {low!r} to itself repeats one value")
+            raise where(f"{label} linspace from {low!r} to itself repeats one value")
         drawn: list[float] = np.linspace(low, high, int(count)).tolist()
         source: dict[str, Any] = {"linspace": [low, high, int(count)]}
     else:
         samples: Any = spec.get("samples")
         seed: Any = spec.get("seed")
         if not _is_int(samples) or samples < 1:
-            raise where.error(f"{label} needs samples = N (an integer >= 1), got "
-                              f"{_short(samples)}")
+            raise where(f"{label} needs samples = N (an integer >= 1), got {_short(samples)}")
         if samples > MAX_RUNS:
-            raise where.error(f"{label} samples = {samples}, at most {MAX_RUNS}")
+            raise where(f"{label} samples = {samples}, at most {MAX_RUNS}")
         if not _is_int(seed) or not 0 <= seed <= MAX_SEED:
-            raise where.error(f"{label} needs seed = S (an integer in 0..2**32 - 1), got "
-                              f"{_short(seed)}")
+            raise where(f"{label} needs seed = S (an integer in 0..2**32 - 1), got {_short(seed)}")
         rng = np.random.default_rng(seed)
         a, b = numbers
         if form == "uniform":
             if not a < b:
-                raise where.error(f"{label} uniform = [a, b] needs a < b, got [{a!r}, {b!r}]")
+                raise where(f"{label} uniform = [a, b] needs a < b, got [{a!r}, {b!r}]")
             drawn = rng.uniform(a, b, size=(samples,)).tolist()
         else:
             if not b > 0:
-                raise where.error(f"{label} normal = [mean, sigma] needs sigma > 0, got {b!r}")
+                raise where(f"{label} normal = [mean, sigma] needs sigma > 0, got {b!r}")
             drawn = rng.normal(a, b, size=(samples,)).tolist()
         source = {form: [a, b], "samples": samples, "seed": seed}
     values = []
@@ -811,7 +698,7 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
         v = 0.0 if v == 0.0 else float(v)
         problem = setting.problem(v)
         if problem:
-            raise where.error(f"{label} value {i} ({v!r}) of {form}: {name} {problem}")
+            raise where(f"{label} value {i} ({v!r}) of {form}: {name} {problem}")
         values.append(v)
     return Axis(name, form, tuple(values), {**source, "values": values})
 
@@ -819,10 +706,10 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
 def _numbers(where: _Where, label: str, raw: Any, count: int) -> list[float]:
     if not isinstance(raw, list) or len(raw) != count or not all(_is_number(v) for v in raw):
         shape = "[a, b, n]" if count == 3 else "[a, b]"
-        raise where.error(f"{label} must be {shape} (numbers), got {_short(raw)}")
+        raise where(f"{label} must be {shape} (numbers), got {_short(raw)}")
     values = [float(v) for v in raw]
     if not all(math.isfinite(v) for v in values):
-        raise where.error(f"{label} must be finite, got {_short(raw)}")
+        raise where(f"{label} must be finite, got {_short(raw)}")
     return values
 
 
@@ -832,8 +719,8 @@ def _sizes(where: _Where, axes: Sequence[Axis]) -> list[int]:
     random = {a.setting: len(a.values) for a in axes if a.random}
     if len(set(random.values())) > 1:
         listed = ", ".join(f"{k} {v}" for k, v in random.items())
-        raise where.error(f"[axes] random axes are sampled jointly and need the same samples; "
-                          f"got {listed}")
+        raise where(f"[axes] random axes are sampled jointly and need the same samples; "
+                    f"got {listed}")
     return grid + ([next(iter(random.values()))] if random else [])
 
 
@@ -853,39 +740,32 @@ def _scenarios(where: _Where, file: Path, base: Mapping[str, Any],
     robots = _robots(where, file, base, axes, place)
     scenarios: list[Scenario] = []
     cache: dict[tuple[Any, ...], SnakeParams] = {}
+    seen: dict[str, int] = {}
     names = [a.setting for a in grid] + [a.setting for a in random]
     for values in itertools.product(*(a.values for a in grid)):
         for point in points:
-            chosen = dict(base)
-            chosen.update(zip(names, (*values, *point), strict=True))
-            settings = _normalise(chosen)
+            settings = _normalise({**base, **dict(zip(names, (*values, *point), strict=True))})
             params = _params(where, settings, robots[settings["robot"]], place, cache)
             _check_run(where, settings, params, place)
             key = run_key(settings, params)
+            if key in seen:
+                raise where(f"[axes] runs {seen[key]} and {len(scenarios)} are the same run "
+                            "(identical settings)")
+            seen[key] = len(scenarios)
             scenarios.append(Scenario(len(scenarios), key, settings, params))
-    seen: dict[str, int] = {}
-    for s in scenarios:
-        if s.key in seen:
-            raise where.error(f"[axes] runs {seen[s.key]} and {s.index} are the same run "
-                              "(identical settings)")
-        seen[s.key] = s.index
     return scenarios
 
 
 def _check_applicability(where: _Where, base: Mapping[str, Any], axes: Sequence[Axis],
                          explicit: set[str], place: Any) -> None:
     """Every explicit setting must apply to every (model, controller) the study has."""
-    def values(name: str) -> tuple[Any, ...]:
-        for axis in axes:
-            if axis.setting == name:
-                return axis.values
-        return (base.get(name, SETTINGS[name].default),)
-
-    pairs = list(itertools.product(values("model"), values("controller")))
+    varied = {a.setting: a.values for a in axes}
+    pairs = list(itertools.product(*(varied.get(name, (base.get(name, SETTINGS[name].default),))
+                                     for name in ("model", "controller"))))
     for model, controller in pairs:
         if model == "engine" and controller in ("pfl", "mpc"):
-            raise where.error(f"{place('controller')} controller {controller} runs on the "
-                              f"viscous model only, but {place('model')} has model engine")
+            raise where(f"{place('controller')} controller {controller} runs on the "
+                        f"viscous model only, but {place('model')} has model engine")
     for name in sorted(explicit, key=list(SETTINGS).index):
         setting = SETTINGS[name]
         for model, controller in pairs:
@@ -896,8 +776,8 @@ def _check_applicability(where: _Where, base: Mapping[str, Any], axes: Sequence[
                 else:
                     scope = f"controller {'/'.join(setting.controllers)}"
                     other = f"controller {controller}"
-                raise where.error(f"{place(name)} {name} applies to {scope} only, and this "
-                                  f"study has runs with {other}")
+                raise where(f"{place(name)} {name} applies to {scope} only, and this "
+                            f"study has runs with {other}")
 
 
 def _robots(where: _Where, file: Path, base: Mapping[str, Any], axes: Sequence[Axis],
@@ -914,12 +794,12 @@ def _robots(where: _Where, file: Path, base: Mapping[str, Any], axes: Sequence[A
         try:
             robot = load_robot(spec)
         except SnakePinError as exc:
-            raise where.error(f"{place('robot')} robot {_short(name)}: "
-                              f"{one_line(str(exc), 300)}") from None
+            raise where(f"{place('robot')} robot {_short(name)}: "
+                        f"{one_line(str(exc), 300)}") from None
         same = next((other for other, known in robots.items() if known == robot), None)
         if same is not None:
-            raise where.error(f"{place('robot')} robot {_short(name)} is the same robot as "
-                              f"{_short(same)} (the same file or content): one run, give it once")
+            raise where(f"{place('robot')} robot {_short(name)} is the same robot as "
+                        f"{_short(same)} (the same file or content): one run, give it once")
         robots[name] = robot
     return robots
 
@@ -957,15 +837,14 @@ def _params(where: _Where, settings: Mapping[str, Any], robot: SnakeParams, plac
     n = robot.n
     for k in settings["passive"]:
         if not 1 <= k <= n - 1:
-            raise where.error(f"[base] passive joint {k} is outside 1..{n - 1} for robot "
-                              f"{_short(settings['robot'])} (n = {n})")
+            raise where(f"[base] passive joint {k} is outside 1..{n - 1} for robot "
+                        f"{_short(settings['robot'])} (n = {n})")
     failed = settings["failed_joint"]
     if not 0 <= failed <= n - 1:
-        raise where.error(f"{place('failed_joint')} failed_joint {failed} is outside 0..{n - 1} "
-                          f"(0 = none) for robot {_short(settings['robot'])} (n = {n})")
+        raise where(f"{place('failed_joint')} failed_joint {failed} is outside 0..{n - 1} "
+                    f"(0 = none) for robot {_short(settings['robot'])} (n = {n})")
     if failed and failed in settings["passive"]:
-        raise where.error(f"{place('failed_joint')} failed_joint {failed} is already passive "
-                          "in [base]")
+        raise where(f"{place('failed_joint')} failed_joint {failed} is already passive in [base]")
     passive = tuple(sorted({*settings["passive"], *([failed] if failed else [])}))
     friction = {k: settings[k] for k in ("c_x", "c_y", "c_theta")
                 if settings.get(k) is not None}
@@ -976,8 +855,8 @@ def _params(where: _Where, settings: Mapping[str, Any], robot: SnakeParams, plac
             params = robot.replace(passive=passive, **friction)
         except SnakePinError as exc:
             names = ", ".join(sorted({place(k) for k in friction}) or [place("robot")])
-            raise where.error(f"{names} robot {_short(settings['robot'])}: "
-                              f"{one_line(str(exc), 300)}") from None
+            raise where(f"{names} robot {_short(settings['robot'])}: "
+                        f"{one_line(str(exc), 300)}") from None
         cache[cache_key] = params
     return params
 
@@ -988,16 +867,16 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
     controller, model = settings["controller"], settings["model"]
     n = params.n
     if not params.actuated:
-        raise where.error(f"{place('failed_joint')} every joint of robot "
-                          f"{_short(settings['robot'])} would be passive: nothing to control")
+        raise where(f"{place('failed_joint')} every joint of robot "
+                    f"{_short(settings['robot'])} would be passive: nothing to control")
     if controller == "pfl":
         if params.passive:
-            raise where.error(f"{place('controller')} controller pfl needs every joint "
-                              f"actuated; {place('failed_joint')} or [base] passive leaves "
-                              f"joint {params.passive[0]} without torque")
+            raise where(f"{place('controller')} controller pfl needs every joint "
+                        f"actuated; {place('failed_joint')} or [base] passive leaves "
+                        f"joint {params.passive[0]} without torque")
         if n < 4:
-            raise where.error(f"{place('controller')} controller pfl needs n >= 4 links, robot "
-                              f"{_short(settings['robot'])} has {n}")
+            raise where(f"{place('controller')} controller pfl needs n >= 4 links, robot "
+                        f"{_short(settings['robot'])} has {n}")
     if controller == "mpc":
         try:
             law_options(settings, n - 1)
@@ -1006,14 +885,13 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
             words = set(message.split())  # a cross-field check: each field was parsed
             named = [name for name in settings
                      if SETTINGS[name].controllers == ("mpc",) and name in words]
-            raise where.error(f"{place(named[0]) if named else place('controller')} "
-                              f"{message}") from None
+            raise where(f"{place(named[0]) if named else place('controller')} {message}") from None
     if controller == "velocity" and model == "viscous":
         for key in ("c_x", "c_y"):
             if np.any(params.per_link(key) <= 0):
                 given = place(key) if settings.get(key) is not None else place("robot")
-                raise where.error(f"{given} controller velocity needs {key} > 0 on every "
-                                  f"link of robot {_short(settings['robot'])}")
+                raise where(f"{given} controller velocity needs {key} > 0 on every "
+                            f"link of robot {_short(settings['robot'])}")
     t_final = settings["t_final"]
     if model == "engine":
         control_dt = ENGINE_CONTROL_DT
@@ -1023,19 +901,18 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
         substeps = round(ratio)
         if ratio > MAX_SUBSTEPS + 0.5 or substeps < 1 or \
                 abs(substeps * dt - control_dt) > 1e-9 * control_dt:
-            raise where.error(f"{place('control_dt')} control_dt = {control_dt:g} s must be 1.."
-                              f"{MAX_SUBSTEPS} times {place('dt')} dt = {dt:g} s")
+            raise where(f"{place('control_dt')} control_dt = {control_dt:g} s must be 1.."
+                        f"{MAX_SUBSTEPS} times {place('dt')} dt = {dt:g} s")
     steps = t_final / control_dt
     if steps > MAX_STEPS + 1e-6:
-        raise where.error(f"{place('t_final')} t_final = {t_final:g} s needs more than "
-                          f"MAX_STEPS = {MAX_STEPS} control steps of {control_dt:g} s "
-                          f"(t_final <= {MAX_STEPS * control_dt:g} s)")
+        raise where(f"{place('t_final')} t_final = {t_final:g} s needs more than "
+                    f"MAX_STEPS = {MAX_STEPS} control steps of {control_dt:g} s "
+                    f"(t_final <= {MAX_STEPS * control_dt:g} s)")
     samples = math.ceil(steps - 1e-9) + 1
     nq = n + 2
     if samples * nq * 8 > MAX_ARRAY_BYTES or samples * (2 * nq + n) * 8 > MAX_TOTAL_BYTES:
-        raise where.error(f"{place('t_final')} t_final = {t_final:g} s of the {n}-link robot "
-                          "needs more memory than a trajectory may hold (snake_pin.sim."
-                          "MAX_ARRAY_BYTES)")
+        raise where(f"{place('t_final')} t_final = {t_final:g} s of the {n}-link robot "
+                    "needs more memory than a trajectory may hold (snake_pin.sim.MAX_ARRAY_BYTES)")
 
 
 # ------------------------------------------------------------------------ helpers
@@ -1045,6 +922,13 @@ def _is_number(value: object) -> bool:
 
 def _is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
+
+
+#: The scalar kinds: what a value must be, in words.
+_SCALARS: dict[str, tuple[Callable[[object], bool], str]] = {
+    "float": (_is_number, "a number"), "int": (_is_int, "an integer"),
+    "bool": (lambda v: isinstance(v, bool), "true or false"),
+    "str": (lambda v: isinstance(v, str), "a string")}
 
 
 def _kind_name(value: object) -> str:

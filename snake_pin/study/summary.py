@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
+
+from .._json import json_safe
 
 __all__ = ["StudySummary"]
 
@@ -18,23 +19,17 @@ class StudySummary:
     name, study_hash, folder
         The study and where its results are.
     status
-        ``complete``, ``interrupted`` (the batches written so far are kept) or
-        ``incomplete`` (some runs lost with a dead worker; re-run to retry them).
+        ``complete``, ``interrupted`` or ``incomplete`` (runs lost with a dead worker).
     runs, recorded, ran, skipped
-        Runs in the study, with a row in the dataset, executed and recorded by this
-        invocation, and already recorded when it started.
+        Runs in the study, recorded, recorded by this invocation, recorded before it.
     lost
         Runs this invocation submitted and did not record; a re-run executes them.
     statuses
         Recorded rows per status (``ok``, ``diverged``, ``failed``).
-    wall_time
-        Seconds this invocation took, cluster start included.
-    scheduler
-        ``local (N workers)`` or the address given.
-    files
-        ``index.html``, ``summary.json``, the dataset folder and ``study.json``.
-    note
-        One line: why it stopped, if it did.
+    wall_time, scheduler
+        Seconds this invocation took; ``local (N workers)`` or the address given.
+    files, note
+        ``index.html``, ``summary.json``, the dataset and ``study.json``; why it stopped.
     """
 
     name: str
@@ -60,7 +55,7 @@ class StudySummary:
         dict
             Every field; non-finite numbers become None (null).
         """
-        return _finite(asdict(self))
+        return dict(json_safe(self))
 
     def text(self) -> str:
         """A few lines for a terminal.
@@ -80,13 +75,3 @@ class StudySummary:
         lines += [f"{k}: {v}" for k, v in self.files.items()]
         return "\n".join(lines)
 
-
-def _finite(value: Any) -> Any:
-    """``value`` with non-finite floats as None (the fields are plain numbers and text)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {str(k): _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    return value

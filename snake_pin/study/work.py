@@ -1,12 +1,8 @@
 """The unit of work of a study: run a task's scenarios, return one result row per scenario.
 
-:func:`run_batch` is the task the runner submits to Dask. It never lets a run's failure
-escape (a run that raises becomes a ``failed`` row with the error text), and limits BLAS
-and OpenMP pools to one thread: multi-threaded OpenBLAS on tiny matrices is many times
-slower when another core is busy. A viscous-model run is exactly the single-run path
-(:func:`simulate_scenario`); engine scenarios run through
-:func:`snake_pin.engine.run.run_engine`. The row's columns: :ref:`studies` (The study
-folder); the criteria are sampled every :data:`CRITERIA_PERIOD` seconds.
+:func:`run_batch` is the Dask task: a run that raises becomes a ``failed`` row, and BLAS
+and OpenMP pools are limited to one thread (tiny matrices, busy cores). Row columns:
+:ref:`studies` (The study folder).
 """
 
 from __future__ import annotations
@@ -44,12 +40,8 @@ class RunOutcome:
 
 # ------------------------------------------------------------------- the task
 def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
-    """Run a task's scenarios one by one and return one result row per scenario, in order
-    (the Dask task; the runner gives it one scenario).
-
-    A run that raises is a ``failed`` row; a KeyboardInterrupt is not caught (an interrupted
-    task is lost whole, never half-written).
-    """
+    """One result row per scenario, in order; a run that raises is a ``failed`` row (a
+    KeyboardInterrupt is not caught: an interrupted task is lost whole)."""
     from threadpoolctl import threadpool_limits
 
     rows = []
@@ -136,8 +128,7 @@ def simulate_scenario(scenario: Scenario) -> RunOutcome:
 
 @functools.lru_cache(maxsize=16)
 def _engine_friction(params: SnakeParams, wheels: Any) -> dict[str, float]:
-    """The identified viscous friction of a robot (without passive joints: the
-    identification pushes the straight snake) on its wheels, cached per worker."""
+    """The identified viscous friction of a robot on its wheels, cached per worker."""
     from ..engine.run import identify_friction
 
     return identify_friction(params, wheels)
