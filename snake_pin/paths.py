@@ -1,18 +1,11 @@
 """Planar paths and head references along them: a curve p(s) plus a timing law s(t).
 
-A :class:`Path` (shapes :class:`Line`, :class:`Circle`, :class:`Arc`, :class:`LaneChange`,
-:class:`Sinusoid`, :class:`Waypoints`) gives p(s), its tangent angle, curvature and its
-rate; a :class:`Timing` gives s(t); a :class:`PathReference` joins them into the head
-reference the controllers consume (the interface of
-:class:`~snake_pin.control.reference.LinearReference`). :func:`cross_track_error` (left
-positive) and :func:`along_track` are vectorised over points. The geometry, the reference's
-derivatives and the projection are in :doc:`/paths` (Path geometry).
-
-:func:`load_path` takes a shape name with its parameters, or a TOML or CSV path file
-(format and bounds in :doc:`/paths`): every number must be physically meaningful, or the
-geometry would overflow or underflow instead of failing. Every problem is one
-:class:`PathFileError` line naming the file and the field, or a
-:class:`~snake_pin.exceptions.ParameterError` naming the parameter.
+A :class:`Path` shape gives p(s), its tangent angle, curvature and its rate; a
+:class:`Timing` gives s(t); a :class:`PathReference` joins them into the head reference
+the controllers consume. :func:`load_path` builds one from a shape name or a TOML/CSV
+file, refusing in one :class:`PathFileError` or
+:class:`~snake_pin.exceptions.ParameterError` line. Geometry, projection and file format:
+:doc:`/paths`.
 """
 
 from __future__ import annotations
@@ -24,7 +17,7 @@ import functools
 import io
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path as FilePath
 from typing import Any, NamedTuple
@@ -101,9 +94,7 @@ class PathPoint(NamedTuple):
 
 
 class _Samples(NamedTuple):
-    """The path sampled every ``h`` from ``s0`` (points, frames, gamma, kappa, kappa'), and
-    the sample offsets of the coarse and fine searches of :meth:`Path._project_near`.
-    """
+    """The path sampled every ``h`` from ``s0``, with the offsets of the two searches."""
 
     s0: float
     h: float
@@ -185,18 +176,11 @@ class _ArcLength:
         k = np.clip(np.searchsorted(self.u, u, side="right") - 1, 0, len(self.u) - 2)
         return self.s[k] + self._integral(self.u[k], u)
 
-    def _start(self, s: np.ndarray) -> np.ndarray:
-        """Cubic Hermite interpolation of u(s) between the nodes (slopes du/ds)."""
+    def parameter(self, s: np.ndarray) -> np.ndarray:
+        """u(s) for 0 <= s <= total: Newton from the Hermite start to round-off."""
         k = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.s) - 2)
         h = self.s[k + 1] - self.s[k]
-        x = (s - self.s[k]) / h
-        return ((1.0 + 2.0 * x) * (1.0 - x) ** 2 * self.u[k] + x * (1.0 - x) ** 2 * h * self.du[k]
-                + x * x * (3.0 - 2.0 * x) * self.u[k + 1] + x * x * (x - 1.0) * h * self.du[k + 1])
-
-    def parameter(self, s: np.ndarray) -> np.ndarray:
-        """u(s) for 0 <= s <= total: Newton from the Hermite start, to round-off (quadratic:
-        after a step below 1e-7, relative, the next would be below ~1e-13 and is skipped)."""
-        u = self._start(s)
+        u = _hermite((s - self.s[k]) / h, h, self.u[k], self.du[k], self.u[k + 1], self.du[k + 1])
         lo, hi = self.u[0], self.u[-1]
         for _ in range(8):
             step = (self.length(u) - s) / self.speed(u)
@@ -211,9 +195,7 @@ class _ArcLength:
         last = len(s_list) - 2
         k = min(max(bisect.bisect_right(s_list, s) - 1, 0), last)
         h = s_list[k + 1] - s_list[k]
-        x = (s - s_list[k]) / h
-        u = ((1.0 + 2.0 * x) * (1.0 - x) ** 2 * u_list[k] + x * (1.0 - x) ** 2 * h * du_list[k]
-             + x * x * (3.0 - 2.0 * x) * u_list[k + 1] + x * x * (x - 1.0) * h * du_list[k + 1])
+        u = _hermite((s - s_list[k]) / h, h, u_list[k], du_list[k], u_list[k + 1], du_list[k + 1])
         lo, hi = u_list[0], u_list[-1]
         for _ in range(8):
             j = min(max(bisect.bisect_right(u_list, u) - 1, 0), last)
@@ -226,9 +208,14 @@ class _ArcLength:
         return u
 
 
+def _hermite(x: Any, h: Any, u0: Any, du0: Any, u1: Any, du1: Any) -> Any:
+    """Cubic Hermite interpolation at ``x`` in [0, 1] of a span ``h`` (floats or arrays)."""
+    return ((1.0 + 2.0 * x) * (1.0 - x) ** 2 * u0 + x * (1.0 - x) ** 2 * h * du0
+            + x * x * (3.0 - 2.0 * x) * u1 + x * x * (x - 1.0) * h * du1)
+
+
 def _bend(x1: Any, y1: Any, x2: Any, y2: Any, x3: Any, y3: Any) -> tuple[Any, Any]:
-    """(kappa, dkappa/ds) from the components of p', p'', p''' in any parameter (floats or
-    arrays: one formula for both)."""
+    """(kappa, dkappa/ds) from p', p'', p''' in any parameter (floats or arrays)."""
     v2 = x1 * x1 + y1 * y1
     c12 = x1 * y2 - y1 * x2
     return (c12 / (v2 * v2**0.5),
@@ -241,11 +228,8 @@ def _clip_float(x: float, lo: float, hi: float) -> float:
 
 def _expansion_newton(a: Any, b: Any, kappa: Any, dkappa: Any, h: float,
                       clip: Callable[..., Any]) -> Any:
-    """sigma of the point of the expansion about a sample k, in its frame (t, n),
-    ``p(sigma) = p_k + (sigma - kappa^2 sigma^3 / 6) t + (kappa sigma^2 / 2 + kappa' sigma^3
-    / 6) n``, closest to ``x = p_k + a t + b n``: two Newton steps on (p - x) . p' = 0, the
-    first the exact one at 0, each within one spacing ``h``; ``clip`` is ``numpy.clip`` for
-    arrays or :func:`_clip_float` for floats."""
+    """sigma of the cubic expansion's point about a sample closest to ``p_k + a t + b n``:
+    two Newton steps within one spacing ``h`` (:doc:`/paths`), arrays or floats by ``clip``."""
     sigma = clip(a / clip(1.0 - kappa * b, 0.2, math.inf), -h, h)
     k2s = kappa * kappa * sigma
     # e = p(sigma) - x and v = p'(sigma) along t and n; slope = f'(sigma)
@@ -259,19 +243,13 @@ def _expansion_newton(a: Any, b: Any, kappa: Any, dkappa: Any, h: float,
 
 # --------------------------------------------------------------------------- paths
 class Path(abc.ABC):
-    """A planar curve parametrised by arc length s (abstract base of the shapes).
-
-    Subclasses implement :meth:`_geometry` on a flat array of s; :attr:`length` is the
-    length of the defined part (``math.inf`` when unbounded, one lap for a circle).
-    """
+    """A planar curve parametrised by arc length s (abstract base of the shapes)."""
 
     #: Identifier used in file names and summaries.
     name: str = "path"
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
-        """Pickle a shape by its parameters only: unpickling builds it again, tables and
-        caches included (they hold local functions, and the projection cache can be
-        large), so a path goes to worker processes whole and small."""
+        """Pickle by the parameters only: tables and caches (large, local functions) rebuilt."""
         return type(self), tuple(getattr(self, f.name) for f in fields(self)  # type: ignore[arg-type]
                                  if f.init)
 
@@ -325,11 +303,6 @@ class Path(abc.ABC):
         -------
         numpy.ndarray
             ``geometry(s).p``.
-
-        Raises
-        ------
-        ParameterError
-            An arc length is not finite.
         """
         return self.geometry(s).p
 
@@ -348,8 +321,7 @@ class Path(abc.ABC):
         return (-1.0, DEFAULT_EXTENT)
 
     def _step(self, lo: float, hi: float, count: int, step: float, bend: float) -> float:
-        """``step``, or ``bend`` over the largest |kappa| of ``count`` samples of [lo, hi]
-        where that is smaller (finer where the curve bends tightly)."""
+        """``step``, or less where it bends: ``bend`` over the largest |kappa| of samples."""
         kappa_max = float(np.max(np.abs(self._geometry(np.linspace(lo, hi, count)).kappa)))
         return min(step, bend / kappa_max) if kappa_max > 0 else step
 
@@ -358,7 +330,7 @@ class Path(abc.ABC):
         """Return the arc length ``s*`` [m] of the closest point of the path to each point.
 
         Lines and circles project exactly (a circle: the lap nearest the hint, else the first
-        lap at or after ``s_min``, capped at ``s_max``; a line ignores the hint).
+        at or after ``s_min``, capped at ``s_max``); the others as in :doc:`/paths`.
 
         Parameters
         ----------
@@ -367,9 +339,8 @@ class Path(abc.ABC):
         span : tuple of float, optional
             ``(s_min, s_max)`` searched [m]; default :meth:`default_span`. The result lies in it.
         hint : float or array_like, optional
-            Arc lengths near the answer (scalar or one per point), e.g. the last answer when
-            tracking a moving point: then the closest point within :data:`HINT_RADIUS` of the
-            hint, unbounded without a span (the controllers' hot path; :doc:`/paths`).
+            Arc lengths near the answer, one or one per point: then the closest point within
+            :data:`HINT_RADIUS` of it, unbounded without a span.
 
         Returns
         -------
@@ -381,12 +352,7 @@ class Path(abc.ABC):
         ParameterError
             The points are not a finite (..., 2) array, or the span or the hint is invalid.
         """
-        try:
-            pts = np.asarray(points, dtype=float)
-        except (TypeError, ValueError, OverflowError):
-            pts = np.empty(0)
-        if pts.ndim == 0 or pts.shape[-1:] != (2,) or not np.isfinite(pts).all():
-            raise ParameterError("points must be a finite (..., 2) array")
+        pts = _points(points)
         try:
             guess = None if hint is None else np.broadcast_to(np.asarray(hint, dtype=float),
                                                               pts.shape[:-1])
@@ -414,13 +380,12 @@ class Path(abc.ABC):
 
     def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
                           hint: object) -> np.ndarray | None:
-        """The closed-form projection of shapes that have one (checked points), else None."""
+        """The closed-form projection of checked points, for shapes that have one."""
         return None
 
     def _samples(self, lo: float, hi: float) -> _Samples:
-        """The path sampled over at least [lo, hi] (first :meth:`default_span` too), every
-        :data:`SAMPLE_STEP` or finer where it bends; a request beyond it moves the window
-        (half its length, at least 2 m, beyond [lo, hi]): its size stays bounded."""
+        """The path sampled every :data:`SAMPLE_STEP` (finer where it bends) over at least
+        [lo, hi]: a request beyond the table moves it, so its size stays bounded."""
         table: _Samples | None = self.__dict__.get("_near_table")
         if table is not None and table.s0 <= lo and table.end >= hi:
             return table
@@ -447,12 +412,8 @@ class Path(abc.ABC):
 
     def _project_near(self, points: np.ndarray, hint: np.ndarray, lo: float,
                       hi: float) -> np.ndarray:
-        """Closest point within :data:`HINT_RADIUS` of each hint (see :meth:`project`): the
-        nearest sample of the table (every ``stride``-th over the radius, then each around
-        the best), then :func:`_expansion_newton` about it (error O(h^4), O(h^2) at an
-        arc's ends). Vectorised over many points; one point (a controller's step) goes
-        through :meth:`_track_in` on slices of the table, in floats.
-        """
+        """Closest point within :data:`HINT_RADIUS` of each hint: the nearest sample (coarse,
+        then fine), then :func:`_expansion_newton` about it; one point goes by :meth:`_track_in`."""
         table = self._samples(max(lo, float(hint.min()) - HINT_RADIUS),
                               min(hi, float(hint.max()) + HINT_RADIUS))
         h, s0, last = table.h, table.s0, len(table.kappa) - 1
@@ -478,8 +439,7 @@ class Path(abc.ABC):
         return np.clip(s0 + k_arr * h + sigma_arr, lo, hi)
 
     def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
-        """``(s, x_p, y_p, gamma)`` of ``project((x, y), hint=hint)``, unchecked (the LOS
-        law's step); the point and its (continuous) tangent angle from the same expansion."""
+        """``(s, x_p, y_p, gamma)`` of ``project((x, y), hint=hint)``, unchecked (LOS law)."""
         table = self._samples(hint - HINT_RADIUS, hint + HINT_RADIUS)
         return self._track_in(table, np.array([x, y]), hint, 0, len(table.kappa) - 1,
                               -math.inf, math.inf)
@@ -639,8 +599,6 @@ class Line(Path):
 class Circle(Path):
     """The circle of ``radius`` about ``centre``, from the polar angle ``start_angle``.
 
-    By default through the origin heading along +x; s runs on over any number of laps.
-
     Parameters
     ----------
     radius : float, optional
@@ -686,7 +644,7 @@ class Circle(Path):
 
     @property
     def length(self) -> float:
-        """One lap, ``2 pi radius`` [m] (s itself runs on over any number of laps)."""
+        """One lap, ``2 pi radius`` [m] (s runs on over any number of laps)."""
         return 2.0 * math.pi * self.radius
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
@@ -1231,9 +1189,8 @@ def cross_track_error(path: Path | PathReference, points: object, *,
     ParameterError
         The points are not a finite (..., 2) array, or the span is invalid.
     """
-    curve, pts, span = _distance_arguments(path, points, span)
-    s = curve.project(pts, span=span)
-    g = curve.geometry(s)
+    curve, pts = _curve(path), _points(points)
+    g = curve.geometry(curve.project(pts, span=span))
     diff = pts - g.p
     side = np.einsum("...i,...i->...", diff, g.normal)
     return np.where(side < 0.0, -1.0, 1.0) * np.linalg.norm(diff, axis=-1)
@@ -1262,35 +1219,42 @@ def along_track(path: Path | PathReference, points: object, *,
     ParameterError
         The points are not a finite (..., 2) array, or the span is invalid.
     """
-    curve, pts, span = _distance_arguments(path, points, span)
-    return curve.project(pts, span=span)
+    return _curve(path).project(points, span=span)
 
 
-def _distance_arguments(path: object, points: object, span: object
-                        ) -> tuple[Path, np.ndarray, tuple[float, float] | None]:
-    """The curve, the points and the span of a distance query, or one ParameterError."""
-    if isinstance(path, PathReference):
-        path = path.path
+def _curve(path: object) -> Path:
+    """The path of a distance query (a reference's own), or one ParameterError line."""
+    path = path.path if isinstance(path, PathReference) else path
     if not isinstance(path, Path):
         raise ParameterError(f"path must be a Path or a PathReference, got {brief(path)}")
+    return path
+
+
+def _points(points: object) -> np.ndarray:
+    """Points as a finite (..., 2) float array, or one ParameterError line."""
     try:
         pts = np.asarray(points, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise ParameterError(f"points must be a finite (..., 2) array, "
-                             f"got {brief(points)}") from None
-    return path, pts, _span(span)
+        pts = np.empty(0)
+    if pts.ndim == 0 or pts.shape[-1:] != (2,) or not np.isfinite(pts).all():
+        raise ParameterError(f"points must be a finite (..., 2) array, got {brief(points)}")
+    return pts
+
+
+def interval(value: object, name: str) -> tuple[float, float]:
+    """``value`` as (low, high), finite with low < high, or one ParameterError line."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
+            or len(value) != 2:
+        raise ParameterError(f"{name} must be (low, high), got {brief(value)}")
+    low, high = (finite_number(v, f"{name}[{i}]") for i, v in enumerate(value))
+    if not low < high:
+        raise ParameterError(f"{name} must have low < high, got ({low:g}, {high:g})")
+    return low, high
 
 
 def _span(span: object) -> tuple[float, float] | None:
-    """A checked ``(s_min, s_max)`` (None stays None), or one ParameterError line."""
-    if span is None:
-        return None
-    if not isinstance(span, (tuple, list, np.ndarray)) or len(span) != 2:
-        raise ParameterError(f"span must be (s_min, s_max), got {brief(span)}")
-    low, high = finite_number(span[0], "span[0]"), finite_number(span[1], "span[1]")
-    if not high > low:
-        raise ParameterError(f"span must be increasing, got ({low}, {high})")
-    return low, high
+    """A checked ``(s_min, s_max)`` (None stays None)."""
+    return None if span is None else interval(span, "span")
 
 
 # ------------------------------------------------------------------- construction

@@ -1,15 +1,11 @@
 """Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map.
 
-A :class:`Sweep` holds one family's D and R as data; the figures and files are made a
-layer up (:func:`snake_pin.experiments.manipulability.write_sweep`). BLAS and OpenMP pools
-are limited to one thread while a sweep or a map runs: on (n + 2)-square matrices
-multi-threaded OpenBLAS costs far more than it gives when another core is busy
-(:doc:`/performance`).
+A :class:`Sweep` holds one family's D and R as data (figures and files: a layer up). BLAS
+runs on one thread meanwhile: on these small matrices more only cost (:doc:`/performance`).
 """
 
 from __future__ import annotations
 
-import math
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -17,11 +13,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ._json import json_safe
 from ._validation import brief, finite_number, flag, instance, integer
 from .exceptions import ParameterError, RunInterrupted
 from .gaits import Serpenoid, arc
 from .manipulability import free_joints, manipulability, manipulability_R_batch, task_split
 from .model import Snake
+from .paths import interval
 
 __all__ = ["FAMILIES", "MAX_POINTS", "RMap", "Sweep", "r_map", "sweep"]
 
@@ -119,30 +117,15 @@ class Sweep:
         return {"family": self.family, "parameter": self.label, "robot": self.robot,
                 "free_joint": list(free) if isinstance(free, tuple) else free,
                 "status": self.status, "values": self.values.tolist(),
-                "D": _finite_or_none(self.D), "R": _finite_or_none(self.R), **self.meta}
+                "D": json_safe(self.D), "R": json_safe(self.R), **self.meta}
 
 
 def _family_configuration(family: str, n: int, value: float) -> np.ndarray:
+    """The posture of ``family`` at parameter ``value``."""
     if family == "arc":
         return arc(n, value)
-    if family == "alpha":
-        return Serpenoid(n, value, 1.5).configuration()
-    return Serpenoid(n, np.pi / 4, value).configuration()
-
-
-def _finite_or_none(values: np.ndarray) -> list[float | None]:
-    return [v if math.isfinite(v) else None for v in values.tolist()]
-
-
-def _bounds(bounds: object) -> tuple[float, float]:
-    """``bounds`` as (low, high), two finite numbers with low < high, or ParameterError."""
-    if isinstance(bounds, (str, bytes)) or not isinstance(bounds, (Sequence, np.ndarray)) \
-            or len(bounds) != 2:
-        raise ParameterError(f"bounds must be (low, high), got {brief(bounds)}")
-    low, high = (finite_number(value, "bounds") for value in bounds)
-    if not low < high:
-        raise ParameterError(f"bounds must have low < high, got ({low:g}, {high:g})")
-    return low, high
+    alpha, ts = (value, 1.5) if family == "alpha" else (np.pi / 4, value)
+    return Serpenoid(n, alpha, ts).configuration()
 
 
 def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None = None,
@@ -188,7 +171,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     task_split(snake.n, free_joint)  # validate before any output (progress bar)
     free = tuple(sorted(set(snake.params.passive) | set(free_joints(snake.n, free_joint))))
     label, default, _ = FAMILIES[family]
-    low, high = default if bounds is None else _bounds(bounds)
+    low, high = default if bounds is None else interval(bounds, "bounds")
     values = _with_zero(np.linspace(low, high, int(points)))
     requested, points = int(points), len(values)
     d, r = np.empty(points), np.empty(points)
