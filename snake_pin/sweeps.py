@@ -142,8 +142,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     free_joint
         Joint(s) without an actuator (D~ and R~ of eq. 42).
     points
-        Number of values, 2 .. :data:`MAX_POINTS`; 0 (the straight posture, singular) is
-        inserted when the range holds it strictly inside and the even grid misses it.
+        Number of values, 2 .. :data:`MAX_POINTS` (0, singular, is inserted if inside).
     bounds
         The parameter range (default: the family's range in :data:`FAMILIES`).
     progress
@@ -157,8 +156,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     Raises
     ------
     RunInterrupted
-        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the
-        sweep of the values computed so far, with ``status == "interrupted"``.
+        On Ctrl-C or SIGTERM: ``partial`` holds the sweep so far (status "interrupted").
     ParameterError
         A bad argument, or free joints that leave the task no actuated joint.
     """
@@ -200,8 +198,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
 
 
 def _with_zero(values: np.ndarray) -> np.ndarray:
-    """``values`` (ascending) with the value nearest 0 set to exactly 0 when it is 0 up to
-    rounding, or 0 inserted when the grid straddles 0 without it."""
+    """``values`` (ascending) with exactly 0 in it when they straddle 0."""
     if not values[0] < 0.0 < values[-1]:
         return values
     nearest = int(np.argmin(np.abs(values)))
