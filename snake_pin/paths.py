@@ -273,7 +273,7 @@ class Path(abc.ABC):
         Parameters
         ----------
         s : float or array_like
-            Arc length(s), any shape (beyond a finite curve's ends it goes on straight).
+            Arc length(s), any shape.
 
         Returns
         -------
@@ -312,8 +312,8 @@ class Path(abc.ABC):
         Returns
         -------
         tuple of float
-            A finite curve with a margin of a quarter of its length (at least 1 m) at each
-            end, else ``(-1, DEFAULT_EXTENT)``.
+            A finite curve with margins of a quarter of its length (>= 1 m), else
+            ``(-1, DEFAULT_EXTENT)``.
         """
         if math.isfinite(self.length):
             margin = max(1.0, 0.25 * self.length)
@@ -735,9 +735,8 @@ class _GraphCurve(Path):
     direction: float
 
     def _place(self, x: Any, y: Any, f1: Any, f2: Any, f3: Any, m: Any = np) -> Any:
-        """The point (x, f(x)) placed, gamma = atan f' (continuous: x' = 1 > 0), kappa and
-        dkappa/ds (fk the k-th derivative of f): a PathPoint of arrays with ``m`` numpy,
-        or the tuple of :meth:`Path._scalar` of floats with ``m`` math."""
+        """(x, f(x)) placed with gamma, kappa, kappa' from f's derivatives ``fk``: a PathPoint
+        (``m`` numpy) or the floats of :meth:`Path._scalar` (``m`` math)."""
         c, s = math.cos(self.direction), math.sin(self.direction)
         p_x, p_y = c * x - s * y + self.origin[0], s * x + c * y + self.origin[1]
         terms = (m.atan(f1) + self.direction, *_bend(1.0, f1, 0.0, f2, 0.0, f3))
@@ -746,9 +745,7 @@ class _GraphCurve(Path):
 
 @dataclass(frozen=True)
 class LaneChange(_GraphCurve):
-    """A lead-in of ``start``, an S of ``length_x`` to the parallel line at ``offset``, then on.
-
-    In the frame at ``origin`` rotated by ``direction`` (the S: :doc:`/paths`).
+    """A lead-in, an S of ``length_x`` to the parallel line at ``offset``, then on (:doc:`/paths`).
 
     Parameters
     ----------
@@ -886,10 +883,7 @@ class Sinusoid(_GraphCurve):
 
 @dataclass(frozen=True)
 class Waypoints(_Finite):
-    """The natural C2 cubic spline through ``points`` on the chord-length parameter, by arc length.
-
-    Straight beyond the first and last points (zero curvature there); ``knots_s`` holds
-    the arc length of each waypoint.
+    """The natural cubic spline through ``points`` (``knots_s``: their arc lengths).
 
     Parameters
     ----------
@@ -900,8 +894,7 @@ class Waypoints(_Finite):
     Raises
     ------
     ParameterError
-        If there are too few or too many waypoints, one is not finite, two consecutive
-        ones coincide, or the spline has a cusp or turns too sharply.
+        Bad waypoints, or a spline with a cusp or turning too sharply.
     """
 
     points: tuple[tuple[float, float], ...] = field(default=())
@@ -948,9 +941,7 @@ class Waypoints(_Finite):
 
     @staticmethod
     def _cubic(d: Any, xs: Any, ys: Any, near: Any, m: Any) -> Any:
-        """(x, y, gamma, kappa, dkappa) at ``d`` into a knot interval of cubics ``xs``, ``ys``
-        (highest first), gamma the turn nearest ``near`` (floats with ``m`` math, arrays
-        with numpy)."""
+        """(x, y, gamma, kappa, dkappa) at ``d`` into cubics ``xs``, ``ys``, gamma near ``near``."""
         (ax, bx, cx, ex), (ay, by, cy, ey) = xs, ys
         x1, y1 = (3.0 * ax * d + 2.0 * bx) * d + cx, (3.0 * ay * d + 2.0 * by) * d + cy
         return (((ax * d + bx) * d + cx) * d + ex, ((ay * d + by) * d + cy) * d + ey,
@@ -1008,10 +999,7 @@ def _waypoints(points: object) -> np.ndarray:
 class Timing:
     """The timing law s(t): constant ``speed`` from arc length ``start``, after a smooth start.
 
-    With ``ramp`` = T > 0 the speed rises from 0 to v over ``0 <= t <= T`` as
-    ``v sigma(t / T)``, ``sigma(u) = 10 u^3 - 15 u^4 + 6 u^5`` (s'' is continuous), then
-    ``s = start + v (t - T / 2)``. Before t = 0 the reference waits at ``start`` (with a
-    ramp) or extends the line backwards (without).
+    The ramp and the reference before t = 0 are in :doc:`/paths` (Timing).
 
     Parameters
     ----------
@@ -1025,7 +1013,7 @@ class Timing:
     Raises
     ------
     ParameterError
-        If a number is not finite, the speed is not positive or the ramp is negative.
+        A number is not finite or out of its range.
     """
 
     speed: float = 0.1
@@ -1080,8 +1068,8 @@ class Timing:
 class PathReference:
     """Head reference along a path: w_r(t) = [p(s(t)), gamma(s(t)) + pi] (head first).
 
-    Called at a time t it gives (w_r, w_r', w_r''), three fresh float arrays of length 3,
-    as :class:`~snake_pin.control.reference.LinearReference` does.
+    Called at t it gives (w_r, w_r', w_r''), as
+    :class:`~snake_pin.control.reference.LinearReference` does.
 
     Parameters
     ----------
@@ -1113,11 +1101,7 @@ class PathReference:
         return self.path.name
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return fresh arrays (w_r, w_r', w_r'') at time ``t``, or ParameterError if not finite.
-
-        Plain-float code (the controllers call it every step); :meth:`at` is the vectorised
-        form and agrees with it to round-off.
-        """
+        """Return fresh arrays (w_r, w_r', w_r'') at time ``t`` (floats: the controllers' step)."""
         t = float(t)
         if not math.isfinite(t):
             raise ParameterError("time must be finite")
@@ -1167,9 +1151,6 @@ def cross_track_error(path: Path | PathReference, points: object, *,
                       span: tuple[float, float] | None = None) -> np.ndarray:
     """Return the signed distance [m] from each point to the path, positive on the left.
 
-    Where the closest point is an end of the span, the distance to it is returned, signed
-    by the side of the tangent there.
-
     Parameters
     ----------
     path : Path or PathReference
@@ -1177,17 +1158,12 @@ def cross_track_error(path: Path | PathReference, points: object, *,
     points : array_like, shape (..., 2)
         Points [m], e.g. the head positions ``traj.q[:, :2]`` of a run.
     span : tuple of float, optional
-        ``(s_min, s_max)`` searched [m]; default the path's :meth:`Path.default_span`.
+        ``(s_min, s_max)`` searched [m] (beyond it: the distance to its end, signed).
 
     Returns
     -------
     numpy.ndarray, shape points.shape[:-1]
         Signed distances.
-
-    Raises
-    ------
-    ParameterError
-        The points are not a finite (..., 2) array, or the span is invalid.
     """
     curve, pts = _curve(path), _points(points)
     g = curve.geometry(curve.project(pts, span=span))
@@ -1213,11 +1189,6 @@ def along_track(path: Path | PathReference, points: object, *,
     -------
     numpy.ndarray, shape points.shape[:-1]
         :meth:`Path.project` of the points.
-
-    Raises
-    ------
-    ParameterError
-        The points are not a finite (..., 2) array, or the span is invalid.
     """
     return _curve(path).project(points, span=span)
 
@@ -1280,12 +1251,10 @@ def make_path(name: str, **params: Any) -> Path:
     Parameters
     ----------
     name : str
-        ``"line"``, ``"circle"``, ``"arc"``, ``"lane_change"``, ``"sinusoid"`` or
-        ``"waypoints"``.
+        A shape name.
     **params
-        The parameters of the shape's class (:class:`Line`, :class:`Circle`, :class:`Arc`,
-        :class:`LaneChange` with ``length`` for ``length_x``, :class:`Sinusoid`,
-        :class:`Waypoints` whose ``points`` are required), defaults included.
+        The shape class's parameters (LaneChange's ``length_x`` as ``length``; waypoints'
+        ``points`` required).
 
     Returns
     -------
@@ -1386,12 +1355,10 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     Parameters
     ----------
     spec : str or os.PathLike or Path or PathReference
-        One of :data:`PATH_NAMES` (see :func:`make_path`), a ``.toml`` or ``.csv`` path
-        file (format in :doc:`/paths`), a :class:`Path`, or a :class:`PathReference`
-        (returned as is when no parameter is given).
+        A shape name (:func:`make_path`), a ``.toml``/``.csv`` path file (:doc:`/paths`),
+        a :class:`Path`, or a :class:`PathReference` (as is without parameters).
     **params
-        Shape parameters and the timing's ``speed`` [m/s] (default 0.1) and ``ramp`` [s]
-        (default 0); with a file, they override its values.
+        Shape parameters and the timing's ``speed`` and ``ramp``, overriding a file's.
 
     Returns
     -------
@@ -1401,9 +1368,9 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     Raises
     ------
     PathFileError
-        A file problem, one line naming the file and the field.
+        A file problem, naming the file and the field.
     ParameterError
-        A bad name or parameter, one line naming it.
+        A bad name or parameter.
     """
     if isinstance(spec, PathReference) and not params:
         return spec
