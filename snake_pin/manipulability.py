@@ -249,14 +249,7 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
         jac = pin.computeFrameJacobian(model, data, q, model.getFrameId(task),
                                        pin.LOCAL_WORLD_ALIGNED)
     else:
-        try:
-            jac = np.asarray(task, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise ConfigurationError(f"task must be a frame name or a finite m x {nv} "
-                                     f"Jacobian, got {brief(task)}") from exc
-        if isinstance(task, (bool, np.bool_)) or jac.ndim != 2 or jac.shape[1] != nv \
-                or not np.all(np.isfinite(jac)):
-            raise ConfigurationError(f"task Jacobian must be a finite m x {nv} matrix")
+        jac = _matrix(task, nv, "task (a frame name or a Jacobian)")
     jac = jac[_task_rows(rows, jac.shape[0])]
     sigma = _singular_values(jac @ h_inv[:, act], jac.shape[0])
     return Manipulability(float(sigma[-1]), float("nan"), sigma, np.full(jac.shape[0], np.nan))
@@ -268,18 +261,24 @@ def manipulability_R_batch(params: SnakeParams, phi: ArrayLike, *,
     """Return R (or R~) of many postures ``phi`` (B, n - 1) at once, from the closed form of
     H (:ref:`manipulability`); passive joints are free beside ``free_joint``."""
     n = instance(params, SnakeParams, "params").n
-    try:
-        angles = np.asarray(phi, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"phi must be numbers with {n - 1} columns, "
-                                 f"got {brief(phi)}") from exc
-    angles = np.atleast_2d(angles)
-    if isinstance(phi, (bool, np.bool_)) or angles.ndim != 2 or angles.shape[1] != n - 1:
-        raise ConfigurationError(f"phi must have {n - 1} columns, got shape {angles.shape}")
-    if not np.all(np.isfinite(angles)):
-        raise ConfigurationError("phi has non-finite entries")
+    angles = _matrix(phi, n - 1, "phi", atleast_2d=True)
     free = tuple(sorted(set(params.passive) | set(free_joints(n, free_joint))))
     return r_batch(params, angles, free, flag(heading, "heading"))
+
+
+def _matrix(value: object, columns: int, name: str, *, atleast_2d: bool = False) -> np.ndarray:
+    """``value`` as a finite float matrix of ``columns`` columns, or one ConfigurationError."""
+    try:
+        matrix = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"{name} must be a finite matrix of {columns} columns, "
+                                 f"got {brief(value)}") from exc
+    matrix = np.atleast_2d(matrix) if atleast_2d else matrix
+    if isinstance(value, (bool, np.bool_)) or matrix.ndim != 2 or matrix.shape[1] != columns:
+        raise ConfigurationError(f"{name} must have {columns} columns, got shape {matrix.shape}")
+    if not np.all(np.isfinite(matrix)):
+        raise ConfigurationError(f"{name} has non-finite entries")
+    return matrix
 
 
 def r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],

@@ -495,25 +495,6 @@ class Path(abc.ABC):
         worse = dist > best_d + 1e-12 * (1.0 + best_d)
         return np.where(worse, best_s, s)
 
-    def plot_points(self, span: tuple[float, float] | None = None,
-                    count: int = 1000) -> np.ndarray:
-        """Return ``count`` evenly spaced points [m] along ``span`` (default :meth:`default_span`).
-
-        Parameters
-        ----------
-        span : tuple of float, optional
-            ``(s_min, s_max)`` [m].
-        count : int, optional
-            Number of points.
-
-        Returns
-        -------
-        numpy.ndarray, shape (count, 2)
-            Points [m].
-        """
-        lo, hi = self.default_span() if span is None else span
-        return self.point(np.linspace(lo, hi, count))
-
 
 class _Finite(Path):
     """A curve defined on [0, length], continued along its end tangents beyond."""
@@ -1398,7 +1379,5 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     doc.update(params)
     try:
         return PathReference(make_path(kind, **doc), Timing(**{**file_timing, **timing}))
-    except PathFileError:
-        raise
     except ParameterError as exc:
         raise _file_error(spec, str(exc)) from None

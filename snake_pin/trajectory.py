@@ -68,7 +68,7 @@ class Trajectory:
     params : SnakeParams
         The robot.
     signals : dict of str to numpy.ndarray, optional
-        Extra per-sample series (diagnostics, ...), N rows each; NaN where missing.
+        Extra per-sample series, N rows each; NaN where missing.
     diverged : bool, optional
         Whether the run stopped on a fault (status "diverged" or "failed").
     reason : str, optional
@@ -78,8 +78,7 @@ class Trajectory:
     summary : dict, optional
         Scalar results written to the JSON summary.
     status : str, optional
-        One of :data:`STATUSES`. Left empty, it follows ``diverged`` ("diverged" or
-        "completed"); given, it sets ``diverged``.
+        One of :data:`STATUSES` (sets ``diverged``); empty: from ``diverged``.
 
     Raises
     ------
@@ -137,7 +136,7 @@ class Trajectory:
         Raises
         ------
         ParameterError
-            The folder does not exist, the name is empty, or meta/summary are not JSON.
+            No such folder, or meta/summary are not JSON.
         ConfigurationError
             The arrays are not a trajectory that :meth:`load` would accept.
         """
@@ -182,8 +181,7 @@ class Trajectory:
         Returns
         -------
         dict
-            ``robot``, ``n``, ``t_end`` [s], ``status``, ``diverged`` and ``reason``,
-            then the entries of :attr:`summary`.
+            ``robot``, ``n``, ``t_end``, ``status``, ``diverged``, ``reason``, then :attr:`summary`.
         """
         return {"robot": self.params.name, "n": self.params.n, "t_end": self.t_end,
                 "status": self.status, "diverged": self.diverged, "reason": self.reason,
@@ -204,12 +202,8 @@ class Trajectory:
         Raises
         ------
         TrajectoryFileError
-            One line naming the file: missing, not a regular file (a FIFO is refused
-            unopened), larger than twice :data:`MAX_TOTAL_BYTES` (refused unread), not a
-            trajectory, truncated, corrupt, inconsistent, non-finite, or declaring arrays
-            beyond :data:`MAX_ARRAY_BYTES` (each) or :data:`MAX_TOTAL_BYTES` (together).
-        ParameterError
-            ``signals`` is not True, False or names.
+            One line naming the file: missing, not a regular file, not a trajectory,
+            corrupt, inconsistent, or beyond :data:`MAX_ARRAY_BYTES` or :data:`MAX_TOTAL_BYTES`.
         """
         wanted = _wanted_signals(signals)
         file = _resolve(path)
@@ -374,10 +368,7 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
 
 def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
              kinds: str) -> _Member:
-    """Read one member's .npy header only, and refuse what the loader would not accept.
-
-    ``kinds`` is "f8" (float64), "U" (a string) or "biuf" (any real numbers).
-    """
+    """Read one member's .npy header only, refusing what is not of ``kinds`` ("f8", "U", "biuf")."""
     with archive.open(info) as stream:
         shape, fortran, dtype = _npy_header(stream, label)
     dtype = np.dtype(dtype)
