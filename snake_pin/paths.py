@@ -112,23 +112,20 @@ class _Samples(NamedTuple):
 
 
 # --------------------------------------------------------------------------- checks
-def _length(value: object, name: str, *, positive: bool = False,
-            non_negative: bool = False) -> float:
-    """A coordinate or length [m] within +-MAX_COORDINATE (>= MIN_LENGTH if positive)."""
+def _length(value: object, name: str, *, positive: bool = False, non_negative: bool = False,
+            bound: float = MAX_COORDINATE, unit: str = "m") -> float:
+    """A coordinate or length [m] within +-``bound`` (>= MIN_LENGTH if positive)."""
     x = finite_number(value, name, positive=positive, non_negative=non_negative)
-    if abs(x) > MAX_COORDINATE:
-        raise ParameterError(f"{name} must lie within +-{MAX_COORDINATE:g} m, got {x:g}")
-    if positive and x < MIN_LENGTH:
+    if abs(x) > bound:
+        raise ParameterError(f"{name} must lie within +-{bound:g} {unit}, got {x:g}")
+    if positive and unit == "m" and x < MIN_LENGTH:
         raise ParameterError(f"{name} must be at least {MIN_LENGTH:g} m, got {x:g}")
     return x
 
 
 def _angle(value: object, name: str, *, positive: bool = False) -> float:
     """An angle [rad] within +-MAX_ANGLE."""
-    x = finite_number(value, name, positive=positive)
-    if abs(x) > MAX_ANGLE:
-        raise ParameterError(f"{name} must lie within +-{MAX_ANGLE:g} rad, got {x:g}")
-    return x
+    return _length(value, name, positive=positive, bound=MAX_ANGLE, unit="rad")
 
 
 def _point(value: object, name: str) -> tuple[float, float]:
