@@ -33,16 +33,20 @@ def _head(head: Mapping[str, object]) -> dict[str, float]:
     return {key: finite_number(value, key) for key, value in head.items()}
 
 
-def vector(value: object, name: str) -> np.ndarray:
-    """``value`` as a non-empty finite float vector (any length), or ConfigurationError."""
+def vector(value: object, name: str, *, size: int | None = None,
+           finite: bool = True) -> np.ndarray:
+    """``value`` as a non-empty float vector (of ``size`` entries; finite unless told), or
+    one ConfigurationError line."""
     try:
         vec = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ConfigurationError(f"{name} must be a vector of numbers, got {brief(value)}") \
             from exc
-    if isinstance(value, (bool, np.bool_)) or vec.ndim != 1 or vec.size == 0:
-        raise ConfigurationError(f"{name} must be a non-empty vector, got {brief(value)}")
-    if not np.all(np.isfinite(vec)):
+    if isinstance(value, (bool, np.bool_)) or vec.ndim != 1 or vec.size == 0 \
+            or vec.size != (size or vec.size):
+        raise ConfigurationError(f"{name} must be a non-empty vector"
+                                 f"{f' of {size} numbers' if size else ''}, got {brief(value)}")
+    if finite and not np.all(np.isfinite(vec)):
         raise ConfigurationError(f"{name} has non-finite entries")
     return vec
 

@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from ._validation import brief, finite_number, instance, integer
-from .exceptions import ConfigurationError, ParameterError
+from .exceptions import ParameterError
+from .gaits import vector
 from .manipulability import manipulability, task_split
 from .model import Snake
 
@@ -46,19 +47,6 @@ def _check_summary(value: object) -> Mapping[str, object]:
     return value
 
 
-def _check_error(error: object, samples: int) -> np.ndarray:
-    """``error`` as a float vector of one entry per sample (a diverged run's NaN kept)."""
-    try:
-        values = np.asarray(error, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"error must be {samples} numbers, got {brief(error)}") \
-            from exc
-    if isinstance(error, (bool, np.bool_)) or values.shape != (samples,):
-        raise ConfigurationError(f"error must hold one number per sample ({samples}), "
-                                 f"got {brief(error)}")
-    return values
-
-
 def default_error_window(t_final: float) -> float:
     """Return ``min(ERROR_WINDOW, t_final / 2)``: every run has a head-error window."""
     return min(ERROR_WINDOW, 0.5 * finite_number(t_final, "t_final", non_negative=True))
@@ -80,7 +68,7 @@ def head_error_summary(traj: Trajectory, error: np.ndarray,
     :func:`default_error_window`) in m and in % of the body length, and ``rms_relative``;
     all but ``error_window`` None when no sample lies in the window."""
     _check_traj(traj)
-    error = _check_error(error, len(traj))
+    error = vector(error, "error", size=len(traj), finite=False)  # a diverged run's NaN kept
     start = (default_error_window(traj.t_end) if start is None
              else finite_number(start, "start"))
     late = window(traj, start)
