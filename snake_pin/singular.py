@@ -35,14 +35,10 @@ class SingularFamily:
 
     Parameters
     ----------
-    phi
-        Representative posture (the member with the smallest R).
-    R
-        Its R.
-    members
-        How many starts ended in this family.
-    straight
-        Whether the representative is the straight posture.
+    phi, R
+        Representative posture (the member with the smallest R) and its R.
+    members, straight
+        How many starts ended in this family; whether ``phi`` is the straight posture.
     low, high
         Per-joint minimum and maximum of phi over the members (mirror-canonical).
     """
@@ -66,12 +62,8 @@ class SingularSearch:
 
     Parameters
     ----------
-    params
-        The robot searched.
-    bound
-        The box ``abs(phi_i) <= bound`` [rad].
-    starts
-        Starts that ran.
+    params, bound, starts
+        The robot searched, the box ``abs(phi_i) <= bound`` [rad], the starts that ran.
     free_joint
         The free joint(s) (the robot's passive joints included), or None.
     R_typical
@@ -240,12 +232,12 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
         return _result(params, bound, free_joint, scale, relative * scale, phis, values)
 
 
-def _result(params: SnakeParams, bound: float, free_joint: int | Sequence[int] | None,
+def _result(params: SnakeParams, bound: float, free_joint: int | tuple[int, ...] | None,
             scale: float, threshold: float, phis: np.ndarray,
             values: np.ndarray) -> SingularSearch:
     """The search over the minima ``phis`` (R ``values``), clustered into families."""
-    free = tuple(free_joint) if isinstance(free_joint, Sequence) else free_joint
-    result = SingularSearch(params, bound, len(values), free, scale, threshold, phis, values)
+    result = SingularSearch(params, bound, len(values), free_joint, scale, threshold, phis,
+                            values)
     zero = values <= threshold
     result.families = _cluster(phis[zero], values[zero])
     return result

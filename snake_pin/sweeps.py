@@ -43,18 +43,12 @@ class Sweep:
 
     Parameters
     ----------
-    family
-        One of :data:`FAMILIES`.
-    label
-        The swept parameter with its unit (e.g. ``"phi0 [rad]"``).
-    values
-        The parameter values (N,).
-    D, R
-        The criteria at each value (N,) (D~ and R~ with free joints).
-    free_joint
-        The free joint(s), or None.
-    robot
-        The robot's name.
+    family, label
+        One of :data:`FAMILIES`, and its parameter with its unit (e.g. ``"phi0 [rad]"``).
+    values, D, R
+        The parameter values and the criteria there, (N,) each (D~ and R~ with free joints).
+    free_joint, robot
+        The free joint(s) or None, and the robot's name.
     meta
         Extra settings written with the data (e.g. ``points_requested``).
     status
@@ -214,10 +208,8 @@ class RMap:
 
     Parameters
     ----------
-    alpha, ts
-        The grid's axes.
-    R
-        R at every (T_s, alpha), shape (len(ts), len(alpha)).
+    alpha, ts, R
+        The grid's axes and R at every (T_s, alpha), shape (len(ts), len(alpha)).
     free_joint
         The free joint, or None.
     """

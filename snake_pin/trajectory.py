@@ -234,11 +234,7 @@ def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
         given = Path(path)
     except TypeError as exc:
         raise ParameterError(f"not a file path: {reprlib.repr(path)}") from exc
-    name = given.name
-    for suffix in (".npz", ".json"):
-        if name.endswith(suffix):
-            name = name[: -len(suffix)]
-            break
+    name = re.sub(r"\.(npz|json)\Z", "", given.name)
     if name in ("", ".", ".."):
         raise ParameterError(f"trajectory file name is empty: {printable_path(path)}")
     return given.with_name(name + ".npz"), given.with_name(name + ".json")
