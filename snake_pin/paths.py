@@ -309,9 +309,13 @@ class Path(abc.ABC):
         Returns
         -------
         tuple of float
-            A finite curve with margins of a quarter of its length (>= 1 m), else
-            ``(-1, DEFAULT_EXTENT)``.
+            A finite curve with margins of a quarter of its length (>= 1 m), a circle its
+            first lap, a lane change its S and 2 m beyond, else ``(-1, DEFAULT_EXTENT)``.
         """
+        return self._default_span()
+
+    def _default_span(self) -> tuple[float, float]:
+        """:meth:`default_span` of the shape (overridden by the circle and the lane change)."""
         if math.isfinite(self.length):
             margin = max(1.0, 0.25 * self.length)
             return (-margin, self.length + margin)
@@ -644,14 +648,7 @@ class Circle(Path):
         s = float(self.project(np.array([x, y]), hint=hint))
         return (s, *self._scalar(s)[:3])
 
-    def default_span(self) -> tuple[float, float]:
-        """Return the first lap, ``(0, 2 pi radius)`` [m], searched by :meth:`project`.
-
-        Returns
-        -------
-        tuple of float
-            ``(s_min, s_max)`` [m].
-        """
+    def _default_span(self) -> tuple[float, float]:
         return (0.0, self.length)
 
     def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
@@ -702,7 +699,7 @@ class Arc(_Finite, Circle):
     # straight ends), not the circle's laps
     _inside, _inside_scalar = Circle._geometry, Circle._scalar
     _geometry, _scalar = _Finite._geometry, _Finite._scalar
-    default_span = Path.default_span
+    _default_span = Path._default_span
     _exact_projection = Path._exact_projection
 
 
@@ -772,14 +769,7 @@ class LaneChange(_GraphCurve):
         """Arc length of the S alone [m]."""
         return self._table.total
 
-    def default_span(self) -> tuple[float, float]:
-        """Return the arc lengths searched by :meth:`project`: the S and 2 m beyond it.
-
-        Returns
-        -------
-        tuple of float
-            ``(-1, max(DEFAULT_EXTENT, start + S length + 2))`` [m].
-        """
+    def _default_span(self) -> tuple[float, float]:
         return (-1.0, max(DEFAULT_EXTENT, self.start + self.s_length + 2.0))
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
