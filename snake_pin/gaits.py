@@ -1,10 +1,8 @@
 """Posture families of Section IV: straight, arcs (all joints equal) and the serpenoid (43).
 
 Configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``, states
-``x = [q, dq]``. Every function refuses a bad argument with one line naming it:
-:class:`~snake_pin.exceptions.ParameterError` (``n`` not an integer >= 2, a number not
-finite, an unknown head keyword) or :class:`~snake_pin.exceptions.ConfigurationError`
-(joint angles that are not a non-empty finite vector).
+``x = [q, dq]``. A bad argument is one line naming it: ParameterError, or
+ConfigurationError for joint angles that are not a non-empty finite vector.
 """
 
 from __future__ import annotations
@@ -16,7 +14,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ._validation import finite_number, integer
+from ._validation import brief, finite_number, integer
 from .exceptions import ConfigurationError, ParameterError
 
 __all__ = ["Serpenoid", "arc", "configuration", "initial_state", "straight"]
@@ -35,18 +33,22 @@ def _head(head: Mapping[str, object]) -> dict[str, float]:
     return {key: finite_number(value, key) for key, value in head.items()}
 
 
-def _angles(phi: object) -> np.ndarray:
-    """``phi`` as a non-empty finite float vector (any length), or ConfigurationError."""
+def vector(value: object, name: str, *, size: int | None = None,
+           finite: bool = True) -> np.ndarray:
+    """``value`` as a non-empty float vector (of ``size`` entries; finite unless told), or
+    one ConfigurationError line."""
     try:
-        angles = np.asarray(phi, dtype=float)
+        vec = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ConfigurationError("phi must be a vector of joint angles (numbers)") from exc
-    if angles.ndim != 1 or angles.size == 0:
-        raise ConfigurationError(f"phi must be a non-empty vector of joint angles, "
-                                 f"got shape {angles.shape}")
-    if not np.all(np.isfinite(angles)):
-        raise ConfigurationError("phi has non-finite entries")
-    return angles
+        raise ConfigurationError(f"{name} must be a vector of numbers, got {brief(value)}") \
+            from exc
+    if isinstance(value, (bool, np.bool_)) or vec.ndim != 1 or vec.size == 0 \
+            or vec.size != (size or vec.size):
+        raise ConfigurationError(f"{name} must be a non-empty vector"
+                                 f"{f' of {size} numbers' if size else ''}, got {brief(value)}")
+    if finite and not np.all(np.isfinite(vec)):
+        raise ConfigurationError(f"{name} has non-finite entries")
+    return vec
 
 
 def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
@@ -64,16 +66,9 @@ def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
     -------
     numpy.ndarray, shape (n + 2,)
         The configuration q.
-
-    Raises
-    ------
-    ConfigurationError
-        ``phi`` is not a non-empty vector of finite numbers.
-    ParameterError
-        A head coordinate is not a finite number.
     """
     head = _head({"x_h": x_h, "y_h": y_h, "theta_1": theta_1})
-    return np.r_[head["x_h"], head["y_h"], head["theta_1"], _angles(phi)]
+    return np.r_[head["x_h"], head["y_h"], head["theta_1"], vector(phi, "phi")]
 
 
 def straight(n: int, **head: float) -> np.ndarray:
@@ -90,19 +85,12 @@ def straight(n: int, **head: float) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2,)
         The configuration q.
-
-    Raises
-    ------
-    ParameterError
-        A bad argument (see the module docstring).
     """
     return configuration(np.zeros(integer(n, "n", low=2) - 1), **_head(head))
 
 
 def arc(n: int, phi0: float, **head: float) -> np.ndarray:
-    """Return the arc posture, all joints at the same angle phi0 (Section IV.2).
-
-    ``abs(phi0) = 2 pi / n`` closes the body into a regular polygon.
+    """Return the arc posture, all joints at phi0 (Section IV.2; ``2 pi / n`` closes it).
 
     Parameters
     ----------
@@ -117,24 +105,14 @@ def arc(n: int, phi0: float, **head: float) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2,)
         The configuration q.
-
-    Raises
-    ------
-    ParameterError
-        A bad argument (see the module docstring).
     """
     count = integer(n, "n", low=2) - 1
-    phi0 = finite_number(phi0, "phi0")
-    return configuration(np.full(count, phi0), **_head(head))
+    return configuration(np.full(count, finite_number(phi0, "phi0")), **_head(head))
 
 
 @dataclass(frozen=True)
 class Serpenoid:
-    """The serpenoid curve of eq. (43) for an n-link robot.
-
-    Joint i follows::
-
-        phi_i(t) = (2 pi T_s / n) alpha sin(v t - (2 pi T_s / n) i),   i = 1 .. n-1
+    """The serpenoid curve of eq. (43): ``phi_i(t) = k alpha sin(v t - k i)``, k = 2 pi T_s / n.
 
     Parameters
     ----------
@@ -150,7 +128,7 @@ class Serpenoid:
     Raises
     ------
     ParameterError
-        A bad argument (see the module docstring).
+        A bad argument.
     """
 
     n: int
@@ -163,8 +141,7 @@ class Serpenoid:
         for name in ("alpha", "ts", "v"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name))
 
-    # constant parts of the phase and amplitudes, computed once (controllers' hot path);
-    # cached_property stores them in the instance dict, which a frozen dataclass allows
+    # constant parts of the phase and amplitudes, once (cached_property: the instance dict)
     @cached_property
     def _offsets(self) -> np.ndarray:
         offsets = self.spatial_frequency * np.arange(1, self.n)
@@ -181,9 +158,6 @@ class Serpenoid:
         """The spatial frequency ``2 pi T_s / n`` [rad per link]."""
         return 2.0 * math.pi * self.ts / self.n
 
-    def _phase(self, t: float) -> np.ndarray:
-        return self.v * t - self._offsets
-
     def angles(self, t: float = 0.0) -> np.ndarray:
         """Return the joint angles phi(t) [rad] of eq. (43).
 
@@ -197,7 +171,7 @@ class Serpenoid:
         numpy.ndarray, shape (n - 1,)
             phi_1 .. phi_{n-1}.
         """
-        return self.spatial_frequency * self.alpha * np.sin(self._phase(t))
+        return self._amplitudes[0] * np.sin(self.v * t - self._offsets)
 
     def velocities(self, t: float = 0.0) -> np.ndarray:
         """Return the joint velocities phi'(t) [rad/s].
@@ -212,7 +186,7 @@ class Serpenoid:
         numpy.ndarray, shape (n - 1,)
             phi'.
         """
-        return self.spatial_frequency * self.alpha * self.v * np.cos(self._phase(t))
+        return self._amplitudes[1] * np.cos(self.v * t - self._offsets)
 
     def accelerations(self, t: float = 0.0) -> np.ndarray:
         """Return the joint accelerations phi''(t) [rad/s^2].
@@ -227,7 +201,7 @@ class Serpenoid:
         numpy.ndarray, shape (n - 1,)
             phi''.
         """
-        return -self.spatial_frequency * self.alpha * self.v**2 * np.sin(self._phase(t))
+        return self._amplitudes[2] * np.sin(self.v * t - self._offsets)
 
     def derivatives(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (phi, phi', phi'') at time t with one sine and one cosine (a hot path).
@@ -242,7 +216,7 @@ class Serpenoid:
         phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
             :meth:`angles`, :meth:`velocities` and :meth:`accelerations` at t.
         """
-        phase = self._phase(t)
+        phase = self.v * t - self._offsets
         amplitude, velocity, acceleration = self._amplitudes
         sine = np.sin(phase)
         return amplitude * sine, velocity * np.cos(phase), acceleration * sine
@@ -261,11 +235,6 @@ class Serpenoid:
         -------
         numpy.ndarray, shape (n + 2,)
             The configuration q.
-
-        Raises
-        ------
-        ParameterError
-            A head keyword is unknown or not a finite number.
         """
         return configuration(self.angles(t), **_head(head))
 
@@ -273,23 +242,16 @@ class Serpenoid:
 def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
     """Return the initial state of eq. (82): head at the origin, every joint at pi/6, at rest.
 
-    ``theta_1 = pi`` gives the head-first orientation used for tracking along +x.
-
     Parameters
     ----------
     n : int
         Number of links, >= 2.
     theta_1 : float, optional
-        Head link angle [rad].
+        Head link angle [rad] (pi: head first along +x, for tracking).
 
     Returns
     -------
     numpy.ndarray, shape (2(n + 2),)
         ``x = [q, dq]``, ``q = [0, 0, theta_1, pi/6 .. pi/6]``, ``dq = 0``.
-
-    Raises
-    ------
-    ParameterError
-        A bad argument (see the module docstring).
     """
     return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(integer(n, "n", low=2) + 2)]

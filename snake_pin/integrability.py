@@ -1,16 +1,9 @@
 """Integrability of the unactuated rows (Section V, Theorems 2-3, eqs. 44-67).
 
-* :func:`partial_integrability` checks the two conditions of Theorem 2 for the split
-  ``q1 = q[:k]``, k = 1, 2, 3, at random states: q1 cyclic and C1 a gradient (central
-  differences; a relative defect below 1e-6 counts as zero).
-* :func:`implied_g2` integrates C1 along a straight path: the g2 of Theorem 2.
-* :func:`conserved_quantity` is ``g = H1 dq + g2`` (eq. 67): for c_x = c_y it is
-  ``n (m X' + c X)`` for the centre of mass X, which therefore relaxes to
-  ``X(0) + (m / c) X'(0)`` whatever the torques.
-* :func:`involutivity` tests Theorem 3 (beyond the paper) by Lie brackets, with an exact
-  system as the numerical noise floor.
-
-The analysis (complete integrability, the CM uncontrollable) is in :ref:`integrability`.
+Theorem 2's conditions at random states (:func:`partial_integrability`), the g2 it implies
+(:func:`implied_g2`), the conserved ``g = H1 dq + g2`` of eq. (67)
+(:func:`conserved_quantity`) and Theorem 3 by Lie brackets (:func:`involutivity`); the
+analysis is in :ref:`integrability`.
 """
 
 from __future__ import annotations
@@ -23,7 +16,8 @@ import numpy as np
 
 from . import paper
 from ._validation import brief, finite_number, instance, integer
-from .exceptions import ConfigurationError, ParameterError
+from .exceptions import ParameterError
+from .gaits import vector
 from .model import Snake
 
 __all__ = ["Involutivity", "PartialIntegrability", "conserved_quantity", "implied_g2",
@@ -69,19 +63,6 @@ class PartialIntegrability:
         return self.cyclic and self.gradient
 
 
-def _point(z: object) -> np.ndarray:
-    """``z`` as a non-empty finite float vector, or ConfigurationError."""
-    try:
-        point = np.asarray(z, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"z must be a vector of numbers, got {brief(z)}") from exc
-    if isinstance(z, (bool, np.bool_)) or point.ndim != 1 or point.size == 0:
-        raise ConfigurationError(f"z must be a non-empty vector, got {brief(z)}")
-    if not np.all(np.isfinite(point)):
-        raise ConfigurationError("z has non-finite entries")
-    return point
-
-
 def _friction_matrix(snake: Snake, q: np.ndarray) -> np.ndarray:
     """C(q) from the friction map: Q(q, dq) = -C(q) dq, column by column."""
     eye = np.eye(snake.nv)
@@ -96,6 +77,7 @@ def _central(f: Callable[[np.ndarray], Any], x: np.ndarray, j: int, step: float)
 
 
 def _random_state(snake: Snake, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A random (q, dq): joint angles within +-1.5 rad, unit normal velocities."""
     q = np.r_[rng.uniform(-1, 1, 2), rng.uniform(-np.pi, np.pi),
               rng.uniform(-1.5, 1.5, snake.n - 1)]
     return q, rng.normal(size=snake.nv)
@@ -120,11 +102,6 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
     -------
     PartialIntegrability
         The largest relative defects of both conditions over the samples.
-
-    Raises
-    ------
-    ParameterError
-        An argument is out of its range or of the wrong type.
     """
     instance(snake, Snake, "snake")
     k = integer(k, "k", low=1, high=3)
@@ -151,10 +128,7 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
 
 def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
                nodes: int = 32) -> np.ndarray:
-    """Return ``g2(q) - g2(q0)``, the integral of C1 dq along the segment q0 -> q (k = 2).
-
-    If C1 (the first two rows of the friction matrix C) is a gradient, the integral is
-    path-independent and equals the g2 of Theorem 2 (eq. 67 for isotropic friction).
+    """Return ``g2(q) - g2(q0)``: C1 dq (C's first two rows) integrated along q0 -> q.
 
     Parameters
     ----------
@@ -169,13 +143,6 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
     -------
     numpy.ndarray, shape (2,)
         The integral [N s].
-
-    Raises
-    ------
-    ConfigurationError
-        ``q`` or ``q0`` does not have n + 2 finite entries.
-    ParameterError
-        ``snake`` is not a Snake or ``nodes`` not a positive integer.
     """
     instance(snake, Snake, "snake")
     nodes = integer(nodes, "nodes", low=1)
@@ -189,8 +156,7 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
 
 
 def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """Return ``g = H1 dq + g2`` of eq. (67), H1 the first two rows of H: constant along any
-    motion, whatever the torques, when the friction is isotropic (c_x = c_y on every link).
+    """Return ``g = H1 dq + g2`` of eq. (67): constant along any motion with isotropic friction.
 
     Parameters
     ----------
@@ -203,13 +169,6 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
     -------
     numpy.ndarray, shape (2,)
         g [N s] (momentum plus friction-weighted position).
-
-    Raises
-    ------
-    ConfigurationError
-        ``q`` or ``dq`` does not have n + 2 finite entries.
-    ParameterError
-        ``snake`` is not a Snake, or its friction is not isotropic (g2 is undefined).
     """
     instance(snake, Snake, "snake")
     q, dq = snake.check_q(q), snake.check_dq(dq)
@@ -217,10 +176,8 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
 
 
 def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """g of eq. (67), shape (N, 2) [N s], at every sample of a run's ``q``, ``dq`` (N, n + 2),
-    vectorised and unchecked (the experiments' post-processing): ``H1 dq = sum m_i p_i'``
-    and ``g2 = sum c_i p_i`` with isotropic friction c = c_x.
-    """
+    """g of eq. (67), (N, 2) [N s], along a run's ``q``, ``dq`` (vectorised, unchecked):
+    ``H1 dq = sum m_i p_i'`` and ``g2 = sum c_i p_i`` with c = c_x."""
     params = snake.params
     m, c = params.masses, params.per_link("c_x")
     k = paper.k_matrix(params)
@@ -240,13 +197,11 @@ def conserved_quantity_along(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.
 
 def lie_bracket_defect(forms: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
                        step: float = 1e-5) -> float:
-    """The largest component of a Lie bracket ``[X_i, X_j]`` outside ``ker A(z)``, relative to
-    ``max abs(A)``: the fields ``X_i = (I - A^+ A) e_i`` span ``ker A``, and their brackets
-    (central differences) stay in it iff the distribution is involutive at z.
-    """
+    """Largest component of a bracket ``[X_i, X_j]`` of ``X_i = (I - A^+ A) e_i`` outside
+    ``ker A(z)``, relative to ``max abs(A)``: zero iff ``ker A`` is involutive at z."""
     if not callable(forms):
         raise ParameterError(f"forms must be a callable z -> A(z), got {brief(forms)}")
-    z = _point(z)
+    z = vector(z, "z")
     step = finite_number(step, "step", positive=True)
     d = z.size
     try:
@@ -316,8 +271,7 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake or its friction not isotropic, or ``samples`` or
-        ``seed`` is out of range.
+        Its friction is not isotropic, or a bad argument.
     """
     instance(snake, Snake, "snake")
     samples = integer(samples, "samples", low=1)
@@ -335,8 +289,7 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
     magnitude = np.abs(forms(np.zeros(snake.nq + 1))).max()
 
     def exact(z: np.ndarray) -> np.ndarray:
-        # analytic gradients of f_1 = sum sin(w_1 z), f_2 = sum cos(w_2 z): an exact,
-        # hence involutive, system of the same size and scale (the noise floor)
+        # gradients of sum sin(w_1 z), sum cos(w_2 z): exact, same size and scale (noise floor)
         return magnitude * np.vstack([weights[0] * np.cos(weights[0] * z),
                                       -weights[1] * np.sin(weights[1] * z)])
 

@@ -1,13 +1,9 @@
 """Dynamic manipulability of an underactuated system (Section III, eqs. 22-42).
 
-One definition serves the snake and any other Pinocchio model: for unactuated velocity
-coordinates u (the snake's ``w = [x_h, y_h, theta_1]``, plus phi_k of a free joint) and
-actuated ones a, the manipulability ellipsoid is the image of the unit ball under
-``A = [H^-1]_{u,a}`` (or ``J H^-1 B`` for a task Jacobian J), ``D = min sigma(A)`` and
-``R = min lambda(H_ua)`` (30, 31, 42), singular values padded with zeros up to the task
-dimension. The derivation, free joints and ``heading=False`` are in :ref:`manipulability`.
-With a free joint, H12~ is 4 x (n - 2): rank 4 needs n >= 6, not n >= 5 as Section III.2
-states; at n = 5, D~ = R~ = 0 at every posture.
+For unactuated velocity coordinates u and actuated ones a, ``D = min sigma([H^-1]_{u,a})``
+(or of ``J H^-1 B`` for a task Jacobian J) and ``R = min lambda(H_ua)``, for the snake and
+any Pinocchio model; derivation, free joints (R~ needs n >= 6) and ``heading=False``:
+:ref:`manipulability`.
 """
 
 from __future__ import annotations
@@ -42,14 +38,11 @@ class Manipulability:
     Parameters
     ----------
     D : float
-        Smallest singular value of the acceleration map A (eq. 30 / 42) [task
-        acceleration per unit torque, e.g. (m/s^2)/(N m)].
+        Smallest singular value of the acceleration map A (eq. 30 / 42) [(m/s^2)/(N m)].
     R : float
-        Smallest singular value of the coupling block H12 (eq. 31 / 42); NaN when the
-        task is not the unactuated coordinates (no coupling block to speak of).
+        Smallest singular value of the coupling block H12 (eq. 31 / 42); NaN for a task.
     sigma, lambda_ : numpy.ndarray, shape (m,)
-        All singular values of A and H12, descending, padded with zeros to the task
-        dimension m (``lambda_`` is all NaN where R is).
+        All singular values of A and H12, descending, zero-padded to the task dimension m.
     blocks : dict of str to numpy.ndarray or None, optional
         ``{"H11", "H12", "H22", "A"}`` when requested, else None.
     """
@@ -74,11 +67,8 @@ class Manipulability:
 
 def task_split(n: int, free_joint: int | Sequence[int] | None = None,
                heading: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Return the unactuated (task) and actuated velocity indices of an n-link snake.
-
-    The task is ``w = [x_h, y_h, theta_1]`` (or ``[x_h, y_h]`` without heading) plus phi_k
-    of each free joint k (1-based), i.e. the coordinates without an input.
-    """
+    """Return the task (``w``, or ``[x_h, y_h]`` without heading, plus each free joint's
+    phi_k) and actuated velocity indices of an n-link snake."""
     n = integer(n, "n", low=2)
     task, actuated, _ = _split(n, free_joints(n, free_joint), flag(heading, "heading"))
     return task, actuated
@@ -126,19 +116,14 @@ def _split(n: int, free: tuple[int, ...], heading: bool
 
 
 def _upper_flat(rows: np.ndarray, cols: np.ndarray, size: int) -> np.ndarray:
-    """Flat indices of the (rows, cols) block read from the upper triangle of a symmetric
-    matrix, as Pinocchio's CRBA and computeMinverse fill only that triangle."""
+    """Flat indices of the (rows, cols) block in the upper triangle (all Pinocchio fills)."""
     lo = np.minimum(rows[:, None], cols[None, :])
     hi = np.maximum(rows[:, None], cols[None, :])
     return (lo * size + hi).ravel()
 
 
 def _singular_values(a: np.ndarray, rows: int) -> np.ndarray:
-    """Singular values of ``a`` (LAPACK dgesvd, descending), zero-padded to ``rows``.
-
-    Calling LAPACK directly (on the Fortran-ordered transpose, same singular values)
-    avoids numpy.linalg's per-call overhead, about half its time on these small matrices.
-    """
+    """Singular values of ``a`` (LAPACK on the transpose: no numpy overhead), zero-padded."""
     out = lapack.dgesvd(a.T, compute_uv=0)
     values, info = out[1], out[-1]
     if info != 0:
@@ -157,8 +142,7 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
     snake : Snake
         The robot. Its passive joints (``params.passive``) are always free joints.
     q : array_like, shape (n + 2,)
-        Configuration. D and R do not depend on the head pose (a rigid motion), so they are
-        evaluated at ``x_h = y_h = theta_1 = 0``: exactly invariant, however far it went.
+        Configuration (evaluated at ``x_h = y_h = theta_1 = 0``: D, R are invariant).
     free_joint : int or sequence of int or None, optional
         1-based further free joint(s), applying the selection S of (33).
     heading : bool, optional
@@ -170,17 +154,10 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
     -------
     Manipulability
         ``.sigma`` and ``.lambda_`` have length 3 (2 without heading) + free joints.
-
-    Raises
-    ------
-    ConfigurationError
-        ``q`` does not have n + 2 finite entries.
-    ParameterError
-        A bad argument, or too few links for the task (n >= 4 plus one per free joint).
     """
     instance(snake, Snake, "snake")
     q = snake.check_q(q).copy()
-    q[:3] = 0.0  # D, R are invariant under rigid motions: remove them exactly
+    q[:3] = 0.0  # invariant under rigid motions: removed exactly
     free = tuple(snake.params.passive) + free_joints(snake.n, free_joint)
     heading, blocks = flag(heading, "heading"), flag(blocks, "blocks")
     task, act, flat = _split(snake.n, tuple(sorted(set(free))), heading)
@@ -229,12 +206,11 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
     unactuated : sequence of int
         0-based velocity indices without an actuator (may be empty: fully actuated).
     task : numpy.ndarray of shape (m, model.nv), or str, or None, optional
-        None: the unactuated coordinates themselves (the snake's w; R is defined). A
-        Jacobian, or a frame name (its 6-D LOCAL_WORLD_ALIGNED Jacobian): ``A = J H^-1 B``.
+        None: the unactuated coordinates (R defined); a Jacobian, or a frame name (its 6-D
+        LOCAL_WORLD_ALIGNED Jacobian): ``A = J H^-1 B``.
     rows : sequence of int or str or None, optional
-        Rows of the task Jacobian to keep (indices, or a name of :data:`TASK_ROWS`:
-        ``"planar"`` keeps x, y and yaw; a planar robot's frame task needs it, or the rows
-        it cannot move make D always 0). Only with a ``task``.
+        Rows of the task Jacobian to keep, indices or a name of :data:`TASK_ROWS` (a planar
+        robot needs ``"planar"``, or D is always 0). Only with a ``task``.
 
     Returns
     -------
@@ -246,8 +222,7 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
     ConfigurationError
         ``q`` or the task Jacobian has the wrong shape or non-finite entries.
     ParameterError
-        A bad model, data, index, frame or ``rows``; nothing actuated; a fully actuated
-        model without a task.
+        A bad argument; nothing actuated; a fully actuated model without a task.
     """
     model = instance(model, pin.Model, "model", "a pinocchio.Model")
     model_data(data, model, pin.Data)
@@ -274,14 +249,7 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
         jac = pin.computeFrameJacobian(model, data, q, model.getFrameId(task),
                                        pin.LOCAL_WORLD_ALIGNED)
     else:
-        try:
-            jac = np.asarray(task, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise ConfigurationError(f"task must be a frame name or a finite m x {nv} "
-                                     f"Jacobian, got {brief(task)}") from exc
-        if isinstance(task, (bool, np.bool_)) or jac.ndim != 2 or jac.shape[1] != nv \
-                or not np.all(np.isfinite(jac)):
-            raise ConfigurationError(f"task Jacobian must be a finite m x {nv} matrix")
+        jac = _matrix(task, nv, "task (a frame name or a Jacobian)")
     jac = jac[_task_rows(rows, jac.shape[0])]
     sigma = _singular_values(jac @ h_inv[:, act], jac.shape[0])
     return Manipulability(float(sigma[-1]), float("nan"), sigma, np.full(jac.shape[0], np.nan))
@@ -290,28 +258,27 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
 def manipulability_R_batch(params: SnakeParams, phi: ArrayLike, *,
                            free_joint: int | Sequence[int] | None = None,
                            heading: bool = True) -> np.ndarray:
-    """Return R (or R~) of many postures ``phi`` (B, n - 1) at once, vectorised (sweeps,
-    searches); the robot's passive joints are free beside ``free_joint``."""
-    # theta_1 = 0 without loss of generality (R is invariant under a rigid motion). The
-    # closed form of H (eq. 19), task rows only. With s = sin(theta), c = cos(theta),
-    # a = m^T K (m the link masses) and e_r the indicator of links r + 1..n (e_0 = 1):
-    #   x_h: -(a * s) L,   y_h: (a * c) L,
-    #   theta_1 (r = 0) or phi_r:  e_r^T H-bar_22 L
-    #       = ([((m * K (s * e_r))^T K) * s + ((m * K (c * e_r))^T K) * c] + J * e_r) L,
-    # restricted to the input columns. Checked against manipulability() in the tests.
+    """Return R (or R~) of many postures ``phi`` (B, n - 1) at once, from the closed form of
+    H (:ref:`manipulability`); passive joints are free beside ``free_joint``."""
     n = instance(params, SnakeParams, "params").n
-    try:
-        angles = np.asarray(phi, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"phi must be numbers with {n - 1} columns, "
-                                 f"got {brief(phi)}") from exc
-    angles = np.atleast_2d(angles)
-    if isinstance(phi, (bool, np.bool_)) or angles.ndim != 2 or angles.shape[1] != n - 1:
-        raise ConfigurationError(f"phi must have {n - 1} columns, got shape {angles.shape}")
-    if not np.all(np.isfinite(angles)):
-        raise ConfigurationError("phi has non-finite entries")
+    angles = _matrix(phi, n - 1, "phi", atleast_2d=True)
     free = tuple(sorted(set(params.passive) | set(free_joints(n, free_joint))))
     return r_batch(params, angles, free, flag(heading, "heading"))
+
+
+def _matrix(value: object, columns: int, name: str, *, atleast_2d: bool = False) -> np.ndarray:
+    """``value`` as a finite float matrix of ``columns`` columns, or one ConfigurationError."""
+    try:
+        matrix = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"{name} must be a finite matrix of {columns} columns, "
+                                 f"got {brief(value)}") from exc
+    matrix = np.atleast_2d(matrix) if atleast_2d else matrix
+    if isinstance(value, (bool, np.bool_)) or matrix.ndim != 2 or matrix.shape[1] != columns:
+        raise ConfigurationError(f"{name} must have {columns} columns, got shape {matrix.shape}")
+    if not np.all(np.isfinite(matrix)):
+        raise ConfigurationError(f"{name} has non-finite entries")
+    return matrix
 
 
 def r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
@@ -368,17 +335,10 @@ def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
 def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
                                       constrained: Sequence[int] | None = None
                                       ) -> Manipulability:
-    """Return the head manipulability of the robot *with* lateral constraints (after Date et al.).
+    """Return the head manipulability *with* lateral constraints (after Date et al., Fig. 15).
 
-    Date et al.'s formula is not available; this is a criterion in their spirit (Fig. 15):
-    links ``constrained`` may not slip sideways at their CM, ``A_c(q) q' = 0``. The
-    constrained dynamics ``H q'' + h = E tau + A_c^T f``, ``A_c q'' + A_c' q' = 0`` give::
-
-        q'' = P E tau + (terms without tau),   P = N - N A_c^T (A_c N A_c^T)^-1 A_c N,
-        N = H^-1
-
-    D is the smallest singular value of the w rows of ``P E``. Arcs make it vanish (the
-    classical singular posture of wheeled snakes) while the unconstrained R stays positive.
+    D of the w rows of ``P E``, P the constrained dynamics' map of torques
+    (:ref:`manipulability`); arcs make it vanish, as for wheeled snakes.
 
     Parameters
     ----------
@@ -396,10 +356,8 @@ def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
 
     Raises
     ------
-    ConfigurationError
-        ``q`` does not have n + 2 finite entries.
     ParameterError
-        ``snake`` is not a Snake, or ``constrained`` is empty or names no link.
+        ``constrained`` is empty or names no link.
     """
     instance(snake, Snake, "snake")
     q = snake.check_q(q)
@@ -426,14 +384,8 @@ def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
 
 
 class _CallableModule(types.ModuleType):
-    """This module, callable as :func:`manipulability`.
-
-    ``snake_pin.manipulability`` names both this module and the function exported by the
-    package. Importing the submodule (``import snake_pin.sweeps`` does) makes Python bind
-    the package attribute to the module, which would shadow the function; a callable
-    module keeps ``from snake_pin import manipulability; manipulability(snake, q)`` right
-    whichever object the name holds.
-    """
+    """This module, callable as :func:`manipulability`: importing the submodule binds the
+    package attribute ``snake_pin.manipulability`` to it, which would shadow the function."""
 
     def __call__(self, snake: Snake, q: ArrayLike,
                  free_joint: int | Sequence[int] | None = None, heading: bool = True, *,

@@ -1,7 +1,6 @@
-"""Quantities read off a finished run: head error, manipulability and g along the run.
+"""Quantities read off a finished run (head error, manipulability along it) for summaries.
 
-Shared by the command line, the experiments and the studies, which write them into run
-summaries; none of them is public API.
+Shared by the command line, the experiments and the studies; none of them is public API.
 """
 
 from __future__ import annotations
@@ -13,7 +12,8 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from ._validation import brief, finite_number, instance, integer
-from .exceptions import ConfigurationError, ParameterError
+from .exceptions import ParameterError
+from .gaits import vector
 from .manipulability import manipulability, task_split
 from .model import Snake
 
@@ -36,8 +36,7 @@ def _check_traj(value: object) -> Trajectory:
 
 
 def _check_summary(value: object) -> Mapping[str, object]:
-    """``value`` if it is a mapping whose window and error entries are numbers or None
-    (a diverged run's NaN included)."""
+    """``value`` if it is a mapping whose window and error entries are numbers or None."""
     if not isinstance(value, Mapping):
         raise ParameterError(f"summary must be a mapping (a run summary), got {brief(value)}")
     for key in ("error_window", "rms_head_error", "rms_relative", "t_end"):
@@ -48,29 +47,13 @@ def _check_summary(value: object) -> Mapping[str, object]:
     return value
 
 
-def _check_error(error: object, samples: int) -> np.ndarray:
-    """``error`` as a float vector of one entry per sample (a diverged run's NaN kept)."""
-    try:
-        values = np.asarray(error, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"error must be {samples} numbers, got {brief(error)}") \
-            from exc
-    if isinstance(error, (bool, np.bool_)) or values.shape != (samples,):
-        raise ConfigurationError(f"error must hold one number per sample ({samples}), "
-                                 f"got {brief(error)}")
-    return values
-
-
 def default_error_window(t_final: float) -> float:
-    """Return the start of the head-error window of a run of ``t_final`` seconds:
-    ``min(ERROR_WINDOW, t_final / 2)``, so that every run has a window."""
+    """Return ``min(ERROR_WINDOW, t_final / 2)``: every run has a head-error window."""
     return min(ERROR_WINDOW, 0.5 * finite_number(t_final, "t_final", non_negative=True))
 
 
 def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarray:
-    """Return the head position error ``|(x_h, y_h) - reference(t)[0][:2]|`` [m] at every
-    sample of ``traj``.
-    """
+    """Return ``|(x_h, y_h) - reference(t)[0][:2]|`` [m] at every sample of ``traj``."""
     _check_traj(traj)
     if not callable(reference):
         raise ParameterError(f"reference must be a head reference (a callable of time), "
@@ -82,19 +65,17 @@ def head_position_error(traj: Trajectory, reference: HeadReference) -> np.ndarra
 def head_error_summary(traj: Trajectory, error: np.ndarray,
                        start: float | None = None) -> dict[str, float | None]:
     """Return the RMS and max head error over ``t >= start`` (default
-    :func:`default_error_window`), in m and in % of the body length (the sum of the link
-    lengths, so per-link robots are judged against their own), and ``rms_relative`` (a
-    fraction); all but ``error_window`` None when no sample lies in the window.
-    """
+    :func:`default_error_window`) in m and in % of the body length, and ``rms_relative``;
+    all but ``error_window`` None when no sample lies in the window."""
     _check_traj(traj)
-    error = _check_error(error, len(traj))
+    error = vector(error, "error", size=len(traj), finite=False)  # a diverged run's NaN kept
     start = (default_error_window(traj.t_end) if start is None
              else finite_number(start, "start"))
     late = window(traj, start)
     if not late.any():
-        return {"error_window": start, "rms_head_error": None, "max_head_error": None,
-                "rms_head_error_pct": None, "max_head_error_pct": None,
-                "rms_relative": None}
+        return {"error_window": start, **dict.fromkeys(
+            ("rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_error_pct",
+             "rms_relative"))}
     rms = float(np.sqrt(np.mean(error[late] ** 2)))
     peak = float(error[late].max())
     body = traj.params.body_length
@@ -133,8 +114,7 @@ def error_caption(summary: Mapping[str, object]) -> str:
 
 def criteria_along(traj: Trajectory, *, every: int = 1,
                    free_joint: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return ``(t, D, R)`` along a run, every ``every``-th sample; the robot's passive joints
-    always count as free, ``free_joint`` adds one."""
+    """Return ``(t, D, R)`` every ``every``-th sample; passive joints free, ``free_joint`` too."""
     snake = Snake(_check_traj(traj).params)
     every = integer(every, "every", low=1)
     task_split(snake.n, free_joint)  # the free joint checked before the first sample
@@ -147,8 +127,7 @@ def criteria_along(traj: Trajectory, *, every: int = 1,
 
 
 def applied(traj: Trajectory) -> np.ndarray:
-    """Return the mask of the samples whose torque was applied: a run holds each torque
-    until the next sample, so the last one (zero) was never applied, unless the run diverged."""
+    """Return the mask of the samples whose torque was applied (not the last, unless diverged)."""
     mask = np.ones(len(_check_traj(traj)), dtype=bool)
     if traj.status != "diverged" and mask.size:
         mask[-1] = False
@@ -164,9 +143,7 @@ def window(traj: Trajectory, start: float, stop: float | None = None) -> np.ndar
 
 
 def torque_max(traj: Trajectory) -> float | None:
-    """Return the peak ``|tau_i|`` over the applied samples of a whole run [N m], or None
-    when no finite torque was applied; the start-up counts too, since a torque bound holds
-    at every instant."""
+    """Return the peak ``|tau_i|`` [N m] over all applied samples, or None if none is finite."""
     tau = np.abs(_check_traj(traj).tau[applied(traj)])
     tau = tau[np.isfinite(tau)]
     return float(tau.max()) if tau.size else None

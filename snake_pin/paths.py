@@ -1,18 +1,11 @@
 """Planar paths and head references along them: a curve p(s) plus a timing law s(t).
 
-A :class:`Path` (shapes :class:`Line`, :class:`Circle`, :class:`Arc`, :class:`LaneChange`,
-:class:`Sinusoid`, :class:`Waypoints`) gives p(s), its tangent angle, curvature and its
-rate; a :class:`Timing` gives s(t); a :class:`PathReference` joins them into the head
-reference the controllers consume (the interface of
-:class:`~snake_pin.control.reference.LinearReference`). :func:`cross_track_error` (left
-positive) and :func:`along_track` are vectorised over points. The geometry, the reference's
-derivatives and the projection are in :doc:`/paths` (Path geometry).
-
-:func:`load_path` takes a shape name with its parameters, or a TOML or CSV path file
-(format and bounds in :doc:`/paths`): every number must be physically meaningful, or the
-geometry would overflow or underflow instead of failing. Every problem is one
-:class:`PathFileError` line naming the file and the field, or a
-:class:`~snake_pin.exceptions.ParameterError` naming the parameter.
+A :class:`Path` shape gives p(s), its tangent angle, curvature and its rate; a
+:class:`Timing` gives s(t); a :class:`PathReference` joins them into the head reference
+the controllers consume. :func:`load_path` builds one from a shape name or a TOML/CSV
+file, refusing in one :class:`PathFileError` or
+:class:`~snake_pin.exceptions.ParameterError` line. Geometry, projection and file format:
+:doc:`/paths`.
 """
 
 from __future__ import annotations
@@ -24,7 +17,7 @@ import functools
 import io
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path as FilePath
 from typing import Any, NamedTuple
@@ -101,9 +94,7 @@ class PathPoint(NamedTuple):
 
 
 class _Samples(NamedTuple):
-    """The path sampled every ``h`` from ``s0`` (points, frames, gamma, kappa, kappa'), and
-    the sample offsets of the coarse and fine searches of :meth:`Path._project_near`.
-    """
+    """The path sampled every ``h`` from ``s0``, with the offsets of the two searches."""
 
     s0: float
     h: float
@@ -121,23 +112,20 @@ class _Samples(NamedTuple):
 
 
 # --------------------------------------------------------------------------- checks
-def _length(value: object, name: str, *, positive: bool = False,
-            non_negative: bool = False) -> float:
-    """A coordinate or length [m] within +-MAX_COORDINATE (>= MIN_LENGTH if positive)."""
+def _length(value: object, name: str, *, positive: bool = False, non_negative: bool = False,
+            bound: float = MAX_COORDINATE, unit: str = "m") -> float:
+    """A coordinate or length [m] within +-``bound`` (>= MIN_LENGTH if positive)."""
     x = finite_number(value, name, positive=positive, non_negative=non_negative)
-    if abs(x) > MAX_COORDINATE:
-        raise ParameterError(f"{name} must lie within +-{MAX_COORDINATE:g} m, got {x:g}")
-    if positive and x < MIN_LENGTH:
+    if abs(x) > bound:
+        raise ParameterError(f"{name} must lie within +-{bound:g} {unit}, got {x:g}")
+    if positive and unit == "m" and x < MIN_LENGTH:
         raise ParameterError(f"{name} must be at least {MIN_LENGTH:g} m, got {x:g}")
     return x
 
 
 def _angle(value: object, name: str, *, positive: bool = False) -> float:
     """An angle [rad] within +-MAX_ANGLE."""
-    x = finite_number(value, name, positive=positive)
-    if abs(x) > MAX_ANGLE:
-        raise ParameterError(f"{name} must lie within +-{MAX_ANGLE:g} rad, got {x:g}")
-    return x
+    return _length(value, name, positive=positive, bound=MAX_ANGLE, unit="rad")
 
 
 def _point(value: object, name: str) -> tuple[float, float]:
@@ -185,18 +173,11 @@ class _ArcLength:
         k = np.clip(np.searchsorted(self.u, u, side="right") - 1, 0, len(self.u) - 2)
         return self.s[k] + self._integral(self.u[k], u)
 
-    def _start(self, s: np.ndarray) -> np.ndarray:
-        """Cubic Hermite interpolation of u(s) between the nodes (slopes du/ds)."""
+    def parameter(self, s: np.ndarray) -> np.ndarray:
+        """u(s) for 0 <= s <= total: Newton from the Hermite start to round-off."""
         k = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.s) - 2)
         h = self.s[k + 1] - self.s[k]
-        x = (s - self.s[k]) / h
-        return ((1.0 + 2.0 * x) * (1.0 - x) ** 2 * self.u[k] + x * (1.0 - x) ** 2 * h * self.du[k]
-                + x * x * (3.0 - 2.0 * x) * self.u[k + 1] + x * x * (x - 1.0) * h * self.du[k + 1])
-
-    def parameter(self, s: np.ndarray) -> np.ndarray:
-        """u(s) for 0 <= s <= total: Newton from the Hermite start, to round-off (quadratic:
-        after a step below 1e-7, relative, the next would be below ~1e-13 and is skipped)."""
-        u = self._start(s)
+        u = _hermite((s - self.s[k]) / h, h, self.u[k], self.du[k], self.u[k + 1], self.du[k + 1])
         lo, hi = self.u[0], self.u[-1]
         for _ in range(8):
             step = (self.length(u) - s) / self.speed(u)
@@ -211,9 +192,7 @@ class _ArcLength:
         last = len(s_list) - 2
         k = min(max(bisect.bisect_right(s_list, s) - 1, 0), last)
         h = s_list[k + 1] - s_list[k]
-        x = (s - s_list[k]) / h
-        u = ((1.0 + 2.0 * x) * (1.0 - x) ** 2 * u_list[k] + x * (1.0 - x) ** 2 * h * du_list[k]
-             + x * x * (3.0 - 2.0 * x) * u_list[k + 1] + x * x * (x - 1.0) * h * du_list[k + 1])
+        u = _hermite((s - s_list[k]) / h, h, u_list[k], du_list[k], u_list[k + 1], du_list[k + 1])
         lo, hi = u_list[0], u_list[-1]
         for _ in range(8):
             j = min(max(bisect.bisect_right(u_list, u) - 1, 0), last)
@@ -226,9 +205,14 @@ class _ArcLength:
         return u
 
 
+def _hermite(x: Any, h: Any, u0: Any, du0: Any, u1: Any, du1: Any) -> Any:
+    """Cubic Hermite interpolation at ``x`` in [0, 1] of a span ``h`` (floats or arrays)."""
+    return ((1.0 + 2.0 * x) * (1.0 - x) ** 2 * u0 + x * (1.0 - x) ** 2 * h * du0
+            + x * x * (3.0 - 2.0 * x) * u1 + x * x * (x - 1.0) * h * du1)
+
+
 def _bend(x1: Any, y1: Any, x2: Any, y2: Any, x3: Any, y3: Any) -> tuple[Any, Any]:
-    """(kappa, dkappa/ds) from the components of p', p'', p''' in any parameter (floats or
-    arrays: one formula for both)."""
+    """(kappa, dkappa/ds) from p', p'', p''' in any parameter (floats or arrays)."""
     v2 = x1 * x1 + y1 * y1
     c12 = x1 * y2 - y1 * x2
     return (c12 / (v2 * v2**0.5),
@@ -241,11 +225,8 @@ def _clip_float(x: float, lo: float, hi: float) -> float:
 
 def _expansion_newton(a: Any, b: Any, kappa: Any, dkappa: Any, h: float,
                       clip: Callable[..., Any]) -> Any:
-    """sigma of the point of the expansion about a sample k, in its frame (t, n),
-    ``p(sigma) = p_k + (sigma - kappa^2 sigma^3 / 6) t + (kappa sigma^2 / 2 + kappa' sigma^3
-    / 6) n``, closest to ``x = p_k + a t + b n``: two Newton steps on (p - x) . p' = 0, the
-    first the exact one at 0, each within one spacing ``h``; ``clip`` is ``numpy.clip`` for
-    arrays or :func:`_clip_float` for floats."""
+    """sigma of the cubic expansion's point about a sample closest to ``p_k + a t + b n``:
+    two Newton steps within one spacing ``h`` (:doc:`/paths`), arrays or floats by ``clip``."""
     sigma = clip(a / clip(1.0 - kappa * b, 0.2, math.inf), -h, h)
     k2s = kappa * kappa * sigma
     # e = p(sigma) - x and v = p'(sigma) along t and n; slope = f'(sigma)
@@ -259,19 +240,13 @@ def _expansion_newton(a: Any, b: Any, kappa: Any, dkappa: Any, h: float,
 
 # --------------------------------------------------------------------------- paths
 class Path(abc.ABC):
-    """A planar curve parametrised by arc length s (abstract base of the shapes).
-
-    Subclasses implement :meth:`_geometry` on a flat array of s; :attr:`length` is the
-    length of the defined part (``math.inf`` when unbounded, one lap for a circle).
-    """
+    """A planar curve parametrised by arc length s (abstract base of the shapes)."""
 
     #: Identifier used in file names and summaries.
     name: str = "path"
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
-        """Pickle a shape by its parameters only: unpickling builds it again, tables and
-        caches included (they hold local functions, and the projection cache can be
-        large), so a path goes to worker processes whole and small."""
+        """Pickle by the parameters only: tables and caches (large, local functions) rebuilt."""
         return type(self), tuple(getattr(self, f.name) for f in fields(self)  # type: ignore[arg-type]
                                  if f.init)
 
@@ -295,7 +270,7 @@ class Path(abc.ABC):
         Parameters
         ----------
         s : float or array_like
-            Arc length(s), any shape (beyond a finite curve's ends it goes on straight).
+            Arc length(s), any shape.
 
         Returns
         -------
@@ -325,11 +300,6 @@ class Path(abc.ABC):
         -------
         numpy.ndarray
             ``geometry(s).p``.
-
-        Raises
-        ------
-        ParameterError
-            An arc length is not finite.
         """
         return self.geometry(s).p
 
@@ -339,17 +309,20 @@ class Path(abc.ABC):
         Returns
         -------
         tuple of float
-            A finite curve with a margin of a quarter of its length (at least 1 m) at each
-            end, else ``(-1, DEFAULT_EXTENT)``.
+            A finite curve with margins of a quarter of its length (>= 1 m), a circle its
+            first lap, a lane change its S and 2 m beyond, else ``(-1, DEFAULT_EXTENT)``.
         """
+        return self._default_span()
+
+    def _default_span(self) -> tuple[float, float]:
+        """:meth:`default_span` of the shape (overridden by the circle and the lane change)."""
         if math.isfinite(self.length):
             margin = max(1.0, 0.25 * self.length)
             return (-margin, self.length + margin)
         return (-1.0, DEFAULT_EXTENT)
 
     def _step(self, lo: float, hi: float, count: int, step: float, bend: float) -> float:
-        """``step``, or ``bend`` over the largest |kappa| of ``count`` samples of [lo, hi]
-        where that is smaller (finer where the curve bends tightly)."""
+        """``step``, or less where it bends: ``bend`` over the largest |kappa| of samples."""
         kappa_max = float(np.max(np.abs(self._geometry(np.linspace(lo, hi, count)).kappa)))
         return min(step, bend / kappa_max) if kappa_max > 0 else step
 
@@ -358,7 +331,7 @@ class Path(abc.ABC):
         """Return the arc length ``s*`` [m] of the closest point of the path to each point.
 
         Lines and circles project exactly (a circle: the lap nearest the hint, else the first
-        lap at or after ``s_min``, capped at ``s_max``; a line ignores the hint).
+        at or after ``s_min``, capped at ``s_max``); the others as in :doc:`/paths`.
 
         Parameters
         ----------
@@ -367,9 +340,8 @@ class Path(abc.ABC):
         span : tuple of float, optional
             ``(s_min, s_max)`` searched [m]; default :meth:`default_span`. The result lies in it.
         hint : float or array_like, optional
-            Arc lengths near the answer (scalar or one per point), e.g. the last answer when
-            tracking a moving point: then the closest point within :data:`HINT_RADIUS` of the
-            hint, unbounded without a span (the controllers' hot path; :doc:`/paths`).
+            Arc lengths near the answer, one or one per point: then the closest point within
+            :data:`HINT_RADIUS` of it, unbounded without a span.
 
         Returns
         -------
@@ -381,12 +353,7 @@ class Path(abc.ABC):
         ParameterError
             The points are not a finite (..., 2) array, or the span or the hint is invalid.
         """
-        try:
-            pts = np.asarray(points, dtype=float)
-        except (TypeError, ValueError, OverflowError):
-            pts = np.empty(0)
-        if pts.ndim == 0 or pts.shape[-1:] != (2,) or not np.isfinite(pts).all():
-            raise ParameterError("points must be a finite (..., 2) array")
+        pts = _points(points)
         try:
             guess = None if hint is None else np.broadcast_to(np.asarray(hint, dtype=float),
                                                               pts.shape[:-1])
@@ -414,13 +381,12 @@ class Path(abc.ABC):
 
     def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
                           hint: object) -> np.ndarray | None:
-        """The closed-form projection of shapes that have one (checked points), else None."""
+        """The closed-form projection of checked points, for shapes that have one."""
         return None
 
     def _samples(self, lo: float, hi: float) -> _Samples:
-        """The path sampled over at least [lo, hi] (first :meth:`default_span` too), every
-        :data:`SAMPLE_STEP` or finer where it bends; a request beyond it moves the window
-        (half its length, at least 2 m, beyond [lo, hi]): its size stays bounded."""
+        """The path sampled every :data:`SAMPLE_STEP` (finer where it bends) over at least
+        [lo, hi]: a request beyond the table moves it, so its size stays bounded."""
         table: _Samples | None = self.__dict__.get("_near_table")
         if table is not None and table.s0 <= lo and table.end >= hi:
             return table
@@ -447,12 +413,8 @@ class Path(abc.ABC):
 
     def _project_near(self, points: np.ndarray, hint: np.ndarray, lo: float,
                       hi: float) -> np.ndarray:
-        """Closest point within :data:`HINT_RADIUS` of each hint (see :meth:`project`): the
-        nearest sample of the table (every ``stride``-th over the radius, then each around
-        the best), then :func:`_expansion_newton` about it (error O(h^4), O(h^2) at an
-        arc's ends). Vectorised over many points; one point (a controller's step) goes
-        through :meth:`_track_in` on slices of the table, in floats.
-        """
+        """Closest point within :data:`HINT_RADIUS` of each hint: the nearest sample (coarse,
+        then fine), then :func:`_expansion_newton` about it; one point goes by :meth:`_track_in`."""
         table = self._samples(max(lo, float(hint.min()) - HINT_RADIUS),
                               min(hi, float(hint.max()) + HINT_RADIUS))
         h, s0, last = table.h, table.s0, len(table.kappa) - 1
@@ -478,8 +440,7 @@ class Path(abc.ABC):
         return np.clip(s0 + k_arr * h + sigma_arr, lo, hi)
 
     def _track(self, x: float, y: float, hint: float) -> tuple[float, float, float, float]:
-        """``(s, x_p, y_p, gamma)`` of ``project((x, y), hint=hint)``, unchecked (the LOS
-        law's step); the point and its (continuous) tangent angle from the same expansion."""
+        """``(s, x_p, y_p, gamma)`` of ``project((x, y), hint=hint)``, unchecked (LOS law)."""
         table = self._samples(hint - HINT_RADIUS, hint + HINT_RADIUS)
         return self._track_in(table, np.array([x, y]), hint, 0, len(table.kappa) - 1,
                               -math.inf, math.inf)
@@ -534,25 +495,6 @@ class Path(abc.ABC):
         # minimum the squared distance is flat: comparing it would pick by round-off)
         worse = dist > best_d + 1e-12 * (1.0 + best_d)
         return np.where(worse, best_s, s)
-
-    def plot_points(self, span: tuple[float, float] | None = None,
-                    count: int = 1000) -> np.ndarray:
-        """Return ``count`` evenly spaced points [m] along ``span`` (default :meth:`default_span`).
-
-        Parameters
-        ----------
-        span : tuple of float, optional
-            ``(s_min, s_max)`` [m].
-        count : int, optional
-            Number of points.
-
-        Returns
-        -------
-        numpy.ndarray, shape (count, 2)
-            Points [m].
-        """
-        lo, hi = self.default_span() if span is None else span
-        return self.point(np.linspace(lo, hi, count))
 
 
 class _Finite(Path):
@@ -639,8 +581,6 @@ class Line(Path):
 class Circle(Path):
     """The circle of ``radius`` about ``centre``, from the polar angle ``start_angle``.
 
-    By default through the origin heading along +x; s runs on over any number of laps.
-
     Parameters
     ----------
     radius : float, optional
@@ -686,7 +626,7 @@ class Circle(Path):
 
     @property
     def length(self) -> float:
-        """One lap, ``2 pi radius`` [m] (s itself runs on over any number of laps)."""
+        """One lap, ``2 pi radius`` [m] (s runs on over any number of laps)."""
         return 2.0 * math.pi * self.radius
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
@@ -708,14 +648,7 @@ class Circle(Path):
         s = float(self.project(np.array([x, y]), hint=hint))
         return (s, *self._scalar(s)[:3])
 
-    def default_span(self) -> tuple[float, float]:
-        """Return the first lap, ``(0, 2 pi radius)`` [m], searched by :meth:`project`.
-
-        Returns
-        -------
-        tuple of float
-            ``(s_min, s_max)`` [m].
-        """
+    def _default_span(self) -> tuple[float, float]:
         return (0.0, self.length)
 
     def _exact_projection(self, pts: np.ndarray, span: tuple[float, float] | None,
@@ -766,7 +699,7 @@ class Arc(_Finite, Circle):
     # straight ends), not the circle's laps
     _inside, _inside_scalar = Circle._geometry, Circle._scalar
     _geometry, _scalar = _Finite._geometry, _Finite._scalar
-    default_span = Path.default_span
+    _default_span = Path._default_span
     _exact_projection = Path._exact_projection
 
 
@@ -777,9 +710,8 @@ class _GraphCurve(Path):
     direction: float
 
     def _place(self, x: Any, y: Any, f1: Any, f2: Any, f3: Any, m: Any = np) -> Any:
-        """The point (x, f(x)) placed, gamma = atan f' (continuous: x' = 1 > 0), kappa and
-        dkappa/ds (fk the k-th derivative of f): a PathPoint of arrays with ``m`` numpy,
-        or the tuple of :meth:`Path._scalar` of floats with ``m`` math."""
+        """(x, f(x)) placed with gamma, kappa, kappa' from f's derivatives ``fk``: a PathPoint
+        (``m`` numpy) or the floats of :meth:`Path._scalar` (``m`` math)."""
         c, s = math.cos(self.direction), math.sin(self.direction)
         p_x, p_y = c * x - s * y + self.origin[0], s * x + c * y + self.origin[1]
         terms = (m.atan(f1) + self.direction, *_bend(1.0, f1, 0.0, f2, 0.0, f3))
@@ -788,9 +720,7 @@ class _GraphCurve(Path):
 
 @dataclass(frozen=True)
 class LaneChange(_GraphCurve):
-    """A lead-in of ``start``, an S of ``length_x`` to the parallel line at ``offset``, then on.
-
-    In the frame at ``origin`` rotated by ``direction`` (the S: :doc:`/paths`).
+    """A lead-in, an S of ``length_x`` to the parallel line at ``offset``, then on (:doc:`/paths`).
 
     Parameters
     ----------
@@ -839,14 +769,7 @@ class LaneChange(_GraphCurve):
         """Arc length of the S alone [m]."""
         return self._table.total
 
-    def default_span(self) -> tuple[float, float]:
-        """Return the arc lengths searched by :meth:`project`: the S and 2 m beyond it.
-
-        Returns
-        -------
-        tuple of float
-            ``(-1, max(DEFAULT_EXTENT, start + S length + 2))`` [m].
-        """
+    def _default_span(self) -> tuple[float, float]:
         return (-1.0, max(DEFAULT_EXTENT, self.start + self.s_length + 2.0))
 
     def _geometry(self, s: np.ndarray) -> PathPoint:
@@ -928,10 +851,7 @@ class Sinusoid(_GraphCurve):
 
 @dataclass(frozen=True)
 class Waypoints(_Finite):
-    """The natural C2 cubic spline through ``points`` on the chord-length parameter, by arc length.
-
-    Straight beyond the first and last points (zero curvature there); ``knots_s`` holds
-    the arc length of each waypoint.
+    """The natural cubic spline through ``points`` (``knots_s``: their arc lengths).
 
     Parameters
     ----------
@@ -942,8 +862,7 @@ class Waypoints(_Finite):
     Raises
     ------
     ParameterError
-        If there are too few or too many waypoints, one is not finite, two consecutive
-        ones coincide, or the spline has a cusp or turns too sharply.
+        Bad waypoints, or a spline with a cusp or turning too sharply.
     """
 
     points: tuple[tuple[float, float], ...] = field(default=())
@@ -990,9 +909,7 @@ class Waypoints(_Finite):
 
     @staticmethod
     def _cubic(d: Any, xs: Any, ys: Any, near: Any, m: Any) -> Any:
-        """(x, y, gamma, kappa, dkappa) at ``d`` into a knot interval of cubics ``xs``, ``ys``
-        (highest first), gamma the turn nearest ``near`` (floats with ``m`` math, arrays
-        with numpy)."""
+        """(x, y, gamma, kappa, dkappa) at ``d`` into cubics ``xs``, ``ys``, gamma near ``near``."""
         (ax, bx, cx, ex), (ay, by, cy, ey) = xs, ys
         x1, y1 = (3.0 * ax * d + 2.0 * bx) * d + cx, (3.0 * ay * d + 2.0 * by) * d + cy
         return (((ax * d + bx) * d + cx) * d + ex, ((ay * d + by) * d + cy) * d + ey,
@@ -1050,10 +967,7 @@ def _waypoints(points: object) -> np.ndarray:
 class Timing:
     """The timing law s(t): constant ``speed`` from arc length ``start``, after a smooth start.
 
-    With ``ramp`` = T > 0 the speed rises from 0 to v over ``0 <= t <= T`` as
-    ``v sigma(t / T)``, ``sigma(u) = 10 u^3 - 15 u^4 + 6 u^5`` (s'' is continuous), then
-    ``s = start + v (t - T / 2)``. Before t = 0 the reference waits at ``start`` (with a
-    ramp) or extends the line backwards (without).
+    The ramp and the reference before t = 0 are in :doc:`/paths` (Timing).
 
     Parameters
     ----------
@@ -1067,7 +981,7 @@ class Timing:
     Raises
     ------
     ParameterError
-        If a number is not finite, the speed is not positive or the ramp is negative.
+        A number is not finite or out of its range.
     """
 
     speed: float = 0.1
@@ -1122,8 +1036,8 @@ class Timing:
 class PathReference:
     """Head reference along a path: w_r(t) = [p(s(t)), gamma(s(t)) + pi] (head first).
 
-    Called at a time t it gives (w_r, w_r', w_r''), three fresh float arrays of length 3,
-    as :class:`~snake_pin.control.reference.LinearReference` does.
+    Called at t it gives (w_r, w_r', w_r''), as
+    :class:`~snake_pin.control.reference.LinearReference` does.
 
     Parameters
     ----------
@@ -1155,11 +1069,7 @@ class PathReference:
         return self.path.name
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return fresh arrays (w_r, w_r', w_r'') at time ``t``, or ParameterError if not finite.
-
-        Plain-float code (the controllers call it every step); :meth:`at` is the vectorised
-        form and agrees with it to round-off.
-        """
+        """Return fresh arrays (w_r, w_r', w_r'') at time ``t`` (floats: the controllers' step)."""
         t = float(t)
         if not math.isfinite(t):
             raise ParameterError("time must be finite")
@@ -1209,9 +1119,6 @@ def cross_track_error(path: Path | PathReference, points: object, *,
                       span: tuple[float, float] | None = None) -> np.ndarray:
     """Return the signed distance [m] from each point to the path, positive on the left.
 
-    Where the closest point is an end of the span, the distance to it is returned, signed
-    by the side of the tangent there.
-
     Parameters
     ----------
     path : Path or PathReference
@@ -1219,21 +1126,15 @@ def cross_track_error(path: Path | PathReference, points: object, *,
     points : array_like, shape (..., 2)
         Points [m], e.g. the head positions ``traj.q[:, :2]`` of a run.
     span : tuple of float, optional
-        ``(s_min, s_max)`` searched [m]; default the path's :meth:`Path.default_span`.
+        ``(s_min, s_max)`` searched [m] (beyond it: the distance to its end, signed).
 
     Returns
     -------
     numpy.ndarray, shape points.shape[:-1]
         Signed distances.
-
-    Raises
-    ------
-    ParameterError
-        The points are not a finite (..., 2) array, or the span is invalid.
     """
-    curve, pts, span = _distance_arguments(path, points, span)
-    s = curve.project(pts, span=span)
-    g = curve.geometry(s)
+    curve, pts = _curve(path), _points(points)
+    g = curve.geometry(curve.project(pts, span=span))
     diff = pts - g.p
     side = np.einsum("...i,...i->...", diff, g.normal)
     return np.where(side < 0.0, -1.0, 1.0) * np.linalg.norm(diff, axis=-1)
@@ -1256,41 +1157,43 @@ def along_track(path: Path | PathReference, points: object, *,
     -------
     numpy.ndarray, shape points.shape[:-1]
         :meth:`Path.project` of the points.
-
-    Raises
-    ------
-    ParameterError
-        The points are not a finite (..., 2) array, or the span is invalid.
     """
-    curve, pts, span = _distance_arguments(path, points, span)
-    return curve.project(pts, span=span)
+    return _curve(path).project(points, span=span)
 
 
-def _distance_arguments(path: object, points: object, span: object
-                        ) -> tuple[Path, np.ndarray, tuple[float, float] | None]:
-    """The curve, the points and the span of a distance query, or one ParameterError."""
-    if isinstance(path, PathReference):
-        path = path.path
+def _curve(path: object) -> Path:
+    """The path of a distance query (a reference's own), or one ParameterError line."""
+    path = path.path if isinstance(path, PathReference) else path
     if not isinstance(path, Path):
         raise ParameterError(f"path must be a Path or a PathReference, got {brief(path)}")
+    return path
+
+
+def _points(points: object) -> np.ndarray:
+    """Points as a finite (..., 2) float array, or one ParameterError line."""
     try:
         pts = np.asarray(points, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise ParameterError(f"points must be a finite (..., 2) array, "
-                             f"got {brief(points)}") from None
-    return path, pts, _span(span)
+        pts = np.empty(0)
+    if pts.ndim == 0 or pts.shape[-1:] != (2,) or not np.isfinite(pts).all():
+        raise ParameterError(f"points must be a finite (..., 2) array, got {brief(points)}")
+    return pts
+
+
+def interval(value: object, name: str) -> tuple[float, float]:
+    """``value`` as (low, high), finite with low < high, or one ParameterError line."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
+            or len(value) != 2:
+        raise ParameterError(f"{name} must be (low, high), got {brief(value)}")
+    low, high = (finite_number(v, f"{name}[{i}]") for i, v in enumerate(value))
+    if not low < high:
+        raise ParameterError(f"{name} must have low < high, got ({low:g}, {high:g})")
+    return low, high
 
 
 def _span(span: object) -> tuple[float, float] | None:
-    """A checked ``(s_min, s_max)`` (None stays None), or one ParameterError line."""
-    if span is None:
-        return None
-    if not isinstance(span, (tuple, list, np.ndarray)) or len(span) != 2:
-        raise ParameterError(f"span must be (s_min, s_max), got {brief(span)}")
-    low, high = finite_number(span[0], "span[0]"), finite_number(span[1], "span[1]")
-    if not high > low:
-        raise ParameterError(f"span must be increasing, got ({low}, {high})")
-    return low, high
+    """A checked ``(s_min, s_max)`` (None stays None)."""
+    return None if span is None else interval(span, "span")
 
 
 # ------------------------------------------------------------------- construction
@@ -1316,12 +1219,10 @@ def make_path(name: str, **params: Any) -> Path:
     Parameters
     ----------
     name : str
-        ``"line"``, ``"circle"``, ``"arc"``, ``"lane_change"``, ``"sinusoid"`` or
-        ``"waypoints"``.
+        A shape name.
     **params
-        The parameters of the shape's class (:class:`Line`, :class:`Circle`, :class:`Arc`,
-        :class:`LaneChange` with ``length`` for ``length_x``, :class:`Sinusoid`,
-        :class:`Waypoints` whose ``points`` are required), defaults included.
+        The shape class's parameters (LaneChange's ``length_x`` as ``length``; waypoints'
+        ``points`` required).
 
     Returns
     -------
@@ -1422,12 +1323,10 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     Parameters
     ----------
     spec : str or os.PathLike or Path or PathReference
-        One of :data:`PATH_NAMES` (see :func:`make_path`), a ``.toml`` or ``.csv`` path
-        file (format in :doc:`/paths`), a :class:`Path`, or a :class:`PathReference`
-        (returned as is when no parameter is given).
+        A shape name (:func:`make_path`), a ``.toml``/``.csv`` path file (:doc:`/paths`),
+        a :class:`Path`, or a :class:`PathReference` (as is without parameters).
     **params
-        Shape parameters and the timing's ``speed`` [m/s] (default 0.1) and ``ramp`` [s]
-        (default 0); with a file, they override its values.
+        Shape parameters and the timing's ``speed`` and ``ramp``, overriding a file's.
 
     Returns
     -------
@@ -1437,9 +1336,9 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     Raises
     ------
     PathFileError
-        A file problem, one line naming the file and the field.
+        A file problem, naming the file and the field.
     ParameterError
-        A bad name or parameter, one line naming it.
+        A bad name or parameter.
     """
     if isinstance(spec, PathReference) and not params:
         return spec
@@ -1467,7 +1366,5 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     doc.update(params)
     try:
         return PathReference(make_path(kind, **doc), Timing(**{**file_timing, **timing}))
-    except PathFileError:
-        raise
     except ParameterError as exc:
         raise _file_error(spec, str(exc)) from None

@@ -1,13 +1,8 @@
-"""Numerical search for singular postures (R = 0) over the whole joint space.
+"""Numerical search for singular postures (R = 0) over the whole joint box.
 
-The paper tests families (arcs, serpenoids) and finds only the straight posture
-singular. Here R^2 is minimised over the box ``abs(phi_i) <= bound`` from many random
-starts (L-BFGS-B, gradients by batched central differences of the vectorised R), then
-polished, and the minima clustered into families up to the mirror phi -> -phi. Why the
-singular postures form sheets rather than points, and how the clusters are read:
-:ref:`manipulability`. The search runs with BLAS and OpenMP limited to one thread: its
-matrices are 3 x (n - 1), and multi-threaded OpenBLAS makes L-BFGS-B many times slower
-when another core is busy (:doc:`/performance`).
+R^2 is minimised from many random starts (L-BFGS-B, batched central differences), polished,
+and the minima clustered into families up to the mirror phi -> -phi (:ref:`manipulability`);
+BLAS runs on one thread meanwhile (:doc:`/performance`).
 """
 
 from __future__ import annotations
@@ -40,16 +35,12 @@ class SingularFamily:
 
     Parameters
     ----------
-    phi
-        Representative posture (the member with the smallest R).
-    R
-        Its R.
-    members
-        How many starts ended in this family.
-    straight
-        Whether the representative is the straight posture.
+    phi, R
+        Representative posture (the member with the smallest R) and its R.
+    members, straight
+        How many starts ended in this family; whether ``phi`` is the straight posture.
     low, high
-        Per-joint minimum and maximum of phi over the members (mirror-canonical sign).
+        Per-joint minimum and maximum of phi over the members (mirror-canonical).
     """
 
     phi: np.ndarray
@@ -71,25 +62,20 @@ class SingularSearch:
 
     Parameters
     ----------
-    params
-        The robot searched.
-    bound
-        The box ``abs(phi_i) <= bound`` [rad].
-    starts
-        Starts that ran.
+    params, bound, starts
+        The robot searched, the box ``abs(phi_i) <= bound`` [rad], the starts that ran.
     free_joint
         The free joint(s) (the robot's passive joints included), or None.
     R_typical
-        Median R over random postures in the box: the scale "numerically zero" refers to.
+        Median R over random postures in the box (the scale of "numerically zero").
     threshold
         R below this counts as zero (``relative * R_typical``).
     minima_phi, minima_R
-        Every polished local minimum (one per start), for the record.
+        Every polished local minimum (one per start).
     families
-        Distinct postures where R is numerically zero (R <= threshold).
+        Distinct postures where R <= threshold.
     status
-        ``"completed"``, or ``"interrupted"`` when only the first ``starts`` of
-        ``starts_requested`` starts ran.
+        ``"completed"``, or ``"interrupted"`` when only ``starts`` of them ran.
     starts_requested
         Starts asked for (None: ``starts``).
     """
@@ -117,8 +103,7 @@ class SingularSearch:
         Parameters
         ----------
         straight_tol
-            A minimum with every ``abs(phi_i) <= straight_tol`` counts as the straight
-            posture [rad].
+            A minimum with every ``abs(phi_i) <= straight_tol`` [rad] counts as straight.
 
         Returns
         -------
@@ -134,14 +119,14 @@ class SingularSearch:
         Returns
         -------
         dict
-            ``{"postures": [[phi...]], "R": [...]}`` per family (with ``straight``,
-            ``members``, ``span``) plus the search settings and status.
+            Per family ``postures``, ``R``, ``straight``, ``members``, ``span``; the
+            search settings and status.
         """
-        return {"postures": [f.phi.tolist() for f in self.families],
-                "R": [f.R for f in self.families],
-                "straight": [f.straight for f in self.families],
-                "members": [f.members for f in self.families],
-                "span": [f.span.tolist() for f in self.families],
+        families = self.families
+        return {"postures": [f.phi.tolist() for f in families], "R": [f.R for f in families],
+                "straight": [f.straight for f in families],
+                "members": [f.members for f in families],
+                "span": [f.span.tolist() for f in families],
                 "R_typical": self.R_typical, "threshold": self.threshold,
                 "starts": self.starts, "bound": self.bound,
                 "free_joint": (list(self.free_joint) if isinstance(self.free_joint, tuple)
@@ -162,8 +147,7 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     params
         The robot (n >= 4, or >= 5 with a free joint).
     starts
-        Number of random starting postures, 1 .. :data:`MAX_STARTS` (uniform in the box;
-        nothing is seeded at a known answer).
+        Number of random starting postures (uniform in the box), 1 .. :data:`MAX_STARTS`.
     bound
         Joint limit of the box [rad].
     free_joint
@@ -183,11 +167,9 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     Raises
     ------
     RunInterrupted
-        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the
-        search over the starts finished so far, with ``status == "interrupted"``.
+        On Ctrl-C or SIGTERM: ``partial`` holds the search so far (status "interrupted").
     ParameterError
-        A bad argument, free joints that leave no task, or a robot whose R is zero
-        everywhere.
+        A bad argument, free joints that leave no task, or R zero everywhere.
     """
     check_params(params)
     starts = integer(starts, "starts", low=1, high=MAX_STARTS)
@@ -250,12 +232,12 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
         return _result(params, bound, free_joint, scale, relative * scale, phis, values)
 
 
-def _result(params: SnakeParams, bound: float, free_joint: int | Sequence[int] | None,
+def _result(params: SnakeParams, bound: float, free_joint: int | tuple[int, ...] | None,
             scale: float, threshold: float, phis: np.ndarray,
             values: np.ndarray) -> SingularSearch:
     """The search over the minima ``phis`` (R ``values``), clustered into families."""
-    free = tuple(free_joint) if isinstance(free_joint, Sequence) else free_joint
-    result = SingularSearch(params, bound, len(values), free, scale, threshold, phis, values)
+    result = SingularSearch(params, bound, len(values), free_joint, scale, threshold, phis,
+                            values)
     zero = values <= threshold
     result.families = _cluster(phis[zero], values[zero])
     return result

@@ -1,15 +1,11 @@
 """Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map.
 
-A :class:`Sweep` holds one family's D and R as data; the figures and files are made a
-layer up (:func:`snake_pin.experiments.manipulability.write_sweep`). BLAS and OpenMP pools
-are limited to one thread while a sweep or a map runs: on (n + 2)-square matrices
-multi-threaded OpenBLAS costs far more than it gives when another core is busy
-(:doc:`/performance`).
+A :class:`Sweep` holds one family's D and R as data (figures and files: a layer up). BLAS
+runs on one thread meanwhile: on these small matrices more only cost (:doc:`/performance`).
 """
 
 from __future__ import annotations
 
-import math
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -17,11 +13,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ._json import json_safe
 from ._validation import brief, finite_number, flag, instance, integer
 from .exceptions import ParameterError, RunInterrupted
 from .gaits import Serpenoid, arc
 from .manipulability import free_joints, manipulability, manipulability_R_batch, task_split
 from .model import Snake
+from .paths import interval
 
 __all__ = ["FAMILIES", "MAX_POINTS", "RMap", "Sweep", "r_map", "sweep"]
 
@@ -45,18 +43,12 @@ class Sweep:
 
     Parameters
     ----------
-    family
-        One of :data:`FAMILIES`.
-    label
-        The swept parameter with its unit (e.g. ``"phi0 [rad]"``).
-    values
-        The parameter values (N,).
-    D, R
-        The criteria at each value (N,) (D~ and R~ with free joints).
-    free_joint
-        The free joint(s), or None.
-    robot
-        The robot's name.
+    family, label
+        One of :data:`FAMILIES`, and its parameter with its unit (e.g. ``"phi0 [rad]"``).
+    values, D, R
+        The parameter values and the criteria there, (N,) each (D~ and R~ with free joints).
+    free_joint, robot
+        The free joint(s) or None, and the robot's name.
     meta
         Extra settings written with the data (e.g. ``points_requested``).
     status
@@ -119,30 +111,15 @@ class Sweep:
         return {"family": self.family, "parameter": self.label, "robot": self.robot,
                 "free_joint": list(free) if isinstance(free, tuple) else free,
                 "status": self.status, "values": self.values.tolist(),
-                "D": _finite_or_none(self.D), "R": _finite_or_none(self.R), **self.meta}
+                "D": json_safe(self.D), "R": json_safe(self.R), **self.meta}
 
 
 def _family_configuration(family: str, n: int, value: float) -> np.ndarray:
+    """The posture of ``family`` at parameter ``value``."""
     if family == "arc":
         return arc(n, value)
-    if family == "alpha":
-        return Serpenoid(n, value, 1.5).configuration()
-    return Serpenoid(n, np.pi / 4, value).configuration()
-
-
-def _finite_or_none(values: np.ndarray) -> list[float | None]:
-    return [v if math.isfinite(v) else None for v in values.tolist()]
-
-
-def _bounds(bounds: object) -> tuple[float, float]:
-    """``bounds`` as (low, high), two finite numbers with low < high, or ParameterError."""
-    if isinstance(bounds, (str, bytes)) or not isinstance(bounds, (Sequence, np.ndarray)) \
-            or len(bounds) != 2:
-        raise ParameterError(f"bounds must be (low, high), got {brief(bounds)}")
-    low, high = (finite_number(value, "bounds") for value in bounds)
-    if not low < high:
-        raise ParameterError(f"bounds must have low < high, got ({low:g}, {high:g})")
-    return low, high
+    alpha, ts = (value, 1.5) if family == "alpha" else (np.pi / 4, value)
+    return Serpenoid(n, alpha, ts).configuration()
 
 
 def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None = None,
@@ -159,8 +136,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     free_joint
         Joint(s) without an actuator (D~ and R~ of eq. 42).
     points
-        Number of values, 2 .. :data:`MAX_POINTS`; 0 (the straight posture, singular) is
-        inserted when the range holds it strictly inside and the even grid misses it.
+        Number of values, 2 .. :data:`MAX_POINTS` (0, singular, is inserted if inside).
     bounds
         The parameter range (default: the family's range in :data:`FAMILIES`).
     progress
@@ -174,8 +150,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     Raises
     ------
     RunInterrupted
-        On Ctrl-C (or SIGTERM turned into KeyboardInterrupt): ``partial`` holds the
-        sweep of the values computed so far, with ``status == "interrupted"``.
+        On Ctrl-C or SIGTERM: ``partial`` holds the sweep so far (status "interrupted").
     ParameterError
         A bad argument, or free joints that leave the task no actuated joint.
     """
@@ -188,7 +163,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     task_split(snake.n, free_joint)  # validate before any output (progress bar)
     free = tuple(sorted(set(snake.params.passive) | set(free_joints(snake.n, free_joint))))
     label, default, _ = FAMILIES[family]
-    low, high = default if bounds is None else _bounds(bounds)
+    low, high = default if bounds is None else interval(bounds, "bounds")
     values = _with_zero(np.linspace(low, high, int(points)))
     requested, points = int(points), len(values)
     d, r = np.empty(points), np.empty(points)
@@ -217,8 +192,7 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
 
 
 def _with_zero(values: np.ndarray) -> np.ndarray:
-    """``values`` (ascending) with the value nearest 0 set to exactly 0 when it is 0 up to
-    rounding, or 0 inserted when the grid straddles 0 without it."""
+    """``values`` (ascending) with exactly 0 in it when they straddle 0."""
     if not values[0] < 0.0 < values[-1]:
         return values
     nearest = int(np.argmin(np.abs(values)))
@@ -234,10 +208,8 @@ class RMap:
 
     Parameters
     ----------
-    alpha, ts
-        The grid's axes.
-    R
-        R at every (T_s, alpha), shape (len(ts), len(alpha)).
+    alpha, ts, R
+        The grid's axes and R at every (T_s, alpha), shape (len(ts), len(alpha)).
     free_joint
         The free joint, or None.
     """
@@ -267,11 +239,6 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
     -------
     RMap
         R over the grid.
-
-    Raises
-    ------
-    ParameterError
-        A bad argument, or a free joint that leaves the task no actuated joint.
     """
     instance(snake, Snake, "snake")
     alpha_points = integer(alpha_points, "alpha_points", low=1, high=MAX_POINTS)

@@ -1,16 +1,12 @@
 """A run's result and its file format: :class:`Trajectory`, saved and loaded.
 
-A run's samples (times, states, held torques, signals), its status and reason, and the
-pair of files it is saved as (``PATH.npz`` arrays + ``PATH.json`` summary). Files are
-written whole or not at all (:func:`snake_pin._io.atomic_group`) and read with bounds:
-each array's .npy header is checked against :data:`MAX_ARRAY_BYTES` and
-:data:`MAX_TOTAL_BYTES` before any data is decompressed, nothing is unpickled, and
-anything malformed raises one :class:`~snake_pin.exceptions.TrajectoryFileError` line.
+Saved as ``PATH.npz`` (arrays) + ``PATH.json`` (summary), written whole or not at all;
+read with bounds checked on every .npy header before any data is decompressed, nothing
+unpickled, anything malformed one :class:`~snake_pin.exceptions.TrajectoryFileError` line.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import io
 import json
 import math
@@ -19,13 +15,14 @@ import re
 import reprlib
 import zipfile
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, is_dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ._io import atomic_group, open_regular_file
+from ._json import json_text
 from ._validation import mebibytes, one_line, printable_path
 from .exceptions import ConfigurationError, ParameterError, TrajectoryFileError
 from .params import SnakeParams
@@ -71,7 +68,7 @@ class Trajectory:
     params : SnakeParams
         The robot.
     signals : dict of str to numpy.ndarray, optional
-        Extra per-sample series (diagnostics, ...), N rows each; NaN where missing.
+        Extra per-sample series, N rows each; NaN where missing.
     diverged : bool, optional
         Whether the run stopped on a fault (status "diverged" or "failed").
     reason : str, optional
@@ -81,8 +78,7 @@ class Trajectory:
     summary : dict, optional
         Scalar results written to the JSON summary.
     status : str, optional
-        One of :data:`STATUSES`. Left empty, it follows ``diverged`` ("diverged" or
-        "completed"); given, it sets ``diverged``.
+        One of :data:`STATUSES` (sets ``diverged``); empty: from ``diverged``.
 
     Raises
     ------
@@ -122,11 +118,10 @@ class Trajectory:
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike[str]) -> tuple[Path, Path]:
-        """Write ``PATH.npz`` (arrays) and ``PATH.json`` (summary) as one set.
+        """Write ``PATH.npz`` (arrays) and ``PATH.json`` (RFC 8259 summary) as one set.
 
         Only a trailing ``.npz`` or ``.json`` is dropped from the name (``run.v2`` ->
-        ``run.v2.npz`` + ``run.v2.json``); both files are renamed into place together. The
-        summary is RFC 8259 JSON (non-finite numbers as null).
+        ``run.v2.npz`` + ``run.v2.json``).
 
         Parameters
         ----------
@@ -141,7 +136,7 @@ class Trajectory:
         Raises
         ------
         ParameterError
-            The folder does not exist, the name is empty, or meta/summary are not JSON.
+            No such folder, or meta/summary are not JSON.
         ConfigurationError
             The arrays are not a trajectory that :meth:`load` would accept.
         """
@@ -152,9 +147,12 @@ class Trajectory:
         header = {"params": self.params.to_dict(), "status": self.status,
                   "diverged": self.diverged, "reason": self.reason, "meta": self.meta,
                   "summary": self.summary, "signals": sorted(self.signals)}
-        header_text = _to_json(header, "the trajectory's meta/summary", strict=False)
-        summary_text = _to_json(self.summary_dict(), "the trajectory's summary", strict=True)
-        arrays["header"] = np.array(header_text)
+        try:  # the header keeps NaN (read back as is), the summary file writes null
+            arrays["header"] = np.array(json.dumps(header, default=_json_default))
+            summary_text = json_text(self.summary_dict(), indent=2)
+        except (TypeError, ValueError, RecursionError) as exc:
+            raise ParameterError(f"the trajectory's meta/summary is not JSON: "
+                                 f"{one_line(str(exc), 120)}") from None
         with atomic_group(npz.parent) as group:
             group.save(npz.name, lambda handle: np.savez_compressed(
                 handle, allow_pickle=True, **arrays))
@@ -183,8 +181,7 @@ class Trajectory:
         Returns
         -------
         dict
-            ``robot``, ``n``, ``t_end`` [s], ``status``, ``diverged`` and ``reason``,
-            then the entries of :attr:`summary`.
+            ``robot``, ``n``, ``t_end``, ``status``, ``diverged``, ``reason``, then :attr:`summary`.
         """
         return {"robot": self.params.name, "n": self.params.n, "t_end": self.t_end,
                 "status": self.status, "diverged": self.diverged, "reason": self.reason,
@@ -205,12 +202,8 @@ class Trajectory:
         Raises
         ------
         TrajectoryFileError
-            One line naming the file: missing, not a regular file (a FIFO is refused
-            unopened), larger than twice :data:`MAX_TOTAL_BYTES` (refused unread), not a
-            trajectory, truncated, corrupt, inconsistent, non-finite, or declaring arrays
-            beyond :data:`MAX_ARRAY_BYTES` (each) or :data:`MAX_TOTAL_BYTES` (together).
-        ParameterError
-            ``signals`` is not True, False or names.
+            One line naming the file: missing, not a regular file, not a trajectory,
+            corrupt, inconsistent, or beyond :data:`MAX_ARRAY_BYTES` or :data:`MAX_TOTAL_BYTES`.
         """
         wanted = _wanted_signals(signals)
         file = _resolve(path)
@@ -241,11 +234,7 @@ def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
         given = Path(path)
     except TypeError as exc:
         raise ParameterError(f"not a file path: {reprlib.repr(path)}") from exc
-    name = given.name
-    for suffix in (".npz", ".json"):
-        if name.endswith(suffix):
-            name = name[: -len(suffix)]
-            break
+    name = re.sub(r"\.(npz|json)\Z", "", given.name)
     if name in ("", ".", ".."):
         raise ParameterError(f"trajectory file name is empty: {printable_path(path)}")
     return given.with_name(name + ".npz"), given.with_name(name + ".json")
@@ -267,14 +256,10 @@ def _resolve(path: str | os.PathLike[str]) -> Path:
             if alternative.is_file():
                 return alternative
     except (OSError, ValueError) as exc:
+        reason = (exc.strerror if isinstance(exc, OSError) else None) or str(exc)
         raise TrajectoryFileError(f"cannot open {printable_path(given)}: "
-                                  f"{one_line(_reason(exc))}") from None
+                                  f"{one_line(reason)}") from None
     raise TrajectoryFileError(f"no trajectory file at {printable_path(given)}")
-
-
-def _reason(exc: OSError | ValueError) -> str:
-    """An error's own words: an OSError's strerror when it has one, else its text."""
-    return (exc.strerror if isinstance(exc, OSError) else None) or str(exc)
 
 
 def _wanted_signals(signals: object) -> frozenset[str] | None:
@@ -379,10 +364,7 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
 
 def _inspect(archive: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
              kinds: str) -> _Member:
-    """Read one member's .npy header only, and refuse what the loader would not accept.
-
-    ``kinds`` is "f8" (float64), "U" (a string) or "biuf" (any real numbers).
-    """
+    """Read one member's .npy header only, refusing what is not of ``kinds`` ("f8", "U", "biuf")."""
     with archive.open(info) as stream:
         shape, fortran, dtype = _npy_header(stream, label)
     dtype = np.dtype(dtype)
@@ -494,32 +476,10 @@ def _array_problem(core: Mapping[str, np.ndarray], signals: Mapping[str, np.ndar
     return ""
 
 
-def _to_json(value: object, what: str, *, strict: bool) -> str:
-    """``value`` as JSON text; ``strict`` writes non-finite numbers as null (RFC 8259)."""
-    try:
-        text = json.dumps(value, default=_json_default)
-        if strict:
-            text = json.dumps(_finite(json.loads(text)), indent=2, allow_nan=False)
-    except (TypeError, ValueError, RecursionError) as exc:
-        raise ParameterError(f"{what} is not JSON: {one_line(str(exc), 120)}") from None
-    return text
-
-
-def _finite(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_finite(v) for v in value]
-    return value
-
-
 def _json_default(value: object) -> object:
-    if isinstance(value, np.ndarray):
+    """NumPy values and dataclasses as JSON data, NaN kept (the header's encoder)."""
+    if isinstance(value, (np.ndarray, np.generic)):
         return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return dataclasses.asdict(value)
+    if is_dataclass(value) and not isinstance(value, type):
+        return asdict(value)
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
