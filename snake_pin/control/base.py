@@ -10,16 +10,20 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from .._validation import brief, instance, integer
-from ..exceptions import ConfigurationError, ParameterError
+from ..exceptions import ParameterError
 from ..gaits import Serpenoid
+from ..model import Snake
+from ._options import merged
 from .reference import LinearReference
 
 __all__ = ["Controller", "OpenLoop", "ReferenceLaw"]
+
+T = TypeVar("T")
 
 #: Time-only terms are computed for this many coming calls at once (see TimeTerms).
 _BLOCK = 1024
@@ -28,42 +32,17 @@ _BLOCK = 1024
 def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
     """``gait`` (``default`` for None), checked to be a serpenoid for n links (ParameterError)."""
     n = integer(n, "n", low=2)
-    _check_gait(default, "default")
-    chosen = default if gait is None else _check_gait(gait, "gait")
+    instance(default, Serpenoid, "default")
+    chosen = default if gait is None else instance(gait, Serpenoid, "gait")
     if chosen.n != n:
         raise ParameterError(f"gait is for {chosen.n} links, the robot has {n}")
     return chosen
 
 
-def _check_gait(value: object, name: str) -> Serpenoid:
-    """``value`` if it is a :class:`~snake_pin.gaits.Serpenoid`, else ParameterError."""
-    return instance(value, Serpenoid, name)
-
-
-def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: Serpenoid,
-                   times: np.ndarray) -> np.ndarray:
-    """One row ``[w_r, phi_r, w_r', phi_r', w_r'', phi_r'']`` (3 (n + 2) values) per time.
-
-    A :class:`LinearReference` and the serpenoid are evaluated for all times at once;
-    any other reference once per time. Arguments checked (ParameterError, ConfigurationError).
-    """
-    ReferenceLaw.checked_reference(reference)
-    _check_gait(gait, "gait")
-    try:
-        checked = np.asarray(times, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"times must be a vector of numbers, got {brief(times)}") \
-            from exc
-    if isinstance(times, (bool, np.bool_)) or checked.ndim != 1 \
-            or not np.all(np.isfinite(checked)):
-        raise ConfigurationError(f"times must be a vector of finite numbers, "
-                                 f"got {brief(times)}")
-    return _reference_rows(reference, gait, checked)
-
-
 def _reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: Serpenoid,
                     times: np.ndarray) -> np.ndarray:
-    """:func:`reference_rows` of checked arguments (the laws' time terms: a hot path)."""
+    """One row ``[w_r, phi_r, w_r', phi_r', w_r'', phi_r'']`` per time (a LinearReference and
+    the serpenoid evaluated for all times at once)."""
     column = np.asarray(times, dtype=float)[:, None]
     if isinstance(reference, LinearReference):
         w_r, dw_r, ddw_r = (np.broadcast_to(part, (len(column), 3))
@@ -197,11 +176,11 @@ class OpenLoop(Controller):
 class ReferenceLaw(Controller):
     """Base of the laws that follow a head reference with a serpenoid gait.
 
-    A subclass sets ``reference``, ``gait``, ``_law_time`` (the map from the reference rows
-    of :func:`reference_rows` to its time-only terms) and ``_time_row`` (a
-    :class:`TimeTerms` of :meth:`_time_terms`). Its buffers, if any, live in
-    ``_buffers``, made by :meth:`_allocate` once and again on unpickling (views do not
-    survive pickling); the last call's q'' and signals stay with the original.
+    A subclass sets ``_law_time`` (the map from the rows of reference terms to its
+    time-only terms) and ``_time_row`` (a :class:`TimeTerms` of :meth:`_time_terms`). Its
+    buffers, if any, are made by :meth:`_allocate` once and again on unpickling (views do
+    not survive pickling), and unpacked by ``__call__`` as one tuple (cheaper than a lookup
+    per name); the last call's q'' and signals stay with the original.
     """
 
     reference: Any
@@ -209,6 +188,24 @@ class ReferenceLaw(Controller):
     _time_row: TimeTerms
     _law_time: np.ndarray
     _buffers: Any = None
+    _acceleration: np.ndarray | None
+    _signals: dict[str, float]
+
+    def _bind(self, snake: Snake, reference: Any, gait: Serpenoid | None,
+              default_gait: tuple[float, float, float], options_type: type[T], options: Any,
+              overrides: dict[str, object], default_reference: Callable[[], Any]) -> T:
+        """Keep ``snake``, ``reference`` and ``gait`` (defaults for None) and return the options
+        merged with ``overrides``; ParameterError for a bad one or a robot with no motor."""
+        if not instance(snake, Snake, "snake").params.actuated:
+            raise ParameterError("every joint is passive: there is nothing to control")
+        self.snake = snake
+        self.reference = (default_reference() if reference is None
+                          else self.checked_reference(reference))
+        self.gait = gait_for(snake.n, gait, Serpenoid(snake.n, *default_gait))
+        self._acceleration = None  # the last call's q'' (None: failed)
+        self._signals = {}
+        self._time_row = TimeTerms(self._time_terms)
+        return merged(options_type, options, overrides)
 
     @staticmethod
     def checked_reference(value: object, name: str = "reference") -> Any:
@@ -235,6 +232,31 @@ class ReferenceLaw(Controller):
             raise ParameterError(f"{name} must be a head reference (a callable of time), "
                                  f"got {brief(value)}")
         return value
+
+    def plant_acceleration(self, snake: object) -> np.ndarray | None:
+        """``q''`` of the last call (the law's own buffer), if ``snake`` is its robot.
+
+        Parameters
+        ----------
+        snake : object
+            The plant being simulated.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``q''`` (length n + 2), or None for another plant or before a call.
+        """
+        return self._acceleration if snake is self.snake else None
+
+    def signals(self) -> dict[str, float]:
+        """Diagnostics of the last call (the law's class docstring names them).
+
+        Returns
+        -------
+        dict of str to float
+            Signal name to value at the last call.
+        """
+        return self._signals
 
     def prepare(self, times: np.ndarray) -> None:
         """Compute the references' terms for the coming calls in blocks.
@@ -264,6 +286,6 @@ class ReferenceLaw(Controller):
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Unpickled (or copied): the buffers are made again."""
         self.__dict__.update(state)
-        self._acceleration: np.ndarray | None = None
-        self._signals: dict[str, float] = {}
+        self._acceleration = None
+        self._signals = {}
         self._buffers = self._allocate()

@@ -25,11 +25,14 @@ from .._validation import brief, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..model import Snake
 from ..paths import Line, Path, PathReference
+from ._options import merged
 from .base import Controller
 
 __all__ = ["LOSController", "LOSParams"]
 
 _STEERING = ("cascaded", "pd")
+_POSITIVE = ("omega", "look_ahead", "lambda1", "lambda2", "v_min", "phi0_max", "phi0_rate",
+             "ref_period", "offset_period", "k_joint_p", "k_joint_d", "k_theta")
 #: The fields only one steering law reads: a value other than the default given with the
 #: other law would have no effect, so it is refused.
 _ONLY_FOR = {"cascaded": ("k_theta", "lambda1", "lambda2", "v_min"), "pd": ("k_p", "k_d")}
@@ -96,23 +99,11 @@ class LOSParams:
     k_joint_d: float = 20.0
 
     def __post_init__(self) -> None:
-        positive = ("omega", "look_ahead", "lambda1", "lambda2", "v_min", "phi0_max", "phi0_rate",
-                    "ref_period", "offset_period", "k_joint_p", "k_joint_d", "k_theta")
         for f in fields(self):
-            if f.name == "steering":
-                continue
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating,
-                                                                 np.integer)):
-                raise ParameterError(f"LOS parameter {f.name} must be a number, got {value!r}")
-            value = float(value)
-            if not math.isfinite(value):
-                raise ParameterError(f"LOS parameter {f.name} must be finite, got {value}")
-            if f.name in positive and value <= 0.0:
-                raise ParameterError(f"LOS parameter {f.name} must be positive, got {value}")
-            if value < 0.0 and f.name in ("alpha", "k_p", "k_d"):
-                raise ParameterError(f"LOS parameter {f.name} must be non-negative, got {value}")
-            object.__setattr__(self, f.name, value)
+            if f.name != "steering":
+                object.__setattr__(self, f.name, finite_number(
+                    getattr(self, f.name), f"LOS parameter {f.name}",
+                    positive=f.name in _POSITIVE, non_negative=f.name in ("alpha", "k_p", "k_d")))
         if not isinstance(self.steering, str) or self.steering not in _STEERING:
             raise ParameterError(f"LOS parameter steering must be one of {', '.join(_STEERING)}, "
                                  f"got {brief(self.steering)}")
@@ -241,16 +232,8 @@ class LOSController(Controller):
                  params: LOSParams | None = None, **overrides: object) -> None:
         if not instance(snake, Snake, "snake").params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
-        base = LOSParams() if params is None else params
-        if not isinstance(base, LOSParams):
-            raise ParameterError(f"params must be LOSParams, got {brief(base)}")
-        known = {f.name for f in fields(LOSParams)}
-        for key in overrides:
-            if key not in known:
-                raise ParameterError(f"unknown LOS parameter {key!r} "
-                                     f"(expected one of {', '.join(sorted(known))})")
-        self.params = LOSParams(**{**{f.name: getattr(base, f.name)
-                                      for f in fields(LOSParams)}, **overrides})
+        self.params = merged(LOSParams, params, overrides, argument="params",
+                             field_word="LOS parameter")
         if path is None:
             path = Line()
         if isinstance(path, PathReference):

@@ -22,8 +22,8 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..params import SnakeParams
-from ._options import check_fields, merged, option, tracking_gain
-from .base import ReferenceLaw, TimeTerms, gait_for
+from ._options import check_fields, option, tracking_gain
+from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
 
@@ -123,20 +123,16 @@ class QuasiStaticLyapunovController(ReferenceLaw):
                  gait: Serpenoid | None = None, options: QuasiStaticOptions | None = None,
                  **overrides: object) -> None:
         params = instance(snake, Snake, "snake").params
-        n = params.n
-        if not params.actuated:
-            raise ParameterError("every joint is passive: there is nothing to control")
         for key in ("c_x", "c_y"):
             # friction must dominate inertia on every link for the force balance to hold
             for i in np.flatnonzero(params.per_link(key) <= 0):
                 where = "" if not isinstance(getattr(params, key), tuple) else f"link {i + 1}: "
                 raise ParameterError(f"{where}the quasi-static connection needs c_x > 0 and "
                                      f"c_y > 0 on every link, got {key} = 0")
-        self.snake = snake
-        self.reference = (head_first_reference() if reference is None
-                          else self.checked_reference(reference))
-        self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
-        self.options = opts = merged(QuasiStaticOptions, options, overrides)
+        self.options = opts = self._bind(snake, reference, gait, (np.pi / 6, 1.5, 2.0),
+                                         QuasiStaticOptions, options, overrides,
+                                         head_first_reference)
+        n = params.n
         self.k_w1 = gain_matrix(opts.k_w1, 3, "K_w1")
         k_w2_d = np.diag(gain_matrix(opts.k_w2, 3, "K_w2"))
         k_phi_d = np.diag(gain_matrix(default_k_phi(n - 1) if opts.k_phi is None
@@ -145,15 +141,12 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self._a = np.array([2 + k for k in params.actuated])
         self._w_u = np.r_[k_w2_d, k_phi_d[self._u[3:] - 3]]
         self._w_a = k_phi_d[self._a - 3]
-        omega = finite_number(opts.servo_bandwidth, "servo_bandwidth", positive=True)
-        self.k_p, self.k_d = servo_gains(params, omega)
+        self.k_p, self.k_d = servo_gains(params, opts.servo_bandwidth)
         self._k_p_a, self._k_d_a = self.k_p[self._a - 3], self.k_d[self._a - 3]
-        self.max_lead = finite_number(opts.max_lead, "max_lead", positive=True)
-        self.dt = finite_number(opts.control_dt, "control_dt", positive=True)
+        self.max_lead, self.dt = opts.max_lead, opts.control_dt
         self._reference_a: np.ndarray | None = None
         self._last: tuple[np.ndarray, ...] | None = None
         self._build_law()
-        self._time_row = TimeTerms(self._time_terms)
 
     def _build_law(self) -> None:
         """Constant arrays of the hot path (friction twin, gathers, weights, time map)."""
