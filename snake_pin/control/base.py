@@ -1,9 +1,7 @@
-"""The controller family's interface: ``controller(x, t) -> tau``.
+"""The controller family's interface ``controller(x, t) -> tau`` and the laws' shared parts.
 
-``x = [q, dq]`` is the full state (length 2(n + 2)) in paper coordinates and ``tau`` the
-n - 1 joint torques (entries of passive joints are ignored by the plant and set to zero
-by well-behaved controllers). Controllers may expose per-step diagnostic ``signals``
-(e.g. R, V) which :func:`snake_pin.sim.simulate` records beside the state.
+``x = [q, dq]`` is the state in paper coordinates, ``tau`` the n - 1 joint torques (zero
+on passive joints); per-step ``signals`` (e.g. R, V) are recorded beside the state.
 """
 
 from __future__ import annotations
@@ -55,11 +53,8 @@ def _reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: 
 
 
 class TimeTerms:
-    """A controller's time-only terms ``rows(times)``, served one time at a time.
-
-    After :meth:`prepare` the rows of the announced times are computed in vectorised blocks
-    of 1024; a call at any other time computes its row alone, with the same values.
-    """
+    """A controller's time-only terms ``rows(times)``, served one time at a time: the
+    announced times' (:meth:`prepare`) in vectorised blocks, any other alone."""
 
     def __init__(self, rows: Callable[[np.ndarray], np.ndarray]) -> None:
         if not callable(rows):
@@ -73,8 +68,8 @@ class TimeTerms:
         self._start = 0  # where the next block starts
         self._next = float(self._times[0]) if len(self._times) else None
         self._rows_left: list[np.ndarray] = []
-        # the announced times after the current one, up to the next block's first, as
-        # floats popped from the end (cheaper to read one by one than the array)
+        # the announced times up to the next block's, popped from the end (cheaper than
+        # reading the array)
         self._times_left: list[float] = []
 
     def __call__(self, t: float) -> np.ndarray:
@@ -103,10 +98,8 @@ class Controller(abc.ABC):
         """Forget internal state (filters, integrators) before a new run."""
 
     def prepare(self, times: np.ndarray) -> None:  # noqa: B027 - optional hook
-        """Learn the times of the coming calls, in order (a run's sampling instants).
-
-        Called after :meth:`reset`; a controller may precompute what depends on time only,
-        but its output must not depend on whether this was called. Empty by default.
+        """Learn the times of the coming calls, in order (after :meth:`reset`); the output
+        must not depend on whether this was called. Empty by default.
 
         Parameters
         ----------
@@ -129,10 +122,8 @@ class Controller(abc.ABC):
         return {}
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """q'' of ``snake`` at the state of the last call under the torque it returned.
-
-        A controller that evaluated exactly that with ``snake``'s own dynamics returns it
-        (read before the next call, not modified): the simulator's first RK4 stage.
+        """q'' of ``snake`` at the last call's state under its torque, if the controller
+        evaluated exactly that (the simulator's first RK4 stage), else None.
 
         Parameters
         ----------

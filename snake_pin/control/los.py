@@ -1,15 +1,10 @@
 """Line-of-sight (LOS) path following of the centre of mass: the field's baseline law.
 
-After Liljebäck, Pettersen, Stavdahl and Gravdahl, *Snake Robots: Modelling,
-Mechatronics, and Control* (Springer, 2013) and Liljebäck, Haugstuen and Pettersen, "Path
-following control of planar snake robots using a cascaded approach" (IEEE TCST 20(1),
-2012), re-derived in this package's conventions. It steers the centre of mass (CM) onto a
-path at the gait's speed (no head trajectory): a serpenoid gait with a steering offset
-phi_0, LOS guidance, heading control (``steering = "cascaded"`` or ``"pd"``) and joint
-control by collocated partial feedback linearisation. The law, its defaults
-(:class:`LOSParams`, for the Table 1 robot with c_y = 25 N s/m) and its signals per step
-(``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``):
-:ref:`derivation-los`. States are ``x = [q, dq]``.
+After Liljebäck et al. (*Snake Robots*, Springer 2013; IEEE TCST 20(1), 2012), in this
+package's conventions: a serpenoid gait with a steering offset phi_0, LOS guidance,
+heading control (``steering = "cascaded"`` or ``"pd"``) and joint control by collocated
+partial feedback linearisation. The law, its defaults and its signals:
+:ref:`derivation-los`.
 """
 
 from __future__ import annotations
@@ -42,11 +37,12 @@ _ONLY_FOR = {"cascaded": ("k_theta", "lambda1", "lambda2", "v_min"), "pd": ("k_p
 class LOSParams:
     """Parameters of :class:`LOSController` (validated; one ParameterError line each).
 
+    The fields only one steering law reads keep their defaults under the other.
+
     Parameters
     ----------
     alpha, omega, delta : float, optional
-        Gait amplitude [rad] (>= 0), temporal frequency [rad/s] (> 0), phase lag between
-        joints [rad].
+        Gait amplitude [rad] (>= 0), frequency [rad/s] (> 0), phase lag between joints [rad].
     look_ahead : float, optional
         LOS look-ahead distance Delta [m] (> 0).
     steering : {"cascaded", "pd"}, optional
@@ -56,27 +52,22 @@ class LOSParams:
     lambda1, lambda2 : float, optional
         Turning constants of the averaged model [1/s], [1/(m s)] (cascaded law; > 0).
     v_min : float, optional
-        Floor of the (averaged) forward speed in the cascaded law [m/s] (> 0).
+        Floor of the averaged forward speed in the cascaded law [m/s] (> 0).
     k_p, k_d : float, optional
-        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0). Each steering law's
-        own fields (k_theta, lambda1, lambda2, v_min for "cascaded"; k_p, k_d for "pd")
-        must keep their defaults under the other law, which would ignore them.
+        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0).
     phi0_max, phi0_rate : float, optional
-        Saturation of the joint offset [rad] and of its rate of change [rad/s] (> 0).
+        Saturation of the joint offset [rad] and of its rate [rad/s] (> 0).
     ref_period, offset_period : float, optional
-        Periods ``2 pi / omega_c`` of the reference filters on theta_ref and phi_0 [s]
-        (> 0).
+        Periods ``2 pi / omega_c`` of the filters on theta_ref and phi_0 [s] (> 0).
     speed_period : float, optional
-        Period of the filter averaging v_t over the gait [s]; 0: one gait period
-        ``2 pi / omega``.
+        Period of the filter averaging v_t [s]; 0: one gait period ``2 pi / omega``.
     k_joint_p, k_joint_d : float, optional
-        Joint gains of the feedback-linearised joint law [1/s^2], [1/s] (> 0).
+        Gains of the feedback-linearised joint law [1/s^2], [1/s] (> 0).
 
     Raises
     ------
     ParameterError
-        If a value is not a finite number, is out of its range, ``steering`` is
-        unknown, or a field of the other steering law differs from its default.
+        A value out of its domain, an unknown ``steering``, or the other law's field set.
     """
 
     alpha: float = 0.5
@@ -132,19 +123,15 @@ def _los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
 
 
 def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """``(p_cm, v_cm, psi, psi')``: the CM's position and velocity and the mean heading of travel.
-
-    ``psi = mean(theta_i) + pi`` (theta_i points head to tail) is continuous in time. The
-    arguments are checked (ParameterError, ConfigurationError).
-    """
+    """``(p_cm, v_cm, psi, psi')``: the CM's position and velocity and the mean heading of
+    travel ``psi = mean(theta_i) + pi``; ParameterError, ConfigurationError for bad input."""
     x = instance(snake, Snake, "snake").check_state(x)
     return _kinematics(_cm_lever(snake), snake.nq, x)
 
 
 def _cm_lever(snake: Snake) -> np.ndarray:
-    """a_k with p_cm = p_head + sum_k a_k [cos theta_k, sin theta_k]: weighting each link's CM
-    (head + sum_{k < i} L_k e_k + c_i e_i) by w_i = m_i / M gives
-    a_k = w_k c_k + L_k sum_{i > k} w_i."""
+    """a_k with p_cm = p_head + sum_k a_k [cos theta_k, sin theta_k]:
+    a_k = w_k c_k + L_k sum_{i > k} w_i, w_i = m_i / M."""
     params = snake.params
     weights = params.masses / params.masses.sum()
     behind = weights[::-1].cumsum()[::-1] - weights  # sum of w_i over i > k
@@ -153,6 +140,7 @@ def _cm_lever(snake: Snake) -> np.ndarray:
 
 def _kinematics(lever: np.ndarray, nq: int, x: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """:func:`body_kinematics` of checked arguments."""
     theta = np.cumsum(x[2:nq])  # theta_1, theta_1 + phi_1, ...
     dtheta = np.cumsum(x[nq + 2:])
     c, s = np.cos(theta), np.sin(theta)
@@ -164,10 +152,8 @@ def _kinematics(lever: np.ndarray, nq: int, x: np.ndarray
 
 
 class ReferenceFilter:
-    """Third-order low-pass reference filter giving a signal and its two derivatives.
-
-    ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2))``,
-    ``omega_c = 2 pi / period`` (``period``, ``zeta`` > 0, else ParameterError).
+    """Third-order low-pass ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s +
+    omega_c^2))``, ``omega_c = 2 pi / period``, giving y, y', y'' (ParameterError if not > 0).
     """
 
     def __init__(self, period: float, zeta: float = 1.0) -> None:
@@ -188,10 +174,8 @@ class ReferenceFilter:
         self.state = None if value is None else np.array([value, 0.0, 0.0])
 
     def update(self, r: float, dt: float) -> np.ndarray:
-        """``[y, y', y'']`` (a fresh array) after ``dt`` [s] with the input ``r`` held over it.
-
-        Exact (matrix exponential, cached per step length); ``dt = 0`` returns the current state.
-        """
+        """``[y, y', y'']`` (a fresh array) after ``dt`` [s] with ``r`` held: exact (a matrix
+        exponential cached per step length)."""
         if self.state is None:
             self.state = np.array([r, 0.0, 0.0])
             return self.state.copy()
@@ -211,12 +195,11 @@ class LOSController(Controller):
     Parameters
     ----------
     snake : Snake
-        The plant (passive joints get no torque; the gait still asks them to move).
+        The plant (passive joints get no torque).
     path : Path or PathReference or None, optional
-        The CM's path (a PathReference's timing is ignored: the gait sets the speed);
-        default the x axis.
+        The CM's path (a PathReference's timing is ignored); default the x axis.
     params : LOSParams or None, optional
-        :class:`LOSParams`; keyword overrides may be given instead or on top.
+        :class:`LOSParams` (default ``LOSParams()``).
     **overrides
         Fields of :class:`LOSParams` to change (e.g. ``look_ahead=1.2``).
 
@@ -267,7 +250,6 @@ class LOSController(Controller):
         self._last: dict[str, float] = {}
         self._gait: tuple[float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
-    # ---------------------------------------------------------------- the law
     def gait(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the undulation without offset at time t.
 
@@ -279,8 +261,7 @@ class LOSController(Controller):
         Returns
         -------
         phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
-            ``alpha sin(omega t - (i - 1) delta)`` [rad] and its first two time
-            derivatives; read-only (kept for the next call at the same time).
+            ``alpha sin(omega t - (i - 1) delta)`` [rad] and its two derivatives (read-only).
         """
         if self._gait is not None and self._gait[0] == t:  # asked twice per step
             return self._gait[1]
@@ -294,10 +275,7 @@ class LOSController(Controller):
         return gait
 
     def guidance(self, x: np.ndarray) -> dict[str, float]:
-        """Return the LOS quantities at state x.
-
-        Tracks the CM's closest path point from the previous call's (a global search on
-        the first call after :meth:`reset`).
+        """Return the LOS quantities at state x (the CM's closest path point tracked).
 
         Parameters
         ----------
@@ -307,9 +285,8 @@ class LOSController(Controller):
         Returns
         -------
         dict of str to float
-            ``e_ct`` (CM cross-track error [m]), ``s_cm`` (arc length of its closest path
-            point [m]), ``theta_los`` [rad], ``theta_avg`` (psi [rad]), ``dtheta_avg``
-            [rad/s] and ``v_t`` (CM speed along psi [m/s]).
+            ``e_ct``, ``s_cm``, ``theta_los``, ``theta_avg`` (psi), ``dtheta_avg``, ``v_t``
+            (:ref:`derivation-los`).
         """
         p_cm, v_cm, psi, dpsi = _kinematics(self._lever, self.snake.nq, x)
         path = self.path
@@ -333,8 +310,7 @@ class LOSController(Controller):
         t : float
             Time [s].
         g : dict of str to float
-            :meth:`guidance`'s quantities plus ``v_avg``, the averaged forward speed
-            [m/s].
+            :meth:`guidance`'s quantities plus ``v_avg``, the averaged forward speed [m/s].
         ref : numpy.ndarray, shape (3,)
             Filtered ``[theta_ref, theta_ref', theta_ref'']``.
 
@@ -367,13 +343,12 @@ class LOSController(Controller):
         Returns
         -------
         numpy.ndarray, shape (n - 1,)
-            Joint torques tau [N m] (zero on passive joints); the plant's q'' under them
-            is kept for :meth:`plant_acceleration`.
+            Joint torques tau [N m] (zero on passive joints); q'' under them is kept.
 
         Raises
         ------
         SingularPostureError
-            If ``H_uu`` is not positive definite (LAPACK's Cholesky fails).
+            If ``H_uu`` is not positive definite.
         """
         snake, nq, p = self.snake, self.snake.nq, self.params
         v = ddphi_r + p.k_joint_d * (dphi_r - x[nq + 3:]) + p.k_joint_p * (phi_r - x[3:nq])
@@ -416,13 +391,12 @@ class LOSController(Controller):
         return tau
 
     def signals(self) -> dict[str, float]:
-        """Return the diagnostics of the last call, recorded by the simulator.
+        """Return the diagnostics of the last call (:ref:`derivation-los`; empty before one).
 
         Returns
         -------
         dict of str to float
-            ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg`` and
-            ``s_cm`` (:ref:`derivation-los`); empty before the first call.
+            ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``.
         """
         return self._last
 
@@ -437,6 +411,6 @@ class LOSController(Controller):
         Returns
         -------
         numpy.ndarray of shape (n + 2,) or None
-            The acceleration at the last call's state, or None for another plant.
+            q'' at the last call's state, or None for another plant.
         """
         return self._ddq if snake is self.snake else None

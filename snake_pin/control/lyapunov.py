@@ -1,20 +1,14 @@
-"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here.
+"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (erratum 5).
 
-The paper's reference [27] for this law is not available; only V (83) and the gains (84)
-are. The law takes the actuated torques whose accelerations come closest, in the
+The law takes the actuated torques whose accelerations come closest, in the
 ``W = blockdiag(K_w2, K_phi)`` norm, to making ``s = e_w' + K_w1 e_w`` decay at rate lam
-and the joints follow the gait (a weighted least squares, by Cholesky), so V decreases
-where the underactuation allows; a passive joint is a dropped column of E. Derivation,
-gains and evaluation: :ref:`derivation-lyapunov`.
-
-Convention: in the paper's coordinates (3) theta_1 points from the head towards the
-tail, so a head-first run along +x has theta_1 = pi; see
-:func:`~snake_pin.control.reference.head_first_reference`.
+and the joints follow the gait, so V decreases where the underactuation allows; a passive
+joint is a dropped column of E (:ref:`derivation-lyapunov`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -39,9 +33,8 @@ K_SHAPE_PASSIVE = 0.3
 
 @dataclass(frozen=True)
 class LyapunovOptions:
-    """Options of :class:`LyapunovController` (validated; one ParameterError line each).
-
-    Gains are scalars (times identity), diagonals or symmetric matrices.
+    """Options of :class:`LyapunovController` (validated; gains are scalars, diagonals or
+    matrices).
 
     Parameters
     ----------
@@ -96,11 +89,10 @@ class LyapunovOptions:
         k_phi = self.k_phi
         if k_phi is None and joints is not None:
             k_phi = tuple(default_k_phi(joints))
-        return LyapunovOptions(
-            k_w1=self.k_w1, k_w2=self.k_w2, k_phi=k_phi, lam=self.lam,
-            lam_shape=self.lam / 2 if self.lam_shape is None else self.lam_shape,
-            k_shape=(K_SHAPE_PASSIVE if passive else 0.0) if self.k_shape is None
-            else self.k_shape)
+        return replace(self, k_phi=k_phi,
+                       lam_shape=self.lam / 2 if self.lam_shape is None else self.lam_shape,
+                       k_shape=(K_SHAPE_PASSIVE if passive else 0.0) if self.k_shape is None
+                       else self.k_shape)
 
 
 class LyapunovController(ReferenceLaw):
@@ -109,7 +101,7 @@ class LyapunovController(ReferenceLaw):
     Parameters
     ----------
     snake
-        The plant; its passive joints get no torque (their columns of E are dropped).
+        The plant; its passive joints get no torque.
     reference
         Head reference; default :func:`~snake_pin.control.reference.head_first_reference`.
     gait
@@ -117,14 +109,12 @@ class LyapunovController(ReferenceLaw):
     options
         :class:`LyapunovOptions`; default ``LyapunovOptions()``.
     **overrides
-        Fields of :class:`LyapunovOptions` to change; the result, resolved for the robot
-        (:meth:`LyapunovOptions.resolved`), is ``self.options``.
+        Fields of :class:`LyapunovOptions` to change (the result, resolved: ``self.options``).
 
     Raises
     ------
     ParameterError
-        A bad robot (every joint passive), reference, gait, ``options``, override, gain
-        or rate.
+        A bad robot (no motor), reference, gait, options, override or gain.
     """
 
     name = "lyapunov"

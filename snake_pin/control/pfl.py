@@ -1,10 +1,7 @@
 """Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected.
 
-Eq. (70) is misprinted (+Hs a drives the head against the command); the law is derived
-again from (27): ``tau = H22 H12^+ (-Hs a - h1 + H12 H22^-1 h2) + H22 (I - H12^+ H12) kappa``
-with a of (71) and kappa of (75, 78), needing R > 0. ``climb_R`` adds a damped gradient
-flow up log R in the null space of H12. Derivation and evaluation:
-:ref:`derivation-pfl`.
+The law derived again from (27) (eq. 70 is misprinted), needing R > 0; ``climb_R`` adds a
+damped gradient flow up log R in the null space of H12 (:ref:`derivation-pfl`).
 """
 
 from __future__ import annotations
@@ -38,9 +35,7 @@ CLIMB_DAMPING = 2.0
 
 @dataclass(frozen=True)
 class PFLOptions:
-    """Options of :class:`PFLController` (validated; one ParameterError line each).
-
-    Gains are scalars (times identity), diagonals or symmetric matrices.
+    """Options of :class:`PFLController` (validated; gains are scalars, diagonals or matrices).
 
     Parameters
     ----------
@@ -100,8 +95,7 @@ class PFLController(ReferenceLaw):
     Raises
     ------
     ParameterError
-        A bad robot (a passive joint, n < 4), reference, gait, ``options``, override or
-        gain.
+        A bad robot (a passive joint, n < 4), reference, gait, options, override or gain.
     """
 
     name = "pfl"
@@ -211,7 +205,7 @@ class PFLController(ReferenceLaw):
         return tau.copy()
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
-        """The head acceleration a of eq. (71) at state x and time t.
+        """The head acceleration a of eq. (71) at (x, t).
 
         Parameters
         ----------

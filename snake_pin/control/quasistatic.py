@@ -1,11 +1,8 @@
 """The Lyapunov-like law at velocity level, for friction-dominated robots (wheels).
 
-With friction dominating inertia, the unactuated rows of (20) reduce to the force balance
-``C_uu u' + C_ua a' = 0`` (C of eqs. 11-13), so V of (83) is a quadratic in the actuated
-joint velocities; the law takes its minimiser and PD servos (:func:`servo_gains`) realise
-it. Every link needs c_x, c_y > 0. Derivation and evaluation:
-:ref:`derivation-quasistatic`; :class:`~snake_pin.control.lyapunov.LyapunovController` is
-the acceleration-level form of the same V.
+The unactuated rows of (20) reduce to the force balance ``C_uu u' + C_ua a' = 0``, so V of
+(83) is a quadratic in the actuated joint velocities: the law takes its minimiser, which
+PD servos (:func:`servo_gains`) realise (:ref:`derivation-quasistatic`).
 """
 
 from __future__ import annotations
@@ -36,8 +33,7 @@ class QuasiStaticOptions:
     Parameters
     ----------
     k_w1, k_w2, k_phi : float or array_like, optional
-        Gains of (84), as in :class:`~snake_pin.control.lyapunov.LyapunovOptions` (the
-        same fields, defaults and bounds).
+        Gains of (84), as in :class:`~snake_pin.control.lyapunov.LyapunovOptions`.
     servo_bandwidth : float, optional
         Bandwidth omega_s of the joint servos [rad/s] (> 0).
     max_lead : float, optional
@@ -67,9 +63,8 @@ class QuasiStaticOptions:
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
     """(K_p, K_d) per joint (n - 1 each) of critically damped servos of ``bandwidth`` [rad/s].
 
-    ``K_p,k = omega^2 I_k`` and ``K_d,k = 2 omega I_k``, with
-    ``I_k = (m_k (2 l_k)^2 + m_k+1 (2 l_k+1)^2) / 2`` the mean inertia scale of the two links
-    joint k joins (``m (2l)^2`` on equal links): a heavy, long head gets stiffer servos.
+    ``K_p,k = omega^2 I_k``, ``K_d,k = 2 omega I_k``, ``I_k`` the mean of ``m (2l)^2`` over
+    the two links joint k joins.
 
     Parameters
     ----------
@@ -101,20 +96,18 @@ class QuasiStaticLyapunovController(ReferenceLaw):
     Parameters
     ----------
     snake
-        The robot and its viscous friction model (identified coefficients on the engine).
+        The robot and its viscous friction model.
     reference, gait
-        As for the acceleration-level controller (w_r = [0.1 t, 0, pi], serpenoid of VI.2).
+        As for :class:`~snake_pin.control.lyapunov.LyapunovController`.
     options
-        :class:`QuasiStaticOptions` (gains of (84); servos as :func:`servo_gains`).
+        :class:`QuasiStaticOptions`.
     **overrides
-        Fields of :class:`QuasiStaticOptions` to change; the result is kept as
-        ``self.options``.
+        Fields of :class:`QuasiStaticOptions` to change (the result: ``self.options``).
 
     Raises
     ------
     ParameterError
-        A bad robot (every joint passive, a link without c_x or c_y), reference, gait,
-        ``options`` or override.
+        A bad robot (no motor, a link without c_x or c_y), reference, gait or options.
     """
 
     name = "lyapunov_velocity"
@@ -153,12 +146,9 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         params, nq = self.snake.params, self.snake.nq
         u, a = self._u, self._a
         m, k = len(u), len(a)
-        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction), M_ww =
-        # -1. C_uu X = C_ua is the first block row of [M_uu M_uw; M_wu M_ww] [X; Y] =
-        # [M_ua; M_wa] (eliminate Y = M_ww^-1 (M_wa - M_wu X)), so one CRBA and one solve
-        # give X = C_uu^-1 C_ua = -J without forming C; the entries are read from the upper
-        # triangle Pinocchio fills (row <= column). Wheels of c_y,i = c_x,i weigh nothing
-        # and are left out (they add nothing to C).
+        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction): one CRBA
+        # and one solve of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa] give X = C_uu^-1 C_ua
+        # = -J, read from the upper triangle Pinocchio fills; massless wheels are left out
         twin = self.snake.friction.twin
         self._twin, self._twin_data = twin, twin.createData()
         self._twin_q = np.zeros(twin.nq)  # [q, 0_w]
@@ -193,10 +183,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:
         """Rows ``[sqrt(W_u) [w_r' + K_w1 w_r, phi_r,passive'], W_a phi_r,actuated',
-        phi_r,actuated']``, one per time.
-
-        One time (an unannounced call) is evaluated directly: cheaper than a one-row block.
-        """
+        phi_r,actuated']``, one per time (one time directly: cheaper than a block)."""
         if len(times) != 1:
             return super()._time_terms(times)
         t = float(times[0])
@@ -293,7 +280,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         Raises
         ------
         SingularPostureError
-            The connection is singular or its normal equations are not positive definite.
+            The connection or its normal equations are singular.
         """
         rate = self._rate(x, t)
         return rate.copy(), self._value()
