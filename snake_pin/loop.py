@@ -31,7 +31,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from ._validation import brief, one_line
-from .control.base import Controller
+from .control.base import Controller, inherit_docstrings
 from .exceptions import ParameterError, RunInterrupted, SnakePinError
 from .params import SnakeParams
 from .trajectory import Trajectory
@@ -215,6 +215,11 @@ class Plant(abc.ABC):
     snake: Any = None
     checks_torque: bool = False
     takes_first_stage: bool = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """A plant's methods without a docstring take the ones written here, once."""
+        super().__init_subclass__(**kwargs)
+        inherit_docstrings(cls)
 
     @abc.abstractmethod
     def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:

@@ -286,54 +286,15 @@ class ViscousPlant(Plant):
                      np.ones(3 * nq, dtype=bool).tobytes())
 
     def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """Calls at k control_dt; sample k + 1 at t_k + control_dt.
-
-        Parameters
-        ----------
-        steps : int
-            Control periods.
-
-        Returns
-        -------
-        tuple of numpy.ndarray
-            The calls' and the samples' times [s].
-        """
         calls = np.arange(steps) * self._control_dt
         return calls, np.r_[0.0, calls + self._control_dt]
 
     def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
-        """Start a run from the state ``x0``, which is the first sample.
-
-        Parameters
-        ----------
-        x0 : numpy.ndarray
-            The initial state ``[q, q']``, length 2(n + 2).
-        out : numpy.ndarray
-            Where the first sample goes.
-        """
         self._state[...] = x0
         out[...] = x0
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
              t: float) -> str:
-        """Advance one control period from time ``t`` under ``tau``, held.
-
-        Parameters
-        ----------
-        tau : numpy.ndarray
-            Joint torques (n - 1), finite or not (a non-finite one is reported).
-        first : numpy.ndarray or None
-            q'' at the current state under ``tau``, if known.
-        out : numpy.ndarray
-            Where the new state ``[q, q']`` goes.
-        t : float
-            The time of the current state [s].
-
-        Returns
-        -------
-        str
-            What is wrong with the new state or the torque ("" when nothing).
-        """
         joint_torque = self._joint_torque
         joint_torque[...] = tau
         # E tau: a passive joint's entry checked (a non-finite one ends the step before it

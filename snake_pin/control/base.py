@@ -7,6 +7,7 @@ on passive joints); per-step ``signals`` (e.g. R, V) are recorded beside the sta
 from __future__ import annotations
 
 import abc
+import inspect
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -52,6 +53,15 @@ def _reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: 
     return np.hstack((w_r, phi_r, dw_r, dphi_r, ddw_r, ddphi_r))
 
 
+def inherit_docstrings(cls: type) -> None:
+    """Give ``cls``'s own public methods without a docstring the docstring of the base
+    method they override (one text per method; numpydoc and Sphinx read ``__doc__``)."""
+    for name, method in vars(cls).items():
+        if not name.startswith("_") and inspect.isfunction(method) and method.__doc__ is None:
+            method.__doc__ = next((base.__dict__[name].__doc__ for base in cls.__mro__[1:]
+                                   if name in base.__dict__), None)
+
+
 class TimeTerms:
     """A controller's time-only terms ``rows(times)``, served one time at a time: the
     announced times' (:meth:`prepare`) in vectorised blocks, any other alone."""
@@ -93,6 +103,11 @@ class Controller(abc.ABC):
 
     #: Short identifier used in file names and summaries.
     name: str = "controller"
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """A law's methods without a docstring take the ones written here, once."""
+        super().__init_subclass__(**kwargs)
+        inherit_docstrings(cls)
 
     def reset(self) -> None:  # noqa: B027 - optional hook, empty by default
         """Forget internal state (filters, integrators) before a new run."""
@@ -225,38 +240,12 @@ class ReferenceLaw(Controller):
         return value
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """``q''`` of the last call (the law's own buffer), if ``snake`` is its robot.
-
-        Parameters
-        ----------
-        snake : object
-            The plant being simulated.
-
-        Returns
-        -------
-        numpy.ndarray or None
-            ``q''`` (length n + 2), or None for another plant or before a call.
-        """
         return self._acceleration if snake is self.snake else None
 
     def signals(self) -> dict[str, float]:
-        """Diagnostics of the last call (the law's class docstring names them).
-
-        Returns
-        -------
-        dict of str to float
-            Signal name to value at the last call.
-        """
         return self._signals
 
     def prepare(self, times: np.ndarray) -> None:
-        """Compute the references' terms for the coming calls in blocks.
-
-        Parameters
-        ----------
-        times : numpy.ndarray
-            The run's sampling instants [s], shape (T,), in order.
-        """
         self._time_row.prepare(times)
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:

@@ -401,16 +401,4 @@ class LOSController(Controller):
         return self._last
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """Return q'' under the last torque (exact by construction), if ``snake`` is the plant.
-
-        Parameters
-        ----------
-        snake : object
-            The robot the simulator integrates.
-
-        Returns
-        -------
-        numpy.ndarray of shape (n + 2,) or None
-            q'' at the last call's state, or None for another plant.
-        """
         return self._ddq if snake is self.snake else None

@@ -91,7 +91,8 @@ def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.n
 
 
 class QuasiStaticLyapunovController(ReferenceLaw):
-    """Velocity-level minimiser of V (83) through the quasi-static connection, with servos.
+    """Velocity-level minimiser of V (83) through the quasi-static connection, with servos;
+    its signal ``V`` is the least V of each call's command (NaN before a call).
 
     Parameters
     ----------
@@ -308,11 +309,4 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         return tau
 
     def signals(self) -> dict[str, float]:
-        """Diagnostics of the last call.
-
-        Returns
-        -------
-        dict of str to float
-            ``V``: the least V of the last call's velocity command (NaN before any call).
-        """
         return {"V": self._value()}

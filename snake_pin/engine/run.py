@@ -323,10 +323,11 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
 
 
 class EnginePlant(Plant):
-    """The MuJoCo robot as a :class:`~snake_pin.loop.Plant`: the torque held over the
-    engine's substeps, q read from it (heading unwrapped) and q' from a
-    :class:`DirtyDerivative`, as a robot's encoders give them; a sample that is not finite
-    or whose body left the floor (root above five wheel radii) diverges.
+    """The MuJoCo robot as a :class:`~snake_pin.loop.Plant`: started at rest at x0's
+    configuration, the torque held over the engine's substeps, q read from it (heading
+    unwrapped) and q' from a :class:`DirtyDerivative`, as a robot's encoders give them; a
+    sample that is not finite or whose body left the floor (root above five wheel radii)
+    diverges.
 
     Parameters
     ----------
@@ -355,18 +356,7 @@ class EnginePlant(Plant):
         self._yaw, self._turns = 0.0, 0.0
 
     def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """The calls' and samples' times: MuJoCo's clock, running sums of its timestep.
-
-        Parameters
-        ----------
-        steps : int
-            Control periods.
-
-        Returns
-        -------
-        tuple of numpy.ndarray
-            The calls' and the samples' times [s].
-        """
+        # MuJoCo's clock: running sums of its timestep
         wheels = self.engine.wheels
         clock = np.cumsum(np.full(steps * wheels.substeps, wheels.timestep))
         samples = np.r_[0.0, clock[wheels.substeps - 1::wheels.substeps]]
@@ -374,15 +364,6 @@ class EnginePlant(Plant):
         return samples[:steps], samples
 
     def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
-        """Put the robot at rest at the configuration of ``x0`` and read the first sample.
-
-        Parameters
-        ----------
-        x0 : numpy.ndarray
-            The initial state (its velocities unused: the robot starts at rest).
-        out : numpy.ndarray
-            Where the first sample goes.
-        """
         q0 = x0[:self.nq]
         self.engine.set_paper_configuration(q0)
         self._yaw, self._turns, self._sample = float(q0[2]), 0.0, 0
@@ -390,24 +371,6 @@ class EnginePlant(Plant):
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
              t: float) -> str:
-        """Hold ``tau`` over the engine's substeps, then read the next sample.
-
-        Parameters
-        ----------
-        tau : numpy.ndarray
-            Joint torques (n - 1), finite; passive joints have no motor.
-        first : None
-            Unused (the engine computes its own accelerations).
-        out : numpy.ndarray
-            Where the new sample goes.
-        t : float
-            The time of the current sample [s].
-
-        Returns
-        -------
-        str
-            "the engine state left the floor" when it did, else "".
-        """
         engine = self.engine
         tau.take(self._motors, out=engine.data.ctrl)  # EngineModel.apply_torque
         mujoco.mj_step(engine.model, engine.data, engine.wheels.substeps)
