@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from .._validation import brief, instance, integer
+from .._validation import brief, instance
 from ..exceptions import ParameterError
 from ..gaits import Serpenoid
 from ..model import Snake
@@ -30,8 +30,6 @@ _BLOCK = 1024
 
 def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
     """``gait`` (``default`` for None), checked to be a serpenoid for n links (ParameterError)."""
-    n = integer(n, "n", low=2)
-    instance(default, Serpenoid, "default")
     chosen = default if gait is None else instance(gait, Serpenoid, "gait")
     if chosen.n != n:
         raise ParameterError(f"gait is for {chosen.n} links, the robot has {n}")
@@ -67,8 +65,6 @@ class TimeTerms:
     announced times' (:meth:`prepare`) in vectorised blocks, any other alone."""
 
     def __init__(self, rows: Callable[[np.ndarray], np.ndarray]) -> None:
-        if not callable(rows):
-            raise ParameterError(f"rows must be a callable times -> array, got {brief(rows)}")
         self._rows = rows
         self.prepare(np.zeros(0))
 
