@@ -1,11 +1,8 @@
 """MuJoCo model of a snake on passive wheels, built from ``SnakeParams`` with MjSpec.
 
-The link frames, lengths, masses and inertias are those of :mod:`snake_pin.urdf` /
-``SnakeParams``; this module adds a floor, gravity, a wheel pair per link (rolling along
-the link, sliding across it: anisotropic Coulomb friction), contacts and motors on active
-joints, sized so the chain's mass matrix equals Pinocchio's H. Elliptic friction cones are
-the default (``WheelSpec(cone="pyramidal")`` for quick looks). Layout and solver settings:
-:ref:`derivation-engine`.
+The links are those of :mod:`snake_pin.urdf`; this module adds a floor, gravity, a wheel
+pair per link (rolling along it, sliding across: anisotropic Coulomb friction), contacts
+and motors, so that the chain's mass matrix equals Pinocchio's H (:ref:`derivation-engine`).
 """
 
 from __future__ import annotations

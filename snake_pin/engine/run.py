@@ -185,15 +185,14 @@ class EngineRun:
     Parameters
     ----------
     trajectory
-        q read from the engine and dq estimated by the filter (what the controller saw),
-        the torques, status and meta.
+        What the controller saw (q from the engine, dq from the filter), its torques, status.
     true_dq
         The engine's own velocities on (x, y, yaw, phi) at the same samples.
     friction
         The viscous model the controller used (:func:`identify_friction`).
     """
 
-    trajectory: Trajectory  # q from the engine, dq estimated (what the controller saw)
+    trajectory: Trajectory
     true_dq: np.ndarray
     friction: dict[str, float]
 
