@@ -100,9 +100,7 @@ class LOSParams:
                                  f"got {brief(self.steering)}")
         defaults = {f.name: f.default for f in fields(self)}
         for law, names in _ONLY_FOR.items():
-            if law == self.steering:
-                continue
-            for name in names:
+            for name in names if law != self.steering else ():
                 if getattr(self, name) != defaults[name]:
                     raise ParameterError(f"LOS parameter {name} has no effect with steering = "
                                          f"{self.steering!r} (it is the {law!r} law's)")
@@ -217,25 +215,19 @@ class LOSController(Controller):
             raise ParameterError("every joint is passive: there is nothing to control")
         self.params = merged(LOSParams, params, overrides, argument="params",
                              field_word="LOS parameter")
-        if path is None:
-            path = Line()
-        if isinstance(path, PathReference):
-            path = path.path
+        path = Line() if path is None else path
+        path = path.path if isinstance(path, PathReference) else path
         if not isinstance(path, Path):
             raise ParameterError(f"path must be a Path, got {type(path).__name__}")
-        self.snake, self.path = snake, path
-        n = snake.n
-        self._lags = np.arange(n - 1) * self.params.delta
-        self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
-        self._unact = np.setdiff1d(np.arange(snake.nv), self._act)
-        act, unact = self._act, self._unact
-        self._blocks = (np.ix_(unact, unact), np.ix_(unact, act), np.ix_(act, unact),
-                        np.ix_(act, act))
+        self.snake, self.path, p = snake, path, self.params
+        self._lags = np.arange(snake.n - 1) * p.delta
+        act = self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
+        unact = self._unact = np.setdiff1d(np.arange(snake.nv), act)
+        self._blocks = tuple(np.ix_(rows, cols) for rows in (unact, act) for cols in (unact, act))
         self._lever = _cm_lever(snake)
-        self._ref_filter = ReferenceFilter(self.params.ref_period)
-        self._offset_filter = ReferenceFilter(self.params.offset_period)
-        speed_period = self.params.speed_period or 2.0 * math.pi / self.params.omega
-        self._speed_filter = ReferenceFilter(speed_period)
+        self._ref_filter, self._offset_filter, self._speed_filter = (
+            ReferenceFilter(period) for period in
+            (p.ref_period, p.offset_period, p.speed_period or 2.0 * math.pi / p.omega))
         self.reset()
 
     def reset(self) -> None:
