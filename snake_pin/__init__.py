@@ -1,11 +1,8 @@
 """snake_pin: planar snake robots without a lateral constraint, on Pinocchio.
 
-Implements Ariizumi & Tanaka, "Manipulability analysis of a snake robot without a
-lateral constraint for head position control": the model in paper coordinates, its
-closed form, dynamic manipulability, integrability, head controllers and experiments.
-
-Heavy modules (Pinocchio, MuJoCo, meshcat, matplotlib) load on first use of a name, so
-``import snake_pin`` and the command line start quickly.
+Implements Ariizumi & Tanaka, "Manipulability analysis of a snake robot without a lateral
+constraint for head position control", and more. Heavy modules load on first use of a
+name, so ``import snake_pin`` and the command line start quickly.
 """
 
 from __future__ import annotations
@@ -33,25 +30,21 @@ from .exceptions import (
 )
 from .params import SnakeParams
 
-#: Public name -> module that defines it (imported lazily).
-_LAZY = {
-    "paper": ".paper",
-    "Controller": ".control", "LinearReference": ".control", "LyapunovController": ".control",
-    "OpenLoop": ".control", "PFLController": ".control", "head_first_reference": ".control",
-    "LyapunovOptions": ".control", "PFLOptions": ".control",
-    "MPCController": ".control", "MPCOptions": ".control",
-    "Serpenoid": ".gaits", "arc": ".gaits", "straight": ".gaits",
-    "Manipulability": ".manipulability", "dynamic_manipulability": ".manipulability",
-    "manipulability": ".manipulability",
-    "LOSController": ".control",
-    "PathReference": ".paths", "load_path": ".paths", "cross_track_error": ".paths",
-    "along_track": ".paths",
-    "Snake": ".model", "DynamicsDerivatives": ".model",
-    "load_robot": ".robot_file", "read_robot_file": ".robot_file", "read_urdf": ".robot_file",
-    "robot_paths": ".robot_file", "write_robot_file": ".robot_file",
-    "Trajectory": ".trajectory", "simulate": ".sim",
-    "build_urdf": ".urdf", "write_urdf": ".urdf",
+#: Module -> the public names it defines (imported lazily).
+_LAZY_MODULES = {
+    ".paper": ("paper",),
+    ".control": ("Controller", "LOSController", "LinearReference", "LyapunovController",
+                 "LyapunovOptions", "MPCController", "MPCOptions", "OpenLoop", "PFLController",
+                 "PFLOptions", "head_first_reference"),
+    ".gaits": ("Serpenoid", "arc", "straight"),
+    ".manipulability": ("Manipulability", "dynamic_manipulability", "manipulability"),
+    ".paths": ("PathReference", "along_track", "cross_track_error", "load_path"),
+    ".model": ("DynamicsDerivatives", "Snake"),
+    ".robot_file": ("load_robot", "read_robot_file", "read_urdf", "robot_paths",
+                    "write_robot_file"),
+    ".trajectory": ("Trajectory",), ".sim": ("simulate",), ".urdf": ("build_urdf", "write_urdf"),
 }
+_LAZY = {name: module for module, names in _LAZY_MODULES.items() for name in names}
 
 __all__ = ["ConfigurationError", "Controller", "DynamicsDerivatives", "LOSController",
            "LinearReference", "LyapunovController", "LyapunovOptions", "MPCController",

@@ -1,13 +1,9 @@
 """The closed loop: a controller sampled every period, its torque held over a plant.
 
 :func:`closed_loop` runs a :class:`~snake_pin.control.Controller` against a
-:class:`Plant` (one control period of a robot under a held torque) and returns a
-:class:`~snake_pin.trajectory.Trajectory`. It is written once for every plant: the
-viscous model (:class:`snake_pin.sim.ViscousPlant`, run by :func:`snake_pin.sim.simulate`)
-and the MuJoCo robot (:class:`snake_pin.engine.run.EnginePlant`), which stay independent
-of each other. The loop holds the torque over each period (zero-order hold, as on a real
-robot), checks every torque, records the controller's signals, and turns the plant's
-faults and the user's interrupts into a run status. Every run ends with a
+:class:`Plant` (the viscous model of :mod:`snake_pin.sim` or the MuJoCo robot of
+:mod:`snake_pin.engine.run`), holding each torque over its period (zero-order hold),
+checking it and recording the controller's signals. Every run ends with a
 :attr:`~snake_pin.trajectory.Trajectory.status`:
 
 - ``"completed"``: it took all its steps;
@@ -35,7 +31,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from ._validation import brief, one_line
-from .control.base import Controller
+from .control.base import Controller, inherit_docstrings
 from .exceptions import ParameterError, RunInterrupted, SnakePinError
 from .params import SnakeParams
 from .trajectory import Trajectory
@@ -51,10 +47,8 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
                 label: str | None = None, record_signals: bool = True) -> Trajectory:
     """The closed loop: ``steps`` control periods of ``plant`` under ``controller``.
 
-    The controller is called at each sampling instant (:meth:`Plant.times`) on the
-    plant's sample and its torque held over the period (zero-order hold). The run ends
-    as the module docstring says; :func:`snake_pin.sim.simulate` and
-    :func:`snake_pin.engine.run.run_engine` are this loop over their plants.
+    The controller is called at each sampling instant (:meth:`Plant.times`) and its torque
+    held over the period; the run ends as the module docstring says.
 
     Parameters
     ----------
@@ -83,11 +77,9 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
     Raises
     ------
     RunInterrupted
-        On KeyboardInterrupt during the run; ``.partial`` is the trajectory of every
-        completed sample, with status "interrupted".
+        On KeyboardInterrupt; ``.partial`` holds every completed sample.
     ParameterError
-        ``steps`` is not a whole number in 0 .. :data:`MAX_STEPS`, or there is not enough
-        memory for the samples.
+        ``steps`` is not a whole number in 0 .. :data:`MAX_STEPS`, or memory is short.
     """
     if isinstance(steps, bool) or not isinstance(steps, numbers.Integral) or \
             not 0 <= steps <= MAX_STEPS:
@@ -123,6 +115,7 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
         return f"controller returned a non-finite torque at t = {t:.4f} s"
 
     def collect(run_status: str, run_reason: str) -> Trajectory:
+        """The good samples as a trajectory."""
         return Trajectory(t=ts[:good].copy(), q=xs[:good, :nq].copy(),
                           dq=xs[:good, nq:].copy(), tau=taus[:good].copy(),
                           params=plant.params,
@@ -210,15 +203,11 @@ class Plant(abc.ABC):
     nq, params
         n + 2, and the robot's parameters (the trajectory's).
     snake
-        The model the plant integrates, for the laws'
-        :meth:`~snake_pin.control.Controller.plant_acceleration` (when
-        :attr:`takes_first_stage`).
+        The model the plant integrates (what the laws' ``plant_acceleration`` is asked of).
     checks_torque
-        Whether :meth:`step` itself finds a non-finite torque (with the new state), so
-        that the loop need not check it first.
+        Whether :meth:`step` itself finds a non-finite torque, with the new state.
     takes_first_stage
-        Whether :meth:`step` takes the controller's q'' as its first stage
-        (:meth:`~snake_pin.control.Controller.plant_acceleration` of the robot).
+        Whether :meth:`step` takes the controller's q'' as its first stage.
     """
 
     nq: int
@@ -226,6 +215,11 @@ class Plant(abc.ABC):
     snake: Any = None
     checks_torque: bool = False
     takes_first_stage: bool = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """A plant's methods without a docstring take the ones written here, once."""
+        super().__init_subclass__(**kwargs)
+        inherit_docstrings(cls)
 
     @abc.abstractmethod
     def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
@@ -319,16 +313,16 @@ _NDARRAY = np.ndarray
 
 
 def _failure(t: float, exc: BaseException) -> str:
+    """The reason of a run whose controller raised ``exc`` at t."""
     detail = one_line(str(exc))
     return f"controller failed at t = {t:.4f} s: {type(exc).__name__}" + \
         (f": {detail}" if detail else "")
 
 
-
 @functools.cache
 def _thread_pools() -> ThreadpoolController:
-    """The process's BLAS/OpenMP pools, found once: ``threadpool_limits`` looks them up
-    again on every entry (0.75 ms), a kept controller's ``limit`` takes 10 us."""
+    """The process's BLAS/OpenMP pools, found once (``threadpool_limits`` looks them up on
+    every entry)."""
     return ThreadpoolController()
 
 

@@ -1,28 +1,9 @@
 """Simulation of the viscous model: fixed-step RK4 on ABA with zero-order-hold control.
 
-:func:`simulate` runs a controller against the viscous model of a robot and returns a
-:class:`~snake_pin.trajectory.Trajectory` (defined, with its file format, in
-:mod:`snake_pin.trajectory`; also importable from here). It is the closed loop of
-:mod:`snake_pin.loop` over a :class:`ViscousPlant`, so every run ends with one of the
-statuses that module describes:
-
-- ``"completed"``: it reached ``t_final``;
-- ``"diverged"``: the state left its bounds (non-finite, speed or distance beyond a bound);
-- ``"failed"``: the controller raised (any exception) or returned a torque of the wrong
-  size, type or a non-finite one;
-- ``"interrupted"``: a KeyboardInterrupt (Ctrl-C, or SIGTERM/SIGHUP converted by the
-  command line) arrived; :func:`simulate` then raises
-  :class:`~snake_pin.exceptions.RunInterrupted` carrying the partial trajectory.
-
-In each case the samples up to the last good one are kept, and ``reason`` says when and
-why. ``diverged`` is True for the two faults ("diverged", "failed").
-
-:class:`ViscousPlant` is the viscous model by fixed-step RK4 on buffers made once (the
-robot's ``calc_acceleration`` over a :class:`~snake_pin.model.SnakeData` of its own), its
-first stage taken from the controller when the controller computed it
-(:meth:`~snake_pin.control.Controller.plant_acceleration`), or by scipy's adaptive RK45
-for cross-checks. The MuJoCo plant, :class:`snake_pin.engine.run.EnginePlant`, runs in the
-same loop without depending on this module.
+:func:`simulate` runs a controller against :class:`ViscousPlant`, the viscous model of a
+robot, in the closed loop of :mod:`snake_pin.loop` (whose docstring lists the run
+statuses), and returns a :class:`~snake_pin.trajectory.Trajectory`. The MuJoCo plant,
+:class:`snake_pin.engine.run.EnginePlant`, runs in the same loop without this module.
 """
 
 from __future__ import annotations
@@ -45,9 +26,6 @@ from .params import SnakeParams
 from .trajectory import MAX_ARRAY_BYTES, MAX_TOTAL_BYTES, Trajectory
 from .trajectory import STATUSES as STATUSES  # re-exported: the run statuses
 
-# Trajectory, STATUSES and the size bounds are defined (and documented) in
-# snake_pin.trajectory, MAX_STEPS, Plant and closed_loop in snake_pin.loop; they stay
-# importable from here.
 __all__ = ["MAX_DISTANCE", "MAX_SPEED", "MAX_STEPS", "MAX_SUBSTEPS", "Plant", "ViscousPlant",
            "closed_loop", "simulate"]
 
@@ -61,7 +39,6 @@ MAX_SUBSTEPS = 1_000
 _ABSOLUTE, _LESS_EQUAL = np.absolute, np.less_equal
 
 
-# ----------------------------------------------------------------------- simulate
 class _FunctionController(Controller):
     """A plain callable ``f(x, t) -> tau`` used as a controller (named after it)."""
 
@@ -84,6 +61,7 @@ class _FunctionController(Controller):
 
 
 def _as_controller(controller: object) -> Controller:
+    """``controller``, a plain function wrapped (ParameterError for anything else)."""
     if isinstance(controller, Controller):
         return controller
     if callable(controller):
@@ -170,47 +148,39 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
              meta: Mapping[str, Any] | None = None) -> Trajectory:
     """Simulate the closed loop from state ``x0 = [q0, dq0]`` up to ``t_final``.
 
-    The controller is sampled every ``control_dt`` and its torque held in between (zero-
-    order hold, as on a real robot). ``method="rk4"`` integrates with fixed RK4 steps of
-    ``dt``; ``method="solve_ivp"`` uses scipy's adaptive RK45 over each control period
-    (tight tolerances; slower, for cross-checks).
+    The controller is sampled every ``control_dt`` and its torque held in between.
 
     Parameters
     ----------
     snake : Snake
-        The plant (any object with a Snake's ``nq``, ``n``, ``params`` and
-        ``state_derivative``).
+        The plant (or any object with a Snake's ``nq``, ``n``, ``params``, ``state_derivative``).
     controller
-        A :class:`~snake_pin.control.Controller`, or any function ``f(x, t) -> tau``
-        (wrapped in an adapter named after the function). It must return exactly
-        n - 1 finite torques; any exception it raises ends the run as "failed".
+        A :class:`~snake_pin.control.Controller`, or a function ``f(x, t) -> tau`` of n - 1
+        finite torques; an exception it raises ends the run as "failed".
     x0 : numpy.ndarray
         Initial state ``x = [q, dq]``, length 2(n + 2), finite.
     t_final, dt, control_dt
-        Times [s]: positive, finite; ``control_dt`` a multiple of ``dt`` (at most
-        :data:`MAX_SUBSTEPS` times), at most :data:`MAX_STEPS` control steps, and arrays
-        within :data:`~snake_pin.trajectory.MAX_ARRAY_BYTES`/
-        :data:`~snake_pin.trajectory.MAX_TOTAL_BYTES`.
+        Times [s], positive: ``control_dt`` a multiple of ``dt`` (at most
+        :data:`MAX_SUBSTEPS` times), at most :data:`MAX_STEPS` control steps, arrays
+        within the bounds of :mod:`snake_pin.trajectory`.
     method : {"rk4", "solve_ivp"}, optional
-        The integrator (see above).
+        Fixed RK4 steps of ``dt``, or scipy's adaptive RK45 per period (for cross-checks).
     max_speed, max_distance
         Divergence bounds [m/s, m] (positive; ``math.inf`` for none).
     progress
-        Show a tqdm bar, on a terminal only (never drawn into a non-TTY stderr).
+        Show a tqdm bar, on a terminal only.
     meta : mapping, optional
         Extra run settings merged into the trajectory's ``meta``.
 
     Returns
     -------
     Trajectory
-        Samples at t = 0, control_dt, 2 control_dt, ... up to t_final, or up to the last
-        good sample of a diverged or failed run (see the module docstring).
+        Samples every ``control_dt`` up to t_final, or up to the last good one.
 
     Raises
     ------
     RunInterrupted
-        On KeyboardInterrupt during the run; ``.partial`` is the trajectory of every
-        completed sample, with status "interrupted".
+        On KeyboardInterrupt; ``.partial`` holds every completed sample.
     ParameterError, ConfigurationError
         Bad arguments (before anything runs).
     """
@@ -239,13 +209,10 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
 class ViscousPlant(Plant):
     """The viscous model of eq. (20), by fixed-step RK4 with the torque held (or RK45).
 
-    RK4's stage states and slopes are the rows of buffers made once: with the step's state
-    Z and its slopes d1..d4 as the rows of Y = [Z; d1; d2; d3; d4], each stage state is one
-    product of a coefficient row with Y (Z + h/2 d1, Z + h/2 d2, Z + h d3, and the new
-    state Z + h/6 (d1 + 2 d2 + 2 d3 + d4)). The accelerations come from the robot's
-    :meth:`~snake_pin.model.Snake.calc_acceleration` on a data object of the plant's own,
-    or from ``state_derivative`` for a plant that replaces it (any object with a Snake's
-    ``nq``, ``n``, ``params`` and ``state_derivative``).
+    With the step's state Z and its slopes d1..d4 as the rows of Y = [Z; d1; d2; d3; d4],
+    made once, each stage state is one product of a coefficient row with Y. The
+    accelerations come from the robot's :meth:`~snake_pin.model.Snake.calc_acceleration`
+    on a data object of the plant's own (or a stand-in's ``state_derivative``).
 
     Parameters
     ----------
@@ -311,64 +278,23 @@ class ViscousPlant(Plant):
         limits[:2] = max_distance
         limits[2:nq] = np.inf
         limits[nq:2 * nq] = max_speed
-        # what an RK4 step reads, views made once, in the order step unpacks them (one
-        # unpacking of a tuple costs less than a lookup per name): the evaluator and its
-        # arguments per stage, the later stages, the new state's product with Y and the
-        # new state, the first stage's slope and Z's velocity, and the bounds' check
+        # what an RK4 step reads, in the order step unpacks it (one unpacking of a tuple
+        # costs less than a lookup per name)
         self._rk4 = (evaluate, *arguments, *later, gemv(1.0, columns, coefficients[3], 0.0, new),
                      new, slopes[1, :nq], slopes[1, nq:], state[nq:], substeps, checked,
                      np.zeros(3 * nq), limits, np.zeros(3 * nq, dtype=bool),
                      np.ones(3 * nq, dtype=bool).tobytes())
 
     def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """Calls at k control_dt; sample k + 1 at t_k + control_dt.
-
-        Parameters
-        ----------
-        steps : int
-            Control periods.
-
-        Returns
-        -------
-        tuple of numpy.ndarray
-            The calls' and the samples' times [s].
-        """
         calls = np.arange(steps) * self._control_dt
         return calls, np.r_[0.0, calls + self._control_dt]
 
     def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
-        """Start a run from the state ``x0``, which is the first sample.
-
-        Parameters
-        ----------
-        x0 : numpy.ndarray
-            The initial state ``[q, q']``, length 2(n + 2).
-        out : numpy.ndarray
-            Where the first sample goes.
-        """
         self._state[...] = x0
         out[...] = x0
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
              t: float) -> str:
-        """Advance one control period from time ``t`` under ``tau``, held.
-
-        Parameters
-        ----------
-        tau : numpy.ndarray
-            Joint torques (n - 1), finite or not (a non-finite one is reported).
-        first : numpy.ndarray or None
-            q'' at the current state under ``tau``, if known.
-        out : numpy.ndarray
-            Where the new state ``[q, q']`` goes.
-        t : float
-            The time of the current state [s].
-
-        Returns
-        -------
-        str
-            What is wrong with the new state or the torque ("" when nothing).
-        """
         joint_torque = self._joint_torque
         joint_torque[...] = tau
         # E tau: a passive joint's entry checked (a non-finite one ends the step before it
@@ -415,6 +341,7 @@ class ViscousPlant(Plant):
 
 
 def _divergence(x: np.ndarray, nq: int, max_speed: float, max_distance: float) -> str:
+    """What is wrong with the state x ("" when nothing)."""
     speed = np.abs(x[nq:]).max()  # NaN propagates and fails both comparisons below
     distance = np.abs(x[:2]).max()
     if speed <= max_speed and distance <= max_distance:

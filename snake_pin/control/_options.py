@@ -96,15 +96,17 @@ def check_fields(options: Any) -> None:
         object.__setattr__(options, f.name, value)
 
 
-def merged(cls: type[T], options: T | None, overrides: dict[str, object]) -> T:
+def merged(cls: type[T], options: T | None, overrides: dict[str, object], *,
+           argument: str = "options", field_word: str = "") -> T:
     """``options`` (or the defaults) with a constructor's keyword ``overrides``; a wrong
-    ``options`` type or an unknown override is a ParameterError."""
+    ``options`` type (named ``argument``) or an unknown override (a ``field_word``, default
+    "<class> field") is a ParameterError."""
     base = cls() if options is None else options
     if not isinstance(base, cls):
-        raise ParameterError(f"options must be {cls.__name__}, got {brief(base)}")
+        raise ParameterError(f"{argument} must be {cls.__name__}, got {brief(base)}")
     known = [f.name for f in fields(cls)]  # type: ignore[arg-type]
     for key in overrides:
         if key not in known:
-            raise ParameterError(f"unknown {cls.__name__} field {key!r} "
+            raise ParameterError(f"unknown {field_word or cls.__name__ + ' field'} {key!r} "
                                  f"(expected one of {', '.join(known)})")
     return replace(base, **overrides) if overrides else base  # type: ignore[type-var]

@@ -1,25 +1,28 @@
-"""The controller family's interface: ``controller(x, t) -> tau``.
+"""The controller family's interface ``controller(x, t) -> tau`` and the laws' shared parts.
 
-``x = [q, dq]`` is the full state (length 2(n + 2)) in paper coordinates and ``tau`` the
-n - 1 joint torques (entries of passive joints are ignored by the plant and set to zero
-by well-behaved controllers). Controllers may expose per-step diagnostic ``signals``
-(e.g. R, V) which :func:`snake_pin.sim.simulate` records beside the state.
+``x = [q, dq]`` is the state in paper coordinates, ``tau`` the n - 1 joint torques (zero
+on passive joints); per-step ``signals`` (e.g. R, V) are recorded beside the state.
 """
 
 from __future__ import annotations
 
 import abc
+import inspect
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
-from .._validation import brief, instance, integer
-from ..exceptions import ConfigurationError, ParameterError
+from .._validation import brief, instance
+from ..exceptions import ParameterError
 from ..gaits import Serpenoid
+from ..model import Snake
+from ._options import merged
 from .reference import LinearReference
 
 __all__ = ["Controller", "OpenLoop", "ReferenceLaw"]
+
+T = TypeVar("T")
 
 #: Time-only terms are computed for this many coming calls at once (see TimeTerms).
 _BLOCK = 1024
@@ -27,43 +30,16 @@ _BLOCK = 1024
 
 def gait_for(n: int, gait: Serpenoid | None, default: Serpenoid) -> Serpenoid:
     """``gait`` (``default`` for None), checked to be a serpenoid for n links (ParameterError)."""
-    n = integer(n, "n", low=2)
-    _check_gait(default, "default")
-    chosen = default if gait is None else _check_gait(gait, "gait")
+    chosen = default if gait is None else instance(gait, Serpenoid, "gait")
     if chosen.n != n:
         raise ParameterError(f"gait is for {chosen.n} links, the robot has {n}")
     return chosen
 
 
-def _check_gait(value: object, name: str) -> Serpenoid:
-    """``value`` if it is a :class:`~snake_pin.gaits.Serpenoid`, else ParameterError."""
-    return instance(value, Serpenoid, name)
-
-
-def reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: Serpenoid,
-                   times: np.ndarray) -> np.ndarray:
-    """One row ``[w_r, phi_r, w_r', phi_r', w_r'', phi_r'']`` (3 (n + 2) values) per time.
-
-    A :class:`LinearReference` and the serpenoid are evaluated for all times at once;
-    any other reference once per time. Arguments checked (ParameterError, ConfigurationError).
-    """
-    ReferenceLaw.checked_reference(reference)
-    _check_gait(gait, "gait")
-    try:
-        checked = np.asarray(times, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"times must be a vector of numbers, got {brief(times)}") \
-            from exc
-    if isinstance(times, (bool, np.bool_)) or checked.ndim != 1 \
-            or not np.all(np.isfinite(checked)):
-        raise ConfigurationError(f"times must be a vector of finite numbers, "
-                                 f"got {brief(times)}")
-    return _reference_rows(reference, gait, checked)
-
-
 def _reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: Serpenoid,
                     times: np.ndarray) -> np.ndarray:
-    """:func:`reference_rows` of checked arguments (the laws' time terms: a hot path)."""
+    """One row ``[w_r, phi_r, w_r', phi_r', w_r'', phi_r'']`` per time (a LinearReference and
+    the serpenoid evaluated for all times at once)."""
     column = np.asarray(times, dtype=float)[:, None]
     if isinstance(reference, LinearReference):
         w_r, dw_r, ddw_r = (np.broadcast_to(part, (len(column), 3))
@@ -75,16 +51,20 @@ def _reference_rows(reference: Callable[[float], tuple[np.ndarray, ...]], gait: 
     return np.hstack((w_r, phi_r, dw_r, dphi_r, ddw_r, ddphi_r))
 
 
-class TimeTerms:
-    """A controller's time-only terms ``rows(times)``, served one time at a time.
+def inherit_docstrings(cls: type) -> None:
+    """Give ``cls``'s own public methods without a docstring the docstring of the base
+    method they override (one text per method; numpydoc and Sphinx read ``__doc__``)."""
+    for name, method in vars(cls).items():
+        if not name.startswith("_") and inspect.isfunction(method) and method.__doc__ is None:
+            method.__doc__ = next((base.__dict__[name].__doc__ for base in cls.__mro__[1:]
+                                   if name in base.__dict__), None)
 
-    After :meth:`prepare` the rows of the announced times are computed in vectorised blocks
-    of 1024; a call at any other time computes its row alone, with the same values.
-    """
+
+class TimeTerms:
+    """A controller's time-only terms ``rows(times)``, served one time at a time: the
+    announced times' (:meth:`prepare`) in vectorised blocks, any other alone."""
 
     def __init__(self, rows: Callable[[np.ndarray], np.ndarray]) -> None:
-        if not callable(rows):
-            raise ParameterError(f"rows must be a callable times -> array, got {brief(rows)}")
         self._rows = rows
         self.prepare(np.zeros(0))
 
@@ -94,8 +74,8 @@ class TimeTerms:
         self._start = 0  # where the next block starts
         self._next = float(self._times[0]) if len(self._times) else None
         self._rows_left: list[np.ndarray] = []
-        # the announced times after the current one, up to the next block's first, as
-        # floats popped from the end (cheaper to read one by one than the array)
+        # the announced times up to the next block's, popped from the end (cheaper than
+        # reading the array)
         self._times_left: list[float] = []
 
     def __call__(self, t: float) -> np.ndarray:
@@ -120,14 +100,17 @@ class Controller(abc.ABC):
     #: Short identifier used in file names and summaries.
     name: str = "controller"
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """A law's methods without a docstring take the ones written here, once."""
+        super().__init_subclass__(**kwargs)
+        inherit_docstrings(cls)
+
     def reset(self) -> None:  # noqa: B027 - optional hook, empty by default
         """Forget internal state (filters, integrators) before a new run."""
 
     def prepare(self, times: np.ndarray) -> None:  # noqa: B027 - optional hook
-        """Learn the times of the coming calls, in order (a run's sampling instants).
-
-        Called after :meth:`reset`; a controller may precompute what depends on time only,
-        but its output must not depend on whether this was called. Empty by default.
+        """Learn the times of the coming calls, in order (after :meth:`reset`); the output
+        must not depend on whether this was called. Empty by default.
 
         Parameters
         ----------
@@ -150,10 +133,8 @@ class Controller(abc.ABC):
         return {}
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """q'' of ``snake`` at the state of the last call under the torque it returned.
-
-        A controller that evaluated exactly that with ``snake``'s own dynamics returns it
-        (read before the next call, not modified): the simulator's first RK4 stage.
+        """q'' of ``snake`` at the last call's state under its torque, if the controller
+        evaluated exactly that (the simulator's first RK4 stage), else None.
 
         Parameters
         ----------
@@ -197,11 +178,11 @@ class OpenLoop(Controller):
 class ReferenceLaw(Controller):
     """Base of the laws that follow a head reference with a serpenoid gait.
 
-    A subclass sets ``reference``, ``gait``, ``_law_time`` (the map from the reference rows
-    of :func:`reference_rows` to its time-only terms) and ``_time_row`` (a
-    :class:`TimeTerms` of :meth:`_time_terms`). Its buffers, if any, live in
-    ``_buffers``, made by :meth:`_allocate` once and again on unpickling (views do not
-    survive pickling); the last call's q'' and signals stay with the original.
+    A subclass sets ``_law_time`` (the map from the rows of reference terms to its
+    time-only terms) and ``_time_row`` (a :class:`TimeTerms` of :meth:`_time_terms`). Its
+    buffers, if any, are made by :meth:`_allocate` once and again on unpickling (views do
+    not survive pickling), and unpacked by ``__call__`` as one tuple (cheaper than a lookup
+    per name); the last call's q'' and signals stay with the original.
     """
 
     reference: Any
@@ -209,6 +190,24 @@ class ReferenceLaw(Controller):
     _time_row: TimeTerms
     _law_time: np.ndarray
     _buffers: Any = None
+    _acceleration: np.ndarray | None
+    _signals: dict[str, float]
+
+    def _bind(self, snake: Snake, reference: Any, gait: Serpenoid | None,
+              default_gait: tuple[float, float, float], options_type: type[T], options: Any,
+              overrides: dict[str, object], default_reference: Callable[[], Any]) -> T:
+        """Keep ``snake``, ``reference`` and ``gait`` (defaults for None) and return the options
+        merged with ``overrides``; ParameterError for a bad one or a robot with no motor."""
+        if not instance(snake, Snake, "snake").params.actuated:
+            raise ParameterError("every joint is passive: there is nothing to control")
+        self.snake = snake
+        self.reference = (default_reference() if reference is None
+                          else self.checked_reference(reference))
+        self.gait = gait_for(snake.n, gait, Serpenoid(snake.n, *default_gait))
+        self._acceleration = None  # the last call's q'' (None: failed)
+        self._signals = {}
+        self._time_row = TimeTerms(self._time_terms)
+        return merged(options_type, options, overrides)
 
     @staticmethod
     def checked_reference(value: object, name: str = "reference") -> Any:
@@ -236,14 +235,13 @@ class ReferenceLaw(Controller):
                                  f"got {brief(value)}")
         return value
 
-    def prepare(self, times: np.ndarray) -> None:
-        """Compute the references' terms for the coming calls in blocks.
+    def plant_acceleration(self, snake: object) -> np.ndarray | None:
+        return self._acceleration if snake is self.snake else None
 
-        Parameters
-        ----------
-        times : numpy.ndarray
-            The run's sampling instants [s], shape (T,), in order.
-        """
+    def signals(self) -> dict[str, float]:
+        return self._signals
+
+    def prepare(self, times: np.ndarray) -> None:
         self._time_row.prepare(times)
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:
@@ -264,6 +262,6 @@ class ReferenceLaw(Controller):
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Unpickled (or copied): the buffers are made again."""
         self.__dict__.update(state)
-        self._acceleration: np.ndarray | None = None
-        self._signals: dict[str, float] = {}
+        self._acceleration = None
+        self._signals = {}
         self._buffers = self._allocate()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import brief, flag, integer
+from .._validation import brief, integer
 from ..exceptions import ParameterError
 
 __all__ = ["K_PHI_FIRST", "K_PHI_REST"]
@@ -23,10 +23,6 @@ def gain_matrix(value: object, size: int, name: str, *, definite: bool = True) -
 
     Positive definite (semi-definite unless ``definite``); ParameterError naming ``name``.
     """
-    if not isinstance(name, str):
-        raise ParameterError(f"name must be the gain's name (a string), got {brief(name)}")
-    size = integer(size, "size", low=1)
-    definite = flag(definite, "definite")
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -1,15 +1,10 @@
 """Line-of-sight (LOS) path following of the centre of mass: the field's baseline law.
 
-After Liljebäck, Pettersen, Stavdahl and Gravdahl, *Snake Robots: Modelling,
-Mechatronics, and Control* (Springer, 2013) and Liljebäck, Haugstuen and Pettersen, "Path
-following control of planar snake robots using a cascaded approach" (IEEE TCST 20(1),
-2012), re-derived in this package's conventions. It steers the centre of mass (CM) onto a
-path at the gait's speed (no head trajectory): a serpenoid gait with a steering offset
-phi_0, LOS guidance, heading control (``steering = "cascaded"`` or ``"pd"``) and joint
-control by collocated partial feedback linearisation. The law, its defaults
-(:class:`LOSParams`, for the Table 1 robot with c_y = 25 N s/m) and its signals per step
-(``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``):
-:ref:`derivation-los`. States are ``x = [q, dq]``.
+After Liljebäck et al. (*Snake Robots*, Springer 2013; IEEE TCST 20(1), 2012), in this
+package's conventions: a serpenoid gait with a steering offset phi_0, LOS guidance,
+heading control (``steering = "cascaded"`` or ``"pd"``) and joint control by collocated
+partial feedback linearisation. The law, its defaults and its signals:
+:ref:`derivation-los`.
 """
 
 from __future__ import annotations
@@ -25,11 +20,14 @@ from .._validation import brief, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..model import Snake
 from ..paths import Line, Path, PathReference
+from ._options import merged
 from .base import Controller
 
 __all__ = ["LOSController", "LOSParams"]
 
 _STEERING = ("cascaded", "pd")
+_POSITIVE = ("omega", "look_ahead", "lambda1", "lambda2", "v_min", "phi0_max", "phi0_rate",
+             "ref_period", "offset_period", "k_joint_p", "k_joint_d", "k_theta")
 #: The fields only one steering law reads: a value other than the default given with the
 #: other law would have no effect, so it is refused.
 _ONLY_FOR = {"cascaded": ("k_theta", "lambda1", "lambda2", "v_min"), "pd": ("k_p", "k_d")}
@@ -39,11 +37,12 @@ _ONLY_FOR = {"cascaded": ("k_theta", "lambda1", "lambda2", "v_min"), "pd": ("k_p
 class LOSParams:
     """Parameters of :class:`LOSController` (validated; one ParameterError line each).
 
+    The fields only one steering law reads keep their defaults under the other.
+
     Parameters
     ----------
     alpha, omega, delta : float, optional
-        Gait amplitude [rad] (>= 0), temporal frequency [rad/s] (> 0), phase lag between
-        joints [rad].
+        Gait amplitude [rad] (>= 0), frequency [rad/s] (> 0), phase lag between joints [rad].
     look_ahead : float, optional
         LOS look-ahead distance Delta [m] (> 0).
     steering : {"cascaded", "pd"}, optional
@@ -53,27 +52,22 @@ class LOSParams:
     lambda1, lambda2 : float, optional
         Turning constants of the averaged model [1/s], [1/(m s)] (cascaded law; > 0).
     v_min : float, optional
-        Floor of the (averaged) forward speed in the cascaded law [m/s] (> 0).
+        Floor of the averaged forward speed in the cascaded law [m/s] (> 0).
     k_p, k_d : float, optional
-        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0). Each steering law's
-        own fields (k_theta, lambda1, lambda2, v_min for "cascaded"; k_p, k_d for "pd")
-        must keep their defaults under the other law, which would ignore them.
+        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0).
     phi0_max, phi0_rate : float, optional
-        Saturation of the joint offset [rad] and of its rate of change [rad/s] (> 0).
+        Saturation of the joint offset [rad] and of its rate [rad/s] (> 0).
     ref_period, offset_period : float, optional
-        Periods ``2 pi / omega_c`` of the reference filters on theta_ref and phi_0 [s]
-        (> 0).
+        Periods ``2 pi / omega_c`` of the filters on theta_ref and phi_0 [s] (> 0).
     speed_period : float, optional
-        Period of the filter averaging v_t over the gait [s]; 0: one gait period
-        ``2 pi / omega``.
+        Period of the filter averaging v_t [s]; 0: one gait period ``2 pi / omega``.
     k_joint_p, k_joint_d : float, optional
-        Joint gains of the feedback-linearised joint law [1/s^2], [1/s] (> 0).
+        Gains of the feedback-linearised joint law [1/s^2], [1/s] (> 0).
 
     Raises
     ------
     ParameterError
-        If a value is not a finite number, is out of its range, ``steering`` is
-        unknown, or a field of the other steering law differs from its default.
+        A value out of its domain, an unknown ``steering``, or the other law's field set.
     """
 
     alpha: float = 0.5
@@ -96,31 +90,17 @@ class LOSParams:
     k_joint_d: float = 20.0
 
     def __post_init__(self) -> None:
-        positive = ("omega", "look_ahead", "lambda1", "lambda2", "v_min", "phi0_max", "phi0_rate",
-                    "ref_period", "offset_period", "k_joint_p", "k_joint_d", "k_theta")
         for f in fields(self):
-            if f.name == "steering":
-                continue
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating,
-                                                                 np.integer)):
-                raise ParameterError(f"LOS parameter {f.name} must be a number, got {value!r}")
-            value = float(value)
-            if not math.isfinite(value):
-                raise ParameterError(f"LOS parameter {f.name} must be finite, got {value}")
-            if f.name in positive and value <= 0.0:
-                raise ParameterError(f"LOS parameter {f.name} must be positive, got {value}")
-            if value < 0.0 and f.name in ("alpha", "k_p", "k_d"):
-                raise ParameterError(f"LOS parameter {f.name} must be non-negative, got {value}")
-            object.__setattr__(self, f.name, value)
+            if f.name != "steering":
+                object.__setattr__(self, f.name, finite_number(
+                    getattr(self, f.name), f"LOS parameter {f.name}",
+                    positive=f.name in _POSITIVE, non_negative=f.name in ("alpha", "k_p", "k_d")))
         if not isinstance(self.steering, str) or self.steering not in _STEERING:
             raise ParameterError(f"LOS parameter steering must be one of {', '.join(_STEERING)}, "
                                  f"got {brief(self.steering)}")
         defaults = {f.name: f.default for f in fields(self)}
         for law, names in _ONLY_FOR.items():
-            if law == self.steering:
-                continue
-            for name in names:
+            for name in names if law != self.steering else ():
                 if getattr(self, name) != defaults[name]:
                     raise ParameterError(f"LOS parameter {name} has no effect with steering = "
                                          f"{self.steering!r} (it is the {law!r} law's)")
@@ -141,19 +121,15 @@ def _los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
 
 
 def body_kinematics(snake: Snake, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """``(p_cm, v_cm, psi, psi')``: the CM's position and velocity and the mean heading of travel.
-
-    ``psi = mean(theta_i) + pi`` (theta_i points head to tail) is continuous in time. The
-    arguments are checked (ParameterError, ConfigurationError).
-    """
+    """``(p_cm, v_cm, psi, psi')``: the CM's position and velocity and the mean heading of
+    travel ``psi = mean(theta_i) + pi``; ParameterError, ConfigurationError for bad input."""
     x = instance(snake, Snake, "snake").check_state(x)
     return _kinematics(_cm_lever(snake), snake.nq, x)
 
 
 def _cm_lever(snake: Snake) -> np.ndarray:
-    """a_k with p_cm = p_head + sum_k a_k [cos theta_k, sin theta_k]: weighting each link's CM
-    (head + sum_{k < i} L_k e_k + c_i e_i) by w_i = m_i / M gives
-    a_k = w_k c_k + L_k sum_{i > k} w_i."""
+    """a_k with p_cm = p_head + sum_k a_k [cos theta_k, sin theta_k]:
+    a_k = w_k c_k + L_k sum_{i > k} w_i, w_i = m_i / M."""
     params = snake.params
     weights = params.masses / params.masses.sum()
     behind = weights[::-1].cumsum()[::-1] - weights  # sum of w_i over i > k
@@ -162,6 +138,7 @@ def _cm_lever(snake: Snake) -> np.ndarray:
 
 def _kinematics(lever: np.ndarray, nq: int, x: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """:func:`body_kinematics` of checked arguments."""
     theta = np.cumsum(x[2:nq])  # theta_1, theta_1 + phi_1, ...
     dtheta = np.cumsum(x[nq + 2:])
     c, s = np.cos(theta), np.sin(theta)
@@ -173,10 +150,8 @@ def _kinematics(lever: np.ndarray, nq: int, x: np.ndarray
 
 
 class ReferenceFilter:
-    """Third-order low-pass reference filter giving a signal and its two derivatives.
-
-    ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s + omega_c^2))``,
-    ``omega_c = 2 pi / period`` (``period``, ``zeta`` > 0, else ParameterError).
+    """Third-order low-pass ``y / r = omega_c^3 / ((s + omega_c)(s^2 + 2 zeta omega_c s +
+    omega_c^2))``, ``omega_c = 2 pi / period``, giving y, y', y'' (ParameterError if not > 0).
     """
 
     def __init__(self, period: float, zeta: float = 1.0) -> None:
@@ -197,10 +172,8 @@ class ReferenceFilter:
         self.state = None if value is None else np.array([value, 0.0, 0.0])
 
     def update(self, r: float, dt: float) -> np.ndarray:
-        """``[y, y', y'']`` (a fresh array) after ``dt`` [s] with the input ``r`` held over it.
-
-        Exact (matrix exponential, cached per step length); ``dt = 0`` returns the current state.
-        """
+        """``[y, y', y'']`` (a fresh array) after ``dt`` [s] with ``r`` held: exact (a matrix
+        exponential cached per step length)."""
         if self.state is None:
             self.state = np.array([r, 0.0, 0.0])
             return self.state.copy()
@@ -220,12 +193,11 @@ class LOSController(Controller):
     Parameters
     ----------
     snake : Snake
-        The plant (passive joints get no torque; the gait still asks them to move).
+        The plant (passive joints get no torque).
     path : Path or PathReference or None, optional
-        The CM's path (a PathReference's timing is ignored: the gait sets the speed);
-        default the x axis.
+        The CM's path (a PathReference's timing is ignored); default the x axis.
     params : LOSParams or None, optional
-        :class:`LOSParams`; keyword overrides may be given instead or on top.
+        :class:`LOSParams` (default ``LOSParams()``).
     **overrides
         Fields of :class:`LOSParams` to change (e.g. ``look_ahead=1.2``).
 
@@ -241,35 +213,21 @@ class LOSController(Controller):
                  params: LOSParams | None = None, **overrides: object) -> None:
         if not instance(snake, Snake, "snake").params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
-        base = LOSParams() if params is None else params
-        if not isinstance(base, LOSParams):
-            raise ParameterError(f"params must be LOSParams, got {brief(base)}")
-        known = {f.name for f in fields(LOSParams)}
-        for key in overrides:
-            if key not in known:
-                raise ParameterError(f"unknown LOS parameter {key!r} "
-                                     f"(expected one of {', '.join(sorted(known))})")
-        self.params = LOSParams(**{**{f.name: getattr(base, f.name)
-                                      for f in fields(LOSParams)}, **overrides})
-        if path is None:
-            path = Line()
-        if isinstance(path, PathReference):
-            path = path.path
+        self.params = merged(LOSParams, params, overrides, argument="params",
+                             field_word="LOS parameter")
+        path = Line() if path is None else path
+        path = path.path if isinstance(path, PathReference) else path
         if not isinstance(path, Path):
             raise ParameterError(f"path must be a Path, got {type(path).__name__}")
-        self.snake, self.path = snake, path
-        n = snake.n
-        self._lags = np.arange(n - 1) * self.params.delta
-        self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
-        self._unact = np.setdiff1d(np.arange(snake.nv), self._act)
-        act, unact = self._act, self._unact
-        self._blocks = (np.ix_(unact, unact), np.ix_(unact, act), np.ix_(act, unact),
-                        np.ix_(act, act))
+        self.snake, self.path, p = snake, path, self.params
+        self._lags = np.arange(snake.n - 1) * p.delta
+        act = self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
+        unact = self._unact = np.setdiff1d(np.arange(snake.nv), act)
+        self._blocks = tuple(np.ix_(rows, cols) for rows in (unact, act) for cols in (unact, act))
         self._lever = _cm_lever(snake)
-        self._ref_filter = ReferenceFilter(self.params.ref_period)
-        self._offset_filter = ReferenceFilter(self.params.offset_period)
-        speed_period = self.params.speed_period or 2.0 * math.pi / self.params.omega
-        self._speed_filter = ReferenceFilter(speed_period)
+        self._ref_filter, self._offset_filter, self._speed_filter = (
+            ReferenceFilter(period) for period in
+            (p.ref_period, p.offset_period, p.speed_period or 2.0 * math.pi / p.omega))
         self.reset()
 
     def reset(self) -> None:
@@ -284,7 +242,6 @@ class LOSController(Controller):
         self._last: dict[str, float] = {}
         self._gait: tuple[float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
-    # ---------------------------------------------------------------- the law
     def gait(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the undulation without offset at time t.
 
@@ -296,8 +253,7 @@ class LOSController(Controller):
         Returns
         -------
         phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
-            ``alpha sin(omega t - (i - 1) delta)`` [rad] and its first two time
-            derivatives; read-only (kept for the next call at the same time).
+            ``alpha sin(omega t - (i - 1) delta)`` [rad] and its two derivatives (read-only).
         """
         if self._gait is not None and self._gait[0] == t:  # asked twice per step
             return self._gait[1]
@@ -311,10 +267,7 @@ class LOSController(Controller):
         return gait
 
     def guidance(self, x: np.ndarray) -> dict[str, float]:
-        """Return the LOS quantities at state x.
-
-        Tracks the CM's closest path point from the previous call's (a global search on
-        the first call after :meth:`reset`).
+        """Return the LOS quantities at state x (the CM's closest path point tracked).
 
         Parameters
         ----------
@@ -324,9 +277,8 @@ class LOSController(Controller):
         Returns
         -------
         dict of str to float
-            ``e_ct`` (CM cross-track error [m]), ``s_cm`` (arc length of its closest path
-            point [m]), ``theta_los`` [rad], ``theta_avg`` (psi [rad]), ``dtheta_avg``
-            [rad/s] and ``v_t`` (CM speed along psi [m/s]).
+            ``e_ct``, ``s_cm``, ``theta_los``, ``theta_avg`` (psi), ``dtheta_avg``, ``v_t``
+            (:ref:`derivation-los`).
         """
         p_cm, v_cm, psi, dpsi = _kinematics(self._lever, self.snake.nq, x)
         path = self.path
@@ -350,8 +302,7 @@ class LOSController(Controller):
         t : float
             Time [s].
         g : dict of str to float
-            :meth:`guidance`'s quantities plus ``v_avg``, the averaged forward speed
-            [m/s].
+            :meth:`guidance`'s quantities plus ``v_avg``, the averaged forward speed [m/s].
         ref : numpy.ndarray, shape (3,)
             Filtered ``[theta_ref, theta_ref', theta_ref'']``.
 
@@ -384,13 +335,12 @@ class LOSController(Controller):
         Returns
         -------
         numpy.ndarray, shape (n - 1,)
-            Joint torques tau [N m] (zero on passive joints); the plant's q'' under them
-            is kept for :meth:`plant_acceleration`.
+            Joint torques tau [N m] (zero on passive joints); q'' under them is kept.
 
         Raises
         ------
         SingularPostureError
-            If ``H_uu`` is not positive definite (LAPACK's Cholesky fails).
+            If ``H_uu`` is not positive definite.
         """
         snake, nq, p = self.snake, self.snake.nq, self.params
         v = ddphi_r + p.k_joint_d * (dphi_r - x[nq + 3:]) + p.k_joint_p * (phi_r - x[3:nq])
@@ -433,27 +383,14 @@ class LOSController(Controller):
         return tau
 
     def signals(self) -> dict[str, float]:
-        """Return the diagnostics of the last call, recorded by the simulator.
+        """Return the diagnostics of the last call (:ref:`derivation-los`; empty before one).
 
         Returns
         -------
         dict of str to float
-            ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg`` and
-            ``s_cm`` (:ref:`derivation-los`); empty before the first call.
+            ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``.
         """
         return self._last
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """Return q'' under the last torque (exact by construction), if ``snake`` is the plant.
-
-        Parameters
-        ----------
-        snake : object
-            The robot the simulator integrates.
-
-        Returns
-        -------
-        numpy.ndarray of shape (n + 2,) or None
-            The acceleration at the last call's state, or None for another plant.
-        """
         return self._ddq if snake is self.snake else None

@@ -1,31 +1,24 @@
-"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here.
+"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (erratum 5).
 
-The paper's reference [27] for this law is not available; only V (83) and the gains (84)
-are. The law takes the actuated torques whose accelerations come closest, in the
+The law takes the actuated torques whose accelerations come closest, in the
 ``W = blockdiag(K_w2, K_phi)`` norm, to making ``s = e_w' + K_w1 e_w`` decay at rate lam
-and the joints follow the gait (a weighted least squares, by Cholesky), so V decreases
-where the underactuation allows; a passive joint is a dropped column of E. Derivation,
-gains and evaluation: :ref:`derivation-lyapunov`.
-
-Convention: in the paper's coordinates (3) theta_1 points from the head towards the
-tail, so a head-first run along +x has theta_1 = pi; see
-:func:`~snake_pin.control.reference.head_first_reference`.
+and the joints follow the gait, so V decreases where the underactuation allows; a passive
+joint is a dropped column of E (:ref:`derivation-lyapunov`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from .._blas import gemv, posv, syrk
-from .._validation import finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
-from ._options import check_fields, merged, option, tracking_gain
-from .base import ReferenceLaw, TimeTerms, gait_for
+from ._options import check_fields, option, tracking_gain
+from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
 
@@ -40,9 +33,8 @@ K_SHAPE_PASSIVE = 0.3
 
 @dataclass(frozen=True)
 class LyapunovOptions:
-    """Options of :class:`LyapunovController` (validated; one ParameterError line each).
-
-    Gains are scalars (times identity), diagonals or symmetric matrices.
+    """Options of :class:`LyapunovController` (validated; gains are scalars, diagonals or
+    matrices).
 
     Parameters
     ----------
@@ -97,20 +89,19 @@ class LyapunovOptions:
         k_phi = self.k_phi
         if k_phi is None and joints is not None:
             k_phi = tuple(default_k_phi(joints))
-        return LyapunovOptions(
-            k_w1=self.k_w1, k_w2=self.k_w2, k_phi=k_phi, lam=self.lam,
-            lam_shape=self.lam / 2 if self.lam_shape is None else self.lam_shape,
-            k_shape=(K_SHAPE_PASSIVE if passive else 0.0) if self.k_shape is None
-            else self.k_shape)
+        return replace(self, k_phi=k_phi,
+                       lam_shape=self.lam / 2 if self.lam_shape is None else self.lam_shape,
+                       k_shape=(K_SHAPE_PASSIVE if passive else 0.0) if self.k_shape is None
+                       else self.k_shape)
 
 
 class LyapunovController(ReferenceLaw):
-    """Head tracking that reduces V of (83) by weighted least squares on q''.
+    """Head tracking that reduces V of (83) by weighted least squares on q'' (signal ``V``).
 
     Parameters
     ----------
     snake
-        The plant; its passive joints get no torque (their columns of E are dropped).
+        The plant; its passive joints get no torque.
     reference
         Head reference; default :func:`~snake_pin.control.reference.head_first_reference`.
     gait
@@ -118,14 +109,12 @@ class LyapunovController(ReferenceLaw):
     options
         :class:`LyapunovOptions`; default ``LyapunovOptions()``.
     **overrides
-        Fields of :class:`LyapunovOptions` to change; the result, resolved for the robot
-        (:meth:`LyapunovOptions.resolved`), is ``self.options``.
+        Fields of :class:`LyapunovOptions` to change (the result, resolved: ``self.options``).
 
     Raises
     ------
     ParameterError
-        A bad robot (every joint passive), reference, gait, ``options``, override, gain
-        or rate.
+        A bad robot (no motor), reference, gait, options, override or gain.
     """
 
     name = "lyapunov"
@@ -133,31 +122,20 @@ class LyapunovController(ReferenceLaw):
     def __init__(self, snake: Snake, reference: HeadReference | None = None,
                  gait: Serpenoid | None = None, options: LyapunovOptions | None = None,
                  **overrides: object) -> None:
-        n = instance(snake, Snake, "snake").n
-        if not snake.params.actuated:
-            raise ParameterError("every joint is passive: there is nothing to control")
-        self.snake = snake
-        self.reference = (head_first_reference() if reference is None
-                          else self.checked_reference(reference))
-        self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
-        self.options = opts = merged(LyapunovOptions, options, overrides).resolved(
-            n - 1, bool(snake.params.passive))
+        self.options = opts = self._bind(
+            snake, reference, gait, (np.pi / 6, 1.5, 2.0), LyapunovOptions, options, overrides,
+            head_first_reference).resolved(snake.n - 1, bool(snake.params.passive))
         self.k_w1 = gain_matrix(opts.k_w1, 3, "K_w1")
-        k_w2_m = gain_matrix(opts.k_w2, 3, "K_w2")
-        k_phi_m = gain_matrix(opts.k_phi, n - 1, "K_phi")
-        if not (np.allclose(k_w2_m, np.diag(np.diag(k_w2_m)))
-                and np.allclose(k_phi_m, np.diag(np.diag(k_phi_m)))):
+        self.k_w2 = gain_matrix(opts.k_w2, 3, "K_w2")
+        self.k_phi = gain_matrix(opts.k_phi, snake.n - 1, "K_phi")
+        self._k_w2_diag, self._k_phi_diag = np.diag(self.k_w2).copy(), np.diag(self.k_phi).copy()
+        if not (np.allclose(self.k_w2, np.diag(self._k_w2_diag))
+                and np.allclose(self.k_phi, np.diag(self._k_phi_diag))):
             raise ParameterError("K_w2 and K_phi must be diagonal (they weight rows)")
-        self.k_w2, self.k_phi = k_w2_m, k_phi_m
-        self._weights = np.r_[np.diag(k_w2_m), np.diag(k_phi_m)]
-        self._k_w2_diag, self._k_phi_diag = np.diag(k_w2_m).copy(), np.diag(k_phi_m).copy()
-        self.lam = finite_number(opts.lam, "lam", positive=True)
-        self.lam_shape = finite_number(opts.lam_shape, "lam_shape", positive=True)
-        self.k_shape = finite_number(opts.k_shape, "k_shape", non_negative=True)
+        self._weights = np.r_[self._k_w2_diag, self._k_phi_diag]
+        assert opts.lam_shape is not None and opts.k_shape is not None  # resolved
+        self.lam, self.lam_shape, self.k_shape = opts.lam, opts.lam_shape, opts.k_shape
         self._act = np.array([2 + k for k in snake.params.actuated])  # velocity indices
-        self._acceleration = None  # the last call's q'' (None: failed)
-        self._signals = {}
-        self._time_row = TimeTerms(self._time_terms)
         self._build_law()
         self._buffers = self._allocate()
 
@@ -193,8 +171,7 @@ class LyapunovController(ReferenceLaw):
         law[s_rows, head(q)] = -k_w1
         law[e_rows, shape(dr)] = np.eye(m)
         law[e_rows, shape(v)] = -np.eye(m)
-        weights = np.sqrt(np.r_[self._k_w2_diag, self._k_phi_diag])
-        law[nq:] *= weights[:, None]  # [s; e] weighted: V is their squared norm
+        law[nq:] *= sqrt_w[:, None]  # [s; e] weighted: V is their squared norm
         self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
         # A passive joint keeps its row of H^-1 (A^T's rows are all the joints'), weighted
         # by 0, and one more column of the stack holds a 1 in its row: its equation in
@@ -216,9 +193,7 @@ class LyapunovController(ReferenceLaw):
         self._sqrt_w[passive] = 0.0
 
     def _allocate(self) -> tuple[Any, ...]:
-        """The call's buffers, views and prepared products, made once (and again on
-        unpickling), in the order :meth:`__call__` unpacks them (one unpacking of a tuple
-        costs less than a lookup per name)."""
+        """The call's buffers, views and prepared products, in :meth:`__call__`'s order."""
         snake = self.snake
         nq, m = snake.nq, snake.n - 1
         inputs, stack = np.zeros(5 * nq), self._stack.copy()  # a copy's own buffers
@@ -328,28 +303,3 @@ class LyapunovController(ReferenceLaw):
         """
         _, s, e = self.targets(x, t)
         return float(s @ self.k_w2 @ s + e @ self.k_phi @ e)
-
-    def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """``q'' = A tau_a + b`` of the last call, if ``snake`` is the robot this law models.
-
-        Parameters
-        ----------
-        snake : object
-            The plant being simulated.
-
-        Returns
-        -------
-        numpy.ndarray or None
-            ``q''`` (length n + 2), or None for another plant.
-        """
-        return self._acceleration if snake is self.snake else None
-
-    def signals(self) -> dict[str, float]:
-        """Diagnostics of the last call.
-
-        Returns
-        -------
-        dict of str to float
-            ``V``: eq. (83) at the state and time of the last call.
-        """
-        return self._signals

@@ -1,10 +1,7 @@
 """Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected.
 
-Eq. (70) is misprinted (+Hs a drives the head against the command); the law is derived
-again from (27): ``tau = H22 H12^+ (-Hs a - h1 + H12 H22^-1 h2) + H22 (I - H12^+ H12) kappa``
-with a of (71) and kappa of (75, 78), needing R > 0. ``climb_R`` adds a damped gradient
-flow up log R in the null space of H12. Derivation and evaluation:
-:ref:`derivation-pfl`.
+The law derived again from (27) (eq. 70 is misprinted), needing R > 0; ``climb_R`` adds a
+damped gradient flow up log R in the null space of H12 (:ref:`derivation-pfl`).
 """
 
 from __future__ import annotations
@@ -17,13 +14,13 @@ import numpy as np
 
 from .._blas import gemv, posv, syrk
 from .._symmetric import smallest_eigenvalue_3x3
-from .._validation import finite_number, instance
+from .._validation import instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import r_batch
 from ..model import Snake
-from ._options import check_fields, merged, option
-from .base import ReferenceLaw, TimeTerms, gait_for
+from ._options import check_fields, option
+from .base import ReferenceLaw
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
 
@@ -38,9 +35,7 @@ CLIMB_DAMPING = 2.0
 
 @dataclass(frozen=True)
 class PFLOptions:
-    """Options of :class:`PFLController` (validated; one ParameterError line each).
-
-    Gains are scalars (times identity), diagonals or symmetric matrices.
+    """Options of :class:`PFLController` (validated; gains are scalars, diagonals or matrices).
 
     Parameters
     ----------
@@ -82,7 +77,7 @@ class PFLOptions:
 
 
 class PFLController(ReferenceLaw):
-    """Head PFL controller of Section VI.1.
+    """Head PFL controller of Section VI.1; its signal ``R`` is the head's manipulability.
 
     Parameters
     ----------
@@ -100,8 +95,7 @@ class PFLController(ReferenceLaw):
     Raises
     ------
     ParameterError
-        A bad robot (a passive joint, n < 4), reference, gait, ``options``, override or
-        gain.
+        A bad robot (a passive joint, n < 4), reference, gait, options, override or gain.
     """
 
     name = "pfl"
@@ -115,22 +109,14 @@ class PFLController(ReferenceLaw):
         n = snake.n
         if n < 4:
             raise ParameterError(f"PFL of the head needs n >= 4 links, got {n}")
-        self.snake = snake
-        self.reference = (LinearReference() if reference is None
-                          else self.checked_reference(reference))
-        self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 3, 1.0, 0.18))
-        self.options = opts = merged(PFLOptions, options, overrides)
+        self.options = opts = self._bind(snake, reference, gait, (np.pi / 3, 1.0, 0.18),
+                                         PFLOptions, options, overrides, LinearReference)
         self.k_v = gain_matrix(opts.k_v, 3, "K_v")
         self.k_p = gain_matrix(opts.k_p, 3, "K_p")
         self.r_v = gain_matrix(opts.r_v, n - 1, "R_v", definite=False)
         self.r_p = gain_matrix(opts.r_p, n - 1, "R_p", definite=False)
-        self.r_min = finite_number(opts.r_min, "r_min", non_negative=True)
-        self.climb_R = finite_number(opts.climb_R, "climb_R", non_negative=True)
-        self.climb_damping = finite_number(CLIMB_DAMPING if opts.climb_damping is None
-                                           else opts.climb_damping, "climb_damping",
-                                           positive=True)
-        self._acceleration = None  # the last call's q'' (None: failed)
-        self._signals = {}
+        self.r_min, self.climb_R = opts.r_min, opts.climb_R
+        self.climb_damping = CLIMB_DAMPING if opts.climb_damping is None else opts.climb_damping
         self._nq = nq = snake.nq
         # [a; u] = (time terms) + gain @ x, from (71) and (78) without the climb term
         m = n - 1
@@ -145,15 +131,12 @@ class PFLController(ReferenceLaw):
         self._gain[:3] *= -1.0
         law[:3] *= -1.0
         self._law_time = law.T.copy()
-        self._time_row = TimeTerms(self._time_terms)
         # [-a; u], then [-a; u + p], then the call's q'' = [w''; phi''] = [a; phi'']
         self._stacked = np.zeros(nq)
         self._buffers = self._allocate()
 
     def _allocate(self) -> tuple[Any, ...]:
-        """The call's buffers, views and prepared products, made once (and again on
-        unpickling), in the order :meth:`__call__` unpacks them (one unpacking of a tuple
-        costs less than a lookup per name)."""
+        """The call's buffers, views and prepared products, in :meth:`__call__`'s order."""
         nq, snake = self._nq, self.snake
         m = nq - 3
         data = snake.create_data()
@@ -222,7 +205,7 @@ class PFLController(ReferenceLaw):
         return tau.copy()
 
     def command(self, x: np.ndarray, t: float) -> np.ndarray:
-        """The head acceleration a of eq. (71) at state x and time t.
+        """The head acceleration a of eq. (71) at (x, t).
 
         Parameters
         ----------
@@ -240,37 +223,9 @@ class PFLController(ReferenceLaw):
         nq = self._nq
         return ddw_r + self.k_v @ (dw_r - x[nq:nq + 3]) + self.k_p @ (w_r - x[:3])
 
-    def plant_acceleration(self, snake: object) -> np.ndarray | None:
-        """``q''`` of the last call, if ``snake`` is the robot this law models.
-
-        ``[a; H22^-1 (tau - h2 - H21 a)]`` (R > r_min was checked); the controller's own
-        buffer, valid until its next call.
-
-        Parameters
-        ----------
-        snake : object
-            The plant being simulated.
-
-        Returns
-        -------
-        numpy.ndarray or None
-            ``q''`` (length n + 2), or None for another plant.
-        """
-        return self._acceleration if snake is self.snake else None
-
     def _grad_log_r(self, phi: np.ndarray, step: float = 1e-6) -> np.ndarray:
         """Central-difference gradient of log R over phi (one batched evaluation)."""
         dim = len(phi)
         probes = phi[None, :] + np.vstack([step * np.eye(dim), -step * np.eye(dim)])
         r = r_batch(self.snake.params, probes, (), True)  # PFL: no passive joint
         return (np.log(r[:dim]) - np.log(r[dim:])) / (2 * step)
-
-    def signals(self) -> dict[str, float]:
-        """Diagnostics of the last call.
-
-        Returns
-        -------
-        dict of str to float
-            ``R``: the head's manipulability at the last call.
-        """
-        return self._signals

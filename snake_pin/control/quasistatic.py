@@ -1,11 +1,8 @@
 """The Lyapunov-like law at velocity level, for friction-dominated robots (wheels).
 
-With friction dominating inertia, the unactuated rows of (20) reduce to the force balance
-``C_uu u' + C_ua a' = 0`` (C of eqs. 11-13), so V of (83) is a quadratic in the actuated
-joint velocities; the law takes its minimiser and PD servos (:func:`servo_gains`) realise
-it. Every link needs c_x, c_y > 0. Derivation and evaluation:
-:ref:`derivation-quasistatic`; :class:`~snake_pin.control.lyapunov.LyapunovController` is
-the acceleration-level form of the same V.
+The unactuated rows of (20) reduce to the force balance ``C_uu u' + C_ua a' = 0``, so V of
+(83) is a quadratic in the actuated joint velocities: the law takes its minimiser, which
+PD servos (:func:`servo_gains`) realise (:ref:`derivation-quasistatic`).
 """
 
 from __future__ import annotations
@@ -22,8 +19,8 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..params import SnakeParams
-from ._options import check_fields, merged, option, tracking_gain
-from .base import ReferenceLaw, TimeTerms, gait_for
+from ._options import check_fields, option, tracking_gain
+from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
 
@@ -36,8 +33,7 @@ class QuasiStaticOptions:
     Parameters
     ----------
     k_w1, k_w2, k_phi : float or array_like, optional
-        Gains of (84), as in :class:`~snake_pin.control.lyapunov.LyapunovOptions` (the
-        same fields, defaults and bounds).
+        Gains of (84), as in :class:`~snake_pin.control.lyapunov.LyapunovOptions`.
     servo_bandwidth : float, optional
         Bandwidth omega_s of the joint servos [rad/s] (> 0).
     max_lead : float, optional
@@ -67,9 +63,8 @@ class QuasiStaticOptions:
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
     """(K_p, K_d) per joint (n - 1 each) of critically damped servos of ``bandwidth`` [rad/s].
 
-    ``K_p,k = omega^2 I_k`` and ``K_d,k = 2 omega I_k``, with
-    ``I_k = (m_k (2 l_k)^2 + m_k+1 (2 l_k+1)^2) / 2`` the mean inertia scale of the two links
-    joint k joins (``m (2l)^2`` on equal links): a heavy, long head gets stiffer servos.
+    ``K_p,k = omega^2 I_k``, ``K_d,k = 2 omega I_k``, ``I_k`` the mean of ``m (2l)^2`` over
+    the two links joint k joins.
 
     Parameters
     ----------
@@ -96,25 +91,24 @@ def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.n
 
 
 class QuasiStaticLyapunovController(ReferenceLaw):
-    """Velocity-level minimiser of V (83) through the quasi-static connection, with servos.
+    """Velocity-level minimiser of V (83) through the quasi-static connection, with servos;
+    its signal ``V`` is the least V of each call's command (NaN before a call).
 
     Parameters
     ----------
     snake
-        The robot and its viscous friction model (identified coefficients on the engine).
+        The robot and its viscous friction model.
     reference, gait
-        As for the acceleration-level controller (w_r = [0.1 t, 0, pi], serpenoid of VI.2).
+        As for :class:`~snake_pin.control.lyapunov.LyapunovController`.
     options
-        :class:`QuasiStaticOptions` (gains of (84); servos as :func:`servo_gains`).
+        :class:`QuasiStaticOptions`.
     **overrides
-        Fields of :class:`QuasiStaticOptions` to change; the result is kept as
-        ``self.options``.
+        Fields of :class:`QuasiStaticOptions` to change (the result: ``self.options``).
 
     Raises
     ------
     ParameterError
-        A bad robot (every joint passive, a link without c_x or c_y), reference, gait,
-        ``options`` or override.
+        A bad robot (no motor, a link without c_x or c_y), reference, gait or options.
     """
 
     name = "lyapunov_velocity"
@@ -123,20 +117,16 @@ class QuasiStaticLyapunovController(ReferenceLaw):
                  gait: Serpenoid | None = None, options: QuasiStaticOptions | None = None,
                  **overrides: object) -> None:
         params = instance(snake, Snake, "snake").params
-        n = params.n
-        if not params.actuated:
-            raise ParameterError("every joint is passive: there is nothing to control")
         for key in ("c_x", "c_y"):
             # friction must dominate inertia on every link for the force balance to hold
             for i in np.flatnonzero(params.per_link(key) <= 0):
                 where = "" if not isinstance(getattr(params, key), tuple) else f"link {i + 1}: "
                 raise ParameterError(f"{where}the quasi-static connection needs c_x > 0 and "
                                      f"c_y > 0 on every link, got {key} = 0")
-        self.snake = snake
-        self.reference = (head_first_reference() if reference is None
-                          else self.checked_reference(reference))
-        self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
-        self.options = opts = merged(QuasiStaticOptions, options, overrides)
+        self.options = opts = self._bind(snake, reference, gait, (np.pi / 6, 1.5, 2.0),
+                                         QuasiStaticOptions, options, overrides,
+                                         head_first_reference)
+        n = params.n
         self.k_w1 = gain_matrix(opts.k_w1, 3, "K_w1")
         k_w2_d = np.diag(gain_matrix(opts.k_w2, 3, "K_w2"))
         k_phi_d = np.diag(gain_matrix(default_k_phi(n - 1) if opts.k_phi is None
@@ -145,27 +135,21 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self._a = np.array([2 + k for k in params.actuated])
         self._w_u = np.r_[k_w2_d, k_phi_d[self._u[3:] - 3]]
         self._w_a = k_phi_d[self._a - 3]
-        omega = finite_number(opts.servo_bandwidth, "servo_bandwidth", positive=True)
-        self.k_p, self.k_d = servo_gains(params, omega)
+        self.k_p, self.k_d = servo_gains(params, opts.servo_bandwidth)
         self._k_p_a, self._k_d_a = self.k_p[self._a - 3], self.k_d[self._a - 3]
-        self.max_lead = finite_number(opts.max_lead, "max_lead", positive=True)
-        self.dt = finite_number(opts.control_dt, "control_dt", positive=True)
+        self.max_lead, self.dt = opts.max_lead, opts.control_dt
         self._reference_a: np.ndarray | None = None
         self._last: tuple[np.ndarray, ...] | None = None
         self._build_law()
-        self._time_row = TimeTerms(self._time_terms)
 
     def _build_law(self) -> None:
         """Constant arrays of the hot path (friction twin, gathers, weights, time map)."""
         params, nq = self.snake.params, self.snake.nq
         u, a = self._u, self._a
         m, k = len(u), len(a)
-        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction), M_ww =
-        # -1. C_uu X = C_ua is the first block row of [M_uu M_uw; M_wu M_ww] [X; Y] =
-        # [M_ua; M_wa] (eliminate Y = M_ww^-1 (M_wa - M_wu X)), so one CRBA and one solve
-        # give X = C_uu^-1 C_ua = -J without forming C; the entries are read from the upper
-        # triangle Pinocchio fills (row <= column). Wheels of c_y,i = c_x,i weigh nothing
-        # and are left out (they add nothing to C).
+        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction): one CRBA
+        # and one solve of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa] give X = C_uu^-1 C_ua
+        # = -J, read from the upper triangle Pinocchio fills; massless wheels are left out
         twin = self.snake.friction.twin
         self._twin, self._twin_data = twin, twin.createData()
         self._twin_q = np.zeros(twin.nq)  # [q, 0_w]
@@ -200,10 +184,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
 
     def _time_terms(self, times: np.ndarray) -> np.ndarray:
         """Rows ``[sqrt(W_u) [w_r' + K_w1 w_r, phi_r,passive'], W_a phi_r,actuated',
-        phi_r,actuated']``, one per time.
-
-        One time (an unannounced call) is evaluated directly: cheaper than a one-row block.
-        """
+        phi_r,actuated']``, one per time (one time directly: cheaper than a block)."""
         if len(times) != 1:
             return super()._time_terms(times)
         t = float(times[0])
@@ -300,7 +281,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         Raises
         ------
         SingularPostureError
-            The connection is singular or its normal equations are not positive definite.
+            The connection or its normal equations are singular.
         """
         rate = self._rate(x, t)
         return rate.copy(), self._value()
@@ -328,11 +309,4 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         return tau
 
     def signals(self) -> dict[str, float]:
-        """Diagnostics of the last call.
-
-        Returns
-        -------
-        dict of str to float
-            ``V``: the least V of the last call's velocity command (NaN before any call).
-        """
         return {"V": self._value()}

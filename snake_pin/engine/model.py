@@ -1,17 +1,15 @@
 """MuJoCo model of a snake on passive wheels, built from ``SnakeParams`` with MjSpec.
 
-The link frames, lengths, masses and inertias are those of :mod:`snake_pin.urdf` /
-``SnakeParams``; this module adds a floor, gravity, a wheel pair per link (rolling along
-the link, sliding across it: anisotropic Coulomb friction), contacts and motors on active
-joints, sized so the chain's mass matrix equals Pinocchio's H. Elliptic friction cones are
-the default (``WheelSpec(cone="pyramidal")`` for quick looks). Layout and solver settings:
-:ref:`derivation-engine`.
+The links are those of :mod:`snake_pin.urdf`; this module adds a floor, gravity, a wheel
+pair per link (rolling along it, sliding across: anisotropic Coulomb friction), contacts
+and motors, so that the chain's mass matrix equals Pinocchio's H (:ref:`derivation-engine`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -26,13 +24,8 @@ __all__ = ["JACOBIAN", "EngineModel", "WheelSpec", "build_engine_model"]
 GRAVITY = 9.81
 #: MuJoCo friction cones by name.
 CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
-#: Constraint Jacobian of the solver, set explicitly. MuJoCo's automatic choice
-#: (``mjJAC_AUTO``) is dense below nv = 60, so the wheeled snake (nv = 3n + 5: 29 at
-#: n = 8) got dense, and the constraint solver (its dense Newton Hessian) was ~84 % of
-#: ``mj_step``. A wheel contact touches only the DOFs of the chain from the head to its
-#: link and of its own axle, so the Jacobian is mostly zeros: on states of the 60 s engine
-#: run, sparse made ``mj_step`` 2.1x faster (the whole closed loop 1.6-1.9x), with the same
-#: physics (one step agrees to 1e-13, 10 s of closed loop to 1e-12).
+#: Constraint Jacobian of the solver: sparse, set explicitly (``mjJAC_AUTO`` picks dense
+#: below nv = 60, though a wheel contact touches only the chain up to its link and its axle).
 JACOBIAN = mujoco.mjtJacobian.mjJAC_SPARSE
 
 
@@ -95,9 +88,8 @@ class WheelSpec:
 class EngineModel:
     """A compiled MuJoCo model with the index maps to paper coordinates.
 
-    Built by :func:`build_engine_model`; configurations are the paper's. The single-value
-    properties (``body_mass``, ``body_inertia``, ``wheel_offset``) raise ParameterError when
-    the links differ: read the per-link arrays then.
+    Built by :func:`build_engine_model`. The single-value properties (``body_mass``,
+    ``body_inertia``, ``wheel_offset``) raise ParameterError when the links differ.
 
     Parameters
     ----------
@@ -160,6 +152,7 @@ class EngineModel:
         return self._same("wheel_offsets")
 
     def _same(self, key: str) -> float:
+        """The one value of a per-link array (ParameterError when the links differ)."""
         values = getattr(self, key)
         if not np.all(values == values[0]):
             raise ParameterError(f"the links differ: read {key} (one value per link)")
@@ -226,11 +219,8 @@ class EngineModel:
 
 
 def _wheel_geometry(params: SnakeParams, wheels: WheelSpec) -> np.ndarray:
-    """Lateral offsets d_i of every link's wheel centres, after checking wheels cannot overlap.
-
-    Each wheel pair must be shorter than its link (2 r < 2l_i) and, with two neighbouring
-    links bent by ``max_bend``, the closest wheels of the two links must stay 2 r apart.
-    """
+    """Lateral offsets d_i of the links' wheel centres, checked: a wheel pair shorter than its
+    link, and neighbouring links' wheels 2 r apart at a ``max_bend`` bend."""
     lengths, centres = params.link_lengths, params.com_offsets
     offsets = RADIUS_RATIO * lengths + wheels.radius + 0.1 * wheels.radius
     for short in np.flatnonzero(2 * wheels.radius >= lengths):
@@ -254,6 +244,7 @@ def _wheel_geometry(params: SnakeParams, wheels: WheelSpec) -> np.ndarray:
 
 
 def _lengths_text(params: SnakeParams, i: int) -> str:
+    """Links i and i + 1's lengths in words."""
     if params.uniform:
         return f"{params.link_length}"
     return f"{params.link_lengths[i]:g} and {params.link_lengths[i + 1]:g}"
@@ -271,6 +262,13 @@ def _split(params: SnakeParams, wheels: WheelSpec,
             f"{where}wheels of {wheels.mass} kg leave no mass or inertia for the link "
             f"(m_body = {body_masses[i]:.3g} kg, J_body = {body_inertias[i]:.3g} kg m^2)")
     return body_masses, body_inertias
+
+
+def _set(item: Any, **values: Any) -> Any:
+    """``item`` with the attributes ``values`` set (an MjSpec element)."""
+    for key, value in values.items():
+        setattr(item, key, value)
+    return item
 
 
 def build_engine_model(params: SnakeParams | None = None,
@@ -303,87 +301,54 @@ def build_engine_model(params: SnakeParams | None = None,
     body_masses, body_inertias = _split(params, wheels, offsets)
     wheel_inertia = 0.4 * wheels.mass * wheels.radius**2  # solid sphere
 
-    spec = mujoco.MjSpec()
-    spec.modelname = f"snake_{params.name}_wheels"
+    spec = _set(mujoco.MjSpec(), modelname=f"snake_{params.name}_wheels")
     spec.compiler.autolimits = True
-    spec.option.timestep = wheels.timestep
-    spec.option.gravity = [0.0, 0.0, -GRAVITY]
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.option.cone = CONES[wheels.cone]
-    spec.option.impratio = 10.0
-    spec.option.jacobian = JACOBIAN  # not AUTO: it picks dense here (see JACOBIAN)
-    floor = spec.worldbody.add_geom()
-    floor.name = "floor"
-    floor.type = mujoco.mjtGeom.mjGEOM_PLANE
-    floor.size = [0.0, 0.0, 0.05]
-    floor.friction = [wheels.friction, 0.005, 1e-4]
-    floor.rgba = [0.8, 0.8, 0.8, 1.0]
-
+    _set(spec.option, timestep=wheels.timestep, gravity=[0.0, 0.0, -GRAVITY],
+         integrator=mujoco.mjtIntegrator.mjINT_IMPLICITFAST, cone=CONES[wheels.cone],
+         impratio=10.0, jacobian=JACOBIAN)  # not AUTO: it picks dense here (see JACOBIAN)
+    _set(spec.worldbody.add_geom(), name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE,
+         size=[0.0, 0.0, 0.05], friction=[wheels.friction, 0.005, 1e-4],
+         rgba=[0.8, 0.8, 0.8, 1.0])
+    hinge_z = {"type": mujoco.mjtJoint.mjJNT_HINGE, "axis": [0.0, 0.0, 1.0]}
     lengths, centres = params.link_lengths, params.com_offsets
     parent = spec.worldbody
     for i in range(1, params.n + 1):
         length, centre, offset = float(lengths[i - 1]), float(centres[i - 1]), offsets[i - 1]
         body_mass, body_inertia = float(body_masses[i - 1]), float(body_inertias[i - 1])
         radius = RADIUS_RATIO * length
-        body = parent.add_body()
-        body.name = f"link_{i}"
-        body.pos = [0.0, 0.0, wheels.radius] if i == 1 else [float(lengths[i - 2]), 0.0, 0.0]
-        body.mass = body_mass
-        body.ipos = [centre, 0.0, 0.0]
-        body.iquat = [1.0, 0.0, 0.0, 0.0]
         # roll inertia of a rod of the capsule's radius, capped so that MuJoCo's triangle
         # inequality holds for slender links with a small yaw inertia (it is not planar)
         roll = min(0.5 * body_mass * radius**2, body_inertia)
-        body.inertia = [roll, body_inertia, body_inertia]
-        body.explicitinertial = True
+        body = _set(parent.add_body(), name=f"link_{i}",
+                    pos=[0.0, 0.0, wheels.radius] if i == 1 else [float(lengths[i - 2]), 0.0, 0.0],
+                    mass=body_mass, ipos=[centre, 0.0, 0.0], iquat=[1.0, 0.0, 0.0, 0.0],
+                    inertia=[roll, body_inertia, body_inertia], explicitinertial=True)
         if i == 1:
-            free = body.add_freejoint()
-            free.name = "base"
+            body.add_freejoint().name = "base"
         else:
-            hinge = body.add_joint()
-            hinge.name = f"joint_{i - 1}"
-            hinge.type = mujoco.mjtJoint.mjJNT_HINGE
-            hinge.axis = [0.0, 0.0, 1.0]
-        shape = body.add_geom()
-        shape.name = f"link_{i}_body"
-        shape.type = mujoco.mjtGeom.mjGEOM_CAPSULE
-        shape.fromto = [0.0, 0.0, 0.0, length, 0.0, 0.0]
-        shape.size = [radius, 0.0, 0.0]
-        shape.contype = 0
-        shape.conaffinity = 0
-        shape.mass = 0.0
-        shape.rgba = [0.85, 0.33, 0.10, 1.0] if i == 1 else [0.13, 0.55, 0.13, 1.0]
+            _set(body.add_joint(), name=f"joint_{i - 1}", **hinge_z)
+        _set(body.add_geom(), name=f"link_{i}_body", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+             fromto=[0.0, 0.0, 0.0, length, 0.0, 0.0], size=[radius, 0.0, 0.0], contype=0,
+             conaffinity=0, mass=0.0,
+             rgba=[0.85, 0.33, 0.10, 1.0] if i == 1 else [0.13, 0.55, 0.13, 1.0])
         for side, sign in (("left", 1.0), ("right", -1.0)):
-            wheel = body.add_body()
-            wheel.name = f"link_{i}_wheel_{side}"
-            wheel.pos = [centre, sign * float(offset), 0.0]
-            wheel.mass = wheels.mass
-            wheel.ipos = [0.0, 0.0, 0.0]  # MjSpec does not default these with explicit inertia
-            wheel.iquat = [1.0, 0.0, 0.0, 0.0]
-            wheel.inertia = [wheel_inertia] * 3
-            wheel.explicitinertial = True
-            axle = wheel.add_joint()
-            axle.name = f"link_{i}_axle_{side}"
-            axle.type = mujoco.mjtJoint.mjJNT_HINGE
-            axle.axis = [0.0, 1.0, 0.0]
-            axle.damping = [wheels.rolling_damping, 0.0, 0.0]
-            tyre = wheel.add_geom()
-            tyre.name = f"link_{i}_tyre_{side}"
-            tyre.type = mujoco.mjtGeom.mjGEOM_SPHERE
-            tyre.size = [wheels.radius, 0.0, 0.0]
-            tyre.mass = 0.0
-            tyre.friction = [wheels.friction, 0.005, 1e-4]
-            tyre.condim = 3
-            tyre.solref = [0.005, 1.0]
-            tyre.rgba = [0.15, 0.15, 0.15, 1.0]
+            # ipos and iquat given: MjSpec does not default them with explicit inertia
+            wheel = _set(body.add_body(), name=f"link_{i}_wheel_{side}",
+                         pos=[centre, sign * float(offset), 0.0], mass=wheels.mass,
+                         ipos=[0.0, 0.0, 0.0], iquat=[1.0, 0.0, 0.0, 0.0],
+                         inertia=[wheel_inertia] * 3, explicitinertial=True)
+            _set(wheel.add_joint(), name=f"link_{i}_axle_{side}",
+                 type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0.0, 1.0, 0.0],
+                 damping=[wheels.rolling_damping, 0.0, 0.0])
+            _set(wheel.add_geom(), name=f"link_{i}_tyre_{side}",
+                 type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[wheels.radius, 0.0, 0.0], mass=0.0,
+                 friction=[wheels.friction, 0.005, 1e-4], condim=3, solref=[0.005, 1.0],
+                 rgba=[0.15, 0.15, 0.15, 1.0])
         parent = body
     for k in params.actuated:
-        motor = spec.add_actuator()
-        motor.name = f"motor_{k}"
-        motor.target = f"joint_{k}"
-        motor.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        motor.gear = [1.0, 0, 0, 0, 0, 0]
-        motor.ctrlrange = [-EFFORT_LIMIT, EFFORT_LIMIT]
+        _set(spec.add_actuator(), name=f"motor_{k}", target=f"joint_{k}",
+             trntype=mujoco.mjtTrn.mjTRN_JOINT, gear=[1.0, 0, 0, 0, 0, 0],
+             ctrlrange=[-EFFORT_LIMIT, EFFORT_LIMIT])
     model = spec.compile()
     data = mujoco.MjData(model)
     joint_ids = [model.joint(f"joint_{k}").id for k in range(1, params.n)]

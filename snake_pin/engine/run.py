@@ -1,21 +1,9 @@
-"""Closed loop on the engine (Section VI.3): identification, velocity filter, runs.
+"""Closed loop on the engine (Section VI.3): friction identification, velocity filter, runs.
 
-* :func:`identify_friction` fits the viscous coefficients the controller's model uses from
-  short open-loop pushes of the straight snake on its wheels: the snake is given a speed
-  v0 along (or across) its body and left to coast; the least-squares viscous fit of the
-  deceleration, c = -m sum(v v') / sum(v^2) per link, is c_x (or c_y). Along the body the
-  wheels roll (c_x should match the axle damping, 2 b / r^2 per link); across it they slide
-  with Coulomb friction, whose viscous equivalent depends on the speed range, here
-  0..v0 = 0.1 m/s, the speed of the task. c_theta is the axle damping seen by a link
-  turning about its CM, 2 d^2 b / r^2. A robot with per-link values is fitted whole (its
-  total mass) and the totals are shared out per link: c_x equally, c_y in proportion to
-  each link's mass (the load on its wheels), c_theta from each link's own wheel offset.
-* :class:`DirtyDerivative` estimates velocities from positions with 2 pi f_c s / (s + 2 pi f_c)
-  (erratum 4 in docs/errata.md), discretised by backward Euler.
-* :func:`run_engine` runs the Lyapunov-like controller (either form) or the MPC against
-  MuJoCo at 1 kHz: the :class:`EnginePlant` in :func:`snake_pin.loop.closed_loop`, the
-  loop :func:`snake_pin.sim.simulate` runs over the viscous model. Each law's internal
-  model is the identified viscous one.
+:func:`identify_friction` fits the viscous model the laws use to coasting pushes of the
+engine robot, :class:`DirtyDerivative` estimates velocities from positions (erratum 4),
+and :func:`run_engine` runs a law against MuJoCo at 1 kHz (:class:`EnginePlant` in
+:func:`snake_pin.loop.closed_loop`). How and why: :ref:`engine`.
 """
 
 from __future__ import annotations
@@ -102,8 +90,8 @@ class DirtyDerivative:
 
 def _coast(engine: EngineModel, velocity: tuple[float, float, float], duration: float,
            heading: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Straight snake at ``heading`` given (vx, vy, yaw rate) in its own frame, coasting:
-    (t, v) samples, v the head's velocity in the snake's frame."""
+    """(t, v) of the straight snake at ``heading`` coasting from (vx, vy, yaw rate) in its
+    own frame, v the head's velocity in that frame."""
     q = np.zeros(engine.params.n + 2)
     q[2] = heading
     engine.set_paper_configuration(q)
@@ -113,8 +101,7 @@ def _coast(engine: EngineModel, velocity: tuple[float, float, float], duration: 
     engine.data.qvel[5] = velocity[2]
     # wheels spin as if rolling (no initial slip along the link)
     for b in range(engine.model.nbody):
-        name = engine.model.body(b).name
-        if "_wheel_" in name:
+        if "_wheel_" in engine.model.body(b).name:
             dof = engine.model.jnt_dofadr[engine.model.body_jntadr[b]]
             engine.data.qvel[dof] = velocity[0] / engine.wheels.radius
     mujoco.mj_forward(engine.model, engine.data)
@@ -129,6 +116,7 @@ def _coast(engine: EngineModel, velocity: tuple[float, float, float], duration: 
 
 
 def _viscous_fit(t: np.ndarray, v: np.ndarray, mass: float) -> float:
+    """The least-squares viscous coefficient ``-m sum(v v') / sum(v^2)`` of a coast."""
     moving = np.abs(v) > 1e-3 * np.abs(v).max()
     dv = np.gradient(v, t)
     return float(-mass * np.sum(v[moving] * dv[moving]) / np.sum(v[moving] ** 2))
@@ -136,7 +124,11 @@ def _viscous_fit(t: np.ndarray, v: np.ndarray, mass: float) -> float:
 
 def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | None = None,
                       speed: float = 0.1, heading: float = 0.0) -> dict[str, Any]:
-    """Viscous c_x, c_y, c_theta per link fitted to the engine (see module docstring).
+    """Viscous c_x, c_y, c_theta per link fitted to the engine's coasting snake (:ref:`engine`).
+
+    A per-link robot is fitted whole (its total mass M) and the totals shared out, head
+    first: c_x equally, c_y in proportion to each link's mass, c_theta,i = 2 d_i^2 b / r^2
+    from each link's own wheel offset.
 
     Parameters
     ----------
@@ -147,27 +139,15 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
     speed
         The coasting speed v0 [m/s] along and across the body.
     heading
-        The straight snake's heading [rad] while it coasts (the body's axis against the
-        world x axis). A faithful Coulomb contact gives the same fit at any heading; the
-        pyramidal cone does not (its friction limit is a square in the world's axes).
+        The straight snake's heading [rad] while it coasts (elliptic cones fit alike at any).
 
     Returns
     -------
     dict
-        ``c_x``, ``c_y``, ``c_theta`` [N s/m, N s/m, N m s], the model checks
-        ``c_x_rolling_model`` (2 b / r^2, per link) and ``c_y_coulomb_model``
-        (1.5 mu M g / v0), and ``speed``.
-
-        Equal links (``params.uniform``): each coefficient is one number, fitted per link
-        (the straight snake's deceleration with the link mass m), and
-        ``c_y_coulomb_model`` is per link (M = m).
-
-        Per-link robots: the whole robot is fitted with its total mass M, giving
-        ``c_x_total`` and ``c_y_total`` (also returned), and distributed over the links
-        as tuples, head first: c_x,i = c_x,total / n (every link rolls on the same
-        wheels), c_y,i = c_y,total m_i / M (Coulomb sliding is proportional to the load a
-        link puts on its wheels), c_theta,i = 2 d_i^2 b / r^2 with link i's own wheel
-        offset d_i. ``c_y_coulomb_model`` is then the whole robot's (M = total mass).
+        ``c_x``, ``c_y``, ``c_theta`` (numbers on equal links, else per-link tuples), the
+        model checks ``c_x_rolling_model`` (2 b / r^2) and ``c_y_coulomb_model``
+        (1.5 mu M g / v0, M the link's mass or the robot's), ``speed``, and on per-link
+        robots ``c_x_total`` and ``c_y_total``.
 
     Raises
     ------
@@ -179,29 +159,23 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
     heading = finite_number(heading, "heading")
     engine = build_engine_model(params, wheels)
     b, r = wheels.rolling_damping, wheels.radius
-    if params.uniform:
-        mass = float(params.mass)  # type: ignore[arg-type]  # one number: equal links
-        t, v = _coast(engine, (speed, 0.0, 0.0), 2.0, heading)
-        c_x = _viscous_fit(t, v[:, 0], mass)
-        t, v = _coast(engine, (0.0, speed, 0.0), 0.2, heading)
-        c_y = _viscous_fit(t, v[:, 1], mass)
-        d = engine.wheel_offset
-        return {"c_x": c_x, "c_y": c_y, "c_theta": 2 * d**2 * b / r**2,
-                "c_x_rolling_model": 2 * b / r**2,
-                "c_y_coulomb_model": 1.5 * wheels.friction * mass * GRAVITY / speed,
-                "speed": speed}
-    total = params.total_mass
+    # equal links: fitted per link with its mass m; else the whole robot with its mass M
+    mass = float(params.mass) if params.uniform else params.total_mass  # type: ignore[arg-type]
     t, v = _coast(engine, (speed, 0.0, 0.0), 2.0, heading)
-    c_x_total = _viscous_fit(t, v[:, 0], total)
+    c_x = _viscous_fit(t, v[:, 0], mass)
     t, v = _coast(engine, (0.0, speed, 0.0), 0.2, heading)
-    c_y_total = _viscous_fit(t, v[:, 1], total)
+    c_y = _viscous_fit(t, v[:, 1], mass)
+    checks = {"c_x_rolling_model": 2 * b / r**2,
+              "c_y_coulomb_model": 1.5 * wheels.friction * mass * GRAVITY / speed}
+    if params.uniform:
+        d = engine.wheel_offset
+        return {"c_x": c_x, "c_y": c_y, "c_theta": 2 * d**2 * b / r**2, **checks,
+                "speed": speed}
     offsets = np.asarray(engine.wheel_offsets, dtype=float)
-    return {"c_x": tuple([c_x_total / params.n] * params.n),
-            "c_y": tuple((c_y_total * params.masses / total).tolist()),
-            "c_theta": tuple((2 * offsets**2 * b / r**2).tolist()),
-            "c_x_rolling_model": 2 * b / r**2,
-            "c_y_coulomb_model": 1.5 * wheels.friction * total * GRAVITY / speed,
-            "c_x_total": c_x_total, "c_y_total": c_y_total, "speed": speed}
+    return {"c_x": tuple([c_x / params.n] * params.n),
+            "c_y": tuple((c_y * params.masses / mass).tolist()),
+            "c_theta": tuple((2 * offsets**2 * b / r**2).tolist()), **checks,
+            "c_x_total": c_x, "c_y_total": c_y, "speed": speed}
 
 
 @dataclass
@@ -211,15 +185,14 @@ class EngineRun:
     Parameters
     ----------
     trajectory
-        q read from the engine and dq estimated by the filter (what the controller saw),
-        the torques, status and meta.
+        What the controller saw (q from the engine, dq from the filter), its torques, status.
     true_dq
         The engine's own velocities on (x, y, yaw, phi) at the same samples.
     friction
         The viscous model the controller used (:func:`identify_friction`).
     """
 
-    trajectory: Trajectory  # q from the engine, dq estimated (what the controller saw)
+    trajectory: Trajectory
     true_dq: np.ndarray
     friction: dict[str, float]
 
@@ -237,25 +210,14 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                reference: HeadReference | None = None,
                mpc_options: MPCOptions | None = None,
                progress: bool = False) -> EngineRun:
-    """Head tracking on MuJoCo, control at 1 kHz, velocities from the filter.
+    """Head tracking on MuJoCo, control at 1 kHz, velocities from the filter (:ref:`engine`).
 
-    The controller's internal model is ``params`` with the identified viscous friction.
-    ``law="velocity"`` uses the quasi-static, velocity-level form of V's minimisation with
-    joint servos (:class:`QuasiStaticLyapunovController`); ``law="acceleration"`` the
-    torque-level form of VI.2 (:class:`LyapunovController`); ``law="mpc"`` the
-    receding-horizon Box-FDDP (:class:`MPCController`) on that same viscous model, its
-    torques bounded by :data:`ENGINE_TORQUE_BOUND` (the motors' saturation) unless
-    ``mpc_options`` says otherwise. Every law reads the filtered velocities.
-
-    The run starts at rest on the arc of eq. (82), head first (theta_1 = pi), with
-    ``initial_offset`` (n - 1 angles [rad], default zeros) added to its joint angles: the
-    engine runs are chaotic, and ``snake-pin engine --seeds N`` and the report run them as
-    distributions over small offsets (:mod:`snake_pin.experiments.engine`).
-
-    The run ends like :func:`snake_pin.sim.simulate`'s, with a trajectory status:
-    "diverged" if the engine state becomes non-finite or the robot leaves the floor,
-    "failed" if the controller raises (any exception), "completed" otherwise. At most
-    :data:`snake_pin.loop.MAX_STEPS` control steps (``t_final / wheels.control_dt``).
+    The law's model is ``params`` with the identified viscous friction: ``law="velocity"``
+    the quasi-static form of V's minimisation with joint servos
+    (:class:`QuasiStaticLyapunovController`), ``"acceleration"`` the torque-level form
+    (:class:`LyapunovController`), ``"mpc"`` the :class:`MPCController`. The run starts at
+    rest on the arc of eq. (82), head first (theta_1 = pi), and ends with a status as
+    :func:`snake_pin.loop.closed_loop` says ("diverged" also when the robot leaves the floor).
 
     Parameters
     ----------
@@ -264,25 +226,22 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     wheels
         Wheels, contacts and time steps (default :class:`WheelSpec`).
     t_final
-        Duration [s].
+        Duration [s], at most :data:`snake_pin.loop.MAX_STEPS` control steps.
     friction
-        The controller's viscous model (default: :func:`identify_friction` of the robot
-        with every joint actuated).
+        The law's viscous model (default: :func:`identify_friction`, every joint actuated).
     cutoff
         Cut-off of the velocity filter [Hz].
     law
         "velocity", "acceleration" or "mpc" (see above).
     initial_offset
-        n - 1 offsets added to the initial joint angles [rad] (see above).
+        n - 1 offsets added to the initial joint angles [rad] (the runs are chaotic: the
+        report runs them as distributions over small offsets).
     reference
-        The head reference ``t -> (w_r, w_r', w_r'')`` (default
-        :func:`~snake_pin.control.head_first_reference`: 0.1 m/s along +x); any path of
-        :mod:`snake_pin.paths` with its timing law. The run starts with the head at the
-        origin leading along +x (theta_1 = pi), so a reference should start there.
+        The head reference ``t -> (w_r, w_r', w_r'')``, starting at the origin heading +x
+        (default :func:`~snake_pin.control.head_first_reference`).
     mpc_options
-        The MPC's settings with ``law="mpc"`` (default :class:`MPCOptions` with
-        ``torque_bound`` = :data:`ENGINE_TORQUE_BOUND`); a torque bound above the motors'
-        saturation is refused (the engine would clip what the MPC plans).
+        The MPC's settings with ``law="mpc"`` (default: ``torque_bound`` =
+        :data:`ENGINE_TORQUE_BOUND`, the motors' saturation, which it may not exceed).
     progress
         Show a progress bar on stderr when it is a terminal.
 
@@ -294,13 +253,10 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     Raises
     ------
     RunInterrupted
-        On KeyboardInterrupt during the run (Ctrl-C, or SIGTERM/SIGHUP turned into it by
-        the command line): ``partial`` is the trajectory of every completed sample, with
-        status "interrupted" and the time in its reason.
+        On KeyboardInterrupt during the run; ``partial`` holds every completed sample.
     ParameterError
-        An unknown law, a non-positive ``t_final`` or more than ``MAX_STEPS`` steps, an
-        ``initial_offset`` of the wrong size or not finite, ``mpc_options`` not
-        MPCOptions, with a torque bound above the motors', or given to another law.
+        An unknown law, a bad ``t_final``, ``initial_offset`` or ``mpc_options`` (not
+        MPCOptions, a torque bound above the motors', or given to another law).
     """
     if law not in LAWS:
         raise ParameterError(f"law must be one of {', '.join(LAWS)}, got {law!r}")
@@ -336,8 +292,7 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     head_reference = reference if reference is not None else head_first_reference()
     controller: QuasiStaticLyapunovController | LyapunovController | MPCController
     if law == "velocity":
-        controller = QuasiStaticLyapunovController(snake, head_reference,
-                                                   control_dt=wheels.control_dt)
+        controller = QuasiStaticLyapunovController(snake, head_reference, control_dt=dt)
     elif law == "mpc":
         controller = MPCController(snake, head_reference, options=mpc_options or MPCOptions(
             torque_bound=ENGINE_TORQUE_BOUND))
@@ -367,14 +322,11 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
 
 
 class EnginePlant(Plant):
-    """The MuJoCo robot as a :class:`~snake_pin.loop.Plant`: the torque held over
-    ``wheels.substeps`` engine steps, the sample read from the engine and its velocity
-    from a :class:`DirtyDerivative` (what a robot's encoders give).
-
-    The heading is unwrapped so that the filter and the reference see a continuous angle.
-    A sample whose configuration is not finite, or whose body left the floor (its root
-    above five wheel radii), ends the run as diverged. The engine's own velocities at the
-    samples are kept in :attr:`true_dq`.
+    """The MuJoCo robot as a :class:`~snake_pin.loop.Plant`: started at rest at x0's
+    configuration, the torque held over the engine's substeps, q read from it (heading
+    unwrapped) and q' from a :class:`DirtyDerivative`, as a robot's encoders give them; a
+    sample that is not finite or whose body left the floor (root above five wheel radii)
+    diverges.
 
     Parameters
     ----------
@@ -388,7 +340,7 @@ class EnginePlant(Plant):
     Attributes
     ----------
     true_dq
-        (samples, n + 2): the engine's velocities on (x, y, yaw, phi) at each sample.
+        (samples, n + 2): the engine's own velocities on (x, y, yaw, phi) at each sample.
     """
 
     def __init__(self, engine: EngineModel, params: SnakeParams, cutoff: float) -> None:
@@ -403,19 +355,7 @@ class EnginePlant(Plant):
         self._yaw, self._turns = 0.0, 0.0
 
     def times(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """MuJoCo's clock: it adds the timestep once per engine step from 0 after the
-        reset, so the sampling instants are these running sums exactly.
-
-        Parameters
-        ----------
-        steps : int
-            Control periods.
-
-        Returns
-        -------
-        tuple of numpy.ndarray
-            The calls' and the samples' times [s].
-        """
+        # MuJoCo's clock: running sums of its timestep
         wheels = self.engine.wheels
         clock = np.cumsum(np.full(steps * wheels.substeps, wheels.timestep))
         samples = np.r_[0.0, clock[wheels.substeps - 1::wheels.substeps]]
@@ -423,15 +363,6 @@ class EnginePlant(Plant):
         return samples[:steps], samples
 
     def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
-        """Put the robot at rest at the configuration of ``x0`` and read the first sample.
-
-        Parameters
-        ----------
-        x0 : numpy.ndarray
-            The initial state (its velocities are not used: the robot starts at rest).
-        out : numpy.ndarray
-            Where the first sample goes.
-        """
         q0 = x0[:self.nq]
         self.engine.set_paper_configuration(q0)
         self._yaw, self._turns, self._sample = float(q0[2]), 0.0, 0
@@ -439,24 +370,6 @@ class EnginePlant(Plant):
 
     def step(self, tau: np.ndarray, first: np.ndarray | None, out: np.ndarray,
              t: float) -> str:
-        """Hold ``tau`` over the engine's substeps, then read the next sample.
-
-        Parameters
-        ----------
-        tau : numpy.ndarray
-            Joint torques (n - 1), finite; passive joints have no motor.
-        first : None
-            Unused (the engine computes its own accelerations).
-        out : numpy.ndarray
-            Where the new sample goes.
-        t : float
-            The time of the current sample [s].
-
-        Returns
-        -------
-        str
-            "the engine state left the floor" when it did, else "".
-        """
         engine = self.engine
         tau.take(self._motors, out=engine.data.ctrl)  # EngineModel.apply_torque
         mujoco.mj_step(engine.model, engine.data, engine.wheels.substeps)

@@ -39,30 +39,21 @@ class LoopbackApplication(tornado.web.Application):
 
     def listen(self, port: int, address: str | None = None,
                **kwargs: Any) -> tornado.httpserver.HTTPServer:
-        """Listen on ``127.0.0.1:port`` (``address`` is ignored: meshcat passes none).
-
-        The accept queue holds :data:`BACKLOG` connections (tornado's default, 128, is
-        overrun by a burst of short connections: the kernel then drops SYNs and every
-        client waits a second for the retransmission).
-        """
+        """Listen on ``127.0.0.1:port`` (``address`` ignored), :data:`BACKLOG` connections
+        queued (tornado's 128 overflow in a burst, each dropped SYN costing a second)."""
         kwargs.setdefault("backlog", BACKLOG)
         return super().listen(port, HOST, **kwargs)
 
 
 class LoopbackBridge(ZMQWebSocketBridge):
-    """meshcat's bridge with its web app on :class:`LoopbackApplication` and ZMQ on 127.0.0.1.
-    """
+    """meshcat's bridge with its web app on :class:`LoopbackApplication` and ZMQ on 127.0.0.1."""
 
     def __init__(self, port: int | None = None) -> None:
         super().__init__(host=HOST, port=port)
 
     def make_app(self) -> LoopbackApplication:
-        """Return meshcat's two routes (static viewer files, the WebSocket) on a loopback app.
-
-        They answer only requests whose ``Host`` names the loopback address
-        (:data:`LOCAL_HOSTS`); any other host gets 404, so a page from elsewhere that
-        re-points its own domain at 127.0.0.1 (DNS rebinding) reaches nothing.
-        """
+        """Return meshcat's two routes on a loopback app, answering only a ``Host`` of
+        :data:`LOCAL_HOSTS` (any other gets 404: DNS rebinding reaches nothing)."""
         return LoopbackApplication([Rule(HostMatches(LOCAL_HOSTS), [
             (r"/static/(.*)", StaticFileHandlerNoCache,
              {"path": VIEWER_ROOT, "default_filename": VIEWER_HTML}),

@@ -96,8 +96,7 @@ def start_server(port: int | None = None, timeout: float = 20.0
         if not 1 <= port <= 65535:
             raise ParameterError(f"port must lie in 1..65535, got {port}")
         if not port_is_free(port):
-            raise ParameterError(_port_problem(port)
-                                 or f"port {port} on {HOST} is already in use")
+            raise ParameterError(_port_problem(port) or f"port {port} on {HOST} is already in use")
     cmd = [sys.executable, "-u", "-m", "snake_pin.viz.meshcat_server", "--stdin-eof", "--quiet"]
     if threading.current_thread() is threading.main_thread():
         # PR_SET_PDEATHSIG follows the thread that started the child: only from the main one
@@ -126,11 +125,8 @@ def start_server(port: int | None = None, timeout: float = 20.0
 
 
 def stop_server(proc: subprocess.Popen[bytes]) -> None:
-    """Stop a server from :func:`start_server` and reap it (harmless if it already ended).
-
-    Closes its stdin (the server stops at end of file), then sends SIGTERM, and SIGKILL
-    after 5 s.
-    """
+    """Stop a server from :func:`start_server` and reap it (harmless if it already ended):
+    end of file on its stdin, then SIGTERM, and SIGKILL after 5 s."""
     if proc.stdin is not None and not proc.stdin.closed:
         proc.stdin.close()  # end of file: the server leaves its loop
     if proc.poll() is None:
@@ -154,7 +150,7 @@ def _connect(zmq_url: str) -> meshcat.Visualizer:
 
 
 def _disconnect(vis: meshcat.Visualizer) -> None:
-    # Visualizer.close() fails in meshcat 0.3.2 (its window has no close()); close the socket.
+    """Close the Visualizer's socket (its ``close()`` fails in meshcat 0.3.2)."""
     vis.window.zmq_socket.close(linger=0)
 
 
@@ -188,11 +184,9 @@ class _Requests:
 
 
 def offline_visualizer() -> meshcat.Visualizer:
-    """Return a :class:`meshcat.Visualizer` with no server, socket or process behind it.
-
-    Its window passes every command to meshcat's own bridge code, run in this process on
-    an in-memory scene tree; ``static_html()`` then returns meshcat's static export of
-    the scene, as a live server would.
+    """Return a :class:`meshcat.Visualizer` with no server, socket or process behind it: its
+    window passes every command to meshcat's own bridge code, run here on an in-memory scene
+    tree, so that ``static_html()`` returns meshcat's static export as a live server would.
     """
     import meshcat
     from meshcat.servers.tree import SceneTree
@@ -221,6 +215,7 @@ def offline_visualizer() -> meshcat.Visualizer:
 
 
 def _link_geometry(vis: meshcat.Visualizer, traj: Trajectory) -> None:
+    """The links' shapes: capsules, the head's orange sphere, the passive joints' blue ones."""
     import meshcat.geometry as g
 
     params = traj.params
@@ -246,12 +241,14 @@ def _link_geometry(vis: meshcat.Visualizer, traj: Trajectory) -> None:
 
 
 def _translation(x: float, y: float, z: float) -> np.ndarray:
+    """The homogeneous transform of a translation."""
     pose = np.eye(4)
     pose[:3, 3] = (x, y, z)
     return pose
 
 
 def _link_transforms(snake, q: np.ndarray, z: float) -> list[np.ndarray]:
+    """The links' poses at q, lifted to height z."""
     import pinocchio as pin
 
     pin.forwardKinematics(snake.model, snake.data, q)
@@ -264,6 +261,7 @@ def _link_transforms(snake, q: np.ndarray, z: float) -> list[np.ndarray]:
 
 
 def _scene(vis: meshcat.Visualizer, traj: Trajectory, fps: float, reference: bool) -> None:
+    """The whole scene of ``traj``: robot, head path, reference, view and animation."""
     import meshcat.animation as ma
     import meshcat.geometry as g
 
@@ -308,8 +306,7 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, fps: float, reference: boo
 
 def write_html(traj: Trajectory, path: str | os.PathLike[str], *, fps: float = 20.0,
                reference: bool = True) -> Path:
-    """Write one self-contained HTML page animating ``traj`` (meshcat's static export),
-    with no server and no socket.
+    """Write one self-contained HTML page animating ``traj``, with no server and no socket.
 
     Parameters
     ----------
@@ -347,6 +344,7 @@ def write_html(traj: Trajectory, path: str | os.PathLike[str], *, fps: float = 2
 
 
 def _check_fps(fps: float) -> None:
+    """ParameterError unless 1 <= fps <= 120."""
     if not 1 <= fps <= 120:
         raise ParameterError(f"fps must lie in 1..120, got {fps}")
 
@@ -364,9 +362,8 @@ def view(traj: Trajectory, *, port: int | None = None, fps: float = 30.0,
     fps : float, optional
         Animation frames per second of simulated time, 1..120.
     block : bool, optional
-        Wait until Ctrl-C (then return normally; an earlier one, or a ``SystemExit``,
-        propagates), then stop the server. Without it the server lives until this
-        process ends, however it ends.
+        Wait until Ctrl-C, then stop the server; without it the server lives until this
+        process ends.
 
     Returns
     -------
@@ -397,9 +394,8 @@ def view(traj: Trajectory, *, port: int | None = None, fps: float = 30.0,
             return web_url
         try:  # from the announcement on, Ctrl-C is the normal way to stop
             print(announce, flush=True)
-            # Block until the server exits without reaping it: unlike Popen.poll/wait,
-            # waitid holds no lock that a KeyboardInterrupt could leave taken (which
-            # would make stop_server below wait forever).
+            # wait without reaping: waitid, unlike Popen.wait, holds no lock that a
+            # KeyboardInterrupt could leave taken (stop_server would then hang)
             os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
         except KeyboardInterrupt:
             return web_url

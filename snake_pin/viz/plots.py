@@ -31,11 +31,8 @@ PASSIVE_COLOR = "#1f4fd1"
 
 
 def save_figure(fig: plt.Figure, path: str | os.PathLike[str] | None) -> plt.Figure:
-    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it.
-
-    A figure without a layout engine gets the constrained layout, which makes room for
-    labels, titles and colorbars in the one draw that renders the PNG; the tight bounding
-    box (``bbox_inches="tight"``) would draw every figure twice.
+    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it; a figure without a
+    layout engine gets the constrained one (one draw, where a tight bounding box takes two).
     """
     if path is not None:
         if fig.get_layout_engine() is None:
@@ -51,10 +48,6 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
                color: str = BODY_COLOR, alpha: float = 1.0, label: str | None = None) -> None:
     """Draw the snake at ``q`` on ``ax``: links, head dot, passive joints as crosses.
 
-    Each link is drawn at its own length (per-link robots too). With ``frames`` each link
-    frame ``O_i - x_i y_i`` is drawn at that link's CM (as in Fig. 1), its arrows 0.3 of
-    that link's length.
-
     Parameters
     ----------
     ax : matplotlib.axes.Axes
@@ -64,7 +57,7 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
     q : array_like, shape (n + 2,)
         Configuration ``[x_h, y_h, theta_1, phi_1 .. phi_{n-1}]`` [m, m, rad, rad...].
     frames : bool, optional
-        Draw each link's frame at its CM.
+        Draw each link's frame ``O_i - x_i y_i`` at its CM (as in Fig. 1).
     color : str, optional
         Colour of the links.
     alpha : float, optional
@@ -90,10 +83,10 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
         poses = snake.link_poses(q)
         sizes = 0.6 * (0.5 * snake.params.link_lengths)  # each frame 0.3 of its own link
         for (x, y, th), size in zip(poses, sizes, strict=True):
-            ax.arrow(x, y, size * np.cos(th), size * np.sin(th), color="#c0392b",
-                     width=size * 0.06, length_includes_head=True, zorder=4)
-            ax.arrow(x, y, -size * np.sin(th), size * np.cos(th), color="#2874a6",
-                     width=size * 0.06, length_includes_head=True, zorder=4)
+            for (dx, dy), colour in (((np.cos(th), np.sin(th)), "#c0392b"),
+                                     ((-np.sin(th), np.cos(th)), "#2874a6")):
+                ax.arrow(x, y, size * dx, size * dy, color=colour, width=size * 0.06,
+                         length_includes_head=True, zorder=4)
     ax.set_aspect("equal", adjustable="datalim")
     ax.margins(0.08)
 
@@ -121,11 +114,7 @@ def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
 
 
 def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None) -> plt.Figure:
-    """Plot the head pose, the joint angles and the torque norm of a run over time.
-
-    The torque panel shows the torques that were applied (the last sample's torque of a
-    run that did not diverge never was: it is left out, not drawn as zero).
-    """
+    """Plot the head pose, the joint angles and the norm of the applied torques over time."""
     fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True, layout="constrained")
     for i, label in enumerate(("x_h [m]", "y_h [m]", "theta_1 [rad]")):
         axes[0].plot(traj.t, traj.q[:, i], label=label)
