@@ -133,8 +133,7 @@ def bench_control_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: output ``folder``,
-        robot ``params``, ``report`` and ``quick`` mode.
+        The report's context.
     """
     # a robot of one's own runs the benchmark (with the tracking friction rule of the
     # tracking stage); the presets run the Table 1 tracking robot the LOS law is tuned for

@@ -55,8 +55,7 @@ def integrability_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
-        robot, report and quick mode.
+        The report's context.
     """
     import matplotlib.pyplot as plt
 
