@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from .._io import current_umask
+from .._io import _fsync_directory, _pid_alive, current_umask
 from ..exceptions import ParameterError, RunInterrupted
 from ..params import ROBOTS, SnakeParams
 from ..report import Report
@@ -78,9 +78,8 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
 
 
 def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams) -> list[str]:
-    """The fields of ``given`` that ``stage`` would not honour (the engine stage and the
-    path benchmark also honour "robot" for a robot of one's own; the engine stage for the
-    engine preset too).
+    """The fields of ``given`` that ``stage`` would not honour (the engine and benchmark
+    stages also honour "robot" for a robot of one's own, the engine stage for its preset).
 
     Parameters
     ----------
@@ -303,29 +302,16 @@ def _move_into(staging: Path, folder: Path) -> None:
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(source, target)
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)  # make the renames durable
-    except OSError:
-        pass  # filesystems that cannot sync a folder
-    finally:
-        os.close(fd)
+    _fsync_directory(folder)
 
 
 def _remove_stale_staging(folder: Path) -> None:
     """Remove staging folders of runs whose process is gone (killed with -9)."""
     for entry in os.scandir(folder):
         match = _STAGING.fullmatch(entry.name)
-        if match is None or not entry.is_dir(follow_symlinks=False):
-            continue
-        pid = int(match.group(1))
-        try:
-            os.kill(pid, 0)
-            continue  # alive (possibly another run writing into this folder)
-        except ProcessLookupError:
+        if match is not None and entry.is_dir(follow_symlinks=False) \
+                and not _pid_alive(int(match.group(1))):
             shutil.rmtree(entry.path, ignore_errors=True)
-        except (PermissionError, OverflowError):
-            continue
 
 
 @contextlib.contextmanager

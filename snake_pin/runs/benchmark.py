@@ -243,15 +243,6 @@ def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
 
 
 # ------------------------------------------------------------------------------- runs
-def _row(scenario: str, controller: str, model: str, failed: int | None,
-         body_length: float) -> dict[str, Any]:
-    row: dict[str, Any] = dict.fromkeys(METRIC_FIELDS, math.nan)
-    row.update(scenario=scenario, controller=controller, model=model,
-               failed_joint=failed or 0, status="", reason="", body_length=body_length,
-               draws=1)
-    return row
-
-
 def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: int | None,
                  t_final: float, factory: ControllerFactory | None,
                  criteria_dt: float | None, draws: int,
@@ -283,7 +274,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                           initial_offset=offset, reference=reference).trajectory
         metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
                                Snake(traj.params), reference, start=start, criteria_dt=None)
-        runs.append((traj, {**metrics, "torque_max": _torque_max(traj)}))
+        runs.append((traj, {**metrics, "torque_max": _nan(torque_max(traj))}))
     spread = distribution([m["head_ct_rms_pct"] for _, m in runs])
     order = sorted(range(len(runs)), key=lambda k: (
         not math.isfinite(runs[k][1]["head_ct_rms_pct"]), runs[k][1]["head_ct_rms_pct"]))
@@ -298,24 +289,21 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
         row.update(runs[median][1])
     for key in ("head_ct_rms", "head_ct_max", "head_ct_rms_pct", "head_lag_rms",
                 "head_error_rms", "cm_ct_rms", "torque_rms", "torque_max"):
-        value = distribution([m[key] for _, m in runs])["median"]
-        row[key] = math.nan if value is None else value
+        row[key] = _nan(distribution([m[key] for _, m in runs])["median"])
     bad = sorted((t for t, _ in runs if t.status != "completed"), key=lambda t: t.t_end)
     status = "completed" if not bad else bad[0].status  # the first draw to stop
     reason = "" if not bad else f"{len(bad)} of {len(runs)} draws: {bad[0].reason}"
     _finish(row, traj, status, reason)
     row.update(draws=len(runs),
-               head_ct_rms_pct_p10=math.nan if spread["p10"] is None else spread["p10"],
-               head_ct_rms_pct_p90=math.nan if spread["p90"] is None else spread["p90"],
+               head_ct_rms_pct_p10=_nan(spread["p10"]), head_ct_rms_pct_p90=_nan(spread["p90"]),
                t_end=float(np.median([t.t_end for t, _ in runs])),
                diverged_at=float(bad[0].t_end) if bad and status in ("diverged", "failed")
                else math.nan)
     return row
 
 
-def _torque_max(traj: Trajectory) -> float:
-    """The run's peak ``|tau_i|`` over all its applied samples (NaN when none was applied)."""
-    value = torque_max(traj)
+def _nan(value: float | None) -> float:
+    """``value``, NaN for None (a row's cells are numbers)."""
     return math.nan if value is None else value
 
 
@@ -386,8 +374,10 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     if failed:
         params = params.replace(passive=(failed,))
     reference = make_scenario(scenario, params.body_length)
-    row = _row(scenario, controller, model, failed, params.body_length)
-    row.update(series={}, snapshots=[], head=[])
+    row: dict[str, Any] = dict.fromkeys(METRIC_FIELDS, math.nan)
+    row.update(scenario=scenario, controller=controller, model=model, failed_joint=failed or 0,
+               status="", reason="", body_length=params.body_length, draws=1, series={},
+               snapshots=[], head=[])
     if factory is None:
         _known(controller, CONTROLLERS, "controller", " or a factory")
     make = factory or CONTROLLERS[controller]
@@ -409,7 +399,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
                             reference, head_tracking=hasattr(ctrl, "reference"),
                             start=start, criteria_dt=criteria_dt))
-    row.update(torque_max=_torque_max(traj), head_error_rms_pct=_percent_of_body(row))
+    row.update(torque_max=_nan(torque_max(traj)), head_error_rms_pct=_percent_of_body(row))
     _finish(row, traj, traj.status, traj.reason)
     row["wall_s"] = time.perf_counter() - wall
     return row

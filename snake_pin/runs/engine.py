@@ -29,7 +29,6 @@ from ..metrics import (
     torque_max,
     window,
 )
-from ..model import Snake
 from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory
 
@@ -364,7 +363,7 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
     """
     import matplotlib.pyplot as plt
 
-    from ..viz.plots import draw_snake, save_figure
+    from ..viz.plots import plot_head_path, save_figure
 
     traj = run.trajectory if isinstance(run, EngineRun) else run
     paths = {k: folder / f"{stem}_{k}.png" for k in ("head", "criteria", "snapshots")}
@@ -395,17 +394,8 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
     fig.suptitle("D and R from the estimated engine state (Fig. 20)", fontsize=10)
     save_figure(fig, paths["criteria"])
 
-    snake = Snake(traj.params)
-    fig, ax = plt.subplots(figsize=(9, 4))
-    for k, t in enumerate(np.linspace(0, traj.t_end, 7)):
-        i = min(int(np.searchsorted(traj.t, t)), len(traj) - 1)
-        draw_snake(ax, snake, traj.q[i], alpha=0.35 + 0.65 * k / 6)
-    ax.plot(traj.q[:, 0], traj.q[:, 1], color="#d9541a", lw=0.8)
-    ax.plot(target[:, 0], target[:, 1], "k--", lw=1)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(alpha=0.3)
-    ax.set_title("Snapshots of the engine run (Fig. 21)", fontsize=10)
-    save_figure(fig, paths["snapshots"])
+    plot_head_path(traj, target, paths["snapshots"], snapshots=7,
+                   title="Snapshots of the engine run (Fig. 21)")
 
     if twin is not None:
         paths["side_by_side"] = folder / f"{stem}_vs_viscous.png"
