@@ -259,9 +259,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                    reason="the engine runs the head-tracking laws (lyapunov, velocity, mpc) only: "
                           "run_engine has no PFL, LOS or user controller")
         return row
-    params = robot if robot is not None else SnakeParams.engine()
-    if failed:
-        params = params.replace(passive=(failed,))
+    params = _robot(robot, "engine", failed)
     reference = make_scenario(scenario, params.body_length)
     row["body_length"] = params.body_length
     friction = identify_friction(params.replace(passive=()))
@@ -300,6 +298,13 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                diverged_at=float(bad[0].t_end) if bad and status in ("diverged", "failed")
                else math.nan)
     return row
+
+
+def _robot(robot: SnakeParams | None, model: str, failed: int | None) -> SnakeParams:
+    """The cell's robot (default: the engine preset, or the Table 1 tracking robot), with
+    the failed joint passive."""
+    params = robot or (SnakeParams.engine() if model == "engine" else tracking_params())
+    return params.replace(passive=(failed,)) if failed else params
 
 
 def _nan(value: float | None) -> float:
@@ -370,9 +375,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     integer(draws, "draws", low=1)
     start = default_error_window(t_final) if error_window is None else float(error_window)
     wall = time.perf_counter()
-    params = robot if robot is not None else tracking_params()
-    if failed:
-        params = params.replace(passive=(failed,))
+    params = _robot(robot, "viscous", failed)
     reference = make_scenario(scenario, params.body_length)
     row: dict[str, Any] = dict.fromkeys(METRIC_FIELDS, math.nan)
     row.update(scenario=scenario, controller=controller, model=model, failed_joint=failed or 0,
@@ -663,14 +666,8 @@ def _path_figure(result: BenchmarkResult, scenario: str, model: str, failed: int
             and r["failed_joint"] == failed and r["snapshots"]]
     fig, axes = plt.subplots(1, max(len(rows), 1), figsize=(3.6 * max(len(rows), 1), 3.8),
                              squeeze=False)
-    if model == "engine":
-        robot = result.settings.get("engine_robot")
-        params = SnakeParams.from_dict(robot) if robot else SnakeParams.engine()
-    else:
-        robot = result.settings.get("robot")
-        params = SnakeParams.from_dict(robot) if robot else tracking_params()
-    if failed:
-        params = params.replace(passive=(failed,))
+    robot = result.settings.get("engine_robot" if model == "engine" else "robot")
+    params = _robot(SnakeParams.from_dict(robot) if robot else None, model, failed)
     snake = Snake(params)
     reference = make_scenario(scenario, params.body_length)
     for ax, row in zip(axes[0], rows, strict=False):
