@@ -261,8 +261,8 @@ def tracking_stage(ctx: Context) -> None:
         sec.numbers[run.stem] = traj.summary_dict()
         ctx.options.setdefault("trajectories", {})[run.label] = ctx.folder / f"{run.stem}.npz"
         if run.stem == "tracking":
-            lateral = lateral_comparison(traj, ctx.folder / "lateral_criterion.png")
-            sec.numbers["lateral_criterion"] = lateral
+            sec.numbers["lateral_criterion"] = lateral_comparison(
+                traj, ctx.folder / "lateral_criterion.png")
     sec.table(["run", "RMS head error [m]", "% of body", "max error [m]", "R min",
                "max |g - g(0)|"], rows)
     sec.text(f"Targets: RMS <= 5 % of the {robot.body_length:.4g} m body without a passive "
