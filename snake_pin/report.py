@@ -1,13 +1,6 @@
-"""The self-contained HTML report written by ``snake-pin reproduce``, and its JSON.
-
-A :class:`Report` collects sections (text, tables, figures); :meth:`Report.write`
-produces ``index.html`` with every PNG embedded as a data URI (it opens offline and
-alone) and ``summary.json`` with the numbers. A report knows whether its run completed
-or was interrupted (:attr:`Report.status`, :attr:`Report.note`): an interrupted one says
-so at the top of the page and under ``"run"`` in the summary.
-
-The summary is written with :func:`snake_pin._json.json_text` (RFC 8259: NaN and
-infinities become ``null``); ``json_safe`` and ``json_text`` are importable from here too.
+"""The self-contained HTML report of ``snake-pin reproduce`` (sections of text, tables and
+embedded figures; an interrupted run says so at the top) and its ``summary.json``
+(written with :func:`snake_pin._json.json_text`, also importable from here).
 """
 
 from __future__ import annotations
@@ -36,9 +29,9 @@ class Section:
     title
         Its heading.
     paragraphs
-        Plain-text paragraphs (escaped when written).
+        Plain-text paragraphs.
     figures
-        (PNG path, caption) pairs; the PNGs are embedded in the page.
+        (PNG path, caption) pairs, embedded in the page.
     tables
         (header, rows) pairs.
     links
@@ -172,8 +165,7 @@ class Report:
         Returns
         -------
         dict
-            Every section's numbers under its key, and ``"run"``: status, note and the
-            sections' keys.
+            Every section's numbers under its key; ``"run"``: status, note, section keys.
         """
         return {"run": {"status": self.status, "note": self.note,
                         "sections": [sec.key for sec in self.sections]},

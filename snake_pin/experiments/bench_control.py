@@ -1,13 +1,7 @@
 """Report stage: the controller benchmark on paths (:mod:`snake_pin.runs.benchmark`) on
 the viscous model and a few engine rows, its tables and figures, the MPC's targets against
-the Lyapunov-like law, and the paper's claim on curved paths.
-
-The full report runs the MPC on :data:`REPORT_MPC_SCENARIOS` (line, circle 1 L, lane
-change), with and without joint 5 failed: 6 cells of 60 s at about 2.5 s of wall per
-simulated second, some 900 s of one core (about 450 s of wall on 2 cores), against some
-1500 s (750 s) for all five :data:`REPORT_SCENARIOS`. The three are the cells of the MPC's
-targets (:func:`mpc_targets`); the circles of 0.5 L and 2 L are left to ``snake-pin
-bench-control``, whose default controllers include the MPC.
+the Lyapunov-like law (on :data:`REPORT_MPC_SCENARIOS` only, for the cost: :doc:`/paths`),
+and the paper's claim on curved paths.
 """
 
 from __future__ import annotations
@@ -65,19 +59,16 @@ def mpc_targets(rows: Sequence[dict[str, Any]],
     Parameters
     ----------
     rows : sequence of dict
-        Benchmark rows (:func:`~snake_pin.runs.benchmark.run_cell`) of one benchmark: the
-        same duration and metrics window for every row.
+        Rows of one benchmark (:func:`~snake_pin.runs.benchmark.run_cell`).
     limit : float, optional
         The target on the MPC's head error [% of the body length].
 
     Returns
     -------
     list of dict
-        One per ``mpc`` row, in row order: ``scenario``, ``failed_joint``, ``mpc`` and
-        ``lyapunov`` (head error to the timed reference, RMS, % of L; NaN for a missing or
-        unfinished Lyapunov-like row), ``torque_max`` (the MPC's peak ``|tau_i|`` [N m]),
-        ``limit`` and ``met``: the MPC run completed within ``limit`` and below the
-        Lyapunov-like law's error.
+        One per ``mpc`` row: ``scenario``, ``failed_joint``, the two laws' head errors
+        ``mpc`` and ``lyapunov`` (% of L, NaN if not completed), the MPC's ``torque_max``,
+        ``limit`` and ``met`` (within ``limit`` and below the Lyapunov-like law's).
     """
     viscous = [r for r in rows if r["model"] == "viscous"]
     lyapunov = {(r["scenario"], r["failed_joint"]): r for r in viscous
@@ -118,23 +109,13 @@ def _merge(grid: BenchmarkResult, mpc: BenchmarkResult) -> BenchmarkResult:
 
 
 def bench_control_stage(ctx: Context) -> None:
-    """The ``reproduce`` stage: the benchmark on the viscous model, its table, the MPC's
-    targets, the claim.
-
-    Quick: line and circle 1L x lyapunov and los, 12 s, no failure; the MPC and the
-    Lyapunov-like law on the line for :data:`QUICK_MPC_T` s (written to ``mpc/``); one
-    engine row (circle 1L, velocity law, 12 s, one draw). Full: :data:`REPORT_SCENARIOS` x
-    every built-in controller but the MPC, and the MPC on :data:`REPORT_MPC_SCENARIOS`
-    (see the module's note on the cost), with and without joint 5 failed, 60 s; and the
-    engine rows: :data:`REPORT_ENGINE_SCENARIOS` with the velocity-level law on the engine
-    robot, :data:`REPORT_ENGINE_T` s runs (shorter than the viscous runs, for the stage's
-    budget), each the median of :data:`ENGINE_DRAWS` perturbed starts.
+    """The benchmark on the viscous model and engine rows, its tables, the MPC's targets,
+    the claim (quick: :data:`QUICK_MPC_T` s MPC runs on the line, written to ``mpc/``).
 
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: output ``folder``,
-        robot ``params``, ``report`` and ``quick`` mode.
+        The report's context.
     """
     # a robot of one's own runs the benchmark (with the tracking friction rule of the
     # tracking stage); the presets run the Table 1 tracking robot the LOS law is tuned for

@@ -1,9 +1,5 @@
-"""What a report stage is given: :class:`Context` (its folder, robot, report, options and
-the report's one Dask cluster).
-
-The stages (:mod:`snake_pin.experiments.robot`, ``.manipulability``, ``.integrability``,
-...) take a :class:`Context` and import it from here; :mod:`snake_pin.experiments.reproduce`
-makes one and runs the stages with it, so the stages never import the runner.
+"""What a report stage is given: :class:`Context`, made by the runner
+(:mod:`snake_pin.experiments.reproduce`) so that the stages never import it.
 """
 
 from __future__ import annotations
@@ -36,8 +32,7 @@ class Context:
     options
         What stages pass on to later ones (e.g. the tracking runs' files).
     cluster
-        The report's local Dask cluster, shared by the stages' jobs
-        (:func:`snake_pin.runs.parallel.run_jobs`); None: each call starts its own.
+        The report's Dask cluster for the stages' jobs; None: each call starts its own.
     """
 
     folder: Path

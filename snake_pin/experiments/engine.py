@@ -1,9 +1,6 @@
-"""Report stage of Section VI.3 on MuJoCo: the Lyapunov-like controller on a wheeled snake
-with Coulomb contacts (Figs. 19-21), beside the same controller on the viscous Pinocchio
-model, and the MPC on the same robot along the benchmark's line and circle.
-
-The engine runs are chaotic, so the stage reports distributions over perturbed starts
-(:mod:`snake_pin.runs.engine`), and checks the viscous model's runs the same way.
+"""Report stage of Section VI.3 on MuJoCo (Figs. 19-21): the Lyapunov-like law on a wheeled
+snake beside the viscous model, and the MPC along the benchmark's line and circle, as
+distributions over perturbed starts (the engine is chaotic; :mod:`snake_pin.runs.engine`).
 """
 
 from __future__ import annotations
@@ -53,18 +50,19 @@ MPC_T_FINAL, QUICK_MPC_T_FINAL = 25.0, 1.0
 MPC_DRAWS = 3
 
 
-def _cell(dist: dict[str, Any]) -> str:
-    """A report table cell: median [p10, p90]."""
+def _cell(dist: dict[str, Any], low: str = "p10", high: str = "p90", digits: int = 4) -> str:
+    """A report table cell: median [low, high] of a distribution, "-" without values."""
     if dist["median"] is None:
         return "-"
-    return f"{dist['median']:.4g} [{dist['p10']:.4g}, {dist['p90']:.4g}]"
+    return f"{dist['median']:.{digits}g} [{dist[low]:.{digits}g}, {dist[high]:.{digits}g}]"
 
 
-def _span(dist: dict[str, Any]) -> str:
-    """A report table cell: median [min, max]."""
-    if dist["median"] is None:
-        return "-"
-    return f"{dist['median']:.3g} [{dist['min']:.3g}, {dist['max']:.3g}]"
+def _draws(label: str, offsets: np.ndarray, runs: list[Any]) -> Draws:
+    """The runs from ``offsets`` (seed 0) as :class:`~snake_pin.runs.engine.Draws`."""
+    draws = Draws(label, PERTURBATION, 0, offsets)
+    for i, run in enumerate(runs):
+        draws.record(i, run.trajectory.summary_dict())
+    return draws
 
 
 def _passive_joint(n: int) -> int:
@@ -75,9 +73,8 @@ def _passive_joint(n: int) -> int:
 def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
                  offset: np.ndarray | None = None, error_window: float | None = None
                  ) -> Trajectory:
-    """The same law (``law``: "velocity" or "acceleration") on the viscous Pinocchio model
-    of ``params`` from the engine runs' arc of (82), head first, its n - 1 joint angles
-    offset by ``offset``; passed through :func:`~snake_pin.runs.engine.summarize`."""
+    """The same law ("velocity" or "acceleration") on the viscous model of ``params`` from
+    the engine runs' start offset by ``offset``, passed through ``summarize``."""
     snake = Snake(params)
     controller = (QuasiStaticLyapunovController(snake, head_first_reference())
                   if law == "velocity" else LyapunovController(snake, head_first_reference()))
@@ -91,14 +88,17 @@ def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
 
 def _friction_section(sec: Any, base: SnakeParams, wheels: WheelSpec,
                       friction: dict[str, Any]) -> None:
+    """The engine robot, its wheels and the identified friction against its models."""
+    built = (f"a pair of free-spinning wheels (r = {wheels.radius} m, {wheels.mass} kg each) on "
+             "each link" + ("" if base.uniform else ", sized to that link")
+             + f", Coulomb friction mu = {wheels.friction} with the floor, motors on the active "
+             "joints. Its chain mass matrix equals Pinocchio's H (tested). The controller "
+             "reads positions from the engine and estimates velocities with "
+             "2 pi f_c s / (s + 2 pi f_c), f_c = 10 Hz.")
     if base.uniform:
         sec.text(f"The engine robot (n = {base.n}, 2l = {base.link_length} m, m = {base.mass} "
                  f"kg, J = {base.inertia} kg m^2) is built for MuJoCo from the same SnakeParams:"
-                 f" a pair of free-spinning wheels (r = {wheels.radius} m, {wheels.mass} kg "
-                 f"each) on each link, Coulomb friction mu = {wheels.friction} with the floor, "
-                 "motors on the active joints. Its chain mass matrix equals Pinocchio's H "
-                 "(tested). The controller reads positions from the engine and estimates "
-                 "velocities with 2 pi f_c s / (s + 2 pi f_c), f_c = 10 Hz.")
+                 f" {built}")
         sec.table(["identified (per link)", "value", "model check"],
                   [["c_x [N s/m]", friction["c_x"],
                     f"rolling 2b/r^2 = {friction['c_x_rolling_model']:.4g}"],
@@ -110,12 +110,7 @@ def _friction_section(sec: Any, base: SnakeParams, wheels: WheelSpec,
     sec.text(f"The robot '{base.name}' (n = {base.n}, links {lengths.min():.3g}..."
              f"{lengths.max():.3g} m long and {masses.min():.3g}..{masses.max():.3g} kg, "
              f"{base.body_length:.3g} m and {base.total_mass:.3g} kg in all) is built for "
-             "MuJoCo from its own SnakeParams: a pair of free-spinning wheels (r = "
-             f"{wheels.radius} m, {wheels.mass} kg each) on each link, sized to that link, "
-             f"Coulomb friction mu = {wheels.friction} with the floor, motors on the active "
-             "joints. Its chain mass matrix equals Pinocchio's H (tested). The controller "
-             "reads positions from the engine and estimates velocities with "
-             "2 pi f_c s / (s + 2 pi f_c), f_c = 10 Hz.")
+             f"MuJoCo from its own SnakeParams: {built}")
     sec.table(["identified", "whole robot", "model check", "per link (head first)"],
               [["c_x [N s/m]", friction["c_x_total"],
                 f"n x rolling 2b/r^2 = {base.n * friction['c_x_rolling_model']:.4g}",
@@ -135,7 +130,7 @@ def engine_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`.
+        The report's context.
     """
     from ..viz.meshcat_view import write_html
 
@@ -201,9 +196,7 @@ def engine_stage(ctx: Context) -> None:
     dist_rows, target_rows, engine_spreads = [], [], []
     for c, (label, _, stem) in enumerate(configs):
         runs = engine_results[c * count:(c + 1) * count]
-        draws = Draws(label, PERTURBATION, 0, offsets)
-        for i, run in enumerate(runs):
-            draws.record(i, run.trajectory.summary_dict())
+        draws = _draws(label, offsets, runs)
         median = runs[draws.median_draw() or 0]
         median.trajectory.meta["draw"] = (draws.median_draw() or 0) + 1
         median.trajectory.save(ctx.folder / stem)
@@ -309,13 +302,12 @@ def _mpc_section(sec: Any, runs: list[Any], references: dict[str, Any], offsets:
     rows, numbers = [], {}
     for k, name in enumerate(MPC_SCENARIOS):
         batch = runs[k * len(offsets):(k + 1) * len(offsets)]
-        draws = Draws(f"MPC, {name}", PERTURBATION, 0, offsets)
-        for i, run in enumerate(batch):
-            draws.record(i, run.trajectory.summary_dict())
+        draws = _draws(f"MPC, {name}", offsets, batch)
         statuses = [str(run.trajectory.status) for run in batch]
         dists = {key: distribution(draws.values(key))
                  for key in ("rms_percent", "max_percent", "torque_max")}
-        rows.append([name, ", ".join(statuses), *(_span(dists[key]) for key in dists)])
+        rows.append([name, ", ".join(statuses),
+                     *(_cell(dists[key], "min", "max", 3) for key in dists)])
         median = batch[draws.median_draw() or 0].trajectory
         reference = references[name]
         figure = ctx.folder / f"engine_mpc_{name}.png"

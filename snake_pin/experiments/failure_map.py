@@ -1,48 +1,8 @@
-"""The actuator-failure map as a report stage (the paper's future work).
-
-:func:`failure_map_stage` runs the map as a study (:func:`snake_pin.study.run_study`, on a
-local Dask cluster of one worker per core, one run per task) and writes into
-the report folder:
-
-- ``failure_map.toml``: the study as run. For the Table 1 robot and the full plan it is
-  the shipped ``studies/failure_map.toml`` (same runs, same study hash): the Lyapunov-like
-  law, 60 s, no failed joint (0) and each single failed joint k = 1..n-1, times
-  c_y/c_x in {10, 25, 50, 100} with the robot's c_x (Table 1: :data:`C_X`; a robot whose
-  c_x differs between links, or is 0, gets :data:`C_X`). A robot of one's own runs the same
-  plan on its own layout (written beside it as ``failure_map_robot.toml``), with its
-  passive joints cleared (the failures are the axis);
-- ``failure_map/``: the study folder (``runs/`` Parquet dataset, ``index.html``,
-  ``summary.json``);
-- the heatmaps of the RMS head error (% of body length) and of R~_min (failed joint
-  against c_y/c_x, :func:`snake_pin.study.report.save_figures`), the two tables, and
-  ``failure_map_series.png``: head error, R~ and R~ without the heading along the run
-  without a failure, with the worst failure and with joint 1 failed (rerun through
-  :func:`snake_pin.sim.simulate`, as Dask tasks of
-  :func:`~snake_pin.runs.parallel.run_jobs`), at the reference ratio
-  :data:`SERIES_RATIO`;
-- ``failure_map_mpc.toml`` and ``failure_map_mpc/``: the MPC's line of the map, its own
-  study (the Lyapunov-like study and its hash stay as they are): the receding-horizon MPC
-  (:class:`~snake_pin.control.mpc.MPCController`, default options) with no failed joint
-  and each single failed joint at c_y/c_x = 50, on the same reference; for Table 1 and the
-  full plan it is the shipped ``studies/failure_map_mpc.toml``. Its table and
-  ``failure_map_mpc.png`` put its RMS head error beside the Lyapunov-like law's on that
-  line (:func:`mpc_findings` reads the comparison from the two studies' rows).
-
-The section's numbers (``summary.json``): the tables keyed by failed joint and ratio, the
-study's summary, the series' statistics and the findings' figures; under ``mpc`` the same
-for the MPC's line. The text states what the map shows from those numbers
-(:func:`findings`); the mechanisms and the retuning study are in ``docs/failure_map.rst``.
-
-With ``ctx.quick`` the plans are :data:`QUICK` (11 s, failed joints 0, 1, 2, 5, 9, ratios
-10 and 50) and :data:`MPC_QUICK` (2 s, failed joints 0 and 5); the full plans are
-:data:`FULL` and :data:`MPC_FULL` (the MPC re-solves its problem every 40 ms: its 10 runs
-are the stage's longest part, ``docs/failure_map.rst``). An interrupt (KeyboardInterrupt,
-or the study's :class:`~snake_pin.exceptions.RunInterrupted`) propagates: the report
-machinery keeps the stages done.
-
-Options read from ``ctx.options``: ``study_workers`` (local worker processes, default one
-per core) and ``study_scheduler`` (the address of an existing Dask scheduler). On a
-terminal the study draws its progress bar (runs done, failures, ETA).
+"""The actuator-failure map as a report stage (the paper's future work): the map's study
+(:func:`failure_map_study`, run by :func:`snake_pin.study.run_study`), its tables, series
+along the run and findings (:func:`findings`), and the MPC's line of the map
+(:func:`mpc_findings`); what it writes and why is in :doc:`/failure_map`. An interrupt
+propagates: the report machinery keeps the stages done.
 """
 
 from __future__ import annotations
@@ -113,19 +73,16 @@ _LAWS = {"lyapunov": ("failure_map", "Lyapunov-like law"),
 # ----------------------------------------------------------------- the study
 def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path,
                       controller: str = "lyapunov") -> Path:
-    """Write the study file of the map for ``params`` into ``folder``.
-
-    The Table 1 preset is named (``robot = "table1"``, as the shipped file does); any
-    other robot is written as ``failure_map_robot.toml`` beside the study. Passive joints
-    are cleared; failed joints beyond the robot (n - 1) are dropped from the plan.
+    """Write the study file of the map for ``params`` into ``folder``: Table 1 by name (as
+    the shipped file), any other robot as ``failure_map_robot.toml`` beside it; failed
+    joints beyond the robot are dropped.
 
     Parameters
     ----------
     params
         The robot (its friction is replaced by the map's, its passive joints cleared).
     plan
-        Duration, failed joints and ratios (:data:`FULL`, :data:`QUICK`; for the MPC
-        :data:`MPC_FULL`, :data:`MPC_QUICK`).
+        Duration, failed joints and ratios (e.g. :data:`FULL`, :data:`MPC_QUICK`).
     folder
         An existing folder.
     controller
@@ -311,8 +268,8 @@ def mpc_findings(mpc: dict[str, dict[str, Any]], lyapunov: dict[str, dict[str, A
     Parameters
     ----------
     mpc, lyapunov
-        :func:`map_tables` of the two laws' runs (the Lyapunov-like law's may lack joints:
-        their comparison is left out).
+        :func:`map_tables` of the two laws' runs (joints the Lyapunov-like law lacks are
+        not compared).
     joints
         The MPC's failed joints (0: none).
     ratio
@@ -321,10 +278,8 @@ def mpc_findings(mpc: dict[str, dict[str, Any]], lyapunov: dict[str, dict[str, A
     Returns
     -------
     tuple of str and dict
-        The paragraph, and its figures: the RMS errors without a failure, the failed joints
-        with which the MPC tracks within :data:`TRACKING_LIMIT` and those it does not (or
-        whose run is not ``ok``), its worst, and the joints where it has the lower and the
-        higher error of the two laws.
+        The paragraph, and its figures (errors without a failure, the joints tracked
+        within :data:`TRACKING_LIMIT` or not, the worst, the lower and higher of the laws).
     """
     key = f"{ratio:g}"
 
@@ -532,17 +487,10 @@ def _mpc_line(ctx: Context, sec: Any, base: SnakeParams, plan: MapPlan,
              f"from {other['error_window']:g} s). {summary.runs} runs as their own study "
              f"(failure_map_mpc.toml, results in failure_map_mpc/), "
              f"{summary.wall_time:.0f} s of wall time.")
-    line_rows = []
-    key = f"{ratio:g}"
-    for joint in joints:
-        cells = []
-        for table in (lyapunov, tables):
-            value = table["rms_head_error_pct"].get(str(joint), {}).get(key)
-            status = table["status"].get(str(joint), {}).get(key, "missing")
-            cells.append(value if value is not None else status)
-        line_rows.append(["none" if joint == 0 else joint, *cells])
     sec.table([f"failed joint (RMS head error [% of body], c_y/c_x = {ratio:g})",
-               "Lyapunov-like law", "MPC"], line_rows)
+               "Lyapunov-like law", "MPC"],
+              [_row(joint, [(table, "rms_head_error_pct", ratio) for table in (lyapunov, tables)])
+               for joint in joints])
     figure = ctx.folder / "failure_map_mpc.png"
     _plot_laws(joints, tables, lyapunov, ratio, figure)
     sec.figure(figure, f"RMS head error per failed joint at c_y/c_x = {ratio:g}: the "
@@ -550,9 +498,23 @@ def _mpc_line(ctx: Context, sec: Any, base: SnakeParams, plan: MapPlan,
     sec.text(paragraph)
     return {"plan": {"t_final": plan.t_final, "failed_joints": joints, "ratio": ratio,
                      "error_window": window},
-            **tables, "findings": numbers,
-            "study": {k: v for k, v in summary.to_dict().items()
-                      if k not in ("files", "folder")}}
+            **tables, "findings": numbers, "study": _study_numbers(summary)}
+
+
+def _row(joint: int, cells: Sequence[tuple[dict[str, Any], str, float]]) -> list[Any]:
+    """A table row: the failed joint ("none" for 0), then each (tables, metric, ratio) cell's
+    value, or its run's status where it has none ("missing" without a run)."""
+    out: list[Any] = ["none" if joint == 0 else joint]
+    for tables, metric, ratio in cells:
+        value = tables[metric].get(str(joint), {}).get(f"{ratio:g}")
+        out.append(value if value is not None else
+                   tables["status"].get(str(joint), {}).get(f"{ratio:g}", "missing"))
+    return out
+
+
+def _study_numbers(summary: Any) -> dict[str, Any]:
+    """A study's summary for ``summary.json``, without its files and folder."""
+    return {k: v for k, v in summary.to_dict().items() if k not in ("files", "folder")}
 
 
 def _singular_workers(scheduler: str) -> str:
@@ -566,8 +528,7 @@ def failure_map_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: files go to
-        ``ctx.folder``, the section to ``ctx.report``; ``ctx.quick`` picks :data:`QUICK`.
+        The report's context (``ctx.quick``: :data:`QUICK` and :data:`MPC_QUICK`).
     """
     from ..runs.parallel import run_jobs
     from ..study.report import save_figures
@@ -598,15 +559,8 @@ def failure_map_stage(ctx: Context) -> None:
     start = spec.scenarios[0]["error_window"] if spec.scenarios else 10.0
     for metric, title in (("rms_head_error_pct", f"RMS head error [% of body], t >= {start:g} s"),
                           ("R_tilde_min", "R~ min along the run")):
-        table = []
-        for joint in joints:
-            cells = []
-            for ratio in plan.ratios:
-                value = tables[metric][str(joint)][f"{ratio:g}"]
-                status = tables["status"][str(joint)][f"{ratio:g}"]
-                cells.append(value if value is not None else status)
-            table.append(["none" if joint == 0 else joint, *cells])
-        sec.table([f"{header[0]} ({title})", *header[1:]], table)
+        sec.table([f"{header[0]} ({title})", *header[1:]],
+                  [_row(joint, [(tables, metric, r) for r in plan.ratios]) for joint in joints])
     for paragraph in paragraphs:
         sec.text(paragraph)
 
@@ -653,5 +607,5 @@ def failure_map_stage(ctx: Context) -> None:
                            if k not in ("t", "error_pct", "R_tilde", "R_tilde_xy")}
                    for label, data in series},
         "series_ratio": ratio,
-        "study": {k: v for k, v in summary.to_dict().items() if k not in ("files", "folder")},
+        "study": _study_numbers(summary),
     })

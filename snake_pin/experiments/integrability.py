@@ -33,8 +33,7 @@ def first_links(params: SnakeParams, n: int) -> SnakeParams:
     Returns
     -------
     SnakeParams
-        Every joint actuated: ``params.replace(n=n)`` for equal links; per-link values
-        cut to n links (and the name marked ``_first<n>``) otherwise.
+        Every joint actuated; per-link values cut to n links (named ``_first<n>``).
     """
     if params.uniform:
         return params.replace(n=n, passive=())
@@ -44,19 +43,13 @@ def first_links(params: SnakeParams, n: int) -> SnakeParams:
                                       else params.com_offsets[:n]), **changes)
 
 
-def _ten_times_cx(params: SnakeParams) -> SnakeParams:
-    """``params`` with c_y = 10 c_x on every link."""
-    return params.replace(c_y=10 * params.per_link("c_x"))
-
-
 def integrability_stage(ctx: Context) -> None:
     """Table of splits, the implied g2, involutivity for n = 4, 5, and g along open-loop runs.
 
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
-        robot, report and quick mode.
+        The report's context.
     """
     import matplotlib.pyplot as plt
 
@@ -64,10 +57,12 @@ def integrability_stage(ctx: Context) -> None:
     from ..viz.plots import save_figure
 
     params = ctx.params.replace(passive=())
+    isotropic = params.replace(c_y=params.c_x)
+    frictions = (("c_x = c_y", isotropic),
+                 ("c_y = 10 c_x", params.replace(c_y=10 * params.per_link("c_x"))))
     sec = ctx.report.section("integrability", "Integrability under isotropic friction (V)")
     rows = []
-    for label, p in (("c_x = c_y", params.replace(c_y=params.c_x)),
-                     ("c_y = 10 c_x", _ten_times_cx(params))):
+    for label, p in frictions:
         snake = Snake(p)
         for k in (1, 2, 3):
             res = partial_integrability(snake, k, samples=4 if ctx.quick else 10)
@@ -76,7 +71,7 @@ def integrability_stage(ctx: Context) -> None:
     sec.table(["friction", "k", "cyclic defect (1)", "gradient defect (2)",
                "partially integrable"], rows)
     sec.numbers["splits"] = rows
-    snake = Snake(params.replace(c_y=params.c_x))
+    snake = Snake(isotropic)
     q = np.r_[0.3, -0.2, 0.5, np.linspace(-1, 1, params.n - 1)]
     implied = implied_g2(snake, q)
     printed = paper.g2(snake.params, q) - paper.g2(snake.params, np.zeros(snake.nq))
@@ -89,7 +84,7 @@ def integrability_stage(ctx: Context) -> None:
 
     inv_rows = []
     for n in (4, 5):
-        inv = involutivity(Snake(first_links(params.replace(c_y=params.c_x), n)), samples=10)
+        inv = involutivity(Snake(first_links(isotropic, n)), samples=10)
         inv_rows.append([n, inv.defect, inv.noise, "involutive" if inv.involutive else "not"])
     sec.table(["n", "bracket component outside Delta", "noise floor (exact system)", "result"],
               inv_rows)
@@ -121,8 +116,7 @@ def integrability_stage(ctx: Context) -> None:
     fig, ax = plt.subplots(figsize=(8, 3.8))
     drift = {}
     gait = Serpenoid(params.n, np.pi / 4, 1.0, 2.0)
-    for label, p in (("c_x = c_y", params.replace(c_y=params.c_x)),
-                     ("c_y = 10 c_x", _ten_times_cx(params))):
+    for label, p in frictions:
         plant = Snake(p)
         x0 = np.r_[gait.configuration(), np.zeros(plant.nv)]
         phases = np.arange(p.n - 1)

@@ -26,8 +26,7 @@ def manipulability_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
-        robot, report and quick mode.
+        The report's context.
     """
     snake = Snake(ctx.params.replace(passive=()))
     folder = ctx.folder

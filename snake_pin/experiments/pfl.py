@@ -52,8 +52,7 @@ def pfl_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
-        robot, report and quick mode.
+        The report's context.
     """
     params = ctx.params.replace(passive=())
     isotropic = params.isotropic

@@ -1,34 +1,7 @@
-"""``snake-pin reproduce``: run the report stages in order and put the report in place.
-
-What the output folder holds, whatever happens to the run:
-
-- Stages write into a staging folder inside the output folder
-  (``.reproduce-PID-XXXXXXXX``, hidden). When every stage is done, the report is moved into
-  place: the data files first, then figures and pages, then ``summary.json`` and
-  ``index.html`` last, with signals deferred meanwhile (a SIGINT/SIGTERM/SIGHUP that arrives
-  then takes effect once the report is whole).
-- Interrupted (KeyboardInterrupt: Ctrl-C, or SIGTERM/SIGHUP turned into it by the command
-  line), the files of the stage that was running are dropped and an ``index.html`` and
-  ``summary.json`` marked interrupted (when, during which stage, which stages were done)
-  describe the stages done so far. If the output folder already held a complete report,
-  it is left untouched and the partial report goes to its ``interrupted/`` subfolder;
-  otherwise the partial report takes the output folder itself.
-- Any other failure removes the staging folder and leaves the output folder as it was.
-  A staging folder left behind by a killed run (its pid gone) is removed by the next run.
-
-Which robot options each stage honours is declared in :data:`HONOURED`: a stage uses the
-robot it is given for those fields and sets the others itself (e.g. the tracking runs'
-anisotropic friction, PFL's all-actuated joints, the engine's own 8-link robot), so a
-caller must refuse the others rather than let a stage override them silently.
-
-Robots of one's own (a robot file, a URDF, or parameters whose name is not a preset's)
-run in every stage, each stage saying in the report what it changes: the robot,
-manipulability and PFL stages use the robot as given (PFL with every joint actuated);
-integrability sets c_y itself (c_y = c_x and 10 c_x) and checks involutivity on the
-robot's first 4 and 5 links; tracking uses the robot's own friction when it is
-anisotropic on every link (c_y > c_x; Section V rules out isotropic friction), else the
-tracking friction of erratum 3; the engine stage runs the robot itself on wheels with
-its friction identified (for a preset it runs the ``engine`` preset of VI.3).
+"""``snake-pin reproduce``: run the report stages in order and put the report in place,
+whole or not at all, and the robot options each stage honours (:data:`HONOURED`); what
+the output folder holds whatever happens, and what each stage does with a robot of one's
+own, are in :doc:`/reproduce`.
 """
 
 from __future__ import annotations
@@ -46,7 +19,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from .._io import current_umask
+from .._io import _fsync_directory, _pid_alive, current_umask
 from ..exceptions import ParameterError, RunInterrupted
 from ..params import ROBOTS, SnakeParams
 from ..report import Report
@@ -105,12 +78,8 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
 
 
 def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams) -> list[str]:
-    """The fields of ``given`` that ``stage`` would not honour.
-
-    The engine stage honours "robot" when it is the engine preset, or a robot of one's
-    own (a name that is not a preset's: a robot file or a URDF), which it runs on wheels;
-    for the other presets it would run the engine preset instead. The path benchmark
-    honours a robot of one's own (it runs it); a preset runs the Table 1 tracking robot.
+    """The fields of ``given`` that ``stage`` would not honour (the engine and benchmark
+    stages also honour "robot" for a robot of one's own, the engine stage for its preset).
 
     Parameters
     ----------
@@ -142,8 +111,8 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
     Parameters
     ----------
     folder
-        The output folder (created if needed; see the module docstring for what it holds
-        whatever happens).
+        The output folder (created if needed; what it holds whatever happens:
+        :doc:`/reproduce`).
     params
         The robot (default Table 1).
     quick
@@ -151,10 +120,9 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
     only
         Stage names to run (default all).
     log
-        Called with one line as each stage starts (``[2/8] manipulability ...``) and,
-        with ``log_done``, as it ends (``[2/8] manipulability done in 12.3 s``).
+        Called with one line as each stage starts (``[2/8] manipulability ...``).
     log_done
-        Also log each stage's end (False: one line per stage).
+        Also log each stage's end (``[2/8] manipulability done in 12.3 s``).
 
     Returns
     -------
@@ -164,12 +132,10 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
     Raises
     ------
     ParameterError
-        A stage named in ``only`` does not exist, the robot has fewer links than a
-        chosen stage needs (:data:`MIN_LINKS`), or the engine stage's wheels do not fit
-        the robot; nothing is written.
+        An unknown stage in ``only``, a robot with fewer links than a chosen stage needs
+        (:data:`MIN_LINKS`), or wheels that do not fit it; nothing is written.
     RunInterrupted
-        On KeyboardInterrupt; ``partial`` is the index of the partial report (see the
-        module docstring for where it is), the message says where and which stage.
+        On KeyboardInterrupt; ``partial`` is the index of the partial report.
     """
     params = params or SnakeParams.table1()
     known = stages()
@@ -336,29 +302,16 @@ def _move_into(staging: Path, folder: Path) -> None:
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(source, target)
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)  # make the renames durable
-    except OSError:
-        pass  # filesystems that cannot sync a folder
-    finally:
-        os.close(fd)
+    _fsync_directory(folder)
 
 
 def _remove_stale_staging(folder: Path) -> None:
     """Remove staging folders of runs whose process is gone (killed with -9)."""
     for entry in os.scandir(folder):
         match = _STAGING.fullmatch(entry.name)
-        if match is None or not entry.is_dir(follow_symlinks=False):
-            continue
-        pid = int(match.group(1))
-        try:
-            os.kill(pid, 0)
-            continue  # alive (possibly another run writing into this folder)
-        except ProcessLookupError:
+        if match is not None and entry.is_dir(follow_symlinks=False) \
+                and not _pid_alive(int(match.group(1))):
             shutil.rmtree(entry.path, ignore_errors=True)
-        except (PermissionError, OverflowError):
-            continue
 
 
 @contextlib.contextmanager

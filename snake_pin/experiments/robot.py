@@ -20,8 +20,7 @@ def robot_stage(ctx: Context) -> None:
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
-        robot, report and quick mode.
+        The report's context.
     """
     params = ctx.params
     snake = Snake(params)

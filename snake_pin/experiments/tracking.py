@@ -1,10 +1,6 @@
-"""Report stage of Section VI.2: Lyapunov-like head tracking on the Table 1 robot (Figs.
-13-17), with and without a passive joint, the isotropic contrast, the lateral-constraint
-criterion (Fig. 15) and the sweeps of the decay rate and of the sideways friction.
-
-Owns the stage's runs (:func:`report_runs`), its sweeps' findings and figure and the stage
-(:func:`tracking_stage`), which runs each :func:`snake_pin.runs.tracking.run_tracking` as
-one task on Dask (:func:`snake_pin.runs.parallel.run_jobs`).
+"""Report stage of Section VI.2: Lyapunov-like head tracking (Figs. 13-17) with and
+without a passive joint, the isotropic contrast, the lateral-constraint criterion (Fig.
+15) and the sweeps of the decay rate and of the sideways friction, each run one Dask task.
 """
 
 from __future__ import annotations
@@ -33,11 +29,9 @@ from .context import Context
 
 __all__ = ["C_Y_FACTORS", "DECAY_RATES", "tracking_stage"]
 
-#: The stage's decay-rate sweep: the head's rate lambda [1/s], with the gait's mu = lambda / 2
-#: (the law's default, lambda = 10/s, is the stage's first run: not run twice).
+#: The stage's decay-rate sweep: lambda [1/s], mu = lambda / 2 (the default is the first run).
 DECAY_RATES = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0, 30.0)
-#: The stage's sideways-friction sweep: every link's c_y times these (1 is the stage's first
-#: run; with the tracking friction, c_y / c_x = 5 ... 500).
+#: The stage's sideways-friction sweep: every link's c_y times these (1 is the first run).
 C_Y_FACTORS = (0.1, 0.2, 0.4, 1.0, 2.0, 4.0, 10.0)
 #: The law's own default head rate lambda [1/s] (read, not copied): the sweeps' default.
 _DEFAULT_LAM: float = LyapunovOptions().lam
@@ -73,11 +67,8 @@ def lateral_comparison(traj: Trajectory, path: Path, t_max: float = 10.0) -> dic
 
 @dataclass(frozen=True)
 class ReportRun:
-    """One run of the tracking stage: its row label, robot, duration, law options
-    (``lam``, ``lam_shape``, ``k_shape``), file stem (None: a sweep point, a table row and a
-    point of the sweep's figure only), whether it gets a 3-D animation page, and the sweep
-    point it is (``("lam", lambda)`` or ``("c_y", factor)``; None for the runs with files).
-    """
+    """One run of the tracking stage: label, robot, duration, law options, file stem (None:
+    a sweep point), animation page or not, and its sweep point (``("lam", lambda)``, ...)."""
 
     label: str
     params: SnakeParams
@@ -89,17 +80,10 @@ class ReportRun:
 
 
 def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun]:
-    """The runs of the tracking stage on ``robot`` (no passive joint): four with files, then
-    the two sweeps' points.
-
-    With files, in report order: no passive joint and joint 5 passive (both animated), the
-    isotropic contrast (at most 30 s: failure and a constant g show by then) and one decay
-    rate for head and gait (lambda = mu = 1/s). Then the sweeps, each changing one setting of
-    the first run (their default point, not run again), each in increasing order: the decay
-    rates :data:`DECAY_RATES` along mu = lambda / 2, and every link's c_y times
-    :data:`C_Y_FACTORS`. With ``own`` (the robot keeps its own friction) the labels give the
-    factor on c_y, not c_y itself.
-    """
+    """The tracking stage's runs: four with files (no passive joint, joint 5 passive, the
+    isotropic contrast of at most 30 s, one rate for head and gait), then the two sweeps'
+    points in increasing order (labelled by the factor on c_y with the robot's ``own``
+    friction)."""
     c_x = robot.per_link("c_x")
     contrast = (f"isotropic (c_x = c_y = {robot.c_x})" if robot.uniform
                 else "isotropic (c_y = c_x per link)")
@@ -125,9 +109,7 @@ def report_runs(robot: SnakeParams, t_final: float, own: bool) -> list[ReportRun
 
 
 def sweep_ratio(robot: SnakeParams) -> float | None:
-    """The c_y / c_x the sideways-friction sweep is drawn against: when every link has the
-    same c_x and the same c_y; else None (the sweep reads as a factor on every link's c_y).
-    """
+    """The c_y / c_x of the friction sweep's axis when all links share c_x and c_y, else None."""
     c_x, c_y = robot.per_link("c_x"), robot.per_link("c_y")
     if np.all(c_x == c_x[0]) and np.all(c_y == c_y[0]) and c_x[0] > 0:
         return float(c_y[0] / c_x[0])
@@ -141,12 +123,8 @@ SweepPoint = tuple[float, float | None, float]
 
 def sweep_findings(curves: Mapping[str, Sequence[SweepPoint]], target: float = 5.0
                    ) -> dict[str, dict[str, Any] | None]:
-    """Per sweep (``"lam"``, ``"c_y"``, points in increasing setting): None when no point has
-    an error, else ``best``, ``first`` and ``last`` ([setting, %, R_min]: the smallest error
-    and the two ends of the points with an error), ``above`` (the settings whose error
-    exceeds ``target`` [% of the body]), ``no_window`` (those whose run ended before its
-    error window) and ``target``.
-    """
+    """Per sweep: None without an error, else ``best``, ``first``, ``last`` ([setting, %,
+    R_min]), ``above`` (settings above ``target`` %), ``no_window`` and ``target``."""
     out: dict[str, dict[str, Any] | None] = {}
     for axis, curve in curves.items():
         known = [point for point in curve if point[1] is not None and math.isfinite(point[1])]
@@ -163,9 +141,7 @@ def sweep_findings(curves: Mapping[str, Sequence[SweepPoint]], target: float = 5
 
 
 def sweep_text(found: Mapping[str, Mapping[str, Any] | None], c_y_name: str) -> str:
-    """The report's paragraph on the two sweeps, from :func:`sweep_findings`; ``c_y_name`` says
-    what the sideways-friction sweep's settings are.
-    """
+    """The report's paragraph on the two sweeps, from :func:`sweep_findings`."""
     parts = []
     for axis, name, unit in (("lam", "lambda", "/s"), ("c_y", c_y_name, "")):
         f = found.get(axis)
@@ -190,9 +166,7 @@ def sweep_text(found: Mapping[str, Mapping[str, Any] | None], c_y_name: str) -> 
 
 def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_axis: str,
                default: Mapping[str, float]) -> Path:
-    """The sweeps' figure at ``path``: RMS head error (% of the body) against each sweep's
-    setting, each sweep's ``default`` setting drawn as a star.
-    """
+    """The sweeps' figure: RMS head error against each setting, the default as a star."""
     import matplotlib.pyplot as plt
     from matplotlib import ticker
 
@@ -230,20 +204,13 @@ def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_ax
 
 
 def tracking_stage(ctx: Context) -> None:
-    """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweeps.
-
-    Every run of the stage (:func:`report_runs`: 18) is one
-    :func:`~snake_pin.runs.tracking.run_tracking` task of
-    :func:`~snake_pin.runs.parallel.run_jobs` on the report's cluster (the longest runs
-    submitted first). The sweeps (decay rate, sideways friction) are a table,
-    ``tracking_sweep.png`` (:func:`plot_sweep`) and sentences from the numbers
-    (:func:`sweep_findings`, :func:`sweep_text`).
+    """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweeps
+    (each run one task on the report's cluster, the longest first).
 
     Parameters
     ----------
     ctx
-        The report's :class:`~snake_pin.experiments.context.Context`: output folder,
-        robot, report, quick mode and cluster.
+        The report's context.
     """
     t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
     base = ctx.params.replace(passive=())
@@ -294,8 +261,8 @@ def tracking_stage(ctx: Context) -> None:
         sec.numbers[run.stem] = traj.summary_dict()
         ctx.options.setdefault("trajectories", {})[run.label] = ctx.folder / f"{run.stem}.npz"
         if run.stem == "tracking":
-            lateral = lateral_comparison(traj, ctx.folder / "lateral_criterion.png")
-            sec.numbers["lateral_criterion"] = lateral
+            sec.numbers["lateral_criterion"] = lateral_comparison(
+                traj, ctx.folder / "lateral_criterion.png")
     sec.table(["run", "RMS head error [m]", "% of body", "max error [m]", "R min",
                "max |g - g(0)|"], rows)
     sec.text(f"Targets: RMS <= 5 % of the {robot.body_length:.4g} m body without a passive "

@@ -1,74 +1,11 @@
 """The controller benchmark on paths: scenarios x controllers x models x failures.
 
-This module owns the benchmark: its scenarios (:data:`SCENARIOS`), its built-in controller
-factories (:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), running the
-grid in parallel (:func:`run_benchmark`) and writing it (:func:`write_benchmark`: CSV,
-JSON, a table figure, paths with body snapshots, and the circle figures of the paper's
-claim): ``snake-pin bench-control``, ``snake-pin simulate/engine --path`` (the path
-metrics) and the report's benchmark stage use them.
-
-Scenarios (lengths in body lengths L, 1.2 m for Table 1; every path starts at the origin
-heading along +x, where the run starts on the arc of eq. (82), head first): ``line``;
-``circle_0.5L``, ``circle_1L``, ``circle_2L`` (counter-clockwise circles); ``lane_change``
-(0.3 m to the left over 2 m after 0.5 m); ``sinusoid`` (amplitude 0.2 m, wavelength 2 m);
-``waypoints`` (a C2 spline through :data:`WAYPOINTS`). The head reference is the path at
-0.1 m/s (:class:`~snake_pin.paths.PathReference`).
-
-Controllers: ``lyapunov`` (torque-level Lyapunov-like law, VI.2), ``velocity`` (its
-velocity-level, quasi-static form), ``pfl`` and ``pfl_climb`` (PFL, and PFL climbing R with
-``climb_R =`` :data:`PFL_CLIMB_R`; both need every joint actuated, so their failed-joint
-cells are "not applicable"), ``los`` (Liljebäck's LOS path following of the centre of mass)
-and ``mpc`` (:class:`~snake_pin.control.MPCController` with the default
-:class:`~snake_pin.control.MPCOptions`, ``|tau_i| <= 1`` N m); these are
-:data:`DEFAULT_CONTROLLERS`, what a benchmark runs unless told otherwise. An ``mpc`` cell
-costs about 2.5 s of wall per simulated second (a 60 s cell some 150 s of one core, about
-25 times a Lyapunov-like one): the MPC cells dominate a default grid's time. Any
-:class:`~snake_pin.control.Controller` subclass joins by a factory
-``factory(snake, reference, path) -> Controller``::
-
-    import numpy as np
-    from snake_pin.control import Controller, LyapunovController
-    from snake_pin.runs.benchmark import run_benchmark, write_benchmark
-
-    class Gentle(LyapunovController):          # or any Controller subclass
-        name = "gentle"
-
-    result = run_benchmark(scenarios=["line", "circle_1L"],
-                           controllers={"lyapunov": None,
-                                        "gentle": lambda snake, ref, path:
-                                            Gentle(snake, ref, lam=5.0)},
-                           t_final=20.0)
-    write_benchmark(result, "bench")           # bench/benchmark.csv, .json, figures
-
-A factory given by name (``None``) is the built-in one; a factory that does not pickle
-(a lambda) runs in this process, the others as tasks on the local Dask cluster of
-:func:`~snake_pin.runs.parallel.run_jobs` (its workers are spawned processes: a
-script that runs the benchmark needs the ``if __name__ == "__main__":`` guard). A
-controller that has a ``reference`` attribute is a head-tracking law (its time-indexed
-head error is reported).
-
-Models: ``viscous`` (the Table 1 robot with c_x = 0.5, c_y = 25 N s/m, i.e.
-c_y / c_x = 50, through :func:`snake_pin.sim.simulate` at 1 kHz) and ``engine`` (the
-engine robot of VI.3 on MuJoCo through :func:`snake_pin.engine.run.run_engine` with the
-scenario's path as its reference, scaled to that robot's body length: ``lyapunov`` is the
-torque-level law, ``velocity`` the velocity-level one, ``mpc`` the MPC within the motors'
-10 N m (:data:`~snake_pin.engine.run.ENGINE_TORQUE_BOUND`); PFL, LOS and user controllers are
-"not applicable" there, run_engine runs the head-tracking laws only). The engine runs are
-chaotic: an engine cell is :data:`ENGINE_DRAWS` runs from initial joint angles offset by
-:func:`~snake_pin.runs.engine.perturbations` (1e-6 rad, seed 0), each metric the
-median over them, with the 10-90 % range of the head cross-track RMS (``draws=1``: the
-unperturbed start, one draw). Failures: ``failed=(None, 5)`` runs each cell with every
-joint actuated and with joint 5 passive (free).
-
-Metrics (:func:`path_metrics`) over ``t >= error_window`` (default 10 s, or the second
-half of runs shorter than 20 s: :func:`~snake_pin.metrics.default_error_window`), on samples
-every 10 ms (criteria every 0.1 s): head cross-track error (distance from the path) RMS and
-max, also in % of the body length; head along-path lag ``s_r(t) - s_h`` RMS (for circles
-wrapped to the nearest lap); time-indexed head error ``|p_h - p_r(t)|`` RMS (head-tracking
-laws only), also in % of the body length; CM cross-track RMS; R_min, R~_min (joint 5 free)
-and the lateral-constraint criterion's minimum; torque RMS; the peak ``|tau_i|`` over the
-whole run (``torque_max``, start-up included: a torque bound holds at every instant); the
-status and the time a run diverged.
+Owns the scenarios (:data:`SCENARIOS`), the built-in controller factories
+(:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), running the grid in
+parallel (:func:`run_benchmark`) and writing it (:func:`write_benchmark`), for
+``snake-pin bench-control``, ``snake-pin simulate/engine --path`` and the report's
+benchmark stage. Scenarios, controllers (and a factory of one's own), models, failures
+and metrics are described in :doc:`/paths`.
 """
 
 from __future__ import annotations
@@ -81,12 +18,16 @@ import pickle
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .. import control
 from .._io import atomic_group
+from .._json import json_safe
+from .._validation import finite_number, integer
 from ..control import Controller
 from ..exceptions import ParameterError
 from ..manipulability import lateral_constraint_manipulability, manipulability
@@ -139,49 +80,23 @@ _SNAPSHOTS = 6
 PFL_CLIMB_R = 0.5
 
 
-def _lyapunov(snake: Snake, reference: PathReference, path: Curve) -> Controller:
-    from ..control import LyapunovController
-
-    return LyapunovController(snake, reference)
-
-
-def _velocity(snake: Snake, reference: PathReference, path: Curve) -> Controller:
-    from ..control import QuasiStaticLyapunovController
-
-    return QuasiStaticLyapunovController(snake, reference)
-
-
-def _pfl(snake: Snake, reference: PathReference, path: Curve) -> Controller:
-    from ..control import PFLController
-
-    return PFLController(snake, reference)
-
-
-def _pfl_climb(snake: Snake, reference: PathReference, path: Curve) -> Controller:
-    from ..control import PFLController, PFLOptions
-
-    return PFLController(snake, reference, options=PFLOptions(climb_R=PFL_CLIMB_R))
-
-
-def _los(snake: Snake, reference: PathReference, path: Curve) -> Controller:
-    from ..control.los import LOSController
-
-    return LOSController(snake, path)
-
-
-def _mpc(snake: Snake, reference: PathReference, path: Curve) -> Controller:
-    from ..control import MPCController
-
-    return MPCController(snake, reference)
+def _builtin(name: str, snake: Snake, reference: PathReference, path: Curve) -> Controller:
+    """The built-in controller ``name`` of :data:`CONTROLLERS`."""
+    if name == "los":
+        return control.LOSController(snake, path)
+    options = {"pfl_climb": {"options": control.PFLOptions(climb_R=PFL_CLIMB_R)}}.get(name, {})
+    law = {"lyapunov": control.LyapunovController,
+           "velocity": control.QuasiStaticLyapunovController, "pfl": control.PFLController,
+           "pfl_climb": control.PFLController, "mpc": control.MPCController}[name]
+    return law(snake, reference, **options)
 
 
 #: Built-in controller name -> factory.
 CONTROLLERS: dict[str, ControllerFactory] = {
-    "lyapunov": _lyapunov, "velocity": _velocity, "pfl": _pfl, "pfl_climb": _pfl_climb,
-    "los": _los, "mpc": _mpc,
-}
+    name: partial(_builtin, name)
+    for name in ("lyapunov", "velocity", "pfl", "pfl_climb", "los", "mpc")}
 #: The built-in controllers a benchmark runs when none is named: all of :data:`CONTROLLERS`.
-DEFAULT_CONTROLLERS = ("lyapunov", "velocity", "pfl", "pfl_climb", "los", "mpc")
+DEFAULT_CONTROLLERS = tuple(CONTROLLERS)
 #: Columns of a benchmark row (CSV order).
 METRIC_FIELDS = ("scenario", "controller", "model", "failed_joint", "status", "reason",
                  "t_end", "diverged_at", "head_ct_rms", "head_ct_max", "head_ct_rms_pct",
@@ -216,10 +131,15 @@ def make_scenario(name: str, body_length: float, speed: float = SPEED) -> PathRe
     ParameterError
         If the name is unknown.
     """
-    if name not in SCENARIOS:
-        raise ParameterError(f"unknown scenario {name!r} (expected one of "
-                             f"{', '.join(SCENARIOS)})")
+    _known(name, SCENARIOS, "scenario")
     return PathReference(SCENARIOS[name](body_length), Timing(speed))
+
+
+def _known(name: str, known: Iterable[str], what: str, extra: str = "") -> None:
+    """ParameterError unless ``name`` is one of ``known``."""
+    if name not in known:
+        raise ParameterError(f"unknown {what} {name!r} (expected one of "
+                             f"{', '.join(known)}{extra})")
 
 
 # ----------------------------------------------------------------------------- metrics
@@ -323,15 +243,6 @@ def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
 
 
 # ------------------------------------------------------------------------------- runs
-def _row(scenario: str, controller: str, model: str, failed: int | None,
-         body_length: float) -> dict[str, Any]:
-    row: dict[str, Any] = dict.fromkeys(METRIC_FIELDS, math.nan)
-    row.update(scenario=scenario, controller=controller, model=model,
-               failed_joint=failed or 0, status="", reason="", body_length=body_length,
-               draws=1)
-    return row
-
-
 def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: int | None,
                  t_final: float, factory: ControllerFactory | None,
                  criteria_dt: float | None, draws: int,
@@ -348,9 +259,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                    reason="the engine runs the head-tracking laws (lyapunov, velocity, mpc) only: "
                           "run_engine has no PFL, LOS or user controller")
         return row
-    params = robot if robot is not None else SnakeParams.engine()
-    if failed:
-        params = params.replace(passive=(failed,))
+    params = _robot(robot, "engine", failed)
     reference = make_scenario(scenario, params.body_length)
     row["body_length"] = params.body_length
     friction = identify_friction(params.replace(passive=()))
@@ -363,7 +272,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                           initial_offset=offset, reference=reference).trajectory
         metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
                                Snake(traj.params), reference, start=start, criteria_dt=None)
-        runs.append((traj, {**metrics, "torque_max": _torque_max(traj)}))
+        runs.append((traj, {**metrics, "torque_max": _nan(torque_max(traj))}))
     spread = distribution([m["head_ct_rms_pct"] for _, m in runs])
     order = sorted(range(len(runs)), key=lambda k: (
         not math.isfinite(runs[k][1]["head_ct_rms_pct"]), runs[k][1]["head_ct_rms_pct"]))
@@ -378,30 +287,29 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
         row.update(runs[median][1])
     for key in ("head_ct_rms", "head_ct_max", "head_ct_rms_pct", "head_lag_rms",
                 "head_error_rms", "cm_ct_rms", "torque_rms", "torque_max"):
-        value = distribution([m[key] for _, m in runs])["median"]
-        row[key] = math.nan if value is None else value
+        row[key] = _nan(distribution([m[key] for _, m in runs])["median"])
     bad = sorted((t for t, _ in runs if t.status != "completed"), key=lambda t: t.t_end)
     status = "completed" if not bad else bad[0].status  # the first draw to stop
     reason = "" if not bad else f"{len(bad)} of {len(runs)} draws: {bad[0].reason}"
     _finish(row, traj, status, reason)
     row.update(draws=len(runs),
-               head_ct_rms_pct_p10=math.nan if spread["p10"] is None else spread["p10"],
-               head_ct_rms_pct_p90=math.nan if spread["p90"] is None else spread["p90"],
+               head_ct_rms_pct_p10=_nan(spread["p10"]), head_ct_rms_pct_p90=_nan(spread["p90"]),
                t_end=float(np.median([t.t_end for t, _ in runs])),
                diverged_at=float(bad[0].t_end) if bad and status in ("diverged", "failed")
                else math.nan)
     return row
 
 
-def _torque_max(traj: Trajectory) -> float:
-    """The run's peak ``|tau_i|`` over all its applied samples (NaN when none was applied)."""
-    value = torque_max(traj)
+def _robot(robot: SnakeParams | None, model: str, failed: int | None) -> SnakeParams:
+    """The cell's robot (default: the engine preset, or the Table 1 tracking robot), with
+    the failed joint passive."""
+    params = robot or (SnakeParams.engine() if model == "engine" else tracking_params())
+    return params.replace(passive=(failed,)) if failed else params
+
+
+def _nan(value: float | None) -> float:
+    """``value``, NaN for None (a row's cells are numbers)."""
     return math.nan if value is None else value
-
-
-def _check_draws(draws: object) -> None:
-    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
-        raise ParameterError(f"draws must be a positive integer, got {draws!r}")
 
 
 def _finish(row: dict[str, Any], traj: Trajectory, status: str, reason: str) -> None:
@@ -424,19 +332,15 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
              error_window: float | None = None) -> dict[str, Any]:
     """Run one benchmark cell and return its row (see :data:`METRIC_FIELDS`).
 
-    On the engine (MuJoCo, :func:`~snake_pin.engine.run.run_engine` with the scenario as
-    its reference), ``lyapunov`` runs the torque-level law (``law="acceleration"``) and
-    ``velocity`` the velocity-level one and ``mpc`` the MPC (``|tau_i| <= 10`` N m, the motors'
-    saturation); the cell is ``draws`` runs from perturbed
-    starts and each metric is their median (the engine is chaotic), with the 10-90 %
-    range of the head cross-track RMS. Other controllers are "not applicable" there.
+    An engine cell runs the law of :data:`ENGINE_LAWS` ``draws`` times from perturbed
+    starts, each metric their median (:doc:`/paths`).
 
     Parameters
     ----------
     scenario : str
         One of :data:`SCENARIOS`.
     controller : str
-        The controller's name (a key of :data:`CONTROLLERS` unless ``factory`` is given).
+        A key of :data:`CONTROLLERS`, or any name with a ``factory``.
     model : {"viscous", "engine"}, optional
         The plant.
     failed : int or None, optional
@@ -450,42 +354,36 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     robot : SnakeParams or None, optional
         The viscous robot (default: the Table 1 tracking robot).
     draws : int, optional
-        Engine cells: perturbed starts (1: the unperturbed start alone, one draw).
+        Perturbed starts of an engine cell (1: the unperturbed start).
     engine_robot : SnakeParams or None, optional
-        The engine robot (default: the ``engine`` preset of VI.3).
+        The engine robot (default: the ``engine`` preset).
     error_window : float or None, optional
-        Start of the metrics' window [s] (None:
-        :func:`~snake_pin.metrics.default_error_window` of ``t_final``).
+        Start of the metrics' window [s] (None: the default of ``t_final``).
 
     Returns
     -------
     dict
-        The row, plus ``series`` (criteria along the run), ``snapshots`` (a few
-        configurations with their times) and ``head`` (the head path every 0.1 s); on
-        the engine those of the median draw. Status "not applicable" when the controller
-        refuses the robot (PFL with a passive joint) or the engine cannot run it.
+        The row, plus ``series``, ``snapshots`` and ``head`` (every 0.1 s); status "not
+        applicable" when the controller refuses the robot or the engine cannot run it.
 
     Raises
     ------
     ParameterError
-        An unknown scenario, model or controller (without a ``factory``), or draws not a
-        positive integer.
+        An unknown scenario, model or controller, or draws not a positive integer.
     """
-    if model not in MODELS:
-        raise ParameterError(f"unknown model {model!r} (expected one of {', '.join(MODELS)})")
-    _check_draws(draws)
+    _known(model, MODELS, "model")
+    integer(draws, "draws", low=1)
     start = default_error_window(t_final) if error_window is None else float(error_window)
     wall = time.perf_counter()
-    params = robot if robot is not None else tracking_params()
-    if failed:
-        params = params.replace(passive=(failed,))
+    params = _robot(robot, "viscous", failed)
     reference = make_scenario(scenario, params.body_length)
-    row = _row(scenario, controller, model, failed, params.body_length)
-    row.update(series={}, snapshots=[], head=[])
-    make = factory or CONTROLLERS.get(controller)
-    if make is None:
-        raise ParameterError(f"unknown controller {controller!r} (expected one of "
-                             f"{', '.join(CONTROLLERS)} or a factory)")
+    row: dict[str, Any] = dict.fromkeys(METRIC_FIELDS, math.nan)
+    row.update(scenario=scenario, controller=controller, model=model, failed_joint=failed or 0,
+               status="", reason="", body_length=params.body_length, draws=1, series={},
+               snapshots=[], head=[])
+    if factory is None:
+        _known(controller, CONTROLLERS, "controller", " or a factory")
+    make = factory or CONTROLLERS[controller]
     if model == "engine":
         _engine_cell(row, scenario, controller, failed, t_final, factory, criteria_dt,
                      draws, engine_robot, start)
@@ -504,7 +402,7 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
     row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
                             reference, head_tracking=hasattr(ctrl, "reference"),
                             start=start, criteria_dt=criteria_dt))
-    row.update(torque_max=_torque_max(traj), head_error_rms_pct=_percent_of_body(row))
+    row.update(torque_max=_nan(torque_max(traj)), head_error_rms_pct=_percent_of_body(row))
     _finish(row, traj, traj.status, traj.reason)
     row["wall_s"] = time.perf_counter() - wall
     return row
@@ -599,8 +497,8 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     scenarios : iterable of str, optional
         Names from :data:`SCENARIOS`; default all (quick: ``line`` and ``circle_1L``).
     controllers : iterable of str or mapping, optional
-        Built-in names, or a mapping name -> factory (None: the built-in of that name);
-        default :data:`DEFAULT_CONTROLLERS` (quick: ``lyapunov`` and ``los``).
+        Built-in names, or name -> factory (None: the built-in); default
+        :data:`DEFAULT_CONTROLLERS` (quick: ``lyapunov`` and ``los``).
     models : sequence of str, optional
         From :data:`MODELS`.
     failed : sequence of int or None, optional
@@ -610,22 +508,17 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     quick : bool, optional
         The small benchmark of ``reproduce --quick``.
     workers : int or None, optional
-        Dask worker processes (default: one per core, at most one per cell; 1: every
-        cell in this process).
+        Dask worker processes (default: one per core, at most one per cell).
     robot : SnakeParams or None, optional
-        The viscous robot (default: the Table 1 tracking robot, c_y = 50 c_x). The LOS
-        law's constants are identified for that robot.
+        The viscous robot (default: the Table 1 tracking robot the LOS law is tuned for).
     draws : int, optional
-        Perturbed starts per engine cell (medians reported; 1: one unperturbed draw).
+        Perturbed starts per engine cell (1: one unperturbed draw).
     engine_robot : SnakeParams or None, optional
         The engine robot (default: the ``engine`` preset).
     error_window : float or None, optional
-        Start of the metrics' window [s], in [0, t_final) (None:
-        :func:`~snake_pin.metrics.default_error_window` of ``t_final``); in the settings
-        as ``window_start``.
+        Start of the metrics' window [s], in [0, t_final) (None: the default of ``t_final``).
     cluster : SharedCluster or None, optional
-        A Dask cluster shared with other calls (used unless ``workers`` is given); None:
-        one started for this call.
+        A Dask cluster shared with other calls (unless ``workers`` is given).
 
     Returns
     -------
@@ -638,7 +531,7 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         An unknown scenario, controller or model, a non-positive t_final, an error
         window outside [0, t_final), or draws not a positive integer.
     """
-    _check_draws(draws)
+    integer(draws, "draws", low=1)
     if quick:
         scenarios = scenarios or ("line", "circle_1L")
         controllers = controllers or ("lyapunov", "los")
@@ -650,15 +543,11 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         dict(controllers) if isinstance(controllers, Mapping)
         else dict.fromkeys(controllers or DEFAULT_CONTROLLERS))
     for name, factory in chosen.items():
-        if factory is None and name not in CONTROLLERS:
-            raise ParameterError(f"unknown controller {name!r} (expected one of "
-                                 f"{', '.join(CONTROLLERS)} or a factory)")
+        if factory is None:
+            _known(name, CONTROLLERS, "controller", " or a factory")
     for model in models:
-        if model not in MODELS:
-            raise ParameterError(f"unknown model {model!r} (expected one of "
-                                 f"{', '.join(MODELS)})")
-    if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > 0):
-        raise ParameterError(f"t_final must be a positive number, got {t_final!r}")
+        _known(model, MODELS, "model")
+    finite_number(t_final, "t_final", positive=True)
     if error_window is None:
         error_window = default_error_window(t_final)
     elif not (isinstance(error_window, (int, float)) and not isinstance(error_window, bool)
@@ -692,12 +581,6 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
 
 
 # ---------------------------------------------------------------------------- output
-def _json_number(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def _csv_bytes(result: BenchmarkResult) -> bytes:
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=METRIC_FIELDS, lineterminator="\n")
@@ -709,11 +592,10 @@ def _csv_bytes(result: BenchmarkResult) -> bytes:
 
 
 def _json_bytes(result: BenchmarkResult) -> bytes:
-    doc = {"settings": result.settings,
-           "rows": [{k: _json_number(v) for k, v in row.items()} for row in result.table()],
+    doc = {"settings": result.settings, "rows": result.table(),
            "criteria": {f"{r['scenario']}/{r['controller']}/{r['model']}/{r['failed_joint']}":
                         r["series"] for r in result.rows if r.get("series")}}
-    return json.dumps(doc, indent=1, allow_nan=False, default=_json_number).encode()
+    return json.dumps(json_safe(doc), indent=1, allow_nan=False).encode()
 
 
 def _figure_bytes(fig: Any) -> bytes:
@@ -784,14 +666,8 @@ def _path_figure(result: BenchmarkResult, scenario: str, model: str, failed: int
             and r["failed_joint"] == failed and r["snapshots"]]
     fig, axes = plt.subplots(1, max(len(rows), 1), figsize=(3.6 * max(len(rows), 1), 3.8),
                              squeeze=False)
-    if model == "engine":
-        robot = result.settings.get("engine_robot")
-        params = SnakeParams.from_dict(robot) if robot else SnakeParams.engine()
-    else:
-        robot = result.settings.get("robot")
-        params = SnakeParams.from_dict(robot) if robot else tracking_params()
-    if failed:
-        params = params.replace(passive=(failed,))
+    robot = result.settings.get("engine_robot" if model == "engine" else "robot")
+    params = _robot(SnakeParams.from_dict(robot) if robot else None, model, failed)
     snake = Snake(params)
     reference = make_scenario(scenario, params.body_length)
     for ax, row in zip(axes[0], rows, strict=False):
@@ -835,13 +711,10 @@ def _claim_figure(row: dict[str, Any]) -> Any:
 def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Path]:
     """Write ``benchmark.csv``, ``benchmark.json`` and the figures into ``folder`` (one set).
 
-    Figures: ``table_<model>_<failed>.png`` (scenario x controller, head cross-track
-    RMS % of body), ``error_<model>_<failed>.png`` (the time-indexed head error RMS % of
-    body and the peak ``|tau_i|``; blank cells: not run),
-    ``path_<scenario>_<model>_<failed>.png`` (the path, the head and the body at a few
-    times, one panel per controller), ``claim_<scenario>.png`` for the circles run by
-    ``lyapunov`` on the viscous model without failure (R and the lateral-constraint
-    criterion along the run, log scale).
+    Figures: ``table_<model>_<failed>.png`` (head cross-track RMS),
+    ``error_<model>_<failed>.png`` (head error and peak torque),
+    ``path_<scenario>_<model>_<failed>.png`` (paths with body snapshots) and
+    ``claim_<scenario>.png`` (R and the lateral-constraint criterion on the circles).
 
     Parameters
     ----------

@@ -1,20 +1,12 @@
-"""Section VI.3's runs on MuJoCo: the Lyapunov-like controller (or the MPC) on a wheeled
-snake with Coulomb contacts (Figs. 19-21), and the summary and figures of such runs (on the
-viscous Pinocchio model too).
-
-The engine runs are chaotic (with joint 5 passive, offsets of 1e-12..1e-4 rad on the
-initial joint angles moved the RMS head error between 9 % and 11.5 % of the body), so
-their results are distributions: :func:`perturbations` draws N small offsets of the
-initial joint angles (uniform, seeded), :func:`engine_draw` runs one of them, and
-:class:`Draws` gives the median and the 10-90 % range of each metric of :data:`METRICS`
-(``snake-pin engine --seeds N``, the report's engine stage and the benchmark's engine
-cells).
+"""Section VI.3's runs on MuJoCo (Figs. 19-21): the summary and figures of a head-tracking
+run on the engine or the viscous model, and, since the engine runs are chaotic, their
+distributions over seeded perturbed starts (:func:`perturbations`, :func:`engine_draw`,
+:class:`Draws`) for ``snake-pin engine --seeds N``, the report and the benchmark.
 """
 
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,11 +14,11 @@ from typing import Any
 
 import numpy as np
 
+from .._validation import finite_number, integer
 from ..control import MPCOptions, head_first_reference
 from ..control.reference import HeadReference
 from ..engine.model import WheelSpec
 from ..engine.run import EngineRun, run_engine
-from ..exceptions import ParameterError
 from ..metrics import (
     applied,
     criteria_along,
@@ -37,7 +29,6 @@ from ..metrics import (
     torque_max,
     window,
 )
-from ..model import Snake
 from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory
 
@@ -48,9 +39,7 @@ __all__ = ["METRICS", "PERTURBATION", "Draws", "distribution", "engine_draw", "e
 PERTURBATION = 1e-6
 
 #: The metrics reported as distributions (summary keys of :func:`summarize`), with their
-#: labels. Head errors and torques are taken over t >= the error window (10 s, or the
-#: second half of a run shorter than 20 s, :func:`~snake_pin.metrics.default_error_window`);
-#: R is R~ (the passive joint free) on a robot with a passive joint.
+#: labels; errors and torques over the error window, R~ with a passive joint.
 METRICS: dict[str, str] = {
     "rms_percent": "RMS head error [% of body]",
     "max_percent": "max head error [% of body]",
@@ -67,28 +56,19 @@ def summarize(traj: Trajectory, *, every: int = 10,
     Parameters
     ----------
     traj
-        A head-tracking run (engine or viscous model). Its ``signals`` get
-        ``head_error`` and its ``meta`` the ``criteria`` (t, D, R).
+        A head-tracking run; its ``signals`` get ``head_error``, its ``meta`` ``criteria``.
     every
         D and R are evaluated at every ``every``-th sample.
     reference
-        The head reference the run tracked (default the straight line
-        w_r = [0.1 t, 0, pi] of :func:`~snake_pin.control.head_first_reference`); the head
-        error is the distance to its point at the same time.
+        The head reference (default :func:`~snake_pin.control.head_first_reference`).
     start
-        Start of the window of head errors and torques [s]; None: 10 s, or the second
-        half of a run shorter than 20 s (:func:`~snake_pin.metrics.default_error_window`).
+        Start of the error window [s] (None: :func:`~snake_pin.metrics.default_error_window`).
 
     Returns
     -------
     dict
-        ``traj.summary``, updated with error_window, rms_head_error, max_head_error [m],
-        rms_head_error_pct, max_head_error_pct, rms_relative (fraction of the body
-        length), the metrics of :data:`METRICS` (``rms_percent``, ``max_percent``: % of
-        the body length; ``torque_rms``: RMS over the window's applied torques of the
-        actuated joints [N m]; None when the window holds no sample), ``torque_max`` (the
-        peak ``|tau_i|`` over the whole run, :func:`~snake_pin.metrics.torque_max`), R_min,
-        D_min, body_length, passive, final_head.
+        ``traj.summary`` with the head errors, the metrics of :data:`METRICS`,
+        ``torque_max``, R_min, D_min, body_length, passive and final_head.
     """
     error = head_position_error(
         traj, head_first_reference() if reference is None else reference)
@@ -120,8 +100,7 @@ def perturbations(count: int, joints: int, size: float = PERTURBATION,
                   seed: int = 0) -> np.ndarray:
     """``count`` offsets of ``joints`` initial joint angles, uniform in [-size, size] [rad].
 
-    Seeded (``numpy.random.default_rng(seed)``): the same arguments give the same
-    offsets, so any draw can be run again with ``run_engine(initial_offset=...)``.
+    Seeded: the same arguments give the same offsets (``run_engine(initial_offset=...)``).
 
     Parameters
     ----------
@@ -132,7 +111,7 @@ def perturbations(count: int, joints: int, size: float = PERTURBATION,
     size
         Half-width of the uniform distribution [rad].
     seed
-        Seed of the generator.
+        Seed of ``numpy.random.default_rng``.
 
     Returns
     -------
@@ -144,12 +123,9 @@ def perturbations(count: int, joints: int, size: float = PERTURBATION,
     ParameterError
         ``count`` or ``joints`` not a positive integer, ``size`` negative or not finite.
     """
-    for name, value in (("count", count), ("joints", joints)):
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-            raise ParameterError(f"{name} must be a positive integer, got {value!r}")
-    if not (isinstance(size, numbers.Real) and math.isfinite(size) and size >= 0):
-        raise ParameterError(f"size must be a finite non-negative angle, got {size!r}")
-    return np.random.default_rng(seed).uniform(-size, size, (int(count), int(joints)))
+    shape = (integer(count, "count", low=1), integer(joints, "joints", low=1))
+    size = finite_number(size, "size", non_negative=True)
+    return np.random.default_rng(seed).uniform(-size, size, shape)
 
 
 def distribution(values: Sequence[float | None]) -> dict[str, Any]:
@@ -158,14 +134,13 @@ def distribution(values: Sequence[float | None]) -> dict[str, Any]:
     Parameters
     ----------
     values
-        One metric of several runs; None (no value: a run shorter than the error
-        window) and non-finite entries are left out.
+        One metric of several runs (None and non-finite entries are left out).
 
     Returns
     -------
     dict
-        ``median``, ``p10``, ``p90`` (percentiles interpolated linearly between the
-        values), ``min``, ``max`` (all None when no value is left) and ``count``.
+        ``median``, ``p10``, ``p90`` (linear interpolation), ``min``, ``max`` (None when
+        no value is left) and ``count``.
     """
     finite = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
     if finite.size == 0:
@@ -189,10 +164,9 @@ class Draws:
     offsets
         (N, n - 1) offsets of the initial joint angles [rad], one row per draw.
     summaries
-        Per draw, the run's JSON summary (``Trajectory.summary_dict()`` after
-        :func:`summarize`), or None while (or if) it has not finished.
+        Per draw, its JSON summary after :func:`summarize`, or None until it finishes.
     files
-        Per draw, the files it was saved to, if any.
+        Per draw, the files it was saved to.
     """
 
     label: str
@@ -216,9 +190,9 @@ class Draws:
         index
             The draw (row of :attr:`offsets`).
         summary
-            Its JSON summary (``Trajectory.summary_dict()`` after :func:`summarize`).
+            Its JSON summary after :func:`summarize`.
         files
-            The files it was saved to, if any.
+            The files it was saved to.
         """
         self.summaries[index] = summary
         self.files[index] = [str(f) for f in files]
@@ -270,9 +244,8 @@ class Draws:
         Returns
         -------
         int or None
-            The finished draw whose RMS head error is the median (the lower middle one
-            for an even count), or the first finished draw if none has an RMS; None if
-            none finished.
+            The draw of the (lower) median RMS head error, else the first finished; None
+            if none finished.
         """
         done = self.done
         if not done:
@@ -290,8 +263,8 @@ class Draws:
         Returns
         -------
         dict
-            label, draws (how many), finished, perturbation, seed, distribution (per
-            metric), median_draw, and runs: every draw's offset, summary and files.
+            label, draws, finished, perturbation, seed, distribution, median_draw, and
+            runs (every draw's offset, summary and files).
         """
         return {"label": self.label, "draws": len(self.offsets), "finished": len(self.done),
                 "perturbation": self.perturbation, "seed": self.seed,
@@ -331,9 +304,8 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
                 law: str = "velocity", reference: HeadReference | None = None,
                 error_window: float | None = None,
                 mpc_options: MPCOptions | None = None) -> EngineRun:
-    """One engine run from the arc of (82) with ``offset`` added to its joint angles.
-
-    A job for :mod:`snake_pin.runs.parallel` (module-level, picklable).
+    """One engine run from the arc of (82) with ``offset`` added to its joint angles (a
+    picklable job for :mod:`snake_pin.runs.parallel`).
 
     Parameters
     ----------
@@ -348,14 +320,13 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
     friction
         The identified viscous model (:func:`~snake_pin.engine.run.identify_friction`).
     law
-        "velocity", "acceleration" or "mpc" (see :func:`~snake_pin.engine.run.run_engine`).
+        "velocity", "acceleration" or "mpc" (:func:`~snake_pin.engine.run.run_engine`).
     reference
-        The head reference (default the straight line of
-        :func:`~snake_pin.control.head_first_reference`).
+        The head reference (default :func:`~snake_pin.control.head_first_reference`).
     error_window
         Start of the head-error window [s] (None: :func:`summarize`'s default).
     mpc_options
-        The MPC's settings with ``law="mpc"`` (None: run_engine's default).
+        The MPC's settings with ``law="mpc"``.
 
     Returns
     -------
@@ -377,15 +348,13 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
     run
         An engine run (or its trajectory) passed through :func:`summarize`.
     twin
-        The viscous model's run to draw beside it (passed through :func:`summarize`),
-        or None.
+        The viscous model's run to draw beside it (after :func:`summarize`), or None.
     folder
         Where the PNGs go.
     stem
         Their file-name prefix.
     reference
-        The head reference the run tracked (default the straight line of
-        :func:`~snake_pin.control.head_first_reference`), drawn beside the head.
+        The head reference (default :func:`~snake_pin.control.head_first_reference`).
 
     Returns
     -------
@@ -394,7 +363,7 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
     """
     import matplotlib.pyplot as plt
 
-    from ..viz.plots import draw_snake, save_figure
+    from ..viz.plots import plot_head_path, save_figure
 
     traj = run.trajectory if isinstance(run, EngineRun) else run
     paths = {k: folder / f"{stem}_{k}.png" for k in ("head", "criteria", "snapshots")}
@@ -425,17 +394,8 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
     fig.suptitle("D and R from the estimated engine state (Fig. 20)", fontsize=10)
     save_figure(fig, paths["criteria"])
 
-    snake = Snake(traj.params)
-    fig, ax = plt.subplots(figsize=(9, 4))
-    for k, t in enumerate(np.linspace(0, traj.t_end, 7)):
-        i = min(int(np.searchsorted(traj.t, t)), len(traj) - 1)
-        draw_snake(ax, snake, traj.q[i], alpha=0.35 + 0.65 * k / 6)
-    ax.plot(traj.q[:, 0], traj.q[:, 1], color="#d9541a", lw=0.8)
-    ax.plot(target[:, 0], target[:, 1], "k--", lw=1)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(alpha=0.3)
-    ax.set_title("Snapshots of the engine run (Fig. 21)", fontsize=10)
-    save_figure(fig, paths["snapshots"])
+    plot_head_path(traj, target, paths["snapshots"], snapshots=7,
+                   title="Snapshots of the engine run (Fig. 21)")
 
     if twin is not None:
         paths["side_by_side"] = folder / f"{stem}_vs_viscous.png"
@@ -471,9 +431,8 @@ def engine_robot(params: SnakeParams) -> SnakeParams:
     Returns
     -------
     SnakeParams
-        The ``engine`` preset of VI.3 when ``params`` is a preset (the paper's Table 1
-        robot has no wheeled model in the paper), else ``params`` itself (a robot file or
-        a user's own parameters), every joint actuated.
+        The ``engine`` preset for a preset (the paper has no wheeled Table 1 robot), else
+        ``params`` itself, every joint actuated.
     """
     if params.name in ROBOTS:
         return SnakeParams.engine()

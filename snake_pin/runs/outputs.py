@@ -1,9 +1,6 @@
-"""What the command line and the report write of an analysis: a robot's facts
-(:func:`info`), the files of a sweep (:func:`write_sweep`) and of a singular-posture search
-(:func:`write_singular`, :func:`draw_singular`).
-
-The analysis modules (:mod:`snake_pin.sweeps`, :mod:`snake_pin.singular`) return data; the
-drawing and writing happen here, a layer above them.
+"""What the command line and the report write of an analysis (:mod:`snake_pin.sweeps` and
+:mod:`snake_pin.singular` return data): a robot's facts, the files of a sweep and of a
+singular-posture search.
 """
 
 from __future__ import annotations
@@ -32,8 +29,7 @@ __all__ = ["draw_singular", "info", "write_singular", "write_sweep"]
 
 
 def _png(fig: Figure) -> bytes:
-    """The figure as PNG bytes (closed). Laid out with tight_layout already, it is saved
-    without ``bbox_inches="tight"`` (a second layout pass per figure)."""
+    """The figure as PNG bytes (closed), without a second layout pass."""
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
@@ -43,11 +39,8 @@ def _png(fig: Figure) -> bytes:
 
 
 def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path]:
-    """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` of a sweep into ``folder``.
-
-    The files appear together (data first, then the figure) or not at all; an empty
-    (interrupted before its first posture) sweep has no figure. The JSON is RFC 8259
-    (:meth:`~snake_pin.sweeps.Sweep.to_dict`: non-finite D or R as null).
+    """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` of a sweep into ``folder``,
+    together or not at all (an empty sweep has no figure).
 
     Parameters
     ----------
@@ -87,8 +80,7 @@ def write_singular(search: SingularSearch, folder: str | os.PathLike[str]) -> li
     search
         The search (:func:`~snake_pin.singular.find_singular_postures`).
     folder
-        An existing folder; the JSON and the drawing (:func:`draw_singular`) appear
-        together or not at all.
+        An existing folder; the two files appear together or not at all.
 
     Returns
     -------
@@ -144,9 +136,8 @@ def info(params: SnakeParams, snake: Snake | None = None) -> dict[str, object]:
     Returns
     -------
     dict
-        The fields of ``params`` (a per-link field as a list, head first), nq, nv, the
-        total mass and body length; for equal links the paper's half length l, for
-        per-link robots ``com_offsets`` (every link's CM from its front end [m]) instead.
+        The fields of ``params``, nq, nv, total mass and body length; the half length l
+        for equal links, else ``com_offsets``.
     """
     snake = snake or Snake(params)
     data: dict[str, object] = {**params.to_dict(), "nq": snake.nq, "nv": snake.nv,

@@ -1,22 +1,6 @@
-"""Run independent jobs on Dask: the report's stages, bench-control, engine seeds.
-
-The package has one executor: these jobs go to the same local Dask cluster a study runs
-on, built by the study runner (:func:`snake_pin.study.runner.dask_client` on a local cluster:
-one worker process per core with one thread each, everything on 127.0.0.1 and TLS with
-credentials made for the call, workers started with ``OMP_WAIT_POLICY=PASSIVE`` and
-one-thread BLAS/OpenMP). The cluster lives for one call, or for the block of a
-:class:`SharedCluster` that several calls share (the report: one cluster for its stages).
-It is closed, and its worker processes with it, when the jobs (or the block) are done,
-when a job raises, when the caller is interrupted while it waits (KeyboardInterrupt, which
-``snake-pin`` also raises for SIGTERM and SIGHUP: the pending jobs are cancelled and the
-workers killed before the exception goes on) or when the caller closes the iterator
-early. Worker processes also leave when the process that started them dies (Dask's nanny
-pipe).
-
-With one worker or one job the jobs run here, in order, without a cluster. Every job, in
-a worker or here, runs with BLAS and OpenMP thread pools limited to one thread
-(``threadpoolctl.threadpool_limits(1)``): the jobs are small-matrix work and the cluster
-already uses every core.
+"""Run independent jobs (the report's stages, bench-control, engine seeds) on the package's
+one executor: the local Dask cluster of :func:`snake_pin.study.runner.dask_client`, for one
+call or for a :class:`SharedCluster` block, one BLAS thread per job (:doc:`/architecture`).
 """
 
 from __future__ import annotations
@@ -40,10 +24,8 @@ def _limited(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, An
 
 
 class SharedCluster:
-    """One local Dask cluster for every call of :func:`run_jobs` in a ``with`` block.
-
-    The cluster starts on the first call that needs one (none for a block whose calls all
-    run here) and closes with its workers when the block ends, however it ends.
+    """One local Dask cluster for every call of :func:`run_jobs` in a ``with`` block,
+    started on the first call that needs one, closed with its workers when the block ends.
 
     Parameters
     ----------
@@ -86,28 +68,23 @@ def iter_jobs(jobs: Sequence[Job], workers: int | None = None, *,
     Parameters
     ----------
     jobs
-        ``(fn, args, kwargs)`` triples. Each job builds its own models in its worker;
-        functions, arguments and results must pickle (Dask's cloudpickle: the package's
-        dataclasses and arrays do).
+        ``(fn, args, kwargs)`` triples; functions, arguments and results must pickle.
     workers
-        Worker processes of the local Dask cluster (default: as many as jobs, at most the
-        number of cores; with ``cluster``, its workers). With one worker or one job, the
-        jobs run here, in order.
+        Worker processes (default: as many as jobs, at most the number of cores; with
+        ``cluster``, its workers); with one worker or one job, the jobs run here.
     cluster
         A cluster shared with other calls; None: one started for this call.
 
     Yields
     ------
     tuple of (int, Any)
-        The job's index in ``jobs`` and its result, in the order the jobs finish: a
-        caller keeps what finished when a later job fails or the run is interrupted.
+        The job's index in ``jobs`` and its result, in the order the jobs finish.
 
     Raises
     ------
     BaseException
         An exception of a job, a KeyboardInterrupt while waiting, or the caller closing
-        the iterator early: the pending jobs are cancelled and the cluster's workers
-        killed first.
+        the iterator early: the pending jobs are cancelled and the workers killed first.
     """
     workers = cluster.workers if cluster is not None else \
         workers or min(len(jobs), os.cpu_count() or 1)
@@ -135,15 +112,13 @@ def iter_jobs(jobs: Sequence[Job], workers: int | None = None, *,
 
 def run_jobs(jobs: Sequence[Job], workers: int | None = None, *,
              cluster: SharedCluster | None = None) -> list[Any]:
-    """Results of ``fn(*args, **kwargs)`` for each job, in order, on up to ``workers`` cores.
-
-    An exception of a job, or a KeyboardInterrupt while waiting, cancels the other jobs,
-    closes the cluster and is raised again (see :func:`iter_jobs`).
+    """Results of ``fn(*args, **kwargs)`` for each job, in order (failures as in
+    :func:`iter_jobs`).
 
     Parameters
     ----------
     jobs
-        ``(fn, args, kwargs)`` triples (picklable; see :func:`iter_jobs`).
+        ``(fn, args, kwargs)`` triples (picklable).
     workers
         Worker processes (default: as many as jobs, at most the number of cores).
     cluster

@@ -1,9 +1,6 @@
 """Section VI.1's run: the PFL head controller (gains 79, reference 80, serpenoid 81,
-initial state 82), with the singularity-aware variant (beyond the paper).
-
-Owns one PFL run and its analysis (:func:`run_pfl`, :class:`PFLRun`), its breakdown
-threshold and its figures (:func:`plot_pfl`): ``snake-pin simulate --controller pfl`` and
-the report's PFL stage use them.
+initial state 82) and its analysis (:func:`run_pfl`), breakdown threshold and figures
+(:func:`plot_pfl`), for ``snake-pin simulate --controller pfl`` and the report.
 """
 
 from __future__ import annotations
@@ -25,20 +22,16 @@ from ..trajectory import Trajectory
 __all__ = ["TAU_BREAKDOWN", "PFLRun", "breakdown_threshold", "initial_state", "plot_pfl",
            "run_pfl"]
 
-#: ``||tau||`` above this [N m] counts as the breakdown of PFL on the Table 1 robot. While
-#: tracking, it needs 0.01-0.3 N m; 1 N m is several times that and a tenth of the rated
-#: effort. Other robots scale it (:func:`breakdown_threshold`).
+#: ``||tau||`` above this [N m] counts as PFL's breakdown on the Table 1 robot (tracking
+#: needs 0.01-0.3 N m); other robots scale it (:func:`breakdown_threshold`).
 TAU_BREAKDOWN = 1.0
 #: m (2l)^2 of a Table 1 link [kg m^2]: the scale of :data:`TAU_BREAKDOWN`.
 _TABLE1_LINK = 0.182 * 0.12**2
 
 
 def breakdown_threshold(params: SnakeParams) -> float:
-    """``||tau||`` [N m] that counts as PFL's breakdown for ``params``.
-
-    Joint torques for the same joint accelerations scale with m (2l)^2 (the camera-head
-    example needs 1.1 N m at t = 0, the Table 1 robot 0.25 N m), so a fixed threshold
-    would call a heavier robot broken down at once.
+    """``||tau||`` [N m] that counts as PFL's breakdown for ``params`` (joint torques scale
+    with m (2l)^2: a fixed threshold would call a heavier robot broken down at once).
 
     Parameters
     ----------
@@ -48,8 +41,7 @@ def breakdown_threshold(params: SnakeParams) -> float:
     Returns
     -------
     float
-        :data:`TAU_BREAKDOWN` times the robot's m_i (2l_i)^2 (mean over links) over a
-        Table 1 link's: exactly :data:`TAU_BREAKDOWN` for the Table 1 robot.
+        :data:`TAU_BREAKDOWN` times the mean m_i (2l_i)^2 over a Table 1 link's.
     """
     if params.uniform:
         link = float(params.masses[0] * params.link_lengths[0] ** 2)
@@ -91,23 +83,19 @@ class PFLRun:
     """
 
     trajectory: Trajectory
-    D: np.ndarray  # manipulability at every sample
+    D: np.ndarray
     R: np.ndarray
-    g: np.ndarray  # (N, 2) conserved quantity of eq. (67)
-    breakdown: int  # sample index of the breakdown (len - 1 if none)
+    g: np.ndarray
+    breakdown: int
 
 
 def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0,
             climb_R: float | None = None, control_dt: float = 1e-3,
             error_window: float | None = None, progress: bool = False,
             options: PFLOptions | None = None) -> PFLRun:
-    """Run Section VI.1 (gains 79, reference 80, serpenoid 81, initial state 82).
-
-    The summary has t_end, diverged, breakdown_time, t_R_min, R_min, g_drift_max and
-    head_error_max, all taken before the breakdown (``||tau||`` above
-    :func:`breakdown_threshold`, in the summary as breakdown_threshold), and the head
-    error over ``t >= error_window`` of :func:`~snake_pin.metrics.head_error_summary`
-    (error_window, rms_head_error, max_head_error, their _pct, rms_relative).
+    """Run Section VI.1; the summary's criteria, drift and errors are taken before the
+    breakdown (``||tau||`` above :func:`breakdown_threshold`), with the head error of
+    :func:`~snake_pin.metrics.head_error_summary`.
 
     Parameters
     ----------
@@ -116,13 +104,12 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0,
     t_final
         Duration [s].
     climb_R
-        Gain of the singularity-aware use of the redundancy (0: the paper's law); None:
-        that of ``options``.
+        Gain of the singularity-aware use of the redundancy (0: the paper's law; None:
+        that of ``options``).
     control_dt
         Control period and RK4 step [s].
     error_window
-        Start of the head-error window [s] (None: 10 s, or the second half of a run
-        shorter than 20 s).
+        Start of the head-error window [s] (None: the default of ``t_final``).
     progress
         Show a progress bar on stderr when it is a terminal.
     options
@@ -157,8 +144,7 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0,
     k_peak = int(np.argmax(r[before]))
     k_dip = k_peak + int(np.argmin(r[k_peak:breakdown + 1]))
     error = head_position_error(traj, reference)
-    errors = head_error_summary(traj, error) if error_window is None \
-        else head_error_summary(traj, error, start=error_window)
+    errors = head_error_summary(traj, error, start=error_window)
     traj.signals.update({"D": d, "R": r, "tau_norm": tau_norm, "g_x": g[:, 0], "g_y": g[:, 1],
                          "head_error": error})
     traj.summary.update({

@@ -1,9 +1,5 @@
-"""Section VI.2's run: Lyapunov-like head tracking (w_r = [0.1 t, 0, pi], gains (84)).
-
-Owns one tracking run (:func:`run_tracking`), its robot (:func:`tracking_params`,
-:func:`tracking_friction`), its start (:func:`initial_state`) and its figures
-(:func:`plot_tracking`): ``snake-pin simulate --controller lyapunov``, the report's
-tracking stage and the controller benchmark use them.
+"""Section VI.2's run: Lyapunov-like head tracking (w_r = [0.1 t, 0, pi], gains (84)), its
+robot, start and figures, for ``snake-pin simulate``, the report and the benchmark.
 """
 
 from __future__ import annotations
@@ -30,9 +26,7 @@ from ..sim import Trajectory, simulate
 __all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "initial_state", "plot_tracking",
            "run_tracking", "tracking_friction", "tracking_params"]
 
-#: Friction of the tracking runs (erratum 3, docs/errata.md): c_x as Table 1, c_y = 50 c_x.
-#: Section V rules out isotropic friction; the open-loop serpenoid of VI.2 reaches
-#: 0.10 m/s at c_y = 10 c_x and 0.16 m/s at 50 c_x, and 50 tracked best of 10..100.
+#: Friction of the tracking runs (erratum 3, :doc:`/errata`): c_x as Table 1, c_y = 50 c_x.
 TRACKING_FRICTION = {"c_x": 0.5, "c_y": 25.0}
 #: Manipulability is evaluated every this many samples (10 ms at 1 kHz).
 CRITERIA_EVERY = 10
@@ -53,20 +47,16 @@ def tracking_params(params: SnakeParams | None = None, **changes: object) -> Sna
     Returns
     -------
     SnakeParams
-        ``params`` with c_x = 0.5, c_y = 25 N s/m (:data:`TRACKING_FRICTION`), then
-        ``changes``.
+        ``params`` with :data:`TRACKING_FRICTION`, then ``changes``.
     """
     base = (params or SnakeParams.table1()).replace(**TRACKING_FRICTION)
     return base.replace(**changes) if changes else base
 
 
 def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
-    """The robot with the friction a tracking run uses, and a sentence saying which.
-
-    A robot of one's own (its name is not a preset's: a robot file, a URDF) keeps its
-    friction when it is anisotropic on every link (c_y > c_x, as wheels give; Section V
-    rules out isotropic friction). Presets (Table 1's friction is isotropic) and other
-    robots get :data:`TRACKING_FRICTION` (erratum 3).
+    """The robot with the friction a tracking run uses, and a sentence saying which: a robot
+    of one's own keeps its friction when c_y > c_x on every link (Section V rules out
+    isotropic friction), the others get :data:`TRACKING_FRICTION`.
 
     Parameters
     ----------
@@ -76,8 +66,7 @@ def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
     Returns
     -------
     tuple of (SnakeParams, str)
-        The robot to run (``params`` itself when it keeps its friction) and a sentence
-        for the report saying which friction it has.
+        The robot to run (``params`` itself when it keeps its friction) and the sentence.
     """
     own = params.name not in ROBOTS
     if own and np.all(params.per_link("c_y") > params.per_link("c_x")):
@@ -117,32 +106,24 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     Parameters
     ----------
     params
-        The robot, used as given (pass :func:`tracking_params` for the anisotropic
-        default; default: Table 1 with it).
+        The robot, used as given (default: :func:`tracking_params`).
     t_final
         Duration [s].
     error_window
-        Start of the head-error window [s] (None: 10 s, or the second half of a run
-        shorter than 20 s).
+        Start of the head-error window [s] (None: the default of ``t_final``).
     progress
         Show a progress bar on stderr when it is a terminal.
     options
         The law's :class:`~snake_pin.control.LyapunovOptions` (None: the defaults).
     **controller_options
-        Fields of :class:`~snake_pin.control.LyapunovOptions` to change (e.g. ``lam``,
-        ``lam_shape``).
+        Fields of :class:`~snake_pin.control.LyapunovOptions` to change (e.g. ``lam``).
 
     Returns
     -------
     Trajectory
-        The run, its meta with ``reference`` (:data:`REFERENCE`) and the law's ``k_shape``,
-        ``lam`` and ``lam_shape``; ``signals["head_error"]`` [m] at every sample,
-        ``meta["criteria"]`` (D and R, eqs. 30 and 31, every :data:`CRITERIA_EVERY`
-        samples; R~ with the passive joints free, eq. 42) and in its summary: the
-        controller, friction and passive joints, the head error over t >= ``error_window``
-        (error_window, rms_head_error, max_head_error [m], their _pct, rms_relative),
-        R_min, D_min, body_length, g_drift (max ``|g - g(0)|`` of eq. 67) and the final head
-        pose.
+        The run with ``signals["head_error"]``, ``meta["criteria"]`` (D and R every
+        :data:`CRITERIA_EVERY` samples) and its summary (head errors, R_min, D_min,
+        g_drift, final head pose).
     """
     params = params or tracking_params()
     snake = Snake(params)
@@ -156,8 +137,7 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     g = conserved_quantity_along(snake, traj.q, traj.dq)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
-    errors = head_error_summary(traj, error) if error_window is None \
-        else head_error_summary(traj, error, start=error_window)
+    errors = head_error_summary(traj, error, start=error_window)
     traj.summary.update({
         "controller": "lyapunov", "c_x": params.c_x, "c_y": params.c_y,
         "passive": list(params.passive), **errors,
