@@ -1146,7 +1146,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run the report stages and move the report into place when "
                        "all are done (interrupted: the stages done so far, marked so). Robot "
                        "options apply to the stages that use them; a stage that sets one itself "
-                       "refuses it (documentation: The paper's experiments, How it runs).")
+                       "refuses it (documentation: The paper's experiments, Robots of one's own).")
     _robot_options(p)
     p.add_argument("-o", "--output", default="results", help="output folder")
     p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")
