@@ -50,7 +50,7 @@ from unittest.mock import patch
 import numpy as np
 
 from snake_pin import Snake, SnakeParams, paper
-from snake_pin.friction import FrictionModel, friction_forces
+from snake_pin.friction import friction_forces
 
 #: The commit whose closed-loop step is the runs' reference route.
 BASELINE = "dc0b889"
@@ -1021,25 +1021,13 @@ def _python_dam(snake: Snake) -> Any:
 
 
 #: The levers of the MPC's speed that bench_mpc runs against the default MPCOptions in the
-#: same bench run: MPCOptions changes, and the friction Jacobians of the stage derivatives
-#: computed by ocp.FrictionJacobians (the default) or by the core's FrictionModel.derivatives.
+#: same bench run (MPCOptions changes).
 MPC_LEVERS: dict[str, dict[str, Any]] = {
     "default MPCOptions": {},
     "step_halvings=0 (one line-search trial)": {"step_halvings": 0},
     "step_halvings=1": {"step_halvings": 1},
     "iterations=1": {"iterations": 1},
-    "friction Jacobians by FrictionModel.derivatives": {"friction": "core"},
 }
-
-
-def _core_jacobians_calc_diff(self: Any, data: Any, x: np.ndarray,
-                              u: np.ndarray | None = None) -> None:
-    """ChainRootActuation.calcDiff through the core's FrictionModel.derivatives."""
-    if self.friction is not None:
-        nq = self.nq
-        _, d_q, d_v = self.friction.derivatives(x[:nq], x[nq:])
-        data.dtau_dx[:, :nq] = d_q
-        data.dtau_dx[:, nq:] = d_v
 
 
 def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
@@ -1052,11 +1040,9 @@ def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
     from snake_pin.control.mpc import MPCController, MPCOptions
     from snake_pin.sim import simulate
 
-    options = {key: value for key, value in lever.items() if key != "friction"}
     actuation = ocp.ChainRootActuation
     counts = {"calc": 0, "calcDiff": 0}
-    plain = actuation.calc, (_core_jacobians_calc_diff if lever.get("friction") == "core"
-                             else actuation.calcDiff)
+    plain = actuation.calc, actuation.calcDiff
 
     def counted(name: str, method: Callable[..., None]) -> Callable[..., None]:
         def call(self: Any, *args: Any) -> None:
@@ -1076,7 +1062,7 @@ def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
     solves: list[dict[str, Any]] = []
     with patch.object(actuation, "calc", counted("calc", plain[0])), \
             patch.object(actuation, "calcDiff", counted("calcDiff", plain[1])):
-        controller = MPCController(snake, reference, options=MPCOptions(**options))
+        controller = MPCController(snake, reference, options=MPCOptions(**lever))
         controller._solver.setCallbacks([Steps()])
         solve = controller._solve
 
@@ -1190,12 +1176,10 @@ def bench_mpc(budget: float) -> None:
           f"{show(per_call['calcDiff'])} us)", ["part", "wall [s]", "share"],
           [[name, f"{seconds:.2f}", f"{100 * seconds / steady_wall:.0f} %"]
            for name, seconds in share])
-    # the routes, per call: the dynamics route, the friction Jacobians
+    # the routes, per call: the dynamics route
     python_route = _python_dam(snake)
     python_data = python_route.createData()
     nq = snake.nq
-    twin = FrictionModel(params, snake.model)
-    jacobians, out = ocp.FrictionJacobians(params), np.zeros((nq, 2 * nq))
     levers = interleaved_us({
         "C++ free forward dynamics + Python friction actuation: calc": partial(
             model.calc, data, x, u),
@@ -1205,9 +1189,8 @@ def bench_mpc(budget: float) -> None:
             model.calcDiff, data, x, u),
         "Python action model over Snake (dynamics only): calcDiff": partial(
             python_route.calcDiff, python_data, x, u),
-        "friction Jacobians: numpy (ocp.FrictionJacobians)": partial(jacobians, x, out),
-        "friction Jacobians: damping twin (FrictionModel.derivatives)": partial(
-            twin.derivatives, x[:nq], x[nq:]),
+        "friction force and Jacobians (FrictionModel.derivatives)": partial(
+            snake.friction.derivatives, x[:nq], x[nq:]),
     }, budget=budget)
     table("MPC routes, us per call, median (10-90 %) of interleaved rounds",
           ["route", "us per call"], [[name, show(stats_)] for name, stats_ in levers.items()])
