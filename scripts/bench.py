@@ -1043,12 +1043,16 @@ def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
 
     actuation = ocp.ChainRootActuation
     counts = {"calc": 0, "calcDiff": 0}
+    seconds = {"calc": 0.0, "calcDiff": 0.0}  # in the friction's Python callbacks
     plain = actuation.calc, actuation.calcDiff
+    clock = time.perf_counter
 
     def counted(name: str, method: Callable[..., None]) -> Callable[..., None]:
         def call(self: Any, *args: Any) -> None:
             counts[name] += 1
+            start = clock()
             method(self, *args)
+            seconds[name] += clock() - start
         return call
 
     steps: list[float] = []
@@ -1068,12 +1072,15 @@ def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
         solve = controller._solve
 
         def timed(x: np.ndarray, t: float) -> None:
-            before = (time.perf_counter(), counts["calc"], counts["calcDiff"], len(steps))
+            before = (time.perf_counter(), counts["calc"], counts["calcDiff"], len(steps),
+                      seconds["calc"], seconds["calcDiff"])
             solve(x, t)
             solves.append({"wall": time.perf_counter() - before[0],
                            "calc": counts["calc"] - before[1],
                            "calcDiff": counts["calcDiff"] - before[2],
-                           "steps": steps[before[3]:]})
+                           "steps": steps[before[3]:],
+                           "force": seconds["calc"] - before[4],
+                           "jacobians": seconds["calcDiff"] - before[5]})
 
         controller._solve = timed  # type: ignore[method-assign]
         wall = time.perf_counter()
@@ -1091,6 +1098,8 @@ def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
             "trials": sum(1 - math.log2(s) for s in warm_steps) / max(len(warm_steps), 1),
             "first_trials": sum(1 - math.log2(s) for s in first_steps) / len(first_steps),
             "first_calc": solves[0]["calc"], "first_iterations": len(first_steps),
+            "force": sum(s["force"] for s in warm),
+            "jacobians": sum(s["jacobians"] for s in warm),
             "plant": wall - sum(s["wall"] for s in solves)}
 
 
@@ -1151,34 +1160,30 @@ def bench_mpc(budget: float) -> None:
            "steady real-time factor", "steady ratio to default", "wall per re-solve [ms]",
            "iterations / line-search trials per iteration (re-solves)",
            "stage calc / calcDiff per re-solve", "first solve: iterations / trials"], rows)
-    # where the default's steady wall goes: its stage call counts times per-call medians
-    # timed after the runs, at a state of the run
+    # where the default's steady wall goes: the friction's Python callbacks timed in the run
+    # (each stage's actuation calc and calcDiff), the rest of the re-solves in Crocoddyl's
+    # C++ (ABA and its derivatives, costs, Riccati, rollouts) and the glue
     run = default[0]
     traj = run["traj"]
+    share: list[tuple[str, float]] = [
+        (f"friction force (the actuation's calc, {run['calc']:.0f} per re-solve)",
+         run["force"]),
+        (f"friction Jacobians (the actuation's calcDiff, {run['calcDiff']:.0f} per re-solve)",
+         run["jacobians"]),
+        ("the rest of the re-solves (C++: ABA, its derivatives, costs, Riccati; glue)",
+         run["warm"] - run["force"] - run["jacobians"]),
+        ("plant simulation and feedback between re-solves", run["plant"])]
+    steady_wall = run["wall"] - run["first"]
+    trials = run["iterations"] * run["trials"] * 4 * run["controller"].options.nodes
+    table("Where the default MPC's steady wall goes (first round; the friction's callbacks "
+          f"timed in the run; {trials:.0f} of the {run['calc']:.0f} stage calcs per re-solve "
+          "are line-search trials)", ["part", "wall [s]", "share"],
+          [[name, f"{seconds_:.2f}", f"{100 * seconds_ / steady_wall:.0f} %"]
+           for name, seconds_ in share])
     model = ocp.differential_model(snake)
     data = model.createData()
     x = np.r_[traj.q[len(traj) // 2], traj.dq[len(traj) // 2]]
     u = traj.tau[len(traj) // 2][np.array(params.actuated) - 1]
-    per_call = interleaved_us({"calc": partial(model.calc, data, x, u),
-                               "calcDiff": partial(model.calcDiff, data, x, u)}, budget=budget)
-    dynamics = run["calc"] * run["solves"] * per_call["calc"][0] * 1e-6
-    derivatives = run["calcDiff"] * run["solves"] * per_call["calcDiff"][0] * 1e-6
-    trials = run["iterations"] * run["trials"] * 4 * run["controller"].options.nodes
-    share: list[tuple[str, float]] = [
-        ("dynamics (stage calc: friction, ABA, costs)", dynamics),
-        (f"  of which line-search trials ({trials:.0f} of {run['calc']:.0f} calls)",
-         dynamics * trials / run["calc"]),
-        ("derivatives (stage calcDiff: friction Jacobians, ABA derivatives, costs)",
-         derivatives),
-        ("solver (Riccati, rollouts, warm start, Python glue)",
-         run["warm"] - dynamics - derivatives),
-        ("plant simulation and feedback between re-solves", run["plant"])]
-    steady_wall = run["wall"] - run["first"]
-    table("Where the default MPC's steady wall goes (first round; counts of the run times "
-          f"per-call medians timed after it: calc {show(per_call['calc'])} us, calcDiff "
-          f"{show(per_call['calcDiff'])} us)", ["part", "wall [s]", "share"],
-          [[name, f"{seconds:.2f}", f"{100 * seconds / steady_wall:.0f} %"]
-           for name, seconds in share])
     # the routes, per call: the dynamics route
     python_route = _python_dam(snake)
     python_data = python_route.createData()
