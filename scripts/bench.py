@@ -20,9 +20,11 @@ stage, back to back; ``--only study`` (nor this one) a study's throughput in run
 second at each of ``--study-sizes`` runs, this tree's ``run_study`` against the baseline
 commit's (default 3801e7f, whose studies ran lockstep batches), taking turns per size;
 ``--only mpc`` (nor this one) the model-predictive controller's closed loop (3 s on the
-line; 1 s with ``--quick``): wall per simulated second and per re-solve, where it goes
-(dynamics, derivatives, solver, plant), the Lyapunov-like law on the same run, and the
-levers per call.
+line, 3 rounds; 1 s and 2 rounds with ``--quick``): wall per simulated second, of the
+first (cold) solve and per re-solve, calls and line-search trials per re-solve, where it
+goes (dynamics, derivatives, solver, plant), each lever of ``MPC_LEVERS`` as a ratio
+against the default in the same round, the Lyapunov-like law on the same run, and the
+routes per call.
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ from unittest.mock import patch
 import numpy as np
 
 from snake_pin import Snake, SnakeParams, paper
-from snake_pin.friction import FrictionModel, friction_forces
+from snake_pin.friction import friction_forces
 
 #: The commit whose closed-loop step is the runs' reference route.
 BASELINE = "dc0b889"
@@ -1018,83 +1020,174 @@ def _python_dam(snake: Snake) -> Any:
     return PythonDynamics()
 
 
-def bench_mpc(budget: float) -> None:
-    """The MPC's speed: wall per simulated second and per re-solve and where it goes, with the
-    Lyapunov-like law on the same run; then the levers per call (the OCP's dynamics route,
-    the friction Jacobians)."""
+#: The levers of the MPC's speed that bench_mpc runs against the default MPCOptions in the
+#: same bench run (MPCOptions changes).
+MPC_LEVERS: dict[str, dict[str, Any]] = {
+    "default MPCOptions": {},
+    "step_halvings=0 (one line-search trial)": {"step_halvings": 0},
+    "step_halvings=1": {"step_halvings": 1},
+    "iterations=1": {"iterations": 1},
+    "first_iterations=50": {"first_iterations": 50},
+}
+
+
+def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
+             lever: dict[str, Any]) -> dict[str, Any]:
+    """One closed-loop MPC run with a lever: its wall (whole run, first solve, warm
+    re-solves), the stage calc/calcDiff calls and line-search trials of the warm re-solves."""
     import crocoddyl
 
     from snake_pin import ocp
-    from snake_pin.control import LyapunovController
     from snake_pin.control.mpc import MPCController, MPCOptions
-    from snake_pin.paths import Line, PathReference
-    from snake_pin.runs.tracking import initial_state, tracking_params
     from snake_pin.sim import simulate
 
-    t_final = 1.0 if budget < 0.1 else 3.0
-    params = tracking_params()
-    snake, reference = Snake(params), PathReference(Line())
-    x0 = initial_state(params)
-    counts = {"calc": 0, "calcDiff": 0}
     actuation = ocp.ChainRootActuation
+    counts = {"calc": 0, "calcDiff": 0}
+    seconds = {"calc": 0.0, "calcDiff": 0.0}  # in the friction's Python callbacks
     plain = actuation.calc, actuation.calcDiff
+    clock = time.perf_counter
 
     def counted(name: str, method: Callable[..., None]) -> Callable[..., None]:
         def call(self: Any, *args: Any) -> None:
             counts[name] += 1
+            start = clock()
             method(self, *args)
+            seconds[name] += clock() - start
         return call
 
+    steps: list[float] = []
+
+    class Steps(crocoddyl.CallbackAbstract):  # the accepted step of each iteration
+        def __init__(self) -> None:
+            crocoddyl.CallbackAbstract.__init__(self)
+
+        def __call__(self, solver: Any) -> None:
+            steps.append(solver.stepLength)
+
+    solves: list[dict[str, Any]] = []
     with patch.object(actuation, "calc", counted("calc", plain[0])), \
             patch.object(actuation, "calcDiff", counted("calcDiff", plain[1])):
-        controller = MPCController(snake, reference, options=MPCOptions())
+        controller = MPCController(snake, reference, options=MPCOptions(**lever))
+        controller._solver.setCallbacks([Steps()])
+        solve = controller._solve
+
+        def timed(x: np.ndarray, t: float) -> None:
+            before = (time.perf_counter(), counts["calc"], counts["calcDiff"], len(steps),
+                      seconds["calc"], seconds["calcDiff"])
+            solve(x, t)
+            solves.append({"wall": time.perf_counter() - before[0],
+                           "calc": counts["calc"] - before[1],
+                           "calcDiff": counts["calcDiff"] - before[2],
+                           "steps": steps[before[3]:],
+                           "force": seconds["calc"] - before[4],
+                           "jacobians": seconds["calcDiff"] - before[5]})
+
+        controller._solve = timed  # type: ignore[method-assign]
         wall = time.perf_counter()
         traj = simulate(snake, controller, x0, t_final)
         wall = time.perf_counter() - wall
-    lyapunov = LyapunovController(snake, reference)
-    lyap_wall = time.perf_counter()
-    simulate(snake, lyapunov, x0, t_final)
-    lyap_wall = time.perf_counter() - lyap_wall
-    stats = controller.stats
-    # per-call times of one node stage's dynamics (friction, ABA, costs) and derivatives, at
-    # states of the run
+    warm = solves[1:]
+    warm_steps = [s for solve_ in warm for s in solve_["steps"]]
+    first_steps = solves[0]["steps"]
+    return {"wall": wall, "first": solves[0]["wall"], "warm": sum(s["wall"] for s in warm),
+            "solves": len(warm), "traj": traj, "controller": controller,
+            "calc": sum(s["calc"] for s in warm) / len(warm),
+            "calcDiff": sum(s["calcDiff"] for s in warm) / len(warm),
+            "iterations": len(warm_steps) / len(warm),
+            # trials of an iteration that accepts 2^-k: k + 1
+            "trials": sum(1 - math.log2(s) for s in warm_steps) / max(len(warm_steps), 1),
+            "first_trials": sum(1 - math.log2(s) for s in first_steps) / len(first_steps),
+            "first_calc": solves[0]["calc"], "first_iterations": len(first_steps),
+            "force": sum(s["force"] for s in warm),
+            "jacobians": sum(s["jacobians"] for s in warm),
+            "plant": wall - sum(s["wall"] for s in solves)}
+
+
+def bench_mpc(budget: float) -> None:
+    """The MPC's speed: wall per simulated second, per re-solve and where it goes, with the
+    Lyapunov-like law on the same run; the levers (:data:`MPC_LEVERS`) as ratios against
+    the default in interleaved rounds; then the routes per call (the OCP's dynamics, the
+    friction Jacobians)."""
+    import crocoddyl
+
+    from snake_pin import ocp
+    from snake_pin.control import LyapunovController
+    from snake_pin.paths import Line, PathReference
+    from snake_pin.runs.tracking import initial_state, tracking_params
+    from snake_pin.sim import simulate
+
+    quick = budget < 0.1
+    t_final, rounds = (1.0, 2) if quick else (3.0, 3)
+    params = tracking_params()
+    snake, reference = Snake(params), PathReference(Line())
+    x0 = initial_state(params)
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in MPC_LEVERS}
+    lyapunov_walls = []
+    for _ in range(rounds):
+        for name, lever in MPC_LEVERS.items():
+            runs[name].append(_mpc_run(snake, reference, x0, t_final, lever))
+        lyapunov = LyapunovController(snake, reference)
+        start = time.perf_counter()
+        simulate(snake, lyapunov, x0, t_final)
+        lyapunov_walls.append(time.perf_counter() - start)
+    default = runs["default MPCOptions"]
+    steady = {name: [(r["wall"] - r["first"]) / t_final for r in results]
+              for name, results in runs.items()}
+    rows = []
+    for name, results in runs.items():
+        first = results[0]
+        rows.append([
+            name, show(spread([r["wall"] / t_final for r in results]), 2),
+            show(ratios([r["wall"] for r in results], [r["wall"] for r in default]), 2),
+            show(spread([r["first"] for r in results]), 2),
+            show(spread(steady[name]), 2),
+            f"{1 / statistics.median(steady[name]):.2f}x",
+            show(ratios(steady[name], steady["default MPCOptions"]), 2),
+            show(spread([1e3 * r["warm"] / r["solves"] for r in results]), 0),
+            f"{first['iterations']:.2f} / {first['trials']:.2f}",
+            f"{first['calc']:.0f} / {first['calcDiff']:.0f}",
+            f"{first['first_iterations']} / {first['first_trials']:.2f}"])
+    rows.append(["Lyapunov-like law", show(spread([w / t_final for w in lyapunov_walls]), 3),
+                 "-", "-", "-", f"{t_final / statistics.median(lyapunov_walls):.1f}x",
+                 *["-"] * 5])
+    status = {r["traj"].status for results in runs.values() for r in results}
+    table(f"MPC head tracking and its levers, line, {t_final:g} s at 1 kHz (Table 1, c_y = "
+          f"50 c_x, status {', '.join(sorted(status))}), median (10-90 %) of {rounds} "
+          "interleaved rounds; steady = the run less its first (cold) solve; ratios: wall "
+          "against the default's in the same round",
+          ["run", "wall per simulated s [s]", "ratio to default", "first solve [s]",
+           "steady wall per simulated s",
+           "steady real-time factor", "steady ratio to default", "wall per re-solve [ms]",
+           "iterations / line-search trials per iteration (re-solves)",
+           "stage calc / calcDiff per re-solve", "first solve: iterations / trials"], rows)
+    # where the default's steady wall goes: the friction's Python callbacks timed in the run
+    # (each stage's actuation calc and calcDiff), the rest of the re-solves in Crocoddyl's
+    # C++ (ABA and its derivatives, costs, Riccati, rollouts) and the glue
+    run = default[0]
+    traj = run["traj"]
+    share: list[tuple[str, float]] = [
+        (f"friction force (the actuation's calc, {run['calc']:.0f} per re-solve)",
+         run["force"]),
+        (f"friction Jacobians (the actuation's calcDiff, {run['calcDiff']:.0f} per re-solve)",
+         run["jacobians"]),
+        ("the rest of the re-solves (C++: ABA, its derivatives, costs, Riccati; glue)",
+         run["warm"] - run["force"] - run["jacobians"]),
+        ("plant simulation and feedback between re-solves", run["plant"])]
+    steady_wall = run["wall"] - run["first"]
+    trials = run["iterations"] * run["trials"] * 4 * run["controller"].options.nodes
+    table("Where the default MPC's steady wall goes (first round; the friction's callbacks "
+          f"timed in the run; {trials:.0f} of the {run['calc']:.0f} stage calcs per re-solve "
+          "are line-search trials)", ["part", "wall [s]", "share"],
+          [[name, f"{seconds_:.2f}", f"{100 * seconds_ / steady_wall:.0f} %"]
+           for name, seconds_ in share])
     model = ocp.differential_model(snake)
     data = model.createData()
     x = np.r_[traj.q[len(traj) // 2], traj.dq[len(traj) // 2]]
     u = traj.tau[len(traj) // 2][np.array(params.actuated) - 1]
-    per_call = interleaved_us({"calc": partial(model.calc, data, x, u),
-                               "calcDiff": partial(model.calcDiff, data, x, u)}, budget=budget)
-    dynamics = counts["calc"] * per_call["calc"][0] * 1e-6
-    derivatives = counts["calcDiff"] * per_call["calcDiff"][0] * 1e-6
-    solver = stats.wall - dynamics - derivatives
-    plant = wall - stats.wall
-    rows = [
-        ["MPC (default MPCOptions)", f"{wall / t_final:.2f}", f"{t_final / wall:.3f}x",
-         f"{1e3 * stats.wall / stats.solves:.1f}", f"{stats.iterations / stats.solves:.2f}",
-         f"{counts['calc'] / stats.solves:.0f} / {counts['calcDiff'] / stats.solves:.0f}"],
-        ["Lyapunov-like law", f"{lyap_wall / t_final:.3f}", f"{t_final / lyap_wall:.1f}x",
-         "-", "-", "-"],
-    ]
-    table(f"MPC head tracking, line, {t_final:g} s at 1 kHz (Table 1, c_y = 50 c_x, "
-          f"status {traj.status})",
-          ["law", "wall per simulated s [s]", "real-time factor", "wall per re-solve [ms]",
-           "iterations per re-solve", "stage calc / calcDiff per re-solve"], rows)
-    share: list[tuple[str, float]] = [
-        ("dynamics (stage calc: friction, ABA, costs)", dynamics),
-        ("derivatives (stage calcDiff: friction Jacobians, ABA derivatives, costs)",
-         derivatives),
-        ("solver (Riccati, rollouts, warm start, Python glue)", solver),
-        ("plant simulation and feedback between re-solves", plant)]
-    table("Where the MPC's wall goes (counts of the run times per-call medians timed after "
-          f"it: calc {show(per_call['calc'])} us, calcDiff {show(per_call['calcDiff'])} us)",
-          ["part", "wall [s]", "share"],
-          [[name, f"{seconds:.2f}", f"{100 * seconds / wall:.0f} %"] for name, seconds in share])
-    # levers, per call: the dynamics route, the friction Jacobians
+    # the routes, per call: the dynamics route
     python_route = _python_dam(snake)
     python_data = python_route.createData()
     nq = snake.nq
-    twin = FrictionModel(params, snake.model)
-    jacobians, out = ocp.FrictionJacobians(params), np.zeros((nq, 2 * nq))
     levers = interleaved_us({
         "C++ free forward dynamics + Python friction actuation: calc": partial(
             model.calc, data, x, u),
@@ -1104,14 +1197,16 @@ def bench_mpc(budget: float) -> None:
             model.calcDiff, data, x, u),
         "Python action model over Snake (dynamics only): calcDiff": partial(
             python_route.calcDiff, python_data, x, u),
-        "friction Jacobians: numpy (ocp.FrictionJacobians)": partial(jacobians, x, out),
-        "friction Jacobians: damping twin (FrictionModel.derivatives)": partial(
-            twin.derivatives, x[:nq], x[nq:]),
+        "friction force and Jacobians (FrictionModel.derivatives)": partial(
+            snake.friction.derivatives, x[:nq], x[nq:]),
     }, budget=budget)
-    table("MPC levers, us per call, median (10-90 %) of interleaved rounds",
+    table("MPC routes, us per call, median (10-90 %) of interleaved rounds",
           ["route", "us per call"], [[name, show(stats_)] for name, stats_ in levers.items()])
-    print(f"\nCrocoddyl's threads: none used; a Python model holds the GIL "
-          f"(crocoddyl {crocoddyl.__version__}).")
+    problem = ocp.TrackingProblem(snake, 2).problem
+    problem.nthreads = 2
+    print(f"\nCrocoddyl's threads: ShootingProblem.nthreads stays {problem.nthreads} after "
+          f"setting 2 (crocoddyl {crocoddyl.__version__}'s wheel is built without "
+          "multithreading); the friction is a Python callback, which holds the GIL anyway.")
 
 
 #: The benches that run the whole report or whole studies (minutes each): not in the

@@ -3,7 +3,8 @@
 :class:`ChainRootActuation` is the actuation of the PX-PY-RZ chain root (Crocoddyl's
 ``ActuationModelFloatingBase`` looks for a joint named ``root_joint`` and silently gets the
 input size wrong here): ``tau = [0_3; E_a u] + Q(q, q')``, u the actuated joints' torques
-and Q the friction of eqs. (10)-(13) with its Jacobians (:class:`FrictionJacobians`).
+and Q the friction of eqs. (10)-(13) with its Jacobians, both from the core's
+:class:`~snake_pin.friction.FrictionModel` (the damping twin).
 :func:`differential_model` is Crocoddyl's C++ free forward dynamics over it, q'' of
 eq. (20) as :meth:`snake_pin.model.Snake.forward_dynamics`, plus the costs of
 :class:`CostWeights`; :class:`TrackingProblem` is the shooting problem (RK4 nodes of
@@ -29,8 +30,7 @@ from .exceptions import ParameterError
 from .friction import FrictionModel
 from .model import Snake
 
-__all__ = ["ChainRootActuation", "CostWeights", "FrictionJacobians", "TrackingProblem",
-           "differential_model"]
+__all__ = ["ChainRootActuation", "CostWeights", "TrackingProblem", "differential_model"]
 
 #: Names of the costs in each node's cost sum (Crocoddyl's CostModelSum keys): the state
 #: tracking terms (head position, heading, head velocity, gait prior) as one weighted
@@ -130,7 +130,6 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
         super().__init__(state, len(self.rows))
         self.nq = snake.nq
         self.friction = FrictionModel(snake.params, snake.model) if friction else None
-        self.jacobians = FrictionJacobians(snake.params) if friction else None
 
     def calc(self, data: Any, x: np.ndarray, u: np.ndarray | None = None) -> None:
         """Generalised force at state x under inputs u, written into ``data.tau``.
@@ -156,6 +155,9 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
                  u: np.ndarray | None = None) -> None:
         """Jacobians of the force ``[dQ/dq, dQ/dq']`` into ``data.dtau_dx``.
 
+        They are the damping twin's RNEA derivatives
+        (:meth:`~snake_pin.friction.FrictionModel.derivatives`), as in
+        :meth:`Snake.dynamics_derivatives <snake_pin.model.Snake.dynamics_derivatives>`.
         ``dtau_du`` = E_a is constant (set by :meth:`createData`).
 
         Parameters
@@ -167,8 +169,9 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
         u : numpy.ndarray or None, optional
             The inputs (the Jacobians do not depend on them).
         """
-        if self.jacobians is not None:
-            self.jacobians(x, data.dtau_dx)
+        if self.friction is not None:
+            nq, dtau_dx = self.nq, data.dtau_dx
+            _, dtau_dx[:, :nq], dtau_dx[:, nq:] = self.friction.derivatives(x[:nq], x[nq:])
 
     def commands(self, data: Any, x: np.ndarray, tau: np.ndarray) -> None:
         """Inputs that give the generalised force tau (its actuated rows less friction).
@@ -197,65 +200,6 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
         data = crocoddyl.ActuationDataAbstract(self)
         data.dtau_du[self.rows, np.arange(self.nu)] = 1.0
         return data
-
-
-class FrictionJacobians:
-    """``[dQ/dq, dQ/dq']`` of the viscous friction force, vectorised numpy in O(n^2).
-
-    Derived with planar vectors as complex numbers (:ref:`mpc-friction-jacobians`); agrees
-    with :meth:`~snake_pin.friction.FrictionModel.derivatives` to round-off, at less Python
-    cost.
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot (per-link lengths, CM offsets and friction).
-    """
-
-    def __init__(self, params: Any) -> None:
-        n = params.n
-        self.n = n
-        k_matrix = np.tril(np.broadcast_to(params.link_lengths, (n, n)), -1).copy()
-        k_matrix[np.diag_indices(n)] = params.com_offsets
-        self._k, self._k_t = k_matrix, k_matrix.T.copy()
-        c_x, c_y = params.per_link("c_x"), params.per_link("c_y")
-        self._cbar = 0.5 * (c_x + c_y)
-        self._delta = 0.5 * (c_x - c_y)
-        self._c_theta = params.per_link("c_theta")
-        self._diag = np.diag_indices(n)
-        self._columns = np.empty((n, 2 * n + 2), dtype=complex)
-        self._columns[:, n] = 1.0
-        self._columns[:, n + 1] = 1.0j
-        self._rows = np.empty((n + 2, 2 * n + 2))
-
-    def __call__(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Write ``[dQ/dq, dQ/dq']`` at the state x = [q, q'] into ``out`` (n + 2, 2 (n + 2))."""
-        n, nq = self.n, self.n + 2
-        theta, rate = np.cumsum(x[2:nq]), np.cumsum(x[nq + 2:])
-        e = np.exp(1j * theta)
-        e_conj = e.conj()
-        spin = self._delta * (e * e)
-        z = self._k @ (1j * e * rate)
-        z += complex(x[nq], x[nq + 1])
-        z_conj = z.conj()
-        g = self._k_t @ (-self._cbar * z - spin * z_conj)
-        columns = self._columns  # dz / d[theta, V, theta']
-        np.multiply(self._k, -(e * rate), out=columns[:, :n])
-        np.multiply(self._k, 1j * e, out=columns[:, n + 2:])
-        d_force = -self._cbar[:, None] * columns - spin[:, None] * columns.conj()
-        d_force[self._diag] -= 2j * spin * z_conj
-        d_torque = (e_conj[:, None] * (self._k_t @ d_force)).imag
-        d_torque[self._diag] -= (e_conj * g).real
-        d_torque[:, n + 2:][self._diag] -= self._c_theta
-        rows = self._rows  # rows of Q_xy and L^T Q_theta
-        total = d_force.sum(axis=0)
-        rows[0], rows[1] = total.real, total.imag
-        rows[2:] = np.cumsum(d_torque[::-1], axis=0)[::-1]
-        out[:, :2] = 0.0
-        out[:, 2:nq] = np.cumsum(rows[:, n - 1::-1], axis=1)[:, ::-1]
-        out[:, nq:nq + 2] = rows[:, n:n + 2]
-        out[:, nq + 2:] = np.cumsum(rows[:, :n + 1:-1], axis=1)[:, ::-1]
-        return out
 
 
 def differential_model(snake: Snake, weights: CostWeights | None = None, *,

@@ -7,11 +7,10 @@ import numpy as np
 import pytest
 
 from snake_pin import ParameterError, Snake, SnakeParams
-from snake_pin.friction import FrictionModel
 from snake_pin.gaits import Serpenoid
 from snake_pin.ocp import (
+    ChainRootActuation,
     CostWeights,
-    FrictionJacobians,
     TrackingProblem,
     differential_model,
     reference_states,
@@ -89,19 +88,25 @@ def test_derivatives_match_numdiff(snake: Snake, rng: np.random.Generator) -> No
         assert np.abs(exact - approx).max() <= 1e-5 * max(1.0, np.abs(exact).max()), name
 
 
-def test_friction_jacobians_are_the_twins(rng: np.random.Generator) -> None:
-    """The numpy Jacobians against the damping twin's RNEA derivatives, per-link robots."""
+def test_friction_jacobians_match_central_differences(rng: np.random.Generator) -> None:
+    """The actuation's ``dtau_dx`` against central differences of its force, per-link
+    robots (anisotropic and isotropic friction)."""
     for friction in ("anisotropic", "isotropic"):
-        params = heterogeneous_params(rng, 7, friction)
-        snake = Snake(params)
-        twin, jacobians = FrictionModel(params, snake.model), FrictionJacobians(params)
-        out = np.zeros((snake.nq, 2 * snake.nq))
-        for _ in range(3):
-            x = head_first_state(rng, params.n, speed=1.0)
-            _, d_q, d_v = twin.derivatives(x[:snake.nq], x[snake.nq:])
-            jacobians(x, out)
-            scale = max(np.abs(d_q).max(), np.abs(d_v).max())
-            assert np.abs(out - np.hstack((d_q, d_v))).max() <= 1e-12 * scale
+        snake = Snake(heterogeneous_params(rng, 7, friction))
+        actuation = ChainRootActuation(crocoddyl.StateMultibody(snake.model), snake)
+        data = actuation.createData()
+        x = head_first_state(rng, snake.n, speed=1.0)
+        actuation.calcDiff(data, x)
+        h, columns = 1e-6, []
+        for k in range(len(x)):
+            step = np.zeros(len(x))
+            step[k] = h
+            actuation.calc(data, x + step)
+            plus = data.tau.copy()
+            actuation.calc(data, x - step)
+            columns.append((plus - data.tau) / (2.0 * h))
+        expected = np.array(columns).T
+        assert np.abs(data.dtau_dx - expected).max() <= 1e-7 * np.abs(expected).max()
 
 
 def test_passive_joint_gets_no_torque(rng: np.random.Generator) -> None:
