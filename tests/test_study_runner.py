@@ -131,6 +131,30 @@ def test_cluster_results_equal_the_single_runs(tmp_path: Path, scheduler: str) -
     assert (tmp_path / "out" / "index.html").is_file()
 
 
+def test_a_study_runs_on_a_client_it_leaves_open(tmp_path: Path, scheduler: str,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Given a client (a cluster shared with other work), the study runs on its workers (no
+    cluster of its own) with the rows of the same study run through the scheduler, and
+    leaves the client usable; a client with workers of its own is one StudyError line."""
+    from distributed import Client
+
+    from snake_pin.study import runner
+
+    study = _study(tmp_path)
+    with Client(scheduler) as client, monkeypatch.context() as patch:
+        patch.setattr(runner, "dask_client", None)  # calling it would fail the test
+        summary = run_study(study, tmp_path / "shared", client=client)
+        assert client.submit(sum, [1, 2]).result() == 3
+        with pytest.raises(StudyError, match="client brings its own cluster"):
+            run_study(study, tmp_path / "refused", client=client, workers=1)
+    assert (summary.status, summary.recorded, summary.scheduler) == \
+        ("complete", 6, "local (2 workers)")
+    run_study(study, tmp_path / "own", scheduler=scheduler)
+    shared, own = (pd.read_parquet(tmp_path / name / "runs").sort_values("key")
+                   .reset_index(drop=True) for name in ("shared", "own"))
+    pd.testing.assert_frame_equal(shared[["key", *METRICS]], own[["key", *METRICS]])
+
+
 MPC_STUDY = """
 [study]
 name = "mpc"

@@ -458,9 +458,14 @@ def _run_map(ctx: Context, base: SnakeParams, plan: MapPlan,
     spec = load_study(study_file)
     out = ctx.folder / ("failure_map" if controller == "lyapunov" else
                         f"failure_map_{controller}")
-    # progress=None: the study's bar (runs done, failures, ETA) on a terminal only
-    summary = run_study(study_file, out, workers=ctx.options.get("study_workers"),
-                        scheduler=ctx.options.get("study_scheduler"), progress=None)
+    workers, scheduler = ctx.options.get("study_workers"), ctx.options.get("study_scheduler")
+    # the report's cluster unless the study was given its own; progress=None: the study's
+    # bar (runs done, failures, ETA) on a terminal only
+    shared = ctx.cluster if ctx.cluster is not None and workers is None \
+        and scheduler is None else None
+    summary = run_study(study_file, out, workers=workers, scheduler=scheduler,
+                        client=shared.client() if shared is not None else None,
+                        progress=None)
     keys = {s.key for s in spec.scenarios}
     rows = [r for r in StudyFolder(out).read_table().to_pylist() if r["key"] in keys]
     joints = sorted({s["failed_joint"] for s in spec.scenarios})

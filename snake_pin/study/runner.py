@@ -62,7 +62,8 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
               security: Any = None, connect_timeout: float = CONNECT_TIMEOUT,
               dashboard: bool = False, progress: bool | None = None,
               log: Callable[[str], None] | None = None,
-              batch_function: BatchFunction | None = None) -> StudySummary:
+              batch_function: BatchFunction | None = None,
+              client: Any = None) -> StudySummary:
     """Run the study of ``spec_path`` into ``out_dir`` (only the runs not yet recorded).
 
     Parameters
@@ -85,6 +86,9 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         Receives a few one-line messages; None: silent.
     batch_function
         The task (default :func:`snake_pin.study.work.run_batch`), importable by the workers.
+    client
+        A connected ``distributed.Client`` whose workers run the study (a cluster shared
+        with other work, left open); excludes scheduler, workers, security and dashboard.
 
     Returns
     -------
@@ -102,7 +106,11 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     spec = load_study(spec_path)
     folder = StudyFolder(out_dir)
     folder.check(spec)
-    workers = _check_workers(workers, scheduler)
+    if client is not None and (scheduler is not None or workers is not None
+                               or security is not None or dashboard):
+        raise StudyError("a client brings its own cluster: scheduler, workers, security and "
+                         "dashboard do not apply")
+    workers = _slots(client) if client is not None else _check_workers(workers, scheduler)
     timeout = _check_timeout(connect_timeout)
     credentials = None
     if scheduler is not None:
@@ -132,8 +140,9 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         summary.skipped = len(spec.scenarios) - len(pending)
         try:
             if pending:
-                with dask_client(address, workers, security=credentials, timeout=timeout,
-                             dashboard=bool(dashboard), log=say) as client:
+                with contextlib.nullcontext(client) if client is not None else \
+                        dask_client(address, workers, security=credentials, timeout=timeout,
+                                    dashboard=bool(dashboard), log=say) as client:
                     slots = _slots(client) if address else workers
                     batches = plan_batches(pending)
                     say(f"study {spec.name}: {len(spec.scenarios)} runs, {summary.skipped} "
