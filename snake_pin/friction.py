@@ -5,9 +5,10 @@ snake's tree with each link's inertia replaced by its damping, and, where c_x !=
 wheel per link of "mass" ``-|c_y,i - c_x,i|`` scaled so that M_ww = -1, appended after
 the chain tail first (depth-first, as CRBA and the RNEA derivatives need), so that the
 twin's configuration is ``[q, 0_w]`` and ``C = M_cc + M_cw M_wc``. Two routes evaluate Q,
-chosen by :data:`WHEELED_TWIN_MAX_LINKS`. :func:`friction_forces` (one ``pin.Force`` per
-link) is the reference the tests compare to; :func:`snake_pin.paper.friction_matrix` is
-the independent closed form.
+chosen by :data:`WHEELED_TWIN_MAX_LINKS`; its Jacobians come from one pass of the twin's
+RNEA derivatives (:meth:`FrictionModel.calc_derivatives`). :func:`friction_forces` (one
+``pin.Force`` per link) is the reference the tests compare to;
+:func:`snake_pin.paper.friction_matrix` is the independent closed form.
 """
 
 from __future__ import annotations
@@ -248,7 +249,7 @@ class FrictionModel:
         self.__init__(state["params"], state["model"])  # type: ignore[misc]
 
     def create_data(self) -> FrictionData:
-        """New buffers for :meth:`calc_damping` (see :class:`FrictionData`).
+        """New buffers for :meth:`calc_force` and :meth:`calc_derivatives`.
 
         Returns
         -------
