@@ -23,13 +23,16 @@ commit's (default 3801e7f, whose studies ran lockstep batches), taking turns per
 line, 3 rounds; 1 s and 2 rounds with ``--quick``): wall per simulated second, of the
 first (cold) solve and per re-solve, calls and line-search trials per re-solve, where it
 goes (dynamics, derivatives, solver, plant), each lever of ``MPC_LEVERS`` as a ratio
-against the default in the same round, the Lyapunov-like law on the same run, and the
-routes per call.
+against the default in the same round (and the friction's Jacobians of commit
+``FRICTION_JACOBIANS_BASELINE``, imported from a checkout of it), the Lyapunov-like law on
+the same run, and the routes per call.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import importlib.util
 import io
 import json
 import math
@@ -431,6 +434,31 @@ def baseline_checkout(commit: str) -> tuple[Path | None, str]:
         return None, (f"the {commit} column is skipped: its tree could not be extracted with "
                       f"git archive ({detail.decode(errors='replace').strip()[:200]})")
     return target, f"{commit[:10]} from {target} (git archive)"
+
+
+def baseline_package(commit: str) -> tuple[Any, str]:
+    """``commit``'s snake_pin imported in this process as ``snake_pin_<hash>`` (from
+    :func:`baseline_checkout`; its modules import each other relatively), or None and why
+    not. Its classes are its own: give them its own parameters (``SnakeParams.from_dict``)."""
+    target, why = baseline_checkout(commit)
+    if target is None:
+        return None, why
+    name = f"snake_pin_{target.name.removeprefix('snake_pin_')[:10]}"
+    if name in sys.modules:
+        return sys.modules[name], why
+    package = target / "snake_pin"
+    spec = importlib.util.spec_from_file_location(name, package / "__init__.py",
+                                                  submodule_search_locations=[str(package)])
+    if spec is None or spec.loader is None:
+        return None, f"the {commit} column is skipped: {package} is not a package"
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # an old tree that does not import beside this one
+        del sys.modules[name]
+        return None, f"the {commit} column is skipped: it does not import ({exc})"
+    return module, why
 
 
 def step_floor(snake: Snake, kind: str, states: np.ndarray, taus: np.ndarray,
@@ -1031,10 +1059,17 @@ MPC_LEVERS: dict[str, dict[str, Any]] = {
 }
 
 
+#: The commit whose friction Jacobians (``FrictionModel.derivatives``: two passes of the
+#: twin's RNEA derivatives, new arrays per call) bench_mpc runs the MPC with, as a lever.
+FRICTION_JACOBIANS_BASELINE = "5a237a7"
+
+
 def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
-             lever: dict[str, Any]) -> dict[str, Any]:
+             lever: dict[str, Any], calc_diff: Callable[..., None] | None = None
+             ) -> dict[str, Any]:
     """One closed-loop MPC run with a lever: its wall (whole run, first solve, warm
-    re-solves), the stage calc/calcDiff calls and line-search trials of the warm re-solves."""
+    re-solves), the stage calc/calcDiff calls and line-search trials of the warm re-solves.
+    ``calc_diff`` replaces the actuation's calcDiff (another route to the same Jacobians)."""
     import crocoddyl
 
     from snake_pin import ocp
@@ -1044,7 +1079,7 @@ def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
     actuation = ocp.ChainRootActuation
     counts = {"calc": 0, "calcDiff": 0}
     seconds = {"calc": 0.0, "calcDiff": 0.0}  # in the friction's Python callbacks
-    plain = actuation.calc, actuation.calcDiff
+    plain = actuation.calc, actuation.calcDiff if calc_diff is None else calc_diff
     clock = time.perf_counter
 
     def counted(name: str, method: Callable[..., None]) -> Callable[..., None]:
@@ -1105,9 +1140,10 @@ def _mpc_run(snake: Snake, reference: Any, x0: np.ndarray, t_final: float,
 
 def bench_mpc(budget: float) -> None:
     """The MPC's speed: wall per simulated second, per re-solve and where it goes, with the
-    Lyapunov-like law on the same run; the levers (:data:`MPC_LEVERS`) as ratios against
-    the default in interleaved rounds; then the routes per call (the OCP's dynamics, the
-    friction Jacobians)."""
+    Lyapunov-like law on the same run; the levers (:data:`MPC_LEVERS`, and the friction
+    Jacobians of :data:`FRICTION_JACOBIANS_BASELINE`) as ratios against the default in
+    interleaved rounds; then the routes per call (the OCP's dynamics, the friction
+    Jacobians against that commit's)."""
     import crocoddyl
 
     from snake_pin import ocp
@@ -1121,11 +1157,31 @@ def bench_mpc(budget: float) -> None:
     params = tracking_params()
     snake, reference = Snake(params), PathReference(Line())
     x0 = initial_state(params)
-    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in MPC_LEVERS}
+    # the friction Jacobians of FRICTION_JACOBIANS_BASELINE, as its calcDiff made them
+    baseline, why = baseline_package(FRICTION_JACOBIANS_BASELINE)
+    levers: dict[str, tuple[dict[str, Any], Callable[..., None] | None]] = {
+        name: (lever, None) for name, lever in MPC_LEVERS.items()}
+    baseline_derivatives = None
+    if baseline is None:
+        print(f"\n({why})")
+    else:
+        old_params = importlib.import_module(f"{baseline.__name__}.params").SnakeParams
+        old_friction = importlib.import_module(f"{baseline.__name__}.friction").FrictionModel
+        baseline_derivatives = old_friction(old_params.from_dict(params.to_dict()),
+                                            snake.model).derivatives
+
+        def baseline_calc_diff(self: Any, data: Any, x: np.ndarray,
+                               u: np.ndarray | None = None) -> None:
+            nq, dtau_dx = self.nq, data.dtau_dx
+            _, dtau_dx[:, :nq], dtau_dx[:, nq:] = baseline_derivatives(x[:nq], x[nq:])
+
+        levers[f"friction Jacobians as at {FRICTION_JACOBIANS_BASELINE}"] = (
+            {}, baseline_calc_diff)
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in levers}
     lyapunov_walls = []
     for _ in range(rounds):
-        for name, lever in MPC_LEVERS.items():
-            runs[name].append(_mpc_run(snake, reference, x0, t_final, lever))
+        for name, (lever, calc_diff) in levers.items():
+            runs[name].append(_mpc_run(snake, reference, x0, t_final, lever, calc_diff))
         lyapunov = LyapunovController(snake, reference)
         start = time.perf_counter()
         simulate(snake, lyapunov, x0, t_final)
@@ -1188,7 +1244,10 @@ def bench_mpc(budget: float) -> None:
     python_route = _python_dam(snake)
     python_data = python_route.createData()
     nq = snake.nq
-    levers = interleaved_us({
+    friction_data = snake.friction.create_data()
+    into_data = "friction force and Jacobians into a FrictionData (calc_derivatives)"
+    as_before = f"friction force and Jacobians as at {FRICTION_JACOBIANS_BASELINE} (derivatives)"
+    routes: dict[str, Callable[[], object]] = {
         "C++ free forward dynamics + Python friction actuation: calc": partial(
             model.calc, data, x, u),
         "Python action model over Snake (dynamics only): calc": partial(
@@ -1197,11 +1256,20 @@ def bench_mpc(budget: float) -> None:
             model.calcDiff, data, x, u),
         "Python action model over Snake (dynamics only): calcDiff": partial(
             python_route.calcDiff, python_data, x, u),
-        "friction force and Jacobians (FrictionModel.derivatives)": partial(
+        into_data: partial(snake.friction.calc_derivatives, friction_data, x[:nq], x[nq:]),
+        "friction force and Jacobians as new arrays (FrictionModel.derivatives)": partial(
             snake.friction.derivatives, x[:nq], x[nq:]),
-    }, budget=budget)
+    }
+    if baseline_derivatives is not None:
+        routes[as_before] = partial(baseline_derivatives, x[:nq], x[nq:])
+    samples = interleaved_samples(routes, budget=budget)
+    rows = [[name, show(spread(values))] for name, values in samples.items()]
+    if as_before in samples:
+        rows.append([f"ratio: calc_derivatives against {FRICTION_JACOBIANS_BASELINE}'s "
+                     "derivatives (per round)",
+                     show(ratios(samples[into_data], samples[as_before]), 2)])
     table("MPC routes, us per call, median (10-90 %) of interleaved rounds",
-          ["route", "us per call"], [[name, show(stats_)] for name, stats_ in levers.items()])
+          ["route", "us per call"], rows)
     problem = ocp.TrackingProblem(snake, 2).problem
     problem.nthreads = 2
     print(f"\nCrocoddyl's threads: ShootingProblem.nthreads stays {problem.nthreads} after "

@@ -5,9 +5,10 @@ snake's tree with each link's inertia replaced by its damping, and, where c_x !=
 wheel per link of "mass" ``-|c_y,i - c_x,i|`` scaled so that M_ww = -1, appended after
 the chain tail first (depth-first, as CRBA and the RNEA derivatives need), so that the
 twin's configuration is ``[q, 0_w]`` and ``C = M_cc + M_cw M_wc``. Two routes evaluate Q,
-chosen by :data:`WHEELED_TWIN_MAX_LINKS`. :func:`friction_forces` (one ``pin.Force`` per
-link) is the reference the tests compare to; :func:`snake_pin.paper.friction_matrix` is
-the independent closed form.
+chosen by :data:`WHEELED_TWIN_MAX_LINKS`; its Jacobians come from one pass of the twin's
+RNEA derivatives (:meth:`FrictionModel.calc_derivatives`). :func:`friction_forces` (one
+``pin.Force`` per link) is the reference the tests compare to;
+:func:`snake_pin.paper.friction_matrix` is the independent closed form.
 """
 
 from __future__ import annotations
@@ -34,9 +35,9 @@ __all__ = ["WHEELED_TWIN_MAX_LINKS", "FrictionData", "FrictionModel", "damping_t
 WHEELED_TWIN_MAX_LINKS = 40
 
 _WORLD = pin.Convention.WORLD
-_RNEA = pin.rnea
+_RNEA, _RNEA_DERIVATIVES = pin.rnea, pin.computeRNEADerivatives
 # read once: numpy's module __getattr__ keeps Python from caching ``np.<name>`` lookups
-_NEGATIVE, _SUBTRACT = np.negative, np.subtract
+_NEGATIVE, _SUBTRACT, _ADD, _MATMUL = np.negative, np.subtract, np.add, np.matmul
 
 #: Pinocchio joint index of the head link in the paper model (after base_x, base_y).
 _HEAD_JOINT = 3
@@ -148,7 +149,11 @@ class FrictionData:
     twin_data
         The twin's Pinocchio workspace.
     force
-        The last :meth:`FrictionModel.calc_force` (length n + 2).
+        The last Q of :meth:`FrictionModel.calc_force` or
+        :meth:`FrictionModel.calc_derivatives` (length n + 2).
+    jacobian
+        ``[dQ/dq, dQ/dq']`` of the last :meth:`FrictionModel.calc_derivatives`, shape
+        (n + 2, 2 (n + 2)), Fortran-ordered; ``dforce_dq`` and ``dforce_dv`` are its halves.
     """
 
     def __init__(self, friction: FrictionModel) -> None:
@@ -175,6 +180,19 @@ class FrictionData:
         self.crba_route = (self.head, self.velocity_head, self.rolled_v, self.force,
                            self.crba, friction.twin, self.twin_data, self.q, rolling, alone,
                            added)
+        # calc_derivatives: Pinocchio's buffers (the bindings return views of these and
+        # mirror M), the Jacobians written into one block that copies whole
+        self.jacobian = np.zeros((nq, 2 * nq), order="F")
+        self.dforce_dq, self.dforce_dv = self.jacobian[:, :nq], self.jacobian[:, nq:]
+        dtau_dq, tau = self.twin_data.dtau_dq, self.twin_data.tau
+        chain_mass, cross = mass[:nq, :nq], mass[:nq, nq:]  # M_cc, M_cw
+        # with wheels, the chain's rows of d(M a)/dq at a = [q', w], the wheels' rows
+        # dw/dq (M_ww is constant), the chain's Q = -(M a)_c and the wheels' w = (M a)_w
+        self.derivative_route = (
+            friction.twin, self.twin_data, friction.zero, self.q, self.head, self.rolled,
+            self.rolled_v, self.rolled_w, tau[:nq], tau[nq:], dtau_dq[:nq, :nq],
+            dtau_dq[nq:, :nq], chain_mass, cross, cross.T, self.force, self.dforce_dq,
+            self.dforce_dv)
 
     def __reduce__(self) -> tuple[Any, tuple[FrictionModel]]:
         """Pickled as its model's (the buffers and views are made again)."""
@@ -231,7 +249,7 @@ class FrictionModel:
         self.__init__(state["params"], state["model"])  # type: ignore[misc]
 
     def create_data(self) -> FrictionData:
-        """New buffers for :meth:`calc_damping` (see :class:`FrictionData`).
+        """New buffers for :meth:`calc_force` and :meth:`calc_derivatives`.
 
         Returns
         -------
@@ -318,11 +336,56 @@ class FrictionModel:
         cross = mass[:nq, nq:]
         return mass[:nq, :nq] + cross @ cross.T
 
+    def calc_derivatives(self, data: FrictionData, q: np.ndarray,
+                         v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Q(q, v) and its Jacobians into ``data`` (unchecked: the hot path of the OCP).
+
+        One pass of the twin's RNEA derivatives at acceleration ``[v, w]``: its chain rows
+        are those of -Q, its wheel rows dw/dq (M_ww is constant), and the chain rule over
+        the wheels gives ``dQ/dq = -(d(M a)/dq_cc + M_cw dw/dq)`` and
+        ``dQ/dv = -(M_cc + M_cw M_wc)`` (:ref:`friction`); without wheels ``-d(M v)/dq``
+        and ``-M``. ``w = M_wc v`` is one RNEA pass before it.
+
+        Parameters
+        ----------
+        data : FrictionData
+            Buffers of this model.
+        q, v : numpy.ndarray
+            Configuration and velocity, length n + 2 each.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``data.force``, ``data.dforce_dq`` and ``data.dforce_dv``: Q (length n + 2),
+            dQ/dq and dQ/dv (each (n + 2, n + 2)), valid until the next call with ``data``.
+        """
+        (twin, twin_data, zero, q_ext, head, rolled, rolled_v, rolled_w, tau_chain,
+         tau_wheels, dtau_chain, dw_dq, chain_mass, cross, cross_t, force, dforce_dq,
+         dforce_dv) = data.derivative_route
+        if not self.has_wheels:  # M(q) v: -Q, d/dq and M
+            _RNEA_DERIVATIVES(twin, twin_data, q, zero, v)
+            _NEGATIVE(tau_chain, force)
+            _NEGATIVE(dtau_chain, dforce_dq)
+            _NEGATIVE(chain_mass, dforce_dv)
+            return force, dforce_dq, dforce_dv
+        head[...] = q
+        rolled_v[...] = v
+        rolled_w[...] = 0.0
+        _RNEA(twin, twin_data, q_ext, zero, rolled)  # the locked pass: w = M_wc v
+        rolled_w[...] = tau_wheels
+        _RNEA_DERIVATIVES(twin, twin_data, q_ext, zero, rolled)
+        _NEGATIVE(tau_chain, force)
+        _MATMUL(cross, dw_dq, dforce_dq)
+        _ADD(dtau_chain, dforce_dq, dforce_dq)
+        _NEGATIVE(dforce_dq, dforce_dq)
+        _MATMUL(cross, cross_t, dforce_dv)
+        _ADD(chain_mass, dforce_dv, dforce_dv)
+        _NEGATIVE(dforce_dv, dforce_dv)
+        return force, dforce_dq, dforce_dv
+
     def derivatives(self, q: np.ndarray,
                     dq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Q(q, dq) and its Jacobians dQ/dq and dQ/ddq, from the twin's RNEA derivatives.
-
-        With wheels, the chain rule over the locked and rolling passes (:ref:`friction`).
+        """Q(q, dq) and its Jacobians dQ/dq and dQ/ddq (new arrays; :meth:`calc_derivatives`).
 
         Parameters
         ----------
@@ -334,22 +397,8 @@ class FrictionModel:
         tuple of numpy.ndarray
             ``Q`` (length n + 2), ``dQ/dq`` and ``dQ/ddq`` (each (n + 2, n + 2)).
         """
-        twin, data, zero, nq = self.twin, self.twin_data, self.zero, self.nq
-        q_ext, a_ext = self._extend(q), np.zeros(self.size)
-        a_ext[:nq] = dq
-        dtau_dq, _, mass = pin.computeRNEADerivatives(twin, data, q_ext, zero, a_ext)
-        mass = symmetric_from_upper(mass)
-        locked = pin.rnea(twin, data, q_ext, zero, a_ext)
-        if not self.has_wheels:
-            return -locked, -dtau_dq.copy(), -mass
-        dw_dq = dtau_dq[nq:, :nq].copy()
-        cross = mass[:nq, nq:]
-        a_ext[nq:] = locked[nq:]
-        dtau_dq2, _, _ = pin.computeRNEADerivatives(twin, data, q_ext, zero, a_ext)
-        force = -pin.rnea(twin, data, q_ext, zero, a_ext)[:nq]
-        dforce_dq = -(dtau_dq2[:nq, :nq] + cross @ dw_dq)
-        dforce_dv = -(mass[:nq, :nq] + cross @ cross.T)
-        return force, dforce_dq, dforce_dv
+        force, dforce_dq, dforce_dv = self.calc_derivatives(self._data, q, dq)
+        return force.copy(), dforce_dq.copy(), dforce_dv.copy()
 
     def _extend(self, q: np.ndarray) -> np.ndarray:
         """The twin's configuration ``[q, 0_w]``."""

@@ -27,7 +27,7 @@ import numpy as np
 
 from ._validation import finite_number
 from .exceptions import ParameterError
-from .friction import FrictionModel
+from .friction import FrictionData, FrictionModel
 from .model import Snake
 
 __all__ = ["ChainRootActuation", "CostWeights", "TrackingProblem", "differential_model"]
@@ -130,6 +130,14 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
         super().__init__(state, len(self.rows))
         self.nq = snake.nq
         self.friction = FrictionModel(snake.params, snake.model) if friction else None
+        #: the friction's buffers, one set for all this model's datas (a node's RK4 stages):
+        #: calc and calcDiff copy their results out at once, and one twin workspace per node
+        #: stays in cache (a set per data made the MPC slower: docs/performance.rst perf-mpc)
+        self.friction_data: FrictionData | None = None
+        self._friction: tuple[FrictionModel, FrictionData] | None = None
+        if self.friction is not None:
+            self.friction_data = self.friction.create_data()
+            self._friction = (self.friction, self.friction_data)
 
     def calc(self, data: Any, x: np.ndarray, u: np.ndarray | None = None) -> None:
         """Generalised force at state x under inputs u, written into ``data.tau``.
@@ -144,10 +152,11 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
             The actuated joints' torques [N m]; None: friction alone.
         """
         nq, tau = self.nq, data.tau
-        if self.friction is None:
+        if self._friction is None:
             tau[:] = 0.0
         else:
-            tau[:] = self.friction(x[:nq], x[nq:])
+            model, buffers = self._friction
+            tau[:] = model.calc_force(buffers, x[:nq], x[nq:])
         if u is not None:
             tau[self.rows] += u
 
@@ -156,7 +165,8 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
         """Jacobians of the force ``[dQ/dq, dQ/dq']`` into ``data.dtau_dx``.
 
         They are the damping twin's RNEA derivatives
-        (:meth:`~snake_pin.friction.FrictionModel.derivatives`), as in
+        (:meth:`~snake_pin.friction.FrictionModel.calc_derivatives`, copied out of the
+        model's friction buffers), as in
         :meth:`Snake.dynamics_derivatives <snake_pin.model.Snake.dynamics_derivatives>`.
         ``dtau_du`` = E_a is constant (set by :meth:`createData`).
 
@@ -169,9 +179,10 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
         u : numpy.ndarray or None, optional
             The inputs (the Jacobians do not depend on them).
         """
-        if self.friction is not None:
-            nq, dtau_dx = self.nq, data.dtau_dx
-            _, dtau_dx[:, :nq], dtau_dx[:, nq:] = self.friction.derivatives(x[:nq], x[nq:])
+        if self._friction is not None:
+            nq, (model, buffers) = self.nq, self._friction
+            model.calc_derivatives(buffers, x[:nq], x[nq:])
+            data.dtau_dx[...] = buffers.jacobian
 
     def commands(self, data: Any, x: np.ndarray, tau: np.ndarray) -> None:
         """Inputs that give the generalised force tau (its actuated rows less friction).

@@ -233,3 +233,66 @@ def test_a_friction_model_of_its_own_equals_the_snakes(rng: np.random.Generator)
         FrictionData(snake)  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="needs the snake's Pinocchio model"):
         FrictionModel(params)
+
+
+_DERIVATIVE_ROBOTS = {
+    "isotropic": {"c_x": 0.5, "c_y": 0.5, "c_theta": 7.2e-5},
+    "c_y > c_x": {"c_x": 0.5, "c_y": 25.0, "c_theta": 7.2e-5},
+    "c_x > c_y": {"c_x": 3.0, "c_y": 0.1, "c_theta": 0.0},
+    "mixed": {"c_x": 0.3, "c_y": (0.3, 9.0, 0.1, 4.0, 1e-6, 0.3, 7.0, 0.3, 2.0, 5.0),
+              "c_theta": 1e-3},
+}
+
+
+@pytest.mark.parametrize("route", ["crba", "rnea passes"])
+@pytest.mark.parametrize("scaled_axis", [True, False], ids=["prismatic", "lever"])
+@pytest.mark.parametrize("robot", sorted(_DERIVATIVE_ROBOTS))
+def test_calc_derivatives_match_central_differences(robot: str, scaled_axis: bool, route: str,
+                                                    rng: np.random.Generator,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """calc_derivatives' Q is calc_force's and its Jacobians are central differences of it
+    (Q is linear in dq: those are exact to round-off), for wheels that slide either way,
+    weigh 0 or sit on a lever, on both routes; into the data's buffers, whatever that data
+    evaluated before, and derivatives() gives the same numbers."""
+    from snake_pin import friction
+
+    monkeypatch.setattr(friction, "_scaled_axis_kept", lambda: scaled_axis)
+    params = SnakeParams.table1(**_DERIVATIVE_ROBOTS[robot])
+    model = (_rnea_passes(params, monkeypatch) if route == "rnea passes"
+             else FrictionModel(params, Snake(params).model))
+    data, probe = model.create_data(), model.create_data()
+    nq, h = params.n + 2, 1e-6
+    for _ in range(3):
+        q, dq = random_state(rng, params.n)
+        model.calc_force(data, *random_state(rng, params.n))  # another state before
+        force, dforce_dq, dforce_dv = model.calc_derivatives(data, q, dq)
+        assert force is data.force and dforce_dq is data.dforce_dq
+        assert np.array_equal(data.jacobian, np.hstack([dforce_dq, dforce_dv]))
+        expected = model.calc_force(probe, q, dq)
+        assert np.allclose(force, expected, rtol=1e-13, atol=1e-14 * np.abs(expected).max())
+        columns = []
+        for k in range(2 * nq):
+            step = np.zeros(2 * nq)
+            step[k] = h
+            plus = model.calc_force(probe, q + step[:nq], dq + step[nq:]).copy()
+            minus = model.calc_force(probe, q - step[:nq], dq - step[nq:])
+            columns.append((plus - minus) / (2.0 * h))
+        differences = np.array(columns).T
+        assert np.abs(data.jacobian - differences).max() <= 1e-7 * np.abs(differences).max()
+        for mine, theirs in zip(model.derivatives(q, dq), (force, dforce_dq, dforce_dv),
+                                strict=True):
+            assert np.array_equal(mine, theirs)
+
+
+def test_calc_force_after_calc_derivatives_is_unchanged(rng: np.random.Generator) -> None:
+    """A data that evaluated derivatives gives calc_force's numbers to the bit (the closed
+    loop's step shares the twin's buffers with the derivatives)."""
+    for c_y in (0.5, 25.0):
+        params = SnakeParams.table1(c_y=c_y)
+        model = Snake(params).friction
+        shared, fresh = model.create_data(), model.create_data()
+        for _ in range(5):
+            q, dq = random_state(rng, params.n)
+            model.calc_derivatives(shared, *random_state(rng, params.n))
+            assert np.array_equal(model.calc_force(shared, q, dq),
+                                  model.calc_force(fresh, q, dq))

@@ -109,6 +109,31 @@ def test_friction_jacobians_match_central_differences(rng: np.random.Generator) 
         assert np.abs(data.dtau_dx - expected).max() <= 1e-7 * np.abs(expected).max()
 
 
+def test_each_actuation_data_holds_its_friction(rng: np.random.Generator) -> None:
+    """Two datas of one actuation, evaluated in turn at two states, each hold the core's
+    friction force and Jacobians at its own state to the bit (the model's friction buffers,
+    which both share, are copied out at once)."""
+    snake = Snake(ROBOTS["tracking"])
+    actuation = ChainRootActuation(crocoddyl.StateMultibody(snake.model), snake)
+    datas = [actuation.createData(), actuation.createData()]
+    nq = snake.nq
+    states = [head_first_state(rng, snake.n, speed=1.0) for _ in datas]
+    for data, x in zip(datas, states, strict=True):
+        actuation.calc(data, x)
+        actuation.calcDiff(data, x)
+    for data, x in zip(datas, states, strict=True):
+        _, dforce_dq, dforce_dv = snake.friction.derivatives(x[:nq], x[nq:])
+        assert np.array_equal(data.tau, snake.friction(x[:nq], x[nq:]))
+        assert np.array_equal(data.dtau_dx, np.hstack((dforce_dq, dforce_dv)))
+    frictionless = ChainRootActuation(crocoddyl.StateMultibody(snake.model), snake,
+                                      friction=False)
+    data = frictionless.createData()
+    frictionless.calc(data, states[0])
+    frictionless.calcDiff(data, states[0])
+    assert frictionless.friction_data is None
+    assert not data.tau.any() and not data.dtau_dx.any()
+
+
 def test_passive_joint_gets_no_torque(rng: np.random.Generator) -> None:
     snake = Snake(ROBOTS["passive5"])
     model = differential_model(snake)
