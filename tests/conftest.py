@@ -76,7 +76,8 @@ def raised_without_blocking(call: Callable[[], object], what: str) -> BaseExcept
 def tiny_report(monkeypatch: pytest.MonkeyPatch) -> None:
     """Shrink the quick report's longest runs for tests of how a report runs, not of its
     numbers: a failure map of 3 failed joints x 2 ratios over 1 s (errors from 0.5 s), the
-    MPC's map line (no failure, joint 5 failed), engine runs and benchmark row at 0.4 s."""
+    MPC's map line (no failure, joint 5 failed), engine runs and benchmark row at 0.4 s,
+    the engine stage's other runs at 2 s."""
     from snake_pin.experiments import bench_control, engine, failure_map
 
     monkeypatch.setattr(failure_map, "QUICK",
@@ -84,4 +85,5 @@ def tiny_report(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(failure_map, "MPC_QUICK",
                         failure_map.MapPlan(0.4, (0, 5), (50.0,), error_window=0.2))
     monkeypatch.setattr(engine, "QUICK_MPC_T_FINAL", 0.4)
+    monkeypatch.setattr(engine, "QUICK_T_FINAL", 2.0)
     monkeypatch.setattr(bench_control, "QUICK_MPC_T", 0.4)

@@ -34,10 +34,13 @@ from ..sim import Trajectory, simulate
 from .context import Context
 
 __all__ = ["DRAWS", "MPC_DRAWS", "MPC_SCENARIOS", "MPC_T_FINAL", "QUICK_DRAWS",
-           "QUICK_MPC_T_FINAL", "SENSITIVE", "VISCOUS_DRAWS", "engine_stage"]
+           "QUICK_MPC_T_FINAL", "QUICK_T_FINAL", "SENSITIVE", "T_FINAL", "VISCOUS_DRAWS",
+           "engine_stage"]
 
 #: Draws per configuration in the report (full run, ``--quick``) and of the viscous check.
 DRAWS, QUICK_DRAWS, VISCOUS_DRAWS = 11, 3, 3
+#: Duration of the engine runs (full run, ``--quick``: just past the 10 s error window) [s].
+T_FINAL, QUICK_T_FINAL = 60.0, 11.0
 #: A run counts as sensitive when offsets of :data:`PERTURBATION` rad move its RMS error by
 #: more than this fraction of itself: a run that keeps small offsets small moves it by
 #: about the offset (1e-6 .. 1e-5), a chaotic one by percents.
@@ -134,7 +137,7 @@ def engine_stage(ctx: Context) -> None:
     """
     from ..viz.meshcat_view import write_html
 
-    t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
+    t_final = QUICK_T_FINAL if ctx.quick else T_FINAL
     base = engine_robot(ctx.params)
     own = base.name not in ROBOTS
     wheels = WheelSpec()
