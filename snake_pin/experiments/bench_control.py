@@ -46,7 +46,7 @@ REPORT_SCENARIOS = ("line", "circle_0.5L", "circle_1L", "circle_2L", "lane_chang
 REPORT_MPC_SCENARIOS = ("line", "circle_1L", "lane_change")
 #: Duration of the quick report's MPC row on the line, and of the Lyapunov-like row it is
 #: compared with [s] (the targets' 60 s runs are the full report's).
-QUICK_MPC_T = 2.0
+QUICK_MPC_T = 1.0
 #: The MPC's target: head error to the timed reference, RMS over the metrics' window, at most
 #: this % of the body length (and below the Lyapunov-like law's on the same cell).
 MPC_TARGET_PCT = 2.5

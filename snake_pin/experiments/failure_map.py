@@ -63,8 +63,8 @@ FULL = MapPlan(60.0, None, (10.0, 25.0, 50.0, 100.0))
 QUICK = MapPlan(11.0, (0, 1, 2, 5, 9), (10.0, 50.0))
 #: The MPC's line of the map: 60 s, every joint failed in turn, at c_y/c_x = 50.
 MPC_FULL = MapPlan(60.0, None, (50.0,))
-#: ``reproduce --quick``: 2 s MPC runs (errors from 1 s), no failure and joint 5 failed.
-MPC_QUICK = MapPlan(2.0, (0, 5), (50.0,), error_window=1.0)
+#: ``reproduce --quick``: 1 s MPC runs (errors from 0.5 s), no failure and joint 5 failed.
+MPC_QUICK = MapPlan(1.0, (0, 5), (50.0,), error_window=0.5)
 #: The map's study of each law: its name (and file stem), the law in words.
 _LAWS = {"lyapunov": ("failure_map", "Lyapunov-like law"),
          "mpc": ("failure_map_mpc", "MPC (receding-horizon Box-FDDP)")}
