@@ -135,7 +135,8 @@ def test_a_study_runs_on_a_client_it_leaves_open(tmp_path: Path, scheduler: str,
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     """Given a client (a cluster shared with other work), the study runs on its workers (no
     cluster of its own) with the rows of the same study run through the scheduler, and
-    leaves the client usable; a client with workers of its own is one StudyError line."""
+    leaves the client usable; a client with workers of its own, or that is not a running
+    client, is one StudyError line before any file is written."""
     from distributed import Client
 
     from snake_pin.study import runner
@@ -147,8 +148,12 @@ def test_a_study_runs_on_a_client_it_leaves_open(tmp_path: Path, scheduler: str,
         assert client.submit(sum, [1, 2]).result() == 3
         with pytest.raises(StudyError, match="client brings its own cluster"):
             run_study(study, tmp_path / "refused", client=client, workers=1)
+    for bad in (scheduler, client):  # an address, a closed client
+        with pytest.raises(StudyError, match=r"client must be a running distributed\.Client"):
+            run_study(study, tmp_path / "refused", client=bad)
+    assert not (tmp_path / "refused").exists()
     assert (summary.status, summary.recorded, summary.scheduler) == \
-        ("complete", 6, "local (2 workers)")
+        ("complete", 6, scheduler)
     run_study(study, tmp_path / "own", scheduler=scheduler)
     shared, own = (pd.read_parquet(tmp_path / name / "runs").sort_values("key")
                    .reset_index(drop=True) for name in ("shared", "own"))

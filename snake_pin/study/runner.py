@@ -23,7 +23,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from .._io import decode_utf8, read_regular_file
-from .._validation import one_line, printable_path
+from .._validation import brief, one_line, printable_path
 from ..exceptions import RunInterrupted
 from .errors import StudyError
 from .results import StudyFolder
@@ -104,12 +104,14 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     """
     started = time.monotonic()
     spec = load_study(spec_path)
+    address = None
+    if client is not None:
+        if scheduler is not None or workers is not None or security is not None or dashboard:
+            raise StudyError("a client brings its own cluster: scheduler, workers, security "
+                             "and dashboard do not apply")
+        address = _client_address(client)
     folder = StudyFolder(out_dir)
     folder.check(spec)
-    if client is not None and (scheduler is not None or workers is not None
-                               or security is not None or dashboard):
-        raise StudyError("a client brings its own cluster: scheduler, workers, security and "
-                         "dashboard do not apply")
     workers = _slots(client) if client is not None else _check_workers(workers, scheduler)
     timeout = _check_timeout(connect_timeout)
     credentials = None
@@ -122,8 +124,6 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     elif security is not None:
         raise StudyError("security applies to a given scheduler; the local cluster makes "
                          "its own TLS credentials")
-    else:
-        address = None
     say = log or (lambda _message: None)
     if batch_function is None:
         from .work import run_batch
@@ -531,6 +531,15 @@ def _check_workers(workers: int | None, scheduler: str | None) -> int:
             not 1 <= workers <= MAX_WORKERS:
         raise StudyError(f"workers must be an integer in 1..{MAX_WORKERS}, got {workers!r}")
     return workers
+
+
+def _client_address(client: object) -> str:
+    """The scheduler address of a running ``distributed.Client``; StudyError otherwise."""
+    from distributed import Client
+
+    if not isinstance(client, Client) or client.status != "running":
+        raise StudyError(f"client must be a running distributed.Client, got {brief(client)}")
+    return str(client.scheduler.address)
 
 
 def _slots(client: Any) -> int:
