@@ -458,12 +458,10 @@ def _run_map(ctx: Context, base: SnakeParams, plan: MapPlan,
     spec = load_study(study_file)
     out = ctx.folder / ("failure_map" if controller == "lyapunov" else
                         f"failure_map_{controller}")
-    workers, scheduler = ctx.options.get("study_workers"), ctx.options.get("study_scheduler")
-    # the report's cluster unless the study was given its own; progress=None: the study's
-    # bar (runs done, failures, ETA) on a terminal only
-    shared = ctx.cluster if ctx.cluster is not None and workers is None \
-        and scheduler is None else None
-    summary = run_study(study_file, out, workers=workers, scheduler=scheduler,
+    shared = _shared_cluster(ctx)
+    # progress=None: the study's bar (runs done, failures, ETA) on a terminal only
+    summary = run_study(study_file, out, workers=ctx.options.get("study_workers"),
+                        scheduler=ctx.options.get("study_scheduler"),
                         client=shared.client() if shared is not None else None,
                         progress=None)
     keys = {s.key for s in spec.scenarios}
@@ -522,8 +520,19 @@ def _study_numbers(summary: Any) -> dict[str, Any]:
     return {k: v for k, v in summary.to_dict().items() if k not in ("files", "folder")}
 
 
-def _singular_workers(scheduler: str) -> str:
-    """The study's scheduler in words, in the singular for one worker ("local (1 worker)")."""
+def _shared_cluster(ctx: Context) -> Any:
+    """The report's cluster, where the studies run unless given workers or a scheduler."""
+    options = ctx.options
+    if options.get("study_workers") is None and options.get("study_scheduler") is None:
+        return ctx.cluster
+    return None
+
+
+def _where(ctx: Context, scheduler: str) -> str:
+    """Where a study ran, in words, in the singular for one worker ("local (1 worker)")."""
+    shared = _shared_cluster(ctx)
+    if shared is not None:
+        scheduler = f"the report's local cluster ({shared.workers} workers)"
     return re.sub(r"\b1 workers\b", "1 worker", scheduler)
 
 
@@ -554,7 +563,7 @@ def failure_map_stage(ctx: Context) -> None:
              "s, head-first along w_r = [0.1 t, 0, pi], with no failed joint (0) and each "
              f"single failed joint k (its actuator gives no torque), against c_y/c_x = "
              f"{', '.join(f'{r:g}' for r in plan.ratios)} with c_x = {map_c_x(base):g} N s/m. "
-             f"{summary.runs} runs as a study ({_singular_workers(summary.scheduler)}, "
+             f"{summary.runs} runs as a study ({_where(ctx, summary.scheduler)}, "
              "one run per task): "
              f"failure_map.toml, results in failure_map/ (Parquet: "
              "pandas.read_parquet('failure_map/runs')).")

@@ -539,7 +539,7 @@ def _client_address(client: object) -> str:
 
     if not isinstance(client, Client) or client.status != "running":
         raise StudyError(f"client must be a running distributed.Client, got {brief(client)}")
-    return str(client.scheduler.address)
+    return str(client.scheduler_info()["address"])
 
 
 def _slots(client: Any) -> int:
