@@ -17,7 +17,8 @@ from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
 __all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "instance",
-           "integer", "mebibytes", "model_data", "one_line", "output_file", "printable_path"]
+           "integer", "mebibytes", "model_data", "one_line", "output_file", "printable_path",
+           "vector"]
 
 _T = TypeVar("_T")
 
@@ -120,6 +121,25 @@ def as_vector(value: object, size: int, name: str) -> np.ndarray:
     if vec.size != size:
         raise ConfigurationError(f"{name} must have {size} entries, got {vec.size}")
     if not np.all(np.isfinite(vec)):
+        raise ConfigurationError(f"{name} has non-finite entries")
+    return vec
+
+
+def vector(value: object, name: str, *, size: int | None = None,
+           finite: bool = True) -> np.ndarray:
+    """``value`` as a non-empty 1-D float vector (of ``size`` entries; finite unless told),
+    or one ConfigurationError line (:func:`as_vector` flattens instead)."""
+    try:
+        vec = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"{name} must be a vector of numbers, got {brief(value)}") \
+            from exc
+    if isinstance(value, (bool, np.bool_)) or vec.ndim != 1 or vec.size == 0 \
+            or vec.size != (size or vec.size):
+        raise ConfigurationError(f"{name} must be a non-empty vector"
+                                 f"{f' of {size} numbers' if size else ''}, got {brief(value)} "
+                                 f"of shape {vec.shape}")
+    if finite and not np.all(np.isfinite(vec)):
         raise ConfigurationError(f"{name} has non-finite entries")
     return vec
 

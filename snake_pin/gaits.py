@@ -14,8 +14,8 @@ from functools import cached_property
 
 import numpy as np
 
-from ._validation import brief, finite_number, integer
-from .exceptions import ConfigurationError, ParameterError
+from ._validation import finite_number, integer, vector
+from .exceptions import ParameterError
 
 __all__ = ["Serpenoid", "arc", "configuration", "initial_state", "straight"]
 
@@ -33,24 +33,6 @@ def _head(head: Mapping[str, object]) -> dict[str, float]:
     return {key: finite_number(value, key) for key, value in head.items()}
 
 
-def vector(value: object, name: str, *, size: int | None = None,
-           finite: bool = True) -> np.ndarray:
-    """``value`` as a non-empty float vector (of ``size`` entries; finite unless told), or
-    one ConfigurationError line."""
-    try:
-        vec = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError(f"{name} must be a vector of numbers, got {brief(value)}") \
-            from exc
-    if isinstance(value, (bool, np.bool_)) or vec.ndim != 1 or vec.size == 0 \
-            or vec.size != (size or vec.size):
-        raise ConfigurationError(f"{name} must be a non-empty vector"
-                                 f"{f' of {size} numbers' if size else ''}, got {brief(value)}")
-    if finite and not np.all(np.isfinite(vec)):
-        raise ConfigurationError(f"{name} has non-finite entries")
-    return vec
-
-
 def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
                   theta_1: float = 0.0) -> np.ndarray:
     """Return ``q = [x_h, y_h, theta_1, phi]`` from joint angles and a head pose.
@@ -66,6 +48,13 @@ def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
     -------
     numpy.ndarray, shape (n + 2,)
         The configuration q.
+
+    Raises
+    ------
+    ConfigurationError
+        ``phi`` is not a non-empty vector of finite numbers.
+    ParameterError
+        A head coordinate is not a finite number.
     """
     head = _head({"x_h": x_h, "y_h": y_h, "theta_1": theta_1})
     return np.r_[head["x_h"], head["y_h"], head["theta_1"], vector(phi, "phi")]
@@ -85,6 +74,11 @@ def straight(n: int, **head: float) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2,)
         The configuration q.
+
+    Raises
+    ------
+    ParameterError
+        A bad argument (see the module docstring).
     """
     return configuration(np.zeros(integer(n, "n", low=2) - 1), **_head(head))
 
@@ -105,6 +99,11 @@ def arc(n: int, phi0: float, **head: float) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2,)
         The configuration q.
+
+    Raises
+    ------
+    ParameterError
+        A bad argument (see the module docstring).
     """
     count = integer(n, "n", low=2) - 1
     return configuration(np.full(count, finite_number(phi0, "phi0")), **_head(head))
@@ -253,5 +252,10 @@ def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
     -------
     numpy.ndarray, shape (2(n + 2),)
         ``x = [q, dq]``, ``q = [0, 0, theta_1, pi/6 .. pi/6]``, ``dq = 0``.
+
+    Raises
+    ------
+    ParameterError
+        A bad argument (see the module docstring).
     """
     return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(integer(n, "n", low=2) + 2)]

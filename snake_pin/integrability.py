@@ -15,9 +15,8 @@ from typing import Any
 import numpy as np
 
 from . import paper
-from ._validation import brief, finite_number, instance, integer
+from ._validation import brief, finite_number, instance, integer, vector
 from .exceptions import ParameterError
-from .gaits import vector
 from .model import Snake
 
 __all__ = ["Involutivity", "PartialIntegrability", "conserved_quantity", "implied_g2",
@@ -102,6 +101,11 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
     -------
     PartialIntegrability
         The largest relative defects of both conditions over the samples.
+
+    Raises
+    ------
+    ParameterError
+        An argument is out of its range or of the wrong type.
     """
     instance(snake, Snake, "snake")
     k = integer(k, "k", low=1, high=3)
@@ -143,6 +147,13 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
     -------
     numpy.ndarray, shape (2,)
         The integral [N s].
+
+    Raises
+    ------
+    ConfigurationError
+        ``q`` or ``q0`` does not have n + 2 finite entries.
+    ParameterError
+        ``snake`` is not a Snake or ``nodes`` not a positive integer.
     """
     instance(snake, Snake, "snake")
     nodes = integer(nodes, "nodes", low=1)
@@ -169,6 +180,13 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
     -------
     numpy.ndarray, shape (2,)
         g [N s] (momentum plus friction-weighted position).
+
+    Raises
+    ------
+    ConfigurationError
+        ``q`` or ``dq`` does not have n + 2 finite entries.
+    ParameterError
+        ``snake`` is not a Snake, or its friction is not isotropic (g2 is undefined).
     """
     instance(snake, Snake, "snake")
     q, dq = snake.check_q(q), snake.check_dq(dq)

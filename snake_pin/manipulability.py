@@ -154,6 +154,13 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
     -------
     Manipulability
         ``.sigma`` and ``.lambda_`` have length 3 (2 without heading) + free joints.
+
+    Raises
+    ------
+    ConfigurationError
+        ``q`` does not have n + 2 finite entries.
+    ParameterError
+        A bad argument, or too few links for the task (n >= 4 plus one per free joint).
     """
     instance(snake, Snake, "snake")
     q = snake.check_q(q).copy()

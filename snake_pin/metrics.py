@@ -11,9 +11,8 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
-from ._validation import brief, finite_number, instance, integer
+from ._validation import brief, finite_number, instance, integer, vector
 from .exceptions import ParameterError
-from .gaits import vector
 from .manipulability import manipulability, task_split
 from .model import Snake
 

@@ -300,6 +300,11 @@ class Path(abc.ABC):
         -------
         numpy.ndarray
             ``geometry(s).p``.
+
+        Raises
+        ------
+        ParameterError
+            An arc length is not finite.
         """
         return self.geometry(s).p
 
@@ -1132,6 +1137,11 @@ def cross_track_error(path: Path | PathReference, points: object, *,
     -------
     numpy.ndarray, shape points.shape[:-1]
         Signed distances.
+
+    Raises
+    ------
+    ParameterError
+        The points are not a finite (..., 2) array, or the span is invalid.
     """
     curve, pts = _curve(path), _points(points)
     g = curve.geometry(curve.project(pts, span=span))
@@ -1157,6 +1167,11 @@ def along_track(path: Path | PathReference, points: object, *,
     -------
     numpy.ndarray, shape points.shape[:-1]
         :meth:`Path.project` of the points.
+
+    Raises
+    ------
+    ParameterError
+        The points are not a finite (..., 2) array, or the span is invalid.
     """
     return _curve(path).project(points, span=span)
 

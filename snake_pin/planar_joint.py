@@ -159,6 +159,13 @@ def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
     -------
     numpy.ndarray, shape (n + 2, n + 2)
         ``blockdiag(R(theta_1)^T, 1, S)``; orthogonal, so ``T^-1 = T^T``.
+
+    Raises
+    ------
+    ParameterError
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+    ConfigurationError
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -192,6 +199,13 @@ def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarr
         ``[x_h, y_h, cos theta_1, sin theta_1, s_i phi_i ..]``.
     v_planar : numpy.ndarray, shape (n + 2,)
         ``T q'``.
+
+    Raises
+    ------
+    ParameterError
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+    ConfigurationError
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -223,6 +237,13 @@ def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
     -------
     q, dq : numpy.ndarray, shape (n + 2,)
         Paper configuration and ``T^T v_planar``.
+
+    Raises
+    ------
+    ParameterError
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+    ConfigurationError
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q_planar = as_vector(q_planar, layout.nq, "q_planar")
@@ -252,6 +273,13 @@ def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
     -------
     numpy.ndarray, shape (n + 2,)
         The planar model's acceleration.
+
+    Raises
+    ------
+    ParameterError
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+    ConfigurationError
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     _, v_planar = paper_to_planar(layout, q, dq)
@@ -275,6 +303,13 @@ def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.n
     -------
     numpy.ndarray, shape (n + 2,)
         Paper acceleration q''.
+
+    Raises
+    ------
+    ParameterError
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+    ConfigurationError
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     q, dq = planar_to_paper(layout, q_planar, v_planar)
@@ -301,6 +336,13 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
     -------
     numpy.ndarray, shape (n + 2,)
         The same force for the planar model (equal power).
+
+    Raises
+    ------
+    ParameterError
+        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
+    ConfigurationError
+        A vector has the wrong size or non-finite entries.
     """
     layout = _layout(model)
     force = as_vector(force, layout.n + 2, "force")

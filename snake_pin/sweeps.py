@@ -239,6 +239,11 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
     -------
     RMap
         R over the grid.
+
+    Raises
+    ------
+    ParameterError
+        A bad argument, or a free joint that leaves the task no actuated joint.
     """
     instance(snake, Snake, "snake")
     alpha_points = integer(alpha_points, "alpha_points", low=1, high=MAX_POINTS)

@@ -90,23 +90,31 @@ def test_derivatives_match_numdiff(snake: Snake, rng: np.random.Generator) -> No
 
 def test_friction_jacobians_match_central_differences(rng: np.random.Generator) -> None:
     """The actuation's ``dtau_dx`` against central differences of its force, per-link
-    robots (anisotropic and isotropic friction)."""
+    robots (anisotropic and isotropic friction), three states each."""
     for friction in ("anisotropic", "isotropic"):
         snake = Snake(heterogeneous_params(rng, 7, friction))
         actuation = ChainRootActuation(crocoddyl.StateMultibody(snake.model), snake)
         data = actuation.createData()
-        x = head_first_state(rng, snake.n, speed=1.0)
-        actuation.calcDiff(data, x)
-        h, columns = 1e-6, []
-        for k in range(len(x)):
-            step = np.zeros(len(x))
-            step[k] = h
-            actuation.calc(data, x + step)
-            plus = data.tau.copy()
-            actuation.calc(data, x - step)
-            columns.append((plus - data.tau) / (2.0 * h))
-        expected = np.array(columns).T
-        assert np.abs(data.dtau_dx - expected).max() <= 1e-7 * np.abs(expected).max()
+        for _ in range(3):
+            _check_against_central_differences(actuation, data,
+                                               head_first_state(rng, snake.n, speed=1.0))
+
+
+def _check_against_central_differences(actuation: ChainRootActuation, data: object,
+                                       x: np.ndarray) -> None:
+    """``dtau_dx`` at ``x`` against central differences of the actuation's force."""
+    h, columns = 1e-6, []
+    for k in range(len(x)):
+        step = np.zeros(len(x))
+        step[k] = h
+        actuation.calc(data, x + step)
+        plus = data.tau.copy()
+        actuation.calc(data, x - step)
+        columns.append((plus - data.tau) / (2.0 * h))
+    actuation.calc(data, x)
+    actuation.calcDiff(data, x)
+    expected = np.array(columns).T
+    assert np.abs(data.dtau_dx - expected).max() <= 1e-7 * np.abs(expected).max()
 
 
 def test_each_actuation_data_holds_its_friction(rng: np.random.Generator) -> None:

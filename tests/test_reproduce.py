@@ -196,18 +196,22 @@ def test_report_is_complete_strict_json_and_in_place(report: Path) -> None:
 
 
 @pytest.mark.usefixtures("tiny_report")
-def test_reproduce_runs_every_stage_on_a_robot_file(tmp_path: Path) -> None:
+def test_reproduce_runs_every_stage_on_a_robot_file(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """reproduce --quick --robot camera_head_snake.toml (a shipped robot by bare file name):
     every stage runs on that robot (the failure map and the path benchmark too) and the
     report is complete; the robot stage lists its per-link values, and the engine stage
     puts that robot itself on wheels (10 links, friction identified per link) and reports
     its distributions. The failure maps and MPC runs are the tiny ones (how stages honour
     a robot, not their numbers)."""
-    from snake_pin.experiments import stages
+    from snake_pin.experiments import failure_map, stages
     from snake_pin.robot_file import load_robot
     from snake_pin.trajectory import Trajectory
 
     params = load_robot("camera_head_snake.toml")
+    # the tiny map with the tail joint too
+    monkeypatch.setattr(failure_map, "QUICK", failure_map.MapPlan(
+        1.0, (0, 1, params.n - 1), (25.0, 50.0), error_window=0.5))
     assert main(["reproduce", "--quick", "--robot", "camera_head_snake.toml",
                  "-o", str(tmp_path)]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -226,6 +230,7 @@ def test_reproduce_runs_every_stage_on_a_robot_file(tmp_path: Path) -> None:
     assert engine["engine"]["body_length"] == pytest.approx(params.body_length)
     html = (tmp_path / "index.html").read_text()
     assert "camera_head_snake" in html and "median" in html
+    assert str(params.n - 1) in summary["failure_map"]["rms_head_error_pct"]
 
 
 @pytest.mark.usefixtures("tiny_report")
