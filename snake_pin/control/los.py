@@ -47,20 +47,16 @@ class LOSParams:
         LOS look-ahead distance Delta [m] (> 0).
     steering : {"cascaded", "pd"}, optional
         The published model-based heading law, or the PD law.
-    k_theta : float, optional
-        Heading gain of the cascaded law [1/s^2] (> 0).
-    lambda1, lambda2 : float, optional
-        Turning constants of the averaged model [1/s], [1/(m s)] (cascaded law; > 0).
-    v_min : float, optional
-        Floor of the averaged forward speed in the cascaded law [m/s] (> 0).
+    k_theta, lambda1, lambda2, v_min : float, optional
+        The cascaded law's heading gain [1/s^2], turning constants [1/s], [1/(m s)] and
+        floor of the averaged forward speed [m/s] (> 0).
     k_p, k_d : float, optional
         Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0).
     phi0_max, phi0_rate : float, optional
         Saturation of the joint offset [rad] and of its rate [rad/s] (> 0).
-    ref_period, offset_period : float, optional
-        Periods ``2 pi / omega_c`` of the filters on theta_ref and phi_0 [s] (> 0).
-    speed_period : float, optional
-        Period of the filter averaging v_t [s]; 0: one gait period ``2 pi / omega``.
+    ref_period, offset_period, speed_period : float, optional
+        Periods ``2 pi / omega_c`` of the filters on theta_ref, phi_0 and v_t [s] (> 0;
+        ``speed_period`` 0: one gait period).
     k_joint_p, k_joint_d : float, optional
         Gains of the feedback-linearised joint law [1/s^2], [1/s] (> 0).
 
@@ -107,10 +103,8 @@ class LOSParams:
 
 
 def los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
-    """The LOS angle ``gamma - atan(e / Delta)`` [rad] (cross-track e left positive, Delta > 0).
-
-    ParameterError for a value that is not a finite number or a non-positive ``look_ahead``.
-    """
+    """The LOS angle ``gamma - atan(e / Delta)`` [rad] (cross-track e left positive, Delta > 0);
+    ParameterError for a value that is not a finite number or a non-positive ``look_ahead``."""
     return _los_heading(finite_number(gamma, "gamma"), finite_number(cross_track, "cross_track"),
                         finite_number(look_ahead, "look_ahead", positive=True))
 
@@ -188,7 +182,9 @@ class ReferenceFilter:
 
 
 class LOSController(Controller):
-    """CM path following by LOS guidance and a steered serpenoid (Liljebäck et al.).
+    """CM path following by LOS guidance and a steered serpenoid (Liljebäck et al.); its
+    signals: ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``
+    (:ref:`derivation-los`).
 
     Parameters
     ----------
@@ -243,7 +239,7 @@ class LOSController(Controller):
         self._gait: tuple[float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
     def gait(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return the undulation without offset at time t.
+        """Return the undulation ``alpha sin(omega t - (i - 1) delta)`` without offset.
 
         Parameters
         ----------
@@ -253,7 +249,7 @@ class LOSController(Controller):
         Returns
         -------
         phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
-            ``alpha sin(omega t - (i - 1) delta)`` [rad] and its two derivatives (read-only).
+            The undulation [rad] and its two derivatives (read-only).
         """
         if self._gait is not None and self._gait[0] == t:  # asked twice per step
             return self._gait[1]
@@ -277,8 +273,7 @@ class LOSController(Controller):
         Returns
         -------
         dict of str to float
-            ``e_ct``, ``s_cm``, ``theta_los``, ``theta_avg`` (psi), ``dtheta_avg``, ``v_t``
-            (:ref:`derivation-los`).
+            ``e_ct``, ``s_cm``, ``theta_los``, ``theta_avg``, ``dtheta_avg``, ``v_t``.
         """
         p_cm, v_cm, psi, dpsi = _kinematics(self._lever, self.snake.nq, x)
         path = self.path
@@ -299,12 +294,9 @@ class LOSController(Controller):
 
         Parameters
         ----------
-        t : float
-            Time [s].
-        g : dict of str to float
-            :meth:`guidance`'s quantities plus ``v_avg``, the averaged forward speed [m/s].
-        ref : numpy.ndarray, shape (3,)
-            Filtered ``[theta_ref, theta_ref', theta_ref'']``.
+        t, g, ref : float, dict of str to float, numpy.ndarray
+            Time [s]; :meth:`guidance`'s quantities plus the averaged forward speed
+            ``v_avg`` [m/s]; the filtered ``[theta_ref, theta_ref', theta_ref'']``.
 
         Returns
         -------
@@ -327,10 +319,8 @@ class LOSController(Controller):
 
         Parameters
         ----------
-        x : numpy.ndarray, shape (2(n + 2),)
-            State ``x = [q, dq]``.
-        phi_r, dphi_r, ddphi_r : numpy.ndarray, shape (n - 1,)
-            Joint references [rad] and their first two time derivatives.
+        x, phi_r, dphi_r, ddphi_r : numpy.ndarray
+            State ``x = [q, dq]``; the joint references [rad] and their two derivatives.
 
         Returns
         -------
@@ -383,13 +373,6 @@ class LOSController(Controller):
         return tau
 
     def signals(self) -> dict[str, float]:
-        """Return the diagnostics of the last call (:ref:`derivation-los`; empty before one).
-
-        Returns
-        -------
-        dict of str to float
-            ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``.
-        """
         return self._last
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:
