@@ -1,9 +1,7 @@
 """Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (erratum 5).
 
 The law takes the actuated torques whose accelerations come closest, in the
-``W = blockdiag(K_w2, K_phi)`` norm, to making ``s = e_w' + K_w1 e_w`` decay at rate lam
-and the joints follow the gait, so V decreases where the underactuation allows; a passive
-joint is a dropped column of E (:ref:`derivation-lyapunov`).
+``W = blockdiag(K_w2, K_phi)`` norm, to making V decrease (:ref:`derivation-lyapunov`).
 """
 
 from __future__ import annotations
@@ -38,17 +36,11 @@ class LyapunovOptions:
 
     Parameters
     ----------
-    k_w1 : float or array_like, optional
-        K_w1 of (84), the head's error rates [1/s] (3 x 3, positive definite).
-    k_w2 : float or array_like, optional
-        K_w2 of (84), the weights of the head's error in V (3 x 3, diagonal, positive).
-    k_phi : float or array_like or None, optional
-        K_phi of (84), the joints' weights in V (diagonal, positive); None: 10 on joint 1
-        and 20 on the others.
-    lam : float, optional
-        Decay rate lambda of the head's error s [1/s] (> 0).
-    lam_shape : float or None, optional
-        Decay rate mu of the joints' velocity error e [1/s] (> 0); None: ``lam / 2``.
+    k_w1, k_w2, k_phi : float or array_like or None, optional
+        Gains of (84): the head's error rates [1/s] (3 x 3, positive definite), the weights
+        of the head's and joints' errors in V (diagonal; ``k_phi`` None: 10, 20, ..., 20).
+    lam, lam_shape : float or None, optional
+        Decay rates of the head's error s and the joints' error e [1/s] (> 0; None: lam / 2).
     k_shape : float or None, optional
         Shape spring k_s [1/s^2] (>= 0); None: 0, or 0.3 with a passive joint.
 
@@ -76,10 +68,8 @@ class LyapunovOptions:
 
         Parameters
         ----------
-        joints : int or None, optional
-            The robot's n - 1 (None: ``k_phi`` stays as it is).
-        passive : bool, optional
-            Whether a joint gives no torque (passive or failed).
+        joints, passive : int or None, bool, optional
+            The robot's n - 1 (None: ``k_phi`` stays) and whether a joint gives no torque.
 
         Returns
         -------
@@ -102,10 +92,9 @@ class LyapunovController(ReferenceLaw):
     ----------
     snake
         The plant; its passive joints get no torque.
-    reference
-        Head reference; default :func:`~snake_pin.control.reference.head_first_reference`.
-    gait
-        Serpenoid for phi_r; default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
+    reference, gait
+        Head reference (default :func:`~snake_pin.control.reference.head_first_reference`)
+        and serpenoid for phi_r (default alpha = pi/6, T_s = 1.5, v = 2, Section VI.2).
     options
         :class:`LyapunovOptions`; default ``LyapunovOptions()``.
     **overrides
@@ -247,15 +236,13 @@ class LyapunovController(ReferenceLaw):
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
+        x, t : numpy.ndarray, float
+            State ``x = [q, dq]`` (length 2(n + 2)) and time [s].
 
         Returns
         -------
         tuple of numpy.ndarray
-            ``q''*`` (n + 2), the head's error ``s`` (3), the joints' velocity error ``e``.
+            ``q''*`` (n + 2), ``s`` (3) and ``e`` (n - 1).
         """
         nq = self.snake.nq
         w_r, dw_r, ddw_r = self.reference(t)
@@ -291,10 +278,8 @@ class LyapunovController(ReferenceLaw):
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
+        x, t : numpy.ndarray, float
+            State ``x = [q, dq]`` (length 2(n + 2)) and time [s].
 
         Returns
         -------

@@ -39,16 +39,14 @@ class PFLOptions:
 
     Parameters
     ----------
-    k_v, k_p : float or array_like, optional
-        K_v [1/s] and K_p [1/s^2] of (71) on the head (3 x 3, positive definite).
-    r_v, r_p : float or array_like, optional
-        R_v [1/s] and R_p [1/s^2] of (78) on the joints (positive semi-definite).
+    k_v, k_p, r_v, r_p : float or array_like, optional
+        K_v [1/s], K_p [1/s^2] of (71) on the head (3 x 3, positive definite); R_v [1/s],
+        R_p [1/s^2] of (78) on the joints (positive semi-definite).
     r_min : float, optional
         Smallest R for which the law is defined (>= 0); below it SingularPostureError.
-    climb_R : float, optional
-        Gain gamma of the singularity-aware redundancy term (>= 0; 0: the paper's law).
-    climb_damping : float or None, optional
-        Its damping k_d [1/s] (> 0); None: 2. Only with ``climb_R > 0``.
+    climb_R, climb_damping : float or None, optional
+        Gain gamma (>= 0; 0: the paper's law) and damping k_d [1/s] (> 0; None: 2; only with
+        ``climb_R > 0``) of the singularity-aware redundancy term.
 
     Raises
     ------
@@ -83,10 +81,9 @@ class PFLController(ReferenceLaw):
     ----------
     snake
         The plant model (all joints actuated: PFL needs every input).
-    reference
-        Head reference; default w_r = [0.1 t, 0, 0] (eq. 80).
-    gait
-        Serpenoid for phi_r; default alpha = pi/3, T_s = 1, v = 0.18 (eq. 81).
+    reference, gait
+        Head reference (default w_r = [0.1 t, 0, 0], eq. 80) and serpenoid for phi_r
+        (default alpha = pi/3, T_s = 1, v = 0.18, eq. 81).
     options
         :class:`PFLOptions`; default ``PFLOptions()``.
     **overrides
@@ -209,10 +206,8 @@ class PFLController(ReferenceLaw):
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
+        x, t : numpy.ndarray, float
+            State ``x = [q, dq]`` (length 2(n + 2)) and time [s].
 
         Returns
         -------

@@ -34,12 +34,9 @@ class QuasiStaticOptions:
     ----------
     k_w1, k_w2, k_phi : float or array_like, optional
         Gains of (84), as in :class:`~snake_pin.control.lyapunov.LyapunovOptions`.
-    servo_bandwidth : float, optional
-        Bandwidth omega_s of the joint servos [rad/s] (> 0).
-    max_lead : float, optional
-        How far the integrated joint reference may run ahead of the joint [rad] (> 0).
-    control_dt : float, optional
-        The controller's sampling period [s] (> 0).
+    servo_bandwidth, max_lead, control_dt : float, optional
+        Bandwidth omega_s of the joint servos [rad/s], how far the integrated joint
+        reference may lead the joint [rad], the controller's period [s] (> 0).
 
     Raises
     ------
@@ -61,17 +58,15 @@ class QuasiStaticOptions:
 
 
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
-    """(K_p, K_d) per joint (n - 1 each) of critically damped servos of ``bandwidth`` [rad/s].
+    """(K_p, K_d) per joint of critically damped servos of ``bandwidth`` [rad/s].
 
     ``K_p,k = omega^2 I_k``, ``K_d,k = 2 omega I_k``, ``I_k`` the mean of ``m (2l)^2`` over
     the two links joint k joins.
 
     Parameters
     ----------
-    params : SnakeParams
-        The robot.
-    bandwidth : float
-        Servo bandwidth ``omega`` [rad/s].
+    params, bandwidth : SnakeParams, float
+        The robot and the servo bandwidth ``omega`` [rad/s].
 
     Returns
     -------
@@ -268,10 +263,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
+        x, t : numpy.ndarray, float
+            State ``x = [q, dq]`` (length 2(n + 2)) and time [s].
 
         Returns
         -------
