@@ -35,16 +35,13 @@ class WheelSpec:
 
     Parameters
     ----------
-    radius, mass : float, optional
-        Wheel radius [m] and mass [kg] (each), > 0; wheels are spheres on hinge axles.
-    friction : float, optional
-        Coulomb coefficient wheel-floor (sliding sideways), > 0.
+    radius, mass, friction : float, optional
+        Wheel radius [m], mass [kg] (each; spheres on hinge axles) and Coulomb coefficient
+        with the floor, > 0.
     rolling_damping : float, optional
         Viscous damping of each wheel's axle [N m s] (rolling resistance), >= 0.
-    timestep : float, optional
-        Engine step [s], > 0; the controller runs every ``substeps`` steps.
-    substeps : int, optional
-        Engine steps per control period (``control_dt = timestep * substeps``).
+    timestep, substeps : float, int, optional
+        Engine step [s] (> 0) and engine steps per control period (>= 1).
     max_bend : float, optional
         Joint angle [rad] up to which wheels of neighbouring links must not overlap.
     cone : {"elliptic", "pyramidal"}, optional
@@ -93,26 +90,18 @@ class EngineModel:
 
     Parameters
     ----------
-    params : SnakeParams
-        The robot the model was built from.
-    wheels : WheelSpec
-        Its wheels and solver settings.
-    model : mujoco.MjModel
-        The compiled model.
-    data : mujoco.MjData
-        Its data (the engine's state).
-    hinge_qpos : numpy.ndarray of int, shape (n - 1,)
-        qpos addresses of ``joint_1`` .. ``joint_{n-1}``.
-    hinge_dof : numpy.ndarray of int, shape (n - 1,)
-        DOF addresses of the same joints.
+    params, wheels : SnakeParams, WheelSpec
+        The robot the model was built from, and its wheels and solver settings.
+    model, data : mujoco.MjModel, mujoco.MjData
+        The compiled model and its data (the engine's state).
+    hinge_qpos, hinge_dof : numpy.ndarray of int, shape (n - 1,)
+        qpos and DOF addresses of ``joint_1`` .. ``joint_{n-1}``.
     link_bodies : numpy.ndarray of int, shape (n,)
         Body ids of ``link_1`` .. ``link_n``.
     actuated : tuple of int
         1-based joints with a motor, in actuator order.
-    body_masses : numpy.ndarray, shape (n,)
-        ``m_i - 2 m_w``: each link's mass without its wheels [kg].
-    body_inertias : numpy.ndarray, shape (n,)
-        ``J_i - 2 (m_w d_i^2 + I_w)``: each link's yaw inertia without wheels [kg m^2].
+    body_masses, body_inertias : numpy.ndarray, shape (n,)
+        Each link's mass [kg] and yaw inertia [kg m^2] without its wheels.
     wheel_offsets : numpy.ndarray, shape (n,)
         d_i: lateral distance of link i's wheel centres from its axis [m].
     meta : dict of str to float, optional
@@ -279,10 +268,9 @@ def build_engine_model(params: SnakeParams | None = None,
 
     Parameters
     ----------
-    params : SnakeParams or None, optional
-        The robot (default :meth:`SnakeParams.engine`); its friction is not used.
-    wheels : WheelSpec or None, optional
-        Wheels and solver settings; ``WheelSpec()`` by default.
+    params, wheels : SnakeParams or WheelSpec or None, optional
+        The robot (default :meth:`SnakeParams.engine`; its friction is not used) and its
+        wheels and solver settings (default ``WheelSpec()``).
 
     Returns
     -------
