@@ -37,10 +37,9 @@ class Manipulability:
 
     Parameters
     ----------
-    D : float
-        Smallest singular value of the acceleration map A (eq. 30 / 42) [(m/s^2)/(N m)].
-    R : float
-        Smallest singular value of the coupling block H12 (eq. 31 / 42); NaN for a task.
+    D, R : float
+        Smallest singular values of the acceleration map A and of the coupling block H12
+        (eqs. 30, 31, 42); R is NaN for a task.
     sigma, lambda_ : numpy.ndarray, shape (m,)
         All singular values of A and H12, descending, zero-padded to the task dimension m.
     blocks : dict of str to numpy.ndarray or None, optional
@@ -139,16 +138,13 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
 
     Parameters
     ----------
-    snake : Snake
-        The robot. Its passive joints (``params.passive``) are always free joints.
-    q : array_like, shape (n + 2,)
-        Configuration (evaluated at ``x_h = y_h = theta_1 = 0``: D, R are invariant).
+    snake, q : Snake, array_like
+        The robot (its passive joints are free) and a configuration (n + 2).
     free_joint : int or sequence of int or None, optional
         1-based further free joint(s), applying the selection S of (33).
-    heading : bool, optional
-        Include theta_1 in the task (default); False gives the 2-D variant of III.1.
-    blocks : bool, optional
-        Also return H11, H12, H22 and the acceleration map A.
+    heading, blocks : bool, optional
+        Include theta_1 in the task (False: the 2-D variant of III.1); also return H11,
+        H12, H22 and the acceleration map A.
 
     Returns
     -------
@@ -204,12 +200,8 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
 
     Parameters
     ----------
-    model : pinocchio.Model
-        A Pinocchio model.
-    data : pinocchio.Data
-        Its data (overwritten).
-    q : array_like, shape (model.nq,)
-        Configuration in the model's own coordinates.
+    model, data, q : pinocchio.Model, pinocchio.Data, array_like
+        A Pinocchio model, its data (overwritten) and a configuration (model.nq).
     unactuated : sequence of int
         0-based velocity indices without an actuator (may be empty: fully actuated).
     task : numpy.ndarray of shape (m, model.nv), or str, or None, optional
@@ -320,22 +312,16 @@ def r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
 
 
 def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
+    """The task Jacobian's rows to keep: all (None), a :data:`TASK_ROWS` name, or indices."""
     if rows is None:
         return list(range(size))
-    if isinstance(rows, str):
-        if rows not in TASK_ROWS:
-            raise ParameterError(f"unknown task rows {rows!r}; choose one of "
-                                 f"{', '.join(TASK_ROWS)} or give indices")
-        chosen = list(TASK_ROWS[rows])
-    elif isinstance(rows, (bytes, Mapping)) or not isinstance(rows, Iterable):
-        raise ParameterError(f"task rows must be a name or indices, got {brief(rows)}")
-    else:
-        chosen = list(rows)
-    if not chosen or len(set(chosen)) != len(chosen) or any(
-            isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 0 <= r < size
-            for r in chosen):
+    if isinstance(rows, str) and rows not in TASK_ROWS:
+        raise ParameterError(f"unknown task rows {rows!r}; choose one of "
+                             f"{', '.join(TASK_ROWS)} or give indices")
+    chosen = list(TASK_ROWS[rows]) if isinstance(rows, str) else _integers(rows, "task rows")
+    if not chosen or len(set(chosen)) != len(chosen) or min(chosen) < 0 or max(chosen) >= size:
         raise ParameterError(f"task rows must be distinct indices in 0..{size - 1}, "
-                             f"got {brief(rows) if not isinstance(rows, list) else rows}")
+                             f"got {chosen}")
     return chosen
 
 
@@ -349,10 +335,8 @@ def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    q : array_like, shape (n + 2,)
-        Configuration.
+    snake, q : Snake, array_like
+        The robot and a configuration (n + 2).
     constrained : sequence of int or None, optional
         1-based links whose CM may not slip sideways; links 2..n by default.
 
