@@ -1,10 +1,6 @@
-"""Integrability of the unactuated rows (Section V, Theorems 2-3, eqs. 44-67).
-
-Theorem 2's conditions at random states (:func:`partial_integrability`), the g2 it implies
-(:func:`implied_g2`), the conserved ``g = H1 dq + g2`` of eq. (67)
-(:func:`conserved_quantity`) and Theorem 3 by Lie brackets (:func:`involutivity`); the
-analysis is in :ref:`integrability`.
-"""
+"""Integrability of the unactuated rows (Section V, Theorems 2-3, eqs. 44-67): Theorem 2's
+conditions, the g2 they imply, the conserved g of eq. (67) and Theorem 3 by Lie brackets
+(:ref:`integrability`)."""
 
 from __future__ import annotations
 
@@ -33,10 +29,9 @@ class PartialIntegrability:
     ----------
     k : int
         Number of leading coordinates in q1 (1, 2 or 3).
-    cyclic_defect : float
-        ``max abs(d/dq1 (dq^T H dq))`` over the samples, relative to ``dq^T H dq``.
-    gradient_defect : float
-        ``max abs(dC1[a,i]/dq_j - dC1[a,j]/dq_i)``, relative to ``max abs(dC1/dq)``.
+    cyclic_defect, gradient_defect : float
+        ``max abs(d/dq1 (dq^T H dq)) / dq^T H dq`` and
+        ``max abs(dC1[a,i]/dq_j - dC1[a,j]/dq_i) / max abs(dC1/dq)`` over the samples.
     tolerance : float
         A relative defect below this counts as zero.
     """
@@ -88,10 +83,8 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    k : int
-        q1 holds the first k coordinates (1: x_h; 2: and y_h; 3: and theta_1).
+    snake, k : Snake, int
+        The robot; q1 holds the first k coordinates (1: x_h; 2: and y_h; 3: and theta_1).
     samples, seed : int, optional
         Number and seed of the random states (joint angles within +-1.5 rad).
     tolerance : float, optional
@@ -136,10 +129,8 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    q, q0 : array_like, shape (n + 2,)
-        End and start (default zero) of the segment.
+    snake, q, q0 : Snake, array_like, array_like or None
+        The robot; end and start (default zero) of the segment, n + 2 each.
     nodes : int, optional
         Number of Gauss-Legendre nodes.
 
@@ -171,10 +162,8 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    q, dq : array_like, shape (n + 2,)
-        Configuration and velocity.
+    snake, q, dq : Snake, array_like, array_like
+        The robot, a configuration and a velocity (n + 2 each).
 
     Returns
     -------
@@ -254,10 +243,9 @@ class Involutivity:
     ----------
     n, samples : int
         Number of links and of random points tested.
-    defect : float
-        Largest relative bracket component outside ``ker [H1 g2]`` (:func:`lie_bracket_defect`).
-    noise : float
-        The same for an exact (involutive) system of the same size: the noise floor.
+    defect, noise : float
+        Largest relative bracket component outside ``ker [H1 g2]``
+        (:func:`lie_bracket_defect`), and that of an exact system of the same size.
     """
 
     n: int
@@ -276,10 +264,8 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
 
     Parameters
     ----------
-    snake : Snake
-        The robot; its friction must be isotropic.
-    samples, seed : int, optional
-        Number and seed of the random points (q, t).
+    snake, samples, seed : Snake, int, int
+        The robot (isotropic friction), and number and seed of the random points (q, t).
 
     Returns
     -------

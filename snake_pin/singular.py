@@ -35,10 +35,9 @@ class SingularFamily:
 
     Parameters
     ----------
-    phi, R
-        Representative posture (the member with the smallest R) and its R.
-    members, straight
-        How many starts ended in this family; whether ``phi`` is the straight posture.
+    phi, R, members, straight
+        Representative posture (the member with the smallest R), its R, how many starts
+        ended in this family and whether ``phi`` is the straight posture.
     low, high
         Per-joint minimum and maximum of phi over the members (mirror-canonical).
     """
@@ -66,18 +65,15 @@ class SingularSearch:
         The robot searched, the box ``abs(phi_i) <= bound`` [rad], the starts that ran.
     free_joint
         The free joint(s) (the robot's passive joints included), or None.
-    R_typical
-        Median R over random postures in the box (the scale of "numerically zero").
-    threshold
-        R below this counts as zero (``relative * R_typical``).
-    minima_phi, minima_R
-        Every polished local minimum (one per start).
-    families
-        Distinct postures where R <= threshold.
-    status
-        ``"completed"``, or ``"interrupted"`` when only ``starts`` of them ran.
-    starts_requested
-        Starts asked for (None: ``starts``).
+    R_typical, threshold
+        Median R over random postures in the box, and the R below which it counts as zero
+        (``relative * R_typical``).
+    minima_phi, minima_R, families
+        Every polished local minimum (one per start), and the distinct postures where
+        R <= threshold.
+    status, starts_requested
+        ``"completed"``, or ``"interrupted"`` when only ``starts`` of them ran; starts asked
+        for (None: ``starts``).
     """
 
     params: SnakeParams
@@ -146,14 +142,11 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     ----------
     params
         The robot (n >= 4, or >= 5 with a free joint).
-    starts
-        Number of random starting postures (uniform in the box), 1 .. :data:`MAX_STARTS`.
-    bound
-        Joint limit of the box [rad].
-    free_joint
-        Search R~ with this joint (or these joints) free, beside the robot's passive joints.
-    seed
-        Seed of the random starts, 0 .. :data:`MAX_SEED`.
+    starts, seed
+        Number of random starting postures (uniform in the box), 1 .. :data:`MAX_STARTS`,
+        and their seed, 0 .. :data:`MAX_SEED`.
+    bound, free_joint
+        Joint limit of the box [rad]; joint(s) free for R~, beside the passive joints.
     relative
         ``R <= relative * (median R of random postures)`` counts as numerically zero.
     progress

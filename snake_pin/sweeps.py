@@ -49,10 +49,9 @@ class Sweep:
         The parameter values and the criteria there, (N,) each (D~ and R~ with free joints).
     free_joint, robot
         The free joint(s) or None, and the robot's name.
-    meta
-        Extra settings written with the data (e.g. ``points_requested``).
-    status
-        ``"completed"``, or ``"interrupted"`` for a partial sweep.
+    meta, status
+        Extra settings written with the data (e.g. ``points_requested``); ``"completed"``,
+        or ``"interrupted"`` for a partial sweep.
     """
 
     family: str
@@ -129,16 +128,13 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
 
     Parameters
     ----------
-    snake
-        The robot; its passive joints are free beside ``free_joint``.
-    family
-        One of :data:`FAMILIES`.
+    snake, family
+        The robot (its passive joints are free beside ``free_joint``), a :data:`FAMILIES` name.
     free_joint
         Joint(s) without an actuator (D~ and R~ of eq. 42).
-    points
-        Number of values, 2 .. :data:`MAX_POINTS` (0, singular, is inserted if inside).
-    bounds
-        The parameter range (default: the family's range in :data:`FAMILIES`).
+    points, bounds
+        Number of values, 2 .. :data:`MAX_POINTS` (0, singular, is inserted if inside), and
+        the parameter range (default: the family's in :data:`FAMILIES`).
     progress
         Show a progress bar on stderr when it is a terminal.
 
@@ -226,14 +222,11 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
 
     Parameters
     ----------
-    snake
-        The robot.
-    free_joint
-        A free joint (R~), or None.
-    alpha_points, ts_points
-        Grid sizes along alpha and T_s (1 .. :data:`MAX_POINTS`).
-    alpha_max, ts_max
-        Upper ends of the grid (both start at 0).
+    snake, free_joint
+        The robot, and a free joint (R~) or None.
+    alpha_points, ts_points, alpha_max, ts_max
+        Grid sizes along alpha and T_s (1 .. :data:`MAX_POINTS`) and their upper ends (both
+        start at 0).
 
     Returns
     -------
