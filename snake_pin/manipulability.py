@@ -328,10 +328,7 @@ def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
 def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
                                       constrained: Sequence[int] | None = None
                                       ) -> Manipulability:
-    """Return the head manipulability *with* lateral constraints (after Date et al., Fig. 15).
-
-    D of the w rows of ``P E``, P the constrained dynamics' map of torques
-    (:ref:`manipulability`); arcs make it vanish, as for wheeled snakes.
+    """Return the head manipulability *with* lateral constraints (:ref:`manipulability`).
 
     Parameters
     ----------

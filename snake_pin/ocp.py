@@ -36,9 +36,7 @@ def _weight(default: float, doc: str, unit: str) -> Any:
 
 @dataclass(frozen=True)
 class CostWeights:
-    """Weights of the tracking costs (validated; one ParameterError line each).
-
-    Each weight multiplies half a squared residual; all are >= 0 (0 drops the cost).
+    """Weights of the tracking costs, each on half a squared residual (>= 0; 0 drops it).
 
     Parameters
     ----------
@@ -183,9 +181,7 @@ def differential_model(snake: Snake, weights: CostWeights | None = None, *,
                        terminal: bool = False, friction: bool = True,
                        state: crocoddyl.StateMultibody | None = None
                        ) -> crocoddyl.DifferentialActionModelFreeFwdDynamics:
-    """Crocoddyl's free forward dynamics of ``snake`` with the tracking costs.
-
-    The costs' references start at zero; :class:`TrackingProblem` sets them per node.
+    """Crocoddyl's free forward dynamics of ``snake`` with the tracking costs (references 0).
 
     Parameters
     ----------

@@ -162,10 +162,8 @@ class LyapunovController(ReferenceLaw):
         law[e_rows, shape(v)] = -np.eye(m)
         law[nq:] *= sqrt_w[:, None]  # [s; e] weighted: V is their squared norm
         self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
-        # A passive joint keeps its row of H^-1 (A^T's rows are all the joints'), weighted
-        # by 0, and one more column of the stack holds a 1 in its row: its equation in
-        # A^T W A tau = rhs is then tau_j = 0, exactly, and the actuated torques are those
-        # of the reduced system. Each error row is padded with a 0 in those columns.
+        # a passive joint's row of A^T weighs 0 and has a 1 in a column of its own: tau_j = 0
+        # exactly (:ref:`derivation-lyapunov`); the error rows have 0 there
         passive = [k - 1 for k in snake.params.passive]  # tau's entries
         width = nq + len(passive)
         # applied to [q, q', b, time row]: the time terms enter the same product
@@ -187,10 +185,8 @@ class LyapunovController(ReferenceLaw):
         nq, m = snake.nq, snake.n - 1
         inputs, stack = np.zeros(5 * nq), self._stack.copy()  # a copy's own buffers
         data = snake.create_data()
-        # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas):
-        # [A^T W A, rhs, V] = stack stack^T (upper triangle), and its A^T W A block copied
-        # whole for the solve. A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a
-        # contiguous view of the data's (Pinocchio stores it row-major), and A = rows.T
+        # BLAS and LAPACK in place on Fortran-ordered buffers (snake_pin._blas); A^T: the
+        # joints' rows of H^-1, a contiguous view of the data's (row-major, symmetric)
         normal = np.zeros((m + 2, m + 2), order="F")
         gram = np.zeros((m, m), order="F")
         rows = data.inverse_mass[3:]

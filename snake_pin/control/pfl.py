@@ -139,9 +139,8 @@ class PFLController(ReferenceLaw):
         data = snake.create_data()
         mass, bias, stacked = data.mass, data.bias, self._stacked  # H (Fortran-ordered, whole)
         state = np.zeros(2 * nq)
-        # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas): H12
-        # and H22 are copied into them per call; H's columns are its rows (symmetric). h is
-        # the call's own (data.bias): its head's rows become z, its joints' the torque
+        # BLAS and LAPACK in place on Fortran-ordered buffers (snake_pin._blas), H12 and H22
+        # copied in per call; h (data.bias): its head's rows become z, its joints' the torque
         h12, h22 = np.zeros((3, m), order="F"), np.zeros((m, m), order="F")
         gram, p_rhs = np.zeros((3, 3), order="F"), np.zeros(m)
         minus_a, u, z, h_joints = stacked[:3], stacked[3:], bias[:3], bias[3:]

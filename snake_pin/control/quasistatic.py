@@ -58,10 +58,7 @@ class QuasiStaticOptions:
 
 
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
-    """(K_p, K_d) per joint of critically damped servos of ``bandwidth`` [rad/s].
-
-    ``K_p,k = omega^2 I_k``, ``K_d,k = 2 omega I_k``, ``I_k`` the mean of ``m (2l)^2`` over
-    the two links joint k joins.
+    """(K_p, K_d) per joint of critically damped servos (:ref:`derivation-quasistatic`).
 
     Parameters
     ----------
@@ -142,9 +139,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         params, nq = self.snake.params, self.snake.nq
         u, a = self._u, self._a
         m, k = len(u), len(a)
-        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction): one CRBA
-        # and one solve of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa] give X = C_uu^-1 C_ua
-        # = -J, read from the upper triangle Pinocchio fills; massless wheels are left out
+        # C_uu^-1 C_ua = -J: one CRBA of the damping twin and one solve (the upper triangle
+        # Pinocchio fills; :ref:`derivation-quasistatic`); massless wheels are left out
         twin = self.snake.friction.twin
         self._twin, self._twin_data = twin, twin.createData()
         self._twin_q = np.zeros(twin.nq)  # [q, 0_w]
@@ -161,9 +157,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self._sqrt_w_u = np.sqrt(self._w_u)
         self._neg_sqrt_w_u = -self._sqrt_w_u[:, None]
         self._diag_w_a = np.asfortranarray(np.diag(self._w_a))
-        # time-only terms, per reference row [w_r, phi_r, w_r', phi_r', w_r'', phi_r'']:
-        # [sqrt(W_u) (w_r' + K_w1 w_r, phi_r,passive'), W_a phi_r,actuated',
-        # phi_r,actuated'] (the weights applied here once, not per call)
+        # the time-only terms of :meth:`_time_terms` from reference rows, weights applied once
         sqrt_w = self._sqrt_w_u
         law = np.zeros((3 * nq, m + 2 * k))
         law[:3, :3] = self.k_w1.T * sqrt_w[:3]

@@ -108,9 +108,6 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
                       speed: float = 0.1, heading: float = 0.0) -> dict[str, Any]:
     """Viscous c_x, c_y, c_theta per link fitted to the engine's coasting snake (:ref:`engine`).
 
-    A per-link robot is fitted whole and the totals shared out: c_x equally, c_y by mass,
-    c_theta,i = 2 d_i^2 b / r^2 from each link's own wheel offset.
-
     Parameters
     ----------
     params, wheels
@@ -187,9 +184,6 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                mpc_options: MPCOptions | None = None,
                progress: bool = False) -> EngineRun:
     """Head tracking on MuJoCo, control at 1 kHz, velocities from the filter (:ref:`engine`).
-
-    The law runs on ``params`` with the identified viscous friction, from rest on the arc of
-    eq. (82), head first; "diverged" also when the robot leaves the floor.
 
     Parameters
     ----------
