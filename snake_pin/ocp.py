@@ -185,16 +185,13 @@ def differential_model(snake: Snake, weights: CostWeights | None = None, *,
 
     Parameters
     ----------
-    snake : Snake
-        The robot (its friction and passive joints included).
-    weights : CostWeights, optional
-        The costs' weights (default :class:`CostWeights`).
+    snake, weights : Snake, CostWeights or None
+        The robot (its friction and passive joints included) and the costs' weights.
     torque_bound, joint_limit : float, optional
         ``|u_i| <= torque_bound`` [N m] and the joint-limit barrier's ``|phi_i|`` [rad], > 0.
-    terminal : bool, optional
-        A terminal model: the state costs only, scaled by ``weights.terminal``.
-    friction : bool, optional
-        Include the viscous friction (False: the frictionless robot).
+    terminal, friction : bool, optional
+        A terminal model (the state costs only, scaled by ``weights.terminal``); include
+        the viscous friction (False: the frictionless robot).
     state : crocoddyl.StateMultibody, optional
         The state to share (default a new :func:`state_model`).
 
@@ -251,16 +248,12 @@ class TrackingProblem:
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    nodes : int
-        Number of running nodes (the horizon is ``nodes * node_dt``), >= 1.
+    snake, nodes : Snake, int
+        The robot and the number of running nodes (>= 1; horizon ``nodes * node_dt``).
     node_dt : float, optional
         Step of each node [s] (RK4), > 0.
-    weights : CostWeights, optional
-        The costs' weights.
-    torque_bound, joint_limit : float, optional
-        See :func:`differential_model`.
+    weights, torque_bound, joint_limit : optional
+        As for :func:`differential_model`.
 
     Raises
     ------
@@ -270,8 +263,7 @@ class TrackingProblem:
     Attributes
     ----------
     problem : crocoddyl.ShootingProblem
-        The problem (its x0 and references are set by :meth:`set_state` and
-        :meth:`set_reference`).
+        The problem (x0 and references set by :meth:`set_state` and :meth:`set_reference`).
     running, terminal
         The integrated action models (their ``differential`` is the free forward dynamics).
     """

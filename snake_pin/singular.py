@@ -147,10 +147,9 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
         and their seed, 0 .. :data:`MAX_SEED`.
     bound, free_joint
         Joint limit of the box [rad]; joint(s) free for R~, beside the passive joints.
-    relative
-        ``R <= relative * (median R of random postures)`` counts as numerically zero.
-    progress
-        Show a progress bar on stderr when it is a terminal.
+    relative, progress
+        ``R <= relative * (median R of random postures)`` counts as zero; show a progress
+        bar on stderr when it is a terminal.
 
     Returns
     -------

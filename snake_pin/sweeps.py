@@ -130,13 +130,12 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
     ----------
     snake, family
         The robot (its passive joints are free beside ``free_joint``), a :data:`FAMILIES` name.
-    free_joint
-        Joint(s) without an actuator (D~ and R~ of eq. 42).
+    free_joint, progress
+        Joint(s) without an actuator (D~ and R~ of eq. 42); show a progress bar on stderr
+        when it is a terminal.
     points, bounds
         Number of values, 2 .. :data:`MAX_POINTS` (0, singular, is inserted if inside), and
         the parameter range (default: the family's in :data:`FAMILIES`).
-    progress
-        Show a progress bar on stderr when it is a terminal.
 
     Returns
     -------

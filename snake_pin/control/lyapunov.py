@@ -15,7 +15,7 @@ from .._blas import gemv, posv, syrk
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
-from ._options import check_fields, option, tracking_gain
+from ._options import check_fields, documented, option, tracking_gain
 from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
@@ -29,26 +29,11 @@ _MULTIPLY = np.multiply
 K_SHAPE_PASSIVE = 0.3
 
 
+@documented
 @dataclass(frozen=True)
 class LyapunovOptions:
     """Options of :class:`LyapunovController` (validated; gains are scalars, diagonals or
-    matrices).
-
-    Parameters
-    ----------
-    k_w1, k_w2, k_phi : float or array_like or None, optional
-        Gains of (84): the head's error rates [1/s] (3 x 3, positive definite), the weights
-        of the head's and joints' errors in V (diagonal; ``k_phi`` None: 10, 20, ..., 20).
-    lam, lam_shape : float or None, optional
-        Decay rates of the head's error s and the joints' error e [1/s] (> 0; None: lam / 2).
-    k_shape : float or None, optional
-        Shape spring k_s [1/s^2] (>= 0); None: 0, or 0.3 with a passive joint.
-
-    Raises
-    ------
-    ParameterError
-        A field is outside its domain (one line naming it).
-    """
+    matrices, K_w2 and K_phi diagonal)."""
 
     k_w1: object = tracking_gain("k_w1")
     k_w2: object = tracking_gain("k_w2")

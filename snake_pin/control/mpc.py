@@ -20,41 +20,19 @@ from ..exceptions import ParameterError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..ocp import CostWeights, TrackingProblem, reference_states
-from ._options import check_fields, merged, option
+from ._options import check_fields, documented, merged, option
 from .base import Controller, ReferenceLaw, gait_for
 from .reference import HeadReference, head_first_reference
 
 __all__ = ["MPCController", "MPCOptions", "SolveStats"]
 
 
+@documented
 @dataclass(frozen=True)
 class MPCOptions:
-    """Settings of :class:`MPCController` (validated; one ParameterError line each).
-
-    Parameters
-    ----------
-    horizon : float, optional
-        Length of the prediction [s]; at least one node.
-    node_dt : float, optional
-        Step of the RK4 nodes [s] (RK4 diverges beyond about 20 ms: :doc:`/mpc`).
-    resolve_period : float, optional
-        Time between re-solves [s]: a whole number of nodes, at most the horizon.
-    torque_bound, joint_limit : float, optional
-        ``|tau_i| <= torque_bound`` [N m] and the joint-limit barrier's ``|phi_i|`` [rad].
-    iterations, first_iterations : int, optional
-        Box-FDDP iterations per warm-started re-solve and of the first (cold) solve, >= 1.
-    step_halvings : int, optional
-        Line search: steps 1, 1/2, ..., 2^-step_halvings (>= 0).
-    feedback : bool, optional
-        Apply the Riccati gains between re-solves (False: the planned torques alone).
-    weights : CostWeights, optional
-        The costs' weights (:class:`~snake_pin.ocp.CostWeights`).
-
-    Raises
-    ------
-    ParameterError
-        A value out of its domain (one line).
-    """
+    """Settings of :class:`MPCController` (validated: the horizon at least one node, the
+    resolve period a whole number of nodes within it; nodes of 20 ms or more diverge:
+    :doc:`/mpc`)."""
 
     horizon: float = option(0.5, "length of the prediction", unit="s", low=0.0, open_low=True)
     node_dt: float = option(0.01, "step of the RK4 nodes", unit="s", low=0.0, open_low=True)

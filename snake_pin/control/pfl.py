@@ -19,7 +19,7 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import r_batch
 from ..model import Snake
-from ._options import check_fields, option
+from ._options import check_fields, documented, option
 from .base import ReferenceLaw
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
@@ -33,26 +33,11 @@ _NEGATIVE, _SUBTRACT = np.negative, np.subtract
 CLIMB_DAMPING = 2.0
 
 
+@documented
 @dataclass(frozen=True)
 class PFLOptions:
-    """Options of :class:`PFLController` (validated; gains are scalars, diagonals or matrices).
-
-    Parameters
-    ----------
-    k_v, k_p, r_v, r_p : float or array_like, optional
-        K_v [1/s], K_p [1/s^2] of (71) on the head (3 x 3, positive definite); R_v [1/s],
-        R_p [1/s^2] of (78) on the joints (positive semi-definite).
-    r_min : float, optional
-        Smallest R for which the law is defined (>= 0); below it SingularPostureError.
-    climb_R, climb_damping : float or None, optional
-        Gain gamma (>= 0; 0: the paper's law) and damping k_d [1/s] (> 0; None: 2; only with
-        ``climb_R > 0``) of the singularity-aware redundancy term.
-
-    Raises
-    ------
-    ParameterError
-        A field is outside its domain, or ``climb_damping`` is given with ``climb_R = 0``.
-    """
+    """Options of :class:`PFLController` (validated; gains are scalars, diagonals or matrices;
+    ``climb_damping`` only with ``climb_R > 0``)."""
 
     k_v: object = option(6.0, "velocity gain on the head", unit="1/s", low=0.0, open_low=True,
                          symbol="K_v", size=3)

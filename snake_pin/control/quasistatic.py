@@ -19,30 +19,18 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..params import SnakeParams
-from ._options import check_fields, option, tracking_gain
+from ._options import check_fields, documented, option, tracking_gain
 from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
 
 __all__ = ["QuasiStaticLyapunovController", "QuasiStaticOptions", "servo_gains"]
 
+@documented
 @dataclass(frozen=True)
 class QuasiStaticOptions:
-    """Options of :class:`QuasiStaticLyapunovController` (validated; one line each).
-
-    Parameters
-    ----------
-    k_w1, k_w2, k_phi : float or array_like, optional
-        Gains of (84), as in :class:`~snake_pin.control.lyapunov.LyapunovOptions`.
-    servo_bandwidth, max_lead, control_dt : float, optional
-        Bandwidth omega_s of the joint servos [rad/s], how far the integrated joint
-        reference may lead the joint [rad], the controller's period [s] (> 0).
-
-    Raises
-    ------
-    ParameterError
-        A field is outside its domain (one line naming it).
-    """
+    """Options of :class:`QuasiStaticLyapunovController` (validated; gains as in
+    :class:`~snake_pin.control.lyapunov.LyapunovOptions`)."""
 
     k_w1: object = tracking_gain("k_w1")
     k_w2: object = tracking_gain("k_w2")
