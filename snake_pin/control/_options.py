@@ -43,7 +43,7 @@ def documented(cls: type[T]) -> type[T]:
             kind = "float or array_like"
             domain = "positive definite" if meta["open_low"] else "positive semi-definite"
         else:
-            kind = type(default).__name__ if isinstance(default, (bool, int)) or \
+            kind = type(default).__name__ if isinstance(default, (bool, int, str)) or \
                 is_dataclass(default) else "float"
             low, high = meta["low"], meta["high"]
             domain = ", ".join(([] if low is None else [f"{'>' if meta['open_low'] else '>='} "

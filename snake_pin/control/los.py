@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 from scipy.linalg import expm
@@ -20,77 +21,57 @@ from .._validation import brief, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..model import Snake
 from ..paths import Line, Path, PathReference
-from ._options import merged
+from ._options import documented, merged, option
 from .base import Controller
 
 __all__ = ["LOSController", "LOSParams"]
 
 _STEERING = ("cascaded", "pd")
-_POSITIVE = ("omega", "look_ahead", "lambda1", "lambda2", "v_min", "phi0_max", "phi0_rate",
-             "ref_period", "offset_period", "k_joint_p", "k_joint_d", "k_theta")
 #: The fields only one steering law reads: a value other than the default given with the
 #: other law would have no effect, so it is refused.
 _ONLY_FOR = {"cascaded": ("k_theta", "lambda1", "lambda2", "v_min"), "pd": ("k_p", "k_d")}
+_POSITIVE: dict[str, Any] = {"low": 0.0, "open_low": True}
 
 
+@documented
 @dataclass(frozen=True)
 class LOSParams:
-    """Parameters of :class:`LOSController` (validated; one ParameterError line each).
+    """Parameters of :class:`LOSController` (validated; the fields only one steering law
+    reads keep their defaults under the other)."""
 
-    The fields only one steering law reads keep their defaults under the other.
-
-    Parameters
-    ----------
-    alpha, omega, delta : float, optional
-        Gait amplitude [rad] (>= 0), frequency [rad/s] (> 0), phase lag between joints [rad].
-    look_ahead : float, optional
-        LOS look-ahead distance Delta [m] (> 0).
-    steering : {"cascaded", "pd"}, optional
-        The published model-based heading law, or the PD law.
-    k_theta, lambda1, lambda2, v_min : float, optional
-        The cascaded law's heading gain [1/s^2], turning constants [1/s], [1/(m s)] and
-        floor of the averaged forward speed [m/s] (> 0).
-    k_p, k_d : float, optional
-        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0).
-    phi0_max, phi0_rate : float, optional
-        Saturation of the joint offset [rad] and of its rate [rad/s] (> 0).
-    ref_period, offset_period, speed_period : float, optional
-        Periods ``2 pi / omega_c`` of the filters on theta_ref, phi_0 and v_t [s] (> 0;
-        ``speed_period`` 0: one gait period).
-    k_joint_p, k_joint_d : float, optional
-        Gains of the feedback-linearised joint law [1/s^2], [1/s] (> 0).
-
-    Raises
-    ------
-    ParameterError
-        A value out of its domain, an unknown ``steering``, or the other law's field set.
-    """
-
-    alpha: float = 0.5
-    omega: float = 0.8
-    delta: float = 0.94
-    look_ahead: float = 0.6
-    steering: str = "cascaded"
-    k_theta: float = 10.0
-    lambda1: float = 20.0
-    lambda2: float = 186.0
-    v_min: float = 0.03
-    k_p: float = 1.0
-    k_d: float = 0.2
-    phi0_max: float = 0.35
-    phi0_rate: float = 0.3
-    ref_period: float = 1.0
-    offset_period: float = 0.5
-    speed_period: float = 0.0
-    k_joint_p: float = 100.0
-    k_joint_d: float = 20.0
+    alpha: float = option(0.5, "gait amplitude", unit="rad", low=0.0)
+    omega: float = option(0.8, "gait frequency", unit="rad/s", **_POSITIVE)
+    delta: float = option(0.94, "phase lag between joints", unit="rad")
+    look_ahead: float = option(0.6, "LOS look-ahead distance Delta", unit="m", **_POSITIVE)
+    steering: str = option("cascaded", "the published model-based heading law (cascaded) or "
+                           "the PD law (pd)")
+    k_theta: float = option(10.0, "heading gain of the cascaded law", unit="1/s^2", **_POSITIVE)
+    lambda1: float = option(20.0, "turning constant of the averaged model (cascaded law)",
+                            unit="1/s", **_POSITIVE)
+    lambda2: float = option(186.0, "second turning constant of the averaged model (cascaded "
+                            "law)", unit="1/(m s)", **_POSITIVE)
+    v_min: float = option(0.03, "floor of the averaged forward speed (cascaded law)",
+                          unit="m/s", **_POSITIVE)
+    k_p: float = option(1.0, "gain of the PD steering law", unit="rad/rad", low=0.0)
+    k_d: float = option(0.2, "damping of the PD steering law", unit="rad s/rad", low=0.0)
+    phi0_max: float = option(0.35, "saturation of the joint offset", unit="rad", **_POSITIVE)
+    phi0_rate: float = option(0.3, "saturation of the offset's rate", unit="rad/s", **_POSITIVE)
+    ref_period: float = option(1.0, "period 2 pi / omega_c of the filter on theta_ref",
+                               unit="s", **_POSITIVE)
+    offset_period: float = option(0.5, "period of the filter on phi_0", unit="s", **_POSITIVE)
+    speed_period: float = option(0.0, "period of the filter averaging v_t (0: one gait period)",
+                                 unit="s")
+    k_joint_p: float = option(100.0, "stiffness of the feedback-linearised joint law",
+                              unit="1/s^2", **_POSITIVE)
+    k_joint_d: float = option(20.0, "damping of the feedback-linearised joint law", unit="1/s",
+                              **_POSITIVE)
 
     def __post_init__(self) -> None:
         for f in fields(self):
             if f.name != "steering":
                 object.__setattr__(self, f.name, finite_number(
                     getattr(self, f.name), f"LOS parameter {f.name}",
-                    positive=f.name in _POSITIVE, non_negative=f.name in ("alpha", "k_p", "k_d")))
+                    positive=f.metadata["open_low"], non_negative=f.metadata["low"] == 0.0))
         if not isinstance(self.steering, str) or self.steering not in _STEERING:
             raise ParameterError(f"LOS parameter steering must be one of {', '.join(_STEERING)}, "
                                  f"got {brief(self.steering)}")
