@@ -173,10 +173,8 @@ class LOSController(Controller):
         The plant (passive joints get no torque).
     path : Path or PathReference or None, optional
         The CM's path (a PathReference's timing is ignored); default the x axis.
-    params : LOSParams or None, optional
-        :class:`LOSParams` (default ``LOSParams()``).
-    **overrides
-        Fields of :class:`LOSParams` to change (e.g. ``look_ahead=1.2``).
+    params, **overrides
+        :class:`LOSParams` (default: the defaults) and fields of it to change.
 
     Raises
     ------

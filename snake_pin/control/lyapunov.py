@@ -80,10 +80,8 @@ class LyapunovController(ReferenceLaw):
     reference, gait
         Head reference (default :func:`~snake_pin.control.reference.head_first_reference`)
         and serpenoid for phi_r (default alpha = pi/6, T_s = 1.5, v = 2, Section VI.2).
-    options
-        :class:`LyapunovOptions`; default ``LyapunovOptions()``.
-    **overrides
-        Fields of :class:`LyapunovOptions` to change (the result, resolved: ``self.options``).
+    options, **overrides
+        :class:`LyapunovOptions` (default: the defaults) and fields of it to change.
 
     Raises
     ------

@@ -97,11 +97,8 @@ class MPCController(Controller):
     ----------
     snake : Snake
         The plant's model (its friction and passive joints are the problem's).
-    reference : callable, optional
-        Head reference ``t -> (w_r, w_r', w_r'')``; default
-        :func:`~snake_pin.control.reference.head_first_reference`.
-    gait : Serpenoid, optional
-        The gait prior phi_r(t); default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
+    reference, gait : callable, Serpenoid, optional
+        As for :class:`~snake_pin.control.lyapunov.LyapunovController` (gait: the prior).
     options : MPCOptions, optional
         The law's settings (default :class:`MPCOptions`).
 

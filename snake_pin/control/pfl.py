@@ -69,10 +69,8 @@ class PFLController(ReferenceLaw):
     reference, gait
         Head reference (default w_r = [0.1 t, 0, 0], eq. 80) and serpenoid for phi_r
         (default alpha = pi/3, T_s = 1, v = 0.18, eq. 81).
-    options
-        :class:`PFLOptions`; default ``PFLOptions()``.
-    **overrides
-        Fields of :class:`PFLOptions` to change (the result: ``self.options``).
+    options, **overrides
+        :class:`PFLOptions` (default: the defaults) and fields of it to change.
 
     Raises
     ------

@@ -80,10 +80,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         The robot and its viscous friction model.
     reference, gait
         As for :class:`~snake_pin.control.lyapunov.LyapunovController`.
-    options
-        :class:`QuasiStaticOptions`.
-    **overrides
-        Fields of :class:`QuasiStaticOptions` to change (the result: ``self.options``).
+    options, **overrides
+        :class:`QuasiStaticOptions` (default: the defaults) and fields of it to change.
 
     Raises
     ------
