@@ -8,13 +8,14 @@ and motors, so that the chain's mass matrix equals Pinocchio's H (:ref:`derivati
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from .._validation import finite_number
+from .._validation import finite_number, integer
+from ..control._options import documented, option
 from ..exceptions import ParameterError
 from ..params import SnakeParams
 from ..urdf import EFFORT_LIMIT, RADIUS_RATIO
@@ -29,51 +30,32 @@ CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone
 JACOBIAN = mujoco.mjtJacobian.mjJAC_SPARSE
 
 
+@documented
 @dataclass(frozen=True)
 class WheelSpec:
-    """A wheel pair per link and the contact and solver settings.
+    """A wheel pair per link (spheres on hinge axles) and the contact and solver settings."""
 
-    Parameters
-    ----------
-    radius, mass, friction : float, optional
-        Wheel radius [m], mass [kg] (each; spheres on hinge axles) and Coulomb coefficient
-        with the floor, > 0.
-    rolling_damping : float, optional
-        Viscous damping of each wheel's axle [N m s] (rolling resistance), >= 0.
-    timestep, substeps : float, int, optional
-        Engine step [s] (> 0) and engine steps per control period (>= 1).
-    max_bend : float, optional
-        Joint angle [rad] up to which wheels of neighbouring links must not overlap.
-    cone : {"elliptic", "pyramidal"}, optional
-        MuJoCo friction cone: elliptic (Coulomb) or pyramidal (faster, heading-dependent).
-
-    Raises
-    ------
-    ParameterError
-        ``cone`` is unknown, a number is out of its range, or ``substeps`` is not >= 1.
-    """
-
-    radius: float = 0.03
-    mass: float = 0.03
-    friction: float = 1.0
-    rolling_damping: float = 2e-5
-    timestep: float = 5e-4
-    substeps: int = 2
-    max_bend: float = math.pi / 3
-    cone: str = "elliptic"
+    radius: float = option(0.03, "wheel radius", unit="m", low=0.0, open_low=True)
+    mass: float = option(0.03, "mass of each wheel", unit="kg", low=0.0, open_low=True)
+    friction: float = option(1.0, "Coulomb coefficient wheel-floor (sliding sideways)",
+                             low=0.0, open_low=True)
+    rolling_damping: float = option(2e-5, "viscous damping of each wheel's axle (rolling "
+                                    "resistance)", unit="N m s", low=0.0)
+    timestep: float = option(5e-4, "engine step", unit="s", low=0.0, open_low=True)
+    substeps: int = option(2, "engine steps per control period", low=1)
+    max_bend: float = option(math.pi / 3, "joint angle up to which wheels of neighbouring "
+                             "links must not overlap", unit="rad", low=0.0, open_low=True)
+    cone: str = option("elliptic", "MuJoCo friction cone: elliptic (Coulomb) or pyramidal "
+                       "(faster, heading-dependent)")
 
     def __post_init__(self) -> None:
         if self.cone not in CONES:
             raise ParameterError(f"cone must be one of {', '.join(CONES)}, got {self.cone!r}")
-        for name in ("radius", "mass", "friction", "timestep", "max_bend"):
-            object.__setattr__(self, name, finite_number(getattr(self, name), name,
-                                                         positive=True))
-        object.__setattr__(self, "rolling_damping",
-                           finite_number(self.rolling_damping, "rolling_damping",
-                                         non_negative=True))
-        if isinstance(self.substeps, bool) or int(self.substeps) != self.substeps \
-                or self.substeps < 1:
-            raise ParameterError(f"substeps must be a positive integer, got {self.substeps}")
+        for f in (f for f in fields(self) if isinstance(f.default, float)):
+            object.__setattr__(self, f.name, finite_number(
+                getattr(self, f.name), f.name, positive=f.metadata["open_low"],
+                non_negative=True))
+        object.__setattr__(self, "substeps", integer(self.substeps, "substeps", low=1))
 
     @property
     def control_dt(self) -> float:
