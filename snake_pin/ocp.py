@@ -107,11 +107,9 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
         self.friction = FrictionModel(snake.params, snake.model) if friction else None
         #: the friction's buffers, one set for all this model's datas (a node's RK4 stages:
         #: results are copied out at once; :ref:`perf-mpc`)
-        self.friction_data: FrictionData | None = None
-        self._friction: tuple[FrictionModel, FrictionData] | None = None
-        if self.friction is not None:
-            self.friction_data = self.friction.create_data()
-            self._friction = (self.friction, self.friction_data)
+        self._friction: tuple[FrictionModel, FrictionData] | None = (
+            None if self.friction is None else (self.friction, self.friction.create_data()))
+        self.friction_data = None if self._friction is None else self._friction[1]
 
     def calc(self, data: Any, x: np.ndarray, u: np.ndarray | None = None) -> None:
         """Generalised force at state x under inputs u, written into ``data.tau``.
@@ -134,10 +132,8 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
 
     def calcDiff(self, data: Any, x: np.ndarray,
                  u: np.ndarray | None = None) -> None:
-        """Jacobians of the force ``[dQ/dq, dQ/dq']`` (the damping twin's RNEA derivatives,
-        :meth:`~snake_pin.friction.FrictionModel.calc_derivatives`) into ``data.dtau_dx``.
-
-        ``dtau_du`` = E_a is constant (set by :meth:`createData`).
+        """Jacobians of the force ``[dQ/dq, dQ/dq']`` into ``data.dtau_dx`` (the damping twin's
+        RNEA derivatives; ``dtau_du = E_a`` is constant, set by :meth:`createData`).
 
         Parameters
         ----------
@@ -307,8 +303,7 @@ class TrackingProblem:
         Parameters
         ----------
         references : numpy.ndarray
-            Shape (nodes + 1, 2 (n + 2)): row k is ``[w_r, phi_r, w_r', phi_r']`` at node
-            k's time (:func:`reference_states`); the last row is the terminal node's.
+            Row k ``[w_r, phi_r, w_r', phi_r']`` at node k's time (:func:`reference_states`).
         """
         for residuals, row in zip(self._residuals, references, strict=True):
             for residual in residuals:
