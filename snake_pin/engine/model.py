@@ -142,13 +142,10 @@ class EngineModel:
         numpy.ndarray, shape (n + 2,)
             The paper's ``q``, theta_1 (the head's yaw) in ``(-pi, pi]``.
         """
-        head = self.data.xmat[self.link_bodies[0]].reshape(3, 3)
-        pos = self.data.xpos[self.link_bodies[0]]
-        yaw = math.atan2(head[1, 0], head[0, 0])
-        out = np.empty(len(self.hinge_qpos) + 3)
-        out[0], out[1], out[2] = pos[0], pos[1], yaw
-        out[3:] = self.data.qpos[self.hinge_qpos]
-        return out
+        head, data = self.link_bodies[0], self.data
+        frame = data.xmat[head]
+        return np.r_[data.xpos[head][:2], math.atan2(frame[3], frame[0]),
+                     data.qpos[self.hinge_qpos]]
 
     def set_paper_configuration(self, q: np.ndarray) -> None:
         """Place the snake flat on its wheels at q (at rest) and run forward kinematics.
@@ -206,24 +203,18 @@ def _wheel_geometry(params: SnakeParams, wheels: WheelSpec) -> np.ndarray:
         neighbours = np.array([lengths[i], 0.0]) + theirs @ bend.T
         gap = min(np.linalg.norm(a - b) for a in ours for b in neighbours)
         if gap < 2 * wheels.radius:
-            where = "" if params.uniform else f"links {i + 1} and {i + 2}: "
+            where, sizes = ("", f"{params.link_length}") if params.uniform else (
+                f"links {i + 1} and {i + 2}: ", f"{lengths[i]:g} and {lengths[i + 1]:g}")
             raise ParameterError(
-                f"{where}wheels of radius {wheels.radius} m overlap on "
-                f"{_lengths_text(params, i)} m links (closest wheel centres {gap:.3f} m "
-                f"apart at a {math.degrees(wheels.max_bend):.0f} degree bend)")
+                f"{where}wheels of radius {wheels.radius} m overlap on {sizes} m links "
+                f"(closest wheel centres {gap:.3f} m apart at a "
+                f"{math.degrees(wheels.max_bend):.0f} degree bend)")
     return offsets
 
 
-def _lengths_text(params: SnakeParams, i: int) -> str:
-    """Links i and i + 1's lengths in words."""
-    if params.uniform:
-        return f"{params.link_length}"
-    return f"{params.link_lengths[i]:g} and {params.link_lengths[i + 1]:g}"
-
-
 def _split(params: SnakeParams, wheels: WheelSpec,
-           offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(m_body,i, J_body,i): what each link keeps once its wheels have their share."""
+           offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """(m_body,i, J_body,i, a wheel's inertia): what each link keeps beside its wheels."""
     body_masses = params.masses - 2 * wheels.mass
     wheel_inertia = 0.4 * wheels.mass * wheels.radius**2  # solid sphere
     body_inertias = params.inertias - 2 * (wheels.mass * offsets**2 + wheel_inertia)
@@ -232,7 +223,7 @@ def _split(params: SnakeParams, wheels: WheelSpec,
         raise ParameterError(
             f"{where}wheels of {wheels.mass} kg leave no mass or inertia for the link "
             f"(m_body = {body_masses[i]:.3g} kg, J_body = {body_inertias[i]:.3g} kg m^2)")
-    return body_masses, body_inertias
+    return body_masses, body_inertias, wheel_inertia
 
 
 def _set(item: Any, **values: Any) -> Any:
@@ -268,8 +259,7 @@ def build_engine_model(params: SnakeParams | None = None,
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
     offsets = _wheel_geometry(params, wheels)
-    body_masses, body_inertias = _split(params, wheels, offsets)
-    wheel_inertia = 0.4 * wheels.mass * wheels.radius**2  # solid sphere
+    body_masses, body_inertias, wheel_inertia = _split(params, wheels, offsets)
 
     spec = _set(mujoco.MjSpec(), modelname=f"snake_{params.name}_wheels")
     spec.compiler.autolimits = True
