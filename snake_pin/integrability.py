@@ -141,10 +141,8 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
 
     Raises
     ------
-    ConfigurationError
-        ``q`` or ``q0`` does not have n + 2 finite entries.
-    ParameterError
-        ``snake`` is not a Snake or ``nodes`` not a positive integer.
+    ConfigurationError, ParameterError
+        ``q`` or ``q0`` is not n + 2 finite numbers; a bad ``snake`` or ``nodes``.
     """
     instance(snake, Snake, "snake")
     nodes = integer(nodes, "nodes", low=1)
@@ -172,10 +170,8 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
 
     Raises
     ------
-    ConfigurationError
-        ``q`` or ``dq`` does not have n + 2 finite entries.
-    ParameterError
-        ``snake`` is not a Snake, or its friction is not isotropic (g2 is undefined).
+    ConfigurationError, ParameterError
+        ``q`` or ``dq`` is not n + 2 finite numbers; a bad ``snake`` or anisotropic friction.
     """
     instance(snake, Snake, "snake")
     q, dq = snake.check_q(q), snake.check_dq(dq)

@@ -153,10 +153,8 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
 
     Raises
     ------
-    ConfigurationError
-        ``q`` does not have n + 2 finite entries.
-    ParameterError
-        A bad argument, or too few links for the task (n >= 4 plus one per free joint).
+    ConfigurationError, ParameterError
+        ``q`` is not n + 2 finite numbers; another bad argument, or too few links for the task.
     """
     instance(snake, Snake, "snake")
     q = snake.check_q(q).copy()
@@ -218,10 +216,8 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
 
     Raises
     ------
-    ConfigurationError
-        ``q`` or the task Jacobian has the wrong shape or non-finite entries.
-    ParameterError
-        A bad argument; nothing actuated; a fully actuated model without a task.
+    ConfigurationError, ParameterError
+        A bad ``q`` or task Jacobian; another bad argument, nothing actuated, or no task.
     """
     model = instance(model, pin.Model, "model", "a pinocchio.Model")
     model_data(data, model, pin.Data)

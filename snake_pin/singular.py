@@ -158,10 +158,9 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
 
     Raises
     ------
-    RunInterrupted
-        On Ctrl-C or SIGTERM: ``partial`` holds the search so far (status "interrupted").
-    ParameterError
-        A bad argument, free joints that leave no task, or R zero everywhere.
+    RunInterrupted, ParameterError
+        On Ctrl-C or SIGTERM (``partial``: the search so far); a bad argument, free joints
+        that leave no task, or R zero everywhere.
     """
     check_params(params)
     starts = integer(starts, "starts", low=1, high=MAX_STARTS)

@@ -144,10 +144,9 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
 
     Raises
     ------
-    RunInterrupted
-        On Ctrl-C or SIGTERM: ``partial`` holds the sweep so far (status "interrupted").
-    ParameterError
-        A bad argument, or free joints that leave the task no actuated joint.
+    RunInterrupted, ParameterError
+        On Ctrl-C or SIGTERM (``partial``: the sweep so far); a bad argument, or free joints
+        that leave the task no actuated joint.
     """
     instance(snake, Snake, "snake")
     if not isinstance(family, str) or family not in FAMILIES:

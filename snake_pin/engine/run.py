@@ -216,11 +216,9 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
 
     Raises
     ------
-    RunInterrupted
-        On KeyboardInterrupt during the run; ``partial`` holds every completed sample.
-    ParameterError
-        An unknown law, a bad ``t_final``, ``initial_offset`` or ``mpc_options`` (not
-        MPCOptions, a torque bound above the motors', or given to another law).
+    RunInterrupted, ParameterError
+        On Ctrl-C (``partial`` holds every completed sample); an unknown law, a bad argument,
+        or ``mpc_options`` with a torque bound above the motors' or given to another law.
     """
     if law not in LAWS:
         raise ParameterError(f"law must be one of {', '.join(LAWS)}, got {law!r}")
