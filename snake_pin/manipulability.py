@@ -1,9 +1,5 @@
-"""Dynamic manipulability of an underactuated system (Section III, eqs. 22-42).
-
-For unactuated velocity coordinates u and actuated ones a, ``D = min sigma([H^-1]_{u,a})``
-(or of ``J H^-1 B`` for a task Jacobian J) and ``R = min lambda(H_ua)``, for the snake and
-any Pinocchio model; derivation, free joints (R~ needs n >= 6) and ``heading=False``:
-:ref:`manipulability`.
+"""Dynamic manipulability D and R of an underactuated system (Section III, eqs. 22-42), for
+the snake and any Pinocchio model (:ref:`manipulability`).
 """
 
 from __future__ import annotations

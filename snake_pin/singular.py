@@ -1,8 +1,6 @@
-"""Numerical search for singular postures (R = 0) over the whole joint box.
-
-R^2 is minimised from many random starts (L-BFGS-B, batched central differences), polished,
-and the minima clustered into families up to the mirror phi -> -phi (:ref:`manipulability`);
-BLAS runs on one thread meanwhile (:doc:`/performance`).
+"""Numerical search for singular postures (R = 0) over the whole joint box: R^2 minimised
+from random starts and the minima clustered into families up to the mirror phi -> -phi
+(:ref:`manipulability`); BLAS on one thread meanwhile (:doc:`/performance`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,5 @@
-"""Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map.
-
-A :class:`Sweep` holds one family's D and R as data (figures and files: a layer up). BLAS
-runs on one thread meanwhile: on these small matrices more only cost (:doc:`/performance`).
+"""Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map, as
+data (figures and files: a layer up); BLAS on one thread meanwhile (:doc:`/performance`).
 """
 
 from __future__ import annotations

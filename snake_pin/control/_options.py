@@ -1,9 +1,6 @@
-"""Fields of the controllers' options dataclasses: default, bounds and one-line doc in one place.
-
-:func:`option` declares a field, :func:`check_fields` validates an instance, :func:`merged`
-applies keyword overrides; :mod:`snake_pin.study.spec` reads the same metadata. A field's
-kind is its default's type: a bool is a switch, an int an integer, a dataclass (the MPC's
-cost weights) an instance of that class, anything else a real number or a gain.
+"""Fields of the controllers' options dataclasses: default, bounds and one-line doc in one place
+(read by :func:`check_fields`, :func:`documented` and :mod:`snake_pin.study.spec`); a field's
+kind is its default's type (bool, int, a dataclass, else a real number or a gain).
 """
 
 from __future__ import annotations

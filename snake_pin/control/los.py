@@ -1,10 +1,5 @@
-"""Line-of-sight (LOS) path following of the centre of mass: the field's baseline law.
-
-After Liljebäck et al. (*Snake Robots*, Springer 2013; IEEE TCST 20(1), 2012), in this
-package's conventions: a serpenoid gait with a steering offset phi_0, LOS guidance,
-heading control (``steering = "cascaded"`` or ``"pd"``) and joint control by collocated
-partial feedback linearisation. The law, its defaults and its signals:
-:ref:`derivation-los`.
+"""Line-of-sight (LOS) path following of the centre of mass after Liljebäck et al.: a
+steered serpenoid gait, LOS guidance, heading control and joint PFL (:ref:`derivation-los`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,5 @@
-"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (erratum 5).
-
-The law takes the actuated torques whose accelerations come closest, in the
-``W = blockdiag(K_w2, K_phi)`` norm, to making V decrease (:ref:`derivation-lyapunov`).
+"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (erratum 5): the
+torques whose accelerations come closest to making V decrease (:ref:`derivation-lyapunov`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,5 @@
-"""Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected.
-
-The law derived again from (27) (eq. 70 is misprinted), needing R > 0; ``climb_R`` adds a
-damped gradient flow up log R in the null space of H12 (:ref:`derivation-pfl`).
+"""Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected,
+with an optional climb up log R in the null space of H12 (:ref:`derivation-pfl`).
 """
 
 from __future__ import annotations

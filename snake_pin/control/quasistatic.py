@@ -1,8 +1,6 @@
-"""The Lyapunov-like law at velocity level, for friction-dominated robots (wheels).
-
-The unactuated rows of (20) reduce to the force balance ``C_uu u' + C_ua a' = 0``, so V of
-(83) is a quadratic in the actuated joint velocities: the law takes its minimiser, which
-PD servos (:func:`servo_gains`) realise (:ref:`derivation-quasistatic`).
+"""The Lyapunov-like law at velocity level, for friction-dominated robots (wheels): the
+joint velocities of least V through the quasi-static connection, realised by PD servos
+(:ref:`derivation-quasistatic`).
 """
 
 from __future__ import annotations

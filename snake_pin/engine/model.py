@@ -1,8 +1,6 @@
-"""MuJoCo model of a snake on passive wheels, built from ``SnakeParams`` with MjSpec.
-
-The links are those of :mod:`snake_pin.urdf`; this module adds a floor, gravity, a wheel
-pair per link (rolling along it, sliding across: anisotropic Coulomb friction), contacts
-and motors, so that the chain's mass matrix equals Pinocchio's H (:ref:`derivation-engine`).
+"""MuJoCo model of a snake on passive wheels, built from ``SnakeParams`` with MjSpec: the
+links of :mod:`snake_pin.urdf` on a floor, a wheel pair per link, contacts and motors
+(:ref:`derivation-engine`).
 """
 
 from __future__ import annotations
