@@ -185,8 +185,7 @@ class LOSController(Controller):
             raise ParameterError("every joint is passive: there is nothing to control")
         self.params = merged(LOSParams, params, overrides, argument="params",
                              field_word="LOS parameter")
-        path = Line() if path is None else path
-        path = path.path if isinstance(path, PathReference) else path
+        path = Line() if path is None else path.path if isinstance(path, PathReference) else path
         if not isinstance(path, Path):
             raise ParameterError(f"path must be a Path, got {type(path).__name__}")
         self.snake, self.path, p = snake, path, self.params

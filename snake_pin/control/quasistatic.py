@@ -114,8 +114,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self.k_p, self.k_d = servo_gains(params, opts.servo_bandwidth)
         self._k_p_a, self._k_d_a = self.k_p[self._a - 3], self.k_d[self._a - 3]
         self.max_lead, self.dt = opts.max_lead, opts.control_dt
-        self._reference_a: np.ndarray | None = None
-        self._last: tuple[np.ndarray, ...] | None = None
+        self.reset()
         self._build_law()
 
     def _build_law(self) -> None:
@@ -173,8 +172,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
 
     def reset(self) -> None:
         """Forget the integrated joint reference and the last call before a new run."""
-        self._reference_a = None
-        self._last = None
+        self._reference_a: np.ndarray | None = None
+        self._last: tuple[np.ndarray, ...] | None = None
 
     def connection(self, q: np.ndarray) -> np.ndarray:
         """``J(q)`` with ``u' = J a'`` (rows: x_h, y_h, theta_1, passive phi; columns: actuated).
