@@ -88,11 +88,8 @@ def _frozen_gain(value: object, symbol: str, size: int | None, definite: bool) -
         arr = np.zeros((0, 0))  # gain_matrix below says why
     order = size if size is not None else (max(arr.shape[0], 1) if arr.ndim in (1, 2) else 1)
     gain_matrix(value, order, symbol, definite=definite)
-    if arr.ndim == 0:
-        return float(arr)
-    if arr.ndim == 1:
-        return tuple(float(v) for v in arr)
-    return tuple(tuple(float(v) for v in row) for row in arr)
+    return float(arr) if arr.ndim == 0 else tuple(
+        arr.tolist() if arr.ndim == 1 else map(tuple, arr.tolist()))
 
 
 def check_fields(options: Any) -> None:

@@ -271,9 +271,8 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     if reference is not None:
         meta["reference"] = repr(reference)
     if isinstance(controller, MPCController):
-        o = controller.options
-        meta["mpc"] = {"torque_bound": o.torque_bound, "horizon": o.horizon,
-                       "node_dt": o.node_dt, "resolve_period": o.resolve_period}
+        meta["mpc"] = {key: getattr(controller.options, key) for key in
+                       ("torque_bound", "horizon", "node_dt", "resolve_period")}
     traj = closed_loop(plant, controller, np.r_[q0, np.zeros(len(q0))], steps,
                        progress=progress, meta=meta, label="engine", record_signals=False)
     if isinstance(controller, MPCController):
