@@ -240,8 +240,7 @@ class Involutivity:
     n, samples : int
         Number of links and of random points tested.
     defect, noise : float
-        Largest relative bracket component outside ``ker [H1 g2]``
-        (:func:`lie_bracket_defect`), and that of an exact system of the same size.
+        Largest relative bracket component outside ``ker [H1 g2]``; an exact system's.
     """
 
     n: int

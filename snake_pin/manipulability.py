@@ -34,8 +34,7 @@ class Manipulability:
     Parameters
     ----------
     D, R : float
-        Smallest singular values of the acceleration map A and of the coupling block H12
-        (eqs. 30, 31, 42); R is NaN for a task.
+        Least singular values of A and of H12 (eqs. 30, 31, 42); R is NaN for a task.
     sigma, lambda_ : numpy.ndarray, shape (m,)
         All singular values of A and H12, descending, zero-padded to the task dimension m.
     blocks : dict of str to numpy.ndarray or None, optional
@@ -139,8 +138,7 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
     free_joint : int or sequence of int or None, optional
         1-based further free joint(s), applying the selection S of (33).
     heading, blocks : bool, optional
-        Include theta_1 in the task (False: the 2-D variant of III.1); also return H11,
-        H12, H22 and the acceleration map A.
+        Include theta_1 in the task (False: III.1's 2-D variant); return H11, H12, H22, A.
 
     Returns
     -------

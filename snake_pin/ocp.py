@@ -186,8 +186,7 @@ def differential_model(snake: Snake, weights: CostWeights | None = None, *,
     torque_bound, joint_limit : float, optional
         ``|u_i| <= torque_bound`` [N m] and the joint-limit barrier's ``|phi_i|`` [rad], > 0.
     terminal, friction : bool, optional
-        A terminal model (the state costs only, scaled by ``weights.terminal``); include
-        the viscous friction (False: the frictionless robot).
+        A terminal model (state costs only, times ``weights.terminal``); include friction.
     state : crocoddyl.StateMultibody, optional
         The state to share (default a new :func:`state_model`).
 

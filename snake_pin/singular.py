@@ -64,14 +64,11 @@ class SingularSearch:
     free_joint
         The free joint(s) (the robot's passive joints included), or None.
     R_typical, threshold
-        Median R over random postures in the box, and the R below which it counts as zero
-        (``relative * R_typical``).
+        Median R over random postures in the box; R below ``relative * R_typical`` is zero.
     minima_phi, minima_R, families
-        Every polished local minimum (one per start), and the distinct postures where
-        R <= threshold.
+        Every polished local minimum (one per start); the distinct ones with R <= threshold.
     status, starts_requested
-        ``"completed"``, or ``"interrupted"`` when only ``starts`` of them ran; starts asked
-        for (None: ``starts``).
+        ``"completed"`` or ``"interrupted"``; the starts asked for (None: ``starts``).
     """
 
     params: SnakeParams
@@ -113,8 +110,7 @@ class SingularSearch:
         Returns
         -------
         dict
-            Per family ``postures``, ``R``, ``straight``, ``members``, ``span``; the
-            search settings and status.
+            Per family ``postures``, ``R``, ``straight``, ``members``, ``span``; settings, status.
         """
         families = self.families
         return {"postures": [f.phi.tolist() for f in families], "R": [f.R for f in families],
@@ -141,8 +137,7 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     params
         The robot (n >= 4, or >= 5 with a free joint).
     starts, seed
-        Number of random starting postures (uniform in the box), 1 .. :data:`MAX_STARTS`,
-        and their seed, 0 .. :data:`MAX_SEED`.
+        Random starts (uniform in the box), 1 .. :data:`MAX_STARTS`; seed 0 .. :data:`MAX_SEED`.
     bound, free_joint
         Joint limit of the box [rad]; joint(s) free for R~, beside the passive joints.
     relative, progress

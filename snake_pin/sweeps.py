@@ -48,8 +48,7 @@ class Sweep:
     free_joint, robot
         The free joint(s) or None, and the robot's name.
     meta, status
-        Extra settings written with the data (e.g. ``points_requested``); ``"completed"``,
-        or ``"interrupted"`` for a partial sweep.
+        Extra settings written with the data; ``"completed"`` or ``"interrupted"``.
     """
 
     family: str
@@ -221,8 +220,7 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
     snake, free_joint
         The robot, and a free joint (R~) or None.
     alpha_points, ts_points, alpha_max, ts_max
-        Grid sizes along alpha and T_s (1 .. :data:`MAX_POINTS`) and their upper ends (both
-        start at 0).
+        Grid sizes along alpha and T_s (1 .. :data:`MAX_POINTS`) and their upper ends.
 
     Returns
     -------

@@ -240,8 +240,7 @@ def build_engine_model(params: SnakeParams | None = None,
     Parameters
     ----------
     params, wheels : SnakeParams or WheelSpec or None, optional
-        The robot (default :meth:`SnakeParams.engine`; its friction is not used) and its
-        wheels and solver settings (default ``WheelSpec()``).
+        The robot (default :meth:`SnakeParams.engine`) and its wheels (default ``WheelSpec()``).
 
     Returns
     -------
@@ -251,8 +250,7 @@ def build_engine_model(params: SnakeParams | None = None,
     Raises
     ------
     ParameterError
-        The wheels overlap, are longer than a link, or leave a link no mass or yaw inertia
-        of its own (naming the links).
+        The wheels overlap, are longer than a link, or leave a link no mass or inertia.
     """
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()

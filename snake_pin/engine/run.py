@@ -159,8 +159,7 @@ class EngineRun:
     Parameters
     ----------
     trajectory, true_dq
-        What the controller saw (q from the engine, dq from the filter), and the engine's
-        own velocities on (x, y, yaw, phi) at the same samples.
+        What the controller saw (dq from the filter), and the engine's own velocities.
     friction
         The viscous model the controller used (:func:`identify_friction`).
     """
@@ -191,21 +190,17 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
         The robot (default: the ``engine`` preset; passive joints get no motor) and its
         wheels, contacts and time steps (default :class:`WheelSpec`).
     t_final, cutoff
-        Duration [s] (at most :data:`snake_pin.loop.MAX_STEPS` control steps) and the
-        velocity filter's cut-off [Hz].
+        Duration [s] (:data:`~snake_pin.loop.MAX_STEPS` steps at most), filter cut-off [Hz].
     friction
         The law's viscous model (default: :func:`identify_friction`, every joint actuated).
     law
-        "velocity" (:class:`QuasiStaticLyapunovController`), "acceleration"
-        (:class:`LyapunovController`) or "mpc" (:class:`MPCController`).
+        "velocity", "acceleration" (the Lyapunov-like law's two forms) or "mpc".
     initial_offset
         n - 1 offsets added to the initial joint angles [rad].
     reference
-        The head reference, from the origin heading +x (default
-        :func:`~snake_pin.control.head_first_reference`).
+        The head reference, from the origin heading +x (default: head first).
     mpc_options
-        The MPC's settings (default ``torque_bound`` = :data:`ENGINE_TORQUE_BOUND`, the
-        motors' saturation, which it may not exceed).
+        The MPC's settings (default: ``torque_bound`` at the motors' saturation, its maximum).
     progress
         Show a progress bar on stderr when it is a terminal.
 
