@@ -122,25 +122,19 @@ class LyapunovController(ReferenceLaw):
         rows_w, rows_phi = slice(0, 3), slice(3, nq)
         head, shape = (lambda block: slice(block.start, block.start + 3),
                        lambda block: slice(block.start + 3, block.stop))
-        law[rows_w, head(r)] = lam * k_w1
-        law[rows_w, head(dr)] = k_w1 + lam * eye3
-        law[rows_w, head(ddr)] = eye3
-        law[rows_w, head(q)] = -lam * k_w1
-        law[rows_w, head(v)] = -(k_w1 + lam * eye3)
-        law[rows_phi, shape(r)] = k_s * np.eye(m)
-        law[rows_phi, shape(dr)] = mu * np.eye(m)
-        law[rows_phi, shape(ddr)] = np.eye(m)
-        law[rows_phi, shape(q)] = -k_s * np.eye(m)
-        law[rows_phi, shape(v)] = -mu * np.eye(m)
+        s_rows, e_rows, eye_m = slice(nq, nq + 3), slice(nq + 3, 2 * nq), np.eye(m)
+        # each row block's blocks on [w_r, w_r', w_r'', q, q'] (head) or their joint parts
+        for rows, part, blocks in (
+                (rows_w, head, (lam * k_w1, k_w1 + lam * eye3, eye3, -lam * k_w1,
+                                -(k_w1 + lam * eye3))),
+                (rows_phi, shape, (k_s * eye_m, mu * eye_m, eye_m, -k_s * eye_m, -mu * eye_m)),
+                (s_rows, head, (k_w1, eye3, None, -k_w1, -eye3)),
+                (e_rows, shape, (None, eye_m, None, None, -eye_m))):
+            for column, block in zip((r, dr, ddr, q, v), blocks, strict=True):
+                if block is not None:
+                    law[rows, part(column)] = block
         law[:nq, b] = -np.eye(nq)
         law[:nq] *= sqrt_w[:, None]
-        s_rows, e_rows = slice(nq, nq + 3), slice(nq + 3, 2 * nq)
-        law[s_rows, head(dr)] = eye3
-        law[s_rows, head(r)] = k_w1
-        law[s_rows, head(v)] = -eye3
-        law[s_rows, head(q)] = -k_w1
-        law[e_rows, shape(dr)] = np.eye(m)
-        law[e_rows, shape(v)] = -np.eye(m)
         law[nq:] *= sqrt_w[:, None]  # [s; e] weighted: V is their squared norm
         self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
         # a passive joint's row of A^T weighs 0 and has a 1 in a column of its own: tau_j = 0
