@@ -63,10 +63,8 @@ class WheelSpec:
 
 @dataclass
 class EngineModel:
-    """A compiled MuJoCo model with the index maps to paper coordinates.
-
-    Built by :func:`build_engine_model`. The single-value properties (``body_mass``,
-    ``body_inertia``, ``wheel_offset``) raise ParameterError when the links differ.
+    """A compiled MuJoCo model with the index maps to paper coordinates (from
+    :func:`build_engine_model`).
 
     Parameters
     ----------

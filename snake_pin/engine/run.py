@@ -158,10 +158,9 @@ class EngineRun:
 
     Parameters
     ----------
-    trajectory, true_dq
-        What the controller saw (dq from the filter), and the engine's own velocities.
-    friction
-        The viscous model the controller used (:func:`identify_friction`).
+    trajectory, true_dq, friction
+        What the controller saw (dq from the filter), the engine's own velocities, and the
+        viscous model the controller used (:func:`identify_friction`).
     """
 
     trajectory: Trajectory
@@ -284,10 +283,8 @@ class EnginePlant(Plant):
 
     Parameters
     ----------
-    engine, params : EngineModel, SnakeParams
-        The MuJoCo robot and the controller's model of it (the trajectory's parameters).
-    cutoff : float
-        The velocity filter's cut-off [Hz].
+    engine, params, cutoff : EngineModel, SnakeParams, float
+        The MuJoCo robot, the controller's model of it, the velocity filter's cut-off [Hz].
 
     Attributes
     ----------
