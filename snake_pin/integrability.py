@@ -27,13 +27,12 @@ class PartialIntegrability:
 
     Parameters
     ----------
-    k : int
-        Number of leading coordinates in q1 (1, 2 or 3).
+    k, tolerance : int, float
+        Number of leading coordinates in q1 (1, 2 or 3); a relative defect below
+        ``tolerance`` counts as zero.
     cyclic_defect, gradient_defect : float
         ``max abs(d/dq1 (dq^T H dq)) / dq^T H dq`` and
         ``max abs(dC1[a,i]/dq_j - dC1[a,j]/dq_i) / max abs(dC1/dq)`` over the samples.
-    tolerance : float
-        A relative defect below this counts as zero.
     """
 
     k: int
@@ -237,10 +236,9 @@ class Involutivity:
 
     Parameters
     ----------
-    n, samples : int
-        Number of links and of random points tested.
-    defect, noise : float
-        Largest relative bracket component outside ``ker [H1 g2]``; an exact system's.
+    n, samples, defect, noise : int, int, float, float
+        Links and random points tested; the largest relative bracket component outside
+        ``ker [H1 g2]``, and an exact system's (the noise floor).
     """
 
     n: int

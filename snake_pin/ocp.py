@@ -83,12 +83,9 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
 
     Parameters
     ----------
-    state : crocoddyl.StateMultibody
-        The state of ``snake``'s model (:func:`state_model`).
-    snake : Snake
-        The robot: its actuated joints give u, its friction Q.
-    friction : bool, optional
-        Include the viscous friction force (False: the frictionless robot).
+    state, snake, friction : crocoddyl.StateMultibody, Snake, bool
+        The state of ``snake``'s model (:func:`state_model`), the robot (its actuated joints
+        give u, its friction Q), whether to include the friction.
 
     Raises
     ------

@@ -33,11 +33,10 @@ class SingularFamily:
 
     Parameters
     ----------
-    phi, R, members, straight
+    phi, R, members, straight, low, high
         Representative posture (the member with the smallest R), its R, how many starts
-        ended in this family and whether ``phi`` is the straight posture.
-    low, high
-        Per-joint minimum and maximum of phi over the members (mirror-canonical).
+        ended in this family, whether ``phi`` is straight, and per-joint bounds of phi over
+        the members (mirror-canonical).
     """
 
     phi: np.ndarray

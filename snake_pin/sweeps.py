@@ -199,10 +199,8 @@ class RMap:
 
     Parameters
     ----------
-    alpha, ts, R
-        The grid's axes and R at every (T_s, alpha), shape (len(ts), len(alpha)).
-    free_joint
-        The free joint, or None.
+    alpha, ts, R, free_joint
+        The grid's axes, R at every (T_s, alpha) (shape (len(ts), len(alpha))), the free joint.
     """
 
     alpha: np.ndarray

@@ -78,10 +78,8 @@ class SolveStats:
 
     Parameters
     ----------
-    solves, iterations : int
-        Number of solves, and Box-FDDP iterations over all of them.
-    wall : float
-        Wall time in the solver [s] (references, warm start and solve).
+    solves, iterations, wall : int, int, float
+        Solves, Box-FDDP iterations over them, wall time in the solver [s].
     """
 
     solves: int
