@@ -164,10 +164,9 @@ class LOSController(Controller):
 
     Parameters
     ----------
-    snake : Snake
-        The plant (passive joints get no torque).
-    path : Path or PathReference or None, optional
-        The CM's path (a PathReference's timing is ignored); default the x axis.
+    snake, path : Snake, Path or PathReference or None
+        The plant (passive joints get no torque) and the CM's path (default the x axis; a
+        PathReference's timing is ignored).
     params, **overrides
         :class:`LOSParams` (default: the defaults) and fields of it to change.
 

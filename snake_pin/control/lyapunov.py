@@ -73,11 +73,9 @@ class LyapunovController(ReferenceLaw):
 
     Parameters
     ----------
-    snake
-        The plant; its passive joints get no torque.
-    reference, gait
-        Head reference (default :func:`~snake_pin.control.reference.head_first_reference`)
-        and serpenoid for phi_r (default alpha = pi/6, T_s = 1.5, v = 2, Section VI.2).
+    snake, reference, gait
+        The plant (passive joints get no torque), head reference (default head first) and
+        serpenoid for phi_r (default alpha = pi/6, T_s = 1.5, v = 2, Section VI.2).
     options, **overrides
         :class:`LyapunovOptions` (default: the defaults) and fields of it to change.
 

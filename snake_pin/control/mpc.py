@@ -93,10 +93,9 @@ class MPCController(Controller):
 
     Parameters
     ----------
-    snake : Snake
-        The plant's model (its friction and passive joints are the problem's).
-    reference, gait : callable, Serpenoid, optional
-        As for :class:`~snake_pin.control.lyapunov.LyapunovController` (gait: the prior).
+    snake, reference, gait : Snake, callable, Serpenoid
+        The plant's model (its friction and passive joints are the problem's); the others
+        as for :class:`~snake_pin.control.lyapunov.LyapunovController` (gait: the prior).
     options : MPCOptions, optional
         The law's settings (default :class:`MPCOptions`).
 

@@ -62,11 +62,9 @@ class PFLController(ReferenceLaw):
 
     Parameters
     ----------
-    snake
-        The plant model (all joints actuated: PFL needs every input).
-    reference, gait
-        Head reference (default w_r = [0.1 t, 0, 0], eq. 80) and serpenoid for phi_r
-        (default alpha = pi/3, T_s = 1, v = 0.18, eq. 81).
+    snake, reference, gait
+        The plant (every joint actuated), head reference (default w_r = [0.1 t, 0, 0], eq.
+        80) and serpenoid for phi_r (default alpha = pi/3, T_s = 1, v = 0.18, eq. 81).
     options, **overrides
         :class:`PFLOptions` (default: the defaults) and fields of it to change.
 

@@ -74,10 +74,9 @@ class QuasiStaticLyapunovController(ReferenceLaw):
 
     Parameters
     ----------
-    snake
-        The robot and its viscous friction model.
-    reference, gait
-        As for :class:`~snake_pin.control.lyapunov.LyapunovController`.
+    snake, reference, gait
+        The robot with its viscous friction; the others as for
+        :class:`~snake_pin.control.lyapunov.LyapunovController`.
     options, **overrides
         :class:`QuasiStaticOptions` (default: the defaults) and fields of it to change.
 
