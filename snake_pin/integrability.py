@@ -84,10 +84,9 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
     ----------
     snake, k : Snake, int
         The robot; q1 holds the first k coordinates (1: x_h; 2: and y_h; 3: and theta_1).
-    samples, seed : int, optional
-        Number and seed of the random states (joint angles within +-1.5 rad).
-    tolerance : float, optional
-        Relative defect below which a condition holds.
+    samples, seed, tolerance : int, int, float, optional
+        Number and seed of the random states (joint angles within +-1.5 rad); the relative
+        defect below which a condition holds.
 
     Returns
     -------
@@ -128,10 +127,8 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
 
     Parameters
     ----------
-    snake, q, q0 : Snake, array_like, array_like or None
-        The robot; end and start (default zero) of the segment, n + 2 each.
-    nodes : int, optional
-        Number of Gauss-Legendre nodes.
+    snake, q, q0, nodes : Snake, array_like, array_like or None, int
+        The robot; end and start (default zero) of the segment; Gauss-Legendre nodes.
 
     Returns
     -------

@@ -35,10 +35,9 @@ class Manipulability:
     ----------
     D, R : float
         Least singular values of A and of H12 (eqs. 30, 31, 42); R is NaN for a task.
-    sigma, lambda_ : numpy.ndarray, shape (m,)
-        All singular values of A and H12, descending, zero-padded to the task dimension m.
-    blocks : dict of str to numpy.ndarray or None, optional
-        ``{"H11", "H12", "H22", "A"}`` when requested, else None.
+    sigma, lambda_, blocks : numpy.ndarray, numpy.ndarray, dict or None
+        All singular values of A and H12, descending, zero-padded to the task dimension m;
+        ``{"H11", "H12", "H22", "A"}`` when requested.
     """
 
     D: float
@@ -322,10 +321,9 @@ def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
 
     Parameters
     ----------
-    snake, q : Snake, array_like
-        The robot and a configuration (n + 2).
-    constrained : sequence of int or None, optional
-        1-based links whose CM may not slip sideways; links 2..n by default.
+    snake, q, constrained : Snake, array_like, sequence of int or None
+        The robot, a configuration (n + 2), and the 1-based links whose CM may not slip
+        sideways (default links 2..n).
 
     Returns
     -------

@@ -45,10 +45,9 @@ class CostWeights:
         s^2/m^2]; the heading's is small, as the head link swings with the gait.
     gait, gait_velocity : float, optional
         The gait prior: on ``phi - phi_r(t)`` [1/rad^2] and ``phi' - phi_r'(t)`` [s^2/rad^2].
-    torque, joint_limit : float, optional
-        On the actuated torques [1/(N m)^2] and the joint angles beyond the limit [1/rad^2].
-    terminal : float, optional
-        Scale of the state costs at the terminal node [s] (running costs are rates).
+    torque, joint_limit, terminal : float, optional
+        On the actuated torques [1/(N m)^2] and the joint angles beyond the limit [1/rad^2];
+        the scale of the terminal node's state costs [s] (running costs are rates).
 
     Raises
     ------

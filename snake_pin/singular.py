@@ -133,10 +133,9 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
 
     Parameters
     ----------
-    params
-        The robot (n >= 4, or >= 5 with a free joint).
-    starts, seed
-        Random starts (uniform in the box), 1 .. :data:`MAX_STARTS`; seed 0 .. :data:`MAX_SEED`.
+    params, starts, seed
+        The robot; random starts (uniform in the box), 1 .. :data:`MAX_STARTS`; their seed,
+        0 .. :data:`MAX_SEED`.
     bound, free_joint
         Joint limit of the box [rad]; joint(s) free for R~, beside the passive joints.
     relative, progress

@@ -45,10 +45,9 @@ class Sweep:
         One of :data:`FAMILIES`, and its parameter with its unit (e.g. ``"phi0 [rad]"``).
     values, D, R
         The parameter values and the criteria there, (N,) each (D~ and R~ with free joints).
-    free_joint, robot
-        The free joint(s) or None, and the robot's name.
-    meta, status
-        Extra settings written with the data; ``"completed"`` or ``"interrupted"``.
+    free_joint, robot, meta, status
+        The free joint(s) or None, the robot's name, extra settings written with the data,
+        ``"completed"`` or ``"interrupted"``.
     """
 
     family: str
