@@ -191,10 +191,9 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
 
     Parameters
     ----------
-    model, data, q : pinocchio.Model, pinocchio.Data, array_like
-        A Pinocchio model, its data (overwritten) and a configuration (model.nq).
-    unactuated : sequence of int
-        0-based velocity indices without an actuator (may be empty: fully actuated).
+    model, data, q, unactuated : pinocchio.Model, pinocchio.Data, array_like, sequence of int
+        A Pinocchio model, its data (overwritten), a configuration (model.nq), and the 0-based
+        velocity indices without an actuator (may be empty: fully actuated).
     task : numpy.ndarray of shape (m, model.nv), or str, or None, optional
         None: the unactuated coordinates (R defined); a Jacobian, or a frame name (its 6-D
         LOCAL_WORLD_ALIGNED Jacobian): ``A = J H^-1 B``.

@@ -239,10 +239,8 @@ class TrackingProblem:
 
     Parameters
     ----------
-    snake, nodes : Snake, int
-        The robot and the number of running nodes (>= 1; horizon ``nodes * node_dt``).
-    node_dt : float, optional
-        Step of each node [s] (RK4), > 0.
+    snake, nodes, node_dt : Snake, int, float
+        The robot, the number of running nodes (>= 1) and their RK4 step [s] (> 0).
     weights, torque_bound, joint_limit : optional
         As for :func:`differential_model`.
 

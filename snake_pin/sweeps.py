@@ -214,10 +214,9 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
 
     Parameters
     ----------
-    snake, free_joint
-        The robot, and a free joint (R~) or None.
-    alpha_points, ts_points, alpha_max, ts_max
-        Grid sizes along alpha and T_s (1 .. :data:`MAX_POINTS`) and their upper ends.
+    snake, free_joint, alpha_points, ts_points, alpha_max, ts_max
+        The robot, a free joint (R~) or None, the grid's sizes along alpha and T_s
+        (1 .. :data:`MAX_POINTS`) and its upper ends.
 
     Returns
     -------
