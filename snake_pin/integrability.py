@@ -1,10 +1,6 @@
-"""Integrability of the unactuated rows (Section V, Theorems 2-3, eqs. 44-67).
-
-Theorem 2's conditions at random states (:func:`partial_integrability`), the g2 it implies
-(:func:`implied_g2`), the conserved ``g = H1 dq + g2`` of eq. (67)
-(:func:`conserved_quantity`) and Theorem 3 by Lie brackets (:func:`involutivity`); the
-analysis is in :ref:`integrability`.
-"""
+"""Integrability of the unactuated rows (Section V, Theorems 2-3, eqs. 44-67): Theorem 2's
+conditions, the g2 they imply, the conserved g of eq. (67) and Theorem 3 by Lie brackets
+(:ref:`integrability`)."""
 
 from __future__ import annotations
 
@@ -31,14 +27,12 @@ class PartialIntegrability:
 
     Parameters
     ----------
-    k : int
-        Number of leading coordinates in q1 (1, 2 or 3).
-    cyclic_defect : float
-        ``max abs(d/dq1 (dq^T H dq))`` over the samples, relative to ``dq^T H dq``.
-    gradient_defect : float
-        ``max abs(dC1[a,i]/dq_j - dC1[a,j]/dq_i)``, relative to ``max abs(dC1/dq)``.
-    tolerance : float
-        A relative defect below this counts as zero.
+    k, tolerance : int, float
+        Number of leading coordinates in q1 (1, 2 or 3); a relative defect below
+        ``tolerance`` counts as zero.
+    cyclic_defect, gradient_defect : float
+        ``max abs(d/dq1 (dq^T H dq)) / dq^T H dq`` and
+        ``max abs(dC1[a,i]/dq_j - dC1[a,j]/dq_i) / max abs(dC1/dq)`` over the samples.
     """
 
     k: int
@@ -88,14 +82,11 @@ def partial_integrability(snake: Snake, k: int, *, samples: int = 10, seed: int 
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    k : int
-        q1 holds the first k coordinates (1: x_h; 2: and y_h; 3: and theta_1).
-    samples, seed : int, optional
-        Number and seed of the random states (joint angles within +-1.5 rad).
-    tolerance : float, optional
-        Relative defect below which a condition holds.
+    snake, k : Snake, int
+        The robot; q1 holds the first k coordinates (1: x_h; 2: and y_h; 3: and theta_1).
+    samples, seed, tolerance : int, int, float, optional
+        Number and seed of the random states (joint angles within +-1.5 rad); the relative
+        defect below which a condition holds.
 
     Returns
     -------
@@ -136,12 +127,8 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    q, q0 : array_like, shape (n + 2,)
-        End and start (default zero) of the segment.
-    nodes : int, optional
-        Number of Gauss-Legendre nodes.
+    snake, q, q0, nodes : Snake, array_like, array_like or None, int
+        The robot; end and start (default zero) of the segment; Gauss-Legendre nodes.
 
     Returns
     -------
@@ -150,10 +137,8 @@ def implied_g2(snake: Snake, q: np.ndarray, q0: np.ndarray | None = None,
 
     Raises
     ------
-    ConfigurationError
-        ``q`` or ``q0`` does not have n + 2 finite entries.
-    ParameterError
-        ``snake`` is not a Snake or ``nodes`` not a positive integer.
+    ConfigurationError, ParameterError
+        ``q`` or ``q0`` is not n + 2 finite numbers; a bad ``snake`` or ``nodes``.
     """
     instance(snake, Snake, "snake")
     nodes = integer(nodes, "nodes", low=1)
@@ -171,10 +156,8 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    q, dq : array_like, shape (n + 2,)
-        Configuration and velocity.
+    snake, q, dq : Snake, array_like, array_like
+        The robot, a configuration and a velocity (n + 2 each).
 
     Returns
     -------
@@ -183,10 +166,8 @@ def conserved_quantity(snake: Snake, q: np.ndarray, dq: np.ndarray) -> np.ndarra
 
     Raises
     ------
-    ConfigurationError
-        ``q`` or ``dq`` does not have n + 2 finite entries.
-    ParameterError
-        ``snake`` is not a Snake, or its friction is not isotropic (g2 is undefined).
+    ConfigurationError, ParameterError
+        ``q`` or ``dq`` is not n + 2 finite numbers; a bad ``snake`` or anisotropic friction.
     """
     instance(snake, Snake, "snake")
     q, dq = snake.check_q(q), snake.check_dq(dq)
@@ -252,12 +233,9 @@ class Involutivity:
 
     Parameters
     ----------
-    n, samples : int
-        Number of links and of random points tested.
-    defect : float
-        Largest relative bracket component outside ``ker [H1 g2]`` (:func:`lie_bracket_defect`).
-    noise : float
-        The same for an exact (involutive) system of the same size: the noise floor.
+    n, samples, defect, noise : int, int, float, float
+        Links and random points tested; the largest relative bracket component outside
+        ``ker [H1 g2]``, and an exact system's (the noise floor).
     """
 
     n: int
@@ -276,10 +254,8 @@ def involutivity(snake: Snake, *, samples: int = 10, seed: int = 0) -> Involutiv
 
     Parameters
     ----------
-    snake : Snake
-        The robot; its friction must be isotropic.
-    samples, seed : int, optional
-        Number and seed of the random points (q, t).
+    snake, samples, seed : Snake, int, int
+        The robot (isotropic friction), and number and seed of the random points (q, t).
 
     Returns
     -------

@@ -1,9 +1,5 @@
-"""Dynamic manipulability of an underactuated system (Section III, eqs. 22-42).
-
-For unactuated velocity coordinates u and actuated ones a, ``D = min sigma([H^-1]_{u,a})``
-(or of ``J H^-1 B`` for a task Jacobian J) and ``R = min lambda(H_ua)``, for the snake and
-any Pinocchio model; derivation, free joints (R~ needs n >= 6) and ``heading=False``:
-:ref:`manipulability`.
+"""Dynamic manipulability D and R of an underactuated system (Section III, eqs. 22-42), for
+the snake and any Pinocchio model (:ref:`manipulability`).
 """
 
 from __future__ import annotations
@@ -37,14 +33,11 @@ class Manipulability:
 
     Parameters
     ----------
-    D : float
-        Smallest singular value of the acceleration map A (eq. 30 / 42) [(m/s^2)/(N m)].
-    R : float
-        Smallest singular value of the coupling block H12 (eq. 31 / 42); NaN for a task.
-    sigma, lambda_ : numpy.ndarray, shape (m,)
-        All singular values of A and H12, descending, zero-padded to the task dimension m.
-    blocks : dict of str to numpy.ndarray or None, optional
-        ``{"H11", "H12", "H22", "A"}`` when requested, else None.
+    D, R : float
+        Least singular values of A and of H12 (eqs. 30, 31, 42); R is NaN for a task.
+    sigma, lambda_, blocks : numpy.ndarray, numpy.ndarray, dict or None
+        All singular values of A and H12, descending, zero-padded to the task dimension m;
+        ``{"H11", "H12", "H22", "A"}`` when requested.
     """
 
     D: float
@@ -139,16 +132,12 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
 
     Parameters
     ----------
-    snake : Snake
-        The robot. Its passive joints (``params.passive``) are always free joints.
-    q : array_like, shape (n + 2,)
-        Configuration (evaluated at ``x_h = y_h = theta_1 = 0``: D, R are invariant).
+    snake, q : Snake, array_like
+        The robot (its passive joints are free) and a configuration (n + 2).
     free_joint : int or sequence of int or None, optional
         1-based further free joint(s), applying the selection S of (33).
-    heading : bool, optional
-        Include theta_1 in the task (default); False gives the 2-D variant of III.1.
-    blocks : bool, optional
-        Also return H11, H12, H22 and the acceleration map A.
+    heading, blocks : bool, optional
+        Include theta_1 in the task (False: III.1's 2-D variant); return H11, H12, H22, A.
 
     Returns
     -------
@@ -157,10 +146,8 @@ def manipulability(snake: Snake, q: ArrayLike, free_joint: int | Sequence[int] |
 
     Raises
     ------
-    ConfigurationError
-        ``q`` does not have n + 2 finite entries.
-    ParameterError
-        A bad argument, or too few links for the task (n >= 4 plus one per free joint).
+    ConfigurationError, ParameterError
+        ``q`` is not n + 2 finite numbers; another bad argument, or too few links for the task.
     """
     instance(snake, Snake, "snake")
     q = snake.check_q(q).copy()
@@ -204,14 +191,9 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
 
     Parameters
     ----------
-    model : pinocchio.Model
-        A Pinocchio model.
-    data : pinocchio.Data
-        Its data (overwritten).
-    q : array_like, shape (model.nq,)
-        Configuration in the model's own coordinates.
-    unactuated : sequence of int
-        0-based velocity indices without an actuator (may be empty: fully actuated).
+    model, data, q, unactuated : pinocchio.Model, pinocchio.Data, array_like, sequence of int
+        A Pinocchio model, its data (overwritten), a configuration (model.nq), and the 0-based
+        velocity indices without an actuator (may be empty: fully actuated).
     task : numpy.ndarray of shape (m, model.nv), or str, or None, optional
         None: the unactuated coordinates (R defined); a Jacobian, or a frame name (its 6-D
         LOCAL_WORLD_ALIGNED Jacobian): ``A = J H^-1 B``.
@@ -226,10 +208,8 @@ def dynamic_manipulability(model: pin.Model, data: pin.Data, q: ArrayLike,
 
     Raises
     ------
-    ConfigurationError
-        ``q`` or the task Jacobian has the wrong shape or non-finite entries.
-    ParameterError
-        A bad argument; nothing actuated; a fully actuated model without a task.
+    ConfigurationError, ParameterError
+        A bad ``q`` or task Jacobian; another bad argument, nothing actuated, or no task.
     """
     model = instance(model, pin.Model, "model", "a pinocchio.Model")
     model_data(data, model, pin.Data)
@@ -320,41 +300,29 @@ def r_batch(params: SnakeParams, phi: np.ndarray, free: tuple[int, ...],
 
 
 def _task_rows(rows: Sequence[int] | str | None, size: int) -> list[int]:
+    """The task Jacobian's rows to keep: all (None), a :data:`TASK_ROWS` name, or indices."""
     if rows is None:
         return list(range(size))
-    if isinstance(rows, str):
-        if rows not in TASK_ROWS:
-            raise ParameterError(f"unknown task rows {rows!r}; choose one of "
-                                 f"{', '.join(TASK_ROWS)} or give indices")
-        chosen = list(TASK_ROWS[rows])
-    elif isinstance(rows, (bytes, Mapping)) or not isinstance(rows, Iterable):
-        raise ParameterError(f"task rows must be a name or indices, got {brief(rows)}")
-    else:
-        chosen = list(rows)
-    if not chosen or len(set(chosen)) != len(chosen) or any(
-            isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 0 <= r < size
-            for r in chosen):
+    if isinstance(rows, str) and rows not in TASK_ROWS:
+        raise ParameterError(f"unknown task rows {rows!r}; choose one of "
+                             f"{', '.join(TASK_ROWS)} or give indices")
+    chosen = list(TASK_ROWS[rows]) if isinstance(rows, str) else _integers(rows, "task rows")
+    if not chosen or len(set(chosen)) != len(chosen) or min(chosen) < 0 or max(chosen) >= size:
         raise ParameterError(f"task rows must be distinct indices in 0..{size - 1}, "
-                             f"got {brief(rows) if not isinstance(rows, list) else rows}")
+                             f"got {chosen}")
     return chosen
 
 
 def lateral_constraint_manipulability(snake: Snake, q: ArrayLike,
                                       constrained: Sequence[int] | None = None
                                       ) -> Manipulability:
-    """Return the head manipulability *with* lateral constraints (after Date et al., Fig. 15).
-
-    D of the w rows of ``P E``, P the constrained dynamics' map of torques
-    (:ref:`manipulability`); arcs make it vanish, as for wheeled snakes.
+    """Return the head manipulability *with* lateral constraints (:ref:`manipulability`).
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    q : array_like, shape (n + 2,)
-        Configuration.
-    constrained : sequence of int or None, optional
-        1-based links whose CM may not slip sideways; links 2..n by default.
+    snake, q, constrained : Snake, array_like, sequence of int or None
+        The robot, a configuration (n + 2), and the 1-based links whose CM may not slip
+        sideways (default links 2..n).
 
     Returns
     -------

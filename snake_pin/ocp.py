@@ -1,19 +1,9 @@
 """The snake as a Crocoddyl optimal-control problem: head tracking along a timed reference.
 
-:class:`ChainRootActuation` is the actuation of the PX-PY-RZ chain root (Crocoddyl's
-``ActuationModelFloatingBase`` looks for a joint named ``root_joint`` and silently gets the
-input size wrong here): ``tau = [0_3; E_a u] + Q(q, q')``, u the actuated joints' torques
-and Q the friction of eqs. (10)-(13) with its Jacobians, both from the core's
-:class:`~snake_pin.friction.FrictionModel` (the damping twin).
-:func:`differential_model` is Crocoddyl's C++ free forward dynamics over it, q'' of
-eq. (20) as :meth:`snake_pin.model.Snake.forward_dynamics`, plus the costs of
-:class:`CostWeights`; :class:`TrackingProblem` is the shooting problem (RK4 nodes of
-``node_dt``). The problem, its costs and why RK4 at 10 ms: :doc:`/mpc`.
-
-The C++ free forward dynamics rather than a Python action model calling
-:class:`~snake_pin.model.Snake`: both need Python for the friction, but here the ABA, its
-derivatives, the chain rule and every cost stay in C++ and only the friction crosses
-into Python (``scripts/bench.py --only mpc`` measures both routes).
+:class:`ChainRootActuation` (the chain root's actuation with friction), Crocoddyl's C++ free
+forward dynamics over it with the costs of :class:`CostWeights` (:func:`differential_model`:
+only the friction crosses into Python) and the RK4 shooting problem
+(:class:`TrackingProblem`). The problem, its costs and why RK4 at 10 ms: :doc:`/mpc`.
 """
 
 from __future__ import annotations
@@ -25,53 +15,39 @@ from typing import Any
 import crocoddyl
 import numpy as np
 
-from ._validation import finite_number
+from ._validation import finite_number, instance, integer
 from .exceptions import ParameterError
 from .friction import FrictionData, FrictionModel
 from .model import Snake
 
 __all__ = ["ChainRootActuation", "CostWeights", "TrackingProblem", "differential_model"]
 
-#: Names of the costs in each node's cost sum (Crocoddyl's CostModelSum keys): the state
-#: tracking terms (head position, heading, head velocity, gait prior) as one weighted
-#: residual, the torque, the joint-limit barrier.
+#: Names of the costs in each node's cost sum (Crocoddyl's CostModelSum keys).
 COSTS = ("tracking", "torque", "joint_limit")
 #: Bound used for the coordinates a barrier does not limit (Crocoddyl needs finite bounds).
 _FREE = 1e9
 
 
 def _weight(default: float, doc: str, unit: str) -> Any:
-    """A cost weight's field: >= 0, with the one-line doc and unit that study files show
-    (the metadata keys of :func:`snake_pin.control._options.option`)."""
+    """A cost weight's field (>= 0), with :func:`snake_pin.control._options.option`'s metadata."""
     return field(default=default, metadata={"doc": doc, "unit": unit, "low": 0.0,
                                             "high": None, "open_low": False})
 
 
 @dataclass(frozen=True)
 class CostWeights:
-    """Weights of the tracking costs (validated; one ParameterError line each).
-
-    Each weight multiplies half a squared residual; all are >= 0 (0 drops the cost).
+    """Weights of the tracking costs, each on half a squared residual (>= 0; 0 drops it).
 
     Parameters
     ----------
-    head_position : float, optional
-        On the head point's error to the reference ``p_r(t)`` [1/m^2].
-    heading : float, optional
-        On the head link's angle error ``theta_1 - theta_r(t)`` [1/rad^2]; small, as the
-        head link swings with the gait.
-    head_velocity : float, optional
-        On the head velocity's error to ``p_r'(t)`` [s^2/m^2].
+    head_position, heading, head_velocity : float, optional
+        On the head point's, head link's angle and head velocity's errors [1/m^2, 1/rad^2,
+        s^2/m^2]; the heading's is small, as the head link swings with the gait.
     gait, gait_velocity : float, optional
-        The gait prior: on ``phi - phi_r(t)`` [1/rad^2] and ``phi' - phi_r'(t)``
-        [s^2/rad^2].
-    torque : float, optional
-        On the actuated torques [1/(N m)^2].
-    joint_limit : float, optional
-        On the joint angles beyond the joint limit (a quadratic barrier) [1/rad^2].
-    terminal : float, optional
-        Scale of the state costs at the terminal node [s]: the end state weighs as that
-        many seconds of running costs (which are rates).
+        The gait prior: on ``phi - phi_r(t)`` [1/rad^2] and ``phi' - phi_r'(t)`` [s^2/rad^2].
+    torque, joint_limit, terminal : float, optional
+        On the actuated torques [1/(N m)^2] and the joint angles beyond the limit [1/rad^2];
+        the scale of the terminal node's state costs [s] (running costs are rates).
 
     Raises
     ------
@@ -98,7 +74,7 @@ class CostWeights:
 
 def state_model(snake: Snake) -> crocoddyl.StateMultibody:
     """Crocoddyl's (Euclidean) state of ``snake``'s model: ``x = [q, q']``, nx = 2 (n + 2)."""
-    return crocoddyl.StateMultibody(_check_snake(snake).model)
+    return crocoddyl.StateMultibody(instance(snake, Snake, "snake").model)
 
 
 class ChainRootActuation(crocoddyl.ActuationModelAbstract):
@@ -106,13 +82,9 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
 
     Parameters
     ----------
-    state : crocoddyl.StateMultibody
-        The state of ``snake``'s model (:func:`state_model`).
-    snake : Snake
-        The robot: its actuated joints give u (nu = number of actuated joints) and its
-        friction gives Q.
-    friction : bool, optional
-        Include the viscous friction force (False: the frictionless robot).
+    state, snake, friction : crocoddyl.StateMultibody, Snake, bool
+        The state of ``snake``'s model (:func:`state_model`), the robot (its actuated joints
+        give u, its friction Q), whether to include the friction.
 
     Raises
     ------
@@ -122,32 +94,26 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
 
     def __init__(self, state: crocoddyl.StateMultibody, snake: Snake,
                  friction: bool = True) -> None:
-        _check_snake(snake)
-        if not snake.params.actuated:
+        if not instance(snake, Snake, "snake").params.actuated:
             raise ParameterError("every joint is passive: there is nothing to actuate")
         #: velocity index of each input (the actuated joints' rows of E)
         self.rows = np.array([2 + k for k in snake.params.actuated], dtype=int)
         super().__init__(state, len(self.rows))
         self.nq = snake.nq
         self.friction = FrictionModel(snake.params, snake.model) if friction else None
-        #: the friction's buffers, one set for all this model's datas (a node's RK4 stages):
-        #: calc and calcDiff copy their results out at once, and one twin workspace per node
-        #: stays in cache (a set per data made the MPC slower: docs/performance.rst perf-mpc)
-        self.friction_data: FrictionData | None = None
-        self._friction: tuple[FrictionModel, FrictionData] | None = None
-        if self.friction is not None:
-            self.friction_data = self.friction.create_data()
-            self._friction = (self.friction, self.friction_data)
+        #: the friction's buffers, one set for all this model's datas (a node's RK4 stages:
+        #: results are copied out at once; :ref:`perf-mpc`)
+        self._friction: tuple[FrictionModel, FrictionData] | None = (
+            None if self.friction is None else (self.friction, self.friction.create_data()))
+        self.friction_data = None if self._friction is None else self._friction[1]
 
     def calc(self, data: Any, x: np.ndarray, u: np.ndarray | None = None) -> None:
         """Generalised force at state x under inputs u, written into ``data.tau``.
 
         Parameters
         ----------
-        data : crocoddyl.ActuationDataAbstract
-            This model's data.
-        x : numpy.ndarray
-            The state ``[q, q']``, length 2 (n + 2).
+        data, x : crocoddyl.ActuationDataAbstract, numpy.ndarray
+            This model's data and the state ``[q, q']``.
         u : numpy.ndarray or None, optional
             The actuated joints' torques [N m]; None: friction alone.
         """
@@ -162,20 +128,13 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
 
     def calcDiff(self, data: Any, x: np.ndarray,
                  u: np.ndarray | None = None) -> None:
-        """Jacobians of the force ``[dQ/dq, dQ/dq']`` into ``data.dtau_dx``.
-
-        They are the damping twin's RNEA derivatives
-        (:meth:`~snake_pin.friction.FrictionModel.calc_derivatives`, copied out of the
-        model's friction buffers), as in
-        :meth:`Snake.dynamics_derivatives <snake_pin.model.Snake.dynamics_derivatives>`.
-        ``dtau_du`` = E_a is constant (set by :meth:`createData`).
+        """Jacobians of the force ``[dQ/dq, dQ/dq']`` into ``data.dtau_dx`` (the damping twin's
+        RNEA derivatives; ``dtau_du = E_a`` is constant, set by :meth:`createData`).
 
         Parameters
         ----------
-        data : crocoddyl.ActuationDataAbstract
-            This model's data.
-        x : numpy.ndarray
-            The state ``[q, q']``, length 2 (n + 2).
+        data, x : crocoddyl.ActuationDataAbstract, numpy.ndarray
+            This model's data and the state ``[q, q']``.
         u : numpy.ndarray or None, optional
             The inputs (the Jacobians do not depend on them).
         """
@@ -189,12 +148,8 @@ class ChainRootActuation(crocoddyl.ActuationModelAbstract):
 
         Parameters
         ----------
-        data : crocoddyl.ActuationDataAbstract
-            This model's data; ``data.u`` is written.
-        x : numpy.ndarray
-            The state ``[q, q']``, length 2 (n + 2).
-        tau : numpy.ndarray
-            The generalised force, length n + 2.
+        data, x, tau : crocoddyl.ActuationDataAbstract, numpy.ndarray, numpy.ndarray
+            This model's data (``data.u`` is written), the state and the generalised force.
         """
         nq = self.nq
         force = 0.0 if self.friction is None else self.friction(x[:nq], x[nq:])
@@ -218,24 +173,16 @@ def differential_model(snake: Snake, weights: CostWeights | None = None, *,
                        terminal: bool = False, friction: bool = True,
                        state: crocoddyl.StateMultibody | None = None
                        ) -> crocoddyl.DifferentialActionModelFreeFwdDynamics:
-    """Crocoddyl's free forward dynamics of ``snake`` with the tracking costs.
-
-    The costs' references start at zero; :class:`TrackingProblem` sets them per node.
+    """Crocoddyl's free forward dynamics of ``snake`` with the tracking costs (references 0).
 
     Parameters
     ----------
-    snake : Snake
-        The robot (its friction and passive joints included).
-    weights : CostWeights, optional
-        The costs' weights (default :class:`CostWeights`).
-    torque_bound : float, optional
-        ``|u_i| <= torque_bound`` [N m] (the model's ``u_lb``/``u_ub``), > 0.
-    joint_limit : float, optional
-        The joint-limit barrier's ``|phi_i|`` [rad], > 0.
-    terminal : bool, optional
-        A terminal model: the state costs only, scaled by ``weights.terminal``.
-    friction : bool, optional
-        Include the viscous friction (False: the frictionless robot).
+    snake, weights : Snake, CostWeights or None
+        The robot (its friction and passive joints included) and the costs' weights.
+    torque_bound, joint_limit : float, optional
+        ``|u_i| <= torque_bound`` [N m] and the joint-limit barrier's ``|phi_i|`` [rad], > 0.
+    terminal, friction : bool, optional
+        A terminal model (state costs only, times ``weights.terminal``); include friction.
     state : crocoddyl.StateMultibody, optional
         The state to share (default a new :func:`state_model`).
 
@@ -249,12 +196,10 @@ def differential_model(snake: Snake, weights: CostWeights | None = None, *,
     ParameterError
         A bad robot, weights or bound (one line).
     """
-    _check_snake(snake)
-    weights = CostWeights() if weights is None else weights
-    if not isinstance(weights, CostWeights):
-        raise ParameterError(f"weights must be CostWeights, got {type(weights).__name__}")
-    torque_bound = _positive(torque_bound, "torque_bound")
-    joint_limit = _positive(joint_limit, "joint_limit")
+    instance(snake, Snake, "snake")
+    weights = CostWeights() if weights is None else instance(weights, CostWeights, "weights")
+    torque_bound = finite_number(torque_bound, "torque_bound", positive=True)
+    joint_limit = finite_number(joint_limit, "joint_limit", positive=True)
     state = state_model(snake) if state is None else state
     actuation = ChainRootActuation(state, snake, friction=friction)
     nu, nq = actuation.nu, snake.nq
@@ -294,16 +239,10 @@ class TrackingProblem:
 
     Parameters
     ----------
-    snake : Snake
-        The robot.
-    nodes : int
-        Number of running nodes (the horizon is ``nodes * node_dt``), >= 1.
-    node_dt : float, optional
-        Step of each node [s] (RK4), > 0.
-    weights : CostWeights, optional
-        The costs' weights.
-    torque_bound, joint_limit : float, optional
-        See :func:`differential_model`.
+    snake, nodes, node_dt : Snake, int, float
+        The robot, the number of running nodes (>= 1) and their RK4 step [s] (> 0).
+    weights, torque_bound, joint_limit : optional
+        As for :func:`differential_model`.
 
     Raises
     ------
@@ -313,8 +252,7 @@ class TrackingProblem:
     Attributes
     ----------
     problem : crocoddyl.ShootingProblem
-        The problem (its x0 and references are set by :meth:`set_state` and
-        :meth:`set_reference`).
+        The problem (x0 and references set by :meth:`set_state` and :meth:`set_reference`).
     running, terminal
         The integrated action models (their ``differential`` is the free forward dynamics).
     """
@@ -322,11 +260,9 @@ class TrackingProblem:
     def __init__(self, snake: Snake, nodes: int, node_dt: float = 0.01,
                  weights: CostWeights | None = None, *, torque_bound: float = 1.0,
                  joint_limit: float = math.pi / 2) -> None:
-        _check_snake(snake)
-        if isinstance(nodes, bool) or not isinstance(nodes, (int, np.integer)) or nodes < 1:
-            raise ParameterError(f"nodes must be an integer >= 1, got {nodes!r}")
-        self.snake, self.nodes = snake, int(nodes)
-        self.node_dt = _positive(node_dt, "node_dt")
+        self.snake = instance(snake, Snake, "snake")
+        self.nodes = integer(nodes, "nodes", low=1)
+        self.node_dt = finite_number(node_dt, "node_dt", positive=True)
         self.state = state_model(snake)
         options = dict(torque_bound=torque_bound, joint_limit=joint_limit, state=self.state)
         self.running = [crocoddyl.IntegratedActionModelRK(
@@ -360,8 +296,7 @@ class TrackingProblem:
         Parameters
         ----------
         references : numpy.ndarray
-            Shape (nodes + 1, 2 (n + 2)): row k is ``[w_r, phi_r, w_r', phi_r']`` at node
-            k's time (:func:`reference_states`); the last row is the terminal node's.
+            Row k ``[w_r, phi_r, w_r', phi_r']`` at node k's time (:func:`reference_states`).
         """
         for residuals, row in zip(self._residuals, references, strict=True):
             for residual in residuals:
@@ -398,18 +333,3 @@ def reference_states(reference: Any, gait: Any, times: np.ndarray) -> np.ndarray
     phi_r, dphi_r, _ = gait.derivatives(times[:, None])
     return np.hstack((w_r, phi_r, dw_r, dphi_r))
 
-
-def _check_snake(value: object) -> Snake:
-    """``value`` if it is a :class:`~snake_pin.model.Snake`, else ParameterError."""
-    if not isinstance(value, Snake):
-        raise ParameterError(f"snake must be a Snake, got {type(value).__name__}")
-    return value
-
-
-def _positive(value: object, name: str) -> float:
-    """``value`` as a finite positive float, else ParameterError."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(
-            value, (int, float, np.integer, np.floating)) or not math.isfinite(value) \
-            or value <= 0.0:
-        raise ParameterError(f"{name} must be a finite number > 0, got {value!r}")
-    return float(value)

@@ -1,8 +1,6 @@
-"""Numerical search for singular postures (R = 0) over the whole joint box.
-
-R^2 is minimised from many random starts (L-BFGS-B, batched central differences), polished,
-and the minima clustered into families up to the mirror phi -> -phi (:ref:`manipulability`);
-BLAS runs on one thread meanwhile (:doc:`/performance`).
+"""Numerical search for singular postures (R = 0) over the whole joint box: R^2 minimised
+from random starts and the minima clustered into families up to the mirror phi -> -phi
+(:ref:`manipulability`); BLAS on one thread meanwhile (:doc:`/performance`).
 """
 
 from __future__ import annotations
@@ -35,12 +33,10 @@ class SingularFamily:
 
     Parameters
     ----------
-    phi, R
-        Representative posture (the member with the smallest R) and its R.
-    members, straight
-        How many starts ended in this family; whether ``phi`` is the straight posture.
-    low, high
-        Per-joint minimum and maximum of phi over the members (mirror-canonical).
+    phi, R, members, straight, low, high
+        Representative posture (the member with the smallest R), its R, how many starts
+        ended in this family, whether ``phi`` is straight, and per-joint bounds of phi over
+        the members (mirror-canonical).
     """
 
     phi: np.ndarray
@@ -66,18 +62,12 @@ class SingularSearch:
         The robot searched, the box ``abs(phi_i) <= bound`` [rad], the starts that ran.
     free_joint
         The free joint(s) (the robot's passive joints included), or None.
-    R_typical
-        Median R over random postures in the box (the scale of "numerically zero").
-    threshold
-        R below this counts as zero (``relative * R_typical``).
-    minima_phi, minima_R
-        Every polished local minimum (one per start).
-    families
-        Distinct postures where R <= threshold.
-    status
-        ``"completed"``, or ``"interrupted"`` when only ``starts`` of them ran.
-    starts_requested
-        Starts asked for (None: ``starts``).
+    R_typical, threshold
+        Median R over random postures in the box; R below ``relative * R_typical`` is zero.
+    minima_phi, minima_R, families
+        Every polished local minimum (one per start); the distinct ones with R <= threshold.
+    status, starts_requested
+        ``"completed"`` or ``"interrupted"``; the starts asked for (None: ``starts``).
     """
 
     params: SnakeParams
@@ -119,8 +109,7 @@ class SingularSearch:
         Returns
         -------
         dict
-            Per family ``postures``, ``R``, ``straight``, ``members``, ``span``; the
-            search settings and status.
+            Per family ``postures``, ``R``, ``straight``, ``members``, ``span``; settings, status.
         """
         families = self.families
         return {"postures": [f.phi.tolist() for f in families], "R": [f.R for f in families],
@@ -144,20 +133,14 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
 
     Parameters
     ----------
-    params
-        The robot (n >= 4, or >= 5 with a free joint).
-    starts
-        Number of random starting postures (uniform in the box), 1 .. :data:`MAX_STARTS`.
-    bound
-        Joint limit of the box [rad].
-    free_joint
-        Search R~ with this joint (or these joints) free, beside the robot's passive joints.
-    seed
-        Seed of the random starts, 0 .. :data:`MAX_SEED`.
-    relative
-        ``R <= relative * (median R of random postures)`` counts as numerically zero.
-    progress
-        Show a progress bar on stderr when it is a terminal.
+    params, starts, seed
+        The robot; random starts (uniform in the box), 1 .. :data:`MAX_STARTS`; their seed,
+        0 .. :data:`MAX_SEED`.
+    bound, free_joint
+        Joint limit of the box [rad]; joint(s) free for R~, beside the passive joints.
+    relative, progress
+        ``R <= relative * (median R of random postures)`` counts as zero; show a progress
+        bar on stderr when it is a terminal.
 
     Returns
     -------
@@ -166,10 +149,9 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
 
     Raises
     ------
-    RunInterrupted
-        On Ctrl-C or SIGTERM: ``partial`` holds the search so far (status "interrupted").
-    ParameterError
-        A bad argument, free joints that leave no task, or R zero everywhere.
+    RunInterrupted, ParameterError
+        On Ctrl-C or SIGTERM (``partial``: the search so far); a bad argument, free joints
+        that leave no task, or R zero everywhere.
     """
     check_params(params)
     starts = integer(starts, "starts", low=1, high=MAX_STARTS)

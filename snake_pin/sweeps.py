@@ -1,7 +1,5 @@
-"""Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map.
-
-A :class:`Sweep` holds one family's D and R as data (figures and files: a layer up). BLAS
-runs on one thread meanwhile: on these small matrices more only cost (:doc:`/performance`).
+"""Manipulability along posture families (Section IV, Figs. 2-9) and the (alpha, T_s) map, as
+data (figures and files: a layer up); BLAS on one thread meanwhile (:doc:`/performance`).
 """
 
 from __future__ import annotations
@@ -47,12 +45,9 @@ class Sweep:
         One of :data:`FAMILIES`, and its parameter with its unit (e.g. ``"phi0 [rad]"``).
     values, D, R
         The parameter values and the criteria there, (N,) each (D~ and R~ with free joints).
-    free_joint, robot
-        The free joint(s) or None, and the robot's name.
-    meta
-        Extra settings written with the data (e.g. ``points_requested``).
-    status
-        ``"completed"``, or ``"interrupted"`` for a partial sweep.
+    free_joint, robot, meta, status
+        The free joint(s) or None, the robot's name, extra settings written with the data,
+        ``"completed"`` or ``"interrupted"``.
     """
 
     family: str
@@ -129,18 +124,14 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
 
     Parameters
     ----------
-    snake
-        The robot; its passive joints are free beside ``free_joint``.
-    family
-        One of :data:`FAMILIES`.
-    free_joint
-        Joint(s) without an actuator (D~ and R~ of eq. 42).
-    points
-        Number of values, 2 .. :data:`MAX_POINTS` (0, singular, is inserted if inside).
-    bounds
-        The parameter range (default: the family's range in :data:`FAMILIES`).
-    progress
-        Show a progress bar on stderr when it is a terminal.
+    snake, family
+        The robot (its passive joints are free beside ``free_joint``), a :data:`FAMILIES` name.
+    free_joint, progress
+        Joint(s) without an actuator (D~ and R~ of eq. 42); show a progress bar on stderr
+        when it is a terminal.
+    points, bounds
+        Number of values, 2 .. :data:`MAX_POINTS` (0, singular, is inserted if inside), and
+        the parameter range (default: the family's in :data:`FAMILIES`).
 
     Returns
     -------
@@ -149,10 +140,9 @@ def sweep(snake: Snake, family: str, *, free_joint: int | Sequence[int] | None =
 
     Raises
     ------
-    RunInterrupted
-        On Ctrl-C or SIGTERM: ``partial`` holds the sweep so far (status "interrupted").
-    ParameterError
-        A bad argument, or free joints that leave the task no actuated joint.
+    RunInterrupted, ParameterError
+        On Ctrl-C or SIGTERM (``partial``: the sweep so far); a bad argument, or free joints
+        that leave the task no actuated joint.
     """
     instance(snake, Snake, "snake")
     if not isinstance(family, str) or family not in FAMILIES:
@@ -208,10 +198,8 @@ class RMap:
 
     Parameters
     ----------
-    alpha, ts, R
-        The grid's axes and R at every (T_s, alpha), shape (len(ts), len(alpha)).
-    free_joint
-        The free joint, or None.
+    alpha, ts, R, free_joint
+        The grid's axes, R at every (T_s, alpha) (shape (len(ts), len(alpha))), the free joint.
     """
 
     alpha: np.ndarray
@@ -226,14 +214,9 @@ def r_map(snake: Snake, *, free_joint: int | None = None, alpha_points: int = 12
 
     Parameters
     ----------
-    snake
-        The robot.
-    free_joint
-        A free joint (R~), or None.
-    alpha_points, ts_points
-        Grid sizes along alpha and T_s (1 .. :data:`MAX_POINTS`).
-    alpha_max, ts_max
-        Upper ends of the grid (both start at 0).
+    snake, free_joint, alpha_points, ts_points, alpha_max, ts_max
+        The robot, a free joint (R~) or None, the grid's sizes along alpha and T_s
+        (1 .. :data:`MAX_POINTS`) and its upper ends.
 
     Returns
     -------

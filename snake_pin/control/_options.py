@@ -1,13 +1,11 @@
-"""Fields of the controllers' options dataclasses: default, bounds and one-line doc in one place.
-
-:func:`option` declares a field, :func:`check_fields` validates an instance, :func:`merged`
-applies keyword overrides; :mod:`snake_pin.study.spec` reads the same metadata. A field's
-kind is its default's type: a bool is a switch, an int an integer, a dataclass (the MPC's
-cost weights) an instance of that class, anything else a real number or a gain.
+"""Fields of the controllers' options dataclasses: default, bounds and one-line doc in one place
+(read by :func:`check_fields`, :func:`documented` and :mod:`snake_pin.study.spec`); a field's
+kind is its default's type (bool, int, a dataclass, else a real number or a gain).
 """
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import field, fields, is_dataclass, replace
 from typing import Any, TypeVar
 
@@ -30,6 +28,36 @@ def option(default: Any, doc: str, *, unit: str = "", low: float | None = None,
     return field(default=default, metadata={
         "doc": doc, "unit": unit, "low": low, "high": high, "open_low": open_low,
         "symbol": symbol, "size": size, "entries": entries, "default_doc": default_doc})
+
+
+def documented(cls: type[T]) -> type[T]:
+    """Complete an options dataclass's one-line docstring with numpydoc Parameters and Raises
+    sections made from its fields' metadata (the texts study files show, written once)."""
+    lines = [inspect.cleandoc(cls.__doc__ or ""), "", "Parameters", "----------"]
+    for f in fields(cls):  # type: ignore[arg-type]
+        meta, default = f.metadata, f.default
+        if meta["symbol"]:
+            kind = "float or array_like"
+            domain = "positive definite" if meta["open_low"] else "positive semi-definite"
+        else:
+            kind = type(default).__name__ if isinstance(default, (bool, int, str)) or \
+                is_dataclass(default) else "float"
+            low, high = meta["low"], meta["high"]
+            domain = ", ".join(([] if low is None else [f"{'>' if meta['open_low'] else '>='} "
+                                                        f"{low:g}"])
+                               + ([] if high is None else [f"<= {high:g}"]))
+        shown = meta["default_doc"] or (f"``{type(default).__name__}()``" if is_dataclass(default)
+                                        else f"``{default:g}``" if type(default) is float
+                                        else f"``{default}``")
+        text = meta["doc"][:1].upper() + meta["doc"][1:].replace("|", "\\|")
+        lines += [f"{f.name} : {kind}{' or None' if default is None else ''}, optional",
+                  f"    {meta['symbol'] + ', ' if meta['symbol'] else ''}{text}"
+                  f"{' [' + meta['unit'] + ']' if meta['unit'] else ''}"
+                  f"{' (' + domain + ')' if domain else ''}; default {shown}."]
+    lines += ["", "Raises", "------", "ParameterError",
+              "    A field outside its domain or in conflict with another (one line naming it)."]
+    cls.__doc__ = "\n".join(lines)
+    return cls
 
 
 def tracking_gain(name: str) -> Any:
@@ -60,11 +88,8 @@ def _frozen_gain(value: object, symbol: str, size: int | None, definite: bool) -
         arr = np.zeros((0, 0))  # gain_matrix below says why
     order = size if size is not None else (max(arr.shape[0], 1) if arr.ndim in (1, 2) else 1)
     gain_matrix(value, order, symbol, definite=definite)
-    if arr.ndim == 0:
-        return float(arr)
-    if arr.ndim == 1:
-        return tuple(float(v) for v in arr)
-    return tuple(tuple(float(v) for v in row) for row in arr)
+    return float(arr) if arr.ndim == 0 else tuple(
+        arr.tolist() if arr.ndim == 1 else map(tuple, arr.tolist()))
 
 
 def check_fields(options: Any) -> None:

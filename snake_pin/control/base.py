@@ -74,9 +74,7 @@ class TimeTerms:
         self._start = 0  # where the next block starts
         self._next = float(self._times[0]) if len(self._times) else None
         self._rows_left: list[np.ndarray] = []
-        # the announced times up to the next block's, popped from the end (cheaper than
-        # reading the array)
-        self._times_left: list[float] = []
+        self._times_left: list[float] = []  # the block's times, popped from the end
 
     def __call__(self, t: float) -> np.ndarray:
         """The row at time t (read only)."""
@@ -109,8 +107,8 @@ class Controller(abc.ABC):
         """Forget internal state (filters, integrators) before a new run."""
 
     def prepare(self, times: np.ndarray) -> None:  # noqa: B027 - optional hook
-        """Learn the times of the coming calls, in order (after :meth:`reset`); the output
-        must not depend on whether this was called. Empty by default.
+        """Learn the times of the coming calls (after :meth:`reset`; the output may not
+        depend on it). Empty by default.
 
         Parameters
         ----------
@@ -178,11 +176,8 @@ class OpenLoop(Controller):
 class ReferenceLaw(Controller):
     """Base of the laws that follow a head reference with a serpenoid gait.
 
-    A subclass sets ``_law_time`` (the map from the rows of reference terms to its
-    time-only terms) and ``_time_row`` (a :class:`TimeTerms` of :meth:`_time_terms`). Its
-    buffers, if any, are made by :meth:`_allocate` once and again on unpickling (views do
-    not survive pickling), and unpacked by ``__call__`` as one tuple (cheaper than a lookup
-    per name); the last call's q'' and signals stay with the original.
+    A subclass sets ``_law_time`` (reference rows to time-only terms); its buffers, if any,
+    come from :meth:`_allocate`, again on unpickling (views do not survive pickling).
     """
 
     reference: Any
@@ -215,10 +210,8 @@ class ReferenceLaw(Controller):
 
         Parameters
         ----------
-        value : object
-            The head reference.
-        name : str, optional
-            The argument's name in the error message.
+        value, name : object, str
+            The head reference, and the argument's name in the error message.
 
         Returns
         -------

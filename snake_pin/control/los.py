@@ -1,16 +1,12 @@
-"""Line-of-sight (LOS) path following of the centre of mass: the field's baseline law.
-
-After Liljebäck et al. (*Snake Robots*, Springer 2013; IEEE TCST 20(1), 2012), in this
-package's conventions: a serpenoid gait with a steering offset phi_0, LOS guidance,
-heading control (``steering = "cascaded"`` or ``"pd"``) and joint control by collocated
-partial feedback linearisation. The law, its defaults and its signals:
-:ref:`derivation-los`.
+"""Line-of-sight (LOS) path following of the centre of mass after Liljebäck et al.: a
+steered serpenoid gait, LOS guidance, heading control and joint PFL (:ref:`derivation-los`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 from scipy.linalg import expm
@@ -20,81 +16,57 @@ from .._validation import brief, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..model import Snake
 from ..paths import Line, Path, PathReference
-from ._options import merged
+from ._options import documented, merged, option
 from .base import Controller
 
 __all__ = ["LOSController", "LOSParams"]
 
 _STEERING = ("cascaded", "pd")
-_POSITIVE = ("omega", "look_ahead", "lambda1", "lambda2", "v_min", "phi0_max", "phi0_rate",
-             "ref_period", "offset_period", "k_joint_p", "k_joint_d", "k_theta")
 #: The fields only one steering law reads: a value other than the default given with the
 #: other law would have no effect, so it is refused.
 _ONLY_FOR = {"cascaded": ("k_theta", "lambda1", "lambda2", "v_min"), "pd": ("k_p", "k_d")}
+_POSITIVE: dict[str, Any] = {"low": 0.0, "open_low": True}
 
 
+@documented
 @dataclass(frozen=True)
 class LOSParams:
-    """Parameters of :class:`LOSController` (validated; one ParameterError line each).
+    """Parameters of :class:`LOSController` (validated; the fields only one steering law
+    reads keep their defaults under the other)."""
 
-    The fields only one steering law reads keep their defaults under the other.
-
-    Parameters
-    ----------
-    alpha, omega, delta : float, optional
-        Gait amplitude [rad] (>= 0), frequency [rad/s] (> 0), phase lag between joints [rad].
-    look_ahead : float, optional
-        LOS look-ahead distance Delta [m] (> 0).
-    steering : {"cascaded", "pd"}, optional
-        The published model-based heading law, or the PD law.
-    k_theta : float, optional
-        Heading gain of the cascaded law [1/s^2] (> 0).
-    lambda1, lambda2 : float, optional
-        Turning constants of the averaged model [1/s], [1/(m s)] (cascaded law; > 0).
-    v_min : float, optional
-        Floor of the averaged forward speed in the cascaded law [m/s] (> 0).
-    k_p, k_d : float, optional
-        Gains of the PD steering law [rad/rad], [rad s/rad] (>= 0).
-    phi0_max, phi0_rate : float, optional
-        Saturation of the joint offset [rad] and of its rate [rad/s] (> 0).
-    ref_period, offset_period : float, optional
-        Periods ``2 pi / omega_c`` of the filters on theta_ref and phi_0 [s] (> 0).
-    speed_period : float, optional
-        Period of the filter averaging v_t [s]; 0: one gait period ``2 pi / omega``.
-    k_joint_p, k_joint_d : float, optional
-        Gains of the feedback-linearised joint law [1/s^2], [1/s] (> 0).
-
-    Raises
-    ------
-    ParameterError
-        A value out of its domain, an unknown ``steering``, or the other law's field set.
-    """
-
-    alpha: float = 0.5
-    omega: float = 0.8
-    delta: float = 0.94
-    look_ahead: float = 0.6
-    steering: str = "cascaded"
-    k_theta: float = 10.0
-    lambda1: float = 20.0
-    lambda2: float = 186.0
-    v_min: float = 0.03
-    k_p: float = 1.0
-    k_d: float = 0.2
-    phi0_max: float = 0.35
-    phi0_rate: float = 0.3
-    ref_period: float = 1.0
-    offset_period: float = 0.5
-    speed_period: float = 0.0
-    k_joint_p: float = 100.0
-    k_joint_d: float = 20.0
+    alpha: float = option(0.5, "gait amplitude", unit="rad", low=0.0)
+    omega: float = option(0.8, "gait frequency", unit="rad/s", **_POSITIVE)
+    delta: float = option(0.94, "phase lag between joints", unit="rad")
+    look_ahead: float = option(0.6, "LOS look-ahead distance Delta", unit="m", **_POSITIVE)
+    steering: str = option("cascaded", "the published model-based heading law (cascaded) or "
+                           "the PD law (pd)")
+    k_theta: float = option(10.0, "heading gain of the cascaded law", unit="1/s^2", **_POSITIVE)
+    lambda1: float = option(20.0, "turning constant of the averaged model (cascaded law)",
+                            unit="1/s", **_POSITIVE)
+    lambda2: float = option(186.0, "second turning constant of the averaged model (cascaded "
+                            "law)", unit="1/(m s)", **_POSITIVE)
+    v_min: float = option(0.03, "floor of the averaged forward speed (cascaded law)",
+                          unit="m/s", **_POSITIVE)
+    k_p: float = option(1.0, "gain of the PD steering law", unit="rad/rad", low=0.0)
+    k_d: float = option(0.2, "damping of the PD steering law", unit="rad s/rad", low=0.0)
+    phi0_max: float = option(0.35, "saturation of the joint offset", unit="rad", **_POSITIVE)
+    phi0_rate: float = option(0.3, "saturation of the offset's rate", unit="rad/s", **_POSITIVE)
+    ref_period: float = option(1.0, "period 2 pi / omega_c of the filter on theta_ref",
+                               unit="s", **_POSITIVE)
+    offset_period: float = option(0.5, "period of the filter on phi_0", unit="s", **_POSITIVE)
+    speed_period: float = option(0.0, "period of the filter averaging v_t (0: one gait period)",
+                                 unit="s")
+    k_joint_p: float = option(100.0, "stiffness of the feedback-linearised joint law",
+                              unit="1/s^2", **_POSITIVE)
+    k_joint_d: float = option(20.0, "damping of the feedback-linearised joint law", unit="1/s",
+                              **_POSITIVE)
 
     def __post_init__(self) -> None:
         for f in fields(self):
             if f.name != "steering":
                 object.__setattr__(self, f.name, finite_number(
                     getattr(self, f.name), f"LOS parameter {f.name}",
-                    positive=f.name in _POSITIVE, non_negative=f.name in ("alpha", "k_p", "k_d")))
+                    positive=f.metadata["open_low"], non_negative=f.metadata["low"] == 0.0))
         if not isinstance(self.steering, str) or self.steering not in _STEERING:
             raise ParameterError(f"LOS parameter steering must be one of {', '.join(_STEERING)}, "
                                  f"got {brief(self.steering)}")
@@ -107,10 +79,8 @@ class LOSParams:
 
 
 def los_heading(gamma: float, cross_track: float, look_ahead: float) -> float:
-    """The LOS angle ``gamma - atan(e / Delta)`` [rad] (cross-track e left positive, Delta > 0).
-
-    ParameterError for a value that is not a finite number or a non-positive ``look_ahead``.
-    """
+    """The LOS angle ``gamma - atan(e / Delta)`` [rad] (cross-track e left positive, Delta > 0);
+    ParameterError for a value that is not a finite number or a non-positive ``look_ahead``."""
     return _los_heading(finite_number(gamma, "gamma"), finite_number(cross_track, "cross_track"),
                         finite_number(look_ahead, "look_ahead", positive=True))
 
@@ -188,18 +158,17 @@ class ReferenceFilter:
 
 
 class LOSController(Controller):
-    """CM path following by LOS guidance and a steered serpenoid (Liljebäck et al.).
+    """CM path following by LOS guidance and a steered serpenoid (Liljebäck et al.); its
+    signals: ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``
+    (:ref:`derivation-los`).
 
     Parameters
     ----------
-    snake : Snake
-        The plant (passive joints get no torque).
-    path : Path or PathReference or None, optional
-        The CM's path (a PathReference's timing is ignored); default the x axis.
-    params : LOSParams or None, optional
-        :class:`LOSParams` (default ``LOSParams()``).
-    **overrides
-        Fields of :class:`LOSParams` to change (e.g. ``look_ahead=1.2``).
+    snake, path : Snake, Path or PathReference or None
+        The plant (passive joints get no torque) and the CM's path (default the x axis; a
+        PathReference's timing is ignored).
+    params, **overrides
+        :class:`LOSParams` (default: the defaults) and fields of it to change.
 
     Raises
     ------
@@ -215,8 +184,7 @@ class LOSController(Controller):
             raise ParameterError("every joint is passive: there is nothing to control")
         self.params = merged(LOSParams, params, overrides, argument="params",
                              field_word="LOS parameter")
-        path = Line() if path is None else path
-        path = path.path if isinstance(path, PathReference) else path
+        path = Line() if path is None else path.path if isinstance(path, PathReference) else path
         if not isinstance(path, Path):
             raise ParameterError(f"path must be a Path, got {type(path).__name__}")
         self.snake, self.path, p = snake, path, self.params
@@ -243,7 +211,7 @@ class LOSController(Controller):
         self._gait: tuple[float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
     def gait(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return the undulation without offset at time t.
+        """Return the undulation ``alpha sin(omega t - (i - 1) delta)`` without offset.
 
         Parameters
         ----------
@@ -253,7 +221,7 @@ class LOSController(Controller):
         Returns
         -------
         phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
-            ``alpha sin(omega t - (i - 1) delta)`` [rad] and its two derivatives (read-only).
+            The undulation [rad] and its two derivatives (read-only).
         """
         if self._gait is not None and self._gait[0] == t:  # asked twice per step
             return self._gait[1]
@@ -277,8 +245,7 @@ class LOSController(Controller):
         Returns
         -------
         dict of str to float
-            ``e_ct``, ``s_cm``, ``theta_los``, ``theta_avg`` (psi), ``dtheta_avg``, ``v_t``
-            (:ref:`derivation-los`).
+            ``e_ct``, ``s_cm``, ``theta_los``, ``theta_avg``, ``dtheta_avg``, ``v_t``.
         """
         p_cm, v_cm, psi, dpsi = _kinematics(self._lever, self.snake.nq, x)
         path = self.path
@@ -299,12 +266,9 @@ class LOSController(Controller):
 
         Parameters
         ----------
-        t : float
-            Time [s].
-        g : dict of str to float
-            :meth:`guidance`'s quantities plus ``v_avg``, the averaged forward speed [m/s].
-        ref : numpy.ndarray, shape (3,)
-            Filtered ``[theta_ref, theta_ref', theta_ref'']``.
+        t, g, ref : float, dict of str to float, numpy.ndarray
+            Time [s]; :meth:`guidance`'s quantities plus the averaged forward speed
+            ``v_avg`` [m/s]; the filtered ``[theta_ref, theta_ref', theta_ref'']``.
 
         Returns
         -------
@@ -327,10 +291,8 @@ class LOSController(Controller):
 
         Parameters
         ----------
-        x : numpy.ndarray, shape (2(n + 2),)
-            State ``x = [q, dq]``.
-        phi_r, dphi_r, ddphi_r : numpy.ndarray, shape (n - 1,)
-            Joint references [rad] and their first two time derivatives.
+        x, phi_r, dphi_r, ddphi_r : numpy.ndarray
+            State ``x = [q, dq]``; the joint references [rad] and their two derivatives.
 
         Returns
         -------
@@ -383,13 +345,6 @@ class LOSController(Controller):
         return tau
 
     def signals(self) -> dict[str, float]:
-        """Return the diagnostics of the last call (:ref:`derivation-los`; empty before one).
-
-        Returns
-        -------
-        dict of str to float
-            ``e_ct``, ``theta_ref``, ``theta_avg``, ``phi_0``, ``v_t``, ``v_avg``, ``s_cm``.
-        """
         return self._last
 
     def plant_acceleration(self, snake: object) -> np.ndarray | None:

@@ -1,9 +1,5 @@
-"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (erratum 5).
-
-The law takes the actuated torques whose accelerations come closest, in the
-``W = blockdiag(K_w2, K_phi)`` norm, to making ``s = e_w' + K_w1 e_w`` decay at rate lam
-and the joints follow the gait, so V decreases where the underactuation allows; a passive
-joint is a dropped column of E (:ref:`derivation-lyapunov`).
+"""Lyapunov-like head tracking (Section VI.2, eqs. 83-84), designed here (erratum 5): the
+torques whose accelerations come closest to making V decrease (:ref:`derivation-lyapunov`).
 """
 
 from __future__ import annotations
@@ -17,7 +13,7 @@ from .._blas import gemv, posv, syrk
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
-from ._options import check_fields, option, tracking_gain
+from ._options import check_fields, documented, option, tracking_gain
 from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
@@ -31,32 +27,11 @@ _MULTIPLY = np.multiply
 K_SHAPE_PASSIVE = 0.3
 
 
+@documented
 @dataclass(frozen=True)
 class LyapunovOptions:
     """Options of :class:`LyapunovController` (validated; gains are scalars, diagonals or
-    matrices).
-
-    Parameters
-    ----------
-    k_w1 : float or array_like, optional
-        K_w1 of (84), the head's error rates [1/s] (3 x 3, positive definite).
-    k_w2 : float or array_like, optional
-        K_w2 of (84), the weights of the head's error in V (3 x 3, diagonal, positive).
-    k_phi : float or array_like or None, optional
-        K_phi of (84), the joints' weights in V (diagonal, positive); None: 10 on joint 1
-        and 20 on the others.
-    lam : float, optional
-        Decay rate lambda of the head's error s [1/s] (> 0).
-    lam_shape : float or None, optional
-        Decay rate mu of the joints' velocity error e [1/s] (> 0); None: ``lam / 2``.
-    k_shape : float or None, optional
-        Shape spring k_s [1/s^2] (>= 0); None: 0, or 0.3 with a passive joint.
-
-    Raises
-    ------
-    ParameterError
-        A field is outside its domain (one line naming it).
-    """
+    matrices, K_w2 and K_phi diagonal)."""
 
     k_w1: object = tracking_gain("k_w1")
     k_w2: object = tracking_gain("k_w2")
@@ -76,10 +51,8 @@ class LyapunovOptions:
 
         Parameters
         ----------
-        joints : int or None, optional
-            The robot's n - 1 (None: ``k_phi`` stays as it is).
-        passive : bool, optional
-            Whether a joint gives no torque (passive or failed).
+        joints, passive : int or None, bool, optional
+            The robot's n - 1 (None: ``k_phi`` stays) and whether a joint gives no torque.
 
         Returns
         -------
@@ -100,16 +73,11 @@ class LyapunovController(ReferenceLaw):
 
     Parameters
     ----------
-    snake
-        The plant; its passive joints get no torque.
-    reference
-        Head reference; default :func:`~snake_pin.control.reference.head_first_reference`.
-    gait
-        Serpenoid for phi_r; default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
-    options
-        :class:`LyapunovOptions`; default ``LyapunovOptions()``.
-    **overrides
-        Fields of :class:`LyapunovOptions` to change (the result, resolved: ``self.options``).
+    snake, reference, gait
+        The plant (passive joints get no torque), head reference (default head first) and
+        serpenoid for phi_r (default alpha = pi/6, T_s = 1.5, v = 2, Section VI.2).
+    options, **overrides
+        :class:`LyapunovOptions` (default: the defaults) and fields of it to change.
 
     Raises
     ------
@@ -152,31 +120,23 @@ class LyapunovController(ReferenceLaw):
         rows_w, rows_phi = slice(0, 3), slice(3, nq)
         head, shape = (lambda block: slice(block.start, block.start + 3),
                        lambda block: slice(block.start + 3, block.stop))
-        law[rows_w, head(r)] = lam * k_w1
-        law[rows_w, head(dr)] = k_w1 + lam * eye3
-        law[rows_w, head(ddr)] = eye3
-        law[rows_w, head(q)] = -lam * k_w1
-        law[rows_w, head(v)] = -(k_w1 + lam * eye3)
-        law[rows_phi, shape(r)] = k_s * np.eye(m)
-        law[rows_phi, shape(dr)] = mu * np.eye(m)
-        law[rows_phi, shape(ddr)] = np.eye(m)
-        law[rows_phi, shape(q)] = -k_s * np.eye(m)
-        law[rows_phi, shape(v)] = -mu * np.eye(m)
+        s_rows, e_rows, eye_m = slice(nq, nq + 3), slice(nq + 3, 2 * nq), np.eye(m)
+        # each row block's blocks on [w_r, w_r', w_r'', q, q'] (head) or their joint parts
+        for rows, part, blocks in (
+                (rows_w, head, (lam * k_w1, k_w1 + lam * eye3, eye3, -lam * k_w1,
+                                -(k_w1 + lam * eye3))),
+                (rows_phi, shape, (k_s * eye_m, mu * eye_m, eye_m, -k_s * eye_m, -mu * eye_m)),
+                (s_rows, head, (k_w1, eye3, None, -k_w1, -eye3)),
+                (e_rows, shape, (None, eye_m, None, None, -eye_m))):
+            for column, block in zip((r, dr, ddr, q, v), blocks, strict=True):
+                if block is not None:
+                    law[rows, part(column)] = block
         law[:nq, b] = -np.eye(nq)
         law[:nq] *= sqrt_w[:, None]
-        s_rows, e_rows = slice(nq, nq + 3), slice(nq + 3, 2 * nq)
-        law[s_rows, head(dr)] = eye3
-        law[s_rows, head(r)] = k_w1
-        law[s_rows, head(v)] = -eye3
-        law[s_rows, head(q)] = -k_w1
-        law[e_rows, shape(dr)] = np.eye(m)
-        law[e_rows, shape(v)] = -np.eye(m)
         law[nq:] *= sqrt_w[:, None]  # [s; e] weighted: V is their squared norm
         self._law_time = law[:, :3 * nq].T.copy()  # applied to rows of references
-        # A passive joint keeps its row of H^-1 (A^T's rows are all the joints'), weighted
-        # by 0, and one more column of the stack holds a 1 in its row: its equation in
-        # A^T W A tau = rhs is then tau_j = 0, exactly, and the actuated torques are those
-        # of the reduced system. Each error row is padded with a 0 in those columns.
+        # a passive joint's row of A^T weighs 0 and has a 1 in a column of its own: tau_j = 0
+        # exactly (:ref:`derivation-lyapunov`); the error rows have 0 there
         passive = [k - 1 for k in snake.params.passive]  # tau's entries
         width = nq + len(passive)
         # applied to [q, q', b, time row]: the time terms enter the same product
@@ -198,10 +158,8 @@ class LyapunovController(ReferenceLaw):
         nq, m = snake.nq, snake.n - 1
         inputs, stack = np.zeros(5 * nq), self._stack.copy()  # a copy's own buffers
         data = snake.create_data()
-        # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas):
-        # [A^T W A, rhs, V] = stack stack^T (upper triangle), and its A^T W A block copied
-        # whole for the solve. A^T = E^T H^-1 (H^-1 symmetric): the joints' rows of H^-1, a
-        # contiguous view of the data's (Pinocchio stores it row-major), and A = rows.T
+        # BLAS and LAPACK in place on Fortran-ordered buffers (snake_pin._blas); A^T: the
+        # joints' rows of H^-1, a contiguous view of the data's (row-major, symmetric)
         normal = np.zeros((m + 2, m + 2), order="F")
         gram = np.zeros((m, m), order="F")
         rows = data.inverse_mass[3:]
@@ -247,15 +205,13 @@ class LyapunovController(ReferenceLaw):
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
+        x, t : numpy.ndarray, float
+            State ``x = [q, dq]`` (length 2(n + 2)) and time [s].
 
         Returns
         -------
         tuple of numpy.ndarray
-            ``q''*`` (n + 2), the head's error ``s`` (3), the joints' velocity error ``e``.
+            ``q''*`` (n + 2), ``s`` (3) and ``e`` (n - 1).
         """
         nq = self.snake.nq
         w_r, dw_r, ddw_r = self.reference(t)
@@ -291,10 +247,8 @@ class LyapunovController(ReferenceLaw):
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
+        x, t : numpy.ndarray, float
+            State ``x = [q, dq]`` (length 2(n + 2)) and time [s].
 
         Returns
         -------

@@ -1,11 +1,8 @@
 """Model-predictive head tracking: a receding-horizon Box-FDDP on the snake's OCP.
 
-:class:`MPCController` solves the problem of :mod:`snake_pin.ocp` every
-``resolve_period`` from the measured state and applies the plan with its Riccati
-feedback in between (:doc:`/mpc`); passive joints are not inputs and get exactly zero
-torque. The solver is warm-started from the planned states shifted by the elapsed nodes;
-the first solve starts from a zero-torque rollout (a rollout under a joint PD towards the
-gait spins the light head link and leaves Box-FDDP in a poor local minimum).
+:class:`MPCController` solves the problem of :mod:`snake_pin.ocp` every ``resolve_period``
+from the measured state, warm-started from the shifted plan, and applies the plan with its
+Riccati feedback in between; passive joints get exactly zero torque (:doc:`/mpc`).
 """
 
 from __future__ import annotations
@@ -18,53 +15,24 @@ from typing import Any
 import crocoddyl
 import numpy as np
 
-from .._validation import brief
+from .._validation import instance
 from ..exceptions import ParameterError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..ocp import CostWeights, TrackingProblem, reference_states
-from ._options import check_fields, merged, option
-from .base import Controller, gait_for
+from ._options import check_fields, documented, merged, option
+from .base import Controller, ReferenceLaw, gait_for
 from .reference import HeadReference, head_first_reference
 
 __all__ = ["MPCController", "MPCOptions", "SolveStats"]
 
 
+@documented
 @dataclass(frozen=True)
 class MPCOptions:
-    """Settings of :class:`MPCController` (validated; one ParameterError line each).
-
-    Parameters
-    ----------
-    horizon : float, optional
-        Length of the prediction [s]; at least one node.
-    node_dt : float, optional
-        Step of the RK4 nodes [s] (RK4 diverges beyond about 20 ms: :doc:`/mpc`).
-    resolve_period : float, optional
-        Time between re-solves [s]: a whole number of nodes, at most the horizon.
-    torque_bound : float, optional
-        ``|tau_i| <= torque_bound`` [N m], > 0.
-    joint_limit : float, optional
-        The joint-limit barrier's ``|phi_i|`` [rad], > 0.
-    iterations : int, optional
-        Box-FDDP iterations per warm-started re-solve, >= 1.
-    first_iterations : int, optional
-        Iterations of the first (cold) solve, >= 1. On the benchmark's cells and on the
-        line with any single failed joint, Box-FDDP converges or stalls (rejects every
-        step) within the default from the cold start: more iterations return the same
-        plan.
-    step_halvings : int, optional
-        Line search: steps 1, 1/2, ..., 2^-step_halvings (>= 0).
-    feedback : bool, optional
-        Apply the Riccati gains between re-solves (False: the planned torques alone).
-    weights : CostWeights, optional
-        The costs' weights (:class:`~snake_pin.ocp.CostWeights`).
-
-    Raises
-    ------
-    ParameterError
-        A value out of its domain (one line).
-    """
+    """Settings of :class:`MPCController` (validated: the horizon at least one node, the
+    resolve period a whole number of nodes within it; nodes of 20 ms or more diverge:
+    :doc:`/mpc`)."""
 
     horizon: float = option(0.5, "length of the prediction", unit="s", low=0.0, open_low=True)
     node_dt: float = option(0.01, "step of the RK4 nodes", unit="s", low=0.0, open_low=True)
@@ -110,12 +78,8 @@ class SolveStats:
 
     Parameters
     ----------
-    solves : int
-        Number of solves.
-    iterations : int
-        Box-FDDP iterations over all solves.
-    wall : float
-        Wall time in the solver [s] (references, warm start and solve).
+    solves, iterations, wall : int, int, float
+        Solves, Box-FDDP iterations over them, wall time in the solver [s].
     """
 
     solves: int
@@ -124,17 +88,14 @@ class SolveStats:
 
 
 class MPCController(Controller):
-    """Receding-horizon head tracking by Box-FDDP on the snake's optimal-control problem.
+    """Receding-horizon head tracking by Box-FDDP on the snake's optimal-control problem; its
+    signals ``solve_cost`` and ``solve_iterations`` are the last solve's.
 
     Parameters
     ----------
-    snake : Snake
-        The plant's model (its friction and passive joints are the problem's).
-    reference : callable, optional
-        Head reference ``t -> (w_r, w_r', w_r'')``; default
-        :func:`~snake_pin.control.reference.head_first_reference`.
-    gait : Serpenoid, optional
-        The gait prior phi_r(t); default alpha = pi/6, T_s = 1.5, v = 2 (Section VI.2).
+    snake, reference, gait : Snake, callable, Serpenoid
+        The plant's model (its friction and passive joints are the problem's); the others
+        as for :class:`~snake_pin.control.lyapunov.LyapunovController` (gait: the prior).
     options : MPCOptions, optional
         The law's settings (default :class:`MPCOptions`).
 
@@ -148,23 +109,17 @@ class MPCController(Controller):
 
     def __init__(self, snake: Snake, reference: HeadReference | None = None,
                  gait: Serpenoid | None = None, options: MPCOptions | None = None) -> None:
-        if not isinstance(snake, Snake):
-            raise ParameterError(f"snake must be a Snake, got {brief(snake)}")
-        n = snake.n
-        if not snake.params.actuated:
+        if not instance(snake, Snake, "snake").params.actuated:
             raise ParameterError("every joint is passive: there is nothing to control")
-        self.snake = snake
-        if reference is not None and not callable(reference):
-            raise ParameterError(f"reference must be a head reference (a callable of time), "
-                                 f"got {brief(reference)}")
-        self.reference = head_first_reference() if reference is None else reference
+        self.snake, n = snake, snake.n
+        self.reference = (head_first_reference() if reference is None
+                          else ReferenceLaw.checked_reference(reference))
         self.gait = gait_for(n, gait, Serpenoid(n, np.pi / 6, 1.5, 2.0))
         self.options = merged(MPCOptions, options, {})
         self._actuated = np.array(snake.params.actuated, dtype=int) - 1  # entries of tau
         self._build()
         self.reset()
 
-    # ----------------------------------------------------------------- set-up
     def _build(self) -> None:
         """The problem and its solver (not pickled: rebuilt on unpickling)."""
         o = self.options
@@ -199,7 +154,6 @@ class MPCController(Controller):
         """The solves since the last reset (count, iterations, wall time)."""
         return SolveStats(self._solves, self._iterations, self._wall)
 
-    # ------------------------------------------------------------------ solve
     def _guess(self, x: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """A rollout from x under zero torque (x itself when the snake starts at rest)."""
         us = [np.zeros(self._problem.nu)] * self.options.nodes
@@ -239,7 +193,6 @@ class MPCController(Controller):
         self._last = {"solve_cost": float(solver.cost), "solve_iterations": float(solver.iter)}
         self._wall += time.perf_counter() - wall
 
-    # ---------------------------------------------------------------- control
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """Joint torques at (x, t): 0 on passive joints, within ``+-torque_bound``."""
         x = np.asarray(x, dtype=float)
@@ -259,11 +212,4 @@ class MPCController(Controller):
         return tau
 
     def signals(self) -> dict[str, float]:
-        """The last solve's cost and iterations (recorded by the simulator).
-
-        Returns
-        -------
-        dict of str to float
-            ``solve_cost`` and ``solve_iterations``.
-        """
         return dict(self._last)

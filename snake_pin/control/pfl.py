@@ -1,7 +1,5 @@
-"""Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected.
-
-The law derived again from (27) (eq. 70 is misprinted), needing R > 0; ``climb_R`` adds a
-damped gradient flow up log R in the null space of H12 (:ref:`derivation-pfl`).
+"""Partial feedback linearisation of the head (Section VI.1, eqs. 68-78), sign corrected,
+with an optional climb up log R in the null space of H12 (:ref:`derivation-pfl`).
 """
 
 from __future__ import annotations
@@ -19,7 +17,7 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import r_batch
 from ..model import Snake
-from ._options import check_fields, option
+from ._options import check_fields, documented, option
 from .base import ReferenceLaw
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference
@@ -33,28 +31,11 @@ _NEGATIVE, _SUBTRACT = np.negative, np.subtract
 CLIMB_DAMPING = 2.0
 
 
+@documented
 @dataclass(frozen=True)
 class PFLOptions:
-    """Options of :class:`PFLController` (validated; gains are scalars, diagonals or matrices).
-
-    Parameters
-    ----------
-    k_v, k_p : float or array_like, optional
-        K_v [1/s] and K_p [1/s^2] of (71) on the head (3 x 3, positive definite).
-    r_v, r_p : float or array_like, optional
-        R_v [1/s] and R_p [1/s^2] of (78) on the joints (positive semi-definite).
-    r_min : float, optional
-        Smallest R for which the law is defined (>= 0); below it SingularPostureError.
-    climb_R : float, optional
-        Gain gamma of the singularity-aware redundancy term (>= 0; 0: the paper's law).
-    climb_damping : float or None, optional
-        Its damping k_d [1/s] (> 0); None: 2. Only with ``climb_R > 0``.
-
-    Raises
-    ------
-    ParameterError
-        A field is outside its domain, or ``climb_damping`` is given with ``climb_R = 0``.
-    """
+    """Options of :class:`PFLController` (validated; gains are scalars, diagonals or matrices;
+    ``climb_damping`` only with ``climb_R > 0``)."""
 
     k_v: object = option(6.0, "velocity gain on the head", unit="1/s", low=0.0, open_low=True,
                          symbol="K_v", size=3)
@@ -81,16 +62,11 @@ class PFLController(ReferenceLaw):
 
     Parameters
     ----------
-    snake
-        The plant model (all joints actuated: PFL needs every input).
-    reference
-        Head reference; default w_r = [0.1 t, 0, 0] (eq. 80).
-    gait
-        Serpenoid for phi_r; default alpha = pi/3, T_s = 1, v = 0.18 (eq. 81).
-    options
-        :class:`PFLOptions`; default ``PFLOptions()``.
-    **overrides
-        Fields of :class:`PFLOptions` to change (the result: ``self.options``).
+    snake, reference, gait
+        The plant (every joint actuated), head reference (default w_r = [0.1 t, 0, 0], eq.
+        80) and serpenoid for phi_r (default alpha = pi/3, T_s = 1, v = 0.18, eq. 81).
+    options, **overrides
+        :class:`PFLOptions` (default: the defaults) and fields of it to change.
 
     Raises
     ------
@@ -142,9 +118,8 @@ class PFLController(ReferenceLaw):
         data = snake.create_data()
         mass, bias, stacked = data.mass, data.bias, self._stacked  # H (Fortran-ordered, whole)
         state = np.zeros(2 * nq)
-        # BLAS and LAPACK run in place on Fortran-ordered buffers (snake_pin._blas): H12
-        # and H22 are copied into them per call; H's columns are its rows (symmetric). h is
-        # the call's own (data.bias): its head's rows become z, its joints' the torque
+        # BLAS and LAPACK in place on Fortran-ordered buffers (snake_pin._blas), H12 and H22
+        # copied in per call; h (data.bias): its head's rows become z, its joints' the torque
         h12, h22 = np.zeros((3, m), order="F"), np.zeros((m, m), order="F")
         gram, p_rhs = np.zeros((3, 3), order="F"), np.zeros(m)
         minus_a, u, z, h_joints = stacked[:3], stacked[3:], bias[:3], bias[3:]
@@ -209,10 +184,8 @@ class PFLController(ReferenceLaw):
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
+        x, t : numpy.ndarray, float
+            State ``x = [q, dq]`` (length 2(n + 2)) and time [s].
 
         Returns
         -------

@@ -1,8 +1,6 @@
-"""The Lyapunov-like law at velocity level, for friction-dominated robots (wheels).
-
-The unactuated rows of (20) reduce to the force balance ``C_uu u' + C_ua a' = 0``, so V of
-(83) is a quadratic in the actuated joint velocities: the law takes its minimiser, which
-PD servos (:func:`servo_gains`) realise (:ref:`derivation-quasistatic`).
+"""The Lyapunov-like law at velocity level, for friction-dominated robots (wheels): the
+joint velocities of least V through the quasi-static connection, realised by PD servos
+(:ref:`derivation-quasistatic`).
 """
 
 from __future__ import annotations
@@ -19,33 +17,18 @@ from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..params import SnakeParams
-from ._options import check_fields, option, tracking_gain
+from ._options import check_fields, documented, option, tracking_gain
 from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference
 
 __all__ = ["QuasiStaticLyapunovController", "QuasiStaticOptions", "servo_gains"]
 
+@documented
 @dataclass(frozen=True)
 class QuasiStaticOptions:
-    """Options of :class:`QuasiStaticLyapunovController` (validated; one line each).
-
-    Parameters
-    ----------
-    k_w1, k_w2, k_phi : float or array_like, optional
-        Gains of (84), as in :class:`~snake_pin.control.lyapunov.LyapunovOptions`.
-    servo_bandwidth : float, optional
-        Bandwidth omega_s of the joint servos [rad/s] (> 0).
-    max_lead : float, optional
-        How far the integrated joint reference may run ahead of the joint [rad] (> 0).
-    control_dt : float, optional
-        The controller's sampling period [s] (> 0).
-
-    Raises
-    ------
-    ParameterError
-        A field is outside its domain (one line naming it).
-    """
+    """Options of :class:`QuasiStaticLyapunovController` (validated; gains as in
+    :class:`~snake_pin.control.lyapunov.LyapunovOptions`)."""
 
     k_w1: object = tracking_gain("k_w1")
     k_w2: object = tracking_gain("k_w2")
@@ -61,17 +44,12 @@ class QuasiStaticOptions:
 
 
 def servo_gains(params: SnakeParams, bandwidth: float) -> tuple[np.ndarray, np.ndarray]:
-    """(K_p, K_d) per joint (n - 1 each) of critically damped servos of ``bandwidth`` [rad/s].
-
-    ``K_p,k = omega^2 I_k``, ``K_d,k = 2 omega I_k``, ``I_k`` the mean of ``m (2l)^2`` over
-    the two links joint k joins.
+    """(K_p, K_d) per joint of critically damped servos (:ref:`derivation-quasistatic`).
 
     Parameters
     ----------
-    params : SnakeParams
-        The robot.
-    bandwidth : float
-        Servo bandwidth ``omega`` [rad/s].
+    params, bandwidth : SnakeParams, float
+        The robot and the servo bandwidth ``omega`` [rad/s].
 
     Returns
     -------
@@ -96,14 +74,11 @@ class QuasiStaticLyapunovController(ReferenceLaw):
 
     Parameters
     ----------
-    snake
-        The robot and its viscous friction model.
-    reference, gait
-        As for :class:`~snake_pin.control.lyapunov.LyapunovController`.
-    options
-        :class:`QuasiStaticOptions`.
-    **overrides
-        Fields of :class:`QuasiStaticOptions` to change (the result: ``self.options``).
+    snake, reference, gait
+        The robot with its viscous friction; the others as for
+        :class:`~snake_pin.control.lyapunov.LyapunovController`.
+    options, **overrides
+        :class:`QuasiStaticOptions` (default: the defaults) and fields of it to change.
 
     Raises
     ------
@@ -138,8 +113,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self.k_p, self.k_d = servo_gains(params, opts.servo_bandwidth)
         self._k_p_a, self._k_d_a = self.k_p[self._a - 3], self.k_d[self._a - 3]
         self.max_lead, self.dt = opts.max_lead, opts.control_dt
-        self._reference_a: np.ndarray | None = None
-        self._last: tuple[np.ndarray, ...] | None = None
+        self.reset()
         self._build_law()
 
     def _build_law(self) -> None:
@@ -147,9 +121,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         params, nq = self.snake.params, self.snake.nq
         u, a = self._u, self._a
         m, k = len(u), len(a)
-        # C(q) = M_cc - M_cw M_ww^-1 M_wc on the damping twin (snake_pin.friction): one CRBA
-        # and one solve of [M_uu M_uw; M_wu M_ww] [X; Y] = [M_ua; M_wa] give X = C_uu^-1 C_ua
-        # = -J, read from the upper triangle Pinocchio fills; massless wheels are left out
+        # C_uu^-1 C_ua = -J: one CRBA of the damping twin and one solve (the upper triangle
+        # Pinocchio fills; :ref:`derivation-quasistatic`); massless wheels are left out
         twin = self.snake.friction.twin
         self._twin, self._twin_data = twin, twin.createData()
         self._twin_q = np.zeros(twin.nq)  # [q, 0_w]
@@ -166,9 +139,7 @@ class QuasiStaticLyapunovController(ReferenceLaw):
         self._sqrt_w_u = np.sqrt(self._w_u)
         self._neg_sqrt_w_u = -self._sqrt_w_u[:, None]
         self._diag_w_a = np.asfortranarray(np.diag(self._w_a))
-        # time-only terms, per reference row [w_r, phi_r, w_r', phi_r', w_r'', phi_r'']:
-        # [sqrt(W_u) (w_r' + K_w1 w_r, phi_r,passive'), W_a phi_r,actuated',
-        # phi_r,actuated'] (the weights applied here once, not per call)
+        # the time-only terms of :meth:`_time_terms` from reference rows, weights applied once
         sqrt_w = self._sqrt_w_u
         law = np.zeros((3 * nq, m + 2 * k))
         law[:3, :3] = self.k_w1.T * sqrt_w[:3]
@@ -200,8 +171,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
 
     def reset(self) -> None:
         """Forget the integrated joint reference and the last call before a new run."""
-        self._reference_a = None
-        self._last = None
+        self._reference_a: np.ndarray | None = None
+        self._last: tuple[np.ndarray, ...] | None = None
 
     def connection(self, q: np.ndarray) -> np.ndarray:
         """``J(q)`` with ``u' = J a'`` (rows: x_h, y_h, theta_1, passive phi; columns: actuated).
@@ -268,10 +239,8 @@ class QuasiStaticLyapunovController(ReferenceLaw):
 
         Parameters
         ----------
-        x : numpy.ndarray
-            State ``x = [q, dq]``, length 2(n + 2).
-        t : float
-            Time [s].
+        x, t : numpy.ndarray, float
+            State ``x = [q, dq]`` (length 2(n + 2)) and time [s].
 
         Returns
         -------

@@ -1,20 +1,19 @@
-"""MuJoCo model of a snake on passive wheels, built from ``SnakeParams`` with MjSpec.
-
-The links are those of :mod:`snake_pin.urdf`; this module adds a floor, gravity, a wheel
-pair per link (rolling along it, sliding across: anisotropic Coulomb friction), contacts
-and motors, so that the chain's mass matrix equals Pinocchio's H (:ref:`derivation-engine`).
+"""MuJoCo model of a snake on passive wheels, built from ``SnakeParams`` with MjSpec: the
+links of :mod:`snake_pin.urdf` on a floor, a wheel pair per link, contacts and motors
+(:ref:`derivation-engine`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from .._validation import finite_number
+from .._validation import finite_number, integer
+from ..control._options import documented, option
 from ..exceptions import ParameterError
 from ..params import SnakeParams
 from ..urdf import EFFORT_LIMIT, RADIUS_RATIO
@@ -29,54 +28,32 @@ CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone
 JACOBIAN = mujoco.mjtJacobian.mjJAC_SPARSE
 
 
+@documented
 @dataclass(frozen=True)
 class WheelSpec:
-    """A wheel pair per link and the contact and solver settings.
+    """A wheel pair per link (spheres on hinge axles) and the contact and solver settings."""
 
-    Parameters
-    ----------
-    radius, mass : float, optional
-        Wheel radius [m] and mass [kg] (each), > 0; wheels are spheres on hinge axles.
-    friction : float, optional
-        Coulomb coefficient wheel-floor (sliding sideways), > 0.
-    rolling_damping : float, optional
-        Viscous damping of each wheel's axle [N m s] (rolling resistance), >= 0.
-    timestep : float, optional
-        Engine step [s], > 0; the controller runs every ``substeps`` steps.
-    substeps : int, optional
-        Engine steps per control period (``control_dt = timestep * substeps``).
-    max_bend : float, optional
-        Joint angle [rad] up to which wheels of neighbouring links must not overlap.
-    cone : {"elliptic", "pyramidal"}, optional
-        MuJoCo friction cone: elliptic (Coulomb) or pyramidal (faster, heading-dependent).
-
-    Raises
-    ------
-    ParameterError
-        ``cone`` is unknown, a number is out of its range, or ``substeps`` is not >= 1.
-    """
-
-    radius: float = 0.03
-    mass: float = 0.03
-    friction: float = 1.0
-    rolling_damping: float = 2e-5
-    timestep: float = 5e-4
-    substeps: int = 2
-    max_bend: float = math.pi / 3
-    cone: str = "elliptic"
+    radius: float = option(0.03, "wheel radius", unit="m", low=0.0, open_low=True)
+    mass: float = option(0.03, "mass of each wheel", unit="kg", low=0.0, open_low=True)
+    friction: float = option(1.0, "Coulomb coefficient wheel-floor (sliding sideways)",
+                             low=0.0, open_low=True)
+    rolling_damping: float = option(2e-5, "viscous damping of each wheel's axle (rolling "
+                                    "resistance)", unit="N m s", low=0.0)
+    timestep: float = option(5e-4, "engine step", unit="s", low=0.0, open_low=True)
+    substeps: int = option(2, "engine steps per control period", low=1)
+    max_bend: float = option(math.pi / 3, "joint angle up to which wheels of neighbouring "
+                             "links must not overlap", unit="rad", low=0.0, open_low=True)
+    cone: str = option("elliptic", "MuJoCo friction cone: elliptic (Coulomb) or pyramidal "
+                       "(faster, heading-dependent)")
 
     def __post_init__(self) -> None:
         if self.cone not in CONES:
             raise ParameterError(f"cone must be one of {', '.join(CONES)}, got {self.cone!r}")
-        for name in ("radius", "mass", "friction", "timestep", "max_bend"):
-            object.__setattr__(self, name, finite_number(getattr(self, name), name,
-                                                         positive=True))
-        object.__setattr__(self, "rolling_damping",
-                           finite_number(self.rolling_damping, "rolling_damping",
-                                         non_negative=True))
-        if isinstance(self.substeps, bool) or int(self.substeps) != self.substeps \
-                or self.substeps < 1:
-            raise ParameterError(f"substeps must be a positive integer, got {self.substeps}")
+        for f in (f for f in fields(self) if isinstance(f.default, float)):
+            object.__setattr__(self, f.name, finite_number(
+                getattr(self, f.name), f.name, positive=f.metadata["open_low"],
+                non_negative=True))
+        object.__setattr__(self, "substeps", integer(self.substeps, "substeps", low=1))
 
     @property
     def control_dt(self) -> float:
@@ -86,33 +63,23 @@ class WheelSpec:
 
 @dataclass
 class EngineModel:
-    """A compiled MuJoCo model with the index maps to paper coordinates.
-
-    Built by :func:`build_engine_model`. The single-value properties (``body_mass``,
-    ``body_inertia``, ``wheel_offset``) raise ParameterError when the links differ.
+    """A compiled MuJoCo model with the index maps to paper coordinates (from
+    :func:`build_engine_model`).
 
     Parameters
     ----------
-    params : SnakeParams
-        The robot the model was built from.
-    wheels : WheelSpec
-        Its wheels and solver settings.
-    model : mujoco.MjModel
-        The compiled model.
-    data : mujoco.MjData
-        Its data (the engine's state).
-    hinge_qpos : numpy.ndarray of int, shape (n - 1,)
-        qpos addresses of ``joint_1`` .. ``joint_{n-1}``.
-    hinge_dof : numpy.ndarray of int, shape (n - 1,)
-        DOF addresses of the same joints.
+    params, wheels : SnakeParams, WheelSpec
+        The robot the model was built from, and its wheels and solver settings.
+    model, data : mujoco.MjModel, mujoco.MjData
+        The compiled model and its data (the engine's state).
+    hinge_qpos, hinge_dof : numpy.ndarray of int, shape (n - 1,)
+        qpos and DOF addresses of ``joint_1`` .. ``joint_{n-1}``.
     link_bodies : numpy.ndarray of int, shape (n,)
         Body ids of ``link_1`` .. ``link_n``.
     actuated : tuple of int
         1-based joints with a motor, in actuator order.
-    body_masses : numpy.ndarray, shape (n,)
-        ``m_i - 2 m_w``: each link's mass without its wheels [kg].
-    body_inertias : numpy.ndarray, shape (n,)
-        ``J_i - 2 (m_w d_i^2 + I_w)``: each link's yaw inertia without wheels [kg m^2].
+    body_masses, body_inertias : numpy.ndarray, shape (n,)
+        Each link's mass [kg] and yaw inertia [kg m^2] without its wheels.
     wheel_offsets : numpy.ndarray, shape (n,)
         d_i: lateral distance of link i's wheel centres from its axis [m].
     meta : dict of str to float, optional
@@ -171,13 +138,10 @@ class EngineModel:
         numpy.ndarray, shape (n + 2,)
             The paper's ``q``, theta_1 (the head's yaw) in ``(-pi, pi]``.
         """
-        head = self.data.xmat[self.link_bodies[0]].reshape(3, 3)
-        pos = self.data.xpos[self.link_bodies[0]]
-        yaw = math.atan2(head[1, 0], head[0, 0])
-        out = np.empty(len(self.hinge_qpos) + 3)
-        out[0], out[1], out[2] = pos[0], pos[1], yaw
-        out[3:] = self.data.qpos[self.hinge_qpos]
-        return out
+        head, data = self.link_bodies[0], self.data
+        frame = data.xmat[head]
+        return np.r_[data.xpos[head][:2], math.atan2(frame[3], frame[0]),
+                     data.qpos[self.hinge_qpos]]
 
     def set_paper_configuration(self, q: np.ndarray) -> None:
         """Place the snake flat on its wheels at q (at rest) and run forward kinematics.
@@ -235,24 +199,18 @@ def _wheel_geometry(params: SnakeParams, wheels: WheelSpec) -> np.ndarray:
         neighbours = np.array([lengths[i], 0.0]) + theirs @ bend.T
         gap = min(np.linalg.norm(a - b) for a in ours for b in neighbours)
         if gap < 2 * wheels.radius:
-            where = "" if params.uniform else f"links {i + 1} and {i + 2}: "
+            where, sizes = ("", f"{params.link_length}") if params.uniform else (
+                f"links {i + 1} and {i + 2}: ", f"{lengths[i]:g} and {lengths[i + 1]:g}")
             raise ParameterError(
-                f"{where}wheels of radius {wheels.radius} m overlap on "
-                f"{_lengths_text(params, i)} m links (closest wheel centres {gap:.3f} m "
-                f"apart at a {math.degrees(wheels.max_bend):.0f} degree bend)")
+                f"{where}wheels of radius {wheels.radius} m overlap on {sizes} m links "
+                f"(closest wheel centres {gap:.3f} m apart at a "
+                f"{math.degrees(wheels.max_bend):.0f} degree bend)")
     return offsets
 
 
-def _lengths_text(params: SnakeParams, i: int) -> str:
-    """Links i and i + 1's lengths in words."""
-    if params.uniform:
-        return f"{params.link_length}"
-    return f"{params.link_lengths[i]:g} and {params.link_lengths[i + 1]:g}"
-
-
 def _split(params: SnakeParams, wheels: WheelSpec,
-           offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(m_body,i, J_body,i): what each link keeps once its wheels have their share."""
+           offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """(m_body,i, J_body,i, a wheel's inertia): what each link keeps beside its wheels."""
     body_masses = params.masses - 2 * wheels.mass
     wheel_inertia = 0.4 * wheels.mass * wheels.radius**2  # solid sphere
     body_inertias = params.inertias - 2 * (wheels.mass * offsets**2 + wheel_inertia)
@@ -261,7 +219,7 @@ def _split(params: SnakeParams, wheels: WheelSpec,
         raise ParameterError(
             f"{where}wheels of {wheels.mass} kg leave no mass or inertia for the link "
             f"(m_body = {body_masses[i]:.3g} kg, J_body = {body_inertias[i]:.3g} kg m^2)")
-    return body_masses, body_inertias
+    return body_masses, body_inertias, wheel_inertia
 
 
 def _set(item: Any, **values: Any) -> Any:
@@ -279,10 +237,8 @@ def build_engine_model(params: SnakeParams | None = None,
 
     Parameters
     ----------
-    params : SnakeParams or None, optional
-        The robot (default :meth:`SnakeParams.engine`); its friction is not used.
-    wheels : WheelSpec or None, optional
-        Wheels and solver settings; ``WheelSpec()`` by default.
+    params, wheels : SnakeParams or WheelSpec or None, optional
+        The robot (default :meth:`SnakeParams.engine`) and its wheels (default ``WheelSpec()``).
 
     Returns
     -------
@@ -292,14 +248,12 @@ def build_engine_model(params: SnakeParams | None = None,
     Raises
     ------
     ParameterError
-        The wheels overlap, are longer than a link, or leave a link no mass or yaw inertia
-        of its own (naming the links).
+        The wheels overlap, are longer than a link, or leave a link no mass or inertia.
     """
     params = params or SnakeParams.engine()
     wheels = wheels or WheelSpec()
     offsets = _wheel_geometry(params, wheels)
-    body_masses, body_inertias = _split(params, wheels, offsets)
-    wheel_inertia = 0.4 * wheels.mass * wheels.radius**2  # solid sphere
+    body_masses, body_inertias, wheel_inertia = _split(params, wheels, offsets)
 
     spec = _set(mujoco.MjSpec(), modelname=f"snake_{params.name}_wheels")
     spec.compiler.autolimits = True

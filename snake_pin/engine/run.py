@@ -1,9 +1,6 @@
 """Closed loop on the engine (Section VI.3): friction identification, velocity filter, runs.
 
-:func:`identify_friction` fits the viscous model the laws use to coasting pushes of the
-engine robot, :class:`DirtyDerivative` estimates velocities from positions (erratum 4),
-and :func:`run_engine` runs a law against MuJoCo at 1 kHz (:class:`EnginePlant` in
-:func:`snake_pin.loop.closed_loop`). How and why: :ref:`engine`.
+How and why: :ref:`engine`.
 """
 
 from __future__ import annotations
@@ -34,22 +31,13 @@ from ..trajectory import Trajectory
 from ..urdf import EFFORT_LIMIT
 from .model import GRAVITY, EngineModel, WheelSpec, build_engine_model
 
-__all__ = ["ENGINE_TORQUE_BOUND", "LAWS", "DirtyDerivative", "EnginePlant", "EngineRun",
-           "identify_friction", "run_engine"]
+__all__ = ["ENGINE_TORQUE_BOUND", "LAWS", "EnginePlant", "EngineRun", "identify_friction",
+           "run_engine"]
 
 
 class DirtyDerivative:
-    """y = 2 pi f_c s / (s + 2 pi f_c) x, backward Euler at period dt, per channel.
-
-    Parameters
-    ----------
-    size
-        Number of channels.
-    cutoff
-        Cut-off frequency f_c [Hz].
-    dt
-        Sampling period [s].
-    """
+    """The velocity filter y = 2 pi f_c s / (s + 2 pi f_c) x (``cutoff`` f_c [Hz]), backward
+    Euler at period ``dt`` [s], on ``size`` channels (erratum 4)."""
 
     def __init__(self, size: int, cutoff: float, dt: float) -> None:
         self.omega = 2 * math.pi * finite_number(cutoff, "cutoff", positive=True)
@@ -60,13 +48,7 @@ class DirtyDerivative:
         self._started = False
 
     def reset(self, x0: np.ndarray) -> None:
-        """Start from ``x0`` at rest (zero velocity estimate).
-
-        Parameters
-        ----------
-        x0
-            The first sample, one value per channel.
-        """
+        """Start from the sample ``x0`` at rest (zero velocity estimate)."""
         self._x = np.array(x0, dtype=float)
         self._y[:] = 0.0
         self._started = True
@@ -126,20 +108,12 @@ def identify_friction(params: SnakeParams | None = None, wheels: WheelSpec | Non
                       speed: float = 0.1, heading: float = 0.0) -> dict[str, Any]:
     """Viscous c_x, c_y, c_theta per link fitted to the engine's coasting snake (:ref:`engine`).
 
-    A per-link robot is fitted whole (its total mass M) and the totals shared out, head
-    first: c_x equally, c_y in proportion to each link's mass, c_theta,i = 2 d_i^2 b / r^2
-    from each link's own wheel offset.
-
     Parameters
     ----------
-    params
-        The robot (default: the ``engine`` preset); its passive joints do not matter.
-    wheels
-        The wheels and contact settings (default :class:`WheelSpec`).
-    speed
-        The coasting speed v0 [m/s] along and across the body.
-    heading
-        The straight snake's heading [rad] while it coasts (elliptic cones fit alike at any).
+    params, wheels
+        The robot (default: the ``engine`` preset) and its wheels (default :class:`WheelSpec`).
+    speed, heading
+        The coasting speed v0 [m/s] along and across the body, and the heading [rad].
 
     Returns
     -------
@@ -184,12 +158,9 @@ class EngineRun:
 
     Parameters
     ----------
-    trajectory
-        What the controller saw (q from the engine, dq from the filter), its torques, status.
-    true_dq
-        The engine's own velocities on (x, y, yaw, phi) at the same samples.
-    friction
-        The viscous model the controller used (:func:`identify_friction`).
+    trajectory, true_dq, friction
+        What the controller saw (dq from the filter), the engine's own velocities, and the
+        viscous model the controller used (:func:`identify_friction`).
     """
 
     trajectory: Trajectory
@@ -212,36 +183,23 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
                progress: bool = False) -> EngineRun:
     """Head tracking on MuJoCo, control at 1 kHz, velocities from the filter (:ref:`engine`).
 
-    The law's model is ``params`` with the identified viscous friction: ``law="velocity"``
-    the quasi-static form of V's minimisation with joint servos
-    (:class:`QuasiStaticLyapunovController`), ``"acceleration"`` the torque-level form
-    (:class:`LyapunovController`), ``"mpc"`` the :class:`MPCController`. The run starts at
-    rest on the arc of eq. (82), head first (theta_1 = pi), and ends with a status as
-    :func:`snake_pin.loop.closed_loop` says ("diverged" also when the robot leaves the floor).
-
     Parameters
     ----------
-    params
-        The robot (default: the ``engine`` preset); its passive joints get no motor.
-    wheels
-        Wheels, contacts and time steps (default :class:`WheelSpec`).
-    t_final
-        Duration [s], at most :data:`snake_pin.loop.MAX_STEPS` control steps.
+    params, wheels
+        The robot (default: the ``engine`` preset; passive joints get no motor) and its
+        wheels, contacts and time steps (default :class:`WheelSpec`).
+    t_final, cutoff
+        Duration [s] (:data:`~snake_pin.loop.MAX_STEPS` steps at most), filter cut-off [Hz].
     friction
         The law's viscous model (default: :func:`identify_friction`, every joint actuated).
-    cutoff
-        Cut-off of the velocity filter [Hz].
     law
-        "velocity", "acceleration" or "mpc" (see above).
+        "velocity", "acceleration" (the Lyapunov-like law's two forms) or "mpc".
     initial_offset
-        n - 1 offsets added to the initial joint angles [rad] (the runs are chaotic: the
-        report runs them as distributions over small offsets).
+        n - 1 offsets added to the initial joint angles [rad].
     reference
-        The head reference ``t -> (w_r, w_r', w_r'')``, starting at the origin heading +x
-        (default :func:`~snake_pin.control.head_first_reference`).
+        The head reference, from the origin heading +x (default: head first).
     mpc_options
-        The MPC's settings with ``law="mpc"`` (default: ``torque_bound`` =
-        :data:`ENGINE_TORQUE_BOUND`, the motors' saturation, which it may not exceed).
+        The MPC's settings (default: ``torque_bound`` at the motors' saturation, its maximum).
     progress
         Show a progress bar on stderr when it is a terminal.
 
@@ -252,11 +210,9 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
 
     Raises
     ------
-    RunInterrupted
-        On KeyboardInterrupt during the run; ``partial`` holds every completed sample.
-    ParameterError
-        An unknown law, a bad ``t_final``, ``initial_offset`` or ``mpc_options`` (not
-        MPCOptions, a torque bound above the motors', or given to another law).
+    RunInterrupted, ParameterError
+        On Ctrl-C (``partial`` holds every completed sample); an unknown law, a bad argument,
+        or ``mpc_options`` with a torque bound above the motors' or given to another law.
     """
     if law not in LAWS:
         raise ParameterError(f"law must be one of {', '.join(LAWS)}, got {law!r}")
@@ -309,9 +265,8 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
     if reference is not None:
         meta["reference"] = repr(reference)
     if isinstance(controller, MPCController):
-        o = controller.options
-        meta["mpc"] = {"torque_bound": o.torque_bound, "horizon": o.horizon,
-                       "node_dt": o.node_dt, "resolve_period": o.resolve_period}
+        meta["mpc"] = {key: getattr(controller.options, key) for key in
+                       ("torque_bound", "horizon", "node_dt", "resolve_period")}
     traj = closed_loop(plant, controller, np.r_[q0, np.zeros(len(q0))], steps,
                        progress=progress, meta=meta, label="engine", record_signals=False)
     if isinstance(controller, MPCController):
@@ -322,20 +277,14 @@ def run_engine(params: SnakeParams | None = None, *, wheels: WheelSpec | None = 
 
 
 class EnginePlant(Plant):
-    """The MuJoCo robot as a :class:`~snake_pin.loop.Plant`: started at rest at x0's
-    configuration, the torque held over the engine's substeps, q read from it (heading
-    unwrapped) and q' from a :class:`DirtyDerivative`, as a robot's encoders give them; a
-    sample that is not finite or whose body left the floor (root above five wheel radii)
-    diverges.
+    """The MuJoCo robot as a :class:`~snake_pin.loop.Plant`: the torque held over the
+    engine's substeps, q read from it (heading unwrapped) and q' from the velocity filter;
+    a sample not finite or whose body left the floor (five wheel radii up) diverges.
 
     Parameters
     ----------
-    engine : EngineModel
-        The MuJoCo robot.
-    params : SnakeParams
-        The controller's model of it (the trajectory's parameters).
-    cutoff : float
-        The velocity filter's cut-off [Hz].
+    engine, params, cutoff : EngineModel, SnakeParams, float
+        The MuJoCo robot, the controller's model of it, the velocity filter's cut-off [Hz].
 
     Attributes
     ----------
