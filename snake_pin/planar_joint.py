@@ -22,9 +22,9 @@ from ._symmetric import symmetric_from_upper
 from ._validation import as_vector, brief, instance, integer, model_data
 from .exceptions import ParameterError
 
-__all__ = ["PlanarLayout", "paper_dynamics", "paper_to_planar", "paper_to_planar_acceleration",
+__all__ = ["paper_dynamics", "paper_to_planar", "paper_to_planar_acceleration",
            "paper_to_planar_force", "planar_layout", "planar_to_paper",
-           "planar_to_paper_acceleration", "velocity_map"]
+           "planar_to_paper_acceleration"]
 
 #: Pinocchio's joints about +z, and whether each is unbounded (stored as cos, sin).
 _ABOUT_Z = {"JointModelRZ": False, "JointModelRUBZ": True}
@@ -33,25 +33,8 @@ _TOLERANCE = 1e-12
 
 @dataclass(frozen=True)
 class PlanarLayout:
-    """Where a planar-joint snake model keeps each coordinate (:func:`planar_layout` builds it;
-    the conversions accept it in place of the model, without re-checking the model).
-
-    Parameters
-    ----------
-    n, nq, nv : int
-        Links, and the planar model's sizes (nq = n + 3 + continuous joints, nv = n + 2).
-    idx_q : numpy.ndarray of int, shape (n - 1,)
-        Index of each joint's first planar coordinate.
-    unbounded : numpy.ndarray of bool, shape (n - 1,)
-        True for joints stored as (cos, sin) (``continuous``).
-    signs : numpy.ndarray of float, shape (n - 1,)
-        s_i: +1 about +z, -1 about -z.
-
-    Raises
-    ------
-    ParameterError
-        A size or an array is not as described.
-    """
+    """Where a planar-joint snake model keeps each coordinate (:func:`planar_layout` builds it):
+    sizes, each joint's first planar index, its (cos, sin) storage and its axis sign s_i."""
 
     n: int
     nq: int
@@ -146,27 +129,7 @@ def _layout(model: pin.Model | PlanarLayout) -> PlanarLayout:
 
 
 def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
-    """Return ``T(theta_1)`` with ``v_planar = T q'``, from the paper configuration ``q``.
-
-    Parameters
-    ----------
-    model : pinocchio.Model or PlanarLayout
-        The planar model or its :func:`planar_layout`.
-    q : array_like, shape (n + 2,)
-        Paper configuration.
-
-    Returns
-    -------
-    numpy.ndarray, shape (n + 2, n + 2)
-        ``blockdiag(R(theta_1)^T, 1, S)``; orthogonal, so ``T^-1 = T^T``.
-
-    Raises
-    ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
-    """
+    """``T = blockdiag(R(theta_1)^T, 1, S)`` with ``v_planar = T q'`` (orthogonal: T^-1 = T^T)."""
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
     c, s = np.cos(q[2]), np.sin(q[2])
