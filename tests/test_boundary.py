@@ -428,7 +428,10 @@ for _method, _arguments in SNAKE_METHODS.items():
 
 #: Callables that left their module's ``__all__`` (a module's own pieces) but are still walked.
 UNLISTED = frozenset({"snake_pin.planar_joint.PlanarLayout",
-                      "snake_pin.planar_joint.velocity_map"})
+                      "snake_pin.planar_joint.velocity_map",
+                      *(f"snake_pin.paper.{name}" for name in (
+                          "friction_matrix_bar", "inertia_matrix_bar", "jacobian_q",
+                          "jacobian_xy", "l_matrix", "w_matrix_bar"))})
 
 
 def _public() -> dict[str, Any]:
