@@ -1,14 +1,10 @@
 """Conversion between Pinocchio's planar-joint model of a snake URDF and paper coordinates.
 
 A plain ``pin.buildModelFromUrdf`` of our URDFs gives a ``JointModelPlanar`` base whose
-coordinates are not the paper's; the maps (``v_planar = T q'``, ``H = T^T M T``, ...)
-are derived in :ref:`concepts` (Pinocchio's planar joint). Also accepted: ``continuous``
-joints (two coordinates cos q_i, sin q_i; angles read back in ``(-pi, pi]``) and revolute
-joints about -z. Every function raises :class:`~snake_pin.exceptions.ParameterError`
-naming the joint for a model of another shape (another root joint, a rotated joint
-placement, a branch; :func:`planar_layout`), and
-:class:`~snake_pin.exceptions.ConfigurationError` for a vector of the wrong size or with
-non-finite entries.
+coordinates are not the paper's; the maps (``v_planar = T q'``, ``H = T^T M T``, ...) are
+derived in :ref:`concepts` (Pinocchio's planar joint). Also accepted: ``continuous`` joints
+(cos q_i, sin q_i; angles read back in ``(-pi, pi]``) and revolute joints about -z; a model
+of another shape (root joint, rotated joint placement, branch) is refused naming the joint.
 """
 
 from __future__ import annotations
@@ -165,10 +161,8 @@ def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarr
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -203,10 +197,8 @@ def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     q_planar = as_vector(q_planar, layout.nq, "q_planar")
@@ -239,10 +231,8 @@ def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     _, v_planar = paper_to_planar(layout, q, dq)
@@ -269,10 +259,8 @@ def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.n
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     q, dq = planar_to_paper(layout, q_planar, v_planar)
@@ -302,10 +290,8 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     force = as_vector(force, layout.n + 2, "force")
@@ -337,8 +323,9 @@ def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarr
 
     Raises
     ------
-    ParameterError
-        ``data`` is not ``model``'s Data (other errors: the module docstring).
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake or ``data`` its Data; a vector is of the
+        wrong size or not finite.
     """
     layout = planar_layout(model)
     model_data(data, model, pin.Data)
