@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import as_vector, check_params, integer
+from ._validation import as_vector, check_params, integer, vector
 from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
 __all__ = ["actuation_matrix", "bias", "coriolis", "friction_matrix", "g2", "inertia_matrix",
-           "k_matrix", "link_angles"]
+           "link_angles"]
 
 
 def _theta(params: object, theta: object) -> tuple[SnakeParams, np.ndarray]:
@@ -34,18 +34,7 @@ def _q(params: object, q: object, name: str = "q") -> tuple[SnakeParams, np.ndar
 
 
 def k_matrix(params: SnakeParams) -> np.ndarray:
-    """Return K of eq. (4): ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i), else 0.
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot.
-
-    Returns
-    -------
-    numpy.ndarray, shape (n, n)
-        Lower-triangular K [m].
-    """
+    """K of eq. (4), (n, n) lower-triangular [m]: ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i)."""
     check_params(params)
     lengths = params.link_lengths
     k = np.tril(np.broadcast_to(lengths, (params.n, params.n)), -1)
@@ -86,16 +75,10 @@ def link_angles(q: np.ndarray) -> np.ndarray:
     ConfigurationError
         ``q`` is not a vector of at least 4 finite numbers.
     """
-    try:
-        vector = np.asarray(q, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError("q must be a vector of numbers") from exc
-    if vector.ndim != 1 or vector.size < 4:
-        raise ConfigurationError(f"q must be a vector of n + 2 >= 4 numbers, "
-                                 f"got shape {vector.shape}")
-    if not np.all(np.isfinite(vector)):
-        raise ConfigurationError("q has non-finite entries")
-    return _link_angles(vector)
+    checked = vector(q, "q")
+    if checked.size < 4:
+        raise ConfigurationError(f"q must be a vector of n + 2 >= 4 numbers, got {checked.size}")
+    return _link_angles(checked)
 
 
 def _link_angles(q: np.ndarray) -> np.ndarray:

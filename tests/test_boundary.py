@@ -431,7 +431,7 @@ UNLISTED = frozenset({"snake_pin.planar_joint.PlanarLayout",
                       "snake_pin.planar_joint.velocity_map",
                       *(f"snake_pin.paper.{name}" for name in (
                           "friction_matrix_bar", "inertia_matrix_bar", "jacobian_q",
-                          "jacobian_xy", "l_matrix", "w_matrix_bar"))})
+                          "jacobian_xy", "k_matrix", "l_matrix", "w_matrix_bar"))})
 
 
 def _public() -> dict[str, Any]:
