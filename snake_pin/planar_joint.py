@@ -18,9 +18,8 @@ from ._symmetric import symmetric_from_upper
 from ._validation import as_vector, brief, instance, integer, model_data
 from .exceptions import ParameterError
 
-__all__ = ["paper_dynamics", "paper_to_planar", "paper_to_planar_acceleration",
-           "paper_to_planar_force", "planar_layout", "planar_to_paper",
-           "planar_to_paper_acceleration"]
+__all__ = ["paper_to_planar", "paper_to_planar_acceleration", "paper_to_planar_force",
+           "planar_layout", "planar_to_paper", "planar_to_paper_acceleration"]
 
 #: Pinocchio's joints about +z, and whether each is unbounded (stored as cos, sin).
 _ABOUT_Z = {"JointModelRZ": False, "JointModelRUBZ": True}
@@ -300,33 +299,8 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
 
 def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Return H(q) and the friction-free h(q, q') of eq. (20), computed on the planar model.
-
-    ``H = T^T M T`` and ``h = T^T (b + M T' q')`` (M by CRBA, b = ``nonLinearEffects``);
-    equal to :class:`~snake_pin.Snake`'s ``inertia_matrix`` and ``coriolis``.
-
-    Parameters
-    ----------
-    model : pinocchio.Model
-        The planar model.
-    data : pinocchio.Data
-        Its data (overwritten).
-    q, dq : array_like, shape (n + 2,)
-        Paper configuration and velocity.
-
-    Returns
-    -------
-    H : numpy.ndarray, shape (n + 2, n + 2)
-        Inertia matrix in paper coordinates.
-    h : numpy.ndarray, shape (n + 2,)
-        Coriolis/centrifugal generalised forces (no friction).
-
-    Raises
-    ------
-    ParameterError, ConfigurationError
-        ``model`` is not a planar-root serial snake or ``data`` its Data; a vector is of the
-        wrong size or not finite.
-    """
+    """H(q) and the friction-free h(q, q') of eq. (20) on the planar model: ``H = T^T M T`` and
+    ``h = T^T (b + M T' q')`` (M by CRBA, b = ``nonLinearEffects``); Snake's cross-check."""
     layout = planar_layout(model)
     model_data(data, model, pin.Data)
     q_planar, v_planar = paper_to_planar(layout, q, dq)

@@ -428,6 +428,7 @@ for _method, _arguments in SNAKE_METHODS.items():
 
 #: Callables that left their module's ``__all__`` (a module's own pieces) but are still walked.
 UNLISTED = frozenset({"snake_pin.planar_joint.PlanarLayout",
+                      "snake_pin.planar_joint.paper_dynamics",
                       "snake_pin.planar_joint.velocity_map",
                       *(f"snake_pin.paper.{name}" for name in (
                           "friction_matrix_bar", "inertia_matrix_bar", "jacobian_q",
