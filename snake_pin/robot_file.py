@@ -415,14 +415,11 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> list[_Body]:
     if len(roots) > 1:
         raise _error(path, f"links {', '.join(repr(r) for r in roots[:4])} are all roots: "
                            f"a snake is one connected chain")
-    head, base_joint = roots[0], None
+    head = roots[0]
     root = links[head]
-    visited = {head}
     if ((root.inertial is None or root.inertial.mass == 0.0) and len(children[head]) == 1
             and children[head][0].type in _BASE_JOINTS):
-        base_joint = children[head][0].name
         head = children[head][0].child
-        visited.add(head)
     bodies: list[_Body] = []
     main = head
     while True:
@@ -436,7 +433,6 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> list[_Body]:
             for joint in children[name]:
                 if joint.type == "fixed":
                     stack.append((joint.child, pose @ _pose(joint.origin)))
-                    visited.add(joint.child)
                 else:
                     next_joints.append((name, joint, pose @ _pose(joint.origin)))
         bodies.append(body)
@@ -450,11 +446,10 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> list[_Body]:
         _, body.joint, body.joint_pose = next_joints[0]
         _check_movable(path, body.joint)
         main = body.joint.child
-        visited.add(main)
         if len(bodies) >= MAX_LINKS:
             raise _error(path, f"has more than {MAX_LINKS} links in its chain")
-    stray = [name for name in links if name not in visited
-             and (base_joint is None or name != joints[base_joint].parent)]
+    visited = {roots[0], *(link.name for body in bodies for link, _ in body.members)}
+    stray = [name for name in links if name not in visited]
     if stray:
         raise _error(path, f"link {stray[0]!r} is not reachable from the head {head!r} "
                            f"(a loop of joints?)")
