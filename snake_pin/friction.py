@@ -417,10 +417,8 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
 
     Raises
     ------
-    ParameterError
-        ``params``, ``model`` or ``data`` is not the robot's.
-    ConfigurationError
-        ``q`` or ``dq`` does not have n + 2 finite entries.
+    ParameterError, ConfigurationError
+        ``params``, ``model`` or ``data`` is not the robot's; ``q``/``dq`` not n + 2 finite numbers.
     """
     model, params = _paper_model_of(model, params)
     model_data(data, model, pin.Data)
