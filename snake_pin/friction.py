@@ -1,14 +1,9 @@
 """Anisotropic viscous friction of eqs. (10)-(13) as generalised forces on the Pinocchio model.
 
-Q = -C(q) q' is computed in Pinocchio's C++ by the *damping twin* (:ref:`friction`): the
-snake's tree with each link's inertia replaced by its damping, and, where c_x != c_y, a
-wheel per link of "mass" ``-|c_y,i - c_x,i|`` scaled so that M_ww = -1, appended after
-the chain tail first (depth-first, as CRBA and the RNEA derivatives need), so that the
-twin's configuration is ``[q, 0_w]`` and ``C = M_cc + M_cw M_wc``. Two routes evaluate Q,
-chosen by :data:`WHEELED_TWIN_MAX_LINKS`; its Jacobians come from one pass of the twin's
-RNEA derivatives (:meth:`FrictionModel.calc_derivatives`). :func:`friction_forces` (one
-``pin.Force`` per link) is the reference the tests compare to;
-:func:`snake_pin.paper.friction_matrix` is the independent closed form.
+Q = -C(q) q' is computed in Pinocchio's C++ by the *damping twin* (:ref:`friction`: its
+wheels, ``C = M_cc + M_cw M_wc``, the two routes of :data:`WHEELED_TWIN_MAX_LINKS` and
+the derivatives). :func:`friction_forces` (one ``pin.Force`` per link) is the reference
+route and :func:`snake_pin.paper.friction_matrix` the independent closed form.
 """
 
 from __future__ import annotations
@@ -83,7 +78,8 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
 
 def _appended_twin(model: pin.Model, c_x: np.ndarray, c_y: np.ndarray, c_theta: np.ndarray,
                    wheels: bool) -> pin.Model:
-    """The damping twin of ``model`` (module docstring), with wheels if ``wheels``."""
+    """The damping twin of ``model``, with wheels (M_ww = -1) if ``wheels``, appended after the
+    chain tail first (depth-first, as CRBA and the RNEA derivatives need): q_twin = [q, 0_w]."""
     twin = pin.Model()
     twin.name = f"{model.name}_damping_twin"
     larger = np.maximum(c_x, c_y) if wheels else c_x
@@ -149,11 +145,10 @@ class FrictionData:
     twin_data
         The twin's Pinocchio workspace.
     force
-        The last Q of :meth:`FrictionModel.calc_force` or
-        :meth:`FrictionModel.calc_derivatives` (length n + 2).
+        The last Q (length n + 2).
     jacobian
-        ``[dQ/dq, dQ/dq']`` of the last :meth:`FrictionModel.calc_derivatives`, shape
-        (n + 2, 2 (n + 2)), Fortran-ordered; ``dforce_dq`` and ``dforce_dv`` are its halves.
+        ``[dQ/dq, dQ/dq']`` of the last :meth:`FrictionModel.calc_derivatives`, Fortran-ordered;
+        ``dforce_dq`` and ``dforce_dv`` are its halves.
     """
 
     def __init__(self, friction: FrictionModel) -> None:
@@ -331,8 +326,9 @@ class FrictionModel:
             ``C(q)``, shape (n + 2, n + 2), symmetric positive semi-definite.
         """
         nq = self.nq
-        mass = symmetric_from_upper(pin.crba(self.twin, self.twin_data, self._extend(q),
-                                             _WORLD))
+        q_ext = np.zeros(self.size)  # [q, 0_w]
+        q_ext[:nq] = q
+        mass = symmetric_from_upper(pin.crba(self.twin, self.twin_data, q_ext, _WORLD))
         cross = mass[:nq, nq:]
         return mass[:nq, :nq] + cross @ cross.T
 
@@ -340,11 +336,7 @@ class FrictionModel:
                          v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Q(q, v) and its Jacobians into ``data`` (unchecked: the hot path of the OCP).
 
-        One pass of the twin's RNEA derivatives at acceleration ``[v, w]``: its chain rows
-        are those of -Q, its wheel rows dw/dq (M_ww is constant), and the chain rule over
-        the wheels gives ``dQ/dq = -(d(M a)/dq_cc + M_cw dw/dq)`` and
-        ``dQ/dv = -(M_cc + M_cw M_wc)`` (:ref:`friction`); without wheels ``-d(M v)/dq``
-        and ``-M``. ``w = M_wc v`` is one RNEA pass before it.
+        A locked RNEA pass for w, then one pass of the twin's RNEA derivatives (:ref:`friction`).
 
         Parameters
         ----------
@@ -400,12 +392,6 @@ class FrictionModel:
         force, dforce_dq, dforce_dv = self.calc_derivatives(self._data, q, dq)
         return force.copy(), dforce_dq.copy(), dforce_dv.copy()
 
-    def _extend(self, q: np.ndarray) -> np.ndarray:
-        """The twin's configuration ``[q, 0_w]``."""
-        q_ext = np.zeros(self.size)
-        q_ext[:self.nq] = q
-        return q_ext
-
 
 def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
                     q: np.ndarray, dq: np.ndarray) -> pin.StdVec_Force:
@@ -431,10 +417,8 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
 
     Raises
     ------
-    ParameterError
-        ``params``, ``model`` or ``data`` is not the robot's.
-    ConfigurationError
-        ``q`` or ``dq`` does not have n + 2 finite entries.
+    ParameterError, ConfigurationError
+        ``params``, ``model`` or ``data`` is not the robot's; ``q``/``dq`` not n + 2 finite numbers.
     """
     model, params = _paper_model_of(model, params)
     model_data(data, model, pin.Data)

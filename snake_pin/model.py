@@ -1,12 +1,10 @@
 """The Pinocchio model of a snake in the paper's coordinates q = [x_h, y_h, theta_1, phi].
 
-The URDF's tree (:mod:`snake_pin.urdf`) hangs from a chain of three single-DoF root joints
-(``base_x``, ``base_y``, ``base_yaw``; a composite joint gives wrong analytical
-derivatives), so q and q' are the paper's with nq = nv = n + 2. The equation of motion
-is eq. (20), ``H(q) q'' + h(q, q') = E tau``, h holding the Coriolis terms and viscous
-friction (:mod:`snake_pin.friction`). As Pinocchio's Model/Data, the unchecked ``calc_*``
-methods work on a :class:`SnakeData` of the caller's; the checked methods validate their
-inputs and call them.
+The URDF's tree (:mod:`snake_pin.urdf`) hangs from three single-DoF root joints (:ref:`concepts`),
+so nq = nv = n + 2; the equation of motion is eq. (20), ``H(q) q'' + h(q, q') = E tau``
+with friction in h (:mod:`snake_pin.friction`). As Pinocchio's Model/Data, the unchecked
+``calc_*`` methods work on a caller's :class:`SnakeData`; the checked methods validate
+their inputs and call them.
 """
 
 from __future__ import annotations
@@ -123,10 +121,8 @@ class Snake:
 
     Attributes
     ----------
-    model, data
-        Pinocchio model and its workspace (see :func:`paper_model` for the joint layout).
-    nq, nv
-        Both n + 2.
+    model, data, nq, nv
+        Pinocchio model (joint layout: :func:`paper_model`), its workspace, nq = nv = n + 2.
     link_joints
         Pinocchio joint index carrying each link (length n, head first).
     """
@@ -663,10 +659,8 @@ class SnakeData:
 
     Attributes
     ----------
-    pin
-        The Pinocchio workspace.
-    mass, inverse_mass
-        Views of its M and Minv, filled whole by the ``calc_*`` methods.
+    pin, mass, inverse_mass
+        The Pinocchio workspace, and views of its M and Minv filled whole by ``calc_*``.
     bias, torque
         h and ``E tau`` (length n + 2 each).
     friction

@@ -13,26 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import as_vector, check_params, integer
+from ._validation import as_vector, check_params, integer, vector
 from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
-__all__ = [
-    "actuation_matrix",
-    "bias",
-    "coriolis",
-    "friction_matrix",
-    "friction_matrix_bar",
-    "g2",
-    "inertia_matrix",
-    "inertia_matrix_bar",
-    "jacobian_q",
-    "jacobian_xy",
-    "k_matrix",
-    "l_matrix",
-    "link_angles",
-    "w_matrix_bar",
-]
+__all__ = ["actuation_matrix", "bias", "coriolis", "friction_matrix", "g2", "inertia_matrix",
+           "link_angles"]
 
 
 def _theta(params: object, theta: object) -> tuple[SnakeParams, np.ndarray]:
@@ -48,18 +34,7 @@ def _q(params: object, q: object, name: str = "q") -> tuple[SnakeParams, np.ndar
 
 
 def k_matrix(params: SnakeParams) -> np.ndarray:
-    """Return K of eq. (4): ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i), else 0.
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot.
-
-    Returns
-    -------
-    numpy.ndarray, shape (n, n)
-        Lower-triangular K [m].
-    """
+    """K of eq. (4), (n, n) lower-triangular [m]: ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i)."""
     check_params(params)
     lengths = params.link_lengths
     k = np.tril(np.broadcast_to(lengths, (params.n, params.n)), -1)
@@ -68,35 +43,13 @@ def k_matrix(params: SnakeParams) -> np.ndarray:
 
 
 def l_matrix(n: int) -> np.ndarray:
-    """Return L of eq. (17): lower-triangular ones, ``theta = L [theta_1, phi]``.
-
-    Parameters
-    ----------
-    n : int
-        Number of links.
-
-    Returns
-    -------
-    numpy.ndarray, shape (n, n)
-        Ones on and below the diagonal, zeros above.
-    """
+    """L of eq. (17): lower-triangular ones, ``theta = L [theta_1, phi]``."""
     n = integer(n, "n", low=2)
     return np.tril(np.ones((n, n)))
 
 
 def jacobian_q(n: int) -> np.ndarray:
-    """Return ``J_{q-bar q} = blockdiag(I_2, L)`` of eq. (17), mapping q' to q-bar'.
-
-    Parameters
-    ----------
-    n : int
-        Number of links.
-
-    Returns
-    -------
-    numpy.ndarray, shape (n + 2, n + 2)
-        The constant Jacobian from paper coordinates to ``[x_h, y_h, theta_1 .. theta_n]``.
-    """
+    """``J_{q-bar q} = blockdiag(I_2, L)`` of eq. (17), mapping q' to q-bar' (constant)."""
     n = integer(n, "n", low=2)
     out = np.zeros((n + 2, n + 2))
     out[:2, :2] = np.eye(2)
@@ -122,16 +75,10 @@ def link_angles(q: np.ndarray) -> np.ndarray:
     ConfigurationError
         ``q`` is not a vector of at least 4 finite numbers.
     """
-    try:
-        vector = np.asarray(q, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ConfigurationError("q must be a vector of numbers") from exc
-    if vector.ndim != 1 or vector.size < 4:
-        raise ConfigurationError(f"q must be a vector of n + 2 >= 4 numbers, "
-                                 f"got shape {vector.shape}")
-    if not np.all(np.isfinite(vector)):
-        raise ConfigurationError("q has non-finite entries")
-    return _link_angles(vector)
+    checked = vector(q, "q")
+    if checked.size < 4:
+        raise ConfigurationError(f"q must be a vector of n + 2 >= 4 numbers, got {checked.size}")
+    return _link_angles(checked)
 
 
 def _link_angles(q: np.ndarray) -> np.ndarray:
@@ -140,20 +87,8 @@ def _link_angles(q: np.ndarray) -> np.ndarray:
 
 
 def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Return ``J_{q-bar x}`` and ``J_{q-bar y}`` of eq. (7): q-bar' to the CM velocities.
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot.
-    theta : numpy.ndarray, shape (n,)
-        Link angles [rad] (:func:`link_angles`).
-
-    Returns
-    -------
-    jx, jy : numpy.ndarray, shape (n, n + 2)
-        Row i maps ``q-bar'`` to link i's CM velocity along world x and y [m/s].
-    """
+    """``J_{q-bar x}``, ``J_{q-bar y}`` of eq. (7), (n, n + 2) each: row i maps q-bar' to link
+    i's CM velocity along world x and y."""
     params, theta = _theta(params, theta)
     n = params.n
     k = k_matrix(params)
@@ -163,20 +98,7 @@ def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """Return H-bar of eq. (9): ``Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_i)``, M = diag(m_i).
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot.
-    theta : numpy.ndarray, shape (n,)
-        Link angles [rad].
-
-    Returns
-    -------
-    numpy.ndarray, shape (n + 2, n + 2)
-        Symmetric positive definite H-bar [kg, kg m, kg m^2 blocks].
-    """
+    """H-bar of eq. (9): ``Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_i)``, M = diag(m_i)."""
     params, theta = _theta(params, theta)
     jx, jy = jacobian_xy(params, theta)
     m = params.masses[:, None]
@@ -205,23 +127,9 @@ def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
 
 
 def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """Return W-bar of eq. (16), ``J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y``.
-
-    ``J_x = -K diag(cos theta)`` and ``J_y = -K diag(sin theta)`` (two zero columns first)
-    map ``theta'^2`` to the centripetal CM accelerations.
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot.
-    theta : numpy.ndarray, shape (n,)
-        Link angles [rad].
-
-    Returns
-    -------
-    numpy.ndarray, shape (n + 2, n + 2)
-        W-bar; the Coriolis term is ``W-bar (q-bar')^2`` (elementwise square).
-    """
+    """W-bar of eq. (16), ``J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y``: the Coriolis term is
+    ``W-bar (q-bar')^2``, with ``J_x = -K diag(cos theta)``, ``J_y = -K diag(sin theta)``
+    (two zero columns first) mapping ``theta'^2`` to the centripetal CM accelerations."""
     params, theta = _theta(params, theta)
     n = params.n
     k = k_matrix(params)
@@ -255,20 +163,7 @@ def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
 
 
 def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """Return the friction matrix ``C-bar = C_tr + C_rot`` of eqs. (11)-(14).
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot (c_x, c_y, c_theta per link).
-    theta : numpy.ndarray, shape (n,)
-        Link angles [rad].
-
-    Returns
-    -------
-    numpy.ndarray, shape (n + 2, n + 2)
-        Symmetric positive semi-definite C-bar in q-bar coordinates.
-    """
+    """``C-bar = C_tr + C_rot`` of eqs. (11)-(14) in q-bar coordinates (symmetric PSD)."""
     params, theta = _theta(params, theta)
     c, s = np.cos(theta), np.sin(theta)
     cx, cy = params.per_link("c_x"), params.per_link("c_y")

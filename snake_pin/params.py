@@ -61,9 +61,9 @@ def _per_link(value: object, key: str, n: int, *, zero_ok: bool) -> PerLink:
     """Validate a per-link field: a finite number or ``n`` finite numbers (collapsed if equal)."""
     if isinstance(value, np.ndarray):
         value = value.tolist()
-    if _is_number(value):
+    scalar = _is_number(value)
+    if scalar:
         values: list[float] = [float(value)]  # type: ignore[arg-type]
-        scalar = True
     elif isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
         if len(value) != n:
             raise ParameterError(
@@ -72,7 +72,6 @@ def _per_link(value: object, key: str, n: int, *, zero_ok: bool) -> PerLink:
             if not _is_number(item):
                 raise ParameterError(f"link {i}: {key} must be a number, got {item!r}")
         values = [float(item) for item in value]
-        scalar = False
     else:
         raise ParameterError(f"{key} must be a number or a list of {n} numbers, got {value!r}")
     for i, x in enumerate(values, start=1):

@@ -1,14 +1,10 @@
 """Conversion between Pinocchio's planar-joint model of a snake URDF and paper coordinates.
 
 A plain ``pin.buildModelFromUrdf`` of our URDFs gives a ``JointModelPlanar`` base whose
-coordinates are not the paper's; the maps (``v_planar = T q'``, ``H = T^T M T``, ...)
-are derived in :ref:`concepts` (Pinocchio's planar joint). Also accepted: ``continuous``
-joints (two coordinates cos q_i, sin q_i; angles read back in ``(-pi, pi]``) and revolute
-joints about -z. Every function raises :class:`~snake_pin.exceptions.ParameterError`
-naming the joint for a model of another shape (another root joint, a rotated joint
-placement, a branch; :func:`planar_layout`), and
-:class:`~snake_pin.exceptions.ConfigurationError` for a vector of the wrong size or with
-non-finite entries.
+coordinates are not the paper's; the maps (``v_planar = T q'``, ``H = T^T M T``, ...) are
+derived in :ref:`concepts` (Pinocchio's planar joint). Also accepted: ``continuous`` joints
+(cos q_i, sin q_i; angles read back in ``(-pi, pi]``) and revolute joints about -z; a model
+of another shape (root joint, rotated joint placement, branch) is refused naming the joint.
 """
 
 from __future__ import annotations
@@ -22,9 +18,8 @@ from ._symmetric import symmetric_from_upper
 from ._validation import as_vector, brief, instance, integer, model_data
 from .exceptions import ParameterError
 
-__all__ = ["PlanarLayout", "paper_dynamics", "paper_to_planar", "paper_to_planar_acceleration",
-           "paper_to_planar_force", "planar_layout", "planar_to_paper",
-           "planar_to_paper_acceleration", "velocity_map"]
+__all__ = ["paper_to_planar", "paper_to_planar_acceleration", "paper_to_planar_force",
+           "planar_layout", "planar_to_paper", "planar_to_paper_acceleration"]
 
 #: Pinocchio's joints about +z, and whether each is unbounded (stored as cos, sin).
 _ABOUT_Z = {"JointModelRZ": False, "JointModelRUBZ": True}
@@ -33,25 +28,8 @@ _TOLERANCE = 1e-12
 
 @dataclass(frozen=True)
 class PlanarLayout:
-    """Where a planar-joint snake model keeps each coordinate (:func:`planar_layout` builds it;
-    the conversions accept it in place of the model, without re-checking the model).
-
-    Parameters
-    ----------
-    n, nq, nv : int
-        Links, and the planar model's sizes (nq = n + 3 + continuous joints, nv = n + 2).
-    idx_q : numpy.ndarray of int, shape (n - 1,)
-        Index of each joint's first planar coordinate.
-    unbounded : numpy.ndarray of bool, shape (n - 1,)
-        True for joints stored as (cos, sin) (``continuous``).
-    signs : numpy.ndarray of float, shape (n - 1,)
-        s_i: +1 about +z, -1 about -z.
-
-    Raises
-    ------
-    ParameterError
-        A size or an array is not as described.
-    """
+    """Where a planar-joint snake model keeps each coordinate (:func:`planar_layout` builds it):
+    sizes, each joint's first planar index, its (cos, sin) storage and its axis sign s_i."""
 
     n: int
     nq: int
@@ -146,27 +124,7 @@ def _layout(model: pin.Model | PlanarLayout) -> PlanarLayout:
 
 
 def velocity_map(model: pin.Model | PlanarLayout, q: np.ndarray) -> np.ndarray:
-    """Return ``T(theta_1)`` with ``v_planar = T q'``, from the paper configuration ``q``.
-
-    Parameters
-    ----------
-    model : pinocchio.Model or PlanarLayout
-        The planar model or its :func:`planar_layout`.
-    q : array_like, shape (n + 2,)
-        Paper configuration.
-
-    Returns
-    -------
-    numpy.ndarray, shape (n + 2, n + 2)
-        ``blockdiag(R(theta_1)^T, 1, S)``; orthogonal, so ``T^-1 = T^T``.
-
-    Raises
-    ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
-    """
+    """``T = blockdiag(R(theta_1)^T, 1, S)`` with ``v_planar = T q'`` (orthogonal: T^-1 = T^T)."""
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
     c, s = np.cos(q[2]), np.sin(q[2])
@@ -202,10 +160,8 @@ def paper_to_planar(model: pin.Model | PlanarLayout, q: np.ndarray, dq: np.ndarr
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     q = as_vector(q, layout.n + 2, "q")
@@ -240,10 +196,8 @@ def planar_to_paper(model: pin.Model | PlanarLayout, q_planar: np.ndarray,
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     q_planar = as_vector(q_planar, layout.nq, "q_planar")
@@ -276,10 +230,8 @@ def paper_to_planar_acceleration(model: pin.Model | PlanarLayout, q: np.ndarray,
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     _, v_planar = paper_to_planar(layout, q, dq)
@@ -306,10 +258,8 @@ def planar_to_paper_acceleration(model: pin.Model | PlanarLayout, q_planar: np.n
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     q, dq = planar_to_paper(layout, q_planar, v_planar)
@@ -339,10 +289,8 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
 
     Raises
     ------
-    ParameterError
-        ``model`` is not a planar-root serial snake (:func:`planar_layout`).
-    ConfigurationError
-        A vector has the wrong size or non-finite entries.
+    ParameterError, ConfigurationError
+        ``model`` is not a planar-root serial snake; a vector is of the wrong size or not finite.
     """
     layout = _layout(model)
     force = as_vector(force, layout.n + 2, "force")
@@ -351,32 +299,8 @@ def paper_to_planar_force(model: pin.Model | PlanarLayout, q: np.ndarray,
 
 def paper_dynamics(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Return H(q) and the friction-free h(q, q') of eq. (20), computed on the planar model.
-
-    ``H = T^T M T`` and ``h = T^T (b + M T' q')`` (M by CRBA, b = ``nonLinearEffects``);
-    equal to :class:`~snake_pin.Snake`'s ``inertia_matrix`` and ``coriolis``.
-
-    Parameters
-    ----------
-    model : pinocchio.Model
-        The planar model.
-    data : pinocchio.Data
-        Its data (overwritten).
-    q, dq : array_like, shape (n + 2,)
-        Paper configuration and velocity.
-
-    Returns
-    -------
-    H : numpy.ndarray, shape (n + 2, n + 2)
-        Inertia matrix in paper coordinates.
-    h : numpy.ndarray, shape (n + 2,)
-        Coriolis/centrifugal generalised forces (no friction).
-
-    Raises
-    ------
-    ParameterError
-        ``data`` is not ``model``'s Data (other errors: the module docstring).
-    """
+    """H(q) and the friction-free h(q, q') of eq. (20) on the planar model: ``H = T^T M T`` and
+    ``h = T^T (b + M T' q')`` (M by CRBA, b = ``nonLinearEffects``); Snake's cross-check."""
     layout = planar_layout(model)
     model_data(data, model, pin.Data)
     q_planar, v_planar = paper_to_planar(layout, q, dq)

@@ -103,12 +103,6 @@ def _sanitise_name(name: str, fallback: str) -> str:
 
 
 # ----------------------------------------------------------------------- TOML reading
-def _parse_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    error = functools.partial(_error, path)
-    data = _read_limited(path, MAX_ROBOT_FILE_BYTES, "robot file")
-    return parse_toml(decode_utf8(data, error=error), error=error)
-
-
 def _check_keys(path: str | os.PathLike[str], table: Mapping[str, Any], allowed: tuple[str, ...],
                 where: str, required: tuple[str, ...] = ()) -> None:
     for key in table:
@@ -219,7 +213,9 @@ def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
         Anything wrong with the file (or, with ``urdf =``, its URDF), in one line naming
         the file and the field (and link).
     """
-    doc = _parse_toml(path)
+    error = functools.partial(_error, path)
+    data = _read_limited(path, MAX_ROBOT_FILE_BYTES, "robot file")
+    doc = parse_toml(decode_utf8(data, error=error), error=error)
     _check_keys(path, doc, _TOP_KEYS, "", ("name",))
     if not isinstance(doc["name"], str):
         raise _error(path, f"name must be a string, got {_short(doc['name'])}")
@@ -227,26 +223,22 @@ def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
     n = _link_count(path, doc, fields, where)
     changes = {key: doc[key] for key in ("name", "passive") if key in doc}
     try:
-        if "urdf" in doc:
-            return _urdf_robot(path, doc["urdf"], n).replace(**changes, **fields)
+        if "urdf" in doc:  # the robot of the URDF beside the file, which must have n links
+            ref = doc["urdf"]
+            if not isinstance(ref, str) or not ref:
+                raise _error(path, f"urdf must be a file name (a string), got {_short(ref)}")
+            try:
+                params = read_urdf(Path(path).parent / ref)
+            except RobotFileError as exc:
+                raise _error(path, f"urdf = {ref!r}: {exc}") from None
+            if n is not None and n != params.n:
+                raise _error(path, f"n = {n} but the URDF {ref!r} has {params.n} links")
+            return params.replace(**changes, **fields)
         if n is None:
             raise _error(path, "n is missing and no per-link array gives it")
         return SnakeParams(n=n, **changes, **fields)
     except ParameterError as exc:
         raise _error(path, str(exc)) from None
-
-
-def _urdf_robot(path: str | os.PathLike[str], ref: object, n: int | None) -> SnakeParams:
-    """The robot of a robot file's ``urdf = ref`` (beside the file), which must have n links."""
-    if not isinstance(ref, str) or not ref:
-        raise _error(path, f"urdf must be a file name (a string), got {_short(ref)}")
-    try:
-        params = read_urdf(Path(path).parent / ref)
-    except RobotFileError as exc:
-        raise _error(path, f"urdf = {ref!r}: {exc}") from None
-    if n is not None and n != params.n:
-        raise _error(path, f"n = {n} but the URDF {ref!r} has {params.n} links")
-    return params
 
 
 # ----------------------------------------------------------------------- TOML writing
@@ -314,8 +306,10 @@ def _count_elements(path: str | os.PathLike[str], data: bytes) -> None:
                 raise _error(path, f"has more than {most} {what}; refused before parsing")
 
 
-def _parse_xml(path: str | os.PathLike[str], data: bytes) -> Any:
-    """The ``<robot>`` element of ``data`` (no DTD, no entities, no network)."""
+def _parse_urdf(path: str | os.PathLike[str], data: bytes) -> tuple[Any, Any]:
+    """The ``<robot>`` element of ``data`` (no DTD, no entities, no network), and yourdfpy's
+    robot of it."""
+    import yourdfpy
     from lxml import etree
 
     parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
@@ -331,19 +325,12 @@ def _parse_xml(path: str | os.PathLike[str], data: bytes) -> Any:
         raise _error(path, f"not a URDF: the root element is <{root.tag}>, not <robot>")
     if not root.get("name"):
         raise _error(path, "<robot> has no name attribute")
-    return root
-
-
-def _yourdfpy_robot(path: str | os.PathLike[str], root: Any) -> Any:
-    import yourdfpy
-    from lxml import etree
-
     try:
         urdf = yourdfpy.URDF.load(io.BytesIO(etree.tostring(root)), build_scene_graph=False,
                                   load_meshes=False)
     except Exception as exc:  # yourdfpy raises whatever float()/int()/lookups raise
         raise _error(path, f"yourdfpy cannot parse it ({type(exc).__name__}: {exc})") from None
-    return urdf.robot
+    return root, urdf.robot
 
 
 def _finite(array: object) -> bool:
@@ -362,7 +349,9 @@ def _by_name(path: str | os.PathLike[str], items: list[Any], tag: str) -> dict[s
     return found
 
 
-def _check_links(path: str | os.PathLike[str], robot: Any) -> dict[str, Any]:
+def _links_and_joints(path: str | os.PathLike[str], robot: Any
+                      ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The ``<link>`` and ``<joint>`` elements by name, each checked (joints forming a tree)."""
     links = _by_name(path, robot.links, "link")
     for link in links.values():
         inertial = link.inertial
@@ -378,11 +367,6 @@ def _check_links(path: str | os.PathLike[str], robot: Any) -> dict[str, Any]:
         if inertial.mass < 0.0:
             raise _error(path, f"link {link.name!r}: mass must be non-negative, "
                                f"got {inertial.mass:g}")
-    return links
-
-
-def _check_joints(path: str | os.PathLike[str], robot: Any, links: dict[str, Any]
-                  ) -> dict[str, Any]:
     joints = _by_name(path, robot.joints, "joint")
     parent_of: dict[str, str] = {}
     for joint in joints.values():
@@ -399,7 +383,7 @@ def _check_joints(path: str | os.PathLike[str], robot: Any, links: dict[str, Any
         parent_of[joint.child] = joint.name
         if not _finite(joint.origin):
             raise _error(path, f"joint {joint.name!r}: <origin> has a non-finite value")
-    return joints
+    return links, joints
 
 
 @dataclass
@@ -417,10 +401,10 @@ def _pose(origin: object) -> np.ndarray:
     return np.eye(4) if origin is None else np.asarray(origin, dtype=float)
 
 
-def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[_Body], str | None]:
-    """The chain's bodies (head first) and the name of the stripped base joint, if any."""
-    links = _check_links(path, robot)
-    joints = _check_joints(path, robot, links)
+def _chain(path: str | os.PathLike[str], robot: Any) -> list[_Body]:
+    """The chain's bodies, head first (a massless base link's planar, floating or fixed joint
+    stripped)."""
+    links, joints = _links_and_joints(path, robot)
     children: dict[str, list[Any]] = {name: [] for name in links}
     for joint in joints.values():
         children[joint.parent].append(joint)
@@ -431,14 +415,11 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[_Body], str |
     if len(roots) > 1:
         raise _error(path, f"links {', '.join(repr(r) for r in roots[:4])} are all roots: "
                            f"a snake is one connected chain")
-    head, base_joint = roots[0], None
+    head = roots[0]
     root = links[head]
-    visited = {head}
     if ((root.inertial is None or root.inertial.mass == 0.0) and len(children[head]) == 1
             and children[head][0].type in _BASE_JOINTS):
-        base_joint = children[head][0].name
         head = children[head][0].child
-        visited.add(head)
     bodies: list[_Body] = []
     main = head
     while True:
@@ -452,7 +433,6 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[_Body], str |
             for joint in children[name]:
                 if joint.type == "fixed":
                     stack.append((joint.child, pose @ _pose(joint.origin)))
-                    visited.add(joint.child)
                 else:
                     next_joints.append((name, joint, pose @ _pose(joint.origin)))
         bodies.append(body)
@@ -466,11 +446,10 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[_Body], str |
         _, body.joint, body.joint_pose = next_joints[0]
         _check_movable(path, body.joint)
         main = body.joint.child
-        visited.add(main)
         if len(bodies) >= MAX_LINKS:
             raise _error(path, f"has more than {MAX_LINKS} links in its chain")
-    stray = [name for name in links if name not in visited
-             and (base_joint is None or name != joints[base_joint].parent)]
+    visited = {roots[0], *(link.name for body in bodies for link, _ in body.members)}
+    stray = [name for name in links if name not in visited]
     if stray:
         raise _error(path, f"link {stray[0]!r} is not reachable from the head {head!r} "
                            f"(a loop of joints?)")
@@ -481,7 +460,7 @@ def _chain(path: str | os.PathLike[str], robot: Any) -> tuple[list[_Body], str |
     if len(bodies) < 2:
         raise _error(path, f"has no revolute joint after link {head!r}: a snake needs "
                            f"at least 2 links")
-    return bodies, base_joint
+    return bodies
 
 
 def _planar_inertia(body: _Body) -> tuple[float, np.ndarray, float]:
@@ -536,7 +515,7 @@ def _last_length(link: Any, com: float) -> float:
 
 def _geometry_end(shape: Any) -> float | None:
     """Largest x of a box, cylinder or sphere in its link's frame (None for meshes)."""
-    pose = np.eye(4) if shape.origin is None else np.asarray(shape.origin, dtype=float)
+    pose = _pose(shape.origin)
     geometry = shape.geometry
     if geometry is None or not np.all(np.isfinite(pose)):
         return None
@@ -587,11 +566,10 @@ def _our_extension(path: str | os.PathLike[str], root: Any, chain: list[str]
         for key in FRICTION_KEYS:
             text = item.get(key)
             try:
-                value = float(text)
+                friction[key][i] = float(text)
             except (TypeError, ValueError):
                 raise _error(path, f"<link_friction link={link!r}> {key} must be a number, "
                                    f"got {_short(text)}") from None
-            friction[key][i] = value
     for name in index:  # the first link without one
         raise _error(path, f"<{EXTENSION_TAG}> has no <link_friction> for link {name!r}")
     return ext.get("name"), friction
@@ -641,8 +619,8 @@ def read_urdf(path: str | os.PathLike[str],
     """
     data = _read_limited(path, MAX_URDF_BYTES, "URDF")
     _count_elements(path, data)
-    root = _parse_xml(path, data)
-    bodies, _ = _chain(path, _yourdfpy_robot(path, root))
+    root, robot = _parse_urdf(path, data)
+    bodies = _chain(path, robot)
     chain = [body.link for body in bodies]
     n = len(bodies)
     caller = _friction_argument(friction, n)

@@ -425,6 +425,16 @@ for _method, _arguments in SNAKE_METHODS.items():
              for a in arguments}),
         errors=dict.fromkeys(_arguments, CONFIG))
 
+
+#: Callables that left their module's ``__all__`` (a module's own pieces) but are still walked.
+UNLISTED = frozenset({"snake_pin.planar_joint.PlanarLayout",
+                      "snake_pin.planar_joint.paper_dynamics",
+                      "snake_pin.planar_joint.velocity_map",
+                      *(f"snake_pin.paper.{name}" for name in (
+                          "friction_matrix_bar", "inertia_matrix_bar", "jacobian_q",
+                          "jacobian_xy", "k_matrix", "l_matrix", "w_matrix_bar"))})
+
+
 def _public() -> dict[str, Any]:
     """Qualified name -> object of every public callable the walk must cover."""
     found: dict[str, Any] = {}
@@ -491,11 +501,11 @@ def test_valid_arguments_are_accepted(key: str) -> None:
 
 
 def test_table_covers_every_public_callable() -> None:
-    """Every public callable of the walked modules has a row, and every row is public."""
+    """Every public callable of the walked modules has a row; every row is public or UNLISTED."""
     public = set(_public())
     walked = {key for key in ROWS if not key.startswith("snake_pin.model.Snake.")}
     assert public - walked == set(), sorted(public - walked)
-    assert walked - public == set(), sorted(walked - public)
+    assert walked - public == UNLISTED, sorted((walked - public) ^ UNLISTED)
 
 
 def test_rows_of_records_say_why() -> None:

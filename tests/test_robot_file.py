@@ -753,7 +753,7 @@ def test_a_urdf_beyond_the_link_limit_is_refused_unparsed(
     its bytes: no XML parser runs."""
     import snake_pin.robot_file as robot_file
 
-    monkeypatch.setattr(robot_file, "_parse_xml", lambda *a: pytest.fail("XML parsed"))
+    monkeypatch.setattr(robot_file, "_parse_urdf", lambda *a: pytest.fail("XML parsed"))
     path = tmp_path / "long.urdf"
     path.write_bytes(_chain_urdf(links, joint))
     with pytest.raises(RobotFileError, match=expected) as exc:
