@@ -30,26 +30,8 @@ from ..params import SnakeParams
 from ..sim import MAX_ARRAY_BYTES, MAX_STEPS, MAX_SUBSTEPS, MAX_TOTAL_BYTES
 from .errors import StudyError
 
-__all__ = [
-    "CONTROLLERS",
-    "KEY_FORMAT",
-    "LAW_OPTIONS",
-    "MAX_RUNS",
-    "MAX_SEED",
-    "MAX_STUDY_BYTES",
-    "MODELS",
-    "SETTINGS",
-    "WEIGHT_PREFIX",
-    "Axis",
-    "Scenario",
-    "Setting",
-    "StudySpec",
-    "canonical_json",
-    "law_options",
-    "load_study",
-    "parse_study",
-    "run_key",
-]
+__all__ = ["CONTROLLERS", "MAX_RUNS", "MAX_STUDY_BYTES", "MODELS", "SETTINGS", "Scenario",
+           "Setting", "StudySpec", "load_study", "run_key"]
 
 #: Most runs one study may expand to.
 MAX_RUNS = 100_000
@@ -107,7 +89,7 @@ class Setting:
         Parameters
         ----------
         model, controller
-            The run's model and controller.
+            The run's.
 
         Returns
         -------
@@ -135,12 +117,12 @@ class Setting:
         return "finite"
 
     def problem(self, value: Any) -> str:
-        """Why a value is outside the domain.
+        """Why a value (of the setting's kind) is outside the domain.
 
         Parameters
         ----------
         value
-            A value already of the setting's kind.
+            The value.
 
         Returns
         -------
@@ -217,25 +199,8 @@ def _law_settings() -> list[Setting]:
 
 
 def law_options(settings: Mapping[str, Any], joints: int) -> Any:
-    """The options of a run's controller from its (resolved) settings.
-
-    Parameters
-    ----------
-    settings
-        A run's settings (:attr:`Scenario.settings`), on the viscous model.
-    joints
-        The robot's n - 1.
-
-    Returns
-    -------
-    LyapunovOptions or QuasiStaticOptions or PFLOptions or MPCOptions
-        The options.
-
-    Raises
-    ------
-    ParameterError
-        MPC settings that do not combine (e.g. a horizon shorter than a node).
-    """
+    """The options of a viscous run's controller from its settings, for ``joints`` = n - 1
+    (a ParameterError for MPC settings that do not combine)."""
     controller = settings["controller"]
     cls = LAW_OPTIONS[controller]
     values: dict[str, Any] = {}
@@ -322,17 +287,8 @@ GAIT_DEFAULTS = {"lyapunov": (math.pi / 6, 1.5, 2.0), "velocity": (math.pi / 6, 
 # ------------------------------------------------------------------ the parsed study
 @dataclass(frozen=True)
 class Axis:
-    """One axis of a study.
-
-    Parameters
-    ----------
-    setting, form
-        The setting it varies; ``values``, ``linspace``, ``uniform`` or ``normal``.
-    values
-        Its values, in order (drawn ones for the random forms).
-    source
-        The axis as written (normalised), for ``study.json``.
-    """
+    """One axis: the setting it varies, its form (values, linspace, uniform, normal), its
+    values in order (drawn for the random forms) and its normalised source for study.json."""
 
     setting: str
     form: str
@@ -426,23 +382,8 @@ class StudySpec:
 
 # ------------------------------------------------------------------------- keys
 def canonical_json(value: Any) -> str:
-    """Canonical JSON text: sorted keys, no spaces, ASCII, floats by ``repr`` (-0.0 as 0.0).
-
-    Parameters
-    ----------
-    value
-        Plain data (mappings, sequences, str, int, float, bool, None, numpy scalars).
-
-    Returns
-    -------
-    str
-        The text.
-
-    Raises
-    ------
-    ValueError
-        For NaN or infinities.
-    """
+    """Canonical JSON text of plain data: sorted keys, no spaces, ASCII, floats by ``repr``
+    (-0.0 as 0.0); a ValueError for NaN or infinities."""
     return json.dumps(_plain(value), sort_keys=True, separators=(",", ":"), ensure_ascii=True,
                       allow_nan=False)
 
@@ -512,25 +453,8 @@ def load_study(path: str | os.PathLike[str]) -> StudySpec:
 
 
 def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpec:
-    """Validate study text; relative robot files are read beside ``path``.
-
-    Parameters
-    ----------
-    text
-        The TOML text.
-    path
-        Where it comes from (named in errors; robot files are relative to its folder).
-
-    Returns
-    -------
-    StudySpec
-        The validated study.
-
-    Raises
-    ------
-    StudyError
-        One line naming ``path`` and the key at fault.
-    """
+    """Validate study text (:func:`load_study`'s); ``path`` is named in errors, and relative
+    robot files are read beside it."""
     file = Path(path)
     where = functools.partial(_error, printable_path(file))
     if not isinstance(text, str):
@@ -580,11 +504,13 @@ def _check_keys(where: _Where, table: str, doc: Mapping[str, Any], allowed: Sequ
                 kind: str) -> None:
     for key in doc:
         if key not in allowed:
-            close = difflib.get_close_matches(str(key), allowed, n=1)
-            hint = f" (did you mean '{close[0]}'?)" if close else \
-                f" (known: {', '.join(allowed)})"
-            place = f"{table} " if table else ""
-            raise where(f"{place}unknown {kind} {_short(key)}{hint}")
+            hint = _did_you_mean(key, allowed) or f" (known: {', '.join(allowed)})"
+            raise where(f"{table + ' ' if table else ''}unknown {kind} {_short(key)}{hint}")
+
+
+def _did_you_mean(key: object, known: Iterable[str]) -> str:
+    close = difflib.get_close_matches(str(key), list(known), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""
 
 
 def _table(where: _Where, doc: Mapping[str, Any], key: str) -> dict[str, Any]:
@@ -596,12 +522,9 @@ def _table(where: _Where, doc: Mapping[str, Any], key: str) -> dict[str, Any]:
 
 def _known(where: _Where, key: str, message: str, after: str = "") -> Setting:
     """The setting ``key``, else an error naming it and the closest known name."""
-    setting = SETTINGS.get(key)
-    if setting is None:
-        close = difflib.get_close_matches(key, list(SETTINGS), n=1)
-        hint = f" (did you mean '{close[0]}'?)" if close else ""
-        raise where(f"{message} {_short(key)}{after}{hint}")
-    return setting
+    if key not in SETTINGS:
+        raise where(f"{message} {_short(key)}{after}{_did_you_mean(key, SETTINGS)}")
+    return SETTINGS[key]
 
 
 def _typed(where: _Where, label: str, setting: Setting, value: Any) -> Any:
@@ -805,21 +728,15 @@ def _robots(where: _Where, file: Path, base: Mapping[str, Any], axes: Sequence[A
 
 
 def _normalise(chosen: Mapping[str, Any]) -> dict[str, Any]:
-    """Every setting that applies to the run's model and controller, defaults resolved."""
+    """Every setting that applies to the run's model and controller, defaults resolved
+    (those None in :data:`SETTINGS` depend on other settings)."""
     model = chosen.get("model", SETTINGS["model"].default)
     controller = chosen.get("controller", SETTINGS["controller"].default)
     settings = {name: chosen.get(name, s.default) for name, s in SETTINGS.items()
                 if s.applies(model, controller)}
     settings["passive"] = list(settings["passive"])
-    _resolve_defaults(settings)
-    return settings
-
-
-def _resolve_defaults(settings: dict[str, Any]) -> None:
-    """Fill the defaults that depend on other settings (None in :data:`SETTINGS`)."""
-    controller = settings["controller"]
-    if settings["model"] != "viscous":
-        return
+    if model != "viscous":
+        return settings
     for name, value in zip(("gait_alpha", "gait_ts", "gait_v"), GAIT_DEFAULTS[controller],
                            strict=True):
         if settings[name] is None:
@@ -829,6 +746,7 @@ def _resolve_defaults(settings: dict[str, Any]) -> None:
                                   k_shape=settings["k_shape"]).resolved(
             passive=bool(settings["passive"] or settings["failed_joint"]))
         settings["lam_shape"], settings["k_shape"] = options.lam_shape, options.k_shape
+    return settings
 
 
 def _params(where: _Where, settings: Mapping[str, Any], robot: SnakeParams, place: Any,
