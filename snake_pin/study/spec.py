@@ -24,10 +24,10 @@ from .._io import decode_utf8, parse_toml, read_regular_file
 from .._validation import one_line, printable_path
 from ..control import LyapunovOptions, MPCOptions, PFLOptions, QuasiStaticOptions
 from ..control.gains import K_PHI_FIRST, K_PHI_REST
-from ..exceptions import SnakePinError
+from ..exceptions import ParameterError, SnakePinError
 from ..metrics import ERROR_WINDOW
 from ..params import SnakeParams
-from ..sim import MAX_ARRAY_BYTES, MAX_STEPS, MAX_SUBSTEPS, MAX_TOTAL_BYTES
+from ..sim import MAX_SUBSTEPS, _check_size, _check_steps
 from .errors import StudyError
 
 __all__ = ["CONTROLLERS", "MAX_RUNS", "MAX_STUDY_BYTES", "MODELS", "SETTINGS", "Scenario",
@@ -810,27 +810,17 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
                 given = place(key) if settings.get(key) is not None else place("robot")
                 raise where(f"{given} controller velocity needs {key} > 0 on every "
                             f"link of robot {_short(settings['robot'])}")
-    t_final = settings["t_final"]
-    if model == "engine":
-        control_dt = ENGINE_CONTROL_DT
-    else:
-        dt, control_dt = settings["dt"], settings["control_dt"]
-        ratio = control_dt / dt
-        substeps = round(ratio)
-        if ratio > MAX_SUBSTEPS + 0.5 or substeps < 1 or \
-                abs(substeps * dt - control_dt) > 1e-9 * control_dt:
-            raise where(f"{place('control_dt')} control_dt = {control_dt:g} s must be 1.."
-                        f"{MAX_SUBSTEPS} times {place('dt')} dt = {dt:g} s")
-    steps = t_final / control_dt
-    if steps > MAX_STEPS + 1e-6:
-        raise where(f"{place('t_final')} t_final = {t_final:g} s needs more than "
-                    f"MAX_STEPS = {MAX_STEPS} control steps of {control_dt:g} s "
-                    f"(t_final <= {MAX_STEPS * control_dt:g} s)")
-    samples = math.ceil(steps - 1e-9) + 1
-    nq = n + 2
-    if samples * nq * 8 > MAX_ARRAY_BYTES or samples * (2 * nq + n) * 8 > MAX_TOTAL_BYTES:
-        raise where(f"{place('t_final')} t_final = {t_final:g} s of the {n}-link robot "
-                    "needs more memory than a trajectory may hold (snake_pin.sim.MAX_ARRAY_BYTES)")
+    # the bounds of snake_pin.sim.simulate, checked here for every run before any runs
+    dt = settings.get("dt", ENGINE_CONTROL_DT)
+    control_dt = settings.get("control_dt", ENGINE_CONTROL_DT)
+    try:
+        _, steps = _check_steps(settings["t_final"], dt, control_dt)
+        _check_size(steps + 1, n + 2, n - 1, settings["t_final"])
+    except ParameterError as exc:
+        if "t_final" in str(exc):
+            raise where(f"{place('t_final')} {exc}") from None
+        raise where(f"{place('control_dt')} control_dt = {control_dt:g} s must be 1.."
+                    f"{MAX_SUBSTEPS} times {place('dt')} dt = {dt:g} s") from None
 
 
 # ------------------------------------------------------------------------ helpers
