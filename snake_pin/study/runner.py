@@ -1,11 +1,5 @@
-"""Running a study on Dask: one run per task, rows written as they arrive, resumable.
-
-:func:`run_study` validates everything first, then prepares the folder, then runs the
-missing runs only, on an authenticated local cluster (TLS with certificates made for the
-invocation, 127.0.0.1 only) or an existing one (``scheduler`` with ``security``, whose
-handshake :func:`check_scheduler` completes on a deadline of its own before any file is
-created). How it runs, what an interrupt keeps and why the cluster is authenticated:
-:ref:`studies` (How a study runs).
+"""Running a study on Dask (one run per task, rows written as they arrive, resumable) on an
+authenticated local cluster or a checked existing one: :ref:`studies` (How a study runs).
 """
 
 from __future__ import annotations
@@ -87,8 +81,7 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     batch_function
         The task (default :func:`snake_pin.study.work.run_batch`), importable by the workers.
     client
-        A connected ``distributed.Client`` whose workers run the study (a cluster shared
-        with other work, left open); excludes scheduler, workers, security and dashboard.
+        A running ``distributed.Client`` to run on (left open; excludes the four above).
 
     Returns
     -------
@@ -200,6 +193,7 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
              progress: bool | None, name: str) -> None:
     """Keep ``slots`` batches running, write each as it completes; cancel on interrupt."""
     from distributed import as_completed
+    from distributed.scheduler import KilledWorker
     from tqdm import tqdm
 
     from .results import batch_name
@@ -228,7 +222,7 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
             if queue:
                 running.add(submit())
             error = None if future.cancelled() else future.exception()
-            if future.cancelled() or _is_killed_worker(error):
+            if future.cancelled() or isinstance(error, KilledWorker):
                 summary.lost += len(batch)
                 bar.update(len(batch))
                 future.release()
@@ -252,12 +246,6 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
     finally:
         if bar is not None:
             bar.close()
-
-
-def _is_killed_worker(error: BaseException | None) -> bool:
-    from distributed.scheduler import KilledWorker
-
-    return isinstance(error, KilledWorker)
 
 
 def plan_batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
@@ -356,7 +344,8 @@ def load_security(path: str | os.PathLike[str]) -> Any:
 
 def _tls_settings(data: Any, shown: str) -> dict[str, Any]:
     """The ``distributed.comm`` TLS leaves of a Dask config document, dotted, checked."""
-    comm = _child(_child(data, "distributed"), "comm")
+    distributed = data.get("distributed")
+    comm = distributed.get("comm") if isinstance(distributed, dict) else None
     found: dict[str, Any] = {}
 
     def walk(node: Any, prefix: str) -> None:
@@ -382,10 +371,6 @@ def _tls_settings(data: Any, shown: str) -> dict[str, Any]:
         raise StudyError(f"security file {shown} sets no distributed.comm.tls setting "
                          "(ca-file, client.cert, client.key)")
     return found
-
-
-def _child(node: Any, key: str) -> Any:
-    return node.get(key) if isinstance(node, dict) else None
 
 
 def _security(security: Any) -> Any:
@@ -609,10 +594,7 @@ def _local_cluster(workers: int, *, dashboard: bool = False,
             log(f"dashboard: {_dashboard_link(cluster.scheduler)}")
         yield cluster
     except BaseException:
-        # interrupted: stop the workers without waiting for their running task (a nanny
-        # otherwise waits 4 s for it before killing the process)
-        with contextlib.suppress(Exception):
-            cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)
+        _kill_workers(cluster)
         raise
     finally:
         with contextlib.suppress(Exception):
@@ -660,8 +642,7 @@ def _started(make: Callable[[], Any]) -> Any:
         raise interrupt if interrupt is not None else made["error"]
     cluster = made["value"]
     if interrupt is not None:
-        with contextlib.suppress(Exception):
-            cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)
+        _kill_workers(cluster)
         with contextlib.suppress(Exception):
             cluster.close(timeout=_CLOSE_TIMEOUT)
         raise interrupt
@@ -685,8 +666,14 @@ def _in_thread(make: Callable[[], Any], name: str) -> tuple[dict[str, Any], thre
     return made, done
 
 
+def _kill_workers(cluster: Any) -> None:
+    """Interrupted: close the local workers' nannies at once, each killing its process after
+    0.8 :data:`_KILL_TIMEOUT` (a nanny otherwise waits 4 s for the running task)."""
+    with contextlib.suppress(Exception):
+        cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)
+
+
 async def _close_nannies(nannies: Sequence[Any], timeout: float) -> None:
-    """Close the local workers' nannies at once, each killing its process after 0.8 timeout."""
     import asyncio
 
     await asyncio.gather(*(n.close(timeout=timeout, reason="snake-pin-study-interrupted")
