@@ -1,7 +1,5 @@
-"""A study's page: ``DIR/index.html`` (self-contained) and ``DIR/summary.json``.
-
-The figures follow the axes (:ref:`studies`, The study page); :func:`save_figures` writes
-them as PNG files for the actuator-failure map's report.
+"""A study's page, ``DIR/index.html`` (self-contained, figures following the axes:
+:ref:`studies`, The study page), and ``DIR/summary.json``; PNG figures for other reports.
 """
 
 from __future__ import annotations
@@ -81,7 +79,8 @@ def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> 
             if columns["key"][i] in keys]
     rows.sort(key=lambda r: r["index"])
     kind, plotted, replicate = figure_plan(spec)
-    figures = _figures(kind, plotted, spec, rows)
+    figures = [(caption, base64.b64encode(_png(fig)).decode("ascii"))
+               for _, caption, fig in _figure_objects(kind, plotted, spec, rows)]
     page = _page(spec, summary, rows, figures, replicate)
     with atomic_group(folder.path) as group:
         group.write_bytes("summary.json", (json_text(summary, indent=2) + "\n").encode())
@@ -102,13 +101,6 @@ def _png(fig: Any) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
     return buf.getvalue()
-
-
-def _figures(kind: str, plotted: list[str], spec: StudySpec,
-             rows: Sequence[dict[str, Any]]) -> list[tuple[str, str]]:
-    """(caption, base64 PNG) of each figure."""
-    return [(caption, base64.b64encode(_png(fig)).decode("ascii"))
-            for _, caption, fig in _figure_objects(kind, plotted, spec, rows)]
 
 
 def save_figures(spec: StudySpec, rows: Sequence[dict[str, Any]],
@@ -231,16 +223,9 @@ def _lines(ax: Any, name: str, spec: StudySpec, xs: list[Any], rows: Sequence[di
     x_label, x_shown = axis_label(spec, name)
     numeric = not is_categorical(name, xs)
     positions = [float(x_shown(v)) for v in xs] if numeric else list(range(len(xs)))
-    med, low, high = [], [], []
-    for v in xs:
-        data = _ok_values([r for r in rows if r[name] == v], metric)
-        if data:
-            q10, q50, q90 = np.percentile(data, [10, 50, 90])
-        else:
-            q10 = q50 = q90 = np.nan
-        med.append(q50)
-        low.append(q10)
-        high.append(q90)
+    data = [_ok_values([r for r in rows if r[name] == v], metric) for v in xs]
+    low, med, high = zip(*(np.percentile(d, [10, 50, 90]) if d else [np.nan] * 3
+                           for d in data), strict=True)
     ax.fill_between(positions, low, high, color="#4a7bd1", alpha=0.25, label="10-90 %")
     ax.plot(positions, med, "o-", color="#1f4fd1", label="median")
     if not numeric:
