@@ -159,11 +159,8 @@ def _finish(spec: StudySpec, folder: StudyFolder, summary: StudySummary, started
 
     keys = {s.key for s in spec.scenarios}
     table = folder.read_table(["key", "status"])
-    first: dict[str, str] = {}  # each run's first recorded row
-    for key, status in zip(table.column("key").to_pylist(), table.column("status").to_pylist(),
-                           strict=True):
-        if key in keys:
-            first.setdefault(key, status)
+    rows = zip(table.column("key").to_pylist(), table.column("status").to_pylist(), strict=True)
+    first = dict(reversed([(k, s) for k, s in rows if k in keys]))  # each run's first row
     statuses = {**dict.fromkeys(("ok", "diverged", "failed"), 0), **Counter(first.values())}
     summary.recorded = len(first)
     summary.statuses = statuses
@@ -320,12 +317,10 @@ def load_security(path: str | os.PathLike[str]) -> Any:
         return StudyError(f"security file {shown}: {one_line(problem)}")
 
     # read once, checked, and parsed as Dask parses its config files (yaml.safe_load)
-    raw = read_regular_file(path, limit=_MAX_SECURITY_BYTES, kind="security file",
-                            error=refuse)
+    text = decode_utf8(read_regular_file(path, limit=_MAX_SECURITY_BYTES, kind="security file",
+                                         error=refuse), error=refuse)
     try:
-        data = yaml.safe_load(decode_utf8(raw, error=refuse))
-    except StudyError:
-        raise
+        data = yaml.safe_load(text)
     except Exception as exc:  # yaml's errors (multi-line), or a nesting too deep to parse
         raise StudyError(f"security file {shown} is not YAML Dask config: "
                          f"{one_line(str(exc)) or type(exc).__name__}") from None

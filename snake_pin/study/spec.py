@@ -223,6 +223,8 @@ def law_options(settings: Mapping[str, Any], joints: int) -> Any:
     return cls(**values)
 
 
+_viscous = functools.partial(Setting, models=("viscous",))
+_engine = functools.partial(Setting, models=("engine",), controllers=_TRACKING)
 #: Every setting a study can give in ``[base]`` or vary on an axis.
 SETTINGS: dict[str, Setting] = {s.name: s for s in (
     # the run
@@ -238,28 +240,24 @@ SETTINGS: dict[str, Setting] = {s.name: s for s in (
     Setting("passive", "joints", (), "joints without an actuator (a list, base only)"),
     Setting("failed_joint", "int", 0, "one more joint whose actuator gives no torque "
             "(0 = none)", 0.0),
-    # integration (viscous model)
-    Setting("dt", "float", 1e-3, "RK4 step [s]", 0.0, open_low=True, models=("viscous",)),
-    Setting("control_dt", "float", 1e-3, "control period [s], a multiple of dt", 0.0,
-            open_low=True, models=("viscous",)),
-    # friction (viscous model; None = the robot's own)
-    Setting("c_x", "float", None, "friction along each link [N s/m] (default: the robot's)",
-            0.0, models=("viscous",)),
-    Setting("c_y", "float", None, "friction across each link [N s/m] (default: the robot's)",
-            0.0, models=("viscous",)),
-    Setting("c_theta", "float", None, "rotational friction [N m s] (default: the robot's)",
-            0.0, models=("viscous",)),
-    # reference, gait and initial posture (viscous model)
-    Setting("ref_speed", "float", 0.1, "head reference speed along +x [m/s]",
-            models=("viscous",)),
-    Setting("gait_alpha", "float", None, "serpenoid winding angle [rad] (lyapunov/velocity/mpc "
-            "pi/6, pfl pi/3)", models=("viscous",)),
-    Setting("gait_ts", "float", None, "serpenoid periods along the body (1.5; pfl 1)",
-            0.0, open_low=True, models=("viscous",)),
-    Setting("gait_v", "float", None, "serpenoid temporal frequency [rad/s] (2; pfl 0.18)",
-            models=("viscous",)),
-    Setting("init_phi", "float", math.pi / 6, "joint angles of the initial arc [rad] "
-            "(eq. 82)", models=("viscous",)),
+    # integration, friction (None: the robot's own), reference, gait, initial posture
+    _viscous("dt", "float", 1e-3, "RK4 step [s]", 0.0, open_low=True),
+    _viscous("control_dt", "float", 1e-3, "control period [s], a multiple of dt", 0.0,
+             open_low=True),
+    _viscous("c_x", "float", None, "friction along each link [N s/m] (default: the robot's)",
+             0.0),
+    _viscous("c_y", "float", None, "friction across each link [N s/m] (default: the robot's)",
+             0.0),
+    _viscous("c_theta", "float", None, "rotational friction [N m s] (default: the robot's)",
+             0.0),
+    _viscous("ref_speed", "float", 0.1, "head reference speed along +x [m/s]"),
+    _viscous("gait_alpha", "float", None, "serpenoid winding angle [rad] (lyapunov/velocity/"
+             "mpc pi/6, pfl pi/3)"),
+    _viscous("gait_ts", "float", None, "serpenoid periods along the body (1.5; pfl 1)", 0.0,
+             open_low=True),
+    _viscous("gait_v", "float", None, "serpenoid temporal frequency [rad/s] (2; pfl 0.18)"),
+    _viscous("init_phi", "float", math.pi / 6, "joint angles of the initial arc [rad] "
+             "(eq. 82)"),
     Setting("init_noise", "float", 0.0, "standard deviation of Gaussian noise added to each "
             "initial joint angle [rad] (engine runs are chaotic: spread them with init_seed)",
             0.0),
@@ -267,16 +265,13 @@ SETTINGS: dict[str, Setting] = {s.name: s for s in (
     # the control laws: generated from their options dataclasses (snake_pin.control)
     *_law_settings(),
     # engine (MuJoCo)
-    Setting("mu", "float", 1.0, "wheel-floor Coulomb friction", 0.0, _MAX_MU, open_low=True,
-            models=("engine",), controllers=_TRACKING),
-    Setting("wheel_radius", "float", 0.03, "wheel radius [m]", 0.0, _MAX_WHEEL_RADIUS,
-            open_low=True, models=("engine",), controllers=_TRACKING),
-    Setting("cone", "str", "elliptic", "MuJoCo friction cone (pyramidal: faster, but its "
+    _engine("mu", "float", 1.0, "wheel-floor Coulomb friction", 0.0, _MAX_MU, open_low=True),
+    _engine("wheel_radius", "float", 0.03, "wheel radius [m]", 0.0, _MAX_WHEEL_RADIUS,
+            open_low=True),
+    _engine("cone", "str", "elliptic", "MuJoCo friction cone (pyramidal: faster, but its "
             "sideways friction depends on the heading, 26 % weaker at 45 degrees)",
-            choices=("elliptic", "pyramidal"),
-            models=("engine",), controllers=_TRACKING),
-    Setting("cutoff", "float", 10.0, "cut-off of the velocity filter [Hz]", 0.0, open_low=True,
-            models=("engine",), controllers=_TRACKING),
+            choices=("elliptic", "pyramidal")),
+    _engine("cutoff", "float", 10.0, "cut-off of the velocity filter [Hz]", 0.0, open_low=True),
 )}
 
 #: Gait defaults per controller: (alpha, T_s, v) of Sections VI.2 and VI.1.
@@ -693,12 +688,9 @@ def _check_applicability(where: _Where, base: Mapping[str, Any], axes: Sequence[
         setting = SETTINGS[name]
         for model, controller in pairs:
             if not setting.applies(model, controller):
-                if model not in setting.models:
-                    scope = f"the {'/'.join(setting.models)} model"
-                    other = f"model {model}"
-                else:
-                    scope = f"controller {'/'.join(setting.controllers)}"
-                    other = f"controller {controller}"
+                scope, other = (f"the {'/'.join(setting.models)} model", f"model {model}") \
+                    if model not in setting.models else \
+                    (f"controller {'/'.join(setting.controllers)}", f"controller {controller}")
                 raise where(f"{place(name)} {name} applies to {scope} only, and this "
                             f"study has runs with {other}")
 
