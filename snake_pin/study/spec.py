@@ -476,8 +476,12 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
     axes_doc = _table(where, doc, "axes")
     axes = [_axis(where, name_, spec, base) for name_, spec in axes_doc.items()]
     axes = [a for a in axes if not a.random] + [a for a in axes if a.random]
-    sizes = _sizes(where, axes)
-    total = math.prod(sizes)
+    random = {a.setting: len(a.values) for a in axes if a.random}  # sampled jointly
+    if len(set(random.values())) > 1:
+        listed = ", ".join(f"{k} {v}" for k, v in random.items())
+        raise where(f"[axes] random axes are sampled jointly and need the same samples; "
+                    f"got {listed}")
+    total = math.prod([len(a.values) for a in axes if not a.random] + [*set(random.values())])
     if total > MAX_RUNS:
         raise where(f"[axes] the study expands to {total} runs, at most {MAX_RUNS}")
     scenarios = _scenarios(where, file, base, axes)
@@ -579,7 +583,13 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
                 raise where(f"{label} values[{i}] repeats values[{seen[v]}] = {v!r}")
             seen[v] = i
         return Axis(name, form, tuple(values), {"values": list(values)})
-    numbers = _numbers(where, f"{label} {form}", raw, 3 if form == "linspace" else 2)
+    shape = "[a, b, n]" if form == "linspace" else "[a, b]"
+    if not isinstance(raw, list) or len(raw) != shape.count(",") + 1 or \
+            not all(_is_number(v) for v in raw):
+        raise where(f"{label} {form} must be {shape} (numbers), got {_short(raw)}")
+    numbers = [float(v) for v in raw]
+    if not all(math.isfinite(v) for v in numbers):
+        raise where(f"{label} {form} must be finite, got {_short(raw)}")
     if form == "linspace":
         low, high, count = numbers
         if not _is_int(raw[2]) or count < 1:
@@ -619,27 +629,6 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
             raise where(f"{label} value {i} ({v!r}) of {form}: {name} {problem}")
         values.append(v)
     return Axis(name, form, tuple(values), {**source, "values": values})
-
-
-def _numbers(where: _Where, label: str, raw: Any, count: int) -> list[float]:
-    if not isinstance(raw, list) or len(raw) != count or not all(_is_number(v) for v in raw):
-        shape = "[a, b, n]" if count == 3 else "[a, b]"
-        raise where(f"{label} must be {shape} (numbers), got {_short(raw)}")
-    values = [float(v) for v in raw]
-    if not all(math.isfinite(v) for v in values):
-        raise where(f"{label} must be finite, got {_short(raw)}")
-    return values
-
-
-def _sizes(where: _Where, axes: Sequence[Axis]) -> list[int]:
-    """Sizes of the factors of the product: each grid axis, then the random block."""
-    grid = [len(a.values) for a in axes if not a.random]
-    random = {a.setting: len(a.values) for a in axes if a.random}
-    if len(set(random.values())) > 1:
-        listed = ", ".join(f"{k} {v}" for k, v in random.items())
-        raise where(f"[axes] random axes are sampled jointly and need the same samples; "
-                    f"got {listed}")
-    return grid + ([next(iter(random.values()))] if random else [])
 
 
 # -------------------------------------------------------------------- expansion
