@@ -198,19 +198,18 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
 
     futures: dict[Any, list[Scenario]] = {}
     queue = list(reversed(batches))
-    bar = None
 
     def submit() -> Any:
         batch = queue.pop()
-        keys = [s.key for s in batch]
+        file = batch_name([s.key for s in batch])
         future = client.submit(batch_function, batch, pure=False,
-                               key=f"snake-pin-study-{batch_name(keys)[6:26]}")
+                               key=f"snake-pin-study-{file[6:26]}")
         futures[future] = batch
         return future
 
+    bar = tqdm(total=sum(len(b) for b in batches), unit="run", desc=f"study {name}",
+               disable=None if progress is not False else True, leave=False)
     try:
-        bar = tqdm(total=sum(len(b) for b in batches), unit="run", desc=f"study {name}",
-                   disable=None if progress is not False else True, leave=False)
         running = as_completed([submit() for _ in range(min(slots, len(queue)))],
                                loop=client.loop)
         failures = 0
@@ -221,19 +220,15 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
             error = None if future.cancelled() else future.exception()
             if future.cancelled() or isinstance(error, KilledWorker):
                 summary.lost += len(batch)
-                bar.update(len(batch))
-                future.release()
-                continue
-            if error is None:
-                rows = future.result()
             else:
                 text = f"task failed: {type(error).__name__}: {' '.join(str(error).split())}"
-                rows = [failed_row(s, text[:500]) for s in batch]
-            folder.write_batch([s.key for s in batch], rows)
-            summary.ran += len(rows)
-            failures += sum(r["status"] != "ok" for r in rows)
-            bar.update(len(rows))
-            bar.set_postfix(failed=failures, refresh=False)
+                rows = future.result() if error is None else \
+                    [failed_row(s, text[:500]) for s in batch]
+                folder.write_batch([s.key for s in batch], rows)
+                summary.ran += len(rows)
+                failures += sum(r["status"] != "ok" for r in rows)
+                bar.set_postfix(failed=failures, refresh=False)
+            bar.update(len(batch))
             future.release()
     except BaseException:
         with contextlib.suppress(Exception):
@@ -241,8 +236,7 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
             client.cancel(list(futures), force=True)
         raise
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
 
 
 def plan_batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:

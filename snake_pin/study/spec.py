@@ -638,12 +638,11 @@ def _scenarios(where: _Where, file: Path, base: Mapping[str, Any],
     random = [a for a in axes if a.random]
     points = list(zip(*(a.values for a in random), strict=True)) if random else [()]
     origin = {a.setting: f"[axes.{a.setting}]" for a in axes}
-    explicit = set(base) | set(origin)
 
     def place(name: str) -> str:
         return origin.get(name, "[base]")
 
-    _check_applicability(where, base, axes, explicit, place)
+    _check_applicability(where, base, axes, set(base) | set(origin), place)
     robots = _robots(where, file, base, axes, place)
     scenarios: list[Scenario] = []
     cache: dict[tuple[Any, ...], SnakeParams] = {}
@@ -827,7 +826,4 @@ def _kind_name(value: object) -> str:
 
 _REPR = reprlib.Repr()
 _REPR.maxstring, _REPR.maxother, _REPR.maxlist = 60, 60, 8
-
-
-def _short(value: object) -> str:
-    return _REPR.repr(value)
+_short = _REPR.repr
