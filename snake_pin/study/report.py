@@ -88,7 +88,6 @@ def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> 
     return folder.path / "index.html"
 
 
-# --------------------------------------------------------------------- figures
 def _ok_values(rows: Sequence[dict[str, Any]], metric: str) -> list[float]:
     return [r[metric] for r in rows if r["status"] == "ok" and _finite(r[metric])]
 
@@ -245,7 +244,6 @@ def _tick(value: Any) -> str:
     return f"{value:.3g}" if isinstance(value, float) else str(value)
 
 
-# ------------------------------------------------------------------------- page
 def _e(text: object) -> str:
     return html.escape(str(text), quote=True)
 

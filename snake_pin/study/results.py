@@ -75,7 +75,6 @@ class StudyFolder:
         self.runs = self.path / RUNS
         self._lock: int | None = None
 
-    # ------------------------------------------------------------ checking
     def check(self, spec: StudySpec) -> None:
         """Refuse a folder that cannot hold ``spec`` (creates nothing)."""
         shown = printable_path(self.path)
@@ -153,7 +152,6 @@ class StudyFolder:
             files.append(Path(entry.path))
         return sorted(files)
 
-    # ------------------------------------------------------------- writing
     def prepare(self, spec: StudySpec) -> None:
         """Create the folder, take its lock, check it again, write ``study.json`` (if new) and
         try writing (a probe file in the folder and in ``runs/``), before any run."""

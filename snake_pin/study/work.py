@@ -38,7 +38,6 @@ class RunOutcome:
     wall_time: float = math.nan
 
 
-# ------------------------------------------------------------------- the task
 def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
     """One result row per scenario, in order; a run that raises is a ``failed`` row (a
     KeyboardInterrupt is not caught: an interrupted task is lost whole)."""
@@ -61,7 +60,6 @@ def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
     return rows
 
 
-# ---------------------------------------------------------------- one scenario
 def reference(scenario: Scenario) -> LinearReference:
     """The head reference of a run."""
     speed = scenario.settings.get("ref_speed", 0.1)
@@ -143,7 +141,6 @@ def _simulate_engine(scenario: Scenario) -> RunOutcome:
     return RunOutcome(run.trajectory, "", time.perf_counter() - start)
 
 
-# -------------------------------------------------------------------- rows
 _STATUS = {"completed": "ok", "diverged": "diverged", "failed": "failed"}
 _METRICS = ("rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_error_pct",
             "R_min", "R_tilde_min", "D_min", "t_end", "torque_rms")
