@@ -63,11 +63,7 @@ def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
     """Which figures a study gets (see the module docstring)."""
     replicate = [a.setting for a in spec.axes if a.random or a.setting == "init_seed"]
     shown = [a.setting for a in spec.grid_axes if a.setting not in replicate]
-    if len(shown) >= 2:
-        return "heatmap", shown[:2], replicate
-    if len(shown) == 1:
-        return "lines", shown, replicate
-    return "histogram", [], replicate
+    return ("histogram", "lines", "heatmap")[min(len(shown), 2)], shown[:2], replicate
 
 
 def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> Path:
@@ -202,15 +198,12 @@ def _heatmap(fig: Any, ax: Any, plotted: list[str], spec: StudySpec,
     ax.set_yticks(range(len(ys)), [_tick(y_shown(v)) for v in ys], fontsize=8)
     ax.set_xlabel(x_label)
     ax.set_ylabel(y_label)
-    if len(xs) * len(ys) <= 400:
-        for i in range(len(ys)):
-            for j in range(len(xs)):
-                text = "x" if np.isnan(grid[i, j]) and counts[i, j] else \
-                    ("" if np.isnan(grid[i, j]) else f"{grid[i, j]:.3g}")
-                value = shown[i, j]
-                light = bool(np.isfinite(value) and (norm(value) > 0.6 or norm(value) < 0))
-                ax.text(j, i, text, ha="center", va="center", fontsize=7,
-                        color="k" if light else "w")
+    for i, j in np.ndindex(grid.shape) if grid.size <= 400 else ():
+        text = "x" if np.isnan(grid[i, j]) and counts[i, j] else \
+            ("" if np.isnan(grid[i, j]) else f"{grid[i, j]:.3g}")
+        value = shown[i, j]
+        light = bool(np.isfinite(value) and (norm(value) > 0.6 or norm(value) < 0))
+        ax.text(j, i, text, ha="center", va="center", fontsize=7, color="k" if light else "w")
     return (f"{label}: median over the successful runs of each ({x_label}, {y_label}) cell "
             "(x: no successful run; blank: not run yet"
             + ("; grey: more than a factor 1e6 below the largest" if extend == "min" else "")

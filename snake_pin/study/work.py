@@ -141,7 +141,6 @@ def _simulate_engine(scenario: Scenario) -> RunOutcome:
     return RunOutcome(run.trajectory, "", time.perf_counter() - start)
 
 
-_STATUS = {"completed": "ok", "diverged": "diverged", "failed": "failed"}
 _METRICS = ("rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_error_pct",
             "R_min", "R_tilde_min", "D_min", "t_end", "torque_rms")
 
@@ -178,7 +177,8 @@ def result_row(scenario: Scenario, outcome: RunOutcome) -> dict[str, Any]:
     r_min, r_tilde_min, d_min = _criteria(traj)
     torque = traj.tau[:-1] if len(traj) > 1 else traj.tau[:0]
     return {**_settings_columns(scenario),
-            "status": _STATUS.get(traj.status, traj.status), "reason": traj.reason,
+            "status": "ok" if traj.status == "completed" else traj.status,
+            "reason": traj.reason,
             "rms_head_error": rms, "max_head_error": peak,
             "rms_head_error_pct": None if rms is None else 100.0 * rms / body,
             "max_head_error_pct": None if peak is None else 100.0 * peak / body,
