@@ -12,7 +12,7 @@ from typing import Any
 
 from threadpoolctl import threadpool_limits
 
-__all__ = ["SharedCluster", "iter_jobs", "run_jobs"]
+__all__ = ["SharedCluster", "run_jobs"]
 
 Job = tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]
 
@@ -44,7 +44,7 @@ class SharedCluster:
         Returns
         -------
         distributed.Client
-            The client of the block's local cluster.
+            The client.
         """
         if self._client is None:
             from ..study.runner import dask_client
@@ -56,36 +56,15 @@ class SharedCluster:
         return self
 
     def __exit__(self, *exc: Any) -> bool:
-        # the exception goes to the cluster's context: interrupted, it kills the workers
-        # without waiting for their running task
+        # interrupted, the cluster's context kills the workers without waiting for their task
         return bool(self._stack.__exit__(*exc))
 
 
 def iter_jobs(jobs: Sequence[Job], workers: int | None = None, *,
               cluster: SharedCluster | None = None) -> Iterator[tuple[int, Any]]:
-    """``(index, fn(*args, **kwargs))`` of each job as it finishes, on up to ``workers`` cores.
-
-    Parameters
-    ----------
-    jobs
-        ``(fn, args, kwargs)`` triples; functions, arguments and results must pickle.
-    workers
-        Worker processes (default: as many as jobs, at most the number of cores; with
-        ``cluster``, its workers); with one worker or one job, the jobs run here.
-    cluster
-        A cluster shared with other calls; None: one started for this call.
-
-    Yields
-    ------
-    tuple of (int, Any)
-        The job's index in ``jobs`` and its result, in the order the jobs finish.
-
-    Raises
-    ------
-    BaseException
-        An exception of a job, a KeyboardInterrupt while waiting, or the caller closing
-        the iterator early: the pending jobs are cancelled and the workers killed first.
-    """
+    """``(index, result)`` of each job as it finishes (:func:`run_jobs`; with one worker or
+    one job they run here); a job's exception, an interrupt or an early close cancels the
+    pending jobs and kills the workers first."""
     workers = cluster.workers if cluster is not None else \
         workers or min(len(jobs), os.cpu_count() or 1)
     if workers <= 1 or len(jobs) <= 1:
@@ -112,15 +91,16 @@ def iter_jobs(jobs: Sequence[Job], workers: int | None = None, *,
 
 def run_jobs(jobs: Sequence[Job], workers: int | None = None, *,
              cluster: SharedCluster | None = None) -> list[Any]:
-    """Results of ``fn(*args, **kwargs)`` for each job, in order (failures as in
-    :func:`iter_jobs`).
+    """Results of ``fn(*args, **kwargs)`` for each job, in order; a job's exception cancels
+    the others and kills the workers.
 
     Parameters
     ----------
     jobs
         ``(fn, args, kwargs)`` triples (picklable).
     workers
-        Worker processes (default: as many as jobs, at most the number of cores).
+        Worker processes (default: as many as jobs, at most the number of cores; with
+        ``cluster``, its workers).
     cluster
         A cluster shared with other calls; None: one started for this call.
 

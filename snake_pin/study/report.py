@@ -1,7 +1,5 @@
-"""A study's page: ``DIR/index.html`` (self-contained) and ``DIR/summary.json``.
-
-The figures follow the axes (:ref:`studies`, The study page); :func:`save_figures` writes
-them as PNG files for the actuator-failure map's report.
+"""A study's page, ``DIR/index.html`` (self-contained, figures following the axes:
+:ref:`studies`, The study page), and ``DIR/summary.json``; PNG figures for other reports.
 """
 
 from __future__ import annotations
@@ -65,11 +63,7 @@ def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
     """Which figures a study gets (see the module docstring)."""
     replicate = [a.setting for a in spec.axes if a.random or a.setting == "init_seed"]
     shown = [a.setting for a in spec.grid_axes if a.setting not in replicate]
-    if len(shown) >= 2:
-        return "heatmap", shown[:2], replicate
-    if len(shown) == 1:
-        return "lines", shown, replicate
-    return "histogram", [], replicate
+    return ("histogram", "lines", "heatmap")[min(len(shown), 2)], shown[:2], replicate
 
 
 def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> Path:
@@ -81,7 +75,8 @@ def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> 
             if columns["key"][i] in keys]
     rows.sort(key=lambda r: r["index"])
     kind, plotted, replicate = figure_plan(spec)
-    figures = _figures(kind, plotted, spec, rows)
+    figures = [(caption, base64.b64encode(_png(fig)).decode("ascii"))
+               for _, caption, fig in _figure_objects(kind, plotted, spec, rows)]
     page = _page(spec, summary, rows, figures, replicate)
     with atomic_group(folder.path) as group:
         group.write_bytes("summary.json", (json_text(summary, indent=2) + "\n").encode())
@@ -89,7 +84,6 @@ def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> 
     return folder.path / "index.html"
 
 
-# --------------------------------------------------------------------- figures
 def _ok_values(rows: Sequence[dict[str, Any]], metric: str) -> list[float]:
     return [r[metric] for r in rows if r["status"] == "ok" and _finite(r[metric])]
 
@@ -102,13 +96,6 @@ def _png(fig: Any) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
     return buf.getvalue()
-
-
-def _figures(kind: str, plotted: list[str], spec: StudySpec,
-             rows: Sequence[dict[str, Any]]) -> list[tuple[str, str]]:
-    """(caption, base64 PNG) of each figure."""
-    return [(caption, base64.b64encode(_png(fig)).decode("ascii"))
-            for _, caption, fig in _figure_objects(kind, plotted, spec, rows)]
 
 
 def save_figures(spec: StudySpec, rows: Sequence[dict[str, Any]],
@@ -211,15 +198,12 @@ def _heatmap(fig: Any, ax: Any, plotted: list[str], spec: StudySpec,
     ax.set_yticks(range(len(ys)), [_tick(y_shown(v)) for v in ys], fontsize=8)
     ax.set_xlabel(x_label)
     ax.set_ylabel(y_label)
-    if len(xs) * len(ys) <= 400:
-        for i in range(len(ys)):
-            for j in range(len(xs)):
-                text = "x" if np.isnan(grid[i, j]) and counts[i, j] else \
-                    ("" if np.isnan(grid[i, j]) else f"{grid[i, j]:.3g}")
-                value = shown[i, j]
-                light = bool(np.isfinite(value) and (norm(value) > 0.6 or norm(value) < 0))
-                ax.text(j, i, text, ha="center", va="center", fontsize=7,
-                        color="k" if light else "w")
+    for i, j in np.ndindex(grid.shape) if grid.size <= 400 else ():
+        text = "x" if np.isnan(grid[i, j]) and counts[i, j] else \
+            ("" if np.isnan(grid[i, j]) else f"{grid[i, j]:.3g}")
+        value = shown[i, j]
+        light = bool(np.isfinite(value) and (norm(value) > 0.6 or norm(value) < 0))
+        ax.text(j, i, text, ha="center", va="center", fontsize=7, color="k" if light else "w")
     return (f"{label}: median over the successful runs of each ({x_label}, {y_label}) cell "
             "(x: no successful run; blank: not run yet"
             + ("; grey: more than a factor 1e6 below the largest" if extend == "min" else "")
@@ -231,16 +215,9 @@ def _lines(ax: Any, name: str, spec: StudySpec, xs: list[Any], rows: Sequence[di
     x_label, x_shown = axis_label(spec, name)
     numeric = not is_categorical(name, xs)
     positions = [float(x_shown(v)) for v in xs] if numeric else list(range(len(xs)))
-    med, low, high = [], [], []
-    for v in xs:
-        data = _ok_values([r for r in rows if r[name] == v], metric)
-        if data:
-            q10, q50, q90 = np.percentile(data, [10, 50, 90])
-        else:
-            q10 = q50 = q90 = np.nan
-        med.append(q50)
-        low.append(q10)
-        high.append(q90)
+    data = [_ok_values([r for r in rows if r[name] == v], metric) for v in xs]
+    low, med, high = zip(*(np.percentile(d, [10, 50, 90]) if d else [np.nan] * 3
+                           for d in data), strict=True)
     ax.fill_between(positions, low, high, color="#4a7bd1", alpha=0.25, label="10-90 %")
     ax.plot(positions, med, "o-", color="#1f4fd1", label="median")
     if not numeric:
@@ -260,7 +237,6 @@ def _tick(value: Any) -> str:
     return f"{value:.3g}" if isinstance(value, float) else str(value)
 
 
-# ------------------------------------------------------------------------- page
 def _e(text: object) -> str:
     return html.escape(str(text), quote=True)
 

@@ -1,6 +1,5 @@
-"""A study's output folder and its Parquet dataset of results (one row per run, schema
-:data:`SCHEMA`); layout, columns and checks: :ref:`studies` (The study folder).
-"""
+"""A study's output folder and its Parquet dataset of results (one row per run,
+:data:`SCHEMA`): :ref:`studies` (The study folder)."""
 
 from __future__ import annotations
 
@@ -76,7 +75,6 @@ class StudyFolder:
         self.runs = self.path / RUNS
         self._lock: int | None = None
 
-    # ------------------------------------------------------------ checking
     def check(self, spec: StudySpec) -> None:
         """Refuse a folder that cannot hold ``spec`` (creates nothing)."""
         shown = printable_path(self.path)
@@ -154,7 +152,6 @@ class StudyFolder:
             files.append(Path(entry.path))
         return sorted(files)
 
-    # ------------------------------------------------------------- writing
     def prepare(self, spec: StudySpec) -> None:
         """Create the folder, take its lock, check it again, write ``study.json`` (if new) and
         try writing (a probe file in the folder and in ``runs/``), before any run."""
@@ -181,10 +178,15 @@ class StudyFolder:
         try:
             self.check(spec)  # again, under the lock: another run may have started here
             _probe_writable(self.path)
-            if not (self.path / _IDENTITY).exists():
-                payload = {"format": _FORMAT, **spec.to_dict()}
-                _write_or_refuse(self.path / _IDENTITY, (json.dumps(
-                    payload, indent=2, allow_nan=False) + "\n").encode())
+            identity = self.path / _IDENTITY
+            if not identity.exists():
+                text = json.dumps({"format": _FORMAT, **spec.to_dict()}, indent=2,
+                                  allow_nan=False)
+                try:
+                    atomic_write_bytes(identity, (text + "\n").encode())
+                except OSError as exc:
+                    raise StudyError(f"{printable_path(identity)}: cannot write "
+                                     f"({exc.strerror or exc})") from None
             _mkdir(self.runs)
             self._check_runs()
             _probe_writable(self.runs)
@@ -304,10 +306,3 @@ def _mkdir(folder: Path, parents: bool = False) -> None:
     except OSError as exc:
         raise StudyError(f"{printable_path(folder)}: cannot create the folder "
                          f"({exc.strerror or exc})") from None
-
-
-def _write_or_refuse(path: Path, data: bytes) -> None:
-    try:
-        atomic_write_bytes(path, data)
-    except OSError as exc:
-        raise StudyError(f"{printable_path(path)}: cannot write ({exc.strerror or exc})") from None

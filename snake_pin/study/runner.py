@@ -1,11 +1,5 @@
-"""Running a study on Dask: one run per task, rows written as they arrive, resumable.
-
-:func:`run_study` validates everything first, then prepares the folder, then runs the
-missing runs only, on an authenticated local cluster (TLS with certificates made for the
-invocation, 127.0.0.1 only) or an existing one (``scheduler`` with ``security``, whose
-handshake :func:`check_scheduler` completes on a deadline of its own before any file is
-created). How it runs, what an interrupt keeps and why the cluster is authenticated:
-:ref:`studies` (How a study runs).
+"""Running a study on Dask (one run per task, rows written as they arrive, resumable) on an
+authenticated local cluster or a checked existing one: :ref:`studies` (How a study runs).
 """
 
 from __future__ import annotations
@@ -87,8 +81,7 @@ def run_study(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     batch_function
         The task (default :func:`snake_pin.study.work.run_batch`), importable by the workers.
     client
-        A connected ``distributed.Client`` whose workers run the study (a cluster shared
-        with other work, left open); excludes scheduler, workers, security and dashboard.
+        A running ``distributed.Client`` to run on (left open; excludes the four above).
 
     Returns
     -------
@@ -166,11 +159,8 @@ def _finish(spec: StudySpec, folder: StudyFolder, summary: StudySummary, started
 
     keys = {s.key for s in spec.scenarios}
     table = folder.read_table(["key", "status"])
-    first: dict[str, str] = {}  # each run's first recorded row
-    for key, status in zip(table.column("key").to_pylist(), table.column("status").to_pylist(),
-                           strict=True):
-        if key in keys:
-            first.setdefault(key, status)
+    rows = zip(table.column("key").to_pylist(), table.column("status").to_pylist(), strict=True)
+    first = dict(reversed([(k, s) for k, s in rows if k in keys]))  # each run's first row
     statuses = {**dict.fromkeys(("ok", "diverged", "failed"), 0), **Counter(first.values())}
     summary.recorded = len(first)
     summary.statuses = statuses
@@ -200,6 +190,7 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
              progress: bool | None, name: str) -> None:
     """Keep ``slots`` batches running, write each as it completes; cancel on interrupt."""
     from distributed import as_completed
+    from distributed.scheduler import KilledWorker
     from tqdm import tqdm
 
     from .results import batch_name
@@ -207,19 +198,18 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
 
     futures: dict[Any, list[Scenario]] = {}
     queue = list(reversed(batches))
-    bar = None
 
     def submit() -> Any:
         batch = queue.pop()
-        keys = [s.key for s in batch]
+        file = batch_name([s.key for s in batch])
         future = client.submit(batch_function, batch, pure=False,
-                               key=f"snake-pin-study-{batch_name(keys)[6:26]}")
+                               key=f"snake-pin-study-{file[6:26]}")
         futures[future] = batch
         return future
 
+    bar = tqdm(total=sum(len(b) for b in batches), unit="run", desc=f"study {name}",
+               disable=None if progress is not False else True, leave=False)
     try:
-        bar = tqdm(total=sum(len(b) for b in batches), unit="run", desc=f"study {name}",
-                   disable=None if progress is not False else True, leave=False)
         running = as_completed([submit() for _ in range(min(slots, len(queue)))],
                                loop=client.loop)
         failures = 0
@@ -228,21 +218,17 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
             if queue:
                 running.add(submit())
             error = None if future.cancelled() else future.exception()
-            if future.cancelled() or _is_killed_worker(error):
+            if future.cancelled() or isinstance(error, KilledWorker):
                 summary.lost += len(batch)
-                bar.update(len(batch))
-                future.release()
-                continue
-            if error is None:
-                rows = future.result()
             else:
                 text = f"task failed: {type(error).__name__}: {' '.join(str(error).split())}"
-                rows = [failed_row(s, text[:500]) for s in batch]
-            folder.write_batch([s.key for s in batch], rows)
-            summary.ran += len(rows)
-            failures += sum(r["status"] != "ok" for r in rows)
-            bar.update(len(rows))
-            bar.set_postfix(failed=failures, refresh=False)
+                rows = future.result() if error is None else \
+                    [failed_row(s, text[:500]) for s in batch]
+                folder.write_batch([s.key for s in batch], rows)
+                summary.ran += len(rows)
+                failures += sum(r["status"] != "ok" for r in rows)
+                bar.set_postfix(failed=failures, refresh=False)
+            bar.update(len(batch))
             future.release()
     except BaseException:
         with contextlib.suppress(Exception):
@@ -250,14 +236,7 @@ def _execute(client: Any, batches: list[list[Scenario]], slots: int,
             client.cancel(list(futures), force=True)
         raise
     finally:
-        if bar is not None:
-            bar.close()
-
-
-def _is_killed_worker(error: BaseException | None) -> bool:
-    from distributed.scheduler import KilledWorker
-
-    return isinstance(error, KilledWorker)
+        bar.close()
 
 
 def plan_batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
@@ -332,12 +311,10 @@ def load_security(path: str | os.PathLike[str]) -> Any:
         return StudyError(f"security file {shown}: {one_line(problem)}")
 
     # read once, checked, and parsed as Dask parses its config files (yaml.safe_load)
-    raw = read_regular_file(path, limit=_MAX_SECURITY_BYTES, kind="security file",
-                            error=refuse)
+    text = decode_utf8(read_regular_file(path, limit=_MAX_SECURITY_BYTES, kind="security file",
+                                         error=refuse), error=refuse)
     try:
-        data = yaml.safe_load(decode_utf8(raw, error=refuse))
-    except StudyError:
-        raise
+        data = yaml.safe_load(text)
     except Exception as exc:  # yaml's errors (multi-line), or a nesting too deep to parse
         raise StudyError(f"security file {shown} is not YAML Dask config: "
                          f"{one_line(str(exc)) or type(exc).__name__}") from None
@@ -356,7 +333,8 @@ def load_security(path: str | os.PathLike[str]) -> Any:
 
 def _tls_settings(data: Any, shown: str) -> dict[str, Any]:
     """The ``distributed.comm`` TLS leaves of a Dask config document, dotted, checked."""
-    comm = _child(_child(data, "distributed"), "comm")
+    distributed = data.get("distributed")
+    comm = distributed.get("comm") if isinstance(distributed, dict) else None
     found: dict[str, Any] = {}
 
     def walk(node: Any, prefix: str) -> None:
@@ -382,10 +360,6 @@ def _tls_settings(data: Any, shown: str) -> dict[str, Any]:
         raise StudyError(f"security file {shown} sets no distributed.comm.tls setting "
                          "(ca-file, client.cert, client.key)")
     return found
-
-
-def _child(node: Any, key: str) -> Any:
-    return node.get(key) if isinstance(node, dict) else None
 
 
 def _security(security: Any) -> Any:
@@ -609,10 +583,7 @@ def _local_cluster(workers: int, *, dashboard: bool = False,
             log(f"dashboard: {_dashboard_link(cluster.scheduler)}")
         yield cluster
     except BaseException:
-        # interrupted: stop the workers without waiting for their running task (a nanny
-        # otherwise waits 4 s for it before killing the process)
-        with contextlib.suppress(Exception):
-            cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)
+        _kill_workers(cluster)
         raise
     finally:
         with contextlib.suppress(Exception):
@@ -660,8 +631,7 @@ def _started(make: Callable[[], Any]) -> Any:
         raise interrupt if interrupt is not None else made["error"]
     cluster = made["value"]
     if interrupt is not None:
-        with contextlib.suppress(Exception):
-            cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)
+        _kill_workers(cluster)
         with contextlib.suppress(Exception):
             cluster.close(timeout=_CLOSE_TIMEOUT)
         raise interrupt
@@ -685,8 +655,14 @@ def _in_thread(make: Callable[[], Any], name: str) -> tuple[dict[str, Any], thre
     return made, done
 
 
+def _kill_workers(cluster: Any) -> None:
+    """Interrupted: close the local workers' nannies at once, each killing its process after
+    0.8 :data:`_KILL_TIMEOUT` (a nanny otherwise waits 4 s for the running task)."""
+    with contextlib.suppress(Exception):
+        cluster.sync(_close_nannies, list(cluster.workers.values()), _KILL_TIMEOUT)
+
+
 async def _close_nannies(nannies: Sequence[Any], timeout: float) -> None:
-    """Close the local workers' nannies at once, each killing its process after 0.8 timeout."""
     import asyncio
 
     await asyncio.gather(*(n.close(timeout=timeout, reason="snake-pin-study-interrupted")

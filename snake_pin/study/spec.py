@@ -24,32 +24,14 @@ from .._io import decode_utf8, parse_toml, read_regular_file
 from .._validation import one_line, printable_path
 from ..control import LyapunovOptions, MPCOptions, PFLOptions, QuasiStaticOptions
 from ..control.gains import K_PHI_FIRST, K_PHI_REST
-from ..exceptions import SnakePinError
+from ..exceptions import ParameterError, SnakePinError
 from ..metrics import ERROR_WINDOW
 from ..params import SnakeParams
-from ..sim import MAX_ARRAY_BYTES, MAX_STEPS, MAX_SUBSTEPS, MAX_TOTAL_BYTES
+from ..sim import MAX_SUBSTEPS, _check_size, _check_steps
 from .errors import StudyError
 
-__all__ = [
-    "CONTROLLERS",
-    "KEY_FORMAT",
-    "LAW_OPTIONS",
-    "MAX_RUNS",
-    "MAX_SEED",
-    "MAX_STUDY_BYTES",
-    "MODELS",
-    "SETTINGS",
-    "WEIGHT_PREFIX",
-    "Axis",
-    "Scenario",
-    "Setting",
-    "StudySpec",
-    "canonical_json",
-    "law_options",
-    "load_study",
-    "parse_study",
-    "run_key",
-]
+__all__ = ["CONTROLLERS", "MAX_RUNS", "MAX_STUDY_BYTES", "MODELS", "SETTINGS", "Scenario",
+           "Setting", "StudySpec", "load_study", "run_key"]
 
 #: Most runs one study may expand to.
 MAX_RUNS = 100_000
@@ -107,7 +89,7 @@ class Setting:
         Parameters
         ----------
         model, controller
-            The run's model and controller.
+            The run's.
 
         Returns
         -------
@@ -135,12 +117,12 @@ class Setting:
         return "finite"
 
     def problem(self, value: Any) -> str:
-        """Why a value is outside the domain.
+        """Why a value (of the setting's kind) is outside the domain.
 
         Parameters
         ----------
         value
-            A value already of the setting's kind.
+            The value.
 
         Returns
         -------
@@ -217,25 +199,8 @@ def _law_settings() -> list[Setting]:
 
 
 def law_options(settings: Mapping[str, Any], joints: int) -> Any:
-    """The options of a run's controller from its (resolved) settings.
-
-    Parameters
-    ----------
-    settings
-        A run's settings (:attr:`Scenario.settings`), on the viscous model.
-    joints
-        The robot's n - 1.
-
-    Returns
-    -------
-    LyapunovOptions or QuasiStaticOptions or PFLOptions or MPCOptions
-        The options.
-
-    Raises
-    ------
-    ParameterError
-        MPC settings that do not combine (e.g. a horizon shorter than a node).
-    """
+    """The options of a viscous run's controller from its settings, for ``joints`` = n - 1
+    (a ParameterError for MPC settings that do not combine)."""
     controller = settings["controller"]
     cls = LAW_OPTIONS[controller]
     values: dict[str, Any] = {}
@@ -258,6 +223,8 @@ def law_options(settings: Mapping[str, Any], joints: int) -> Any:
     return cls(**values)
 
 
+_viscous = functools.partial(Setting, models=("viscous",))
+_engine = functools.partial(Setting, models=("engine",), controllers=_TRACKING)
 #: Every setting a study can give in ``[base]`` or vary on an axis.
 SETTINGS: dict[str, Setting] = {s.name: s for s in (
     # the run
@@ -273,28 +240,24 @@ SETTINGS: dict[str, Setting] = {s.name: s for s in (
     Setting("passive", "joints", (), "joints without an actuator (a list, base only)"),
     Setting("failed_joint", "int", 0, "one more joint whose actuator gives no torque "
             "(0 = none)", 0.0),
-    # integration (viscous model)
-    Setting("dt", "float", 1e-3, "RK4 step [s]", 0.0, open_low=True, models=("viscous",)),
-    Setting("control_dt", "float", 1e-3, "control period [s], a multiple of dt", 0.0,
-            open_low=True, models=("viscous",)),
-    # friction (viscous model; None = the robot's own)
-    Setting("c_x", "float", None, "friction along each link [N s/m] (default: the robot's)",
-            0.0, models=("viscous",)),
-    Setting("c_y", "float", None, "friction across each link [N s/m] (default: the robot's)",
-            0.0, models=("viscous",)),
-    Setting("c_theta", "float", None, "rotational friction [N m s] (default: the robot's)",
-            0.0, models=("viscous",)),
-    # reference, gait and initial posture (viscous model)
-    Setting("ref_speed", "float", 0.1, "head reference speed along +x [m/s]",
-            models=("viscous",)),
-    Setting("gait_alpha", "float", None, "serpenoid winding angle [rad] (lyapunov/velocity/mpc "
-            "pi/6, pfl pi/3)", models=("viscous",)),
-    Setting("gait_ts", "float", None, "serpenoid periods along the body (1.5; pfl 1)",
-            0.0, open_low=True, models=("viscous",)),
-    Setting("gait_v", "float", None, "serpenoid temporal frequency [rad/s] (2; pfl 0.18)",
-            models=("viscous",)),
-    Setting("init_phi", "float", math.pi / 6, "joint angles of the initial arc [rad] "
-            "(eq. 82)", models=("viscous",)),
+    # integration, friction (None: the robot's own), reference, gait, initial posture
+    _viscous("dt", "float", 1e-3, "RK4 step [s]", 0.0, open_low=True),
+    _viscous("control_dt", "float", 1e-3, "control period [s], a multiple of dt", 0.0,
+             open_low=True),
+    _viscous("c_x", "float", None, "friction along each link [N s/m] (default: the robot's)",
+             0.0),
+    _viscous("c_y", "float", None, "friction across each link [N s/m] (default: the robot's)",
+             0.0),
+    _viscous("c_theta", "float", None, "rotational friction [N m s] (default: the robot's)",
+             0.0),
+    _viscous("ref_speed", "float", 0.1, "head reference speed along +x [m/s]"),
+    _viscous("gait_alpha", "float", None, "serpenoid winding angle [rad] (lyapunov/velocity/"
+             "mpc pi/6, pfl pi/3)"),
+    _viscous("gait_ts", "float", None, "serpenoid periods along the body (1.5; pfl 1)", 0.0,
+             open_low=True),
+    _viscous("gait_v", "float", None, "serpenoid temporal frequency [rad/s] (2; pfl 0.18)"),
+    _viscous("init_phi", "float", math.pi / 6, "joint angles of the initial arc [rad] "
+             "(eq. 82)"),
     Setting("init_noise", "float", 0.0, "standard deviation of Gaussian noise added to each "
             "initial joint angle [rad] (engine runs are chaotic: spread them with init_seed)",
             0.0),
@@ -302,16 +265,13 @@ SETTINGS: dict[str, Setting] = {s.name: s for s in (
     # the control laws: generated from their options dataclasses (snake_pin.control)
     *_law_settings(),
     # engine (MuJoCo)
-    Setting("mu", "float", 1.0, "wheel-floor Coulomb friction", 0.0, _MAX_MU, open_low=True,
-            models=("engine",), controllers=_TRACKING),
-    Setting("wheel_radius", "float", 0.03, "wheel radius [m]", 0.0, _MAX_WHEEL_RADIUS,
-            open_low=True, models=("engine",), controllers=_TRACKING),
-    Setting("cone", "str", "elliptic", "MuJoCo friction cone (pyramidal: faster, but its "
+    _engine("mu", "float", 1.0, "wheel-floor Coulomb friction", 0.0, _MAX_MU, open_low=True),
+    _engine("wheel_radius", "float", 0.03, "wheel radius [m]", 0.0, _MAX_WHEEL_RADIUS,
+            open_low=True),
+    _engine("cone", "str", "elliptic", "MuJoCo friction cone (pyramidal: faster, but its "
             "sideways friction depends on the heading, 26 % weaker at 45 degrees)",
-            choices=("elliptic", "pyramidal"),
-            models=("engine",), controllers=_TRACKING),
-    Setting("cutoff", "float", 10.0, "cut-off of the velocity filter [Hz]", 0.0, open_low=True,
-            models=("engine",), controllers=_TRACKING),
+            choices=("elliptic", "pyramidal")),
+    _engine("cutoff", "float", 10.0, "cut-off of the velocity filter [Hz]", 0.0, open_low=True),
 )}
 
 #: Gait defaults per controller: (alpha, T_s, v) of Sections VI.2 and VI.1.
@@ -322,17 +282,8 @@ GAIT_DEFAULTS = {"lyapunov": (math.pi / 6, 1.5, 2.0), "velocity": (math.pi / 6, 
 # ------------------------------------------------------------------ the parsed study
 @dataclass(frozen=True)
 class Axis:
-    """One axis of a study.
-
-    Parameters
-    ----------
-    setting, form
-        The setting it varies; ``values``, ``linspace``, ``uniform`` or ``normal``.
-    values
-        Its values, in order (drawn ones for the random forms).
-    source
-        The axis as written (normalised), for ``study.json``.
-    """
+    """One axis: the setting it varies, its form (values, linspace, uniform, normal), its
+    values in order (drawn for the random forms) and its normalised source for study.json."""
 
     setting: str
     form: str
@@ -426,23 +377,8 @@ class StudySpec:
 
 # ------------------------------------------------------------------------- keys
 def canonical_json(value: Any) -> str:
-    """Canonical JSON text: sorted keys, no spaces, ASCII, floats by ``repr`` (-0.0 as 0.0).
-
-    Parameters
-    ----------
-    value
-        Plain data (mappings, sequences, str, int, float, bool, None, numpy scalars).
-
-    Returns
-    -------
-    str
-        The text.
-
-    Raises
-    ------
-    ValueError
-        For NaN or infinities.
-    """
+    """Canonical JSON text of plain data: sorted keys, no spaces, ASCII, floats by ``repr``
+    (-0.0 as 0.0); a ValueError for NaN or infinities."""
     return json.dumps(_plain(value), sort_keys=True, separators=(",", ":"), ensure_ascii=True,
                       allow_nan=False)
 
@@ -512,25 +448,8 @@ def load_study(path: str | os.PathLike[str]) -> StudySpec:
 
 
 def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpec:
-    """Validate study text; relative robot files are read beside ``path``.
-
-    Parameters
-    ----------
-    text
-        The TOML text.
-    path
-        Where it comes from (named in errors; robot files are relative to its folder).
-
-    Returns
-    -------
-    StudySpec
-        The validated study.
-
-    Raises
-    ------
-    StudyError
-        One line naming ``path`` and the key at fault.
-    """
+    """Validate study text (:func:`load_study`'s); ``path`` is named in errors, and relative
+    robot files are read beside it."""
     file = Path(path)
     where = functools.partial(_error, printable_path(file))
     if not isinstance(text, str):
@@ -557,8 +476,12 @@ def parse_study(text: str, path: str | os.PathLike[str] = "<study>") -> StudySpe
     axes_doc = _table(where, doc, "axes")
     axes = [_axis(where, name_, spec, base) for name_, spec in axes_doc.items()]
     axes = [a for a in axes if not a.random] + [a for a in axes if a.random]
-    sizes = _sizes(where, axes)
-    total = math.prod(sizes)
+    random = {a.setting: len(a.values) for a in axes if a.random}  # sampled jointly
+    if len(set(random.values())) > 1:
+        listed = ", ".join(f"{k} {v}" for k, v in random.items())
+        raise where(f"[axes] random axes are sampled jointly and need the same samples; "
+                    f"got {listed}")
+    total = math.prod([len(a.values) for a in axes if not a.random] + [*set(random.values())])
     if total > MAX_RUNS:
         raise where(f"[axes] the study expands to {total} runs, at most {MAX_RUNS}")
     scenarios = _scenarios(where, file, base, axes)
@@ -580,11 +503,13 @@ def _check_keys(where: _Where, table: str, doc: Mapping[str, Any], allowed: Sequ
                 kind: str) -> None:
     for key in doc:
         if key not in allowed:
-            close = difflib.get_close_matches(str(key), allowed, n=1)
-            hint = f" (did you mean '{close[0]}'?)" if close else \
-                f" (known: {', '.join(allowed)})"
-            place = f"{table} " if table else ""
-            raise where(f"{place}unknown {kind} {_short(key)}{hint}")
+            hint = _did_you_mean(key, allowed) or f" (known: {', '.join(allowed)})"
+            raise where(f"{table + ' ' if table else ''}unknown {kind} {_short(key)}{hint}")
+
+
+def _did_you_mean(key: object, known: Iterable[str]) -> str:
+    close = difflib.get_close_matches(str(key), list(known), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""
 
 
 def _table(where: _Where, doc: Mapping[str, Any], key: str) -> dict[str, Any]:
@@ -596,12 +521,9 @@ def _table(where: _Where, doc: Mapping[str, Any], key: str) -> dict[str, Any]:
 
 def _known(where: _Where, key: str, message: str, after: str = "") -> Setting:
     """The setting ``key``, else an error naming it and the closest known name."""
-    setting = SETTINGS.get(key)
-    if setting is None:
-        close = difflib.get_close_matches(key, list(SETTINGS), n=1)
-        hint = f" (did you mean '{close[0]}'?)" if close else ""
-        raise where(f"{message} {_short(key)}{after}{hint}")
-    return setting
+    if key not in SETTINGS:
+        raise where(f"{message} {_short(key)}{after}{_did_you_mean(key, SETTINGS)}")
+    return SETTINGS[key]
 
 
 def _typed(where: _Where, label: str, setting: Setting, value: Any) -> Any:
@@ -661,7 +583,13 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
                 raise where(f"{label} values[{i}] repeats values[{seen[v]}] = {v!r}")
             seen[v] = i
         return Axis(name, form, tuple(values), {"values": list(values)})
-    numbers = _numbers(where, f"{label} {form}", raw, 3 if form == "linspace" else 2)
+    shape = "[a, b, n]" if form == "linspace" else "[a, b]"
+    if not isinstance(raw, list) or len(raw) != shape.count(",") + 1 or \
+            not all(_is_number(v) for v in raw):
+        raise where(f"{label} {form} must be {shape} (numbers), got {_short(raw)}")
+    numbers = [float(v) for v in raw]
+    if not all(math.isfinite(v) for v in numbers):
+        raise where(f"{label} {form} must be finite, got {_short(raw)}")
     if form == "linspace":
         low, high, count = numbers
         if not _is_int(raw[2]) or count < 1:
@@ -703,27 +631,6 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
     return Axis(name, form, tuple(values), {**source, "values": values})
 
 
-def _numbers(where: _Where, label: str, raw: Any, count: int) -> list[float]:
-    if not isinstance(raw, list) or len(raw) != count or not all(_is_number(v) for v in raw):
-        shape = "[a, b, n]" if count == 3 else "[a, b]"
-        raise where(f"{label} must be {shape} (numbers), got {_short(raw)}")
-    values = [float(v) for v in raw]
-    if not all(math.isfinite(v) for v in values):
-        raise where(f"{label} must be finite, got {_short(raw)}")
-    return values
-
-
-def _sizes(where: _Where, axes: Sequence[Axis]) -> list[int]:
-    """Sizes of the factors of the product: each grid axis, then the random block."""
-    grid = [len(a.values) for a in axes if not a.random]
-    random = {a.setting: len(a.values) for a in axes if a.random}
-    if len(set(random.values())) > 1:
-        listed = ", ".join(f"{k} {v}" for k, v in random.items())
-        raise where(f"[axes] random axes are sampled jointly and need the same samples; "
-                    f"got {listed}")
-    return grid + ([next(iter(random.values()))] if random else [])
-
-
 # -------------------------------------------------------------------- expansion
 def _scenarios(where: _Where, file: Path, base: Mapping[str, Any],
                axes: Sequence[Axis]) -> list[Scenario]:
@@ -731,12 +638,11 @@ def _scenarios(where: _Where, file: Path, base: Mapping[str, Any],
     random = [a for a in axes if a.random]
     points = list(zip(*(a.values for a in random), strict=True)) if random else [()]
     origin = {a.setting: f"[axes.{a.setting}]" for a in axes}
-    explicit = set(base) | set(origin)
 
     def place(name: str) -> str:
         return origin.get(name, "[base]")
 
-    _check_applicability(where, base, axes, explicit, place)
+    _check_applicability(where, base, axes, set(base) | set(origin), place)
     robots = _robots(where, file, base, axes, place)
     scenarios: list[Scenario] = []
     cache: dict[tuple[Any, ...], SnakeParams] = {}
@@ -770,12 +676,9 @@ def _check_applicability(where: _Where, base: Mapping[str, Any], axes: Sequence[
         setting = SETTINGS[name]
         for model, controller in pairs:
             if not setting.applies(model, controller):
-                if model not in setting.models:
-                    scope = f"the {'/'.join(setting.models)} model"
-                    other = f"model {model}"
-                else:
-                    scope = f"controller {'/'.join(setting.controllers)}"
-                    other = f"controller {controller}"
+                scope, other = (f"the {'/'.join(setting.models)} model", f"model {model}") \
+                    if model not in setting.models else \
+                    (f"controller {'/'.join(setting.controllers)}", f"controller {controller}")
                 raise where(f"{place(name)} {name} applies to {scope} only, and this "
                             f"study has runs with {other}")
 
@@ -805,21 +708,15 @@ def _robots(where: _Where, file: Path, base: Mapping[str, Any], axes: Sequence[A
 
 
 def _normalise(chosen: Mapping[str, Any]) -> dict[str, Any]:
-    """Every setting that applies to the run's model and controller, defaults resolved."""
+    """Every setting that applies to the run's model and controller, defaults resolved
+    (those None in :data:`SETTINGS` depend on other settings)."""
     model = chosen.get("model", SETTINGS["model"].default)
     controller = chosen.get("controller", SETTINGS["controller"].default)
     settings = {name: chosen.get(name, s.default) for name, s in SETTINGS.items()
                 if s.applies(model, controller)}
     settings["passive"] = list(settings["passive"])
-    _resolve_defaults(settings)
-    return settings
-
-
-def _resolve_defaults(settings: dict[str, Any]) -> None:
-    """Fill the defaults that depend on other settings (None in :data:`SETTINGS`)."""
-    controller = settings["controller"]
-    if settings["model"] != "viscous":
-        return
+    if model != "viscous":
+        return settings
     for name, value in zip(("gait_alpha", "gait_ts", "gait_v"), GAIT_DEFAULTS[controller],
                            strict=True):
         if settings[name] is None:
@@ -829,6 +726,7 @@ def _resolve_defaults(settings: dict[str, Any]) -> None:
                                   k_shape=settings["k_shape"]).resolved(
             passive=bool(settings["passive"] or settings["failed_joint"]))
         settings["lam_shape"], settings["k_shape"] = options.lam_shape, options.k_shape
+    return settings
 
 
 def _params(where: _Where, settings: Mapping[str, Any], robot: SnakeParams, place: Any,
@@ -892,27 +790,17 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
                 given = place(key) if settings.get(key) is not None else place("robot")
                 raise where(f"{given} controller velocity needs {key} > 0 on every "
                             f"link of robot {_short(settings['robot'])}")
-    t_final = settings["t_final"]
-    if model == "engine":
-        control_dt = ENGINE_CONTROL_DT
-    else:
-        dt, control_dt = settings["dt"], settings["control_dt"]
-        ratio = control_dt / dt
-        substeps = round(ratio)
-        if ratio > MAX_SUBSTEPS + 0.5 or substeps < 1 or \
-                abs(substeps * dt - control_dt) > 1e-9 * control_dt:
-            raise where(f"{place('control_dt')} control_dt = {control_dt:g} s must be 1.."
-                        f"{MAX_SUBSTEPS} times {place('dt')} dt = {dt:g} s")
-    steps = t_final / control_dt
-    if steps > MAX_STEPS + 1e-6:
-        raise where(f"{place('t_final')} t_final = {t_final:g} s needs more than "
-                    f"MAX_STEPS = {MAX_STEPS} control steps of {control_dt:g} s "
-                    f"(t_final <= {MAX_STEPS * control_dt:g} s)")
-    samples = math.ceil(steps - 1e-9) + 1
-    nq = n + 2
-    if samples * nq * 8 > MAX_ARRAY_BYTES or samples * (2 * nq + n) * 8 > MAX_TOTAL_BYTES:
-        raise where(f"{place('t_final')} t_final = {t_final:g} s of the {n}-link robot "
-                    "needs more memory than a trajectory may hold (snake_pin.sim.MAX_ARRAY_BYTES)")
+    # the bounds of snake_pin.sim.simulate, checked here for every run before any runs
+    dt = settings.get("dt", ENGINE_CONTROL_DT)
+    control_dt = settings.get("control_dt", ENGINE_CONTROL_DT)
+    try:
+        _, steps = _check_steps(settings["t_final"], dt, control_dt)
+        _check_size(steps + 1, n + 2, n - 1, settings["t_final"])
+    except ParameterError as exc:
+        if "t_final" in str(exc):
+            raise where(f"{place('t_final')} {exc}") from None
+        raise where(f"{place('control_dt')} control_dt = {control_dt:g} s must be 1.."
+                    f"{MAX_SUBSTEPS} times {place('dt')} dt = {dt:g} s") from None
 
 
 # ------------------------------------------------------------------------ helpers
@@ -938,7 +826,4 @@ def _kind_name(value: object) -> str:
 
 _REPR = reprlib.Repr()
 _REPR.maxstring, _REPR.maxother, _REPR.maxlist = 60, 60, 8
-
-
-def _short(value: object) -> str:
-    return _REPR.repr(value)
+_short = _REPR.repr

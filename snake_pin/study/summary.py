@@ -20,10 +20,9 @@ class StudySummary:
         The study and where its results are.
     status
         ``complete``, ``interrupted`` or ``incomplete`` (runs lost with a dead worker).
-    runs, recorded, ran, skipped
-        Runs in the study, recorded, recorded by this invocation, recorded before it.
-    lost
-        Runs this invocation submitted and did not record; a re-run executes them.
+    runs, recorded, ran, skipped, lost
+        Runs in the study, recorded, recorded by this invocation or before it, and submitted
+        by it but not recorded (a re-run executes them).
     statuses
         Recorded rows per status (``ok``, ``diverged``, ``failed``).
     wall_time, scheduler
@@ -48,12 +47,12 @@ class StudySummary:
     note: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain RFC 8259 JSON data.
+        """Every field as plain RFC 8259 JSON data.
 
         Returns
         -------
         dict
-            Every field; non-finite numbers become None (null).
+            Non-finite numbers become None (null).
         """
         return dict(json_safe(self))
 

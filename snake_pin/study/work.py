@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from .._validation import one_line
 from ..control import LinearReference
-from ..exceptions import RunInterrupted
-from ..metrics import head_error_summary, head_position_error
+from ..metrics import criteria_along, head_error_summary, head_position_error
 from ..params import SnakeParams
 from ..sim import Trajectory
 from .spec import Scenario, canonical_json, law_options
@@ -38,7 +38,6 @@ class RunOutcome:
     wall_time: float = math.nan
 
 
-# ------------------------------------------------------------------- the task
 def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
     """One result row per scenario, in order; a run that raises is a ``failed`` row (a
     KeyboardInterrupt is not caught: an interrupted task is lost whole)."""
@@ -48,7 +47,11 @@ def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
     with threadpool_limits(limits=1):
         for scenario in scenarios:
             simulate = simulate_scenario if scenario.model == "viscous" else _simulate_engine
-            outcome = _guarded(simulate, scenario)
+            start = time.perf_counter()
+            try:  # a RunInterrupted is a KeyboardInterrupt: not caught
+                outcome = simulate(scenario)
+            except Exception as exc:
+                outcome = RunOutcome(None, _error_text(exc), time.perf_counter() - start)
             try:
                 rows.append(result_row(scenario, outcome))
             except Exception as exc:
@@ -57,17 +60,6 @@ def run_batch(scenarios: Sequence[Scenario]) -> list[dict[str, Any]]:
     return rows
 
 
-def _guarded(simulate: Any, scenario: Scenario) -> RunOutcome:
-    start = time.perf_counter()
-    try:
-        return simulate(scenario)
-    except RunInterrupted:
-        raise
-    except Exception as exc:
-        return RunOutcome(None, _error_text(exc), time.perf_counter() - start)
-
-
-# ---------------------------------------------------------------- one scenario
 def reference(scenario: Scenario) -> LinearReference:
     """The head reference of a run."""
     speed = scenario.settings.get("ref_speed", 0.1)
@@ -149,8 +141,6 @@ def _simulate_engine(scenario: Scenario) -> RunOutcome:
     return RunOutcome(run.trajectory, "", time.perf_counter() - start)
 
 
-# -------------------------------------------------------------------- rows
-_STATUS = {"completed": "ok", "diverged": "diverged", "failed": "failed"}
 _METRICS = ("rms_head_error", "max_head_error", "rms_head_error_pct", "max_head_error_pct",
             "R_min", "R_tilde_min", "D_min", "t_end", "torque_rms")
 
@@ -184,10 +174,11 @@ def result_row(scenario: Scenario, outcome: RunOutcome) -> dict[str, Any]:
     error = head_position_error(traj, reference(scenario))
     window = head_error_summary(traj, error, start=scenario["error_window"])
     rms, peak = window["rms_head_error"], window["max_head_error"]
-    r_min, r_tilde_min, d_min = _criteria(traj, scenario)
+    r_min, r_tilde_min, d_min = _criteria(traj)
     torque = traj.tau[:-1] if len(traj) > 1 else traj.tau[:0]
     return {**_settings_columns(scenario),
-            "status": _STATUS.get(traj.status, traj.status), "reason": traj.reason,
+            "status": "ok" if traj.status == "completed" else traj.status,
+            "reason": traj.reason,
             "rms_head_error": rms, "max_head_error": peak,
             "rms_head_error_pct": None if rms is None else 100.0 * rms / body,
             "max_head_error_pct": None if peak is None else 100.0 * peak / body,
@@ -197,8 +188,9 @@ def result_row(scenario: Scenario, outcome: RunOutcome) -> dict[str, Any]:
             "wall_time": _finite_or_none(outcome.wall_time)}
 
 
-def _criteria(traj: Trajectory, scenario: Scenario) -> tuple[float | None, ...]:
-    """(R_min, R~_min, D~_min) along the run, every CRITERIA_PERIOD seconds."""
+def _criteria(traj: Trajectory) -> tuple[float | None, ...]:
+    """(R_min, R~_min, D~_min) along the run every CRITERIA_PERIOD seconds: R with every joint
+    actuated, R~ and D~ with the passive and failed joints free."""
     from ..manipulability import manipulability
     from ..model import Snake
 
@@ -206,13 +198,12 @@ def _criteria(traj: Trajectory, scenario: Scenario) -> tuple[float | None, ...]:
         return None, None, None
     period = float(np.median(np.diff(traj.t))) if len(traj) > 1 else CRITERIA_PERIOD
     every = max(1, round(CRITERIA_PERIOD / period))
-    rows = range(0, len(traj), every)
-    free = Snake(traj.params)  # passive and failed joints free: R~, D~
-    actuated = Snake(traj.params.replace(passive=())) if traj.params.passive else free
-    plain = [manipulability(actuated, traj.q[k]) for k in rows]
-    tilde = plain if actuated is free else [manipulability(free, traj.q[k]) for k in rows]
-    return (float(min(m.R for m in plain)), float(min(m.R for m in tilde)),
-            float(min(m.D for m in tilde)))
+    _, d_tilde, r_tilde = criteria_along(traj, every=every)
+    r = r_tilde
+    if traj.params.passive:
+        actuated = Snake(traj.params.replace(passive=()))
+        r = np.array([manipulability(actuated, traj.q[k]).R for k in range(0, len(traj), every)])
+    return float(r.min()), float(r_tilde.min()), float(d_tilde.min())
 
 
 def _finite_or_none(value: float) -> float | None:
@@ -220,6 +211,5 @@ def _finite_or_none(value: float) -> float | None:
 
 
 def _error_text(exc: BaseException) -> str:
-    detail = " ".join(str(exc).split())
-    text = f"{type(exc).__name__}: {detail}" if detail else type(exc).__name__
-    return text if len(text) <= 500 else text[:497] + "..."
+    named = f"{type(exc).__name__}: {exc}" if str(exc).strip() else type(exc).__name__
+    return one_line(named, 500)
