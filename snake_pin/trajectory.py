@@ -57,12 +57,8 @@ class Trajectory:
 
     Parameters
     ----------
-    t : numpy.ndarray
-        Sample times [s], shape (N,).
-    q : numpy.ndarray
-        Configurations [m, m, rad, rad], shape (N, n + 2).
-    dq : numpy.ndarray
-        Their velocities [m/s, m/s, rad/s, rad/s], shape (N, n + 2).
+    t, q, dq : numpy.ndarray
+        Sample times [s], shape (N,); configurations and velocities, shape (N, n + 2).
     tau : numpy.ndarray
         Joint torques [N m], shape (N, n - 1); ``tau[k]`` held over ``[t[k], t[k + 1])``.
     params : SnakeParams
@@ -73,10 +69,8 @@ class Trajectory:
         Whether the run stopped on a fault (status "diverged" or "failed").
     reason : str, optional
         Why the run stopped (empty for a completed run).
-    meta : dict, optional
-        Run settings (controller name, time steps, reference ...).
-    summary : dict, optional
-        Scalar results written to the JSON summary.
+    meta, summary : dict, optional
+        Run settings; scalar results written to the JSON summary.
     status : str, optional
         One of :data:`STATUSES` (sets ``diverged``); empty: from ``diverged``.
 
@@ -120,13 +114,10 @@ class Trajectory:
     def save(self, path: str | os.PathLike[str]) -> tuple[Path, Path]:
         """Write ``PATH.npz`` (arrays) and ``PATH.json`` (RFC 8259 summary) as one set.
 
-        Only a trailing ``.npz`` or ``.json`` is dropped from the name (``run.v2`` ->
-        ``run.v2.npz`` + ``run.v2.json``).
-
         Parameters
         ----------
         path : str or os.PathLike
-            The files' common name, with or without ``.npz``/``.json``.
+            The files' common name; only a trailing ``.npz``/``.json`` is dropped.
 
         Returns
         -------
@@ -326,25 +317,12 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
                            f"(it has: {', '.join(listed) or 'none'})")
         chosen = [name for name in listed if wanted is None or name in wanted]
 
-        # 1. every needed array's .npy header, checked before any data is decompressed
-        n = params.n
-        plan: dict[str, _Member] = {}
-        for name in _CORE:
-            plan[name] = _inspect(archive, members[f"{name}.npy"], name, kinds="f8")
-        samples = plan["t"].shape[0] if len(plan["t"].shape) == 1 else -1
-        for name, shape in (("t", (samples,)), ("q", (samples, n + 2)),
-                            ("dq", (samples, n + 2)), ("tau", (samples, n - 1))):
-            if plan[name].shape != shape:
-                raise _Refused(f"array {name} has shape {plan[name].shape}, expected {shape}")
-        if samples < 1:
-            raise _Refused("it has no samples")
+        # 1. every needed array's .npy header and size, checked before any data is decompressed
+        plan = {name: _inspect(archive, members[f"{name}.npy"], name, kinds="f8")
+                for name in _CORE}
         for name in chosen:
-            member = _inspect(archive, members[f"{_SIGNAL_PREFIX}{name}.npy"],
-                              f"signal {name!r}", kinds="biuf")
-            if len(member.shape) not in (1, 2) or member.shape[0] != samples:
-                raise _Refused(f"signal {name!r} has shape {member.shape}, expected "
-                               f"({samples},) or ({samples}, k)")
-            plan[_SIGNAL_PREFIX + name] = member
+            plan[_SIGNAL_PREFIX + name] = _inspect(
+                archive, members[f"{_SIGNAL_PREFIX}{name}.npy"], f"signal {name!r}", kinds="biuf")
         total = sum(member.nbytes for member in plan.values())
         if total > MAX_TOTAL_BYTES:
             raise _Refused(f"its arrays declare {mebibytes(total)} together, beyond the "
@@ -354,7 +332,7 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
         data = {key: _data(archive, member, key) for key, member in plan.items()}
     core = {name: data[name].astype(float) for name in _CORE}
     signals = {name: data[_SIGNAL_PREFIX + name] for name in chosen}
-    problem = _array_problem(core, signals, n)
+    problem = _array_problem(core, signals, params.n)
     if problem:
         raise _Refused(problem)
     return cls(t=core["t"], q=core["q"], dq=core["dq"], tau=core["tau"], params=params,
