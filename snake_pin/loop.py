@@ -1,22 +1,5 @@
-"""The closed loop: a controller sampled every period, its torque held over a plant.
-
-:func:`closed_loop` runs a :class:`~snake_pin.control.Controller` against a
-:class:`Plant` (the viscous model of :mod:`snake_pin.sim` or the MuJoCo robot of
-:mod:`snake_pin.engine.run`), holding each torque over its period (zero-order hold),
-checking it and recording the controller's signals. Every run ends with a
-:attr:`~snake_pin.trajectory.Trajectory.status`:
-
-- ``"completed"``: it took all its steps;
-- ``"diverged"``: the plant's state left its bounds (the plant says which), or its
-  dynamics raised an error of the package or an arithmetic one;
-- ``"failed"``: the controller raised (any exception) or returned a torque of the wrong
-  size, type or a non-finite one;
-- ``"interrupted"``: a KeyboardInterrupt (Ctrl-C, or SIGTERM/SIGHUP converted by the
-  command line) arrived; :func:`closed_loop` then raises
-  :class:`~snake_pin.exceptions.RunInterrupted` carrying the partial trajectory.
-
-In each case the samples up to the last good one are kept, and ``reason`` says when and
-why. ``diverged`` is True for the two faults ("diverged", "failed").
+"""The closed loop: :func:`closed_loop` runs a controller against a :class:`Plant`, each
+torque checked and held over its period; how a run ends: :doc:`/architecture` (statuses).
 """
 
 from __future__ import annotations
@@ -47,15 +30,12 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
                 label: str | None = None, record_signals: bool = True) -> Trajectory:
     """The closed loop: ``steps`` control periods of ``plant`` under ``controller``.
 
-    The controller is called at each sampling instant (:meth:`Plant.times`) and its torque
-    held over the period; the run ends as the module docstring says.
-
     Parameters
     ----------
     plant : Plant
         The robot being controlled.
     controller : Controller
-        The law (its torques checked at each call).
+        The law, called at each instant of :meth:`Plant.times`.
     x0 : numpy.ndarray
         The initial state, as :meth:`Plant.reset` takes it.
     steps : int
@@ -67,7 +47,7 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
     label : str, optional
         The progress bar's label (default: the controller's name).
     record_signals : bool, optional
-        Whether to record the controller's :meth:`~snake_pin.control.Controller.signals`.
+        Record the controller's :meth:`~snake_pin.control.Controller.signals`.
 
     Returns
     -------
@@ -238,14 +218,12 @@ class Plant(abc.ABC):
 
     @abc.abstractmethod
     def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
-        """Start a run from ``x0`` and write the first sample ``[q, q']`` into ``out``.
+        """Start a run from ``x0`` (length 2(n + 2)); write the first sample into ``out``.
 
         Parameters
         ----------
-        x0 : numpy.ndarray
-            The initial state, length 2(n + 2).
-        out : numpy.ndarray
-            Where the first sample goes.
+        x0, out : numpy.ndarray
+            The initial state, and where the first sample ``[q, q']`` goes.
         """
 
     @abc.abstractmethod
@@ -258,8 +236,7 @@ class Plant(abc.ABC):
         tau : numpy.ndarray
             Joint torques (n - 1); finite unless :attr:`checks_torque`.
         first : numpy.ndarray or None
-            q'' at the current state under ``tau``, if known (see
-            :attr:`takes_first_stage`).
+            q'' at the current state under ``tau``, if known (:attr:`takes_first_stage`).
         out : numpy.ndarray
             Where the new state ``[q, q']`` goes.
         t : float
