@@ -350,7 +350,7 @@ class Path(abc.ABC):
         if guess is not None and not np.isfinite(guess).all():
             raise ParameterError(f"hint must be finite arc lengths, one or one per point, "
                                  f"got {brief(hint)}")
-        span = _span(span)
+        span = None if span is None else interval(span, "span")
         if pts.size == 0:
             return np.zeros(pts.shape[:-1])
         exact = self._exact_projection(pts, span, guess)
@@ -1170,11 +1170,6 @@ def interval(value: object, name: str) -> tuple[float, float]:
     if not low < high:
         raise ParameterError(f"{name} must have low < high, got ({low:g}, {high:g})")
     return low, high
-
-
-def _span(span: object) -> tuple[float, float] | None:
-    """A checked ``(s_min, s_max)`` (None stays None)."""
-    return None if span is None else interval(span, "span")
 
 
 # ------------------------------------------------------------------- construction

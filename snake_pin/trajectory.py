@@ -43,8 +43,6 @@ _FAULTS = ("diverged", "failed")
 _CORE = ("t", "q", "dq", "tau")
 _SIGNAL_PREFIX = "signal__"
 _SIGNAL_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
-_MEMBER_NAME = re.compile(rf"({'|'.join(_CORE)}|header|{_SIGNAL_PREFIX}{_SIGNAL_NAME.pattern})"
-                          r"\.npy")
 _MAX_HEADER_CHARS = 1 << 20
 _MAX_MEMBERS = 1024
 _CHUNK = 1 << 20
@@ -292,9 +290,6 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
         members = {info.filename: info for info in infos}
         if len(members) != len(infos):
             raise _Refused("two members share a name")
-        for name in members:
-            if not _MEMBER_NAME.fullmatch(name):
-                raise _Refused(f"unexpected member {one_line(repr(name), 80)}")
         if "header.npy" not in members:
             raise _Refused("no header")
         header_member = _inspect(archive, members["header.npy"], "header", kinds="U")
