@@ -40,14 +40,10 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
         The initial state, as :meth:`Plant.reset` takes it.
     steps : int
         Control periods, at most :data:`MAX_STEPS`.
-    progress : bool, optional
-        Show a tqdm bar on a terminal.
-    meta : mapping, optional
-        The trajectory's ``meta``.
-    label : str, optional
-        The progress bar's label (default: the controller's name).
-    record_signals : bool, optional
-        Record the controller's :meth:`~snake_pin.control.Controller.signals`.
+    progress, label : optional
+        Show a tqdm bar on a terminal, and its label (default: the controller's name).
+    meta, record_signals : optional
+        The trajectory's ``meta``; record :meth:`~snake_pin.control.Controller.signals`.
 
     Returns
     -------

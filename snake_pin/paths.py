@@ -95,7 +95,6 @@ class _Samples(NamedTuple):
         return self.s0 + self.h * (len(self.kappa) - 1)
 
 
-# --------------------------------------------------------------------------- checks
 def _length(value: object, name: str, *, positive: bool = False, non_negative: bool = False,
             bound: float = MAX_COORDINATE, unit: str = "m") -> float:
     """A coordinate or length [m] within +-``bound`` (>= MIN_LENGTH if positive)."""
@@ -131,7 +130,6 @@ def _set(obj: object, **values: Any) -> None:
         object.__setattr__(obj, name, value)
 
 
-# ---------------------------------------------------------------------- arc length
 class _ArcLength:
     """s(u) = int_{u_0}^u speed, tabulated at ``nodes`` (Gauss-Legendre), and its inverse."""
 
@@ -222,7 +220,6 @@ def _expansion_newton(a: Any, b: Any, kappa: Any, dkappa: Any, h: float,
     return clip(sigma - (e_t * v_t + e_n * v_n) / clip(slope, 0.2, math.inf), -h, h)
 
 
-# --------------------------------------------------------------------------- paths
 class Path(abc.ABC):
     """A planar curve parametrised by arc length s (abstract base of the shapes)."""
 
@@ -523,10 +520,8 @@ class Line(Path):
 
     Parameters
     ----------
-    start : tuple of float, optional
-        Point ``(x, y)`` at s = 0 [m].
-    direction : float, optional
-        Heading [rad] (0: along +x).
+    start, direction : optional
+        Point ``(x, y)`` at s = 0 [m], and heading [rad] (0: along +x).
 
     Raises
     ------
@@ -571,14 +566,9 @@ class Circle(Path):
 
     Parameters
     ----------
-    radius : float, optional
-        Radius [m], > 0.
-    centre : tuple of float or None, optional
-        Centre ``(x, y)`` [m]; None: the start point is the origin.
-    start_angle : float or None, optional
-        Polar angle of the start [rad]; None: heading along +x (0 with a centre).
-    clockwise : bool, optional
-        Travel clockwise (kappa = -1/radius).
+    radius, centre, start_angle, clockwise : optional
+        Radius [m] > 0; centre ``(x, y)`` [m] (None: the start is the origin); polar angle of
+        the start [rad] (None: heading along +x, 0 with a centre); travel clockwise.
 
     Raises
     ------
@@ -711,12 +701,9 @@ class LaneChange(_GraphCurve):
 
     Parameters
     ----------
-    offset : float, optional
-        Lateral shift [m], left positive.
-    length_x : float, optional
-        Length of the S along the lead-in [m], > 0 (``length`` in :func:`make_path`).
-    start : float, optional
-        Straight lead-in before the S [m], >= 0.
+    offset, length_x, start : float, optional
+        Lateral shift [m] (left > 0); length of the S along the lead-in [m] > 0 (``length``
+        in :func:`make_path`); straight lead-in before it [m] >= 0.
     origin, direction : optional
         Start point ``(x, y)`` [m] and heading of the lead-in [rad].
 
@@ -786,10 +773,9 @@ class Sinusoid(_GraphCurve):
 
     Parameters
     ----------
-    amplitude, wavelength : float, optional
-        Amplitude [m] (negative: starts turning right) and wavelength [m], > 0.
-    origin, direction : optional
-        Start point ``(x, y)`` [m] and angle of the frame's x axis [rad].
+    amplitude, wavelength, origin, direction : optional
+        Amplitude [m] (negative: starts turning right), wavelength [m] > 0, start point
+        ``(x, y)`` [m], angle of the frame's x axis [rad].
 
     Raises
     ------
@@ -942,19 +928,14 @@ def _waypoints(points: object) -> np.ndarray:
     return pts
 
 
-# -------------------------------------------------------------------------- timing
 @dataclass(frozen=True)
 class Timing:
     """The timing law s(t): ``speed`` from arc length ``start`` after a ramp (:doc:`/paths`).
 
     Parameters
     ----------
-    speed : float, optional
-        Cruising speed [m/s], > 0.
-    ramp : float, optional
-        Duration of the smooth start [s], >= 0 (0: none).
-    start : float, optional
-        Arc length at t = 0 [m].
+    speed, ramp, start : float, optional
+        Cruising speed [m/s] > 0, duration of the smooth start [s] >= 0, arc length at t = 0 [m].
 
     Raises
     ------
@@ -1016,10 +997,8 @@ class PathReference:
 
     Parameters
     ----------
-    path : Path
-        The curve.
-    timing : Timing or None, optional
-        s(t); default :class:`Timing`.
+    path, timing : Path, Timing or None
+        The curve, and s(t) (default :class:`Timing`).
 
     Raises
     ------
@@ -1089,7 +1068,6 @@ class PathReference:
         return w, dw, ddw
 
 
-# ---------------------------------------------------------------- distance to a path
 def cross_track_error(path: Path | PathReference, points: object, *,
                       span: tuple[float, float] | None = None) -> np.ndarray:
     """Return the signed distance [m] from each point to the path, positive on the left.
@@ -1172,7 +1150,6 @@ def interval(value: object, name: str) -> tuple[float, float]:
     return low, high
 
 
-# ------------------------------------------------------------------- construction
 _SHAPES: dict[str, type[Path]] = {
     "line": Line, "circle": Circle, "arc": Arc, "lane_change": LaneChange,
     "sinusoid": Sinusoid, "waypoints": Waypoints,

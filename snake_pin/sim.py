@@ -144,10 +144,8 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
         Fixed RK4 steps of ``dt``, or scipy's adaptive RK45 per period (for cross-checks).
     max_speed, max_distance
         Divergence bounds [m/s, m] (``math.inf`` for none).
-    progress
-        Show a tqdm bar, on a terminal only.
-    meta : mapping, optional
-        Extra run settings merged into the trajectory's ``meta``.
+    progress, meta : optional
+        Show a tqdm bar on a terminal; extra settings merged into the trajectory's ``meta``.
 
     Returns
     -------

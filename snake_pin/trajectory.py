@@ -63,10 +63,8 @@ class Trajectory:
         The robot.
     signals : dict of str to numpy.ndarray, optional
         Extra per-sample series, N rows each; NaN where missing.
-    diverged : bool, optional
-        Whether the run stopped on a fault (status "diverged" or "failed").
-    reason : str, optional
-        Why the run stopped (empty for a completed run).
+    diverged, reason : optional
+        Whether the run stopped on a fault ("diverged" or "failed"); why (empty if completed).
     meta, summary : dict, optional
         Run settings; scalar results written to the JSON summary.
     status : str, optional
@@ -216,7 +214,6 @@ class Trajectory:
                                       f"({type(exc).__name__}: {one_line(str(exc))})") from None
 
 
-# ---------------------------------------------------------------------- file names
 def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
     """``(PATH.npz, PATH.json)`` for save: only a trailing .npz/.json is dropped."""
     try:
@@ -264,7 +261,6 @@ def _wanted_signals(signals: object) -> frozenset[str] | None:
     return frozenset(names)
 
 
-# ------------------------------------------------------------------- reading files
 class _Refused(Exception):
     """A specific reason to refuse a file (turned into TrajectoryFileError by load)."""
 
