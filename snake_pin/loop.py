@@ -81,8 +81,7 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
     bar = None
 
     def refuse(k: int, t: float, known: int) -> str:
-        """The reason for a non-finite torque at sample k, its torque and signals undone
-        (``known``: how many signals there were before the call)."""
+        """Why sample k failed, its torque and signals undone (``known``: signals before)."""
         taus[k] = 0.0
         for name in list(signals)[known:]:
             del signals[name]
@@ -294,8 +293,7 @@ def _failure(t: float, exc: BaseException) -> str:
 
 @functools.cache
 def _thread_pools() -> ThreadpoolController:
-    """The process's BLAS/OpenMP pools, found once (``threadpool_limits`` looks them up on
-    every entry)."""
+    """The process's BLAS/OpenMP pools, found once (not on every ``threadpool_limits``)."""
     return ThreadpoolController()
 
 

@@ -75,8 +75,7 @@ def _number(value: object, name: str, *, allow_inf: bool = False) -> float:
 
 
 def _check_plant(snake: object) -> tuple[int, int]:
-    """(nq, n - 1) of the plant: a :class:`~snake_pin.model.Snake`, or an object with a
-    Snake's ``nq``, ``n``, ``params`` and ``state_derivative``; else ParameterError."""
+    """(nq, n - 1) of a Snake or a stand-in with its nq, n, params, state_derivative."""
     if isinstance(snake, Snake):
         return snake.nq, snake.n - 1
     wanted = "snake must be a Snake (or a plant with its nq, n, params and state_derivative)"

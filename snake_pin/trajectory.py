@@ -1,8 +1,6 @@
-"""A run's result and its file format: :class:`Trajectory`, saved and loaded.
-
-Saved as ``PATH.npz`` (arrays) + ``PATH.json`` (summary), written whole or not at all;
-read with bounds checked on every .npy header before any data is decompressed, nothing
-unpickled, anything malformed one :class:`~snake_pin.exceptions.TrajectoryFileError` line.
+"""A run's result, :class:`Trajectory`, saved as ``PATH.npz`` + ``PATH.json`` (whole or not
+at all) and loaded with every .npy header's bounds checked before any data is decompressed,
+nothing unpickled, anything malformed one TrajectoryFileError line.
 """
 
 from __future__ import annotations
@@ -149,12 +147,7 @@ class Trajectory:
     def _file_arrays(self) -> dict[str, np.ndarray]:
         """The arrays to save, checked as :meth:`load` checks them."""
         core = {name: np.asarray(getattr(self, name)) for name in _CORE}
-        signals = {}
-        for name, value in self.signals.items():
-            if not isinstance(name, str) or not _SIGNAL_NAME.fullmatch(name):
-                raise ConfigurationError(f"signal name {reprlib.repr(name)} is not a plain "
-                                         "name (letters, digits, _ . + -, at most 64)")
-            signals[name] = np.asarray(value)
+        signals = {name: np.asarray(value) for name, value in self.signals.items()}
         problem = _array_problem(core, signals, self.params.n)
         if problem:
             raise ConfigurationError(f"cannot save this trajectory: {problem}")
@@ -438,6 +431,8 @@ def _array_problem(core: Mapping[str, np.ndarray], signals: Mapping[str, np.ndar
     if samples > 1 and not np.all(np.diff(t) > 0):
         return "its times t are not strictly increasing"
     for name, arr in signals.items():
+        if not isinstance(name, str) or not _SIGNAL_NAME.fullmatch(name):
+            return f"signal name {reprlib.repr(name)} is not a plain name (letters, digits, _.+-)"
         if arr.dtype.kind not in "biuf" or arr.dtype.names is not None:
             return f"signal {name!r} has dtype {arr.dtype}, expected numbers"
         if arr.ndim not in (1, 2) or arr.shape[0] != samples:
