@@ -1248,8 +1248,6 @@ def _parse_csv(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
                     continue  # the header
                 raise _file_error(path, f"waypoint {len(rows) + 1}: not a number pair "
                                         f"{brief(','.join(cells))}") from None
-            if not (math.isfinite(x) and math.isfinite(y)):
-                raise _file_error(path, f"waypoint {len(rows) + 1}: not finite ({x}, {y})")
             rows.append((x, y))
             if len(rows) > MAX_WAYPOINTS:
                 raise _file_error(path, f"more than {MAX_WAYPOINTS} waypoints")
