@@ -1,5 +1,5 @@
 """Posture families of Section IV: straight, arcs (all joints equal) and the serpenoid (43),
-as configurations ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``.
+as configurations ``q = [x_h, y_h, theta_1, phi]``.
 """
 
 from __future__ import annotations

@@ -179,10 +179,8 @@ class Plant(abc.ABC):
         n + 2, and the robot's parameters (the trajectory's).
     snake
         The model the plant integrates (what the laws' ``plant_acceleration`` is asked of).
-    checks_torque
-        Whether :meth:`step` itself finds a non-finite torque, with the new state.
-    takes_first_stage
-        Whether :meth:`step` takes the controller's q'' as its first stage.
+    checks_torque, takes_first_stage
+        Whether :meth:`step` finds a non-finite torque itself; takes the law's q'' as stage 1.
     """
 
     nq: int

@@ -34,7 +34,7 @@ __all__ = ["MAX_ANGLE", "MAX_COORDINATE", "MAX_PATH_FILE_BYTES", "MAX_PATH_SPEED
 DEFAULT_EXTENT = 20.0  # an unbounded path's default projection span is (-1, this) [m]
 #: Largest path file read [bytes].
 MAX_PATH_FILE_BYTES = 4 << 20
-MAX_WAYPOINTS = 100_000
+MAX_WAYPOINTS = 100_000  # most waypoints one path may have
 #: Largest coordinate or length of a path, in absolute value [m].
 MAX_COORDINATE = 1e6
 #: Smallest positive length of a path: radius, wavelength, a lane change's length [m].
