@@ -220,25 +220,20 @@ def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
 
 
 def _resolve(path: str | os.PathLike[str]) -> Path:
-    """The file :meth:`Trajectory.load` opens for ``path`` (see there)."""
+    """The file :meth:`Trajectory.load` opens for ``path`` (see there); opening it refuses
+    a missing or irregular one."""
     try:
         given = Path(path)
     except TypeError as exc:
         raise TrajectoryFileError(f"not a file path: {reprlib.repr(path)}") from exc
     try:
-        if given.is_file():
-            return given
-        if given.exists():
-            raise TrajectoryFileError(f"{printable_path(given)} is not a regular file")
-        if given.name and not given.name.endswith(".npz"):
+        if given.name and not given.name.endswith(".npz") and not given.exists():
             alternative = given.with_name(given.name + ".npz")
             if alternative.is_file():
                 return alternative
-    except (OSError, ValueError) as exc:
-        reason = (exc.strerror if isinstance(exc, OSError) else None) or str(exc)
-        raise TrajectoryFileError(f"cannot open {printable_path(given)}: "
-                                  f"{one_line(reason)}") from None
-    raise TrajectoryFileError(f"no trajectory file at {printable_path(given)}")
+    except OSError:  # an unreadable folder: opening the file says why
+        pass
+    return given
 
 
 def _wanted_signals(signals: object) -> frozenset[str] | None:
