@@ -6,14 +6,13 @@ from __future__ import annotations
 
 import abc
 import functools
-import numbers
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from ._validation import brief, one_line
+from ._validation import integer, one_line
 from .control.base import Controller, inherit_docstrings
 from .exceptions import ParameterError, RunInterrupted, SnakePinError
 from .params import SnakeParams
@@ -57,11 +56,7 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
     ParameterError
         ``steps`` is not a whole number in 0 .. :data:`MAX_STEPS`, or memory is short.
     """
-    if isinstance(steps, bool) or not isinstance(steps, numbers.Integral) or \
-            not 0 <= steps <= MAX_STEPS:
-        raise ParameterError(f"steps must be a whole number in 0 .. MAX_STEPS = {MAX_STEPS}, "
-                             f"got {brief(steps)}")
-    steps = int(steps)
+    steps = integer(steps, "steps", low=0, high=MAX_STEPS)
     ctrl, nq, n_tau = controller, plant.nq, plant.params.n - 1
     try:
         xs = np.zeros((steps + 1, 2 * nq))
