@@ -27,14 +27,11 @@ from .params import SnakeParams
 
 __all__ = ["MAX_ARRAY_BYTES", "MAX_TOTAL_BYTES", "STATUSES", "Trajectory"]
 
-#: Largest array a trajectory may hold, decompressed [bytes]; a file declaring more is
-#: refused before any of its data is decompressed, and simulate refuses runs beyond it.
+#: Largest array a trajectory may hold, decompressed [bytes] (files and runs alike).
 MAX_ARRAY_BYTES = 512 * 2**20
 #: Largest total of the arrays one load reads (or one run records) [bytes].
 MAX_TOTAL_BYTES = 1024 * 2**20
-#: The run statuses: "completed" (reached its final time), "diverged" (the state left its
-#: bounds), "failed" (the controller raised or returned a bad torque), "interrupted" (a
-#: KeyboardInterrupt: :class:`~snake_pin.exceptions.RunInterrupted` carries the partial run).
+#: The run statuses, explained in :doc:`/architecture`.
 STATUSES = ("completed", "diverged", "failed", "interrupted")
 
 _FAULTS = ("diverged", "failed")
