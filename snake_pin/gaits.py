@@ -1,8 +1,5 @@
-"""Posture families of Section IV: straight, arcs (all joints equal) and the serpenoid (43).
-
-Configurations are the paper's ``q = [x_h, y_h, theta_1, phi_1 .. phi_{n-1}]``, states
-``x = [q, dq]``. A bad argument is one line naming it: ParameterError, or
-ConfigurationError for joint angles that are not a non-empty finite vector.
+"""Posture families of Section IV: straight, arcs (all joints equal) and the serpenoid (43),
+as configurations ``q = [x_h, y_h, theta_1, phi]``.
 """
 
 from __future__ import annotations
@@ -19,8 +16,6 @@ from .exceptions import ParameterError
 
 __all__ = ["Serpenoid", "arc", "configuration", "initial_state", "straight"]
 
-
-#: Keyword arguments of the head pose (``**head`` of the posture functions).
 _HEAD = ("x_h", "y_h", "theta_1")
 
 
@@ -51,10 +46,8 @@ def configuration(phi: np.ndarray, *, x_h: float = 0.0, y_h: float = 0.0,
 
     Raises
     ------
-    ConfigurationError
-        ``phi`` is not a non-empty vector of finite numbers.
-    ParameterError
-        A head coordinate is not a finite number.
+    ConfigurationError, ParameterError
+        ``phi`` is not a non-empty finite vector; a head coordinate is not a finite number.
     """
     head = _head({"x_h": x_h, "y_h": y_h, "theta_1": theta_1})
     return np.r_[head["x_h"], head["y_h"], head["theta_1"], vector(phi, "phi")]
@@ -78,7 +71,7 @@ def straight(n: int, **head: float) -> np.ndarray:
     Raises
     ------
     ParameterError
-        A bad argument (see the module docstring).
+        A bad argument.
     """
     return configuration(np.zeros(integer(n, "n", low=2) - 1), **_head(head))
 
@@ -103,7 +96,7 @@ def arc(n: int, phi0: float, **head: float) -> np.ndarray:
     Raises
     ------
     ParameterError
-        A bad argument (see the module docstring).
+        A bad argument.
     """
     count = integer(n, "n", low=2) - 1
     return configuration(np.full(count, finite_number(phi0, "phi0")), **_head(head))
@@ -117,10 +110,8 @@ class Serpenoid:
     ----------
     n : int
         Number of links, >= 2.
-    alpha : float
-        Winding angle [rad].
-    ts : float
-        Number of periods T_s along the body.
+    alpha, ts : float
+        Winding angle [rad]; number of periods T_s along the body.
     v : float, optional
         Temporal frequency [rad/s]; 0 (default) gives a still posture.
 
@@ -140,7 +131,7 @@ class Serpenoid:
         for name in ("alpha", "ts", "v"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name))
 
-    # constant parts of the phase and amplitudes, once (cached_property: the instance dict)
+    # constant parts of the phase and the amplitudes, once
     @cached_property
     def _offsets(self) -> np.ndarray:
         offsets = self.spatial_frequency * np.arange(1, self.n)
@@ -256,6 +247,6 @@ def initial_state(n: int, theta_1: float = 0.0) -> np.ndarray:
     Raises
     ------
     ParameterError
-        A bad argument (see the module docstring).
+        A bad argument.
     """
     return np.r_[arc(n, math.pi / 6, theta_1=theta_1), np.zeros(integer(n, "n", low=2) + 2)]

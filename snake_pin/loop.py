@@ -1,36 +1,18 @@
-"""The closed loop: a controller sampled every period, its torque held over a plant.
-
-:func:`closed_loop` runs a :class:`~snake_pin.control.Controller` against a
-:class:`Plant` (the viscous model of :mod:`snake_pin.sim` or the MuJoCo robot of
-:mod:`snake_pin.engine.run`), holding each torque over its period (zero-order hold),
-checking it and recording the controller's signals. Every run ends with a
-:attr:`~snake_pin.trajectory.Trajectory.status`:
-
-- ``"completed"``: it took all its steps;
-- ``"diverged"``: the plant's state left its bounds (the plant says which), or its
-  dynamics raised an error of the package or an arithmetic one;
-- ``"failed"``: the controller raised (any exception) or returned a torque of the wrong
-  size, type or a non-finite one;
-- ``"interrupted"``: a KeyboardInterrupt (Ctrl-C, or SIGTERM/SIGHUP converted by the
-  command line) arrived; :func:`closed_loop` then raises
-  :class:`~snake_pin.exceptions.RunInterrupted` carrying the partial trajectory.
-
-In each case the samples up to the last good one are kept, and ``reason`` says when and
-why. ``diverged`` is True for the two faults ("diverged", "failed").
+"""The closed loop: :func:`closed_loop` runs a controller against a :class:`Plant`, each
+torque checked and held over its period; how a run ends: :doc:`/architecture` (statuses).
 """
 
 from __future__ import annotations
 
 import abc
 import functools
-import numbers
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from ._validation import brief, one_line
+from ._validation import integer, one_line
 from .control.base import Controller, inherit_docstrings
 from .exceptions import ParameterError, RunInterrupted, SnakePinError
 from .params import SnakeParams
@@ -47,27 +29,20 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
                 label: str | None = None, record_signals: bool = True) -> Trajectory:
     """The closed loop: ``steps`` control periods of ``plant`` under ``controller``.
 
-    The controller is called at each sampling instant (:meth:`Plant.times`) and its torque
-    held over the period; the run ends as the module docstring says.
-
     Parameters
     ----------
     plant : Plant
         The robot being controlled.
     controller : Controller
-        The law (its torques checked at each call).
+        The law, called at each instant of :meth:`Plant.times`.
     x0 : numpy.ndarray
         The initial state, as :meth:`Plant.reset` takes it.
     steps : int
         Control periods, at most :data:`MAX_STEPS`.
-    progress : bool, optional
-        Show a tqdm bar on a terminal.
-    meta : mapping, optional
-        The trajectory's ``meta``.
-    label : str, optional
-        The progress bar's label (default: the controller's name).
-    record_signals : bool, optional
-        Whether to record the controller's :meth:`~snake_pin.control.Controller.signals`.
+    progress, label : optional
+        Show a tqdm bar on a terminal, and its label (default: the controller's name).
+    meta, record_signals : optional
+        The trajectory's ``meta``; record :meth:`~snake_pin.control.Controller.signals`.
 
     Returns
     -------
@@ -81,11 +56,7 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
     ParameterError
         ``steps`` is not a whole number in 0 .. :data:`MAX_STEPS`, or memory is short.
     """
-    if isinstance(steps, bool) or not isinstance(steps, numbers.Integral) or \
-            not 0 <= steps <= MAX_STEPS:
-        raise ParameterError(f"steps must be a whole number in 0 .. MAX_STEPS = {MAX_STEPS}, "
-                             f"got {brief(steps)}")
-    steps = int(steps)
+    steps = integer(steps, "steps", low=0, high=MAX_STEPS)
     ctrl, nq, n_tau = controller, plant.nq, plant.params.n - 1
     try:
         xs = np.zeros((steps + 1, 2 * nq))
@@ -105,8 +76,7 @@ def closed_loop(plant: Plant, controller: Controller, x0: np.ndarray, steps: int
     bar = None
 
     def refuse(k: int, t: float, known: int) -> str:
-        """The reason for a non-finite torque at sample k, its torque and signals undone
-        (``known``: how many signals there were before the call)."""
+        """Why sample k failed, its torque and signals undone (``known``: signals before)."""
         taus[k] = 0.0
         for name in list(signals)[known:]:
             del signals[name]
@@ -204,10 +174,8 @@ class Plant(abc.ABC):
         n + 2, and the robot's parameters (the trajectory's).
     snake
         The model the plant integrates (what the laws' ``plant_acceleration`` is asked of).
-    checks_torque
-        Whether :meth:`step` itself finds a non-finite torque, with the new state.
-    takes_first_stage
-        Whether :meth:`step` takes the controller's q'' as its first stage.
+    checks_torque, takes_first_stage
+        Whether :meth:`step` finds a non-finite torque itself; takes the law's q'' as stage 1.
     """
 
     nq: int
@@ -238,14 +206,12 @@ class Plant(abc.ABC):
 
     @abc.abstractmethod
     def reset(self, x0: np.ndarray, out: np.ndarray) -> None:
-        """Start a run from ``x0`` and write the first sample ``[q, q']`` into ``out``.
+        """Start a run from ``x0`` (length 2(n + 2)); write the first sample into ``out``.
 
         Parameters
         ----------
-        x0 : numpy.ndarray
-            The initial state, length 2(n + 2).
-        out : numpy.ndarray
-            Where the first sample goes.
+        x0, out : numpy.ndarray
+            The initial state, and where the first sample ``[q, q']`` goes.
         """
 
     @abc.abstractmethod
@@ -258,8 +224,7 @@ class Plant(abc.ABC):
         tau : numpy.ndarray
             Joint torques (n - 1); finite unless :attr:`checks_torque`.
         first : numpy.ndarray or None
-            q'' at the current state under ``tau``, if known (see
-            :attr:`takes_first_stage`).
+            q'' at the current state under ``tau``, if known (:attr:`takes_first_stage`).
         out : numpy.ndarray
             Where the new state ``[q, q']`` goes.
         t : float
@@ -321,8 +286,7 @@ def _failure(t: float, exc: BaseException) -> str:
 
 @functools.cache
 def _thread_pools() -> ThreadpoolController:
-    """The process's BLAS/OpenMP pools, found once (``threadpool_limits`` looks them up on
-    every entry)."""
+    """The process's BLAS/OpenMP pools, found once (not on every ``threadpool_limits``)."""
     return ThreadpoolController()
 
 

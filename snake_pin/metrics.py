@@ -1,7 +1,5 @@
-"""Quantities read off a finished run (head error, manipulability along it) for summaries.
-
-Shared by the command line, the experiments and the studies; none of them is public API.
-"""
+"""Quantities read off a finished run (head error, manipulability along it) for summaries
+by the command line, the experiments and the studies (not public API)."""
 
 from __future__ import annotations
 

@@ -1,11 +1,6 @@
-"""Planar paths and head references along them: a curve p(s) plus a timing law s(t).
-
-A :class:`Path` shape gives p(s), its tangent angle, curvature and its rate; a
-:class:`Timing` gives s(t); a :class:`PathReference` joins them into the head reference
-the controllers consume. :func:`load_path` builds one from a shape name or a TOML/CSV
-file, refusing in one :class:`PathFileError` or
-:class:`~snake_pin.exceptions.ParameterError` line. Geometry, projection and file format:
-:doc:`/paths`.
+"""Planar paths and head references: a :class:`Path` p(s) and a :class:`Timing` s(t)
+joined by :class:`PathReference`; :func:`load_path` builds one from a shape name or a
+TOML/CSV file. Geometry, projection and file format: :doc:`/paths`.
 """
 
 from __future__ import annotations
@@ -31,32 +26,25 @@ from ._io import decode_utf8, parse_toml, read_regular_file
 from ._validation import brief, finite_number
 from .exceptions import ParameterError, PathFileError
 
-__all__ = ["DEFAULT_EXTENT", "HINT_RADIUS", "MAX_ANGLE", "MAX_COORDINATE", "MAX_PATH_FILE_BYTES",
-           "MAX_PATH_SPEED", "MAX_WAYPOINTS", "MIN_LENGTH", "PATH_NAMES", "SAMPLE_STEP", "Arc",
-           "Circle", "LaneChange", "Line", "Path", "PathFileError", "PathPoint", "PathReference",
-           "Sinusoid", "Timing", "Waypoints", "along_track", "cross_track_error", "load_path",
-           "make_path"]
+__all__ = ["MAX_ANGLE", "MAX_COORDINATE", "MAX_PATH_FILE_BYTES", "MAX_PATH_SPEED", "MIN_LENGTH",
+           "PATH_NAMES", "Arc", "Circle", "LaneChange", "Line", "Path", "PathFileError",
+           "PathPoint", "PathReference", "Sinusoid", "Timing", "Waypoints", "along_track",
+           "cross_track_error", "load_path", "make_path"]
 
-#: Arc length searched beyond the start of unbounded paths' projections, and the length
-#: searched along them by default [m] (pass ``span`` to search elsewhere).
-DEFAULT_EXTENT = 20.0
+DEFAULT_EXTENT = 20.0  # an unbounded path's default projection span is (-1, this) [m]
 #: Largest path file read [bytes].
 MAX_PATH_FILE_BYTES = 4 << 20
-#: Most waypoints one path may have.
-MAX_WAYPOINTS = 100_000
-#: Largest coordinate or length of a path, in absolute value [m] (1000 km).
+MAX_WAYPOINTS = 100_000  # most waypoints one path may have
+#: Largest coordinate or length of a path, in absolute value [m].
 MAX_COORDINATE = 1e6
 #: Smallest positive length of a path: radius, wavelength, a lane change's length [m].
 MIN_LENGTH = 1e-6
-#: Largest angle of a path, in absolute value: directions, start angles, an arc's sweep
-#: [rad] (about 160 turns).
+#: Largest angle of a path, in absolute value: directions, start angles, an arc's sweep [rad].
 MAX_ANGLE = 1e3
 #: Largest speed along a path [m/s].
 MAX_PATH_SPEED = 1e3
-#: How far from its hint a hinted projection looks for the closest point [m].
-HINT_RADIUS = 0.5
-#: Largest spacing of the samples behind the hinted projection [m].
-SAMPLE_STEP = 1e-3
+HINT_RADIUS = 0.5  # how far from its hint a hinted projection looks [m]
+SAMPLE_STEP = 1e-3  # largest spacing of the hinted projection's samples [m]
 #: Shape names understood by :func:`make_path` and :func:`load_path`.
 PATH_NAMES = ("line", "circle", "arc", "lane_change", "sinusoid", "waypoints")
 
@@ -69,12 +57,8 @@ class PathPoint(NamedTuple):
 
     Parameters
     ----------
-    p : numpy.ndarray
-        Point on the curve [m].
-    gamma : numpy.ndarray
-        Tangent angle [rad] (continuous in s, not wrapped).
-    kappa, dkappa : numpy.ndarray
-        Signed curvature ``d gamma / ds`` [1/m] (positive turning left) and its rate [1/m^2].
+    p, gamma, kappa, dkappa : numpy.ndarray
+        Point [m], tangent angle [rad] (not wrapped), curvature [1/m] (left > 0), its rate.
     """
 
     p: np.ndarray
@@ -111,7 +95,6 @@ class _Samples(NamedTuple):
         return self.s0 + self.h * (len(self.kappa) - 1)
 
 
-# --------------------------------------------------------------------------- checks
 def _length(value: object, name: str, *, positive: bool = False, non_negative: bool = False,
             bound: float = MAX_COORDINATE, unit: str = "m") -> float:
     """A coordinate or length [m] within +-``bound`` (>= MIN_LENGTH if positive)."""
@@ -147,7 +130,6 @@ def _set(obj: object, **values: Any) -> None:
         object.__setattr__(obj, name, value)
 
 
-# ---------------------------------------------------------------------- arc length
 class _ArcLength:
     """s(u) = int_{u_0}^u speed, tabulated at ``nodes`` (Gauss-Legendre), and its inverse."""
 
@@ -238,7 +220,6 @@ def _expansion_newton(a: Any, b: Any, kappa: Any, dkappa: Any, h: float,
     return clip(sigma - (e_t * v_t + e_n * v_n) / clip(slope, 0.2, math.inf), -h, h)
 
 
-# --------------------------------------------------------------------------- paths
 class Path(abc.ABC):
     """A planar curve parametrised by arc length s (abstract base of the shapes)."""
 
@@ -265,12 +246,12 @@ class Path(abc.ABC):
         return (*g.p[0].tolist(), float(g.gamma[0]), float(g.kappa[0]), float(g.dkappa[0]))
 
     def geometry(self, s: object) -> PathPoint:
-        """Return the point, tangent angle, curvature and its rate at arc length(s) ``s`` [m].
+        """Return the point, tangent angle, curvature and its rate at arc length(s) ``s``.
 
         Parameters
         ----------
         s : float or array_like
-            Arc length(s), any shape.
+            Arc length(s) [m], any shape.
 
         Returns
         -------
@@ -289,17 +270,17 @@ class Path(abc.ABC):
                            for v in self._geometry(arr.reshape(-1))))
 
     def point(self, s: object) -> np.ndarray:
-        """Return the point p(s) [m], shape s.shape + (2,), of arc length(s) ``s`` [m].
+        """Return the point p(s) [m] of arc length(s) ``s``.
 
         Parameters
         ----------
         s : float or array_like
-            Arc length(s), as in :meth:`geometry`.
+            Arc length(s) [m], any shape.
 
         Returns
         -------
         numpy.ndarray
-            ``geometry(s).p``.
+            ``geometry(s).p``, shape s.shape + (2,).
 
         Raises
         ------
@@ -315,7 +296,7 @@ class Path(abc.ABC):
         -------
         tuple of float
             A finite curve with margins of a quarter of its length (>= 1 m), a circle its
-            first lap, a lane change its S and 2 m beyond, else ``(-1, DEFAULT_EXTENT)``.
+            first lap, a lane change its S and 2 m beyond, else ``(-1, 20)``.
         """
         return self._default_span()
 
@@ -343,10 +324,9 @@ class Path(abc.ABC):
         points : array_like, shape (..., 2)
             Points [m].
         span : tuple of float, optional
-            ``(s_min, s_max)`` searched [m]; default :meth:`default_span`. The result lies in it.
+            ``(s_min, s_max)`` searched [m], default :meth:`default_span`; ``s*`` lies in it.
         hint : float or array_like, optional
-            Arc lengths near the answer, one or one per point: then the closest point within
-            :data:`HINT_RADIUS` of it, unbounded without a span.
+            Arc lengths near the answer (one, or one per point): search within 0.5 m of it.
 
         Returns
         -------
@@ -356,7 +336,7 @@ class Path(abc.ABC):
         Raises
         ------
         ParameterError
-            The points are not a finite (..., 2) array, or the span or the hint is invalid.
+            Points not a finite (..., 2) array, or a bad span or hint.
         """
         pts = _points(points)
         try:
@@ -367,7 +347,7 @@ class Path(abc.ABC):
         if guess is not None and not np.isfinite(guess).all():
             raise ParameterError(f"hint must be finite arc lengths, one or one per point, "
                                  f"got {brief(hint)}")
-        span = _span(span)
+        span = None if span is None else interval(span, "span")
         if pts.size == 0:
             return np.zeros(pts.shape[:-1])
         exact = self._exact_projection(pts, span, guess)
@@ -540,15 +520,13 @@ class Line(Path):
 
     Parameters
     ----------
-    start : tuple of float, optional
-        Point ``(x, y)`` at s = 0 [m].
-    direction : float, optional
-        Heading [rad] (0: along +x).
+    start, direction : optional
+        Point ``(x, y)`` at s = 0 [m], and heading [rad] (0: along +x).
 
     Raises
     ------
     ParameterError
-        A parameter is not a finite number (or point).
+        A value out of its domain.
     """
 
     start: tuple[float, float] = (0.0, 0.0)
@@ -588,20 +566,14 @@ class Circle(Path):
 
     Parameters
     ----------
-    radius : float, optional
-        Radius [m], > 0.
-    centre : tuple of float or None, optional
-        Centre ``(x, y)`` [m]; None places it so that the start point is the origin.
-    start_angle : float or None, optional
-        Polar angle of the start point [rad]; None: the one that heads along +x at the
-        origin (or 0 when a centre is given).
-    clockwise : bool, optional
-        Travel clockwise (turning right, kappa = -1/radius) instead of left.
+    radius, centre, start_angle, clockwise : optional
+        Radius [m] > 0; centre ``(x, y)`` [m] (None: the start is the origin); polar angle of
+        the start [rad] (None: heading along +x, 0 with a centre); travel clockwise.
 
     Raises
     ------
     ParameterError
-        A number is not finite or out of its range, or ``clockwise`` not a boolean.
+        A value out of its domain.
     """
 
     radius: float = 1.2
@@ -680,12 +652,12 @@ class Arc(_Finite, Circle):
     radius, centre, start_angle, clockwise
         As :class:`Circle`'s.
     angle : float, optional
-        Angle swept [rad], > 0 (pi/2 by default).
+        Angle swept [rad], > 0.
 
     Raises
     ------
     ParameterError
-        As :class:`Circle`, or the angle is not positive.
+        A value out of its domain.
     """
 
     angle: float = _HALF_PI
@@ -729,21 +701,16 @@ class LaneChange(_GraphCurve):
 
     Parameters
     ----------
-    offset : float, optional
-        Lateral shift [m], left positive.
-    length_x : float, optional
-        Longitudinal length of the S [m], > 0 (``length`` in :func:`make_path` and files).
-    start : float, optional
-        Straight lead-in before the S [m], >= 0.
-    origin : tuple of float, optional
-        Start point ``(x, y)`` [m].
-    direction : float, optional
-        Heading of the lead-in [rad].
+    offset, length_x, start : float, optional
+        Lateral shift [m] (left > 0); length of the S along the lead-in [m] > 0 (``length``
+        in :func:`make_path`); straight lead-in before it [m] >= 0.
+    origin, direction : optional
+        Start point ``(x, y)`` [m] and heading of the lead-in [rad].
 
     Raises
     ------
     ParameterError
-        A number is not finite or out of its range.
+        A value out of its domain.
     """
 
     offset: float = 0.3
@@ -806,19 +773,14 @@ class Sinusoid(_GraphCurve):
 
     Parameters
     ----------
-    amplitude : float, optional
-        Amplitude [m] (negative: starts turning right).
-    wavelength : float, optional
-        Wavelength [m], > 0.
-    origin : tuple of float, optional
-        Start point ``(x, y)`` [m].
-    direction : float, optional
-        Angle of the frame's x axis [rad].
+    amplitude, wavelength, origin, direction : optional
+        Amplitude [m] (negative: starts turning right), wavelength [m] > 0, start point
+        ``(x, y)`` [m], angle of the frame's x axis [rad].
 
     Raises
     ------
     ParameterError
-        A number is not finite or out of its range.
+        A value out of its domain.
     """
 
     amplitude: float = 0.2
@@ -861,8 +823,7 @@ class Waypoints(_Finite):
     Parameters
     ----------
     points : sequence of (float, float)
-        Waypoints ``[[x, y], ...]`` [m], 2 to :data:`MAX_WAYPOINTS`, consecutive ones
-        distinct.
+        Waypoints ``[[x, y], ...]`` [m], 2 to 100000, consecutive ones distinct.
 
     Raises
     ------
@@ -967,26 +928,19 @@ def _waypoints(points: object) -> np.ndarray:
     return pts
 
 
-# -------------------------------------------------------------------------- timing
 @dataclass(frozen=True)
 class Timing:
-    """The timing law s(t): constant ``speed`` from arc length ``start``, after a smooth start.
-
-    The ramp and the reference before t = 0 are in :doc:`/paths` (Timing).
+    """The timing law s(t): ``speed`` from arc length ``start`` after a ramp (:doc:`/paths`).
 
     Parameters
     ----------
-    speed : float, optional
-        Cruising speed v [m/s], > 0.
-    ramp : float, optional
-        Duration T of the smooth start [s], >= 0 (0: none).
-    start : float, optional
-        Arc length at t = 0 [m].
+    speed, ramp, start : float, optional
+        Cruising speed [m/s] > 0, duration of the smooth start [s] >= 0, arc length at t = 0 [m].
 
     Raises
     ------
     ParameterError
-        A number is not finite or out of its range.
+        A value out of its domain.
     """
 
     speed: float = 0.1
@@ -1039,22 +993,17 @@ class Timing:
 
 
 class PathReference:
-    """Head reference along a path: w_r(t) = [p(s(t)), gamma(s(t)) + pi] (head first).
-
-    Called at t it gives (w_r, w_r', w_r''), as
-    :class:`~snake_pin.control.reference.LinearReference` does.
+    """Head reference along a path: called at t, (w_r, w_r', w_r''), w_r = [p(s), gamma(s) + pi].
 
     Parameters
     ----------
-    path : Path
-        The curve.
-    timing : Timing or None, optional
-        s(t); default :class:`Timing` (0.1 m/s from s = 0, no ramp).
+    path, timing : Path, Timing or None
+        The curve, and s(t) (default :class:`Timing`).
 
     Raises
     ------
     ParameterError
-        If ``path`` is not a :class:`Path` or ``timing`` not a :class:`Timing`.
+        ``path`` is not a :class:`Path` or ``timing`` not a :class:`Timing`.
     """
 
     def __init__(self, path: Path, timing: Timing | None = None) -> None:
@@ -1098,12 +1047,12 @@ class PathReference:
         Returns
         -------
         w_r, dw_r, ddw_r : numpy.ndarray, shape t.shape + (3,)
-            ``[x_h, y_h, theta_1]`` reference [m, m, rad] and its time derivatives.
+            ``[x_h, y_h, theta_1]`` [m, m, rad] and its time derivatives.
 
         Raises
         ------
         ParameterError
-            If a time is not finite.
+            A time is not finite.
         """
         t_arr = np.asarray(t, dtype=float)
         if not np.all(np.isfinite(t_arr)):
@@ -1119,7 +1068,6 @@ class PathReference:
         return w, dw, ddw
 
 
-# ---------------------------------------------------------------- distance to a path
 def cross_track_error(path: Path | PathReference, points: object, *,
                       span: tuple[float, float] | None = None) -> np.ndarray:
     """Return the signed distance [m] from each point to the path, positive on the left.
@@ -1131,7 +1079,7 @@ def cross_track_error(path: Path | PathReference, points: object, *,
     points : array_like, shape (..., 2)
         Points [m], e.g. the head positions ``traj.q[:, :2]`` of a run.
     span : tuple of float, optional
-        ``(s_min, s_max)`` searched [m] (beyond it: the distance to its end, signed).
+        ``(s_min, s_max)`` searched [m], as in :meth:`Path.project`.
 
     Returns
     -------
@@ -1141,7 +1089,7 @@ def cross_track_error(path: Path | PathReference, points: object, *,
     Raises
     ------
     ParameterError
-        The points are not a finite (..., 2) array, or the span is invalid.
+        Not a path, points not a finite (..., 2) array, or a bad span.
     """
     curve, pts = _curve(path), _points(points)
     g = curve.geometry(curve.project(pts, span=span))
@@ -1156,11 +1104,7 @@ def along_track(path: Path | PathReference, points: object, *,
 
     Parameters
     ----------
-    path : Path or PathReference
-        The curve (a reference's own path).
-    points : array_like, shape (..., 2)
-        Points [m].
-    span : tuple of float, optional
+    path, points, span
         As in :func:`cross_track_error`.
 
     Returns
@@ -1171,7 +1115,7 @@ def along_track(path: Path | PathReference, points: object, *,
     Raises
     ------
     ParameterError
-        The points are not a finite (..., 2) array, or the span is invalid.
+        Not a path, points not a finite (..., 2) array, or a bad span.
     """
     return _curve(path).project(points, span=span)
 
@@ -1206,12 +1150,6 @@ def interval(value: object, name: str) -> tuple[float, float]:
     return low, high
 
 
-def _span(span: object) -> tuple[float, float] | None:
-    """A checked ``(s_min, s_max)`` (None stays None)."""
-    return None if span is None else interval(span, "span")
-
-
-# ------------------------------------------------------------------- construction
 _SHAPES: dict[str, type[Path]] = {
     "line": Line, "circle": Circle, "arc": Arc, "lane_change": LaneChange,
     "sinusoid": Sinusoid, "waypoints": Waypoints,
@@ -1236,8 +1174,7 @@ def make_path(name: str, **params: Any) -> Path:
     name : str
         A shape name.
     **params
-        The shape class's parameters (LaneChange's ``length_x`` as ``length``; waypoints'
-        ``points`` required).
+        The shape class's parameters (LaneChange's ``length_x`` as ``length``).
 
     Returns
     -------
@@ -1311,8 +1248,6 @@ def _parse_csv(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
                     continue  # the header
                 raise _file_error(path, f"waypoint {len(rows) + 1}: not a number pair "
                                         f"{brief(','.join(cells))}") from None
-            if not (math.isfinite(x) and math.isfinite(y)):
-                raise _file_error(path, f"waypoint {len(rows) + 1}: not finite ({x}, {y})")
             rows.append((x, y))
             if len(rows) > MAX_WAYPOINTS:
                 raise _file_error(path, f"more than {MAX_WAYPOINTS} waypoints")
@@ -1338,8 +1273,7 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     Parameters
     ----------
     spec : str or os.PathLike or Path or PathReference
-        A shape name (:func:`make_path`), a ``.toml``/``.csv`` path file (:doc:`/paths`),
-        a :class:`Path`, or a :class:`PathReference` (as is without parameters).
+        A shape name, a ``.toml``/``.csv`` path file (:doc:`/paths`), a Path or a reference.
     **params
         Shape parameters and the timing's ``speed`` and ``ramp``, overriding a file's.
 

@@ -1,9 +1,5 @@
-"""Simulation of the viscous model: fixed-step RK4 on ABA with zero-order-hold control.
-
-:func:`simulate` runs a controller against :class:`ViscousPlant`, the viscous model of a
-robot, in the closed loop of :mod:`snake_pin.loop` (whose docstring lists the run
-statuses), and returns a :class:`~snake_pin.trajectory.Trajectory`. The MuJoCo plant,
-:class:`snake_pin.engine.run.EnginePlant`, runs in the same loop without this module.
+"""Simulation of the viscous model: :func:`simulate` runs a controller against
+:class:`ViscousPlant` (fixed-step RK4 on ABA) in the closed loop of :mod:`snake_pin.loop`.
 """
 
 from __future__ import annotations
@@ -17,9 +13,9 @@ from typing import Any
 import numpy as np
 
 from ._blas import gemv
-from ._validation import brief, finite_number, flag, mebibytes
+from ._validation import brief, finite_number, flag, mebibytes, vector
 from .control.base import Controller
-from .exceptions import ConfigurationError, ParameterError
+from .exceptions import ParameterError
 from .loop import MAX_STEPS, Plant, closed_loop  # re-exported: the loop simulate runs
 from .model import Snake
 from .params import SnakeParams
@@ -79,8 +75,7 @@ def _number(value: object, name: str, *, allow_inf: bool = False) -> float:
 
 
 def _check_plant(snake: object) -> tuple[int, int]:
-    """(nq, n - 1) of the plant: a :class:`~snake_pin.model.Snake`, or an object with a
-    Snake's ``nq``, ``n``, ``params`` and ``state_derivative``; else ParameterError."""
+    """(nq, n - 1) of a Snake or a stand-in with its nq, n, params, state_derivative."""
     if isinstance(snake, Snake):
         return snake.nq, snake.n - 1
     wanted = "snake must be a Snake (or a plant with its nq, n, params and state_derivative)"
@@ -95,22 +90,6 @@ def _check_plant(snake: object) -> tuple[int, int]:
             n != params.n or nq != n + 2:
         raise ParameterError(f"{wanted}, got {brief(snake)} whose nq, n or params disagree")
     return int(nq), int(n) - 1
-
-
-def _state(x0: object, size: int) -> np.ndarray:
-    """``x0`` as a finite float vector of ``size`` entries or ConfigurationError."""
-    try:
-        x = np.asarray(x0)
-    except Exception as exc:
-        raise ConfigurationError(f"x0 must be a vector of {size} numbers") from exc
-    if x.dtype.kind not in "fiu" or x.dtype.names is not None:
-        raise ConfigurationError(f"x0 must be a vector of {size} numbers, got dtype {x.dtype}")
-    if x.shape != (size,):
-        raise ConfigurationError(f"x0 must have shape ({size},) = [q, dq], got {x.shape}")
-    x = x.astype(float)
-    if not np.all(np.isfinite(x)):
-        raise ConfigurationError("x0 has non-finite entries")
-    return x
 
 
 def _check_steps(t_final: float, dt: float, control_dt: float) -> tuple[int, int]:
@@ -148,29 +127,24 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
              meta: Mapping[str, Any] | None = None) -> Trajectory:
     """Simulate the closed loop from state ``x0 = [q0, dq0]`` up to ``t_final``.
 
-    The controller is sampled every ``control_dt`` and its torque held in between.
+    The controller is sampled every ``control_dt``, its torque held in between.
 
     Parameters
     ----------
     snake : Snake
         The plant (or any object with a Snake's ``nq``, ``n``, ``params``, ``state_derivative``).
     controller
-        A :class:`~snake_pin.control.Controller`, or a function ``f(x, t) -> tau`` of n - 1
-        finite torques; an exception it raises ends the run as "failed".
+        A :class:`~snake_pin.control.Controller` or a function ``f(x, t) -> tau``.
     x0 : numpy.ndarray
         Initial state ``x = [q, dq]``, length 2(n + 2), finite.
     t_final, dt, control_dt
-        Times [s], positive: ``control_dt`` a multiple of ``dt`` (at most
-        :data:`MAX_SUBSTEPS` times), at most :data:`MAX_STEPS` control steps, arrays
-        within the bounds of :mod:`snake_pin.trajectory`.
+        Times [s]: ``control_dt`` a multiple of ``dt``, at most :data:`MAX_STEPS` steps.
     method : {"rk4", "solve_ivp"}, optional
         Fixed RK4 steps of ``dt``, or scipy's adaptive RK45 per period (for cross-checks).
     max_speed, max_distance
-        Divergence bounds [m/s, m] (positive; ``math.inf`` for none).
-    progress
-        Show a tqdm bar, on a terminal only.
-    meta : mapping, optional
-        Extra run settings merged into the trajectory's ``meta``.
+        Divergence bounds [m/s, m] (``math.inf`` for none).
+    progress, meta : optional
+        Show a tqdm bar on a terminal; extra settings merged into the trajectory's ``meta``.
 
     Returns
     -------
@@ -186,7 +160,7 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     """
     nq, n_tau = _check_plant(snake)
     ctrl = _as_controller(controller)
-    x = _state(x0, 2 * nq)
+    x = vector(x0, "x0", size=2 * nq)
     t_final = _number(t_final, "t_final")
     dt = _number(dt, "dt")
     control_dt = _number(control_dt, "control_dt")
@@ -209,30 +183,23 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
 class ViscousPlant(Plant):
     """The viscous model of eq. (20), by fixed-step RK4 with the torque held (or RK45).
 
-    With the step's state Z and its slopes d1..d4 as the rows of Y = [Z; d1; d2; d3; d4],
-    made once, each stage state is one product of a coefficient row with Y. The
-    accelerations come from the robot's :meth:`~snake_pin.model.Snake.calc_acceleration`
-    on a data object of the plant's own (or a stand-in's ``state_derivative``).
-
     Parameters
     ----------
     snake : Snake
         The robot (or a stand-in with its ``state_derivative``).
-    dt : float
-        RK4's step [s].
-    substeps : int
-        RK4 steps per control period.
+    dt, substeps : float, int
+        RK4's step [s], and its steps per control period.
     control_dt : float, optional
         The control period [s] (default ``dt * substeps``).
     method : {"rk4", "solve_ivp"}, optional
-        Fixed-step RK4, or scipy's adaptive RK45 over each period (tight tolerances).
+        As in :func:`simulate`.
     max_speed, max_distance : float, optional
         Divergence bounds [m/s, m] (``math.inf``: none).
 
     Raises
     ------
     ParameterError
-        ``snake`` is not a Snake or a stand-in with its nq, n, params and state_derivative.
+        ``snake`` is not a Snake or a stand-in.
     """
 
     def __init__(self, snake: Snake, dt: float, substeps: int, *, control_dt: float | None = None,
@@ -266,6 +233,7 @@ class ViscousPlant(Plant):
         else:
             evaluate = snake.state_derivative
             arguments = [(row, self._joint_torque) for row in rows]
+        # the rows of Y = [Z; d1; d2; d3; d4]: each stage state is a coefficient row times Y
         h, columns = dt, slopes.T  # Y^T: Fortran-ordered
         coefficients = [np.array(row) for row in (
             (1.0, 0.5 * h, 0.0, 0.0, 0.0), (1.0, 0.0, 0.5 * h, 0.0, 0.0),

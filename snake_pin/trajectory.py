@@ -1,8 +1,6 @@
-"""A run's result and its file format: :class:`Trajectory`, saved and loaded.
-
-Saved as ``PATH.npz`` (arrays) + ``PATH.json`` (summary), written whole or not at all;
-read with bounds checked on every .npy header before any data is decompressed, nothing
-unpickled, anything malformed one :class:`~snake_pin.exceptions.TrajectoryFileError` line.
+"""A run's result, :class:`Trajectory`, saved as ``PATH.npz`` + ``PATH.json`` (whole or not
+at all) and loaded with every .npy header's bounds checked before any data is decompressed,
+nothing unpickled, anything malformed one TrajectoryFileError line.
 """
 
 from __future__ import annotations
@@ -29,22 +27,17 @@ from .params import SnakeParams
 
 __all__ = ["MAX_ARRAY_BYTES", "MAX_TOTAL_BYTES", "STATUSES", "Trajectory"]
 
-#: Largest array a trajectory may hold, decompressed [bytes]; a file declaring more is
-#: refused before any of its data is decompressed, and simulate refuses runs beyond it.
+#: Largest array a trajectory may hold, decompressed [bytes] (files and runs alike).
 MAX_ARRAY_BYTES = 512 * 2**20
 #: Largest total of the arrays one load reads (or one run records) [bytes].
 MAX_TOTAL_BYTES = 1024 * 2**20
-#: The run statuses: "completed" (reached its final time), "diverged" (the state left its
-#: bounds), "failed" (the controller raised or returned a bad torque), "interrupted" (a
-#: KeyboardInterrupt: :class:`~snake_pin.exceptions.RunInterrupted` carries the partial run).
+#: The run statuses, explained in :doc:`/architecture`.
 STATUSES = ("completed", "diverged", "failed", "interrupted")
 
 _FAULTS = ("diverged", "failed")
 _CORE = ("t", "q", "dq", "tau")
 _SIGNAL_PREFIX = "signal__"
 _SIGNAL_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
-_MEMBER_NAME = re.compile(rf"({'|'.join(_CORE)}|header|{_SIGNAL_PREFIX}{_SIGNAL_NAME.pattern})"
-                          r"\.npy")
 _MAX_HEADER_CHARS = 1 << 20
 _MAX_MEMBERS = 1024
 _CHUNK = 1 << 20
@@ -57,26 +50,18 @@ class Trajectory:
 
     Parameters
     ----------
-    t : numpy.ndarray
-        Sample times [s], shape (N,).
-    q : numpy.ndarray
-        Configurations [m, m, rad, rad], shape (N, n + 2).
-    dq : numpy.ndarray
-        Their velocities [m/s, m/s, rad/s, rad/s], shape (N, n + 2).
+    t, q, dq : numpy.ndarray
+        Sample times [s], shape (N,); configurations and velocities, shape (N, n + 2).
     tau : numpy.ndarray
         Joint torques [N m], shape (N, n - 1); ``tau[k]`` held over ``[t[k], t[k + 1])``.
     params : SnakeParams
         The robot.
     signals : dict of str to numpy.ndarray, optional
         Extra per-sample series, N rows each; NaN where missing.
-    diverged : bool, optional
-        Whether the run stopped on a fault (status "diverged" or "failed").
-    reason : str, optional
-        Why the run stopped (empty for a completed run).
-    meta : dict, optional
-        Run settings (controller name, time steps, reference ...).
-    summary : dict, optional
-        Scalar results written to the JSON summary.
+    diverged, reason : optional
+        Whether the run stopped on a fault ("diverged" or "failed"); why (empty if completed).
+    meta, summary : dict, optional
+        Run settings; scalar results written to the JSON summary.
     status : str, optional
         One of :data:`STATUSES` (sets ``diverged``); empty: from ``diverged``.
 
@@ -120,13 +105,10 @@ class Trajectory:
     def save(self, path: str | os.PathLike[str]) -> tuple[Path, Path]:
         """Write ``PATH.npz`` (arrays) and ``PATH.json`` (RFC 8259 summary) as one set.
 
-        Only a trailing ``.npz`` or ``.json`` is dropped from the name (``run.v2`` ->
-        ``run.v2.npz`` + ``run.v2.json``).
-
         Parameters
         ----------
         path : str or os.PathLike
-            The files' common name, with or without ``.npz``/``.json``.
+            The files' common name; only a trailing ``.npz``/``.json`` is dropped.
 
         Returns
         -------
@@ -162,12 +144,7 @@ class Trajectory:
     def _file_arrays(self) -> dict[str, np.ndarray]:
         """The arrays to save, checked as :meth:`load` checks them."""
         core = {name: np.asarray(getattr(self, name)) for name in _CORE}
-        signals = {}
-        for name, value in self.signals.items():
-            if not isinstance(name, str) or not _SIGNAL_NAME.fullmatch(name):
-                raise ConfigurationError(f"signal name {reprlib.repr(name)} is not a plain "
-                                         "name (letters, digits, _ . + -, at most 64)")
-            signals[name] = np.asarray(value)
+        signals = {name: np.asarray(value) for name, value in self.signals.items()}
         problem = _array_problem(core, signals, self.params.n)
         if problem:
             raise ConfigurationError(f"cannot save this trajectory: {problem}")
@@ -227,7 +204,6 @@ class Trajectory:
                                       f"({type(exc).__name__}: {one_line(str(exc))})") from None
 
 
-# ---------------------------------------------------------------------- file names
 def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
     """``(PATH.npz, PATH.json)`` for save: only a trailing .npz/.json is dropped."""
     try:
@@ -241,25 +217,20 @@ def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
 
 
 def _resolve(path: str | os.PathLike[str]) -> Path:
-    """The file :meth:`Trajectory.load` opens for ``path`` (see there)."""
+    """The file :meth:`Trajectory.load` opens for ``path`` (see there); opening it refuses
+    a missing or irregular one."""
     try:
         given = Path(path)
     except TypeError as exc:
         raise TrajectoryFileError(f"not a file path: {reprlib.repr(path)}") from exc
     try:
-        if given.is_file():
-            return given
-        if given.exists():
-            raise TrajectoryFileError(f"{printable_path(given)} is not a regular file")
-        if given.name and not given.name.endswith(".npz"):
+        if given.name and not given.name.endswith(".npz") and not given.exists():
             alternative = given.with_name(given.name + ".npz")
             if alternative.is_file():
                 return alternative
-    except (OSError, ValueError) as exc:
-        reason = (exc.strerror if isinstance(exc, OSError) else None) or str(exc)
-        raise TrajectoryFileError(f"cannot open {printable_path(given)}: "
-                                  f"{one_line(reason)}") from None
-    raise TrajectoryFileError(f"no trajectory file at {printable_path(given)}")
+    except OSError:  # an unreadable folder: opening the file says why
+        pass
+    return given
 
 
 def _wanted_signals(signals: object) -> frozenset[str] | None:
@@ -275,7 +246,6 @@ def _wanted_signals(signals: object) -> frozenset[str] | None:
     return frozenset(names)
 
 
-# ------------------------------------------------------------------- reading files
 class _Refused(Exception):
     """A specific reason to refuse a file (turned into TrajectoryFileError by load)."""
 
@@ -301,9 +271,6 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
         members = {info.filename: info for info in infos}
         if len(members) != len(infos):
             raise _Refused("two members share a name")
-        for name in members:
-            if not _MEMBER_NAME.fullmatch(name):
-                raise _Refused(f"unexpected member {one_line(repr(name), 80)}")
         if "header.npy" not in members:
             raise _Refused("no header")
         header_member = _inspect(archive, members["header.npy"], "header", kinds="U")
@@ -326,25 +293,12 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
                            f"(it has: {', '.join(listed) or 'none'})")
         chosen = [name for name in listed if wanted is None or name in wanted]
 
-        # 1. every needed array's .npy header, checked before any data is decompressed
-        n = params.n
-        plan: dict[str, _Member] = {}
-        for name in _CORE:
-            plan[name] = _inspect(archive, members[f"{name}.npy"], name, kinds="f8")
-        samples = plan["t"].shape[0] if len(plan["t"].shape) == 1 else -1
-        for name, shape in (("t", (samples,)), ("q", (samples, n + 2)),
-                            ("dq", (samples, n + 2)), ("tau", (samples, n - 1))):
-            if plan[name].shape != shape:
-                raise _Refused(f"array {name} has shape {plan[name].shape}, expected {shape}")
-        if samples < 1:
-            raise _Refused("it has no samples")
+        # 1. every needed array's .npy header and size, checked before any data is decompressed
+        plan = {name: _inspect(archive, members[f"{name}.npy"], name, kinds="f8")
+                for name in _CORE}
         for name in chosen:
-            member = _inspect(archive, members[f"{_SIGNAL_PREFIX}{name}.npy"],
-                              f"signal {name!r}", kinds="biuf")
-            if len(member.shape) not in (1, 2) or member.shape[0] != samples:
-                raise _Refused(f"signal {name!r} has shape {member.shape}, expected "
-                               f"({samples},) or ({samples}, k)")
-            plan[_SIGNAL_PREFIX + name] = member
+            plan[_SIGNAL_PREFIX + name] = _inspect(
+                archive, members[f"{_SIGNAL_PREFIX}{name}.npy"], f"signal {name!r}", kinds="biuf")
         total = sum(member.nbytes for member in plan.values())
         if total > MAX_TOTAL_BYTES:
             raise _Refused(f"its arrays declare {mebibytes(total)} together, beyond the "
@@ -354,7 +308,7 @@ def _read(cls: type[Trajectory], raw: io.BufferedReader,
         data = {key: _data(archive, member, key) for key, member in plan.items()}
     core = {name: data[name].astype(float) for name in _CORE}
     signals = {name: data[_SIGNAL_PREFIX + name] for name in chosen}
-    problem = _array_problem(core, signals, n)
+    problem = _array_problem(core, signals, params.n)
     if problem:
         raise _Refused(problem)
     return cls(t=core["t"], q=core["q"], dq=core["dq"], tau=core["tau"], params=params,
@@ -469,6 +423,8 @@ def _array_problem(core: Mapping[str, np.ndarray], signals: Mapping[str, np.ndar
     if samples > 1 and not np.all(np.diff(t) > 0):
         return "its times t are not strictly increasing"
     for name, arr in signals.items():
+        if not isinstance(name, str) or not _SIGNAL_NAME.fullmatch(name):
+            return f"signal name {reprlib.repr(name)} is not a plain name (letters, digits, _.+-)"
         if arr.dtype.kind not in "biuf" or arr.dtype.names is not None:
             return f"signal {name!r} has dtype {arr.dtype}, expected numbers"
         if arr.ndim not in (1, 2) or arr.shape[0] != samples:

@@ -152,7 +152,7 @@ def test_an_interrupt_in_the_plant_keeps_the_samples_before_it() -> None:
 @pytest.mark.parametrize("steps", [-1, 1.5, True, "3", None, MAX_STEPS + 1])
 def test_steps_are_checked(steps: object) -> None:
     """Control periods: a whole number in 0 .. MAX_STEPS, or a ParameterError naming it."""
-    with pytest.raises(ParameterError, match=r"^steps must be a whole number"):
+    with pytest.raises(ParameterError, match=r"^steps must (be an integer|lie in 0\.\.1000000),"):
         closed_loop(_Joints(), _Ramp(), np.zeros(10), steps)  # type: ignore[arg-type]
 
 

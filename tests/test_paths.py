@@ -301,7 +301,7 @@ BAD_FILES = {
     "repeated.csv": ("0,0\n0,0\n1,1\n", "waypoints 1 and 2 coincide"),
     "text.csv": ("0,0\n1,one\n", "waypoint 2: not a number pair"),
     "columns.csv": ("0,0,0\n1,1,1\n", "expected two columns"),
-    "nan.csv": ("0,0\nnan,1\n", "waypoint 2: not finite"),
+    "nan.csv": ("0,0\nnan,1\n", "waypoint 2 is not finite"),
     "binary.csv": (b"\xff\xfe\x00", "not UTF-8"),
     "far_point.toml": ('type = "waypoints"\npoints = [[0, 0], [1e160, 0], [2e160, 1]]\n',
                        "points: waypoint 2 (1e+160, 0) lies beyond +-1e+06 m"),

@@ -140,10 +140,10 @@ def test_load_opens_the_file_given(original: Trajectory, tmp_path: Path) -> None
     (tmp_path / "bk").mkdir()
     npz, _ = original.save(tmp_path / "bk" / "pfl")
     message = _refused(tmp_path / "bk" / "pfl.backup")
-    assert "no trajectory file" in message and "pfl.npz" not in message
+    assert "no such snake_pin trajectory" in message and "pfl.npz" not in message
     (tmp_path / "bk" / "pfl.backup").write_bytes(npz.read_bytes())
     assert _same(original, Trajectory.load(tmp_path / "bk" / "pfl.backup"))
-    assert "not a regular file" in _refused(tmp_path / "bk")
+    assert "is a folder" in _refused(tmp_path / "bk")
 
 
 def test_saved_files_are_readable_by_others(original: Trajectory, tmp_path: Path) -> None:
@@ -522,8 +522,8 @@ def test_a_fifo_is_refused_without_blocking(tmp_path: Path,
     refused at once, never opened for a blocking read."""
     fifo = tmp_path / "run.npz"
     os.mkfifo(fifo)
-    assert "is not a regular file" in _refused_at_once(fifo)
-    assert "no trajectory file" in _refused_at_once(tmp_path / "run")
+    assert "not a regular file" in _refused_at_once(fifo)
+    assert "no such snake_pin trajectory" in _refused_at_once(tmp_path / "run")
     monkeypatch.setattr(trajectory, "_resolve", lambda path: Path(path))
     assert _refused_at_once(fifo) == \
         f"{fifo}: is a FIFO, not a regular file: not a snake_pin trajectory"
