@@ -669,8 +669,16 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
                                  {"path": repr(reference)})
             _path_summary(traj, reference, start, head_tracking=kind != "los")
             traj.summary.update(controller=kind, reference=_path_text(args))
-        elif kind == "mpc":
-            traj = _simulate_mpc_line(args, params, mpc_options, t_final, start)
+        elif kind == "mpc":  # the MPC on the tracking line, summarised as run_tracking
+            from .control import head_first_reference
+            from .model import Snake
+            from .runs.tracking import REFERENCE, summarize_tracking
+
+            line = head_first_reference()
+            traj = summarize_tracking(
+                _simulate_law(args, params, line, None, t_final, mpc_options,
+                              {"reference": REFERENCE}),
+                Snake(params), line, start, controller="mpc", reference=_LINE_HEAD_FIRST)
         elif kind == "pfl":
             from .runs.pfl import run_pfl
 
@@ -716,34 +724,6 @@ def _mpc_options(args: argparse.Namespace, *, engine: bool = False) -> Any:
             raise UsageError(f"argument --torque-bound: at most the engine motors' "
                              f"{ENGINE_TORQUE_BOUND:g} N m")
     return MPCOptions(**given)
-
-
-def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: Any,
-                       t_final: float, start: float) -> Any:
-    """The MPC on the tracking line, summarised as :func:`~snake_pin.runs.tracking.run_tracking`."""
-    import numpy as np
-
-    from .control import head_first_reference
-    from .integrability import conserved_quantity_along
-    from .metrics import criteria_along, head_error_summary, head_position_error
-    from .model import Snake
-    from .runs.tracking import CRITERIA_EVERY, REFERENCE
-
-    reference = head_first_reference()
-    traj = _simulate_law(args, params, reference, None, t_final, options,
-                         {"reference": REFERENCE})
-    error = head_position_error(traj, reference)
-    t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
-    g = conserved_quantity_along(Snake(params), traj.q, traj.dq)
-    traj.signals["head_error"] = error
-    traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
-    traj.summary.update({
-        "controller": "mpc", "reference": _LINE_HEAD_FIRST, "c_x": params.c_x,
-        "c_y": params.c_y, "passive": list(params.passive),
-        **head_error_summary(traj, error, start=start),
-        "R_min": float(r.min()), "D_min": float(d.min()), "body_length": params.body_length,
-        "g_drift": float(np.abs(g - g[0]).max()), "final_head": traj.q[-1, :3].tolist()})
-    return traj
 
 
 def _simulate_law(args: argparse.Namespace, params: SnakeParams, reference: Any,
