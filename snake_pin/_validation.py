@@ -17,8 +17,8 @@ from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
 __all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "instance",
-           "integer", "mebibytes", "model_data", "one_line", "output_file", "printable_path",
-           "vector"]
+           "integer", "is_number", "mebibytes", "model_data", "one_line", "output_file",
+           "printable_path", "vector"]
 
 _T = TypeVar("_T")
 
@@ -53,6 +53,11 @@ def printable_path(path: object) -> str:
     raw = os.fspath(path) if isinstance(path, (str, bytes, os.PathLike)) else str(path)
     text = os.fsdecode(raw) if isinstance(raw, bytes) else raw
     return text if text.isprintable() else repr(text)
+
+
+def is_number(value: object) -> bool:
+    """Whether ``value`` is a real number (a bool is not)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 def integer(value: object, name: str, *, low: int | None = None,
