@@ -31,7 +31,7 @@ from .exceptions import RunInterrupted, SnakePinError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
 __all__ = ["EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "SUMMARY_KEYS",
-           "build_parser", "main", "parse_angle"]
+           "build_parser", "main"]
 
 #: Exit statuses (also in ``snake-pin --help``).
 EXIT_OK = 0
@@ -114,23 +114,7 @@ class _Outcome:
 
 # ------------------------------------------------------------------- argument types
 def parse_angle(text: str) -> float:
-    """An angle in radians from ``0.3``, ``pi/5``, ``-pi/3``, ``2*pi/3`` or ``pi``.
-
-    Parameters
-    ----------
-    text
-        A number, optionally times ``pi`` and divided by a number.
-
-    Returns
-    -------
-    float
-        The angle [rad].
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        Not a finite angle.
-    """
+    """An angle in radians from ``0.3``, ``pi/5``, ``-pi/3``, ``2*pi/3`` or ``pi``."""
     match = _ANGLE.match(text)
     if not match or not (match.group(2) or match.group(3)):
         raise argparse.ArgumentTypeError(f"not an angle: {text!r} (use e.g. 0.3 or pi/5)")
@@ -213,10 +197,9 @@ def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = True,
                         help=f"number of links, 2..{MAX_LINKS} (overrides the preset)")
     parser.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
                         metavar="K", help="make joint K passive (repeatable)")
-    if friction:
-        for flag, key, unit in (("cx", "c_x", "N s/m"), ("cy", "c_y", "N s/m"),
-                                ("ctheta", "c_theta", "N m s")):
-            parser.add_argument(f"--{flag}", type=_float_in(0.0), help=f"{key} [{unit}]")
+    for flag, key in _FRICTION_FLAGS.items() if friction else ():
+        unit = "N m s" if flag == "ctheta" else "N s/m"
+        parser.add_argument(f"--{flag}", type=_float_in(0.0), help=f"{key} [{unit}]")
 
 
 def _joint(option: str, k: int, n: int) -> int:

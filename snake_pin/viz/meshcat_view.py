@@ -41,11 +41,6 @@ PASSIVE_COLOR = 0x1F4FD1
 HOST = "127.0.0.1"
 
 
-def port_is_free(port: int) -> bool:
-    """Whether 127.0.0.1:port can be bound now."""
-    return _port_problem(port) is None
-
-
 def _port_problem(port: int) -> str | None:
     """Why 127.0.0.1:port cannot be bound now (in words), or None when it can."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
@@ -95,8 +90,9 @@ def start_server(port: int | None = None, timeout: float = 20.0
     if port is not None:
         if not 1 <= port <= 65535:
             raise ParameterError(f"port must lie in 1..65535, got {port}")
-        if not port_is_free(port):
-            raise ParameterError(_port_problem(port) or f"port {port} on {HOST} is already in use")
+        problem = _port_problem(port)
+        if problem is not None:
+            raise ParameterError(problem)
     cmd = [sys.executable, "-u", "-m", "snake_pin.viz.meshcat_server", "--stdin-eof", "--quiet"]
     if threading.current_thread() is threading.main_thread():
         # PR_SET_PDEATHSIG follows the thread that started the child: only from the main one
