@@ -27,6 +27,7 @@ from urllib.parse import urlparse
 
 from . import __version__
 from ._json import json_text
+from ._validation import float_arg, int_arg, number_arg
 from .exceptions import RunInterrupted, SnakePinError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
@@ -131,41 +132,6 @@ def parse_angle(text: str) -> float:
     return -value if sign == "-" else value
 
 
-def _number(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from exc
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
-    return value
-
-
-def _float_in(low: float, high: float = math.inf, *, open_low: bool = False
-              ) -> Callable[[str], float]:
-    """A finite float in [low, high] ((low, high] with ``open_low``)."""
-    def parse(text: str) -> float:
-        value = _number(text)
-        if value < low or (open_low and value == low) or value > high:
-            left = "(" if open_low else "["
-            right = f"{high:g}]" if math.isfinite(high) else "inf)"
-            raise argparse.ArgumentTypeError(f"must lie in {left}{low:g}, {right}, got {text}")
-        return value
-    return parse
-
-
-def _int_in(low: int, high: int) -> Callable[[str], int]:
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from exc
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"must lie in {low}..{high}, got {value}")
-        return value
-    return parse
-
-
 def _parse_q(text: str) -> list[float]:
     values = [parse_angle(part) for part in text.replace(" ", "").split(",") if part]
     if not values:
@@ -193,13 +159,13 @@ def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = True,
                    default: str = "table1") -> None:
     """--robot, --n, --passive and (unless ``engine``'s wheels set it) the friction options."""
     parser.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default {default}")
-    parser.add_argument("--n", type=_int_in(2, MAX_LINKS),
+    parser.add_argument("--n", type=int_arg(2, MAX_LINKS),
                         help=f"number of links, 2..{MAX_LINKS} (overrides the preset)")
-    parser.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
+    parser.add_argument("--passive", type=int_arg(1, MAX_LINKS), action="append", default=[],
                         metavar="K", help="make joint K passive (repeatable)")
     for flag, key in _FRICTION_FLAGS.items() if friction else ():
         unit = "N m s" if flag == "ctheta" else "N s/m"
-        parser.add_argument(f"--{flag}", type=_float_in(0.0), help=f"{key} [{unit}]")
+        parser.add_argument(f"--{flag}", type=float_arg(0.0), help=f"{key} [{unit}]")
 
 
 def _joint(option: str, k: int, n: int) -> int:
@@ -585,7 +551,7 @@ def _path_options(parser: argparse.ArgumentParser) -> None:
                         "circle, arc, lane_change, sinusoid, or a .toml/.csv path file")
     parser.add_argument("--path-param", action="append", metavar="KEY=VALUE",
                         help="a parameter of the path shape (e.g. radius=1.2), repeatable")
-    parser.add_argument("--speed", type=_float_in(0.0, open_low=True),
+    parser.add_argument("--speed", type=float_arg(0.0, open_low=True),
                         help="reference speed along the path [m/s] (default 0.1)")
 
 
@@ -951,24 +917,24 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
 
 
 #: ``--free-joint`` of manip, sweep and singular.
-_FREE_JOINT: dict[str, Any] = {"type": _int_in(1, MAX_LINKS), "metavar": "K",
+_FREE_JOINT: dict[str, Any] = {"type": int_arg(1, MAX_LINKS), "metavar": "K",
                                "help": "joint K is free (beside any --passive joints)"}
 
 
 def _run_options(parser: argparse.ArgumentParser, t_final: float | None, help_t: str,
                  help_window: str = _ERROR_WINDOW_HELP) -> None:
     """``--t-final`` and ``--error-window`` of the commands that run."""
-    parser.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=t_final,
+    parser.add_argument("--t-final", type=float_arg(0.0, open_low=True), default=t_final,
                         help=help_t)
-    parser.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
+    parser.add_argument("--error-window", type=float_arg(0.0), metavar="SECONDS",
                         help=help_window)
 
 
 def _mpc_flags(parser: argparse.ArgumentParser, horizon: str, bound: str) -> None:
     """``--horizon`` and ``--torque-bound`` (read by :func:`_mpc_options`)."""
-    parser.add_argument("--horizon", type=_number, metavar="SECONDS",
+    parser.add_argument("--horizon", type=number_arg, metavar="SECONDS",
                         help=f"MPC only: the prediction horizon [s] (default 0.5{horizon})")
-    parser.add_argument("--torque-bound", type=_number, metavar="NM",
+    parser.add_argument("--torque-bound", type=number_arg, metavar="NM",
                         help=f"MPC only: |tau_i| <= NM [N m] (default {bound})")
 
 
@@ -1020,7 +986,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="posture family (default straight, or implied by the options below)")
     p.add_argument("--phi0", type=parse_angle, help="arc: common joint angle (e.g. pi/10)")
     p.add_argument("--alpha", type=parse_angle, help="serpenoid alpha (default pi/4)")
-    p.add_argument("--ts", type=_number, help="serpenoid T_s (default 1.5)")
+    p.add_argument("--ts", type=number_arg, help="serpenoid T_s (default 1.5)")
     p.add_argument("--q", type=_parse_q, help="full configuration x,y,theta1,phi1,... "
                    "(angles may be written pi/5; |entries| <= 1e9)")
     p.add_argument("--free-joint", **_FREE_JOINT)
@@ -1031,7 +997,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("family", choices=("arc", "alpha", "ts"))
     _robot_options(p)
     p.add_argument("--free-joint", **_FREE_JOINT)
-    p.add_argument("--points", type=_int_in(2, MAX_POINTS), default=201,
+    p.add_argument("--points", type=int_arg(2, MAX_POINTS), default=201,
                    help=f"postures along the family, 2..{MAX_POINTS} (0, the straight "
                    "posture, is added when the range holds it and the grid misses it)")
     p.add_argument("--range", type=parse_angle, nargs=2, metavar=("LOW", "HIGH"),
@@ -1041,12 +1007,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("singular", help="search the joint box for singular postures (R = 0)")
     _robot_options(p)
-    p.add_argument("--starts", type=_int_in(1, MAX_STARTS), default=200,
+    p.add_argument("--starts", type=int_arg(1, MAX_STARTS), default=200,
                    help=f"random starts, 1..{MAX_STARTS}")
     p.add_argument("--bound", type=parse_angle, default=math.pi / 2,
                    help="|phi_i| <= bound, in (0, pi]")
     p.add_argument("--free-joint", **_FREE_JOINT)
-    p.add_argument("--seed", type=_int_in(0, MAX_SEED), default=0, help="0..2**32-1")
+    p.add_argument("--seed", type=int_arg(0, MAX_SEED), default=0, help="0..2**32-1")
     _command(p, _cmd_singular, output="folder for the families (drawing and JSON)",
              required=False)
 
@@ -1060,7 +1026,7 @@ def build_parser() -> argparse.ArgumentParser:
     _path_options(p)
     _robot_options(p)
     _run_options(p, None, f"duration [s], at most {steps * SIMULATE_DT:g} (pfl 10, lyapunov 60)")
-    p.add_argument("--climb-r", type=_float_in(0.0),
+    p.add_argument("--climb-r", type=float_arg(0.0),
                    help="PFL only: gain of the singularity-aware redundancy term (default 0)")
     _mpc_flags(p, "; at least the re-solve period, 0.04", "1")
     _command(p, _cmd_simulate)
@@ -1073,9 +1039,9 @@ def build_parser() -> argparse.ArgumentParser:
     _robot_options(p, friction=False, default="engine")  # friction: identified from wheels
     _path_options(p)
     _run_options(p, 60.0, f"duration [s], at most {steps * SIMULATE_DT:g}")
-    p.add_argument("--wheel-radius", type=_float_in(0.0, MAX_WHEEL_RADIUS, open_low=True),
+    p.add_argument("--wheel-radius", type=float_arg(0.0, MAX_WHEEL_RADIUS, open_low=True),
                    default=0.03, help=f"[m], at most {MAX_WHEEL_RADIUS:g}")
-    p.add_argument("--mu", type=_float_in(0.0, MAX_MU, open_low=True), default=1.0,
+    p.add_argument("--mu", type=float_arg(0.0, MAX_MU, open_low=True), default=1.0,
                    help=f"wheel-floor friction, at most {MAX_MU:g}")
     p.add_argument("--law", choices=("velocity", "acceleration", "mpc"), default="velocity",
                    help="form of the Lyapunov-like law (velocity level with servos by default), "
@@ -1084,10 +1050,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cone", choices=("elliptic", "pyramidal"), default="elliptic",
                    help="MuJoCo friction cone (default elliptic; pyramidal: faster, but its "
                    "sideways friction depends on the heading, 26 %% weaker at 45 degrees)")
-    p.add_argument("--seeds", type=_int_in(1, MAX_SEEDS), metavar="N",
+    p.add_argument("--seeds", type=int_arg(1, MAX_SEEDS), metavar="N",
                    help=f"run N times from perturbed initial postures, 1..{MAX_SEEDS}, and "
                    "report the distribution")
-    p.add_argument("--perturbation", type=_float_in(0.0, MAX_PERTURBATION, open_low=True),
+    p.add_argument("--perturbation", type=float_arg(0.0, MAX_PERTURBATION, open_low=True),
                    metavar="EPS", help="with --seeds: offsets of the initial joint angles, "
                    f"uniform in [-EPS, EPS] rad (default 1e-6, at most {MAX_PERTURBATION:g})")
     _command(p, _cmd_engine)
@@ -1095,8 +1061,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("view", help="meshcat viewer of a saved trajectory (127.0.0.1 only)")
     p.add_argument("trajectory", help="a .npz written by simulate/reproduce")
     p.add_argument("--html", metavar="FILE", help="write a self-contained animation page instead")
-    p.add_argument("--port", type=_int_in(1, MAX_PORT), help="web port of the live viewer")
-    p.add_argument("--fps", type=_float_in(MIN_FPS, MAX_FPS), default=20.0,
+    p.add_argument("--port", type=int_arg(1, MAX_PORT), help="web port of the live viewer")
+    p.add_argument("--fps", type=float_arg(MIN_FPS, MAX_FPS), default=20.0,
                    help="animation frame rate, 1..120")
     p.add_argument("--robot", metavar="ROBOT",
                    help=f"refuse a run of another robot ({_ROBOT_HELP}; compared by name)")
@@ -1140,7 +1106,7 @@ def build_parser() -> argparse.ArgumentParser:
     _run_options(p, 60.0, "duration of each run [s] (--quick: at most 12)",
                  "judge the path metrics over t >= SECONDS (default: 10 s, or the second "
                  "half of runs shorter than 20 s; in the settings as window_start)")
-    p.add_argument("--draws", type=_int_in(1, 100), metavar="N",
+    p.add_argument("--draws", type=int_arg(1, 100), metavar="N",
                    help="engine runs per cell from perturbed starts, 1..100 (the engine is "
                    "chaotic: a cell reports their median and 10-90 %% range; default: "
                    "bench_control.ENGINE_DRAWS)")

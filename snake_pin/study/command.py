@@ -11,11 +11,12 @@ import functools
 import sys
 from typing import Any
 
+from .._validation import float_arg, int_arg
 from ..exceptions import RunInterrupted
 from .errors import StudyError
 from .runner import CONNECT_TIMEOUT, MAX_CONNECT_TIMEOUT, MAX_WORKERS, run_study
 
-__all__ = ["add_study_parser"]
+__all__: list[str] = []
 
 _DESCRIPTION = """\
 Run every run a study file describes on Dask, one Parquet row per run in DIR/runs, the page
@@ -26,22 +27,8 @@ in DIR/index.html, the summary in DIR/summary.json; runs already recorded are no
 
 def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int = 130,
                      failed_status: int = 3) -> argparse.ArgumentParser:
-    """Add the ``study`` subcommand to ``subparsers`` (an argparse subparsers action).
-
-    Parameters
-    ----------
-    subparsers
-        The CLI's ``add_subparsers()`` action.
-    outcome
-        The handler's result type, called with ``payload``, ``text``, ``status``, ``note``.
-    interrupted_status, failed_status
-        Exit statuses of an interrupted study and of one with runs lost with a worker.
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        The subcommand's parser (its handler set as ``func``).
-    """
+    """Add the ``study`` subcommand to the CLI's ``subparsers``; its handler returns an
+    ``outcome(payload=, text=, status=, note=)`` and is set as ``func``."""
     p = subparsers.add_parser("study", help="run a study (grids and random samples of runs) "
                               "on Dask, resumable", description=_DESCRIPTION)
     p.add_argument("study", metavar="STUDY.toml", help="the study file")
@@ -54,11 +41,11 @@ def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int =
                    help="with --scheduler: the cluster's TLS credentials, a YAML file of "
                    "Dask config (distributed.comm.tls.ca-file, client.cert, client.key; "
                    "default: Dask's own config)")
-    p.add_argument("--connect-timeout", type=_seconds, default=CONNECT_TIMEOUT,
-                   metavar="SECONDS",
+    p.add_argument("--connect-timeout", type=float_arg(0.0, MAX_CONNECT_TIMEOUT, open_low=True),
+                   default=CONNECT_TIMEOUT, metavar="SECONDS",
                    help="longest wait for the scheduler to complete Dask's handshake "
                    f"(default {CONNECT_TIMEOUT:g})")
-    p.add_argument("--workers", type=_workers, metavar="N",
+    p.add_argument("--workers", type=int_arg(1, MAX_WORKERS), metavar="N",
                    help=f"local worker processes, 1..{MAX_WORKERS} (default: one per core)")
     p.add_argument("--dashboard", action="store_true",
                    help="serve the local cluster's Dask dashboard on 127.0.0.1 (a random "
@@ -70,27 +57,6 @@ def add_study_parser(subparsers: Any, *, outcome: Any, interrupted_status: int =
                                           interrupted_status=interrupted_status,
                                           failed_status=failed_status))
     return p
-
-
-def _workers(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if not 1 <= value <= MAX_WORKERS:
-        raise argparse.ArgumentTypeError(f"must lie in 1..{MAX_WORKERS}, got {value}")
-    return value
-
-
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") \
-            from None
-    if not 0 < value <= MAX_CONNECT_TIMEOUT:  # NaN fails too
-        raise argparse.ArgumentTypeError(f"must lie in (0, {MAX_CONNECT_TIMEOUT:g}], got {text}")
-    return value
 
 
 def _log(message: str) -> None:
