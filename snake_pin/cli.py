@@ -191,14 +191,18 @@ def _params(args: argparse.Namespace, default: str = "table1") -> SnakeParams:
     return load_robot(spec, **changes) if changes else base
 
 
-def _free_joints(args: argparse.Namespace, params: SnakeParams) -> int | tuple[int, ...] | None:
-    """The joints without an actuator for manipulability: --passive ones and --free-joint."""
+def _analysis(args: argparse.Namespace) -> tuple[SnakeParams, int | tuple[int, ...] | None]:
+    """The robot of manip, sweep, singular with every joint actuated, and its free joints
+    (--passive ones and --free-joint), refused when the task needs more links."""
+    from .manipulability import task_split
+
+    params = _params(args)
     free = set(params.passive)
     if args.free_joint is not None:
         free.add(_joint("--free-joint", args.free_joint, params.n))
-    if not free:
-        return None
-    return min(free) if len(free) == 1 else tuple(sorted(free))
+    joints = (min(free) if len(free) == 1 else tuple(sorted(free))) if free else None
+    task_split(params.n, joints, not getattr(args, "no_heading", False))
+    return params.replace(passive=()), joints
 
 
 def _output_folder(text: str, option: str = "-o/--output") -> Path:
@@ -391,15 +395,12 @@ def _posture(args: argparse.Namespace, shape: str, n: int) -> list[float]:
 
 
 def _cmd_manip(args: argparse.Namespace) -> _Outcome:
-    params = _params(args)
-    free = _free_joints(args, params)
+    params, free = _analysis(args)
     shape = _shape(args)
-    from .manipulability import manipulability, task_split
+    from .manipulability import manipulability
     from .model import Snake
 
-    task_split(params.n, free, not args.no_heading)  # n large enough for the task
-    posture = _posture(args, shape, params.n)
-    res = manipulability(Snake(params.replace(passive=())), posture, free_joint=free,
+    res = manipulability(Snake(params), _posture(args, shape, params.n), free_joint=free,
                          heading=not args.no_heading)
     tilde = "~" if free else ""
     return _Outcome(res.to_dict(),
@@ -420,20 +421,16 @@ def _sweep_range(args: argparse.Namespace) -> tuple[float, float] | None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
-    params = _params(args)
-    free = _free_joints(args, params)
+    params, free = _analysis(args)
     bounds = _sweep_range(args)
     out = _output_folder(args.output)
-    from .manipulability import task_split
     from .model import Snake
     from .runs.outputs import write_sweep
     from .sweeps import sweep
 
-    task_split(params.n, free)
-    snake = Snake(params.replace(passive=()))
     out.mkdir(parents=True, exist_ok=True)
     try:
-        result = sweep(snake, args.family, free_joint=free, points=args.points,
+        result = sweep(Snake(params), args.family, free_joint=free, points=args.points,
                        bounds=bounds, progress=_progress(args))
     except RunInterrupted as exc:
         partial = exc.partial
@@ -470,23 +467,19 @@ def _singular_text(search: Any) -> str:
 
 
 def _cmd_singular(args: argparse.Namespace) -> _Outcome:
-    params = _params(args)
-    free = _free_joints(args, params)
+    params, free = _analysis(args)
     if not 0 < args.bound <= math.pi:
         raise UsageError(f"argument --bound: must lie in (0, pi], got {args.bound:g}")
     out = _output_folder(args.output) if args.output else None
-    from .manipulability import task_split
     from .runs.outputs import write_singular
     from .singular import find_singular_postures
 
-    task_split(params.n, free)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     status, note = EXIT_OK, ""
     try:
-        search = find_singular_postures(params.replace(passive=()), starts=args.starts,
-                                        bound=args.bound, free_joint=free, seed=args.seed,
-                                        progress=_progress(args))
+        search = find_singular_postures(params, starts=args.starts, bound=args.bound,
+                                        free_joint=free, seed=args.seed, progress=_progress(args))
     except RunInterrupted as exc:
         search, status, note = exc.partial, EXIT_INTERRUPTED, str(exc)
     payload = search.to_dict()
@@ -679,13 +672,7 @@ def _simulate_law(args: argparse.Namespace, params: SnakeParams, reference: Any,
                   user: type | None, t_final: float, mpc_options: Any, meta: dict[str, Any]
                   ) -> Any:
     """A run of ``--controller`` (a user's ``module:Class`` too) on the viscous model."""
-    from .control import (
-        LOSController,
-        LyapunovController,
-        MPCController,
-        PFLController,
-        PFLOptions,
-    )
+    from .control import LOSController, LyapunovController, MPCController, PFLController, PFLOptions
     from .model import Snake
     from .runs.tracking import initial_state
     from .sim import simulate
@@ -877,41 +864,33 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
 
 # --------------------------------------------------------------------- parser
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
-    from .runs.benchmark import (
-        CONTROLLERS,
-        DEFAULT_CONTROLLERS,
-        ENGINE_DRAWS,
-        QUICK_T_FINAL,
-        SCENARIOS,
-        run_benchmark,
-        write_benchmark,
-    )
+    from .runs import benchmark as bench
 
     _check_t_final(args.t_final, SIMULATE_DT)
-    start = _error_window(args, min(args.t_final, QUICK_T_FINAL) if args.quick
+    start = _error_window(args, min(args.t_final, bench.QUICK_T_FINAL) if args.quick
                           else args.t_final)
     for name in args.scenario or []:
-        if name not in SCENARIOS:
+        if name not in bench.SCENARIOS:
             raise UsageError(f"argument --scenario: unknown {name!r}; choose from "
-                             f"{', '.join(SCENARIOS)}")
+                             f"{', '.join(bench.SCENARIOS)}")
     controllers: dict[str, Any] = {}
-    for spec in args.controller or list(DEFAULT_CONTROLLERS):
+    for spec in args.controller or list(bench.DEFAULT_CONTROLLERS):
         if ":" in spec:
             cls = _user_controller_class(spec)
             controllers[spec] = lambda snake, reference, path, cls=cls: cls(snake, reference)
-        elif spec in CONTROLLERS:
+        elif spec in bench.CONTROLLERS:
             controllers[spec] = None
         else:
             raise UsageError(f"argument --controller: unknown {spec!r}; choose from "
-                             f"{', '.join(CONTROLLERS)} or module:Class")
+                             f"{', '.join(bench.CONTROLLERS)} or module:Class")
     out = _output_folder(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    result = run_benchmark(scenarios=args.scenario, controllers=controllers,
-                           models=tuple(args.model or ("viscous",)),
-                           failed=(None,) if args.no_failure else (None, 5),
-                           t_final=args.t_final, quick=args.quick, error_window=start,
-                           draws=args.draws or ENGINE_DRAWS)
-    files, wrote = _wrote(write_benchmark(result, out))
+    result = bench.run_benchmark(scenarios=args.scenario, controllers=controllers,
+                                 models=tuple(args.model or ("viscous",)),
+                                 failed=(None,) if args.no_failure else (None, 5),
+                                 t_final=args.t_final, quick=args.quick, error_window=start,
+                                 draws=args.draws or bench.ENGINE_DRAWS)
+    files, wrote = _wrote(bench.write_benchmark(result, out))
     return _Outcome({"error_window": start, "rows": result.table(), "files": files},
                     f"{wrote}\n{len(result.rows)} runs, path metrics over t >= {start:g} s")
 
