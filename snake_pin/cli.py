@@ -290,8 +290,7 @@ def _error_window(args: argparse.Namespace, t_final: float) -> float:
     return float(args.error_window)
 
 
-#: What the head follows without --path (the summary's ``reference``).
-_LINE_PFL = "line w_r = [0.1 t, 0, 0]"
+#: What the head follows without --path in the tracking runs (the summary's ``reference``).
 _LINE_HEAD_FIRST = "line w_r = [0.1 t, 0, pi]"
 
 
@@ -628,7 +627,7 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
                           control_dt=SIMULATE_DT, error_window=start,
                           progress=_progress(args))
             traj = run.trajectory
-            traj.summary["reference"] = _LINE_PFL
+            traj.summary["reference"] = "line w_r = [0.1 t, 0, 0]"
         else:
             from .runs.tracking import run_tracking
 

@@ -1,12 +1,6 @@
-"""Studies: many closed-loop runs described by one file, run on Dask, kept in Parquet.
-
-- :mod:`~snake_pin.study.spec`: the study file (base scenario, axes), validation, run keys;
-- :mod:`~snake_pin.study.work`: the unit of work (one run -> its result row);
-- :mod:`~snake_pin.study.runner`: execution on a Dask cluster (TLS-authenticated locally;
-  a given scheduler checked by Dask's handshake on a deadline), resuming, interrupts;
-- :mod:`~snake_pin.study.results`: the output folder and its Parquet dataset;
-- :mod:`~snake_pin.study.summary`, :mod:`~snake_pin.study.report`: the summary and the page;
-- :mod:`~snake_pin.study.command`: the ``snake-pin study`` subcommand.
+"""Studies: many closed-loop runs described by one file (:mod:`~snake_pin.study.spec`), run
+on Dask (``runner``, ``work``; TLS-authenticated locally), kept in Parquet (``results``) with
+their summary and page (``summary``, ``report``) and run by ``snake-pin study`` (``command``).
 """
 
 from .command import add_study_parser as add_study_parser  # the CLI's, not in __all__
