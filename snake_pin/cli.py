@@ -581,8 +581,6 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
     kind = args.controller
     on_path = args.path is not None or kind not in ("pfl", "lyapunov", "mpc")
-    if not on_path:
-        _path_reference(args)  # --speed/--path-param without a path: refused
     if kind not in ("pfl", "lyapunov", "los", "mpc") and ":" not in kind:
         raise UsageError(f"argument --controller: choose pfl, lyapunov, los, mpc or "
                          f"module:Class (a Controller subclass), got {kind!r}")
@@ -595,7 +593,8 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     t_final = args.t_final or (10.0 if kind == "pfl" and not on_path else 60.0)
     start = _error_window(args, t_final)
     user = _user_controller_class(kind) if ":" in kind else None  # refused before any folder
-    reference = _path_reference(args, "line") if on_path else None  # a bad path: refused here
+    # a bad path, or --speed/--path-param without one: refused here
+    reference = _path_reference(args, "line" if on_path else None)
     out = _output_folder(args.output)
     out.mkdir(parents=True, exist_ok=True)
     stem = "run" if user is not None else kind
