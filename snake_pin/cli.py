@@ -141,12 +141,6 @@ def _parse_q(text: str) -> list[float]:
     return values
 
 
-def _max_steps() -> int:
-    from .sim import MAX_STEPS
-
-    return MAX_STEPS
-
-
 # ---------------------------------------------------------------- shared options
 _FRICTION_FLAGS = {"cx": "c_x", "cy": "c_y", "ctheta": "c_theta"}
 
@@ -219,10 +213,11 @@ def _progress(args: argparse.Namespace) -> bool:
 
 
 def _check_t_final(value: float | None, dt: float) -> None:
-    steps = _max_steps()
-    if value is not None and value > steps * dt * (1 + 1e-12):
-        raise UsageError(f"argument --t-final: at most {steps * dt:g} s "
-                         f"({steps} control steps of {dt:g} s), got {value:g}")
+    from .sim import MAX_STEPS
+
+    if value is not None and value > MAX_STEPS * dt * (1 + 1e-12):
+        raise UsageError(f"argument --t-final: at most {MAX_STEPS * dt:g} s "
+                         f"({MAX_STEPS} control steps of {dt:g} s), got {value:g}")
 
 
 def _save_trajectory(traj: Any, out: Path, stem: str) -> list[Path]:
@@ -933,10 +928,10 @@ def build_parser() -> argparse.ArgumentParser:
         ``snake-pin`` with its subcommands; its errors raise :class:`UsageError` (one
         line) instead of exiting.
     """
+    from .sim import MAX_STEPS as steps
     from .singular import MAX_SEED, MAX_STARTS
     from .sweeps import MAX_POINTS
 
-    steps = _max_steps()
     parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0],
                      formatter_class=argparse.RawDescriptionHelpFormatter,
                      epilog=_EPILOG.format(links=MAX_LINKS, t_max=steps * SIMULATE_DT,
