@@ -28,7 +28,7 @@ from urllib.parse import urlparse
 from . import __version__
 from ._json import json_text
 from ._validation import float_arg, int_arg, number_arg
-from .exceptions import RunInterrupted, SnakePinError
+from .exceptions import RunInterrupted, SnakePinError, StudyError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
 __all__ = ["EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "SUMMARY_KEYS",
@@ -855,6 +855,38 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
     return _Outcome({"index": str(index)}, f"report: {index}")
 
 
+_STUDY_DESCRIPTION = """\
+Run every run a study file describes on Dask, one Parquet row per run in DIR/runs, the page
+in DIR/index.html, the summary in DIR/summary.json; runs already recorded are not run again
+(after an interrupt, run the same command to finish). By default a local TLS cluster on
+127.0.0.1; --scheduler uses an existing one (documentation: Concepts, Studies)."""
+
+
+def _cmd_study(args: argparse.Namespace) -> _Outcome:
+    """Run the study; a bad file, folder, scheduler or security file is one StudyError line."""
+    from .study import run_study
+
+    local = "applies to the local cluster, not with --scheduler"
+    for flag, wrong, why in (
+            ("workers", args.scheduler is not None and args.workers is not None, local),
+            ("dashboard", args.scheduler is not None and args.dashboard, local),
+            ("security", args.scheduler is None and args.security is not None,
+             "applies with --scheduler (the local cluster makes its own credentials)")):
+        if wrong:
+            raise StudyError(f"argument --{flag}: {why}")
+    verbose = bool(args.verbose) or bool(args.dashboard) or sys.stderr.isatty()
+    try:
+        summary = run_study(args.study, args.output, scheduler=args.scheduler,
+                            workers=args.workers, security=args.security,
+                            connect_timeout=args.connect_timeout, dashboard=args.dashboard,
+                            progress=None, log=_say if verbose else None)
+    except RunInterrupted as exc:
+        return _Outcome(exc.partial.to_dict(), exc.partial.text(), EXIT_INTERRUPTED, str(exc))
+    return _Outcome(summary.to_dict(), summary.text(),
+                    EXIT_FAILED if summary.status == "incomplete" else EXIT_OK,
+                    summary.note if summary.status != "complete" else "")
+
+
 # --------------------------------------------------------------------- parser
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     from .runs import benchmark as bench
@@ -1057,10 +1089,33 @@ def build_parser() -> argparse.ArgumentParser:
                    "stderr even when it is not a terminal (one line per stage otherwise)")
     p.set_defaults(func=_cmd_reproduce)
 
-    from .study import add_study_parser
+    from .study.runner import CONNECT_TIMEOUT, MAX_CONNECT_TIMEOUT, MAX_WORKERS
 
-    add_study_parser(sub, outcome=_Outcome, interrupted_status=EXIT_INTERRUPTED,
-                     failed_status=EXIT_FAILED)
+    p = sub.add_parser("study", help="run a study (grids and random samples of runs) on Dask, "
+                       "resumable", description=_STUDY_DESCRIPTION)
+    p.add_argument("study", metavar="STUDY.toml", help="the study file")
+    p.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help="output folder (re-run the same command to finish an interrupted study)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="tcp://HOST:PORT or tls://HOST:PORT of an existing Dask scheduler "
+                   "(default: a local cluster on 127.0.0.1, authenticated by TLS)")
+    p.add_argument("--security", metavar="FILE",
+                   help="with --scheduler: the cluster's TLS credentials, a YAML file of "
+                   "Dask config (distributed.comm.tls.ca-file, client.cert, client.key; "
+                   "default: Dask's own config)")
+    p.add_argument("--connect-timeout", type=float_arg(0.0, MAX_CONNECT_TIMEOUT, open_low=True),
+                   default=CONNECT_TIMEOUT, metavar="SECONDS",
+                   help="longest wait for the scheduler to complete Dask's handshake "
+                   f"(default {CONNECT_TIMEOUT:g})")
+    p.add_argument("--workers", type=int_arg(1, MAX_WORKERS), metavar="N",
+                   help=f"local worker processes, 1..{MAX_WORKERS} (default: one per core)")
+    p.add_argument("--dashboard", action="store_true",
+                   help="serve the local cluster's Dask dashboard on 127.0.0.1 (a random "
+                   "port, printed on stderr); off by default")
+    p.add_argument("--verbose", action="store_true",
+                   help="log on stderr even when it is not a terminal")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(func=_cmd_study)
 
     p = sub.add_parser("bench-control", help="controller benchmark on paths (scenarios x "
                        "controllers x models, with and without joint 5 failed)")

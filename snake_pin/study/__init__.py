@@ -1,9 +1,8 @@
 """Studies: many closed-loop runs described by one file (:mod:`~snake_pin.study.spec`), run
 on Dask (``runner``, ``work``; TLS-authenticated locally), kept in Parquet (``results``) with
-their summary and page (``summary``, ``report``) and run by ``snake-pin study`` (``command``).
+their summary and page (``summary``, ``report``); ``snake-pin study`` runs one.
 """
 
-from .command import add_study_parser as add_study_parser  # the CLI's, not in __all__
 from .errors import StudyError
 from .runner import run_study
 from .spec import SETTINGS, Scenario, StudySpec, load_study, run_key
