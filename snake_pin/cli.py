@@ -150,8 +150,9 @@ _ROBOT_HELP = ("a preset (" + ", ".join(ROBOTS) + "), a .toml robot file or a .u
 
 
 def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = True,
-                   default: str = "table1") -> None:
-    """--robot, --n, --passive and (unless ``engine``'s wheels set it) the friction options."""
+                   default: str = "table1", free_joint: bool = False) -> None:
+    """--robot, --n, --passive, (unless ``engine``'s wheels set it) the friction options and
+    (manip, sweep, singular) --free-joint."""
     parser.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default {default}")
     parser.add_argument("--n", type=int_arg(2, MAX_LINKS),
                         help=f"number of links, 2..{MAX_LINKS} (overrides the preset)")
@@ -160,6 +161,9 @@ def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = True,
     for flag, key in _FRICTION_FLAGS.items() if friction else ():
         unit = "N m s" if flag == "ctheta" else "N s/m"
         parser.add_argument(f"--{flag}", type=float_arg(0.0), help=f"{key} [{unit}]")
+    if free_joint:
+        parser.add_argument("--free-joint", type=int_arg(1, MAX_LINKS), metavar="K",
+                            help="joint K is free (beside any --passive joints)")
 
 
 def _joint(option: str, k: int, n: int) -> int:
@@ -920,11 +924,6 @@ def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
                     f"{wrote}\n{len(result.rows)} runs, path metrics over t >= {start:g} s")
 
 
-#: ``--free-joint`` of manip, sweep and singular.
-_FREE_JOINT: dict[str, Any] = {"type": int_arg(1, MAX_LINKS), "metavar": "K",
-                               "help": "joint K is free (beside any --passive joints)"}
-
-
 def _run_options(parser: argparse.ArgumentParser, t_final: float | None, help_t: str,
                  help_window: str = _ERROR_WINDOW_HELP) -> None:
     """``--t-final`` and ``--error-window`` of the commands that run."""
@@ -985,7 +984,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "its options imply (--phi0: arc, --alpha/--ts: serpenoid, --q: q); "
                        "options of another shape are refused. --passive joints and --free-joint "
                        "are free joints (D~, R~ of eq. 42).")
-    _robot_options(p)
+    _robot_options(p, free_joint=True)
     p.add_argument("--shape", choices=("straight", "arc", "serpenoid", "q"),
                    help="posture family (default straight, or implied by the options below)")
     p.add_argument("--phi0", type=parse_angle, help="arc: common joint angle (e.g. pi/10)")
@@ -993,14 +992,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ts", type=number_arg, help="serpenoid T_s (default 1.5)")
     p.add_argument("--q", type=_parse_q, help="full configuration x,y,theta1,phi1,... "
                    "(angles may be written pi/5; |entries| <= 1e9)")
-    p.add_argument("--free-joint", **_FREE_JOINT)
     p.add_argument("--no-heading", action="store_true", help="leave theta_1 out of the task")
     _command(p, _cmd_manip, output=None)
 
     p = sub.add_parser("sweep", help="D and R along a posture family (Figs. 2-9)")
     p.add_argument("family", choices=("arc", "alpha", "ts"))
-    _robot_options(p)
-    p.add_argument("--free-joint", **_FREE_JOINT)
+    _robot_options(p, free_joint=True)
     p.add_argument("--points", type=int_arg(2, MAX_POINTS), default=201,
                    help=f"postures along the family, 2..{MAX_POINTS} (0, the straight "
                    "posture, is added when the range holds it and the grid misses it)")
@@ -1010,12 +1007,11 @@ def build_parser() -> argparse.ArgumentParser:
     _command(p, _cmd_sweep)
 
     p = sub.add_parser("singular", help="search the joint box for singular postures (R = 0)")
-    _robot_options(p)
+    _robot_options(p, free_joint=True)
     p.add_argument("--starts", type=int_arg(1, MAX_STARTS), default=200,
                    help=f"random starts, 1..{MAX_STARTS}")
     p.add_argument("--bound", type=parse_angle, default=math.pi / 2,
                    help="|phi_i| <= bound, in (0, pi]")
-    p.add_argument("--free-joint", **_FREE_JOINT)
     p.add_argument("--seed", type=int_arg(0, MAX_SEED), default=0, help="0..2**32-1")
     _command(p, _cmd_singular, output="folder for the families (drawing and JSON)",
              required=False)
