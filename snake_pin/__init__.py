@@ -17,21 +17,13 @@ from typing import Any
 # it is set before anything imports Pinocchio (a user's own value wins).
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from .exceptions import (
-    ConfigurationError,
-    ParameterError,
-    PathFileError,
-    RobotFileError,
-    RunInterrupted,
-    SingularPostureError,
-    SnakePinError,
-    StudyError,
-    TrajectoryFileError,
-)
 from .params import SnakeParams
 
 #: Module -> the public names it defines (imported lazily).
 _LAZY_MODULES = {
+    ".exceptions": ("ConfigurationError", "ParameterError", "PathFileError", "RobotFileError",
+                    "RunInterrupted", "SingularPostureError", "SnakePinError", "StudyError",
+                    "TrajectoryFileError"),
     ".paper": ("paper",),
     ".control": ("Controller", "LOSController", "LinearReference", "LyapunovController",
                  "LyapunovOptions", "MPCController", "MPCOptions", "OpenLoop", "PFLController",

@@ -189,15 +189,14 @@ class AtomicGroup:
 
     def _commit(self) -> None:
         """Rename every staged file into place (data, then figures), then sync the folders."""
-        folders: list[Path] = []
-        for staged in self._order():
+        order = self._order()
+        folders = dict.fromkeys(staged.target.parent for staged in order)
+        for staged in order:
             try:
                 os.replace(staged.temp, staged.target)
             except OSError as exc:
                 _reraise(exc, staged.target)
             self._staged.remove(staged)
-            if staged.target.parent not in folders:
-                folders.append(staged.target.parent)
         for folder in folders:
             try:
                 _fsync_directory(folder)

@@ -61,10 +61,5 @@ def json_text(value: Any, *, indent: int | None = None) -> str:
     -------
     str
         The JSON text, without a trailing newline.
-
-    Raises
-    ------
-    TypeError
-        If ``value`` holds something JSON cannot hold.
     """
     return json.dumps(json_safe(value), indent=indent, allow_nan=False)

@@ -1,13 +1,16 @@
-"""The package's generic argument checkers, each raising one line naming the argument.
+"""The package's generic argument checkers, each raising one line naming the argument
+(the command line's argparse types too).
 
 It imports neither Pinocchio nor :mod:`snake_pin.model`, so :mod:`snake_pin.paper` can use it.
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import numbers
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -16,9 +19,9 @@ import numpy as np
 from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
-__all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "instance",
-           "integer", "mebibytes", "model_data", "one_line", "output_file", "printable_path",
-           "vector"]
+__all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "float_arg",
+           "instance", "int_arg", "integer", "is_number", "mebibytes", "model_data",
+           "number_arg", "one_line", "output_file", "printable_path", "vector"]
 
 _T = TypeVar("_T")
 
@@ -53,6 +56,11 @@ def printable_path(path: object) -> str:
     raw = os.fspath(path) if isinstance(path, (str, bytes, os.PathLike)) else str(path)
     text = os.fsdecode(raw) if isinstance(raw, bytes) else raw
     return text if text.isprintable() else repr(text)
+
+
+def is_number(value: object) -> bool:
+    """Whether ``value`` is a real number (a bool is not)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 def integer(value: object, name: str, *, low: int | None = None,
@@ -164,3 +172,40 @@ def finite_number(value: object, name: str, *, positive: bool = False,
     if non_negative and x < 0.0:
         raise ParameterError(f"{name} must be non-negative, got {x}")
     return x
+
+
+def number_arg(text: str) -> float:
+    """A command-line argument as a finite float (an argparse type)."""
+    try:
+        value = float(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from exc
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
+
+
+def float_arg(low: float, high: float = math.inf, *, open_low: bool = False
+              ) -> Callable[[str], float]:
+    """An argparse type: a finite float in [low, high] ((low, high] with ``open_low``)."""
+    def parse(text: str) -> float:
+        value = number_arg(text)
+        if value < low or (open_low and value == low) or value > high:
+            left = "(" if open_low else "["
+            right = f"{high:g}]" if math.isfinite(high) else "inf)"
+            raise argparse.ArgumentTypeError(f"must lie in {left}{low:g}, {right}, got {text}")
+        return value
+    return parse
+
+
+def int_arg(low: int, high: int) -> Callable[[str], int]:
+    """An argparse type: an integer in low..high."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from exc
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must lie in {low}..{high}, got {value}")
+        return value
+    return parse

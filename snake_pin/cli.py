@@ -27,11 +27,12 @@ from urllib.parse import urlparse
 
 from . import __version__
 from ._json import json_text
-from .exceptions import RunInterrupted, SnakePinError
+from ._validation import float_arg, int_arg, number_arg
+from .exceptions import RunInterrupted, SnakePinError, StudyError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
 __all__ = ["EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "SUMMARY_KEYS",
-           "build_parser", "main", "parse_angle"]
+           "build_parser", "main"]
 
 #: Exit statuses (also in ``snake-pin --help``).
 EXIT_OK = 0
@@ -114,23 +115,7 @@ class _Outcome:
 
 # ------------------------------------------------------------------- argument types
 def parse_angle(text: str) -> float:
-    """An angle in radians from ``0.3``, ``pi/5``, ``-pi/3``, ``2*pi/3`` or ``pi``.
-
-    Parameters
-    ----------
-    text
-        A number, optionally times ``pi`` and divided by a number.
-
-    Returns
-    -------
-    float
-        The angle [rad].
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        Not a finite angle.
-    """
+    """An angle in radians from ``0.3``, ``pi/5``, ``-pi/3``, ``2*pi/3`` or ``pi``."""
     match = _ANGLE.match(text)
     if not match or not (match.group(2) or match.group(3)):
         raise argparse.ArgumentTypeError(f"not an angle: {text!r} (use e.g. 0.3 or pi/5)")
@@ -147,41 +132,6 @@ def parse_angle(text: str) -> float:
     return -value if sign == "-" else value
 
 
-def _number(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from exc
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
-    return value
-
-
-def _float_in(low: float, high: float = math.inf, *, open_low: bool = False
-              ) -> Callable[[str], float]:
-    """A finite float in [low, high] ((low, high] with ``open_low``)."""
-    def parse(text: str) -> float:
-        value = _number(text)
-        if value < low or (open_low and value == low) or value > high:
-            left = "(" if open_low else "["
-            right = f"{high:g}]" if math.isfinite(high) else "inf)"
-            raise argparse.ArgumentTypeError(f"must lie in {left}{low:g}, {right}, got {text}")
-        return value
-    return parse
-
-
-def _int_in(low: int, high: int) -> Callable[[str], int]:
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from exc
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"must lie in {low}..{high}, got {value}")
-        return value
-    return parse
-
-
 def _parse_q(text: str) -> list[float]:
     values = [parse_angle(part) for part in text.replace(" ", "").split(",") if part]
     if not values:
@@ -189,12 +139,6 @@ def _parse_q(text: str) -> list[float]:
     if any(abs(v) > MAX_COORDINATE for v in values):
         raise argparse.ArgumentTypeError(f"entries must lie within +-{MAX_COORDINATE:g}")
     return values
-
-
-def _max_steps() -> int:
-    from .sim import MAX_STEPS
-
-    return MAX_STEPS
 
 
 # ---------------------------------------------------------------- shared options
@@ -206,17 +150,20 @@ _ROBOT_HELP = ("a preset (" + ", ".join(ROBOTS) + "), a .toml robot file or a .u
 
 
 def _robot_options(parser: argparse.ArgumentParser, *, friction: bool = True,
-                   default: str = "table1") -> None:
-    """--robot, --n, --passive and (unless ``engine``'s wheels set it) the friction options."""
+                   default: str = "table1", free_joint: bool = False) -> None:
+    """--robot, --n, --passive, (unless ``engine``'s wheels set it) the friction options and
+    (manip, sweep, singular) --free-joint."""
     parser.add_argument("--robot", metavar="ROBOT", help=f"{_ROBOT_HELP}; default {default}")
-    parser.add_argument("--n", type=_int_in(2, MAX_LINKS),
+    parser.add_argument("--n", type=int_arg(2, MAX_LINKS),
                         help=f"number of links, 2..{MAX_LINKS} (overrides the preset)")
-    parser.add_argument("--passive", type=_int_in(1, MAX_LINKS), action="append", default=[],
+    parser.add_argument("--passive", type=int_arg(1, MAX_LINKS), action="append", default=[],
                         metavar="K", help="make joint K passive (repeatable)")
-    if friction:
-        for flag, key, unit in (("cx", "c_x", "N s/m"), ("cy", "c_y", "N s/m"),
-                                ("ctheta", "c_theta", "N m s")):
-            parser.add_argument(f"--{flag}", type=_float_in(0.0), help=f"{key} [{unit}]")
+    for flag, key in _FRICTION_FLAGS.items() if friction else ():
+        unit = "N m s" if flag == "ctheta" else "N s/m"
+        parser.add_argument(f"--{flag}", type=float_arg(0.0), help=f"{key} [{unit}]")
+    if free_joint:
+        parser.add_argument("--free-joint", type=int_arg(1, MAX_LINKS), metavar="K",
+                            help="joint K is free (beside any --passive joints)")
 
 
 def _joint(option: str, k: int, n: int) -> int:
@@ -242,14 +189,18 @@ def _params(args: argparse.Namespace, default: str = "table1") -> SnakeParams:
     return load_robot(spec, **changes) if changes else base
 
 
-def _free_joints(args: argparse.Namespace, params: SnakeParams) -> int | tuple[int, ...] | None:
-    """The joints without an actuator for manipulability: --passive ones and --free-joint."""
+def _analysis(args: argparse.Namespace) -> tuple[SnakeParams, int | tuple[int, ...] | None]:
+    """The robot of manip, sweep, singular with every joint actuated, and its free joints
+    (--passive ones and --free-joint), refused when the task needs more links."""
+    from .manipulability import task_split
+
+    params = _params(args)
     free = set(params.passive)
     if args.free_joint is not None:
         free.add(_joint("--free-joint", args.free_joint, params.n))
-    if not free:
-        return None
-    return min(free) if len(free) == 1 else tuple(sorted(free))
+    joints = (min(free) if len(free) == 1 else tuple(sorted(free))) if free else None
+    task_split(params.n, joints, not getattr(args, "no_heading", False))
+    return params.replace(passive=()), joints
 
 
 def _output_folder(text: str, option: str = "-o/--output") -> Path:
@@ -266,10 +217,11 @@ def _progress(args: argparse.Namespace) -> bool:
 
 
 def _check_t_final(value: float | None, dt: float) -> None:
-    steps = _max_steps()
-    if value is not None and value > steps * dt * (1 + 1e-12):
-        raise UsageError(f"argument --t-final: at most {steps * dt:g} s "
-                         f"({steps} control steps of {dt:g} s), got {value:g}")
+    from .sim import MAX_STEPS
+
+    if value is not None and value > MAX_STEPS * dt * (1 + 1e-12):
+        raise UsageError(f"argument --t-final: at most {MAX_STEPS * dt:g} s "
+                         f"({MAX_STEPS} control steps of {dt:g} s), got {value:g}")
 
 
 def _save_trajectory(traj: Any, out: Path, stem: str) -> list[Path]:
@@ -337,8 +289,7 @@ def _error_window(args: argparse.Namespace, t_final: float) -> float:
     return float(args.error_window)
 
 
-#: What the head follows without --path (the summary's ``reference``).
-_LINE_PFL = "line w_r = [0.1 t, 0, 0]"
+#: What the head follows without --path in the tracking runs (the summary's ``reference``).
 _LINE_HEAD_FIRST = "line w_r = [0.1 t, 0, pi]"
 
 
@@ -442,15 +393,12 @@ def _posture(args: argparse.Namespace, shape: str, n: int) -> list[float]:
 
 
 def _cmd_manip(args: argparse.Namespace) -> _Outcome:
-    params = _params(args)
-    free = _free_joints(args, params)
+    params, free = _analysis(args)
     shape = _shape(args)
-    from .manipulability import manipulability, task_split
+    from .manipulability import manipulability
     from .model import Snake
 
-    task_split(params.n, free, not args.no_heading)  # n large enough for the task
-    posture = _posture(args, shape, params.n)
-    res = manipulability(Snake(params.replace(passive=())), posture, free_joint=free,
+    res = manipulability(Snake(params), _posture(args, shape, params.n), free_joint=free,
                          heading=not args.no_heading)
     tilde = "~" if free else ""
     return _Outcome(res.to_dict(),
@@ -471,20 +419,16 @@ def _sweep_range(args: argparse.Namespace) -> tuple[float, float] | None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
-    params = _params(args)
-    free = _free_joints(args, params)
+    params, free = _analysis(args)
     bounds = _sweep_range(args)
     out = _output_folder(args.output)
-    from .manipulability import task_split
     from .model import Snake
     from .runs.outputs import write_sweep
     from .sweeps import sweep
 
-    task_split(params.n, free)
-    snake = Snake(params.replace(passive=()))
     out.mkdir(parents=True, exist_ok=True)
     try:
-        result = sweep(snake, args.family, free_joint=free, points=args.points,
+        result = sweep(Snake(params), args.family, free_joint=free, points=args.points,
                        bounds=bounds, progress=_progress(args))
     except RunInterrupted as exc:
         partial = exc.partial
@@ -521,23 +465,19 @@ def _singular_text(search: Any) -> str:
 
 
 def _cmd_singular(args: argparse.Namespace) -> _Outcome:
-    params = _params(args)
-    free = _free_joints(args, params)
+    params, free = _analysis(args)
     if not 0 < args.bound <= math.pi:
         raise UsageError(f"argument --bound: must lie in (0, pi], got {args.bound:g}")
     out = _output_folder(args.output) if args.output else None
-    from .manipulability import task_split
     from .runs.outputs import write_singular
     from .singular import find_singular_postures
 
-    task_split(params.n, free)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     status, note = EXIT_OK, ""
     try:
-        search = find_singular_postures(params.replace(passive=()), starts=args.starts,
-                                        bound=args.bound, free_joint=free, seed=args.seed,
-                                        progress=_progress(args))
+        search = find_singular_postures(params, starts=args.starts, bound=args.bound,
+                                        free_joint=free, seed=args.seed, progress=_progress(args))
     except RunInterrupted as exc:
         search, status, note = exc.partial, EXIT_INTERRUPTED, str(exc)
     payload = search.to_dict()
@@ -602,7 +542,7 @@ def _path_options(parser: argparse.ArgumentParser) -> None:
                         "circle, arc, lane_change, sinusoid, or a .toml/.csv path file")
     parser.add_argument("--path-param", action="append", metavar="KEY=VALUE",
                         help="a parameter of the path shape (e.g. radius=1.2), repeatable")
-    parser.add_argument("--speed", type=_float_in(0.0, open_low=True),
+    parser.add_argument("--speed", type=float_arg(0.0, open_low=True),
                         help="reference speed along the path [m/s] (default 0.1)")
 
 
@@ -640,8 +580,6 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     params = _params(args)
     kind = args.controller
     on_path = args.path is not None or kind not in ("pfl", "lyapunov", "mpc")
-    if not on_path:
-        _path_reference(args)  # --speed/--path-param without a path: refused
     if kind not in ("pfl", "lyapunov", "los", "mpc") and ":" not in kind:
         raise UsageError(f"argument --controller: choose pfl, lyapunov, los, mpc or "
                          f"module:Class (a Controller subclass), got {kind!r}")
@@ -654,7 +592,8 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     t_final = args.t_final or (10.0 if kind == "pfl" and not on_path else 60.0)
     start = _error_window(args, t_final)
     user = _user_controller_class(kind) if ":" in kind else None  # refused before any folder
-    reference = _path_reference(args, "line") if on_path else None  # a bad path: refused here
+    # a bad path, or --speed/--path-param without one: refused here
+    reference = _path_reference(args, "line" if on_path else None)
     out = _output_folder(args.output)
     out.mkdir(parents=True, exist_ok=True)
     stem = "run" if user is not None else kind
@@ -669,8 +608,16 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
                                  {"path": repr(reference)})
             _path_summary(traj, reference, start, head_tracking=kind != "los")
             traj.summary.update(controller=kind, reference=_path_text(args))
-        elif kind == "mpc":
-            traj = _simulate_mpc_line(args, params, mpc_options, t_final, start)
+        elif kind == "mpc":  # the MPC on the tracking line, summarised as run_tracking
+            from .control import head_first_reference
+            from .model import Snake
+            from .runs.tracking import REFERENCE, summarize_tracking
+
+            line = head_first_reference()
+            traj = summarize_tracking(
+                _simulate_law(args, params, line, None, t_final, mpc_options,
+                              {"reference": REFERENCE}),
+                Snake(params), line, start, controller="mpc", reference=_LINE_HEAD_FIRST)
         elif kind == "pfl":
             from .runs.pfl import run_pfl
 
@@ -678,7 +625,7 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
                           control_dt=SIMULATE_DT, error_window=start,
                           progress=_progress(args))
             traj = run.trajectory
-            traj.summary["reference"] = _LINE_PFL
+            traj.summary["reference"] = "line w_r = [0.1 t, 0, 0]"
         else:
             from .runs.tracking import run_tracking
 
@@ -718,45 +665,11 @@ def _mpc_options(args: argparse.Namespace, *, engine: bool = False) -> Any:
     return MPCOptions(**given)
 
 
-def _simulate_mpc_line(args: argparse.Namespace, params: SnakeParams, options: Any,
-                       t_final: float, start: float) -> Any:
-    """The MPC on the tracking line, summarised as :func:`~snake_pin.runs.tracking.run_tracking`."""
-    import numpy as np
-
-    from .control import head_first_reference
-    from .integrability import conserved_quantity_along
-    from .metrics import criteria_along, head_error_summary, head_position_error
-    from .model import Snake
-    from .runs.tracking import CRITERIA_EVERY, REFERENCE
-
-    reference = head_first_reference()
-    traj = _simulate_law(args, params, reference, None, t_final, options,
-                         {"reference": REFERENCE})
-    error = head_position_error(traj, reference)
-    t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
-    g = conserved_quantity_along(Snake(params), traj.q, traj.dq)
-    traj.signals["head_error"] = error
-    traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
-    traj.summary.update({
-        "controller": "mpc", "reference": _LINE_HEAD_FIRST, "c_x": params.c_x,
-        "c_y": params.c_y, "passive": list(params.passive),
-        **head_error_summary(traj, error, start=start),
-        "R_min": float(r.min()), "D_min": float(d.min()), "body_length": params.body_length,
-        "g_drift": float(np.abs(g - g[0]).max()), "final_head": traj.q[-1, :3].tolist()})
-    return traj
-
-
 def _simulate_law(args: argparse.Namespace, params: SnakeParams, reference: Any,
                   user: type | None, t_final: float, mpc_options: Any, meta: dict[str, Any]
                   ) -> Any:
     """A run of ``--controller`` (a user's ``module:Class`` too) on the viscous model."""
-    from .control import (
-        LOSController,
-        LyapunovController,
-        MPCController,
-        PFLController,
-        PFLOptions,
-    )
+    from .control import LOSController, LyapunovController, MPCController, PFLController, PFLOptions
     from .model import Snake
     from .runs.tracking import initial_state
     from .sim import simulate
@@ -946,66 +859,85 @@ def _cmd_reproduce(args: argparse.Namespace) -> _Outcome:
     return _Outcome({"index": str(index)}, f"report: {index}")
 
 
+_STUDY_DESCRIPTION = """\
+Run every run a study file describes on Dask, one Parquet row per run in DIR/runs, the page
+in DIR/index.html, the summary in DIR/summary.json; runs already recorded are not run again
+(after an interrupt, run the same command to finish). By default a local TLS cluster on
+127.0.0.1; --scheduler uses an existing one (documentation: Concepts, Studies)."""
+
+
+def _cmd_study(args: argparse.Namespace) -> _Outcome:
+    """Run the study; a bad file, folder, scheduler or security file is one StudyError line."""
+    from .study import run_study
+
+    local = "applies to the local cluster, not with --scheduler"
+    for flag, wrong, why in (
+            ("workers", args.scheduler is not None and args.workers is not None, local),
+            ("dashboard", args.scheduler is not None and args.dashboard, local),
+            ("security", args.scheduler is None and args.security is not None,
+             "applies with --scheduler (the local cluster makes its own credentials)")):
+        if wrong:
+            raise StudyError(f"argument --{flag}: {why}")
+    verbose = bool(args.verbose) or bool(args.dashboard) or sys.stderr.isatty()
+    try:
+        summary = run_study(args.study, args.output, scheduler=args.scheduler,
+                            workers=args.workers, security=args.security,
+                            connect_timeout=args.connect_timeout, dashboard=args.dashboard,
+                            progress=None, log=_say if verbose else None)
+    except RunInterrupted as exc:
+        return _Outcome(exc.partial.to_dict(), exc.partial.text(), EXIT_INTERRUPTED, str(exc))
+    return _Outcome(summary.to_dict(), summary.text(),
+                    EXIT_FAILED if summary.status == "incomplete" else EXIT_OK,
+                    summary.note if summary.status != "complete" else "")
+
+
 # --------------------------------------------------------------------- parser
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
-    from .runs.benchmark import (
-        CONTROLLERS,
-        DEFAULT_CONTROLLERS,
-        ENGINE_DRAWS,
-        QUICK_T_FINAL,
-        SCENARIOS,
-        run_benchmark,
-        write_benchmark,
-    )
+    from .runs import benchmark as bench
 
     _check_t_final(args.t_final, SIMULATE_DT)
-    start = _error_window(args, min(args.t_final, QUICK_T_FINAL) if args.quick
+    start = _error_window(args, min(args.t_final, bench.QUICK_T_FINAL) if args.quick
                           else args.t_final)
     for name in args.scenario or []:
-        if name not in SCENARIOS:
+        if name not in bench.SCENARIOS:
             raise UsageError(f"argument --scenario: unknown {name!r}; choose from "
-                             f"{', '.join(SCENARIOS)}")
+                             f"{', '.join(bench.SCENARIOS)}")
     controllers: dict[str, Any] = {}
-    for spec in args.controller or list(DEFAULT_CONTROLLERS):
+    for spec in args.controller or list(bench.DEFAULT_CONTROLLERS):
         if ":" in spec:
             cls = _user_controller_class(spec)
             controllers[spec] = lambda snake, reference, path, cls=cls: cls(snake, reference)
-        elif spec in CONTROLLERS:
+        elif spec in bench.CONTROLLERS:
             controllers[spec] = None
         else:
             raise UsageError(f"argument --controller: unknown {spec!r}; choose from "
-                             f"{', '.join(CONTROLLERS)} or module:Class")
+                             f"{', '.join(bench.CONTROLLERS)} or module:Class")
     out = _output_folder(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    result = run_benchmark(scenarios=args.scenario, controllers=controllers,
-                           models=tuple(args.model or ("viscous",)),
-                           failed=(None,) if args.no_failure else (None, 5),
-                           t_final=args.t_final, quick=args.quick, error_window=start,
-                           draws=args.draws or ENGINE_DRAWS)
-    files, wrote = _wrote(write_benchmark(result, out))
+    result = bench.run_benchmark(scenarios=args.scenario, controllers=controllers,
+                                 models=tuple(args.model or ("viscous",)),
+                                 failed=(None,) if args.no_failure else (None, 5),
+                                 t_final=args.t_final, quick=args.quick, error_window=start,
+                                 draws=args.draws or bench.ENGINE_DRAWS)
+    files, wrote = _wrote(bench.write_benchmark(result, out))
     return _Outcome({"error_window": start, "rows": result.table(), "files": files},
                     f"{wrote}\n{len(result.rows)} runs, path metrics over t >= {start:g} s")
-
-
-#: ``--free-joint`` of manip, sweep and singular.
-_FREE_JOINT: dict[str, Any] = {"type": _int_in(1, MAX_LINKS), "metavar": "K",
-                               "help": "joint K is free (beside any --passive joints)"}
 
 
 def _run_options(parser: argparse.ArgumentParser, t_final: float | None, help_t: str,
                  help_window: str = _ERROR_WINDOW_HELP) -> None:
     """``--t-final`` and ``--error-window`` of the commands that run."""
-    parser.add_argument("--t-final", type=_float_in(0.0, open_low=True), default=t_final,
+    parser.add_argument("--t-final", type=float_arg(0.0, open_low=True), default=t_final,
                         help=help_t)
-    parser.add_argument("--error-window", type=_float_in(0.0), metavar="SECONDS",
+    parser.add_argument("--error-window", type=float_arg(0.0), metavar="SECONDS",
                         help=help_window)
 
 
 def _mpc_flags(parser: argparse.ArgumentParser, horizon: str, bound: str) -> None:
     """``--horizon`` and ``--torque-bound`` (read by :func:`_mpc_options`)."""
-    parser.add_argument("--horizon", type=_number, metavar="SECONDS",
+    parser.add_argument("--horizon", type=number_arg, metavar="SECONDS",
                         help=f"MPC only: the prediction horizon [s] (default 0.5{horizon})")
-    parser.add_argument("--torque-bound", type=_number, metavar="NM",
+    parser.add_argument("--torque-bound", type=number_arg, metavar="NM",
                         help=f"MPC only: |tau_i| <= NM [N m] (default {bound})")
 
 
@@ -1027,10 +959,10 @@ def build_parser() -> argparse.ArgumentParser:
         ``snake-pin`` with its subcommands; its errors raise :class:`UsageError` (one
         line) instead of exiting.
     """
+    from .sim import MAX_STEPS as steps
     from .singular import MAX_SEED, MAX_STARTS
     from .sweeps import MAX_POINTS
 
-    steps = _max_steps()
     parser = _Parser(prog="snake-pin", description=__doc__.splitlines()[0],
                      formatter_class=argparse.RawDescriptionHelpFormatter,
                      epilog=_EPILOG.format(links=MAX_LINKS, t_max=steps * SIMULATE_DT,
@@ -1052,23 +984,21 @@ def build_parser() -> argparse.ArgumentParser:
                        "its options imply (--phi0: arc, --alpha/--ts: serpenoid, --q: q); "
                        "options of another shape are refused. --passive joints and --free-joint "
                        "are free joints (D~, R~ of eq. 42).")
-    _robot_options(p)
+    _robot_options(p, free_joint=True)
     p.add_argument("--shape", choices=("straight", "arc", "serpenoid", "q"),
                    help="posture family (default straight, or implied by the options below)")
     p.add_argument("--phi0", type=parse_angle, help="arc: common joint angle (e.g. pi/10)")
     p.add_argument("--alpha", type=parse_angle, help="serpenoid alpha (default pi/4)")
-    p.add_argument("--ts", type=_number, help="serpenoid T_s (default 1.5)")
+    p.add_argument("--ts", type=number_arg, help="serpenoid T_s (default 1.5)")
     p.add_argument("--q", type=_parse_q, help="full configuration x,y,theta1,phi1,... "
                    "(angles may be written pi/5; |entries| <= 1e9)")
-    p.add_argument("--free-joint", **_FREE_JOINT)
     p.add_argument("--no-heading", action="store_true", help="leave theta_1 out of the task")
     _command(p, _cmd_manip, output=None)
 
     p = sub.add_parser("sweep", help="D and R along a posture family (Figs. 2-9)")
     p.add_argument("family", choices=("arc", "alpha", "ts"))
-    _robot_options(p)
-    p.add_argument("--free-joint", **_FREE_JOINT)
-    p.add_argument("--points", type=_int_in(2, MAX_POINTS), default=201,
+    _robot_options(p, free_joint=True)
+    p.add_argument("--points", type=int_arg(2, MAX_POINTS), default=201,
                    help=f"postures along the family, 2..{MAX_POINTS} (0, the straight "
                    "posture, is added when the range holds it and the grid misses it)")
     p.add_argument("--range", type=parse_angle, nargs=2, metavar=("LOW", "HIGH"),
@@ -1077,13 +1007,12 @@ def build_parser() -> argparse.ArgumentParser:
     _command(p, _cmd_sweep)
 
     p = sub.add_parser("singular", help="search the joint box for singular postures (R = 0)")
-    _robot_options(p)
-    p.add_argument("--starts", type=_int_in(1, MAX_STARTS), default=200,
+    _robot_options(p, free_joint=True)
+    p.add_argument("--starts", type=int_arg(1, MAX_STARTS), default=200,
                    help=f"random starts, 1..{MAX_STARTS}")
     p.add_argument("--bound", type=parse_angle, default=math.pi / 2,
                    help="|phi_i| <= bound, in (0, pi]")
-    p.add_argument("--free-joint", **_FREE_JOINT)
-    p.add_argument("--seed", type=_int_in(0, MAX_SEED), default=0, help="0..2**32-1")
+    p.add_argument("--seed", type=int_arg(0, MAX_SEED), default=0, help="0..2**32-1")
     _command(p, _cmd_singular, output="folder for the families (drawing and JSON)",
              required=False)
 
@@ -1097,7 +1026,7 @@ def build_parser() -> argparse.ArgumentParser:
     _path_options(p)
     _robot_options(p)
     _run_options(p, None, f"duration [s], at most {steps * SIMULATE_DT:g} (pfl 10, lyapunov 60)")
-    p.add_argument("--climb-r", type=_float_in(0.0),
+    p.add_argument("--climb-r", type=float_arg(0.0),
                    help="PFL only: gain of the singularity-aware redundancy term (default 0)")
     _mpc_flags(p, "; at least the re-solve period, 0.04", "1")
     _command(p, _cmd_simulate)
@@ -1110,9 +1039,9 @@ def build_parser() -> argparse.ArgumentParser:
     _robot_options(p, friction=False, default="engine")  # friction: identified from wheels
     _path_options(p)
     _run_options(p, 60.0, f"duration [s], at most {steps * SIMULATE_DT:g}")
-    p.add_argument("--wheel-radius", type=_float_in(0.0, MAX_WHEEL_RADIUS, open_low=True),
+    p.add_argument("--wheel-radius", type=float_arg(0.0, MAX_WHEEL_RADIUS, open_low=True),
                    default=0.03, help=f"[m], at most {MAX_WHEEL_RADIUS:g}")
-    p.add_argument("--mu", type=_float_in(0.0, MAX_MU, open_low=True), default=1.0,
+    p.add_argument("--mu", type=float_arg(0.0, MAX_MU, open_low=True), default=1.0,
                    help=f"wheel-floor friction, at most {MAX_MU:g}")
     p.add_argument("--law", choices=("velocity", "acceleration", "mpc"), default="velocity",
                    help="form of the Lyapunov-like law (velocity level with servos by default), "
@@ -1121,10 +1050,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cone", choices=("elliptic", "pyramidal"), default="elliptic",
                    help="MuJoCo friction cone (default elliptic; pyramidal: faster, but its "
                    "sideways friction depends on the heading, 26 %% weaker at 45 degrees)")
-    p.add_argument("--seeds", type=_int_in(1, MAX_SEEDS), metavar="N",
+    p.add_argument("--seeds", type=int_arg(1, MAX_SEEDS), metavar="N",
                    help=f"run N times from perturbed initial postures, 1..{MAX_SEEDS}, and "
                    "report the distribution")
-    p.add_argument("--perturbation", type=_float_in(0.0, MAX_PERTURBATION, open_low=True),
+    p.add_argument("--perturbation", type=float_arg(0.0, MAX_PERTURBATION, open_low=True),
                    metavar="EPS", help="with --seeds: offsets of the initial joint angles, "
                    f"uniform in [-EPS, EPS] rad (default 1e-6, at most {MAX_PERTURBATION:g})")
     _command(p, _cmd_engine)
@@ -1132,8 +1061,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("view", help="meshcat viewer of a saved trajectory (127.0.0.1 only)")
     p.add_argument("trajectory", help="a .npz written by simulate/reproduce")
     p.add_argument("--html", metavar="FILE", help="write a self-contained animation page instead")
-    p.add_argument("--port", type=_int_in(1, MAX_PORT), help="web port of the live viewer")
-    p.add_argument("--fps", type=_float_in(MIN_FPS, MAX_FPS), default=20.0,
+    p.add_argument("--port", type=int_arg(1, MAX_PORT), help="web port of the live viewer")
+    p.add_argument("--fps", type=float_arg(MIN_FPS, MAX_FPS), default=20.0,
                    help="animation frame rate, 1..120")
     p.add_argument("--robot", metavar="ROBOT",
                    help=f"refuse a run of another robot ({_ROBOT_HELP}; compared by name)")
@@ -1156,10 +1085,33 @@ def build_parser() -> argparse.ArgumentParser:
                    "stderr even when it is not a terminal (one line per stage otherwise)")
     p.set_defaults(func=_cmd_reproduce)
 
-    from .study import add_study_parser
+    from .study.runner import CONNECT_TIMEOUT, MAX_CONNECT_TIMEOUT, MAX_WORKERS
 
-    add_study_parser(sub, outcome=_Outcome, interrupted_status=EXIT_INTERRUPTED,
-                     failed_status=EXIT_FAILED)
+    p = sub.add_parser("study", help="run a study (grids and random samples of runs) on Dask, "
+                       "resumable", description=_STUDY_DESCRIPTION)
+    p.add_argument("study", metavar="STUDY.toml", help="the study file")
+    p.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help="output folder (re-run the same command to finish an interrupted study)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="tcp://HOST:PORT or tls://HOST:PORT of an existing Dask scheduler "
+                   "(default: a local cluster on 127.0.0.1, authenticated by TLS)")
+    p.add_argument("--security", metavar="FILE",
+                   help="with --scheduler: the cluster's TLS credentials, a YAML file of "
+                   "Dask config (distributed.comm.tls.ca-file, client.cert, client.key; "
+                   "default: Dask's own config)")
+    p.add_argument("--connect-timeout", type=float_arg(0.0, MAX_CONNECT_TIMEOUT, open_low=True),
+                   default=CONNECT_TIMEOUT, metavar="SECONDS",
+                   help="longest wait for the scheduler to complete Dask's handshake "
+                   f"(default {CONNECT_TIMEOUT:g})")
+    p.add_argument("--workers", type=int_arg(1, MAX_WORKERS), metavar="N",
+                   help=f"local worker processes, 1..{MAX_WORKERS} (default: one per core)")
+    p.add_argument("--dashboard", action="store_true",
+                   help="serve the local cluster's Dask dashboard on 127.0.0.1 (a random "
+                   "port, printed on stderr); off by default")
+    p.add_argument("--verbose", action="store_true",
+                   help="log on stderr even when it is not a terminal")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(func=_cmd_study)
 
     p = sub.add_parser("bench-control", help="controller benchmark on paths (scenarios x "
                        "controllers x models, with and without joint 5 failed)")
@@ -1177,7 +1129,7 @@ def build_parser() -> argparse.ArgumentParser:
     _run_options(p, 60.0, "duration of each run [s] (--quick: at most 12)",
                  "judge the path metrics over t >= SECONDS (default: 10 s, or the second "
                  "half of runs shorter than 20 s; in the settings as window_start)")
-    p.add_argument("--draws", type=_int_in(1, 100), metavar="N",
+    p.add_argument("--draws", type=int_arg(1, 100), metavar="N",
                    help="engine runs per cell from perturbed starts, 1..100 (the engine is "
                    "chaotic: a cell reports their median and 10-90 %% range; default: "
                    "bench_control.ENGINE_DRAWS)")

@@ -47,10 +47,8 @@ class StudyError(SnakePinError, ValueError):
 
 
 class RunInterrupted(KeyboardInterrupt):
-    """A run stopped by SIGINT/SIGTERM/SIGHUP; ``partial`` holds what it had computed.
-
-    It derives from ``KeyboardInterrupt`` so that code catching ``Exception`` lets it
-    through, as it would let Ctrl-C through.
+    """A run stopped by SIGINT/SIGTERM/SIGHUP (a ``KeyboardInterrupt``, as Ctrl-C is), with
+    ``partial``, what it had computed.
 
     Parameters
     ----------

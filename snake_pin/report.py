@@ -15,30 +15,13 @@ from typing import Any
 from ._io import atomic_write_bytes
 from ._json import json_safe, json_text
 
-__all__ = ["Report", "Section", "json_safe", "json_text"]
+__all__ = ["Report", "json_safe", "json_text"]
 
 
 @dataclass
 class Section:
-    """One report section: a title, paragraphs, figures (paths), tables and links.
-
-    Parameters
-    ----------
-    key
-        The section's anchor in the page and its key in the summary.
-    title
-        Its heading.
-    paragraphs
-        Plain-text paragraphs.
-    figures
-        (PNG path, caption) pairs, embedded in the page.
-    tables
-        (header, rows) pairs.
-    links
-        (href relative to the report folder, label) pairs.
-    numbers
-        The section's numbers for ``summary.json``.
-    """
+    """One report section: its anchor and summary ``key``, its ``title``, plain-text paragraphs,
+    (PNG, caption) figures, (header, rows) tables, (href, label) links and its numbers."""
 
     key: str
     title: str
@@ -49,72 +32,22 @@ class Section:
     numbers: dict[str, Any] = field(default_factory=dict)
 
     def text(self, paragraph: str) -> Section:
-        """Add a paragraph.
-
-        Parameters
-        ----------
-        paragraph
-            Plain text (escaped when written).
-
-        Returns
-        -------
-        Section
-            This section, for chaining.
-        """
+        """Add a paragraph of plain text (escaped when written); return the section."""
         self.paragraphs.append(paragraph)
         return self
 
     def figure(self, path: str | os.PathLike[str], caption: str) -> Section:
-        """Add a PNG figure with a caption.
-
-        Parameters
-        ----------
-        path
-            The PNG file (read when the report is written).
-        caption
-            Its caption.
-
-        Returns
-        -------
-        Section
-            This section, for chaining.
-        """
+        """Add a PNG figure (read when the report is written) with a caption."""
         self.figures.append((Path(path), caption))
         return self
 
     def table(self, header: list[str], rows: list[list[Any]]) -> Section:
-        """Add a table.
-
-        Parameters
-        ----------
-        header
-            Column titles.
-        rows
-            Rows of cells (floats shown with 4 significant digits, None as "-").
-
-        Returns
-        -------
-        Section
-            This section, for chaining.
-        """
+        """Add a table (floats shown with 4 significant digits, None as "-")."""
         self.tables.append((header, rows))
         return self
 
     def link(self, href: str, label: str) -> Section:
-        """Add a link.
-
-        Parameters
-        ----------
-        href
-            The target, relative to the report folder.
-        label
-            The link's text.
-
-        Returns
-        -------
-        Section
-            This section, for chaining.
-        """
+        """Add a link, ``href`` relative to the report folder."""
         self.links.append((href, label))
         return self
 

@@ -13,7 +13,6 @@ import functools
 import importlib.resources
 import io
 import math
-import numbers
 import os
 import re
 import textwrap
@@ -25,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ._io import atomic_write_bytes, decode_utf8, parse_toml, read_regular_file
+from ._validation import is_number as _is_number
 from ._validation import one_line, output_file
 from .exceptions import ParameterError, RobotFileError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
@@ -74,10 +74,6 @@ def _error(path: object, message: str) -> RobotFileError:
 def _read_limited(path: str | os.PathLike[str], limit: int, kind: str) -> bytes:
     """The bytes of ``path`` (a regular file of at most ``limit``), or RobotFileError."""
     return read_regular_file(path, limit=limit, kind=kind, error=functools.partial(_error, path))
-
-
-def _is_number(value: object) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 def _numbers(value: object, path: str | os.PathLike[str], where: str) -> object:

@@ -20,16 +20,10 @@ import dask
 import pandas as pd
 import pytest
 
+import snake_pin.study
+from snake_pin import cli
 from snake_pin.exceptions import RunInterrupted
-from snake_pin.study import (
-    StudyError,
-    StudySummary,
-    add_study_parser,
-    command,
-    load_study,
-    run_study,
-    work,
-)
+from snake_pin.study import StudyError, StudySummary, load_study, run_study, work
 from snake_pin.study.runner import check_scheduler, plan_batches
 from snake_pin.study.spec import Scenario, parse_study
 from snake_pin.study.work import result_row, run_batch, simulate_scenario
@@ -475,19 +469,8 @@ def test_sigterm_keeps_written_runs_leaves_no_process_and_a_rerun_finishes(
 
 
 # ------------------------------------------------------------------ the subcommand
-class _Outcome:
-    """Stands for the CLI's result type."""
-
-    def __init__(self, payload: dict[str, Any] | None = None, text: str = "", status: int = 0,
-                 note: str = "") -> None:
-        self.payload, self.text, self.status, self.note = payload or {}, text, status, note
-
-
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="snake-pin")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_study_parser(sub, outcome=_Outcome)
-    return parser
+    return cli.build_parser()
 
 
 def test_study_subcommand_runs_the_study_and_returns_its_summary(tmp_path: Path,
@@ -504,11 +487,11 @@ def test_study_subcommand_runs_the_study_and_returns_its_summary(tmp_path: Path,
 
 def test_study_subcommand_options_and_interrupt(tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    """Bad --workers is an argparse error; with --scheduler a StudyError; an interrupt
+    """Bad --workers is a usage error; with --scheduler a StudyError; an interrupt
     returns the interrupted status with the partial summary."""
     parser = _parser()
     for bad in ("0", "x", "10000"):
-        with pytest.raises(SystemExit):
+        with pytest.raises(cli.UsageError, match="--workers"):
             parser.parse_args(["study", "s.toml", "-o", "d", "--workers", bad])
     args = parser.parse_args(["study", "s.toml", "-o", "d", "--workers", "2",
                               "--scheduler", "tcp://127.0.0.1:1"])
@@ -520,7 +503,7 @@ def test_study_subcommand_options_and_interrupt(tmp_path: Path,
     def interrupted(*_args: Any, **_kwargs: Any) -> StudySummary:
         raise RunInterrupted(partial.note, partial=partial)
 
-    monkeypatch.setattr(command, "run_study", interrupted)
+    monkeypatch.setattr(snake_pin.study, "run_study", interrupted)
     args = parser.parse_args(["study", "s.toml", "-o", "d"])
     result = args.func(args)
     assert (result.status, result.note) == (130, "study s interrupted: 1/4")

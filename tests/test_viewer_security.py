@@ -258,7 +258,7 @@ def test_view_reports_a_server_that_dies_on_its_own(run_file: Path, tmp_path: Pa
 def test_failed_start_is_reported_and_reaped(monkeypatch: pytest.MonkeyPatch) -> None:
     """A server that cannot bind (port taken after the check) is a SnakePinError naming
     the cause, and leaves no process behind."""
-    monkeypatch.setattr(meshcat_view, "port_is_free", lambda port: True)
+    monkeypatch.setattr(meshcat_view, "_port_problem", lambda port: None)
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen(1)

@@ -132,14 +132,21 @@ def run_tracking(params: SnakeParams | None = None, *, t_final: float = 60.0,
     traj = simulate(snake, controller, initial_state(params), t_final, progress=progress,
                     meta={"reference": REFERENCE, "k_shape": controller.k_shape,
                           "lam": controller.lam, "lam_shape": controller.lam_shape})
-    error = head_position_error(traj, reference)
+    return summarize_tracking(traj, snake, reference, error_window, controller="lyapunov")
+
+
+def summarize_tracking(traj: Trajectory, snake: Snake, line: Any,
+                       error_window: float | None, **summary: Any) -> Trajectory:
+    """Fill a line run's head error, criteria and summary (``summary`` first), as run_tracking."""
+    params = snake.params
+    error = head_position_error(traj, line)
     t_c, d, r = criteria_along(traj, every=CRITERIA_EVERY)
     g = conserved_quantity_along(snake, traj.q, traj.dq)
     traj.signals["head_error"] = error
     traj.meta["criteria"] = {"t": t_c.tolist(), "D": d.tolist(), "R": r.tolist()}
     errors = head_error_summary(traj, error, start=error_window)
     traj.summary.update({
-        "controller": "lyapunov", "c_x": params.c_x, "c_y": params.c_y,
+        **summary, "c_x": params.c_x, "c_y": params.c_y,
         "passive": list(params.passive), **errors,
         "R_min": float(r.min()), "D_min": float(d.min()),
         "body_length": params.body_length,

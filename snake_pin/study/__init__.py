@@ -3,7 +3,6 @@ per Dask task (:mod:`~snake_pin.study.work`, :mod:`~snake_pin.study.runner`), ke
 (:mod:`~snake_pin.study.results`) with a summary and a page; :ref:`studies`.
 """
 
-from .command import add_study_parser as add_study_parser  # the CLI's, not in __all__
 from .errors import StudyError
 from .runner import run_study
 from .spec import SETTINGS, Scenario, StudySpec, load_study, run_key

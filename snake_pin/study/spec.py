@@ -21,6 +21,7 @@ from typing import Any, cast
 import numpy as np
 
 from .._io import decode_utf8, parse_toml, read_regular_file
+from .._validation import is_number as _is_number
 from .._validation import one_line, printable_path
 from ..control import LyapunovOptions, MPCOptions, PFLOptions, QuasiStaticOptions
 from ..control.gains import K_PHI_FIRST, K_PHI_REST
@@ -804,10 +805,6 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
 
 
 # ------------------------------------------------------------------------ helpers
-def _is_number(value: object) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 

@@ -17,13 +17,7 @@ from typing import Any
 import tornado.httpserver
 import tornado.ioloop
 import tornado.web
-from meshcat.servers.zmqserver import (
-    VIEWER_HTML,
-    VIEWER_ROOT,
-    StaticFileHandlerNoCache,
-    WebSocketHandler,
-    ZMQWebSocketBridge,
-)
+from meshcat.servers import zmqserver
 from tornado.routing import HostMatches, Rule
 
 __all__: list[str] = []
@@ -45,7 +39,7 @@ class LoopbackApplication(tornado.web.Application):
         return super().listen(port, HOST, **kwargs)
 
 
-class LoopbackBridge(ZMQWebSocketBridge):
+class LoopbackBridge(zmqserver.ZMQWebSocketBridge):
     """meshcat's bridge with its web app on :class:`LoopbackApplication` and ZMQ on 127.0.0.1."""
 
     def __init__(self, port: int | None = None) -> None:
@@ -55,9 +49,9 @@ class LoopbackBridge(ZMQWebSocketBridge):
         """Return meshcat's two routes on a loopback app, answering only a ``Host`` of
         :data:`LOCAL_HOSTS` (any other gets 404: DNS rebinding reaches nothing)."""
         return LoopbackApplication([Rule(HostMatches(LOCAL_HOSTS), [
-            (r"/static/(.*)", StaticFileHandlerNoCache,
-             {"path": VIEWER_ROOT, "default_filename": VIEWER_HTML}),
-            (r"/", WebSocketHandler, {"bridge": self}),
+            (r"/static/(.*)", zmqserver.StaticFileHandlerNoCache,
+             {"path": zmqserver.VIEWER_ROOT, "default_filename": zmqserver.VIEWER_HTML}),
+            (r"/", zmqserver.WebSocketHandler, {"bridge": self}),
         ])])
 
 

@@ -41,11 +41,6 @@ PASSIVE_COLOR = 0x1F4FD1
 HOST = "127.0.0.1"
 
 
-def port_is_free(port: int) -> bool:
-    """Whether 127.0.0.1:port can be bound now."""
-    return _port_problem(port) is None
-
-
 def _port_problem(port: int) -> str | None:
     """Why 127.0.0.1:port cannot be bound now (in words), or None when it can."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
@@ -95,8 +90,9 @@ def start_server(port: int | None = None, timeout: float = 20.0
     if port is not None:
         if not 1 <= port <= 65535:
             raise ParameterError(f"port must lie in 1..65535, got {port}")
-        if not port_is_free(port):
-            raise ParameterError(_port_problem(port) or f"port {port} on {HOST} is already in use")
+        problem = _port_problem(port)
+        if problem is not None:
+            raise ParameterError(problem)
     cmd = [sys.executable, "-u", "-m", "snake_pin.viz.meshcat_server", "--stdin-eof", "--quiet"]
     if threading.current_thread() is threading.main_thread():
         # PR_SET_PDEATHSIG follows the thread that started the child: only from the main one
@@ -154,16 +150,6 @@ def _disconnect(vis: meshcat.Visualizer) -> None:
     vis.window.zmq_socket.close(linger=0)
 
 
-class _Replies:
-    """The bridge's side of the in-process channel: keeps the reply it sends."""
-
-    def __init__(self) -> None:
-        self.last: bytes | None = None
-
-    def send(self, data: bytes) -> None:
-        self.last = data
-
-
 class _Requests:
     """The window's side of the in-process channel: a request goes straight to the bridge."""
 
@@ -177,7 +163,7 @@ class _Requests:
         self.bridge.handle_zmq([data])
 
     def recv(self) -> bytes:
-        reply, self.bridge.zmq_socket.last = self.bridge.zmq_socket.last, None
+        reply, self.bridge.last = self.bridge.last, None
         if reply is None:
             raise SnakePinError("meshcat's bridge sent no reply")
         return reply
@@ -195,13 +181,18 @@ def offline_visualizer() -> meshcat.Visualizer:
 
     class OfflineBridge(ZMQWebSocketBridge):
         # ZMQWebSocketBridge.__init__ binds the web and ZMQ ports; handle_zmq needs none
-        # of that, only the scene tree, the (empty) WebSocket pool and a reply channel.
+        # of that, only the scene tree, the (empty) WebSocket pool and a reply channel:
+        # itself, keeping the last reply it sends.
         def __init__(self) -> None:
             self.host = HOST
             self.web_url = ""
             self.websocket_pool: set[object] = set()
             self.tree = SceneTree()
-            self.zmq_socket = _Replies()
+            self.zmq_socket = self
+            self.last: bytes | None = None
+
+        def send(self, data: bytes) -> None:
+            self.last = data
 
     class OfflineWindow(ViewerWindow):
         # ViewerWindow.__init__ connects (or starts) a server; send/get_scene need a socket.
@@ -328,8 +319,6 @@ def write_html(traj: Trajectory, path: str | os.PathLike[str], *, fps: float = 2
     ------
     ParameterError
         A bad ``path`` or ``fps``.
-    OSError
-        The page cannot be written.
     """
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):

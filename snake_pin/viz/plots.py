@@ -64,11 +64,6 @@ def draw_snake(ax: plt.Axes, snake: Snake, q: np.ndarray, *, frames: bool = Fals
         Opacity (below 1 the links are drawn thinner, for ghosts of earlier postures).
     label : str or None, optional
         Legend label of the body line.
-
-    Raises
-    ------
-    ConfigurationError
-        If ``q`` does not have n + 2 finite entries.
     """
     points = snake.joint_points(q)
     width = 4.0 if alpha == 1.0 else 2.0
