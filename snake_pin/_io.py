@@ -53,7 +53,7 @@ def current_umask() -> int:
     return mask
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
     """Whether ``pid`` is a live (not zombie) process of this machine."""
     if pid <= 0:
         return True  # never ours to judge: 0 and negative pids address process groups
@@ -85,7 +85,7 @@ def clean_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
         if match is None:
             continue
         try:
-            if not entry.is_file(follow_symlinks=False) or _pid_alive(int(match.group(1))):
+            if not entry.is_file(follow_symlinks=False) or pid_alive(int(match.group(1))):
                 continue
             os.unlink(entry.path)
             removed.append(Path(entry.path))
@@ -94,7 +94,7 @@ def clean_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
     return removed
 
 
-def _fsync_directory(folder: Path) -> None:
+def fsync_directory(folder: Path) -> None:
     """Make a rename in ``folder`` durable (filesystems that cannot sync folders are skipped)."""
     fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     try:
@@ -199,7 +199,7 @@ class AtomicGroup:
             self._staged.remove(staged)
         for folder in folders:
             try:
-                _fsync_directory(folder)
+                fsync_directory(folder)
             except OSError as exc:
                 _reraise(exc, folder)
 

@@ -12,12 +12,14 @@ import numbers
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from .exceptions import ConfigurationError, ParameterError
-from .params import SnakeParams
+
+if TYPE_CHECKING:
+    from .params import SnakeParams
 
 __all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "float_arg",
            "instance", "int_arg", "integer", "is_number", "mebibytes", "model_data",
@@ -94,6 +96,8 @@ def instance(value: object, kind: type[_T], name: str, what: str | None = None) 
 
 def check_params(value: object, name: str = "params") -> SnakeParams:
     """``value`` if it is a :class:`~snake_pin.params.SnakeParams`, else ParameterError."""
+    from .params import SnakeParams
+
     return instance(value, SnakeParams, name)
 
 

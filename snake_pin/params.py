@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validation import is_number
 from .exceptions import ParameterError
 
 __all__ = ["FIELD_RANGES", "FRICTION_RANGE", "INERTIA_RANGE", "LENGTH_RANGE", "LINK_FIELDS",
@@ -53,15 +54,11 @@ _UNITS = {"link_length": "m", "mass": "kg", "inertia": "kg m^2", "com_offset": "
           "c_x": "N s/m", "c_y": "N s/m", "c_theta": "N m s"}
 
 
-def _is_number(value: object) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
 def _per_link(value: object, key: str, n: int, *, zero_ok: bool) -> PerLink:
     """Validate a per-link field: a finite number or ``n`` finite numbers (collapsed if equal)."""
     if isinstance(value, np.ndarray):
         value = value.tolist()
-    scalar = _is_number(value)
+    scalar = is_number(value)
     if scalar:
         values: list[float] = [float(value)]  # type: ignore[arg-type]
     elif isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
@@ -69,7 +66,7 @@ def _per_link(value: object, key: str, n: int, *, zero_ok: bool) -> PerLink:
             raise ParameterError(
                 f"{key} must be one number or {n} numbers (one per link), got {len(value)}")
         for i, item in enumerate(value, start=1):
-            if not _is_number(item):
+            if not is_number(item):
                 raise ParameterError(f"link {i}: {key} must be a number, got {item!r}")
         values = [float(item) for item in value]
     else:
@@ -161,7 +158,7 @@ class SnakeParams:
 
     @staticmethod
     def _check_passive(passive: object, n: int) -> tuple[int, ...]:
-        if isinstance(passive, (str, bytes, Mapping)) or _is_number(passive):
+        if isinstance(passive, (str, bytes, Mapping)) or is_number(passive):
             raise ParameterError(f"passive must be a list of joint indices, got {passive!r}")
         try:
             items = list(passive)  # type: ignore[call-overload]

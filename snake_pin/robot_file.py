@@ -24,8 +24,7 @@ from typing import Any
 import numpy as np
 
 from ._io import atomic_write_bytes, decode_utf8, parse_toml, read_regular_file
-from ._validation import is_number as _is_number
-from ._validation import one_line, output_file
+from ._validation import is_number, one_line, output_file
 from .exceptions import ParameterError, RobotFileError
 from .params import MAX_LINKS, ROBOTS, SnakeParams
 
@@ -131,7 +130,7 @@ def _link_tables(path: str | os.PathLike[str], entries: object) -> dict[str, Any
         where = f"[[link]] {i}: "
         _check_keys(path, entry, _GEOMETRY_KEYS, where, _REQUIRED_GEOMETRY)
         for key, value in entry.items():
-            if not _is_number(value):
+            if not is_number(value):
                 raise _error(path, f"{where}{key} must be a number, got {_short(value)}")
             _numbers(value, path, f"{where}{key}")
         if any_offset:

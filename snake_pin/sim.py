@@ -92,7 +92,7 @@ def _check_plant(snake: object) -> tuple[int, int]:
     return int(nq), int(n) - 1
 
 
-def _check_steps(t_final: float, dt: float, control_dt: float) -> tuple[int, int]:
+def check_steps(t_final: float, dt: float, control_dt: float) -> tuple[int, int]:
     """(integration steps per control step, control steps), within the bounds."""
     ratio = control_dt / dt
     if ratio > MAX_SUBSTEPS + 0.5:
@@ -109,7 +109,7 @@ def _check_steps(t_final: float, dt: float, control_dt: float) -> tuple[int, int
     return substeps, max(1, math.ceil(span - 1e-9))
 
 
-def _check_size(samples: int, nq: int, n_tau: int, t_final: float) -> None:
+def check_size(samples: int, nq: int, n_tau: int, t_final: float) -> None:
     """Refuse a run whose arrays would exceed what a trajectory file may hold."""
     largest = samples * nq * 8
     total = samples * (2 * nq + n_tau + 1) * 8
@@ -171,8 +171,8 @@ def simulate(snake: Snake, controller: Controller | Callable[[np.ndarray, float]
     progress = flag(progress, "progress")
     if meta is not None and not isinstance(meta, Mapping):
         raise ParameterError(f"meta must be a mapping, got {brief(meta)}")
-    substeps, steps = _check_steps(t_final, dt, control_dt)
-    _check_size(steps + 1, nq, n_tau, t_final)
+    substeps, steps = check_steps(t_final, dt, control_dt)
+    check_size(steps + 1, nq, n_tau, t_final)
     plant = ViscousPlant(snake, dt, substeps, control_dt=control_dt, method=method,
                          max_speed=max_speed, max_distance=max_distance)
     return closed_loop(plant, ctrl, x, steps, progress=progress,

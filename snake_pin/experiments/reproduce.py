@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from .._io import _fsync_directory, _pid_alive, current_umask
+from .._io import current_umask, fsync_directory, pid_alive
 from ..exceptions import ParameterError, RunInterrupted
 from ..params import ROBOTS, SnakeParams
 from ..report import Report
@@ -302,7 +302,7 @@ def _move_into(staging: Path, folder: Path) -> None:
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(source, target)
-    _fsync_directory(folder)
+    fsync_directory(folder)
 
 
 def _remove_stale_staging(folder: Path) -> None:
@@ -310,7 +310,7 @@ def _remove_stale_staging(folder: Path) -> None:
     for entry in os.scandir(folder):
         match = _STAGING.fullmatch(entry.name)
         if match is not None and entry.is_dir(follow_symlinks=False) \
-                and not _pid_alive(int(match.group(1))):
+                and not pid_alive(int(match.group(1))):
             shutil.rmtree(entry.path, ignore_errors=True)
 
 

@@ -21,14 +21,13 @@ from typing import Any, cast
 import numpy as np
 
 from .._io import decode_utf8, parse_toml, read_regular_file
-from .._validation import is_number as _is_number
-from .._validation import one_line, printable_path
+from .._validation import is_number, one_line, printable_path
 from ..control import LyapunovOptions, MPCOptions, PFLOptions, QuasiStaticOptions
 from ..control.gains import K_PHI_FIRST, K_PHI_REST
 from ..exceptions import ParameterError, SnakePinError
 from ..metrics import ERROR_WINDOW
 from ..params import SnakeParams
-from ..sim import MAX_SUBSTEPS, _check_size, _check_steps
+from ..sim import MAX_SUBSTEPS, check_size, check_steps
 from .errors import StudyError
 
 __all__ = ["CONTROLLERS", "MAX_RUNS", "MAX_STUDY_BYTES", "MODELS", "SETTINGS", "Scenario",
@@ -586,7 +585,7 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
         return Axis(name, form, tuple(values), {"values": list(values)})
     shape = "[a, b, n]" if form == "linspace" else "[a, b]"
     if not isinstance(raw, list) or len(raw) != shape.count(",") + 1 or \
-            not all(_is_number(v) for v in raw):
+            not all(is_number(v) for v in raw):
         raise where(f"{label} {form} must be {shape} (numbers), got {_short(raw)}")
     numbers = [float(v) for v in raw]
     if not all(math.isfinite(v) for v in numbers):
@@ -795,8 +794,8 @@ def _check_run(where: _Where, settings: Mapping[str, Any], params: SnakeParams,
     dt = settings.get("dt", ENGINE_CONTROL_DT)
     control_dt = settings.get("control_dt", ENGINE_CONTROL_DT)
     try:
-        _, steps = _check_steps(settings["t_final"], dt, control_dt)
-        _check_size(steps + 1, n + 2, n - 1, settings["t_final"])
+        _, steps = check_steps(settings["t_final"], dt, control_dt)
+        check_size(steps + 1, n + 2, n - 1, settings["t_final"])
     except ParameterError as exc:
         if "t_final" in str(exc):
             raise where(f"{place('t_final')} {exc}") from None
@@ -811,7 +810,7 @@ def _is_int(value: object) -> bool:
 
 #: The scalar kinds: what a value must be, in words.
 _SCALARS: dict[str, tuple[Callable[[object], bool], str]] = {
-    "float": (_is_number, "a number"), "int": (_is_int, "an integer"),
+    "float": (is_number, "a number"), "int": (_is_int, "an integer"),
     "bool": (lambda v: isinstance(v, bool), "true or false"),
     "str": (lambda v: isinstance(v, str), "a string")}
 
