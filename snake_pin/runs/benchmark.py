@@ -44,7 +44,7 @@ from .tracking import initial_state, tracking_params
 __all__ = ["CONTROLLERS", "DEFAULT_CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT",
            "METRIC_FIELDS", "MODELS", "PFL_CLIMB_R", "QUICK_T_FINAL", "SCENARIOS", "SPEED",
            "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "make_scenario", "path_metrics",
-           "run_benchmark", "run_cell", "write_benchmark"]
+           "run_benchmark", "write_benchmark"]
 
 #: Reference speed along every path [m/s] (the paper's 0.1 m/s).
 SPEED = 0.1
@@ -330,47 +330,9 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
              robot: SnakeParams | None = None, draws: int = ENGINE_DRAWS,
              engine_robot: SnakeParams | None = None,
              error_window: float | None = None) -> dict[str, Any]:
-    """Run one benchmark cell and return its row (see :data:`METRIC_FIELDS`).
-
-    An engine cell runs the law of :data:`ENGINE_LAWS` ``draws`` times from perturbed
-    starts, each metric their median (:doc:`/paths`).
-
-    Parameters
-    ----------
-    scenario : str
-        One of :data:`SCENARIOS`.
-    controller : str
-        A key of :data:`CONTROLLERS`, or any name with a ``factory``.
-    model : {"viscous", "engine"}, optional
-        The plant.
-    failed : int or None, optional
-        A joint (1-based) made passive, or None.
-    t_final : float, optional
-        Duration [s].
-    factory : callable, optional
-        ``factory(snake, reference, path) -> Controller``; default the built-in one.
-    criteria_dt : float or None, optional
-        Sampling of the criteria [s]; None: not computed.
-    robot : SnakeParams or None, optional
-        The viscous robot (default: the Table 1 tracking robot).
-    draws : int, optional
-        Perturbed starts of an engine cell (1: the unperturbed start).
-    engine_robot : SnakeParams or None, optional
-        The engine robot (default: the ``engine`` preset).
-    error_window : float or None, optional
-        Start of the metrics' window [s] (None: the default of ``t_final``).
-
-    Returns
-    -------
-    dict
-        The row, plus ``series``, ``snapshots`` and ``head`` (every 0.1 s); status "not
-        applicable" when the controller refuses the robot or the engine cannot run it.
-
-    Raises
-    ------
-    ParameterError
-        An unknown scenario, model or controller, or draws not a positive integer.
-    """
+    """One cell of :func:`run_benchmark` (its arguments): the row of :data:`METRIC_FIELDS`
+    plus ``series``, ``snapshots`` and ``head``; an engine cell is the median of ``draws``
+    perturbed starts (:doc:`/paths`), a controller that refuses the robot "not applicable"."""
     _known(model, MODELS, "model")
     integer(draws, "draws", low=1)
     start = default_error_window(t_final) if error_window is None else float(error_window)
@@ -598,17 +560,6 @@ def _json_bytes(result: BenchmarkResult) -> bytes:
     return json.dumps(json_safe(doc), indent=1, allow_nan=False).encode()
 
 
-def _figure_bytes(fig: Any) -> bytes:
-    import matplotlib.pyplot as plt
-
-    if fig.get_layout_engine() is None:
-        fig.set_layout_engine("constrained")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
-
-
 #: The table figures: name prefix -> (row metric, title); ``error_`` cells add the peak
 #: ``|tau_i|`` (torque_max) under the head error.
 _TABLES = {"table": ("head_ct_rms_pct", "Head cross-track RMS [% of body]"),
@@ -728,6 +679,8 @@ def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Pa
     dict of str to pathlib.Path
         Name -> written file.
     """
+    from .outputs import _png
+
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     out: dict[str, Path] = {}
@@ -739,19 +692,19 @@ def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Pa
             for kind in _TABLES:
                 name = f"{kind}_{model}_{failed}"
                 fig = _table_figure(result, model, failed, kind)
-                out[name] = group.write_bytes(f"{name}.png", _figure_bytes(fig), figure=True)
+                out[name] = group.write_bytes(f"{name}.png", _png(fig), figure=True)
             for scenario in dict.fromkeys(r["scenario"] for r in result.rows):
                 if any(r["snapshots"] for r in result.rows if r["scenario"] == scenario
                        and r["model"] == model and r["failed_joint"] == failed):
                     name = f"path_{scenario}_{model}_{failed}"
                     fig = _path_figure(result, scenario, model, failed)
-                    out[name] = group.write_bytes(f"{name}.png", _figure_bytes(fig),
+                    out[name] = group.write_bytes(f"{name}.png", _png(fig),
                                                   figure=True)
         for row in result.rows:
             if (row["scenario"].startswith("circle") and row["controller"] == "lyapunov"
                     and row["model"] == "viscous" and not row["failed_joint"]
                     and row["series"].get("t")):
                 name = f"claim_{row['scenario']}"
-                out[name] = group.write_bytes(f"{name}.png", _figure_bytes(_claim_figure(row)),
+                out[name] = group.write_bytes(f"{name}.png", _png(_claim_figure(row)),
                                               figure=True)
     return out
