@@ -26,7 +26,7 @@ from ..runs.tracking import tracking_friction
 from .context import Context
 
 __all__ = ["MPC_TARGET_PCT", "QUICK_MPC_T", "REPORT_ENGINE_SCENARIOS", "REPORT_ENGINE_T",
-           "REPORT_MPC_SCENARIOS", "REPORT_SCENARIOS", "bench_control_stage", "mpc_targets"]
+           "REPORT_MPC_SCENARIOS", "REPORT_SCENARIOS", "mpc_targets"]
 
 #: Duration of the report's engine rows [s] (the stage's budget: about 30 s of wall).
 REPORT_ENGINE_T = 30.0
@@ -110,13 +110,7 @@ def _merge(grid: BenchmarkResult, mpc: BenchmarkResult) -> BenchmarkResult:
 
 def bench_control_stage(ctx: Context) -> None:
     """The benchmark on the viscous model and engine rows, its tables, the MPC's targets,
-    the claim (quick: :data:`QUICK_MPC_T` s MPC runs on the line, written to ``mpc/``).
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    the claim (quick: :data:`QUICK_MPC_T` s MPC runs on the line, written to ``mpc/``)."""
     # a robot of one's own runs the benchmark (with the tracking friction rule of the
     # tracking stage); the presets run the Table 1 tracking robot the LOS law is tuned for
     robot = None if ctx.params.name in ROBOTS else tracking_friction(ctx.params)[0]

@@ -34,8 +34,7 @@ from ..sim import Trajectory, simulate
 from .context import Context
 
 __all__ = ["DRAWS", "MPC_DRAWS", "MPC_SCENARIOS", "MPC_T_FINAL", "QUICK_DRAWS",
-           "QUICK_MPC_T_FINAL", "QUICK_T_FINAL", "SENSITIVE", "T_FINAL", "VISCOUS_DRAWS",
-           "engine_stage"]
+           "QUICK_MPC_T_FINAL", "QUICK_T_FINAL", "SENSITIVE", "T_FINAL", "VISCOUS_DRAWS"]
 
 #: Draws per configuration in the report (full run, ``--quick``) and of the viscous check.
 DRAWS, QUICK_DRAWS, VISCOUS_DRAWS = 11, 3, 3
@@ -128,13 +127,7 @@ def _friction_section(sec: Any, base: SnakeParams, wheels: WheelSpec,
 def engine_stage(ctx: Context) -> None:
     """Identification, the engine runs as distributions (both forms of the law), the
     viscous twin and its sensitivity check, and the MPC's runs along the line and the
-    circle (:data:`MPC_SCENARIOS`) from perturbed starts.
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    circle (:data:`MPC_SCENARIOS`) from perturbed starts."""
     from ..viz.meshcat_view import write_html
 
     t_final = QUICK_T_FINAL if ctx.quick else T_FINAL

@@ -23,7 +23,7 @@ from ..params import SnakeParams
 from .context import Context
 
 __all__ = ["C_X", "FULL", "MPC_FULL", "MPC_QUICK", "QUICK", "SERIES_RATIO", "TRACKING_LIMIT",
-           "MapPlan", "failure_map_stage", "failure_map_study", "mpc_findings"]
+           "MapPlan", "failure_map_stage"]
 
 #: Friction along each link in the map [N s/m] when the robot has no single positive
 #: c_x of its own (Table 1's is this); ``c_y = ratio * c_x``.
@@ -73,26 +73,10 @@ _LAWS = {"lyapunov": ("failure_map", "Lyapunov-like law"),
 # ----------------------------------------------------------------- the study
 def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path,
                       controller: str = "lyapunov") -> Path:
-    """Write the study file of the map for ``params`` into ``folder``: Table 1 by name (as
-    the shipped file), any other robot as ``failure_map_robot.toml`` beside it; failed
-    joints beyond the robot are dropped.
-
-    Parameters
-    ----------
-    params
-        The robot (its friction is replaced by the map's, its passive joints cleared).
-    plan
-        Duration, failed joints and ratios (e.g. :data:`FULL`, :data:`MPC_QUICK`).
-    folder
-        An existing folder.
-    controller
-        ``"lyapunov"`` (the Lyapunov-like law) or ``"mpc"``.
-
-    Returns
-    -------
-    Path
-        ``folder/failure_map.toml`` (``failure_map_mpc.toml`` for the MPC).
-    """
+    """Write the map's study of ``controller`` ("lyapunov" or "mpc") for ``params`` (passive
+    joints cleared, failed joints beyond it dropped) into ``folder`` and return its path
+    (``failure_map.toml``, ``failure_map_mpc.toml``): Table 1 by name, as the shipped file,
+    any other robot as ``failure_map_robot.toml`` beside it."""
     from ..robot_file import write_robot_file
 
     folder = Path(folder)
@@ -105,29 +89,22 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path,
     joints = [k for k in (plan.failed_joints if plan.failed_joints is not None
                           else range(robot.n)) if 0 <= k <= robot.n - 1]
     c_x = map_c_x(robot)
-    c_y = [_number(ratio * c_x) for ratio in plan.ratios]
     study, law = _LAWS[controller]
     description = (f"Actuator-failure map: robot {robot.name}, {law}, "
                    f"{plan.t_final:g} s, failed joint {', '.join(map(str, joints))} "
                    f"(0: none) against c_y/c_x = "
                    f"{', '.join(f'{r:g}' for r in plan.ratios)} (c_x = {c_x:g} N s/m).")
-    window = "" if plan.error_window is None else \
-        f"error_window = {_number(plan.error_window)}\n"
-    text = ("# The actuator-failure map, written by snake-pin reproduce.\n"
-            "[study]\n"
-            f"name = {json.dumps(study)}\n"
-            f"description = {json.dumps(description)}\n\n"
-            "[base]\n"
-            f"robot = {json.dumps(name)}\n"
-            f"controller = {json.dumps(controller)}\n"
-            'model = "viscous"\n'
-            f"t_final = {_number(plan.t_final)}\n"
-            f"{window}"
-            f"c_x = {_number(c_x)}\n\n"
-            "[axes.failed_joint]\n"
-            f"values = [{', '.join(map(str, joints))}]\n\n"
-            "[axes.c_y]\n"
-            f"values = [{', '.join(c_y)}]\n")
+    base: dict[str, object] = {"robot": name, "controller": controller, "model": "viscous",
+                               "t_final": float(plan.t_final)}
+    if plan.error_window is not None:
+        base["error_window"] = float(plan.error_window)
+    sections: dict[str, dict[str, object]] = {
+        "study": {"name": study, "description": description}, "base": {**base, "c_x": c_x},
+        "axes.failed_joint": {"values": joints},
+        "axes.c_y": {"values": [float(ratio * c_x) for ratio in plan.ratios]}}
+    text = "# The actuator-failure map, written by snake-pin reproduce.\n" + "\n".join(
+        f"[{head}]\n" + "".join(f"{key} = {json.dumps(value)}\n" for key, value in body.items())
+        for head, body in sections.items())
     from .._io import atomic_write_bytes
 
     path = folder / f"{study}.toml"
@@ -147,12 +124,6 @@ def _is_table1(params: SnakeParams) -> bool:
     """Whether ``params`` is the Table 1 preset up to c_x and c_y (the study sets those)."""
     friction = {"c_x": C_X, "c_y": C_X}
     return params.replace(**friction) == SnakeParams.table1().replace(**friction)
-
-
-def _number(value: float) -> str:
-    """A TOML float: Python's shortest repr (always with a point or an exponent)."""
-    text = repr(float(value))
-    return text if any(c in text for c in ".en") else text + ".0"
 
 
 # ------------------------------------------------------------------ tables
@@ -263,24 +234,8 @@ def findings(tables: dict[str, dict[str, dict[str, Any]]], joints: Sequence[int]
 
 def mpc_findings(mpc: dict[str, dict[str, Any]], lyapunov: dict[str, dict[str, Any]],
                  joints: Sequence[int], ratio: float) -> tuple[str, dict[str, Any]]:
-    """What the MPC's line of the map shows beside the Lyapunov-like law's at one ratio.
-
-    Parameters
-    ----------
-    mpc, lyapunov
-        :func:`map_tables` of the two laws' runs (joints the Lyapunov-like law lacks are
-        not compared).
-    joints
-        The MPC's failed joints (0: none).
-    ratio
-        The line's c_y/c_x.
-
-    Returns
-    -------
-    tuple of str and dict
-        The paragraph, and its figures (errors without a failure, the joints tracked
-        within :data:`TRACKING_LIMIT` or not, the worst, the lower and higher of the laws).
-    """
+    """The paragraph on the MPC's line of the map (:func:`map_tables` of ``mpc``, failed
+    ``joints``) beside the Lyapunov-like law's at c_y/c_x = ``ratio``, and its figures."""
     key = f"{ratio:g}"
 
     def value(table: dict[str, dict[str, Any]], joint: int) -> float | None:

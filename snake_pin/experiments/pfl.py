@@ -14,7 +14,7 @@ from ..runs.pfl import TAU_BREAKDOWN, PFLRun, breakdown_threshold, plot_pfl, run
 from ..runs.pfl import initial_state as initial_state
 from .context import Context
 
-__all__ = ["pfl_stage"]
+__all__: list[str] = []
 
 #: The singularity-aware variant the stage runs beside the paper's law.
 CLIMB = PFLOptions(climb_R=0.5)
@@ -47,13 +47,7 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
 
 
 def pfl_stage(ctx: Context) -> None:
-    """Section VI.1 run, its figures, and the singularity-aware comparison.
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    """Section VI.1 run, its figures, and the singularity-aware comparison."""
     params = ctx.params.replace(passive=())
     isotropic = params.isotropic
     friction = ("isotropic" if isotropic else "the robot's")

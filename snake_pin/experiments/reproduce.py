@@ -27,7 +27,7 @@ from ..runs.parallel import SharedCluster
 from .context import Context
 
 # Context is defined in experiments.context (the stages import it from there).
-__all__ = ["HONOURED", "MIN_LINKS", "reproduce", "stages", "unhonoured"]
+__all__ = ["HONOURED", "MIN_LINKS", "reproduce", "stages"]
 
 #: Stage -> the robot fields (``SnakeParams`` names, plus "robot" for --robot) it takes
 #: from the robot it is given. Friction does not enter D and R, so the manipulability
@@ -78,23 +78,9 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
 
 
 def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams) -> list[str]:
-    """The fields of ``given`` that ``stage`` would not honour (the engine and benchmark
-    stages also honour "robot" for a robot of one's own, the engine stage for its preset).
-
-    Parameters
-    ----------
-    stage
-        A stage name (:func:`stages`).
-    given
-        The fields a user set (names of :data:`HONOURED`).
-    params
-        The robot they describe.
-
-    Returns
-    -------
-    list of str
-        The fields the stage would not honour, sorted.
-    """
+    """The fields of ``given`` (names of :data:`HONOURED`) that ``stage`` would not honour for
+    ``params``, sorted; the engine and benchmark stages also honour "robot" for a robot of
+    one's own, the engine stage for its preset."""
     honoured = set(HONOURED[stage])
     if stage == "engine" and (params.name == "engine" or params.name not in ROBOTS):
         honoured.add("robot")
