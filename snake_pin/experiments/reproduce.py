@@ -270,14 +270,12 @@ def _free_partial_folder(folder: Path) -> Path:
 
 def _move_into(staging: Path, folder: Path) -> None:
     """Rename every staged file into ``folder``: data, figures and pages, summary, index."""
-    def rank(name: str) -> int:
-        if name == "index.html":
-            return 3
-        if name == "summary.json":
-            return 2
-        return 1 if name.endswith((".png", ".html", ".svg")) else 0
+    last = {"index.html": 3, "summary.json": 2}
 
-    for name in sorted(_names(staging), key=lambda name: (rank(name), name)):
+    def rank(name: str) -> tuple[int, str]:
+        return last.get(name, int(name.endswith((".png", ".html", ".svg")))), name
+
+    for name in sorted(_names(staging), key=rank):
         source, target = staging / name, folder / name
         if source.is_dir() and target.is_dir():
             # a stage's folder (e.g. the failure map's study): a folder cannot be renamed
@@ -314,15 +312,10 @@ def _signals_deferred() -> Iterator[None]:
     def note(signum: int, _frame: object) -> None:
         received.append(signum)
 
-    previous = {}
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        sig = getattr(signal, name, None)
-        if sig is None:
-            continue
-        handler = signal.getsignal(sig)
-        if handler is None or handler == signal.SIG_IGN:
-            continue  # ignored, or set outside Python: leave it
-        previous[sig] = signal.signal(sig, note)
+    found = (getattr(signal, name, None) for name in ("SIGINT", "SIGTERM", "SIGHUP"))
+    # a signal ignored, or handled outside Python, is left as it is
+    previous = {sig: signal.signal(sig, note) for sig in found
+                if sig is not None and signal.getsignal(sig) not in (None, signal.SIG_IGN)}
     try:
         yield
     finally:
