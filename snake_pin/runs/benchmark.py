@@ -1,11 +1,7 @@
-"""The controller benchmark on paths: scenarios x controllers x models x failures.
-
-Owns the scenarios (:data:`SCENARIOS`), the built-in controller factories
-(:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), running the grid in
-parallel (:func:`run_benchmark`) and writing it (:func:`write_benchmark`), for
-``snake-pin bench-control``, ``snake-pin simulate/engine --path`` and the report's
-benchmark stage. Scenarios, controllers (and a factory of one's own), models, failures
-and metrics are described in :doc:`/paths`.
+"""The controller benchmark on paths (:doc:`/paths`): the scenarios (:data:`SCENARIOS`), the
+built-in controllers (:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), the
+grid run in parallel (:func:`run_benchmark`) and its files (:func:`write_benchmark`), for
+``snake-pin bench-control``, ``snake-pin simulate/engine --path`` and the report.
 """
 
 from __future__ import annotations
@@ -273,11 +269,10 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
         metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
                                Snake(traj.params), reference, start=start, criteria_dt=None)
         runs.append((traj, {**metrics, "torque_max": _nan(torque_max(traj))}))
-    spread = distribution([m["head_ct_rms_pct"] for _, m in runs])
-    order = sorted(range(len(runs)), key=lambda k: (
-        not math.isfinite(runs[k][1]["head_ct_rms_pct"]), runs[k][1]["head_ct_rms_pct"]))
-    finite = [k for k in order if math.isfinite(runs[k][1]["head_ct_rms_pct"])]
-    median = finite[(len(finite) - 1) // 2] if finite else order[0]
+    pct = [m["head_ct_rms_pct"] for _, m in runs]
+    spread = distribution(pct)
+    finite = sorted((v, k) for k, v in enumerate(pct) if math.isfinite(v))
+    median = finite[(len(finite) - 1) // 2][1] if finite else 0
     traj = runs[median][0]
     if criteria_dt is not None:
         row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
@@ -345,34 +340,28 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
                snapshots=[], head=[])
     if factory is None:
         _known(controller, CONTROLLERS, "controller", " or a factory")
-    make = factory or CONTROLLERS[controller]
     if model == "engine":
         _engine_cell(row, scenario, controller, failed, t_final, factory, criteria_dt,
                      draws, engine_robot, start)
-        row.update(head_error_rms_pct=_percent_of_body(row),
-                   wall_s=time.perf_counter() - wall)
-        return row
-    snake = Snake(params)
-    try:
-        ctrl = make(snake, reference, reference.path)
-    except ParameterError as exc:
-        row.update(status="not applicable", reason=str(exc))
-        return row
-    traj = simulate(snake, ctrl, initial_state(params), t_final,
-                    meta={"scenario": scenario, "controller": controller})
-    stride = slice(None, None, _EVERY)
-    row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
-                            reference, head_tracking=hasattr(ctrl, "reference"),
-                            start=start, criteria_dt=criteria_dt))
-    row.update(torque_max=_nan(torque_max(traj)), head_error_rms_pct=_percent_of_body(row))
-    _finish(row, traj, traj.status, traj.reason)
-    row["wall_s"] = time.perf_counter() - wall
+    else:
+        snake = Snake(params)
+        try:
+            ctrl = (factory or CONTROLLERS[controller])(snake, reference, reference.path)
+        except ParameterError as exc:
+            row.update(status="not applicable", reason=str(exc))
+            return row
+        traj = simulate(snake, ctrl, initial_state(params), t_final,
+                        meta={"scenario": scenario, "controller": controller})
+        stride = slice(None, None, _EVERY)
+        row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
+                                reference, head_tracking=hasattr(ctrl, "reference"),
+                                start=start, criteria_dt=criteria_dt),
+                   torque_max=_nan(torque_max(traj)))
+        _finish(row, traj, traj.status, traj.reason)
+    # the time-indexed head error RMS in % of the body (NaN without one)
+    row.update(head_error_rms_pct=100.0 * row["head_error_rms"] / row["body_length"],
+               wall_s=time.perf_counter() - wall)
     return row
-
-
-def _percent_of_body(row: dict[str, Any]) -> float:
-    """The row's time-indexed head error RMS in % of its body length (NaN without one)."""
-    return 100.0 * row["head_error_rms"] / row["body_length"]
 
 
 @dataclass
