@@ -59,14 +59,6 @@ def _cell(dist: dict[str, Any], low: str = "p10", high: str = "p90", digits: int
     return f"{dist['median']:.{digits}g} [{dist[low]:.{digits}g}, {dist[high]:.{digits}g}]"
 
 
-def _draws(label: str, offsets: np.ndarray, runs: list[Any]) -> Draws:
-    """The runs from ``offsets`` (seed 0) as :class:`~snake_pin.runs.engine.Draws`."""
-    draws = Draws(label, PERTURBATION, 0, offsets)
-    for i, run in enumerate(runs):
-        draws.record(i, run.trajectory.summary_dict())
-    return draws
-
-
 def _passive_joint(n: int) -> int:
     """Joint 5 as in the paper, or the middle joint of a robot too short for it."""
     return 5 if n >= 6 else max(1, n // 2)
@@ -192,7 +184,7 @@ def engine_stage(ctx: Context) -> None:
     dist_rows, target_rows, engine_spreads = [], [], []
     for c, (label, _, stem) in enumerate(configs):
         runs = engine_results[c * count:(c + 1) * count]
-        draws = _draws(label, offsets, runs)
+        draws = Draws(label, PERTURBATION, 0, offsets, [r.trajectory.summary_dict() for r in runs])
         median = runs[draws.median_draw() or 0]
         median.trajectory.meta["draw"] = (draws.median_draw() or 0) + 1
         median.trajectory.save(ctx.folder / stem)
@@ -298,7 +290,8 @@ def _mpc_section(sec: Any, runs: list[Any], references: dict[str, Any], offsets:
     rows, numbers = [], {}
     for k, name in enumerate(MPC_SCENARIOS):
         batch = runs[k * len(offsets):(k + 1) * len(offsets)]
-        draws = _draws(f"MPC, {name}", offsets, batch)
+        draws = Draws(f"MPC, {name}", PERTURBATION, 0, offsets,
+                      [run.trajectory.summary_dict() for run in batch])
         statuses = [str(run.trajectory.status) for run in batch]
         dists = {key: distribution(draws.values(key))
                  for key in ("rms_percent", "max_percent", "torque_max")}

@@ -203,19 +203,16 @@ class Draws:
                  f"angles offset by U(-{self.perturbation:g}, {self.perturbation:g}) rad "
                  f"(seed {self.seed})"]
         for key, dist in self.distributions().items():
-            lines.append(f"  {METRICS[key]}: " + _range_text(dist))
+            lines.append(f"  {METRICS[key]}: " + (
+                "no value (no samples in the error window)" if dist["median"] is None else
+                f"median {dist['median']:.4g}, 10-90 %: {dist['p10']:.4g} .. {dist['p90']:.4g} "
+                f"({dist['count']} runs)"))
         faults = self.faults()
         if faults:
             lines.append(f"  {len(faults)} run(s) diverged or failed: draws "
                          f"{', '.join(str(i + 1) for i in faults)}")
         return "\n".join(lines)
 
-
-def _range_text(dist: dict[str, Any]) -> str:
-    if dist["median"] is None:
-        return "no value (no samples in the error window)"
-    return (f"median {dist['median']:.4g}, 10-90 %: {dist['p10']:.4g} .. {dist['p90']:.4g} "
-            f"({dist['count']} runs)")
 
 def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None, *,
                 wheels: WheelSpec, t_final: float, friction: dict[str, Any],
