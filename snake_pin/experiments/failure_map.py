@@ -113,9 +113,7 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path,
 
 
 def map_c_x(params: SnakeParams) -> float:
-    """The map's c_x for a robot: its c_x when one positive number for every link, else
-    :data:`C_X`.
-    """
+    """The map's c_x: the robot's when one positive number for every link, else :data:`C_X`."""
     value = params.c_x
     return float(value) if isinstance(value, float) and value > 0 else C_X
 
@@ -129,10 +127,8 @@ def _is_table1(params: SnakeParams) -> bool:
 # ------------------------------------------------------------------ tables
 def map_tables(rows: Sequence[dict[str, Any]], joints: Sequence[int],
                ratios: Sequence[float]) -> dict[str, dict[str, dict[str, Any]]]:
-    """The map's cells per metric (``rms_head_error_pct``, ``R_tilde_min``, ``status``):
-    failed joint -> ratio -> value, keys as text (``"0"``, ``"10"``); a metric is None where
-    the run is not ``ok``, a status ``"missing"`` where the study has no row.
-    """
+    """Metric (``rms_head_error_pct``, ``R_tilde_min``, ``status``) -> failed joint -> ratio
+    -> value, keys as text (``"0"``, ``"10"``); None where not ``ok``, "missing" without a row."""
     cells = {(r["failed_joint"], _ratio(r)): r for r in rows}
     out: dict[str, dict[str, dict[str, Any]]] = {
         "rms_head_error_pct": {}, "R_tilde_min": {}, "status": {}}
@@ -154,11 +150,8 @@ def _ratio(row: dict[str, Any]) -> float:
 # ---------------------------------------------------------------- findings
 def findings(tables: dict[str, dict[str, dict[str, Any]]], joints: Sequence[int],
              ratios: Sequence[float]) -> tuple[list[str], dict[str, Any]]:
-    """What the map shows, read from :func:`map_tables`: the report's paragraphs, and their
-    figures (the ratios where the law tracks without a failure, the failed joints that break
-    tracking there, RMS above :data:`TRACKING_LIMIT`, and the worst, those whose R~ is zero
-    up to rounding, the one with the smallest R~ otherwise).
-    """
+    """The report's paragraphs on :func:`map_tables` and their figures: where the law tracks
+    without a failure, the failures that break it (:data:`TRACKING_LIMIT`), R~ per failure."""
     rms, rt = tables["rms_head_error_pct"], tables["R_tilde_min"]
 
     def cell(table: dict[str, dict[str, Any]], joint: int, ratio: float) -> float:
@@ -320,11 +313,8 @@ def _joined(items: Sequence[int]) -> str:
 
 # ------------------------------------------------------------------ series
 def run_series(scenario: Any) -> dict[str, Any]:
-    """Rerun one viscous-model study scenario with :func:`snake_pin.sim.simulate` and read
-    R~ along it: every 0.1 s ``t``, ``error_pct`` (% of the body), ``R_tilde`` and
-    ``R_tilde_xy`` (without the heading); ``status``, ``t_end``, the RMS of the error along
-    and across the path over the error window (% of the body) and the medians of R~.
-    """
+    """Rerun one viscous study scenario: head error (% of the body), R~ and R~ without the
+    heading every 0.1 s, the error's RMS along and across the path, the medians of R~."""
     from ..manipulability import manipulability
     from ..metrics import head_position_error
     from ..model import Snake
@@ -403,9 +393,8 @@ def _plot_series(series: list[tuple[str, dict[str, Any]]], ratio: float, path: P
 # -------------------------------------------------------------------- stage
 def _run_map(ctx: Context, base: SnakeParams, plan: MapPlan,
              controller: str) -> tuple[Any, Any, list[dict[str, Any]], list[int]]:
-    """Write and run the map's study of ``controller`` into ``ctx.folder`` (the Lyapunov-like
-    law's as ``failure_map``, another's as ``failure_map_<controller>``); return its spec,
-    its summary, its rows and its failed joints."""
+    """Write and run the map's study of ``controller`` in ``ctx.folder``; its spec, summary,
+    rows and failed joints."""
     from ..study import load_study, run_study
     from ..study.results import StudyFolder
 

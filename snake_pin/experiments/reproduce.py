@@ -300,10 +300,8 @@ def _remove_stale_staging(folder: Path) -> None:
 
 @contextlib.contextmanager
 def _signals_deferred() -> Iterator[None]:
-    """Hold SIGINT, SIGTERM and SIGHUP while files are moved; deliver the first one after.
-
-    Only the main thread can change handlers; elsewhere this does nothing.
-    """
+    """Hold SIGINT, SIGTERM and SIGHUP while files are moved and deliver the first one after
+    (in the main thread: only it can change handlers)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -39,8 +39,8 @@ from .tracking import initial_state, tracking_params
 
 __all__ = ["CONTROLLERS", "DEFAULT_CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT",
            "METRIC_FIELDS", "MODELS", "PFL_CLIMB_R", "QUICK_T_FINAL", "SCENARIOS", "SPEED",
-           "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "make_scenario", "path_metrics",
-           "run_benchmark", "write_benchmark"]
+           "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "path_metrics", "run_benchmark",
+           "write_benchmark"]
 
 #: Reference speed along every path [m/s] (the paper's 0.1 m/s).
 SPEED = 0.1
@@ -106,27 +106,8 @@ ENGINE_DRAWS = 3
 
 
 def make_scenario(name: str, body_length: float, speed: float = SPEED) -> PathReference:
-    """Return the head reference of scenario ``name`` for a body of ``body_length``.
-
-    Parameters
-    ----------
-    name : str
-        One of :data:`SCENARIOS`.
-    body_length : float
-        Body length L [m] (circle radii are multiples of it).
-    speed : float, optional
-        Reference speed along the path [m/s].
-
-    Returns
-    -------
-    PathReference
-        The path with a constant-speed timing from s = 0.
-
-    Raises
-    ------
-    ParameterError
-        If the name is unknown.
-    """
+    """The head reference of scenario ``name`` (circle radii in ``body_length``) at ``speed``
+    along the path from s = 0."""
     _known(name, SCENARIOS, "scenario")
     return PathReference(SCENARIOS[name](body_length), Timing(speed))
 
@@ -243,10 +224,8 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                  t_final: float, factory: ControllerFactory | None,
                  criteria_dt: float | None, draws: int,
                  robot: SnakeParams | None, start: float) -> dict[str, Any]:
-    """An engine cell (see :func:`run_cell`): the row's snapshots, head path and criteria are
-    the median draw's (by head cross-track RMS), ``t_end`` the median end time, and the status,
-    reason and ``diverged_at`` those of the first draw to stop early.
-    """
+    """An engine cell of :func:`run_cell`: snapshots, head path and criteria of the median draw
+    (head cross-track RMS), the median end time, the status of the first draw to stop early."""
     from ..engine.run import identify_friction, run_engine
 
     law = ENGINE_LAWS.get(controller)
@@ -509,8 +488,8 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     wall = time.perf_counter()
     pooled = [k for k, (_, c, _, _) in enumerate(cells) if _picklable(chosen[c])]
     rows: list[dict[str, Any] | None] = [None] * len(cells)
-    options = {"t_final": t_final, "robot": robot, "draws": draws,
-               "engine_robot": engine_robot, "error_window": error_window}
+    options: dict[str, Any] = {"t_final": t_final, "robot": robot, "draws": draws,
+                               "engine_robot": engine_robot, "error_window": error_window}
     jobs = [(run_cell, cells[k], {**options, "factory": chosen[cells[k][1]]})
             for k in pooled]
     for k, row in zip(pooled, run_jobs(jobs, workers, cluster=None if workers else cluster),
@@ -518,9 +497,7 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         rows[k] = row
     for k, (s, c, m, f) in enumerate(cells):
         if rows[k] is None:
-            rows[k] = run_cell(s, c, m, f, t_final=t_final, factory=chosen[c], robot=robot,
-                               draws=draws, engine_robot=engine_robot,
-                               error_window=error_window)
+            rows[k] = run_cell(s, c, m, f, **options, factory=chosen[c])
     settings = {"t_final": t_final, "scenarios": names, "controllers": list(chosen),
                 "models": list(models), "failed": [f or 0 for f in failed],
                 "speed": SPEED, "window_start": float(error_window),
