@@ -146,8 +146,7 @@ def bench_control_stage(ctx: Context) -> None:
     else:
         mpc = result  # the MPC rows sit in the grid, beside the Lyapunov-like rows
     sec = ctx.report.section("bench_control", "Controller benchmark on paths")
-    s = result.settings
-    m = mpc.settings
+    s, m = result.settings, mpc.settings
     sec.text(f"Scenarios {', '.join(s['scenarios'])}; controllers "
              f"{', '.join(s['controllers'])}; viscous Table 1 robot, c_x = 0.5, c_y = 25 N s/m "
              f"(c_y / c_x = 50); head reference along each path at {SPEED} m/s; "

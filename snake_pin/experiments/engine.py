@@ -59,11 +59,6 @@ def _cell(dist: dict[str, Any], low: str = "p10", high: str = "p90", digits: int
     return f"{dist['median']:.{digits}g} [{dist[low]:.{digits}g}, {dist[high]:.{digits}g}]"
 
 
-def _passive_joint(n: int) -> int:
-    """Joint 5 as in the paper, or the middle joint of a robot too short for it."""
-    return 5 if n >= 6 else max(1, n // 2)
-
-
 def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
                  offset: np.ndarray | None = None, error_window: float | None = None
                  ) -> Trajectory:
@@ -127,9 +122,8 @@ def engine_stage(ctx: Context) -> None:
     own = base.name not in ROBOTS
     wheels = WheelSpec()
     friction = identify_friction(base, wheels)
-    title = "Physics engine: MuJoCo with wheels (VI.3)" + (f", robot '{base.name}'" if own
-                                                            else "")
-    sec = ctx.report.section("engine", title)
+    sec = ctx.report.section("engine", "Physics engine: MuJoCo with wheels (VI.3)"
+                             + (f", robot '{base.name}'" if own else ""))
     if not own and ctx.params.name != "engine":
         sec.text(f"This stage runs the 8-link robot of Section VI.3 (the 'engine' preset), not "
                  f"the '{ctx.params.name}' robot of the other stages: the paper gives no "
@@ -149,7 +143,7 @@ def engine_stage(ctx: Context) -> None:
     count = QUICK_DRAWS if ctx.quick else DRAWS
     offsets = perturbations(count, base.n - 1, PERTURBATION, seed=0)
     viscous_offsets = perturbations(VISCOUS_DRAWS, base.n - 1, PERTURBATION, seed=1)
-    joint = _passive_joint(base.n)
+    joint = 5 if base.n >= 6 else max(1, base.n // 2)  # the paper's, or the middle joint
     configs = [("velocity law, no passive joint", base, "engine"),
                (f"velocity law, joint {joint} passive", base.replace(passive=(joint,)),
                 f"engine_passive{joint}")]

@@ -1,9 +1,7 @@
-"""The actuator-failure map as a report stage (the paper's future work): the map's study
-(:func:`failure_map_study`, run by :func:`snake_pin.study.run_study`), its tables, series
-along the run and findings (:func:`findings`), and the MPC's line of the map
-(:func:`mpc_findings`); what it writes and why is in :doc:`/failure_map`. An interrupt
-propagates: the report machinery keeps the stages done.
-"""
+"""The actuator-failure map as a report stage (the paper's future work): the studies of the
+Lyapunov-like law and of the MPC's line, their tables, series along the run and findings;
+what it writes and why is in :doc:`/failure_map`. An interrupt propagates (the runner keeps
+the stages done)."""
 
 from __future__ import annotations
 
@@ -466,10 +464,8 @@ def _study_numbers(summary: Any) -> dict[str, Any]:
 
 def _shared_cluster(ctx: Context) -> Any:
     """The report's cluster, where the studies run unless given workers or a scheduler."""
-    options = ctx.options
-    if options.get("study_workers") is None and options.get("study_scheduler") is None:
-        return ctx.cluster
-    return None
+    own = ctx.options.get("study_workers"), ctx.options.get("study_scheduler")
+    return ctx.cluster if own == (None, None) else None
 
 
 def _where(ctx: Context, scheduler: str) -> str:

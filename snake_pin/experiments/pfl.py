@@ -50,8 +50,7 @@ def pfl_stage(ctx: Context) -> None:
     """Section VI.1 run, its figures, and the singularity-aware comparison."""
     params = ctx.params.replace(passive=())
     isotropic = params.isotropic
-    friction = ("isotropic" if isotropic else "the robot's")
-    key = "isotropic" if isotropic else "robot_friction"
+    friction, key = ("isotropic", "isotropic") if isotropic else ("the robot's", "robot_friction")
     sec = ctx.report.section("pfl", "Partial feedback linearisation of the head (VI.1)")
     described = (f"isotropic friction c_x = c_y = {params.c_x}" if isotropic and params.uniform
                  else "isotropic friction c_x = c_y (per link, as the robot's)" if isotropic

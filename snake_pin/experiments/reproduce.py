@@ -97,8 +97,7 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
     Parameters
     ----------
     folder
-        The output folder (created if needed; what it holds whatever happens:
-        :doc:`/reproduce`).
+        The output folder (created if needed; what it holds whatever happens: :doc:`/reproduce`).
     params
         The robot (default Table 1).
     quick

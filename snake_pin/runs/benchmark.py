@@ -170,11 +170,8 @@ def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
     Returns
     -------
     dict
-        ``head_ct_rms``, ``head_ct_max``, ``head_ct_rms_pct`` [m, m, % of body],
-        ``head_lag_rms`` [m], ``head_error_rms`` [m], ``cm_ct_rms`` [m], ``R_min``,
-        ``R_tilde_min``, ``lateral_min``, ``D_min``, ``torque_rms`` [N m], and ``series``:
-        the criteria along the run (``t``, ``R``, ``R_tilde``, ``lateral``, ``D``). NaN
-        where the window is empty.
+        The metrics of :doc:`/paths` (keys of :data:`METRIC_FIELDS`, and ``D_min``), NaN
+        where the window is empty, and ``series``: the criteria along the run.
     """
     path, body = reference.path, snake.params.body_length
     mask = t >= start - 1e-9
@@ -458,8 +455,7 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     Raises
     ------
     ParameterError
-        An unknown scenario, controller or model, a non-positive t_final, an error
-        window outside [0, t_final), or draws not a positive integer.
+        An unknown name, a non-positive t_final, an error window outside [0, t_final), bad draws.
     """
     integer(draws, "draws", low=1)
     if quick:

@@ -65,16 +65,11 @@ def summarize(traj: Trajectory, *, every: int = 10,
     body = traj.params.body_length
     max_error = errors["max_head_error"]
     traj.summary.update({
-        **errors,
-        "rms_percent": percent(errors["rms_relative"]),
+        **errors, "rms_percent": percent(errors["rms_relative"]),
         "max_percent": None if max_error is None else 100.0 * max_error / body,
-        "torque_rms": torque,
-        "torque_max": torque_max(traj),
-        "R_min": float(r.min()), "D_min": float(d.min()),
-        "body_length": body,
-        "passive": list(traj.params.passive),
-        "final_head": traj.q[-1, :3].tolist(),
-    })
+        "torque_rms": torque, "torque_max": torque_max(traj),
+        "R_min": float(r.min()), "D_min": float(d.min()), "body_length": body,
+        "passive": list(traj.params.passive), "final_head": traj.q[-1, :3].tolist()})
     return traj.summary
 
 
@@ -126,8 +121,7 @@ def distribution(values: Sequence[float | None]) -> dict[str, Any]:
     """
     finite = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
     if finite.size == 0:
-        return {"median": None, "p10": None, "p90": None, "min": None, "max": None,
-                "count": 0}
+        return {**dict.fromkeys(("median", "p10", "p90", "min", "max")), "count": 0}
     return {"median": float(np.median(finite)), "p10": float(np.percentile(finite, 10)),
             "p90": float(np.percentile(finite, 90)), "min": float(finite.min()),
             "max": float(finite.max()), "count": int(finite.size)}

@@ -25,7 +25,7 @@ from ..viz.plots import plot_postures
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["info"]
+__all__: list[str] = []
 
 
 def _png(fig: Figure) -> bytes:
@@ -87,21 +87,8 @@ def draw_singular(search: SingularSearch, path: str | os.PathLike[str] | None,
 
 
 def info(params: SnakeParams, snake: Snake | None = None) -> dict[str, object]:
-    """Parameters and model sizes as a JSON-friendly dict (``snake-pin info``).
-
-    Parameters
-    ----------
-    params
-        The robot.
-    snake
-        Its model, if built already.
-
-    Returns
-    -------
-    dict
-        The fields of ``params``, nq, nv, total mass and body length; the half length l
-        for equal links, else ``com_offsets``.
-    """
+    """The robot's fields, nq, nv, total mass, body length and half length l (equal links) or
+    ``com_offsets``, as JSON data (``snake-pin info``, the report's robot table)."""
     snake = snake or Snake(params)
     data: dict[str, object] = {**params.to_dict(), "nq": snake.nq, "nv": snake.nv,
                                "total_mass": params.total_mass,

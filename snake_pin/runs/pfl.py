@@ -141,13 +141,10 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0,
         "breakdown_time": float(traj.t[breakdown]) if broke else None,
         "t_R_min": float(traj.t[k_min]), "R_min": float(r[k_min]),
         "t_R_dip": float(traj.t[k_dip]), "R_dip": float(r[k_dip]),
-        "R_peak": float(r[k_peak]),
-        "D_min": float(d[before].min()),
+        "R_peak": float(r[k_peak]), "D_min": float(d[before].min()),
         "g_drift_max": float(np.abs(g[before] - g[0]).max()),
-        "head_error_max": float(error[before].max()),
-        **errors,
-        "body_length": params.body_length,
-    })
+        "head_error_max": float(error[before].max()), **errors,
+        "body_length": params.body_length})
     return PFLRun(traj, d, r, g, breakdown)
 
 
