@@ -74,9 +74,7 @@ def mpc_targets(rows: Sequence[dict[str, Any]],
     lyapunov = {(r["scenario"], r["failed_joint"]): r for r in viscous
                 if r["controller"] == "lyapunov"}
     out = []
-    for r in viscous:
-        if r["controller"] != "mpc":
-            continue
+    for r in (r for r in viscous if r["controller"] == "mpc"):
         mpc = float(r["head_error_rms_pct"]) if r["status"] == "completed" else math.nan
         other = lyapunov.get((r["scenario"], r["failed_joint"]))
         lyap = (float(other["head_error_rms_pct"])

@@ -216,8 +216,8 @@ def engine_stage(ctx: Context) -> None:
             sec.text(f"{label}: stopped early, {traj.reason}.")
         single_rows.append([label, traj.t_end, s["rms_head_error"], s["rms_percent"],
                             s["max_percent"], s["R_min"], s["torque_rms"]])
-    sec.numbers["engine_acceleration_law"] = contrast.trajectory.summary_dict()
-    sec.numbers["viscous_twin"] = twin.summary_dict()
+    sec.numbers.update(engine_acceleration_law=contrast.trajectory.summary_dict(),
+                       viscous_twin=twin.summary_dict())
     sec.table(["run", "simulated [s]", "RMS head error [m]", "RMS [% of body]",
                "max [% of body]", "R min", "torque RMS [N m]"], single_rows)
 
@@ -242,9 +242,8 @@ def engine_stage(ctx: Context) -> None:
                     "result."))
         sec.numbers["viscous_sensitivity"] = {
             "perturbation": PERTURBATION, "seed": 1, "rms_percent_unperturbed": nominal,
-            "rms_percent_perturbed": perturbed, "max_change": spread,
-            "relative_change": relative, "engine_range": engine_range,
-            "sensitive": bool(sensitive)}
+            "rms_percent_perturbed": perturbed, "max_change": spread, "relative_change": relative,
+            "engine_range": engine_range, "sensitive": bool(sensitive)}
     verdicts = "; ".join(
         f"{label}: median {rms:.3g} % ({'met' if rms <= 10.0 else 'missed'})"
         if rms is not None else f"{label}: no error window" for label, rms in target_rows)

@@ -268,8 +268,7 @@ def mpc_findings(mpc: dict[str, dict[str, Any]], lyapunov: dict[str, dict[str, A
             + ".")
     if compared:
         def named(items: list[int]) -> str:
-            words = ["no failure" if j == 0 else f"joint {j}" for j in items]
-            return ", ".join(words)
+            return ", ".join("no failure" if j == 0 else f"joint {j}" for j in items)
 
         parts.append(f"Of the {len(compared)} runs both laws completed, the MPC's error is the "
                      f"lower in {len(lower)}" + (f" ({named(lower)})" if lower else "")
@@ -290,8 +289,8 @@ def _plot_laws(joints: Sequence[int], mpc: dict[str, Any], lyapunov: dict[str, A
     x = np.arange(len(joints))
     for offset, (label, table, color) in zip((-0.2, 0.2), (
             ("Lyapunov-like law", lyapunov, "#1f4fd1"), ("MPC", mpc, "#d9541a")), strict=True):
-        values = [table["rms_head_error_pct"].get(str(j), {}).get(key) for j in joints]
-        heights = [np.nan if v is None else v for v in values]
+        heights = [np.nan if v is None else v for v in
+                   (table["rms_head_error_pct"].get(str(j), {}).get(key) for j in joints)]
         ax.bar(x + offset, heights, width=0.4, color=color, label=label)
     ax.axhline(TRACKING_LIMIT, color="0.4", lw=0.8, ls="--")
     ax.set_yscale("log")
@@ -377,13 +376,12 @@ def _plot_series(series: list[tuple[str, dict[str, Any]]], ratio: float, path: P
         axes[0].plot(t, data["error_pct"], color=color, lw=0.9, label=label)
         axes[1].semilogy(t, np.maximum(data["R_tilde"], 1e-20), color=color, lw=0.9)
         axes[2].semilogy(t, data["R_tilde_xy"], color=color, lw=0.9)
-    axes[0].set_ylabel("head error [% of body]")
-    axes[0].legend(fontsize=8)
-    axes[1].set_ylabel("R~ (x, y, heading)")
-    axes[2].set_ylabel("R~ without heading")
-    axes[2].set_xlabel("t [s]")
-    for ax in axes:
+    for ax, label in zip(axes, ("head error [% of body]", "R~ (x, y, heading)",
+                                "R~ without heading"), strict=True):
+        ax.set_ylabel(label)
         ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8)
+    axes[2].set_xlabel("t [s]")
     fig.suptitle(f"Along the run at c_y/c_x = {ratio:g}: head error and R~", fontsize=10)
     save_figure(fig, path)
 
@@ -552,14 +550,10 @@ def failure_map_stage(ctx: Context) -> None:
              "4-7. See docs/failure_map.rst.")
     mpc_numbers = _mpc_line(ctx, sec, base, mpc_plan, tables, spec)
     sec.numbers.update({
-        "mpc": mpc_numbers,
-        "plan": {"t_final": plan.t_final, "failed_joints": joints,
-                 "ratios": list(plan.ratios), "c_x": map_c_x(base)},
-        **tables,
-        "findings": numbers,
+        "mpc": mpc_numbers, "plan": {"t_final": plan.t_final, "failed_joints": joints,
+                                     "ratios": list(plan.ratios), "c_x": map_c_x(base)},
+        **tables, "findings": numbers,
         "series": {label: {k: v for k, v in data.items()
                            if k not in ("t", "error_pct", "R_tilde", "R_tilde_xy")}
                    for label, data in series},
-        "series_ratio": ratio,
-        "study": _study_numbers(summary),
-    })
+        "series_ratio": ratio, "study": _study_numbers(summary)})

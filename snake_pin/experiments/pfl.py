@@ -31,12 +31,10 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
         t, held = run.trajectory.t, applied(run.trajectory)
         axes[0].plot(t, run.R, label=label)
         axes[1].semilogy(t[held], run.trajectory.signals["tau_norm"][held], label=label)
+        axes[1].axhline(run.trajectory.summary["breakdown_threshold"], color="firebrick", lw=0.8)
     axes[0].set_ylabel("R")
     axes[1].set_ylabel("||tau|| [N m]")
     axes[1].set_ylim(1e-3, 1e3)
-    for run in runs.values():
-        axes[1].axhline(run.trajectory.summary["breakdown_threshold"], color="firebrick",
-                        lw=0.8)
     axes[1].set_xlabel("t [s]")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")

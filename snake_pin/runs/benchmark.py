@@ -71,7 +71,6 @@ _EVERY, _CRITERIA_DT = 10, 0.1
 #: Snapshots kept per run for the path figures.
 _SNAPSHOTS = 6
 
-
 #: climb_R of the ``pfl_climb`` controller (its other options are PFLOptions' defaults).
 PFL_CLIMB_R = 0.5
 

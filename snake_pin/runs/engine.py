@@ -75,9 +75,8 @@ def summarize(traj: Trajectory, *, every: int = 10,
 
 def perturbations(count: int, joints: int, size: float = PERTURBATION,
                   seed: int = 0) -> np.ndarray:
-    """``count`` offsets of ``joints`` initial joint angles, uniform in [-size, size] [rad].
-
-    Seeded: the same arguments give the same offsets (``run_engine(initial_offset=...)``).
+    """``count`` offsets of ``joints`` initial joint angles, uniform in [-size, size] [rad],
+    seeded: the same arguments give the same offsets (``run_engine(initial_offset=...)``).
 
     Parameters
     ----------
@@ -259,13 +258,11 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
     traj = run.trajectory if isinstance(run, EngineRun) else run
     paths = {k: folder / f"{stem}_{k}.png" for k in ("head", "criteria", "snapshots")}
     fig, ax = plt.subplots(figsize=(8, 4))
-    ax.plot(traj.t, traj.q[:, 0], "-", label="x_h")
-    ax.plot(traj.t, traj.q[:, 1], "--", label="y_h")
-    if reference is None:
-        reference = head_first_reference()
+    reference = head_first_reference() if reference is None else reference
     target = np.array([reference(float(t))[0][:2] for t in traj.t])
-    ax.plot(traj.t, target[:, 0], ":", color="k", label="x_h^r")
-    ax.plot(traj.t, target[:, 1], ":", color="gray", label="y_h^r")
+    for k, (style, colour) in enumerate((("-", "k"), ("--", "gray"))):
+        ax.plot(traj.t, traj.q[:, k], style, label=f"{'xy'[k]}_h")
+        ax.plot(traj.t, target[:, k], ":", color=colour, label=f"{'xy'[k]}_h^r")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("[m]")
     ax.legend(fontsize=8)
