@@ -26,7 +26,7 @@ from ..runs.tracking import tracking_friction
 from .context import Context
 
 __all__ = ["MPC_TARGET_PCT", "QUICK_MPC_T", "REPORT_ENGINE_SCENARIOS", "REPORT_ENGINE_T",
-           "REPORT_MPC_SCENARIOS", "REPORT_SCENARIOS", "bench_control_stage", "mpc_targets"]
+           "REPORT_MPC_SCENARIOS", "REPORT_SCENARIOS", "mpc_targets"]
 
 #: Duration of the report's engine rows [s] (the stage's budget: about 30 s of wall).
 REPORT_ENGINE_T = 30.0
@@ -74,9 +74,7 @@ def mpc_targets(rows: Sequence[dict[str, Any]],
     lyapunov = {(r["scenario"], r["failed_joint"]): r for r in viscous
                 if r["controller"] == "lyapunov"}
     out = []
-    for r in viscous:
-        if r["controller"] != "mpc":
-            continue
+    for r in (r for r in viscous if r["controller"] == "mpc"):
         mpc = float(r["head_error_rms_pct"]) if r["status"] == "completed" else math.nan
         other = lyapunov.get((r["scenario"], r["failed_joint"]))
         lyap = (float(other["head_error_rms_pct"])
@@ -110,13 +108,7 @@ def _merge(grid: BenchmarkResult, mpc: BenchmarkResult) -> BenchmarkResult:
 
 def bench_control_stage(ctx: Context) -> None:
     """The benchmark on the viscous model and engine rows, its tables, the MPC's targets,
-    the claim (quick: :data:`QUICK_MPC_T` s MPC runs on the line, written to ``mpc/``).
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    the claim (quick: :data:`QUICK_MPC_T` s MPC runs on the line, written to ``mpc/``)."""
     # a robot of one's own runs the benchmark (with the tracking friction rule of the
     # tracking stage); the presets run the Table 1 tracking robot the LOS law is tuned for
     robot = None if ctx.params.name in ROBOTS else tracking_friction(ctx.params)[0]
@@ -152,8 +144,7 @@ def bench_control_stage(ctx: Context) -> None:
     else:
         mpc = result  # the MPC rows sit in the grid, beside the Lyapunov-like rows
     sec = ctx.report.section("bench_control", "Controller benchmark on paths")
-    s = result.settings
-    m = mpc.settings
+    s, m = result.settings, mpc.settings
     sec.text(f"Scenarios {', '.join(s['scenarios'])}; controllers "
              f"{', '.join(s['controllers'])}; viscous Table 1 robot, c_x = 0.5, c_y = 25 N s/m "
              f"(c_y / c_x = 50); head reference along each path at {SPEED} m/s; "

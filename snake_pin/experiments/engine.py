@@ -34,8 +34,7 @@ from ..sim import Trajectory, simulate
 from .context import Context
 
 __all__ = ["DRAWS", "MPC_DRAWS", "MPC_SCENARIOS", "MPC_T_FINAL", "QUICK_DRAWS",
-           "QUICK_MPC_T_FINAL", "QUICK_T_FINAL", "SENSITIVE", "T_FINAL", "VISCOUS_DRAWS",
-           "engine_stage"]
+           "QUICK_MPC_T_FINAL", "QUICK_T_FINAL", "SENSITIVE", "T_FINAL", "VISCOUS_DRAWS"]
 
 #: Draws per configuration in the report (full run, ``--quick``) and of the viscous check.
 DRAWS, QUICK_DRAWS, VISCOUS_DRAWS = 11, 3, 3
@@ -58,19 +57,6 @@ def _cell(dist: dict[str, Any], low: str = "p10", high: str = "p90", digits: int
     if dist["median"] is None:
         return "-"
     return f"{dist['median']:.{digits}g} [{dist[low]:.{digits}g}, {dist[high]:.{digits}g}]"
-
-
-def _draws(label: str, offsets: np.ndarray, runs: list[Any]) -> Draws:
-    """The runs from ``offsets`` (seed 0) as :class:`~snake_pin.runs.engine.Draws`."""
-    draws = Draws(label, PERTURBATION, 0, offsets)
-    for i, run in enumerate(runs):
-        draws.record(i, run.trajectory.summary_dict())
-    return draws
-
-
-def _passive_joint(n: int) -> int:
-    """Joint 5 as in the paper, or the middle joint of a robot too short for it."""
-    return 5 if n >= 6 else max(1, n // 2)
 
 
 def viscous_twin(params: SnakeParams, t_final: float, law: str = "velocity",
@@ -128,13 +114,7 @@ def _friction_section(sec: Any, base: SnakeParams, wheels: WheelSpec,
 def engine_stage(ctx: Context) -> None:
     """Identification, the engine runs as distributions (both forms of the law), the
     viscous twin and its sensitivity check, and the MPC's runs along the line and the
-    circle (:data:`MPC_SCENARIOS`) from perturbed starts.
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    circle (:data:`MPC_SCENARIOS`) from perturbed starts."""
     from ..viz.meshcat_view import write_html
 
     t_final = QUICK_T_FINAL if ctx.quick else T_FINAL
@@ -142,9 +122,8 @@ def engine_stage(ctx: Context) -> None:
     own = base.name not in ROBOTS
     wheels = WheelSpec()
     friction = identify_friction(base, wheels)
-    title = "Physics engine: MuJoCo with wheels (VI.3)" + (f", robot '{base.name}'" if own
-                                                            else "")
-    sec = ctx.report.section("engine", title)
+    sec = ctx.report.section("engine", "Physics engine: MuJoCo with wheels (VI.3)"
+                             + (f", robot '{base.name}'" if own else ""))
     if not own and ctx.params.name != "engine":
         sec.text(f"This stage runs the 8-link robot of Section VI.3 (the 'engine' preset), not "
                  f"the '{ctx.params.name}' robot of the other stages: the paper gives no "
@@ -164,7 +143,7 @@ def engine_stage(ctx: Context) -> None:
     count = QUICK_DRAWS if ctx.quick else DRAWS
     offsets = perturbations(count, base.n - 1, PERTURBATION, seed=0)
     viscous_offsets = perturbations(VISCOUS_DRAWS, base.n - 1, PERTURBATION, seed=1)
-    joint = _passive_joint(base.n)
+    joint = 5 if base.n >= 6 else max(1, base.n // 2)  # the paper's, or the middle joint
     configs = [("velocity law, no passive joint", base, "engine"),
                (f"velocity law, joint {joint} passive", base.replace(passive=(joint,)),
                 f"engine_passive{joint}")]
@@ -199,7 +178,7 @@ def engine_stage(ctx: Context) -> None:
     dist_rows, target_rows, engine_spreads = [], [], []
     for c, (label, _, stem) in enumerate(configs):
         runs = engine_results[c * count:(c + 1) * count]
-        draws = _draws(label, offsets, runs)
+        draws = Draws(label, PERTURBATION, 0, offsets, [r.trajectory.summary_dict() for r in runs])
         median = runs[draws.median_draw() or 0]
         median.trajectory.meta["draw"] = (draws.median_draw() or 0) + 1
         median.trajectory.save(ctx.folder / stem)
@@ -237,8 +216,8 @@ def engine_stage(ctx: Context) -> None:
             sec.text(f"{label}: stopped early, {traj.reason}.")
         single_rows.append([label, traj.t_end, s["rms_head_error"], s["rms_percent"],
                             s["max_percent"], s["R_min"], s["torque_rms"]])
-    sec.numbers["engine_acceleration_law"] = contrast.trajectory.summary_dict()
-    sec.numbers["viscous_twin"] = twin.summary_dict()
+    sec.numbers.update(engine_acceleration_law=contrast.trajectory.summary_dict(),
+                       viscous_twin=twin.summary_dict())
     sec.table(["run", "simulated [s]", "RMS head error [m]", "RMS [% of body]",
                "max [% of body]", "R min", "torque RMS [N m]"], single_rows)
 
@@ -263,9 +242,8 @@ def engine_stage(ctx: Context) -> None:
                     "result."))
         sec.numbers["viscous_sensitivity"] = {
             "perturbation": PERTURBATION, "seed": 1, "rms_percent_unperturbed": nominal,
-            "rms_percent_perturbed": perturbed, "max_change": spread,
-            "relative_change": relative, "engine_range": engine_range,
-            "sensitive": bool(sensitive)}
+            "rms_percent_perturbed": perturbed, "max_change": spread, "relative_change": relative,
+            "engine_range": engine_range, "sensitive": bool(sensitive)}
     verdicts = "; ".join(
         f"{label}: median {rms:.3g} % ({'met' if rms <= 10.0 else 'missed'})"
         if rms is not None else f"{label}: no error window" for label, rms in target_rows)
@@ -305,7 +283,8 @@ def _mpc_section(sec: Any, runs: list[Any], references: dict[str, Any], offsets:
     rows, numbers = [], {}
     for k, name in enumerate(MPC_SCENARIOS):
         batch = runs[k * len(offsets):(k + 1) * len(offsets)]
-        draws = _draws(f"MPC, {name}", offsets, batch)
+        draws = Draws(f"MPC, {name}", PERTURBATION, 0, offsets,
+                      [run.trajectory.summary_dict() for run in batch])
         statuses = [str(run.trajectory.status) for run in batch]
         dists = {key: distribution(draws.values(key))
                  for key in ("rms_percent", "max_percent", "torque_max")}

@@ -1,9 +1,7 @@
-"""The actuator-failure map as a report stage (the paper's future work): the map's study
-(:func:`failure_map_study`, run by :func:`snake_pin.study.run_study`), its tables, series
-along the run and findings (:func:`findings`), and the MPC's line of the map
-(:func:`mpc_findings`); what it writes and why is in :doc:`/failure_map`. An interrupt
-propagates: the report machinery keeps the stages done.
-"""
+"""The actuator-failure map as a report stage (the paper's future work): the studies of the
+Lyapunov-like law and of the MPC's line, their tables, series along the run and findings;
+what it writes and why is in :doc:`/failure_map`. An interrupt propagates (the runner keeps
+the stages done)."""
 
 from __future__ import annotations
 
@@ -23,7 +21,7 @@ from ..params import SnakeParams
 from .context import Context
 
 __all__ = ["C_X", "FULL", "MPC_FULL", "MPC_QUICK", "QUICK", "SERIES_RATIO", "TRACKING_LIMIT",
-           "MapPlan", "failure_map_stage", "failure_map_study", "mpc_findings"]
+           "MapPlan", "failure_map_stage"]
 
 #: Friction along each link in the map [N s/m] when the robot has no single positive
 #: c_x of its own (Table 1's is this); ``c_y = ratio * c_x``.
@@ -73,26 +71,10 @@ _LAWS = {"lyapunov": ("failure_map", "Lyapunov-like law"),
 # ----------------------------------------------------------------- the study
 def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path,
                       controller: str = "lyapunov") -> Path:
-    """Write the study file of the map for ``params`` into ``folder``: Table 1 by name (as
-    the shipped file), any other robot as ``failure_map_robot.toml`` beside it; failed
-    joints beyond the robot are dropped.
-
-    Parameters
-    ----------
-    params
-        The robot (its friction is replaced by the map's, its passive joints cleared).
-    plan
-        Duration, failed joints and ratios (e.g. :data:`FULL`, :data:`MPC_QUICK`).
-    folder
-        An existing folder.
-    controller
-        ``"lyapunov"`` (the Lyapunov-like law) or ``"mpc"``.
-
-    Returns
-    -------
-    Path
-        ``folder/failure_map.toml`` (``failure_map_mpc.toml`` for the MPC).
-    """
+    """Write the map's study of ``controller`` ("lyapunov" or "mpc") for ``params`` (passive
+    joints cleared, failed joints beyond it dropped) into ``folder`` and return its path
+    (``failure_map.toml``, ``failure_map_mpc.toml``): Table 1 by name, as the shipped file,
+    any other robot as ``failure_map_robot.toml`` beside it."""
     from ..robot_file import write_robot_file
 
     folder = Path(folder)
@@ -105,29 +87,22 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path,
     joints = [k for k in (plan.failed_joints if plan.failed_joints is not None
                           else range(robot.n)) if 0 <= k <= robot.n - 1]
     c_x = map_c_x(robot)
-    c_y = [_number(ratio * c_x) for ratio in plan.ratios]
     study, law = _LAWS[controller]
     description = (f"Actuator-failure map: robot {robot.name}, {law}, "
                    f"{plan.t_final:g} s, failed joint {', '.join(map(str, joints))} "
                    f"(0: none) against c_y/c_x = "
                    f"{', '.join(f'{r:g}' for r in plan.ratios)} (c_x = {c_x:g} N s/m).")
-    window = "" if plan.error_window is None else \
-        f"error_window = {_number(plan.error_window)}\n"
-    text = ("# The actuator-failure map, written by snake-pin reproduce.\n"
-            "[study]\n"
-            f"name = {json.dumps(study)}\n"
-            f"description = {json.dumps(description)}\n\n"
-            "[base]\n"
-            f"robot = {json.dumps(name)}\n"
-            f"controller = {json.dumps(controller)}\n"
-            'model = "viscous"\n'
-            f"t_final = {_number(plan.t_final)}\n"
-            f"{window}"
-            f"c_x = {_number(c_x)}\n\n"
-            "[axes.failed_joint]\n"
-            f"values = [{', '.join(map(str, joints))}]\n\n"
-            "[axes.c_y]\n"
-            f"values = [{', '.join(c_y)}]\n")
+    base: dict[str, object] = {"robot": name, "controller": controller, "model": "viscous",
+                               "t_final": float(plan.t_final)}
+    if plan.error_window is not None:
+        base["error_window"] = float(plan.error_window)
+    sections: dict[str, dict[str, object]] = {
+        "study": {"name": study, "description": description}, "base": {**base, "c_x": c_x},
+        "axes.failed_joint": {"values": joints},
+        "axes.c_y": {"values": [float(ratio * c_x) for ratio in plan.ratios]}}
+    text = "# The actuator-failure map, written by snake-pin reproduce.\n" + "\n".join(
+        f"[{head}]\n" + "".join(f"{key} = {json.dumps(value)}\n" for key, value in body.items())
+        for head, body in sections.items())
     from .._io import atomic_write_bytes
 
     path = folder / f"{study}.toml"
@@ -136,9 +111,7 @@ def failure_map_study(params: SnakeParams, plan: MapPlan, folder: str | Path,
 
 
 def map_c_x(params: SnakeParams) -> float:
-    """The map's c_x for a robot: its c_x when one positive number for every link, else
-    :data:`C_X`.
-    """
+    """The map's c_x: the robot's when one positive number for every link, else :data:`C_X`."""
     value = params.c_x
     return float(value) if isinstance(value, float) and value > 0 else C_X
 
@@ -149,19 +122,11 @@ def _is_table1(params: SnakeParams) -> bool:
     return params.replace(**friction) == SnakeParams.table1().replace(**friction)
 
 
-def _number(value: float) -> str:
-    """A TOML float: Python's shortest repr (always with a point or an exponent)."""
-    text = repr(float(value))
-    return text if any(c in text for c in ".en") else text + ".0"
-
-
 # ------------------------------------------------------------------ tables
 def map_tables(rows: Sequence[dict[str, Any]], joints: Sequence[int],
                ratios: Sequence[float]) -> dict[str, dict[str, dict[str, Any]]]:
-    """The map's cells per metric (``rms_head_error_pct``, ``R_tilde_min``, ``status``):
-    failed joint -> ratio -> value, keys as text (``"0"``, ``"10"``); a metric is None where
-    the run is not ``ok``, a status ``"missing"`` where the study has no row.
-    """
+    """Metric (``rms_head_error_pct``, ``R_tilde_min``, ``status``) -> failed joint -> ratio
+    -> value, keys as text (``"0"``, ``"10"``); None where not ``ok``, "missing" without a row."""
     cells = {(r["failed_joint"], _ratio(r)): r for r in rows}
     out: dict[str, dict[str, dict[str, Any]]] = {
         "rms_head_error_pct": {}, "R_tilde_min": {}, "status": {}}
@@ -183,11 +148,8 @@ def _ratio(row: dict[str, Any]) -> float:
 # ---------------------------------------------------------------- findings
 def findings(tables: dict[str, dict[str, dict[str, Any]]], joints: Sequence[int],
              ratios: Sequence[float]) -> tuple[list[str], dict[str, Any]]:
-    """What the map shows, read from :func:`map_tables`: the report's paragraphs, and their
-    figures (the ratios where the law tracks without a failure, the failed joints that break
-    tracking there, RMS above :data:`TRACKING_LIMIT`, and the worst, those whose R~ is zero
-    up to rounding, the one with the smallest R~ otherwise).
-    """
+    """The report's paragraphs on :func:`map_tables` and their figures: where the law tracks
+    without a failure, the failures that break it (:data:`TRACKING_LIMIT`), R~ per failure."""
     rms, rt = tables["rms_head_error_pct"], tables["R_tilde_min"]
 
     def cell(table: dict[str, dict[str, Any]], joint: int, ratio: float) -> float:
@@ -263,24 +225,8 @@ def findings(tables: dict[str, dict[str, dict[str, Any]]], joints: Sequence[int]
 
 def mpc_findings(mpc: dict[str, dict[str, Any]], lyapunov: dict[str, dict[str, Any]],
                  joints: Sequence[int], ratio: float) -> tuple[str, dict[str, Any]]:
-    """What the MPC's line of the map shows beside the Lyapunov-like law's at one ratio.
-
-    Parameters
-    ----------
-    mpc, lyapunov
-        :func:`map_tables` of the two laws' runs (joints the Lyapunov-like law lacks are
-        not compared).
-    joints
-        The MPC's failed joints (0: none).
-    ratio
-        The line's c_y/c_x.
-
-    Returns
-    -------
-    tuple of str and dict
-        The paragraph, and its figures (errors without a failure, the joints tracked
-        within :data:`TRACKING_LIMIT` or not, the worst, the lower and higher of the laws).
-    """
+    """The paragraph on the MPC's line of the map (:func:`map_tables` of ``mpc``, failed
+    ``joints``) beside the Lyapunov-like law's at c_y/c_x = ``ratio``, and its figures."""
     key = f"{ratio:g}"
 
     def value(table: dict[str, dict[str, Any]], joint: int) -> float | None:
@@ -322,8 +268,7 @@ def mpc_findings(mpc: dict[str, dict[str, Any]], lyapunov: dict[str, dict[str, A
             + ".")
     if compared:
         def named(items: list[int]) -> str:
-            words = ["no failure" if j == 0 else f"joint {j}" for j in items]
-            return ", ".join(words)
+            return ", ".join("no failure" if j == 0 else f"joint {j}" for j in items)
 
         parts.append(f"Of the {len(compared)} runs both laws completed, the MPC's error is the "
                      f"lower in {len(lower)}" + (f" ({named(lower)})" if lower else "")
@@ -344,8 +289,8 @@ def _plot_laws(joints: Sequence[int], mpc: dict[str, Any], lyapunov: dict[str, A
     x = np.arange(len(joints))
     for offset, (label, table, color) in zip((-0.2, 0.2), (
             ("Lyapunov-like law", lyapunov, "#1f4fd1"), ("MPC", mpc, "#d9541a")), strict=True):
-        values = [table["rms_head_error_pct"].get(str(j), {}).get(key) for j in joints]
-        heights = [np.nan if v is None else v for v in values]
+        heights = [np.nan if v is None else v for v in
+                   (table["rms_head_error_pct"].get(str(j), {}).get(key) for j in joints)]
         ax.bar(x + offset, heights, width=0.4, color=color, label=label)
     ax.axhline(TRACKING_LIMIT, color="0.4", lw=0.8, ls="--")
     ax.set_yscale("log")
@@ -365,11 +310,8 @@ def _joined(items: Sequence[int]) -> str:
 
 # ------------------------------------------------------------------ series
 def run_series(scenario: Any) -> dict[str, Any]:
-    """Rerun one viscous-model study scenario with :func:`snake_pin.sim.simulate` and read
-    R~ along it: every 0.1 s ``t``, ``error_pct`` (% of the body), ``R_tilde`` and
-    ``R_tilde_xy`` (without the heading); ``status``, ``t_end``, the RMS of the error along
-    and across the path over the error window (% of the body) and the medians of R~.
-    """
+    """Rerun one viscous study scenario: head error (% of the body), R~ and R~ without the
+    heading every 0.1 s, the error's RMS along and across the path, the medians of R~."""
     from ..manipulability import manipulability
     from ..metrics import head_position_error
     from ..model import Snake
@@ -434,13 +376,12 @@ def _plot_series(series: list[tuple[str, dict[str, Any]]], ratio: float, path: P
         axes[0].plot(t, data["error_pct"], color=color, lw=0.9, label=label)
         axes[1].semilogy(t, np.maximum(data["R_tilde"], 1e-20), color=color, lw=0.9)
         axes[2].semilogy(t, data["R_tilde_xy"], color=color, lw=0.9)
-    axes[0].set_ylabel("head error [% of body]")
-    axes[0].legend(fontsize=8)
-    axes[1].set_ylabel("R~ (x, y, heading)")
-    axes[2].set_ylabel("R~ without heading")
-    axes[2].set_xlabel("t [s]")
-    for ax in axes:
+    for ax, label in zip(axes, ("head error [% of body]", "R~ (x, y, heading)",
+                                "R~ without heading"), strict=True):
+        ax.set_ylabel(label)
         ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8)
+    axes[2].set_xlabel("t [s]")
     fig.suptitle(f"Along the run at c_y/c_x = {ratio:g}: head error and R~", fontsize=10)
     save_figure(fig, path)
 
@@ -448,9 +389,8 @@ def _plot_series(series: list[tuple[str, dict[str, Any]]], ratio: float, path: P
 # -------------------------------------------------------------------- stage
 def _run_map(ctx: Context, base: SnakeParams, plan: MapPlan,
              controller: str) -> tuple[Any, Any, list[dict[str, Any]], list[int]]:
-    """Write and run the map's study of ``controller`` into ``ctx.folder`` (the Lyapunov-like
-    law's as ``failure_map``, another's as ``failure_map_<controller>``); return its spec,
-    its summary, its rows and its failed joints."""
+    """Write and run the map's study of ``controller`` in ``ctx.folder``; its spec, summary,
+    rows and failed joints."""
     from ..study import load_study, run_study
     from ..study.results import StudyFolder
 
@@ -522,10 +462,8 @@ def _study_numbers(summary: Any) -> dict[str, Any]:
 
 def _shared_cluster(ctx: Context) -> Any:
     """The report's cluster, where the studies run unless given workers or a scheduler."""
-    options = ctx.options
-    if options.get("study_workers") is None and options.get("study_scheduler") is None:
-        return ctx.cluster
-    return None
+    own = ctx.options.get("study_workers"), ctx.options.get("study_scheduler")
+    return ctx.cluster if own == (None, None) else None
 
 
 def _where(ctx: Context, scheduler: str) -> str:
@@ -612,14 +550,10 @@ def failure_map_stage(ctx: Context) -> None:
              "4-7. See docs/failure_map.rst.")
     mpc_numbers = _mpc_line(ctx, sec, base, mpc_plan, tables, spec)
     sec.numbers.update({
-        "mpc": mpc_numbers,
-        "plan": {"t_final": plan.t_final, "failed_joints": joints,
-                 "ratios": list(plan.ratios), "c_x": map_c_x(base)},
-        **tables,
-        "findings": numbers,
+        "mpc": mpc_numbers, "plan": {"t_final": plan.t_final, "failed_joints": joints,
+                                     "ratios": list(plan.ratios), "c_x": map_c_x(base)},
+        **tables, "findings": numbers,
         "series": {label: {k: v for k, v in data.items()
                            if k not in ("t", "error_pct", "R_tilde", "R_tilde_xy")}
                    for label, data in series},
-        "series_ratio": ratio,
-        "study": _study_numbers(summary),
-    })
+        "series_ratio": ratio, "study": _study_numbers(summary)})

@@ -17,24 +17,12 @@ from ..params import LINK_FIELDS, SnakeParams
 from ..sim import simulate
 from .context import Context
 
-__all__ = ["first_links", "integrability_stage"]
+__all__: list[str] = []
 
 
 def first_links(params: SnakeParams, n: int) -> SnakeParams:
-    """The robot made of the first ``n`` links of ``params`` (head first).
-
-    Parameters
-    ----------
-    params
-        The robot.
-    n
-        How many links to keep (2 .. params.n).
-
-    Returns
-    -------
-    SnakeParams
-        Every joint actuated; per-link values cut to n links (named ``_first<n>``).
-    """
+    """The robot of the first ``n`` links of ``params`` (head first), every joint actuated;
+    per-link values cut to n links (named ``<name>_first<n>``)."""
     if params.uniform:
         return params.replace(n=n, passive=())
     changes = {key: params.per_link(key)[:n] for key in LINK_FIELDS if key != "com_offset"}
@@ -44,13 +32,7 @@ def first_links(params: SnakeParams, n: int) -> SnakeParams:
 
 
 def integrability_stage(ctx: Context) -> None:
-    """Table of splits, the implied g2, involutivity for n = 4, 5, and g along open-loop runs.
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    """Table of splits, the implied g2, involutivity for n = 4, 5, and g along open-loop runs."""
     import matplotlib.pyplot as plt
 
     from .. import paper

@@ -14,20 +14,14 @@ from ..sweeps import FAMILIES, r_map, sweep
 from ..viz.plots import plot_postures, plot_r_maps
 from .context import Context
 
-__all__ = ["manipulability_stage"]
+__all__: list[str] = []
 
 #: The paper's example of a free joint.
 FREE_JOINT = 5
 
 
 def manipulability_stage(ctx: Context) -> None:
-    """Figs. 2-9, the R map, and the singular-posture search.
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    """Figs. 2-9, the R map, and the singular-posture search."""
     snake = Snake(ctx.params.replace(passive=()))
     folder = ctx.folder
     points = 61 if ctx.quick else 201

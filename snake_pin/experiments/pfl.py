@@ -14,7 +14,7 @@ from ..runs.pfl import TAU_BREAKDOWN, PFLRun, breakdown_threshold, plot_pfl, run
 from ..runs.pfl import initial_state as initial_state
 from .context import Context
 
-__all__ = ["pfl_stage"]
+__all__: list[str] = []
 
 #: The singularity-aware variant the stage runs beside the paper's law.
 CLIMB = PFLOptions(climb_R=0.5)
@@ -31,12 +31,10 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
         t, held = run.trajectory.t, applied(run.trajectory)
         axes[0].plot(t, run.R, label=label)
         axes[1].semilogy(t[held], run.trajectory.signals["tau_norm"][held], label=label)
+        axes[1].axhline(run.trajectory.summary["breakdown_threshold"], color="firebrick", lw=0.8)
     axes[0].set_ylabel("R")
     axes[1].set_ylabel("||tau|| [N m]")
     axes[1].set_ylim(1e-3, 1e3)
-    for run in runs.values():
-        axes[1].axhline(run.trajectory.summary["breakdown_threshold"], color="firebrick",
-                        lw=0.8)
     axes[1].set_xlabel("t [s]")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
@@ -47,17 +45,10 @@ def compare_variants(runs: dict[str, PFLRun], path: Path) -> Path:
 
 
 def pfl_stage(ctx: Context) -> None:
-    """Section VI.1 run, its figures, and the singularity-aware comparison.
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    """Section VI.1 run, its figures, and the singularity-aware comparison."""
     params = ctx.params.replace(passive=())
     isotropic = params.isotropic
-    friction = ("isotropic" if isotropic else "the robot's")
-    key = "isotropic" if isotropic else "robot_friction"
+    friction, key = ("isotropic", "isotropic") if isotropic else ("the robot's", "robot_friction")
     sec = ctx.report.section("pfl", "Partial feedback linearisation of the head (VI.1)")
     described = (f"isotropic friction c_x = c_y = {params.c_x}" if isotropic and params.uniform
                  else "isotropic friction c_x = c_y (per link, as the robot's)" if isotropic

@@ -27,7 +27,7 @@ from ..runs.parallel import SharedCluster
 from .context import Context
 
 # Context is defined in experiments.context (the stages import it from there).
-__all__ = ["HONOURED", "MIN_LINKS", "reproduce", "stages", "unhonoured"]
+__all__ = ["HONOURED", "MIN_LINKS", "reproduce", "stages"]
 
 #: Stage -> the robot fields (``SnakeParams`` names, plus "robot" for --robot) it takes
 #: from the robot it is given. Friction does not enter D and R, so the manipulability
@@ -78,23 +78,9 @@ def stages() -> list[tuple[str, Callable[[Context], None]]]:
 
 
 def unhonoured(stage: str, given: set[str] | frozenset[str], params: SnakeParams) -> list[str]:
-    """The fields of ``given`` that ``stage`` would not honour (the engine and benchmark
-    stages also honour "robot" for a robot of one's own, the engine stage for its preset).
-
-    Parameters
-    ----------
-    stage
-        A stage name (:func:`stages`).
-    given
-        The fields a user set (names of :data:`HONOURED`).
-    params
-        The robot they describe.
-
-    Returns
-    -------
-    list of str
-        The fields the stage would not honour, sorted.
-    """
+    """The fields of ``given`` (names of :data:`HONOURED`) that ``stage`` would not honour for
+    ``params``, sorted; the engine and benchmark stages also honour "robot" for a robot of
+    one's own, the engine stage for its preset."""
     honoured = set(HONOURED[stage])
     if stage == "engine" and (params.name == "engine" or params.name not in ROBOTS):
         honoured.add("robot")
@@ -111,8 +97,7 @@ def reproduce(folder: str | Path, params: SnakeParams | None = None, *, quick: b
     Parameters
     ----------
     folder
-        The output folder (created if needed; what it holds whatever happens:
-        :doc:`/reproduce`).
+        The output folder (created if needed; what it holds whatever happens: :doc:`/reproduce`).
     params
         The robot (default Table 1).
     quick
@@ -284,14 +269,12 @@ def _free_partial_folder(folder: Path) -> Path:
 
 def _move_into(staging: Path, folder: Path) -> None:
     """Rename every staged file into ``folder``: data, figures and pages, summary, index."""
-    def rank(name: str) -> int:
-        if name == "index.html":
-            return 3
-        if name == "summary.json":
-            return 2
-        return 1 if name.endswith((".png", ".html", ".svg")) else 0
+    last = {"index.html": 3, "summary.json": 2}
 
-    for name in sorted(_names(staging), key=lambda name: (rank(name), name)):
+    def rank(name: str) -> tuple[int, str]:
+        return last.get(name, int(name.endswith((".png", ".html", ".svg")))), name
+
+    for name in sorted(_names(staging), key=rank):
         source, target = staging / name, folder / name
         if source.is_dir() and target.is_dir():
             # a stage's folder (e.g. the failure map's study): a folder cannot be renamed
@@ -316,10 +299,8 @@ def _remove_stale_staging(folder: Path) -> None:
 
 @contextlib.contextmanager
 def _signals_deferred() -> Iterator[None]:
-    """Hold SIGINT, SIGTERM and SIGHUP while files are moved; deliver the first one after.
-
-    Only the main thread can change handlers; elsewhere this does nothing.
-    """
+    """Hold SIGINT, SIGTERM and SIGHUP while files are moved and deliver the first one after
+    (in the main thread: only it can change handlers)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -328,15 +309,10 @@ def _signals_deferred() -> Iterator[None]:
     def note(signum: int, _frame: object) -> None:
         received.append(signum)
 
-    previous = {}
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        sig = getattr(signal, name, None)
-        if sig is None:
-            continue
-        handler = signal.getsignal(sig)
-        if handler is None or handler == signal.SIG_IGN:
-            continue  # ignored, or set outside Python: leave it
-        previous[sig] = signal.signal(sig, note)
+    found = (getattr(signal, name, None) for name in ("SIGINT", "SIGTERM", "SIGHUP"))
+    # a signal ignored, or handled outside Python, is left as it is
+    previous = {sig: signal.signal(sig, note) for sig in found
+                if sig is not None and signal.getsignal(sig) not in (None, signal.SIG_IGN)}
     try:
         yield
     finally:

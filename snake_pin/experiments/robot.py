@@ -11,17 +11,11 @@ from ..runs.outputs import info
 from ..viz.plots import plot_postures
 from .context import Context
 
-__all__ = ["robot_stage"]
+__all__: list[str] = []
 
 
 def robot_stage(ctx: Context) -> None:
-    """Parameters, model sizes and three postures with link frames.
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    """Parameters, model sizes and three postures with link frames."""
     params = ctx.params
     snake = Snake(params)
     n = params.n

@@ -27,7 +27,7 @@ from ..runs.tracking import tracking_params as tracking_params
 from ..sim import Trajectory
 from .context import Context
 
-__all__ = ["C_Y_FACTORS", "DECAY_RATES", "tracking_stage"]
+__all__ = ["C_Y_FACTORS", "DECAY_RATES"]
 
 #: The stage's decay-rate sweep: lambda [1/s], mu = lambda / 2 (the default is the first run).
 DECAY_RATES = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0, 30.0)
@@ -205,13 +205,7 @@ def plot_sweep(curves: Mapping[str, Sequence[SweepPoint]], path: Path, *, c_y_ax
 
 def tracking_stage(ctx: Context) -> None:
     """Runs with and without a passive joint, the isotropic contrast, Fig. 15, the sweeps
-    (each run one task on the report's cluster, the longest first).
-
-    Parameters
-    ----------
-    ctx
-        The report's context.
-    """
+    (each run one task on the report's cluster, the longest first)."""
     t_final = 11.0 if ctx.quick else 60.0  # quick: just past the 10 s window
     base = ctx.params.replace(passive=())
     robot, friction = tracking_friction(base)

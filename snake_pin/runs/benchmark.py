@@ -1,11 +1,7 @@
-"""The controller benchmark on paths: scenarios x controllers x models x failures.
-
-Owns the scenarios (:data:`SCENARIOS`), the built-in controller factories
-(:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), running the grid in
-parallel (:func:`run_benchmark`) and writing it (:func:`write_benchmark`), for
-``snake-pin bench-control``, ``snake-pin simulate/engine --path`` and the report's
-benchmark stage. Scenarios, controllers (and a factory of one's own), models, failures
-and metrics are described in :doc:`/paths`.
+"""The controller benchmark on paths (:doc:`/paths`): the scenarios (:data:`SCENARIOS`), the
+built-in controllers (:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), the
+grid run in parallel (:func:`run_benchmark`) and its files (:func:`write_benchmark`), for
+``snake-pin bench-control``, ``snake-pin simulate/engine --path`` and the report.
 """
 
 from __future__ import annotations
@@ -43,8 +39,8 @@ from .tracking import initial_state, tracking_params
 
 __all__ = ["CONTROLLERS", "DEFAULT_CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT",
            "METRIC_FIELDS", "MODELS", "PFL_CLIMB_R", "QUICK_T_FINAL", "SCENARIOS", "SPEED",
-           "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "make_scenario", "path_metrics",
-           "run_benchmark", "run_cell", "write_benchmark"]
+           "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "path_metrics", "run_benchmark",
+           "write_benchmark"]
 
 #: Reference speed along every path [m/s] (the paper's 0.1 m/s).
 SPEED = 0.1
@@ -74,7 +70,6 @@ MODELS = ("viscous", "engine")
 _EVERY, _CRITERIA_DT = 10, 0.1
 #: Snapshots kept per run for the path figures.
 _SNAPSHOTS = 6
-
 
 #: climb_R of the ``pfl_climb`` controller (its other options are PFLOptions' defaults).
 PFL_CLIMB_R = 0.5
@@ -110,27 +105,8 @@ ENGINE_DRAWS = 3
 
 
 def make_scenario(name: str, body_length: float, speed: float = SPEED) -> PathReference:
-    """Return the head reference of scenario ``name`` for a body of ``body_length``.
-
-    Parameters
-    ----------
-    name : str
-        One of :data:`SCENARIOS`.
-    body_length : float
-        Body length L [m] (circle radii are multiples of it).
-    speed : float, optional
-        Reference speed along the path [m/s].
-
-    Returns
-    -------
-    PathReference
-        The path with a constant-speed timing from s = 0.
-
-    Raises
-    ------
-    ParameterError
-        If the name is unknown.
-    """
+    """The head reference of scenario ``name`` (circle radii in ``body_length``) at ``speed``
+    along the path from s = 0."""
     _known(name, SCENARIOS, "scenario")
     return PathReference(SCENARIOS[name](body_length), Timing(speed))
 
@@ -193,11 +169,8 @@ def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
     Returns
     -------
     dict
-        ``head_ct_rms``, ``head_ct_max``, ``head_ct_rms_pct`` [m, m, % of body],
-        ``head_lag_rms`` [m], ``head_error_rms`` [m], ``cm_ct_rms`` [m], ``R_min``,
-        ``R_tilde_min``, ``lateral_min``, ``D_min``, ``torque_rms`` [N m], and ``series``:
-        the criteria along the run (``t``, ``R``, ``R_tilde``, ``lateral``, ``D``). NaN
-        where the window is empty.
+        The metrics of :doc:`/paths` (keys of :data:`METRIC_FIELDS`, and ``D_min``), NaN
+        where the window is empty, and ``series``: the criteria along the run.
     """
     path, body = reference.path, snake.params.body_length
     mask = t >= start - 1e-9
@@ -247,10 +220,8 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                  t_final: float, factory: ControllerFactory | None,
                  criteria_dt: float | None, draws: int,
                  robot: SnakeParams | None, start: float) -> dict[str, Any]:
-    """An engine cell (see :func:`run_cell`): the row's snapshots, head path and criteria are
-    the median draw's (by head cross-track RMS), ``t_end`` the median end time, and the status,
-    reason and ``diverged_at`` those of the first draw to stop early.
-    """
+    """An engine cell of :func:`run_cell`: snapshots, head path and criteria of the median draw
+    (head cross-track RMS), the median end time, the status of the first draw to stop early."""
     from ..engine.run import identify_friction, run_engine
 
     law = ENGINE_LAWS.get(controller)
@@ -273,11 +244,10 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
         metrics = path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
                                Snake(traj.params), reference, start=start, criteria_dt=None)
         runs.append((traj, {**metrics, "torque_max": _nan(torque_max(traj))}))
-    spread = distribution([m["head_ct_rms_pct"] for _, m in runs])
-    order = sorted(range(len(runs)), key=lambda k: (
-        not math.isfinite(runs[k][1]["head_ct_rms_pct"]), runs[k][1]["head_ct_rms_pct"]))
-    finite = [k for k in order if math.isfinite(runs[k][1]["head_ct_rms_pct"])]
-    median = finite[(len(finite) - 1) // 2] if finite else order[0]
+    pct = [m["head_ct_rms_pct"] for _, m in runs]
+    spread = distribution(pct)
+    finite = sorted((v, k) for k, v in enumerate(pct) if math.isfinite(v))
+    median = finite[(len(finite) - 1) // 2][1] if finite else 0
     traj = runs[median][0]
     if criteria_dt is not None:
         row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride],
@@ -330,47 +300,9 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
              robot: SnakeParams | None = None, draws: int = ENGINE_DRAWS,
              engine_robot: SnakeParams | None = None,
              error_window: float | None = None) -> dict[str, Any]:
-    """Run one benchmark cell and return its row (see :data:`METRIC_FIELDS`).
-
-    An engine cell runs the law of :data:`ENGINE_LAWS` ``draws`` times from perturbed
-    starts, each metric their median (:doc:`/paths`).
-
-    Parameters
-    ----------
-    scenario : str
-        One of :data:`SCENARIOS`.
-    controller : str
-        A key of :data:`CONTROLLERS`, or any name with a ``factory``.
-    model : {"viscous", "engine"}, optional
-        The plant.
-    failed : int or None, optional
-        A joint (1-based) made passive, or None.
-    t_final : float, optional
-        Duration [s].
-    factory : callable, optional
-        ``factory(snake, reference, path) -> Controller``; default the built-in one.
-    criteria_dt : float or None, optional
-        Sampling of the criteria [s]; None: not computed.
-    robot : SnakeParams or None, optional
-        The viscous robot (default: the Table 1 tracking robot).
-    draws : int, optional
-        Perturbed starts of an engine cell (1: the unperturbed start).
-    engine_robot : SnakeParams or None, optional
-        The engine robot (default: the ``engine`` preset).
-    error_window : float or None, optional
-        Start of the metrics' window [s] (None: the default of ``t_final``).
-
-    Returns
-    -------
-    dict
-        The row, plus ``series``, ``snapshots`` and ``head`` (every 0.1 s); status "not
-        applicable" when the controller refuses the robot or the engine cannot run it.
-
-    Raises
-    ------
-    ParameterError
-        An unknown scenario, model or controller, or draws not a positive integer.
-    """
+    """One cell of :func:`run_benchmark` (its arguments): the row of :data:`METRIC_FIELDS`
+    plus ``series``, ``snapshots`` and ``head``; an engine cell is the median of ``draws``
+    perturbed starts (:doc:`/paths`), a controller that refuses the robot "not applicable"."""
     _known(model, MODELS, "model")
     integer(draws, "draws", low=1)
     start = default_error_window(t_final) if error_window is None else float(error_window)
@@ -383,34 +315,28 @@ def run_cell(scenario: str, controller: str, model: str = "viscous",
                snapshots=[], head=[])
     if factory is None:
         _known(controller, CONTROLLERS, "controller", " or a factory")
-    make = factory or CONTROLLERS[controller]
     if model == "engine":
         _engine_cell(row, scenario, controller, failed, t_final, factory, criteria_dt,
                      draws, engine_robot, start)
-        row.update(head_error_rms_pct=_percent_of_body(row),
-                   wall_s=time.perf_counter() - wall)
-        return row
-    snake = Snake(params)
-    try:
-        ctrl = make(snake, reference, reference.path)
-    except ParameterError as exc:
-        row.update(status="not applicable", reason=str(exc))
-        return row
-    traj = simulate(snake, ctrl, initial_state(params), t_final,
-                    meta={"scenario": scenario, "controller": controller})
-    stride = slice(None, None, _EVERY)
-    row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
-                            reference, head_tracking=hasattr(ctrl, "reference"),
-                            start=start, criteria_dt=criteria_dt))
-    row.update(torque_max=_nan(torque_max(traj)), head_error_rms_pct=_percent_of_body(row))
-    _finish(row, traj, traj.status, traj.reason)
-    row["wall_s"] = time.perf_counter() - wall
+    else:
+        snake = Snake(params)
+        try:
+            ctrl = (factory or CONTROLLERS[controller])(snake, reference, reference.path)
+        except ParameterError as exc:
+            row.update(status="not applicable", reason=str(exc))
+            return row
+        traj = simulate(snake, ctrl, initial_state(params), t_final,
+                        meta={"scenario": scenario, "controller": controller})
+        stride = slice(None, None, _EVERY)
+        row.update(path_metrics(traj.t[stride], traj.q[stride], traj.tau[stride], snake,
+                                reference, head_tracking=hasattr(ctrl, "reference"),
+                                start=start, criteria_dt=criteria_dt),
+                   torque_max=_nan(torque_max(traj)))
+        _finish(row, traj, traj.status, traj.reason)
+    # the time-indexed head error RMS in % of the body (NaN without one)
+    row.update(head_error_rms_pct=100.0 * row["head_error_rms"] / row["body_length"],
+               wall_s=time.perf_counter() - wall)
     return row
-
-
-def _percent_of_body(row: dict[str, Any]) -> float:
-    """The row's time-indexed head error RMS in % of its body length (NaN without one)."""
-    return 100.0 * row["head_error_rms"] / row["body_length"]
 
 
 @dataclass
@@ -528,8 +454,7 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     Raises
     ------
     ParameterError
-        An unknown scenario, controller or model, a non-positive t_final, an error
-        window outside [0, t_final), or draws not a positive integer.
+        An unknown name, a non-positive t_final, an error window outside [0, t_final), bad draws.
     """
     integer(draws, "draws", low=1)
     if quick:
@@ -558,8 +483,8 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
     wall = time.perf_counter()
     pooled = [k for k, (_, c, _, _) in enumerate(cells) if _picklable(chosen[c])]
     rows: list[dict[str, Any] | None] = [None] * len(cells)
-    options = {"t_final": t_final, "robot": robot, "draws": draws,
-               "engine_robot": engine_robot, "error_window": error_window}
+    options: dict[str, Any] = {"t_final": t_final, "robot": robot, "draws": draws,
+                               "engine_robot": engine_robot, "error_window": error_window}
     jobs = [(run_cell, cells[k], {**options, "factory": chosen[cells[k][1]]})
             for k in pooled]
     for k, row in zip(pooled, run_jobs(jobs, workers, cluster=None if workers else cluster),
@@ -567,9 +492,7 @@ def run_benchmark(scenarios: Iterable[str] | None = None,
         rows[k] = row
     for k, (s, c, m, f) in enumerate(cells):
         if rows[k] is None:
-            rows[k] = run_cell(s, c, m, f, t_final=t_final, factory=chosen[c], robot=robot,
-                               draws=draws, engine_robot=engine_robot,
-                               error_window=error_window)
+            rows[k] = run_cell(s, c, m, f, **options, factory=chosen[c])
     settings = {"t_final": t_final, "scenarios": names, "controllers": list(chosen),
                 "models": list(models), "failed": [f or 0 for f in failed],
                 "speed": SPEED, "window_start": float(error_window),
@@ -596,17 +519,6 @@ def _json_bytes(result: BenchmarkResult) -> bytes:
            "criteria": {f"{r['scenario']}/{r['controller']}/{r['model']}/{r['failed_joint']}":
                         r["series"] for r in result.rows if r.get("series")}}
     return json.dumps(json_safe(doc), indent=1, allow_nan=False).encode()
-
-
-def _figure_bytes(fig: Any) -> bytes:
-    import matplotlib.pyplot as plt
-
-    if fig.get_layout_engine() is None:
-        fig.set_layout_engine("constrained")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
 
 
 #: The table figures: name prefix -> (row metric, title); ``error_`` cells add the peak
@@ -728,6 +640,8 @@ def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Pa
     dict of str to pathlib.Path
         Name -> written file.
     """
+    from .outputs import _png
+
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     out: dict[str, Path] = {}
@@ -739,19 +653,19 @@ def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Pa
             for kind in _TABLES:
                 name = f"{kind}_{model}_{failed}"
                 fig = _table_figure(result, model, failed, kind)
-                out[name] = group.write_bytes(f"{name}.png", _figure_bytes(fig), figure=True)
+                out[name] = group.write_bytes(f"{name}.png", _png(fig), figure=True)
             for scenario in dict.fromkeys(r["scenario"] for r in result.rows):
                 if any(r["snapshots"] for r in result.rows if r["scenario"] == scenario
                        and r["model"] == model and r["failed_joint"] == failed):
                     name = f"path_{scenario}_{model}_{failed}"
                     fig = _path_figure(result, scenario, model, failed)
-                    out[name] = group.write_bytes(f"{name}.png", _figure_bytes(fig),
+                    out[name] = group.write_bytes(f"{name}.png", _png(fig),
                                                   figure=True)
         for row in result.rows:
             if (row["scenario"].startswith("circle") and row["controller"] == "lyapunov"
                     and row["model"] == "viscous" and not row["failed_joint"]
                     and row["series"].get("t")):
                 name = f"claim_{row['scenario']}"
-                out[name] = group.write_bytes(f"{name}.png", _figure_bytes(_claim_figure(row)),
+                out[name] = group.write_bytes(f"{name}.png", _png(_claim_figure(row)),
                                               figure=True)
     return out

@@ -32,8 +32,7 @@ from ..metrics import (
 from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory
 
-__all__ = ["METRICS", "PERTURBATION", "Draws", "distribution", "engine_draw", "engine_robot",
-           "perturbations", "plot_engine", "summarize"]
+__all__ = ["METRICS", "PERTURBATION", "distribution", "engine_draw", "perturbations"]
 
 #: Default half-width of the uniform offsets of the initial joint angles [rad].
 PERTURBATION = 1e-6
@@ -51,25 +50,8 @@ METRICS: dict[str, str] = {
 def summarize(traj: Trajectory, *, every: int = 10,
               reference: HeadReference | None = None,
               start: float | None = None) -> dict[str, object]:
-    """Head errors and torques over t >= ``start``, D and R from the (estimated) state.
-
-    Parameters
-    ----------
-    traj
-        A head-tracking run; its ``signals`` get ``head_error``, its ``meta`` ``criteria``.
-    every
-        D and R are evaluated at every ``every``-th sample.
-    reference
-        The head reference (default :func:`~snake_pin.control.head_first_reference`).
-    start
-        Start of the error window [s] (None: :func:`~snake_pin.metrics.default_error_window`).
-
-    Returns
-    -------
-    dict
-        ``traj.summary`` with the head errors, the metrics of :data:`METRICS`,
-        ``torque_max``, R_min, D_min, body_length, passive and final_head.
-    """
+    """Fill ``traj``'s head error, criteria (D, R every ``every`` samples) and summary (head
+    errors and torques over t >= ``start``, the :data:`METRICS`, R_min, D_min) and return it."""
     error = head_position_error(
         traj, head_first_reference() if reference is None else reference)
     t_c, d, r = criteria_along(traj, every=every)
@@ -83,24 +65,18 @@ def summarize(traj: Trajectory, *, every: int = 10,
     body = traj.params.body_length
     max_error = errors["max_head_error"]
     traj.summary.update({
-        **errors,
-        "rms_percent": percent(errors["rms_relative"]),
+        **errors, "rms_percent": percent(errors["rms_relative"]),
         "max_percent": None if max_error is None else 100.0 * max_error / body,
-        "torque_rms": torque,
-        "torque_max": torque_max(traj),
-        "R_min": float(r.min()), "D_min": float(d.min()),
-        "body_length": body,
-        "passive": list(traj.params.passive),
-        "final_head": traj.q[-1, :3].tolist(),
-    })
+        "torque_rms": torque, "torque_max": torque_max(traj),
+        "R_min": float(r.min()), "D_min": float(d.min()), "body_length": body,
+        "passive": list(traj.params.passive), "final_head": traj.q[-1, :3].tolist()})
     return traj.summary
 
 
 def perturbations(count: int, joints: int, size: float = PERTURBATION,
                   seed: int = 0) -> np.ndarray:
-    """``count`` offsets of ``joints`` initial joint angles, uniform in [-size, size] [rad].
-
-    Seeded: the same arguments give the same offsets (``run_engine(initial_offset=...)``).
+    """``count`` offsets of ``joints`` initial joint angles, uniform in [-size, size] [rad],
+    seeded: the same arguments give the same offsets (``run_engine(initial_offset=...)``).
 
     Parameters
     ----------
@@ -144,8 +120,7 @@ def distribution(values: Sequence[float | None]) -> dict[str, Any]:
     """
     finite = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
     if finite.size == 0:
-        return {"median": None, "p10": None, "p90": None, "min": None, "max": None,
-                "count": 0}
+        return {**dict.fromkeys(("median", "p10", "p90", "min", "max")), "count": 0}
     return {"median": float(np.median(finite)), "p10": float(np.percentile(finite, 10)),
             "p90": float(np.percentile(finite, 90)), "min": float(finite.min()),
             "max": float(finite.max()), "count": int(finite.size)}
@@ -153,21 +128,9 @@ def distribution(values: Sequence[float | None]) -> dict[str, Any]:
 
 @dataclass
 class Draws:
-    """Runs of one configuration from perturbed initial postures, and their distribution.
-
-    Parameters
-    ----------
-    label
-        What was run (e.g. "velocity law, joint 5 passive").
-    perturbation, seed
-        The offsets' half-width [rad] and seed (:func:`perturbations`).
-    offsets
-        (N, n - 1) offsets of the initial joint angles [rad], one row per draw.
-    summaries
-        Per draw, its JSON summary after :func:`summarize`, or None until it finishes.
-    files
-        Per draw, the files it was saved to.
-    """
+    """Runs of one configuration from the perturbed starts ``offsets`` (:func:`perturbations`
+    of ``perturbation`` and ``seed``), each draw's summary (None until it finishes) and
+    files, and their distribution."""
 
     label: str
     perturbation: float
@@ -183,17 +146,7 @@ class Draws:
             self.files = [[] for _ in self.offsets]
 
     def record(self, index: int, summary: dict[str, Any], files: Sequence[str] = ()) -> None:
-        """Keep the summary (and files) of a finished draw.
-
-        Parameters
-        ----------
-        index
-            The draw (row of :attr:`offsets`).
-        summary
-            Its JSON summary after :func:`summarize`.
-        files
-            The files it was saved to.
-        """
+        """Keep the summary (and files) of finished draw ``index``."""
         self.summaries[index] = summary
         self.files[index] = [str(f) for f in files]
 
@@ -203,50 +156,21 @@ class Draws:
         return [i for i, s in enumerate(self.summaries) if s is not None]
 
     def values(self, metric: str) -> list[float | None]:
-        """One metric of every finished draw, in draw order.
-
-        Parameters
-        ----------
-        metric
-            A summary key (e.g. one of :data:`METRICS`).
-
-        Returns
-        -------
-        list
-            The values (None where a draw has none).
-        """
+        """One summary key of every finished draw, in draw order (None where it has none)."""
         return [self.summaries[i].get(metric) for i in self.done]  # type: ignore[union-attr]
 
     def distributions(self) -> dict[str, dict[str, Any]]:
-        """The distribution of every metric over the finished draws.
-
-        Returns
-        -------
-        dict
-            Metric of :data:`METRICS` -> its :func:`distribution`.
-        """
+        """Metric of :data:`METRICS` -> its :func:`distribution` over the finished draws."""
         return {key: distribution(self.values(key)) for key in METRICS}
 
     def faults(self) -> list[int]:
-        """The finished draws that diverged or failed.
-
-        Returns
-        -------
-        list of int
-            Their indices.
-        """
+        """The finished draws that diverged or failed."""
         return [i for i in self.done
                 if (self.summaries[i] or {}).get("status") in ("diverged", "failed")]
 
     def median_draw(self) -> int | None:
-        """The draw that stands for the distribution in figures and files.
-
-        Returns
-        -------
-        int or None
-            The draw of the (lower) median RMS head error, else the first finished; None
-            if none finished.
-        """
+        """The draw of the (lower) median RMS head error, else the first finished, None if
+        none finished: it stands for the distribution in figures and files."""
         done = self.done
         if not done:
             return None
@@ -258,14 +182,7 @@ class Draws:
         return rms[(len(rms) - 1) // 2][1]
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON data of the draws.
-
-        Returns
-        -------
-        dict
-            label, draws, finished, perturbation, seed, distribution, median_draw, and
-            runs (every draw's offset, summary and files).
-        """
+        """The draws as plain JSON data, with every draw's offset, summary and files."""
         return {"label": self.label, "draws": len(self.offsets), "finished": len(self.done),
                 "perturbation": self.perturbation, "seed": self.seed,
                 "distribution": self.distributions(), "median_draw": self.median_draw(),
@@ -274,30 +191,21 @@ class Draws:
                                                            self.files, strict=True)]}
 
     def text(self) -> str:
-        """The draws and each metric's median and 10-90 % range, for a terminal.
-
-        Returns
-        -------
-        str
-            Lines without a trailing newline.
-        """
+        """The draws and each metric's median and 10-90 % range, as lines for a terminal."""
         lines = [f"{self.label}: {len(self.done)} of {len(self.offsets)} runs, initial joint "
                  f"angles offset by U(-{self.perturbation:g}, {self.perturbation:g}) rad "
                  f"(seed {self.seed})"]
         for key, dist in self.distributions().items():
-            lines.append(f"  {METRICS[key]}: " + _range_text(dist))
+            lines.append(f"  {METRICS[key]}: " + (
+                "no value (no samples in the error window)" if dist["median"] is None else
+                f"median {dist['median']:.4g}, 10-90 %: {dist['p10']:.4g} .. {dist['p90']:.4g} "
+                f"({dist['count']} runs)"))
         faults = self.faults()
         if faults:
             lines.append(f"  {len(faults)} run(s) diverged or failed: draws "
                          f"{', '.join(str(i + 1) for i in faults)}")
         return "\n".join(lines)
 
-
-def _range_text(dist: dict[str, Any]) -> str:
-    if dist["median"] is None:
-        return "no value (no samples in the error window)"
-    return (f"median {dist['median']:.4g}, 10-90 %: {dist['p10']:.4g} .. {dist['p90']:.4g} "
-            f"({dist['count']} runs)")
 
 def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None, *,
                 wheels: WheelSpec, t_final: float, friction: dict[str, Any],
@@ -341,40 +249,20 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
 
 def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Path,
                 stem: str, reference: HeadReference | None = None) -> dict[str, Path]:
-    """Figs. 19 (head vs reference), 20 (D, R), 21 (snapshots), and the side by side.
-
-    Parameters
-    ----------
-    run
-        An engine run (or its trajectory) passed through :func:`summarize`.
-    twin
-        The viscous model's run to draw beside it (after :func:`summarize`), or None.
-    folder
-        Where the PNGs go.
-    stem
-        Their file-name prefix.
-    reference
-        The head reference (default :func:`~snake_pin.control.head_first_reference`).
-
-    Returns
-    -------
-    dict
-        Figure key ("head", "criteria", "snapshots", "side_by_side") -> PNG path.
-    """
+    """Figs. 19 (head), 20 (D, R), 21 (snapshots) of a :func:`summarize`-d run, and beside
+    the viscous ``twin`` if given: key -> ``folder/<stem>_<key>.png``."""
     import matplotlib.pyplot as plt
 
-    from ..viz.plots import plot_head_path, save_figure
+    from ..viz.plots import plot_criteria, plot_head_path, save_figure
 
     traj = run.trajectory if isinstance(run, EngineRun) else run
     paths = {k: folder / f"{stem}_{k}.png" for k in ("head", "criteria", "snapshots")}
     fig, ax = plt.subplots(figsize=(8, 4))
-    ax.plot(traj.t, traj.q[:, 0], "-", label="x_h")
-    ax.plot(traj.t, traj.q[:, 1], "--", label="y_h")
-    if reference is None:
-        reference = head_first_reference()
+    reference = head_first_reference() if reference is None else reference
     target = np.array([reference(float(t))[0][:2] for t in traj.t])
-    ax.plot(traj.t, target[:, 0], ":", color="k", label="x_h^r")
-    ax.plot(traj.t, target[:, 1], ":", color="gray", label="y_h^r")
+    for k, (style, colour) in enumerate((("-", "k"), ("--", "gray"))):
+        ax.plot(traj.t, traj.q[:, k], style, label=f"{'xy'[k]}_h")
+        ax.plot(traj.t, target[:, k], ":", color=colour, label=f"{'xy'[k]}_h^r")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("[m]")
     ax.legend(fontsize=8)
@@ -383,16 +271,8 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
     save_figure(fig, paths["head"])
 
     crit = traj.meta["criteria"]
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    axes[0].semilogy(crit["t"], crit["D"])
-    axes[0].set_ylabel("D")
-    axes[1].semilogy(crit["t"], crit["R"], color="#228b22")
-    axes[1].set_ylabel("R")
-    axes[1].set_xlabel("t [s]")
-    for a in axes:
-        a.grid(alpha=0.3, which="both")
-    fig.suptitle("D and R from the estimated engine state (Fig. 20)", fontsize=10)
-    save_figure(fig, paths["criteria"])
+    plot_criteria(crit["t"], crit["D"], crit["R"], paths["criteria"],
+                  "D and R from the estimated engine state (Fig. 20)")
 
     plot_head_path(traj, target, paths["snapshots"], snapshots=7,
                    title="Snapshots of the engine run (Fig. 21)")
@@ -421,19 +301,8 @@ def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Pa
 
 
 def engine_robot(params: SnakeParams) -> SnakeParams:
-    """The robot the engine stage runs for a report on ``params``.
-
-    Parameters
-    ----------
-    params
-        The report's robot.
-
-    Returns
-    -------
-    SnakeParams
-        The ``engine`` preset for a preset (the paper has no wheeled Table 1 robot), else
-        ``params`` itself, every joint actuated.
-    """
+    """The engine stage's robot for a report on ``params``: the ``engine`` preset for a preset
+    (the paper has no wheeled Table 1 robot), else ``params`` with every joint actuated."""
     if params.name in ROBOTS:
         return SnakeParams.engine()
     return params.replace(passive=())

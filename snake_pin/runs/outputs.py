@@ -25,13 +25,15 @@ from ..viz.plots import plot_postures
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["draw_singular", "info", "write_singular", "write_sweep"]
+__all__: list[str] = []
 
 
 def _png(fig: Figure) -> bytes:
-    """The figure as PNG bytes (closed), without a second layout pass."""
+    """The figure as PNG bytes (closed), laid out once by the constrained engine."""
     import matplotlib.pyplot as plt
 
+    if fig.get_layout_engine() is None:
+        fig.set_layout_engine("constrained")
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
@@ -39,21 +41,8 @@ def _png(fig: Figure) -> bytes:
 
 
 def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path]:
-    """Write ``<stem>.csv``, ``<stem>.json`` and ``<stem>.png`` of a sweep into ``folder``,
-    together or not at all (an empty sweep has no figure).
-
-    Parameters
-    ----------
-    result
-        The sweep (:func:`~snake_pin.sweeps.sweep`).
-    folder
-        An existing folder.
-
-    Returns
-    -------
-    dict
-        ``{"csv": path, "json": path, "png": path}`` (no "png" for an empty sweep).
-    """
+    """Write ``<stem>.csv``, ``.json`` and ``.png`` of a sweep into ``folder`` together or not
+    at all (an empty sweep has no figure); key ("csv", "json", "png") -> path."""
     from ..viz.plots import plot_sweep
 
     folder = Path(folder)
@@ -73,20 +62,8 @@ def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path
 
 
 def write_singular(search: SingularSearch, folder: str | os.PathLike[str]) -> list[Path]:
-    """Write ``singular_postures.json`` and ``singular_postures.png`` into ``folder``.
-
-    Parameters
-    ----------
-    search
-        The search (:func:`~snake_pin.singular.find_singular_postures`).
-    folder
-        An existing folder; the two files appear together or not at all.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The JSON's and the PNG's paths.
-    """
+    """Write ``singular_postures.json`` and ``.png`` of a search into ``folder`` together or
+    not at all; their paths."""
     png = _png(draw_singular(search, None))
     with atomic_group(Path(folder)) as group:
         data = group.write_bytes("singular_postures.json",
@@ -96,22 +73,8 @@ def write_singular(search: SingularSearch, folder: str | os.PathLike[str]) -> li
 
 def draw_singular(search: SingularSearch, path: str | os.PathLike[str] | None,
                   limit: int = 5) -> Figure:
-    """Draw the representative of up to ``limit`` families (plus the straight posture).
-
-    Parameters
-    ----------
-    search
-        The search.
-    path
-        PNG file to save to (the figure is then closed), or None.
-    limit
-        Most families drawn (the largest first).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        The figure (open when ``path`` is None).
-    """
+    """Draw the straight posture and the representatives of the ``limit`` largest families
+    (saved to ``path`` and closed, else left open)."""
     snake = Snake(search.params)
     free = f", joint {search.free_joint} free" if search.free_joint else ""
     postures = [(f"straight: R = 0 exactly{free}", straight(search.params.n))]
@@ -124,21 +87,8 @@ def draw_singular(search: SingularSearch, path: str | os.PathLike[str] | None,
 
 
 def info(params: SnakeParams, snake: Snake | None = None) -> dict[str, object]:
-    """Parameters and model sizes as a JSON-friendly dict (``snake-pin info``).
-
-    Parameters
-    ----------
-    params
-        The robot.
-    snake
-        Its model, if built already.
-
-    Returns
-    -------
-    dict
-        The fields of ``params``, nq, nv, total mass and body length; the half length l
-        for equal links, else ``com_offsets``.
-    """
+    """The robot's fields, nq, nv, total mass, body length and half length l (equal links) or
+    ``com_offsets``, as JSON data (``snake-pin info``, the report's robot table)."""
     snake = snake or Snake(params)
     data: dict[str, object] = {**params.to_dict(), "nq": snake.nq, "nv": snake.nv,
                                "total_mass": params.total_mass,

@@ -19,8 +19,7 @@ from ..params import SnakeParams
 from ..sim import simulate
 from ..trajectory import Trajectory
 
-__all__ = ["TAU_BREAKDOWN", "PFLRun", "breakdown_threshold", "initial_state", "plot_pfl",
-           "run_pfl"]
+__all__ = ["TAU_BREAKDOWN", "PFLRun", "initial_state", "run_pfl"]
 
 #: ``||tau||`` above this [N m] counts as PFL's breakdown on the Table 1 robot (tracking
 #: needs 0.01-0.3 N m); other robots scale it (:func:`breakdown_threshold`).
@@ -30,19 +29,8 @@ _TABLE1_LINK = 0.182 * 0.12**2
 
 
 def breakdown_threshold(params: SnakeParams) -> float:
-    """``||tau||`` [N m] that counts as PFL's breakdown for ``params`` (joint torques scale
-    with m (2l)^2: a fixed threshold would call a heavier robot broken down at once).
-
-    Parameters
-    ----------
-    params
-        The robot.
-
-    Returns
-    -------
-    float
-        :data:`TAU_BREAKDOWN` times the mean m_i (2l_i)^2 over a Table 1 link's.
-    """
+    """``||tau||`` [N m] of PFL's breakdown for ``params``: :data:`TAU_BREAKDOWN` scaled by the
+    mean m_i (2l_i)^2 over a Table 1 link's (a heavier robot needs larger torques)."""
     if params.uniform:
         link = float(params.masses[0] * params.link_lengths[0] ** 2)
     else:
@@ -153,36 +141,18 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0,
         "breakdown_time": float(traj.t[breakdown]) if broke else None,
         "t_R_min": float(traj.t[k_min]), "R_min": float(r[k_min]),
         "t_R_dip": float(traj.t[k_dip]), "R_dip": float(r[k_dip]),
-        "R_peak": float(r[k_peak]),
-        "D_min": float(d[before].min()),
+        "R_peak": float(r[k_peak]), "D_min": float(d[before].min()),
         "g_drift_max": float(np.abs(g[before] - g[0]).max()),
-        "head_error_max": float(error[before].max()),
-        **errors,
-        "body_length": params.body_length,
-    })
+        "head_error_max": float(error[before].max()), **errors,
+        "body_length": params.body_length})
     return PFLRun(traj, d, r, g, breakdown)
 
 
 def plot_pfl(run: PFLRun, folder: Path, stem: str) -> dict[str, Path]:
-    """Figures like Figs. 10-12 and a posture figure like Fig. 11.
-
-    Parameters
-    ----------
-    run
-        A run of :func:`run_pfl`.
-    folder
-        Where the PNGs go.
-    stem
-        Their file-name prefix.
-
-    Returns
-    -------
-    dict
-        Figure key ("criteria", "torque", "g", "postures") -> PNG path.
-    """
+    """Figures like Figs. 10-12 and the postures of Fig. 11: key -> ``folder/<stem>_<key>.png``."""
     import matplotlib.pyplot as plt
 
-    from ..viz.plots import draw_snake, save_figure
+    from ..viz.plots import draw_snake, plot_criteria, save_figure
 
     traj = run.trajectory
     t, s = traj.t, traj.summary
@@ -194,18 +164,8 @@ def plot_pfl(run: PFLRun, folder: Path, stem: str) -> dict[str, Path]:
             ax.axvline(bk, color="firebrick", ls=":", lw=1, label=f"breakdown {bk:.2f} s")
         ax.axvline(s["t_R_dip"], color="gray", ls="--", lw=1, label=f"R dip {s['t_R_dip']:.2f} s")
 
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
-    axes[0].semilogy(t, run.D, color="#1f4fd1")
-    axes[0].set_ylabel("D")
-    axes[1].semilogy(t, run.R, color="#228b22")
-    axes[1].set_ylabel("R")
-    axes[1].set_xlabel("t [s]")
-    for ax in axes:
-        mark(ax)
-        ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=8)
-    fig.suptitle("Manipulability criteria along the PFL run (Fig. 10a)", fontsize=10)
-    save_figure(fig, paths["criteria"])
+    plot_criteria(t, run.D, run.R, paths["criteria"],
+                  "Manipulability criteria along the PFL run (Fig. 10a)", mark=mark)
 
     held = applied(traj)  # the last sample's torque of a run that did not diverge: never applied
     fig, ax = plt.subplots(figsize=(8, 3.8))

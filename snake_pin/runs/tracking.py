@@ -23,8 +23,8 @@ from ..model import Snake
 from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory, simulate
 
-__all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "initial_state", "plot_tracking",
-           "run_tracking", "tracking_friction", "tracking_params"]
+__all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "initial_state", "run_tracking",
+           "tracking_params"]
 
 #: Friction of the tracking runs (erratum 3, :doc:`/errata`): c_x as Table 1, c_y = 50 c_x.
 TRACKING_FRICTION = {"c_x": 0.5, "c_y": 25.0}
@@ -54,20 +54,9 @@ def tracking_params(params: SnakeParams | None = None, **changes: object) -> Sna
 
 
 def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
-    """The robot with the friction a tracking run uses, and a sentence saying which: a robot
-    of one's own keeps its friction when c_y > c_x on every link (Section V rules out
-    isotropic friction), the others get :data:`TRACKING_FRICTION`.
-
-    Parameters
-    ----------
-    params
-        The robot.
-
-    Returns
-    -------
-    tuple of (SnakeParams, str)
-        The robot to run (``params`` itself when it keeps its friction) and the sentence.
-    """
+    """The robot a tracking run uses and a sentence saying its friction: a robot of one's own
+    keeps its friction when c_y > c_x on every link (Section V), the others get
+    :data:`TRACKING_FRICTION`."""
     own = params.name not in ROBOTS
     if own and np.all(params.per_link("c_y") > params.per_link("c_x")):
         ratio = params.per_link("c_y") / params.per_link("c_x")
@@ -157,59 +146,23 @@ def summarize_tracking(traj: Trajectory, snake: Snake, line: Any,
 
 
 def plot_tracking(traj: Trajectory, folder: Path, stem: str) -> dict[str, Path]:
-    """Snapshots along the path (Figs. 13, 16), D and R (Figs. 14, 17), head vs reference.
-
-    Parameters
-    ----------
-    traj
-        A run of :func:`run_tracking`.
-    folder
-        Where the PNGs go.
-    stem
-        Their file-name prefix.
-
-    Returns
-    -------
-    dict
-        Figure key ("motion", "criteria", "head") -> PNG path.
-    """
+    """Snapshots along the path (Figs. 13, 16), D and R (Figs. 14, 17), head against the
+    reference: key ("motion", "criteria", "head") -> ``folder/<stem>_<key>.png``."""
     import matplotlib.pyplot as plt
 
-    from ..viz.plots import draw_snake, save_figure
+    from ..viz.plots import plot_criteria, plot_head_path, save_figure
 
-    folder = Path(folder)
-    snake = Snake(traj.params)
-    paths = {k: folder / f"{stem}_{k}.png" for k in ("motion", "criteria", "head")}
-    fig, ax = plt.subplots(figsize=(10, 4.2))
-    t_end = traj.t_end
-    ax.plot([0, 0.1 * t_end], [0, 0], "k--", lw=1, label="reference path")
-    ax.plot(traj.q[:, 0], traj.q[:, 1], color="#d9541a", lw=0.8, label="head")
-    times = np.linspace(0, t_end, 7)
-    for k, t in enumerate(times):
-        i = int(np.searchsorted(traj.t, t))
-        draw_snake(ax, snake, traj.q[min(i, len(traj) - 1)], alpha=0.35 + 0.65 * k / 6)
+    paths = {k: Path(folder) / f"{stem}_{k}.png" for k in ("motion", "criteria", "head")}
     joints = ", ".join(str(k) for k in traj.params.passive)
     passive = f", joint {joints} passive (x)" if traj.params.passive else ""
-    ax.set_title(f"Head tracking, snapshots every {times[1]:.0f} s{passive}", fontsize=10)
-    ax.legend(fontsize=8, loc="upper left")
-    ax.grid(alpha=0.3)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    save_figure(fig, paths["motion"])
+    plot_head_path(traj, np.column_stack([0.1 * traj.t, np.zeros(len(traj))]), paths["motion"],
+                   snapshots=7, title=f"Head tracking, snapshots every {traj.t_end / 6:.0f} s"
+                   f"{passive}")
 
     crit = traj.meta["criteria"]
-    tilde = "~" if traj.params.passive else ""
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    axes[0].semilogy(crit["t"], crit["D"], color="#1f4fd1")
-    axes[0].set_ylabel(f"D{tilde}")
-    axes[1].semilogy(crit["t"], crit["R"], color="#228b22")
-    axes[1].set_ylabel(f"R{tilde}")
-    axes[1].set_xlabel("t [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3, which="both")
-    fig.suptitle(f"Manipulability criteria along the run (R min {min(crit['R']):.2e})",
-                 fontsize=10)
-    save_figure(fig, paths["criteria"])
+    plot_criteria(crit["t"], crit["D"], crit["R"], paths["criteria"],
+                  f"Manipulability criteria along the run (R min {min(crit['R']):.2e})",
+                  tilde="~" if traj.params.passive else "")
 
     fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     axes[0].plot(traj.t, traj.q[:, 0], label="x_h")

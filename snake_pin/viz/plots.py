@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import io
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import matplotlib
@@ -159,6 +159,24 @@ def plot_head_path(traj: Trajectory, reference: np.ndarray,
     if traj.diverged:
         text += f"\n{traj.reason}"
     ax.set_title(text, fontsize=10, color="firebrick" if traj.diverged else "black")
+    return save_figure(fig, path)
+
+
+def plot_criteria(t: Any, d: Any, r: Any, path: str | os.PathLike[str] | None, title: str, *,
+                  tilde: str = "", mark: Callable[[plt.Axes], None] | None = None) -> plt.Figure:
+    """Plot D and R along a run, one log panel each; ``mark(ax)`` adds to both panels."""
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True, layout="constrained")
+    for ax, values, name, color in zip(axes, (d, r), "DR", (PASSIVE_COLOR, BODY_COLOR),
+                                       strict=True):
+        ax.semilogy(t, values, color=color)
+        ax.set_ylabel(name + tilde)
+        ax.grid(alpha=0.3, which="both")
+        if mark is not None:
+            mark(ax)
+    if axes[0].get_legend_handles_labels()[0]:
+        axes[0].legend(fontsize=8)
+    axes[1].set_xlabel("t [s]")
+    fig.suptitle(title, fontsize=10)
     return save_figure(fig, path)
 
 
