@@ -57,7 +57,7 @@ def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
     Parameters
     ----------
     model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
+        The snake's Pinocchio model (``snake_pin.model.paper_model``).
     params : SnakeParams
         The robot, with its friction coefficients.
 
@@ -202,7 +202,7 @@ class FrictionModel:
     params : SnakeParams
         The robot and its (per-link) friction coefficients.
     model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`); required.
+        The snake's Pinocchio model (``snake_pin.model.paper_model``); required.
 
     Raises
     ------
@@ -402,7 +402,7 @@ def friction_forces(model: pin.Model, data: pin.Data, params: SnakeParams,
     Parameters
     ----------
     model : pinocchio.Model
-        The snake's Pinocchio model (:func:`snake_pin.model.paper_model`).
+        The snake's Pinocchio model (``snake_pin.model.paper_model``).
     data : pinocchio.Data
         The model's workspace (``pin.forwardKinematics`` updates it).
     params : SnakeParams

@@ -25,7 +25,7 @@ from .friction import FrictionModel
 from .params import SnakeParams
 from .urdf import urdf_string
 
-__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "Snake", "SnakeData", "paper_model"]
+__all__ = ["BASE_JOINTS", "DynamicsDerivatives", "Snake", "SnakeData"]
 
 #: Names of the three root joints, in order: they carry x_h, y_h and theta_1.
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
@@ -38,26 +38,8 @@ _SUBTRACT = np.subtract
 
 
 def paper_model(params: SnakeParams) -> pin.Model:
-    """The robot's Pinocchio model in paper coordinates (the URDF on a PX -> PY -> RZ chain).
-
-    ``base_yaw`` (index 3) carries link 1; joint i + 3 is the paper's joint i and carries
-    link i + 1 (body frame ``link_i``). Passive joints get a zero effort limit.
-
-    Parameters
-    ----------
-    params : SnakeParams
-        The robot.
-
-    Returns
-    -------
-    pinocchio.Model
-        The model, with nq = nv = n + 2.
-
-    Raises
-    ------
-    ParameterError
-        ``params`` is not a SnakeParams.
-    """
+    """The robot's Pinocchio model in paper coordinates (the URDF on a PX -> PY -> RZ chain):
+    ``base_yaw`` carries link 1, joint i + 3 is the paper's joint i (passive: zero effort)."""
     check_params(params)
     fixed = pin.buildModelFromXML(urdf_string(params, floating_base=False))
     model = pin.Model()
@@ -122,7 +104,7 @@ class Snake:
     Attributes
     ----------
     model, data, nq, nv
-        Pinocchio model (joint layout: :func:`paper_model`), its workspace, nq = nv = n + 2.
+        Pinocchio model (joint layout: ``paper_model``), its workspace, nq = nv = n + 2.
     link_joints
         Pinocchio joint index carrying each link (length n, head first).
     """

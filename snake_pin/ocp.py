@@ -9,12 +9,13 @@ only the friction crosses into Python) and the RK4 shooting problem
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from typing import Any
 
 import crocoddyl
 import numpy as np
 
+from ._options import documented, option
 from ._validation import finite_number, instance, integer
 from .exceptions import ParameterError
 from .friction import FrictionData, FrictionModel
@@ -28,43 +29,23 @@ COSTS = ("tracking", "torque", "joint_limit")
 _FREE = 1e9
 
 
-def _weight(default: float, doc: str, unit: str) -> Any:
-    """A cost weight's field (>= 0), with :func:`snake_pin.control._options.option`'s metadata."""
-    return field(default=default, metadata={"doc": doc, "unit": unit, "low": 0.0,
-                                            "high": None, "open_low": False})
-
-
+@documented
 @dataclass(frozen=True)
 class CostWeights:
-    """Weights of the tracking costs, each on half a squared residual (>= 0; 0 drops it).
+    """Weights of the tracking costs, each on half a squared residual (0 drops it); the
+    heading's is small, as the head link swings with the gait."""
 
-    Parameters
-    ----------
-    head_position, heading, head_velocity : float, optional
-        On the head point's, head link's angle and head velocity's errors [1/m^2, 1/rad^2,
-        s^2/m^2]; the heading's is small, as the head link swings with the gait.
-    gait, gait_velocity : float, optional
-        The gait prior: on ``phi - phi_r(t)`` [1/rad^2] and ``phi' - phi_r'(t)`` [s^2/rad^2].
-    torque, joint_limit, terminal : float, optional
-        On the actuated torques [1/(N m)^2] and the joint angles beyond the limit [1/rad^2];
-        the scale of the terminal node's state costs [s] (running costs are rates).
-
-    Raises
-    ------
-    ParameterError
-        A weight is not a finite number >= 0.
-    """
-
-    head_position: float = _weight(2000.0, "on the head point's error", "1/m^2")
-    heading: float = _weight(1.0, "on the head link's angle error", "1/rad^2")
-    head_velocity: float = _weight(20.0, "on the head velocity's error", "s^2/m^2")
-    gait: float = _weight(2.0, "on the joints' error to the gait prior", "1/rad^2")
-    gait_velocity: float = _weight(0.05, "on the joints' velocity error to the gait prior",
-                                   "s^2/rad^2")
-    torque: float = _weight(0.5, "on the actuated torques", "1/(N m)^2")
-    joint_limit: float = _weight(1000.0, "on the joint angles beyond the joint limit",
-                                 "1/rad^2")
-    terminal: float = _weight(1.0, "scale of the state costs at the terminal node", "s")
+    head_position: float = option(2000.0, "on the head point's error", unit="1/m^2", low=0.0)
+    heading: float = option(1.0, "on the head link's angle error", unit="1/rad^2", low=0.0)
+    head_velocity: float = option(20.0, "on the head velocity's error", unit="s^2/m^2", low=0.0)
+    gait: float = option(2.0, "on the joints' error to the gait prior", unit="1/rad^2", low=0.0)
+    gait_velocity: float = option(0.05, "on the joints' velocity error to the gait prior",
+                                  unit="s^2/rad^2", low=0.0)
+    torque: float = option(0.5, "on the actuated torques", unit="1/(N m)^2", low=0.0)
+    joint_limit: float = option(1000.0, "on the joint angles beyond the joint limit",
+                                unit="1/rad^2", low=0.0)
+    terminal: float = option(1.0, "scale of the state costs at the terminal node", unit="s",
+                             low=0.0)
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -70,11 +70,6 @@ def _error(path: object, message: str) -> RobotFileError:
     return RobotFileError(" ".join(f"{os.fsdecode(name)}: {message}".split()))
 
 
-def _read_limited(path: str | os.PathLike[str], limit: int, kind: str) -> bytes:
-    """The bytes of ``path`` (a regular file of at most ``limit``), or RobotFileError."""
-    return read_regular_file(path, limit=limit, kind=kind, error=functools.partial(_error, path))
-
-
 def _numbers(value: object, path: str | os.PathLike[str], where: str) -> object:
     """``value`` (a number or a list), refusing a TOML integer too large for a float."""
     for i, item in enumerate(value if isinstance(value, list) else [value], start=1):
@@ -209,7 +204,7 @@ def read_robot_file(path: str | os.PathLike[str]) -> SnakeParams:
         the file and the field (and link).
     """
     error = functools.partial(_error, path)
-    data = _read_limited(path, MAX_ROBOT_FILE_BYTES, "robot file")
+    data = read_regular_file(path, limit=MAX_ROBOT_FILE_BYTES, kind="robot file", error=error)
     doc = parse_toml(decode_utf8(data, error=error), error=error)
     _check_keys(path, doc, _TOP_KEYS, "", ("name",))
     if not isinstance(doc["name"], str):
@@ -612,7 +607,8 @@ def read_urdf(path: str | os.PathLike[str],
     ParameterError
         ``friction`` itself is malformed (an unknown key, a negative value).
     """
-    data = _read_limited(path, MAX_URDF_BYTES, "URDF")
+    data = read_regular_file(path, limit=MAX_URDF_BYTES, kind="URDF",
+                             error=functools.partial(_error, path))
     _count_elements(path, data)
     root, robot = _parse_urdf(path, data)
     bodies = _chain(path, robot)

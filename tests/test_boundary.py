@@ -427,7 +427,7 @@ for _method, _arguments in SNAKE_METHODS.items():
 
 
 #: Callables that left their module's ``__all__`` (a module's own pieces) but are still walked.
-UNLISTED = frozenset({"snake_pin.planar_joint.PlanarLayout",
+UNLISTED = frozenset({"snake_pin.model.paper_model", "snake_pin.planar_joint.PlanarLayout",
                       "snake_pin.planar_joint.paper_dynamics",
                       "snake_pin.planar_joint.velocity_map",
                       *(f"snake_pin.paper.{name}" for name in (

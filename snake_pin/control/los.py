@@ -12,11 +12,12 @@ import numpy as np
 from scipy.linalg import expm
 
 from .._blas import solve_spd
+from .._options import documented, option
 from .._validation import brief, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..model import Snake
 from ..paths import Line, Path, PathReference
-from ._options import documented, merged, option
+from ._options import merged
 from .base import Controller
 
 __all__ = ["LOSController", "LOSParams"]

@@ -10,10 +10,11 @@ from typing import Any
 import numpy as np
 
 from .._blas import gemv, posv, syrk
+from .._options import documented, option
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
-from ._options import check_fields, documented, option, tracking_gain
+from ._options import check_fields, tracking_gain
 from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference

@@ -15,12 +15,13 @@ from typing import Any
 import crocoddyl
 import numpy as np
 
+from .._options import documented, option
 from .._validation import instance
 from ..exceptions import ParameterError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..ocp import CostWeights, TrackingProblem, reference_states
-from ._options import check_fields, documented, merged, option
+from ._options import check_fields, merged
 from .base import Controller, ReferenceLaw, gait_for
 from .reference import HeadReference, head_first_reference
 

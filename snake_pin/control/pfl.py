@@ -11,13 +11,14 @@ from typing import Any
 import numpy as np
 
 from .._blas import gemv, posv, syrk
+from .._options import documented, option
 from .._symmetric import smallest_eigenvalue_3x3
 from .._validation import instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..manipulability import r_batch
 from ..model import Snake
-from ._options import check_fields, documented, option
+from ._options import check_fields
 from .base import ReferenceLaw
 from .gains import gain_matrix
 from .reference import HeadReference, LinearReference

@@ -12,12 +12,13 @@ import pinocchio as pin
 from scipy.linalg import lapack
 
 from .._blas import posv, syrk
+from .._options import documented, option
 from .._validation import check_params, finite_number, instance
 from ..exceptions import ParameterError, SingularPostureError
 from ..gaits import Serpenoid
 from ..model import Snake
 from ..params import SnakeParams
-from ._options import check_fields, documented, option, tracking_gain
+from ._options import check_fields, tracking_gain
 from .base import ReferenceLaw
 from .gains import default_k_phi, gain_matrix
 from .reference import HeadReference, head_first_reference

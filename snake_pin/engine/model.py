@@ -12,8 +12,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from .._options import documented, option
 from .._validation import finite_number, integer
-from ..control._options import documented, option
 from ..exceptions import ParameterError
 from ..params import SnakeParams
 from ..urdf import EFFORT_LIMIT, RADIUS_RATIO
