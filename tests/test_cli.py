@@ -182,7 +182,8 @@ def test_view_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None
     from snake_pin import SnakeParams, Trajectory
 
     code, _, err = _run(capsys, "view", str(tmp_path / "nothing.npz"))
-    assert code == 2 and "no such snake_pin trajectory" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "no such snake_pin trajectory" in err
+    assert len(err.strip().splitlines()) == 1
     traj = Trajectory(t=np.zeros(1), q=np.zeros((1, 10)), dq=np.zeros((1, 10)),
                       tau=np.zeros((1, 7)), params=SnakeParams.engine())
     npz, _ = traj.save(tmp_path / "engine_run")
