@@ -406,21 +406,14 @@ def _cmd_manip(args: argparse.Namespace) -> _Outcome:
                     f"sigma = {_plain(res.sigma)}\nlambda = {_plain(res.lambda_)}")
 
 
-def _sweep_range(args: argparse.Namespace) -> tuple[float, float] | None:
-    """``--range LOW HIGH`` (finite, LOW < HIGH, within +-MAX_COORDINATE), or None."""
-    if args.range is None:
-        return None
-    low, high = args.range
-    if not low < high:
-        raise UsageError(f"argument --range: LOW must be below HIGH, got {low:g} {high:g}")
-    if max(abs(low), abs(high)) > MAX_COORDINATE:
-        raise UsageError(f"argument --range: values must lie within +-{MAX_COORDINATE:g}")
-    return float(low), float(high)
-
-
 def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
     params, free = _analysis(args)
-    bounds = _sweep_range(args)
+    bounds = None if args.range is None else (float(args.range[0]), float(args.range[1]))
+    if bounds is not None and not bounds[0] < bounds[1]:
+        raise UsageError(f"argument --range: LOW must be below HIGH, got {bounds[0]:g} "
+                         f"{bounds[1]:g}")
+    if bounds is not None and max(map(abs, bounds)) > MAX_COORDINATE:
+        raise UsageError(f"argument --range: values must lie within +-{MAX_COORDINATE:g}")
     out = _output_folder(args.output)
     from .model import Snake
     from .runs.outputs import write_sweep
@@ -454,16 +447,6 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
                              f"to {high:.6g}: {found}")
 
 
-def _singular_text(search: Any) -> str:
-    lines = [f"{len(search.families)} famil{'y' if len(search.families) == 1 else 'ies'} "
-             f"with R <= {search.threshold:.3g} (typical R {search.R_typical:.3g}), "
-             f"from {search.starts} start{'' if search.starts == 1 else 's'}:"]
-    lines += [f"  {'straight' if f.straight else 'non-straight'} x{f.members}: "
-              f"R = {f.R:.3g}, phi = [{', '.join(f'{float(x):.3f}' for x in f.phi)}]"
-              for f in search.families]
-    return "\n".join(lines)
-
-
 def _cmd_singular(args: argparse.Namespace) -> _Outcome:
     params, free = _analysis(args)
     if not 0 < args.bound <= math.pi:
@@ -486,7 +469,13 @@ def _cmd_singular(args: argparse.Namespace) -> _Outcome:
         payload["files"] = [str(p) for p in files]
         if status == EXIT_INTERRUPTED:
             note += f"; partial search saved to {files[0]} (status interrupted)"
-    return _Outcome(payload, _singular_text(search), status, note)
+    lines = [f"{len(search.families)} famil{'y' if len(search.families) == 1 else 'ies'} "
+             f"with R <= {search.threshold:.3g} (typical R {search.R_typical:.3g}), "
+             f"from {search.starts} start{'' if search.starts == 1 else 's'}:"]
+    lines += [f"  {'straight' if f.straight else 'non-straight'} x{f.members}: "
+              f"R = {f.R:.3g}, phi = [{', '.join(f'{float(x):.3f}' for x in f.phi)}]"
+              for f in search.families]
+    return _Outcome(payload, "\n".join(lines), status, note)
 
 
 def _user_controller_class(spec: str) -> type:
@@ -942,11 +931,12 @@ def _mpc_flags(parser: argparse.ArgumentParser, horizon: str, bound: str) -> Non
 
 
 def _command(parser: argparse.ArgumentParser, func: Callable[[argparse.Namespace], _Outcome],
-             output: str | None = "output folder", *, required: bool = True) -> None:
+             output: str | None = "output folder", *, required: bool = True,
+             json: str = "print one JSON object", **output_kwargs: Any) -> None:
     """A subcommand's ``-o/--output`` (unless None), ``--json`` and handler."""
     if output is not None:
-        parser.add_argument("-o", "--output", required=required, help=output)
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+        parser.add_argument("-o", "--output", required=required, help=output, **output_kwargs)
+    parser.add_argument("--json", action="store_true", help=json)
     parser.set_defaults(func=func)
 
 
@@ -1066,10 +1056,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="animation frame rate, 1..120")
     p.add_argument("--robot", metavar="ROBOT",
                    help=f"refuse a run of another robot ({_ROBOT_HELP}; compared by name)")
-    p.add_argument("--json", action="store_true",
-                   help="print one JSON object (with --html: the page; live: the URL, then "
-                   "serve until Ctrl-C)")
-    p.set_defaults(func=_cmd_view)
+    _command(p, _cmd_view, None, json="print one JSON object (with --html: the page; live: "
+             "the URL, then serve until Ctrl-C)")
 
     p = sub.add_parser("reproduce", help="run every experiment and write the HTML report",
                        description="Run the report stages and move the report into place when "
@@ -1090,8 +1078,6 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("study", help="run a study (grids and random samples of runs) on Dask, "
                        "resumable", description=_STUDY_DESCRIPTION)
     p.add_argument("study", metavar="STUDY.toml", help="the study file")
-    p.add_argument("-o", "--output", required=True, metavar="DIR",
-                   help="output folder (re-run the same command to finish an interrupted study)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="tcp://HOST:PORT or tls://HOST:PORT of an existing Dask scheduler "
                    "(default: a local cluster on 127.0.0.1, authenticated by TLS)")
@@ -1110,8 +1096,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "port, printed on stderr); off by default")
     p.add_argument("--verbose", action="store_true",
                    help="log on stderr even when it is not a terminal")
-    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
-    p.set_defaults(func=_cmd_study)
+    _command(p, _cmd_study, "output folder (re-run the same command to finish an interrupted "
+             "study)", json="print the summary as one JSON object", metavar="DIR")
 
     p = sub.add_parser("bench-control", help="controller benchmark on paths (scenarios x "
                        "controllers x models, with and without joint 5 failed)")
