@@ -203,25 +203,17 @@ def _analysis(args: argparse.Namespace) -> tuple[SnakeParams, int | tuple[int, .
     return params.replace(passive=()), joints
 
 
-def _output_folder(text: str, option: str = "-o/--output") -> Path:
+def _output_folder(text: str) -> Path:
     """The output folder (not created): an existing file there is refused."""
     out = Path(text)
     if out.exists() and not out.is_dir():
-        raise UsageError(f"argument {option}: {text} exists and is not a folder")
+        raise UsageError(f"argument -o/--output: {text} exists and is not a folder")
     return out
 
 
 def _progress(args: argparse.Namespace) -> bool:
     """Progress bars: never with --json, and only on a terminal (tqdm checks that too)."""
     return not getattr(args, "json", False) and sys.stderr.isatty()
-
-
-def _check_t_final(value: float | None, dt: float) -> None:
-    from .sim import MAX_STEPS
-
-    if value is not None and value > MAX_STEPS * dt * (1 + 1e-12):
-        raise UsageError(f"argument --t-final: at most {MAX_STEPS * dt:g} s "
-                         f"({MAX_STEPS} control steps of {dt:g} s), got {value:g}")
 
 
 def _save_trajectory(traj: Any, out: Path, stem: str) -> list[Path]:
@@ -277,10 +269,15 @@ def _summary_text(payload: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _error_window(args: argparse.Namespace, t_final: float) -> float:
-    """``--error-window`` (below the run's duration), else the default window's start."""
+def _error_window(args: argparse.Namespace, t_final: float, dt: float) -> float:
+    """``--error-window`` (below the run's duration ``t_final``), else the default window's
+    start; ``--t-final`` is refused first beyond sim.MAX_STEPS control steps of ``dt``."""
     from .metrics import default_error_window
+    from .sim import MAX_STEPS
 
+    if args.t_final is not None and args.t_final > MAX_STEPS * dt * (1 + 1e-12):
+        raise UsageError(f"argument --t-final: at most {MAX_STEPS * dt:g} s "
+                         f"({MAX_STEPS} control steps of {dt:g} s), got {args.t_final:g}")
     if args.error_window is None:
         return default_error_window(t_final)
     if args.error_window >= t_final:
@@ -577,9 +574,8 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     mpc_options = _mpc_options(args)
     if kind == "pfl" and params.passive:
         raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
-    _check_t_final(args.t_final, SIMULATE_DT)
     t_final = args.t_final or (10.0 if kind == "pfl" and not on_path else 60.0)
-    start = _error_window(args, t_final)
+    start = _error_window(args, t_final, SIMULATE_DT)
     user = _user_controller_class(kind) if ":" in kind else None  # refused before any folder
     # a bad path, or --speed/--path-param without one: refused here
     reference = _path_reference(args, "line" if on_path else None)
@@ -683,8 +679,7 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
         raise UsageError("argument --perturbation: applies with --seeds N (a distribution of "
                          "N perturbed runs)")
     wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu, cone=args.cone)
-    _check_t_final(args.t_final, wheels.control_dt)
-    start = _error_window(args, args.t_final)
+    start = _error_window(args, args.t_final, wheels.control_dt)
     reference = _path_reference(args)  # a bad path: refused here, before any folder
     mpc_options = _mpc_options(args, engine=True)
     out = _output_folder(args.output)
@@ -884,9 +879,8 @@ def _cmd_study(args: argparse.Namespace) -> _Outcome:
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     from .runs import benchmark as bench
 
-    _check_t_final(args.t_final, SIMULATE_DT)
     start = _error_window(args, min(args.t_final, bench.QUICK_T_FINAL) if args.quick
-                          else args.t_final)
+                          else args.t_final, SIMULATE_DT)
     for name in args.scenario or []:
         if name not in bench.SCENARIOS:
             raise UsageError(f"argument --scenario: unknown {name!r}; choose from "
