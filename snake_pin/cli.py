@@ -424,11 +424,10 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
         partial = exc.partial
         if partial is None or not len(partial.values):
             return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
-        paths = write_sweep(partial, out)
-        files, wrote = _wrote(paths)
+        files, wrote = _wrote(write_sweep(partial, out))
         return _Outcome({**partial.to_dict(), "files": files},
                         f"{wrote}\n{len(partial.values)} of {args.points} postures (interrupted)",
-                        EXIT_INTERRUPTED, f"{exc}; partial sweep saved to {paths['json']} "
+                        EXIT_INTERRUPTED, f"{exc}; partial sweep saved to {files['json']} "
                                           "(status interrupted)")
     files, wrote = _wrote(write_sweep(result, out))
     zeros = result.zeros().tolist()
@@ -630,9 +629,8 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
 
 def _mpc_options(args: argparse.Namespace, *, engine: bool = False) -> Any:
     """``--horizon``/``--torque-bound`` as MPCOptions for the MPC (else refused; None)."""
-    given = {name: value for name, value in (("horizon", args.horizon),
-                                             ("torque_bound", args.torque_bound))
-             if value is not None}
+    given = {key: getattr(args, key) for key in ("horizon", "torque_bound")
+             if getattr(args, key) is not None}
     choice = "--law" if engine else "--controller"
     if (args.law if engine else args.controller) != "mpc":
         if given:
