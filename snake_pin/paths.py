@@ -1287,8 +1287,6 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
             raise ParameterError(f"unknown parameter {next(iter(params))!r} for a Path object")
         return PathReference(spec, Timing(**timing))
     if isinstance(spec, str) and spec in _SHAPES:
-        if spec == "waypoints" and "points" not in params:
-            raise ParameterError("waypoints: points is required (or give a .toml/.csv file)")
         return PathReference(make_path(spec, **params), Timing(**timing))
     if not isinstance(spec, (str, os.PathLike)):
         raise ParameterError(f"path must be a name ({', '.join(PATH_NAMES)}) or a file, "
