@@ -710,8 +710,8 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
 
 
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
-                  friction: dict[str, Any], out: Path, reference: Any = None,
-                  start: float | None = None, mpc_options: Any = None) -> _Outcome:
+                  friction: dict[str, Any], out: Path, reference: Any, start: float,
+                  mpc_options: Any) -> _Outcome:
     """``engine --seeds N``: the runs, their distribution (engine_seeds.json), median figures."""
     from tqdm import tqdm
 
@@ -759,8 +759,7 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     atomic_write_bytes(table, (json_text(data, indent=2) + "\n").encode())
     files.insert(0, str(table))
     payload = {**data, "files": files}
-    text = (draws.text() + (f"\n  head errors and torques over t >= {start:g} s"
-                            if start is not None else "")
+    text = (draws.text() + f"\n  head errors and torques over t >= {start:g} s"
             + (f"\nmedian run: {stems[median]}" if median is not None else ""))
     if interrupted:
         return _Outcome(payload, text, EXIT_INTERRUPTED,
