@@ -203,25 +203,17 @@ def _analysis(args: argparse.Namespace) -> tuple[SnakeParams, int | tuple[int, .
     return params.replace(passive=()), joints
 
 
-def _output_folder(text: str, option: str = "-o/--output") -> Path:
+def _output_folder(text: str) -> Path:
     """The output folder (not created): an existing file there is refused."""
     out = Path(text)
     if out.exists() and not out.is_dir():
-        raise UsageError(f"argument {option}: {text} exists and is not a folder")
+        raise UsageError(f"argument -o/--output: {text} exists and is not a folder")
     return out
 
 
 def _progress(args: argparse.Namespace) -> bool:
     """Progress bars: never with --json, and only on a terminal (tqdm checks that too)."""
     return not getattr(args, "json", False) and sys.stderr.isatty()
-
-
-def _check_t_final(value: float | None, dt: float) -> None:
-    from .sim import MAX_STEPS
-
-    if value is not None and value > MAX_STEPS * dt * (1 + 1e-12):
-        raise UsageError(f"argument --t-final: at most {MAX_STEPS * dt:g} s "
-                         f"({MAX_STEPS} control steps of {dt:g} s), got {value:g}")
 
 
 def _save_trajectory(traj: Any, out: Path, stem: str) -> list[Path]:
@@ -277,10 +269,15 @@ def _summary_text(payload: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _error_window(args: argparse.Namespace, t_final: float) -> float:
-    """``--error-window`` (below the run's duration), else the default window's start."""
+def _error_window(args: argparse.Namespace, t_final: float, dt: float) -> float:
+    """``--error-window`` (below the run's duration ``t_final``), else the default window's
+    start; ``--t-final`` is refused first beyond sim.MAX_STEPS control steps of ``dt``."""
     from .metrics import default_error_window
+    from .sim import MAX_STEPS
 
+    if args.t_final is not None and args.t_final > MAX_STEPS * dt * (1 + 1e-12):
+        raise UsageError(f"argument --t-final: at most {MAX_STEPS * dt:g} s "
+                         f"({MAX_STEPS} control steps of {dt:g} s), got {args.t_final:g}")
     if args.error_window is None:
         return default_error_window(t_final)
     if args.error_window >= t_final:
@@ -406,21 +403,14 @@ def _cmd_manip(args: argparse.Namespace) -> _Outcome:
                     f"sigma = {_plain(res.sigma)}\nlambda = {_plain(res.lambda_)}")
 
 
-def _sweep_range(args: argparse.Namespace) -> tuple[float, float] | None:
-    """``--range LOW HIGH`` (finite, LOW < HIGH, within +-MAX_COORDINATE), or None."""
-    if args.range is None:
-        return None
-    low, high = args.range
-    if not low < high:
-        raise UsageError(f"argument --range: LOW must be below HIGH, got {low:g} {high:g}")
-    if max(abs(low), abs(high)) > MAX_COORDINATE:
-        raise UsageError(f"argument --range: values must lie within +-{MAX_COORDINATE:g}")
-    return float(low), float(high)
-
-
 def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
     params, free = _analysis(args)
-    bounds = _sweep_range(args)
+    bounds = None if args.range is None else (float(args.range[0]), float(args.range[1]))
+    if bounds is not None and not bounds[0] < bounds[1]:
+        raise UsageError(f"argument --range: LOW must be below HIGH, got {bounds[0]:g} "
+                         f"{bounds[1]:g}")
+    if bounds is not None and max(map(abs, bounds)) > MAX_COORDINATE:
+        raise UsageError(f"argument --range: values must lie within +-{MAX_COORDINATE:g}")
     out = _output_folder(args.output)
     from .model import Snake
     from .runs.outputs import write_sweep
@@ -434,11 +424,10 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
         partial = exc.partial
         if partial is None or not len(partial.values):
             return _Outcome(status=EXIT_INTERRUPTED, note=f"{exc}; nothing to save")
-        paths = write_sweep(partial, out)
-        files, wrote = _wrote(paths)
+        files, wrote = _wrote(write_sweep(partial, out))
         return _Outcome({**partial.to_dict(), "files": files},
                         f"{wrote}\n{len(partial.values)} of {args.points} postures (interrupted)",
-                        EXIT_INTERRUPTED, f"{exc}; partial sweep saved to {paths['json']} "
+                        EXIT_INTERRUPTED, f"{exc}; partial sweep saved to {files['json']} "
                                           "(status interrupted)")
     files, wrote = _wrote(write_sweep(result, out))
     zeros = result.zeros().tolist()
@@ -452,16 +441,6 @@ def _cmd_sweep(args: argparse.Namespace) -> _Outcome:
         f"R > 0 everywhere (smallest {float(result.R.min()):.6g})"
     return _Outcome(payload, f"{wrote}\n{len(result.values)} postures, {name} from {low:.6g} "
                              f"to {high:.6g}: {found}")
-
-
-def _singular_text(search: Any) -> str:
-    lines = [f"{len(search.families)} famil{'y' if len(search.families) == 1 else 'ies'} "
-             f"with R <= {search.threshold:.3g} (typical R {search.R_typical:.3g}), "
-             f"from {search.starts} start{'' if search.starts == 1 else 's'}:"]
-    lines += [f"  {'straight' if f.straight else 'non-straight'} x{f.members}: "
-              f"R = {f.R:.3g}, phi = [{', '.join(f'{float(x):.3f}' for x in f.phi)}]"
-              for f in search.families]
-    return "\n".join(lines)
 
 
 def _cmd_singular(args: argparse.Namespace) -> _Outcome:
@@ -486,7 +465,13 @@ def _cmd_singular(args: argparse.Namespace) -> _Outcome:
         payload["files"] = [str(p) for p in files]
         if status == EXIT_INTERRUPTED:
             note += f"; partial search saved to {files[0]} (status interrupted)"
-    return _Outcome(payload, _singular_text(search), status, note)
+    lines = [f"{len(search.families)} famil{'y' if len(search.families) == 1 else 'ies'} "
+             f"with R <= {search.threshold:.3g} (typical R {search.R_typical:.3g}), "
+             f"from {search.starts} start{'' if search.starts == 1 else 's'}:"]
+    lines += [f"  {'straight' if f.straight else 'non-straight'} x{f.members}: "
+              f"R = {f.R:.3g}, phi = [{', '.join(f'{float(x):.3f}' for x in f.phi)}]"
+              for f in search.families]
+    return _Outcome(payload, "\n".join(lines), status, note)
 
 
 def _user_controller_class(spec: str) -> type:
@@ -588,9 +573,8 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
     mpc_options = _mpc_options(args)
     if kind == "pfl" and params.passive:
         raise UsageError("simulate: PFL needs every joint actuated (drop --passive)")
-    _check_t_final(args.t_final, SIMULATE_DT)
     t_final = args.t_final or (10.0 if kind == "pfl" and not on_path else 60.0)
-    start = _error_window(args, t_final)
+    start = _error_window(args, t_final, SIMULATE_DT)
     user = _user_controller_class(kind) if ":" in kind else None  # refused before any folder
     # a bad path, or --speed/--path-param without one: refused here
     reference = _path_reference(args, "line" if on_path else None)
@@ -645,9 +629,8 @@ def _cmd_simulate(args: argparse.Namespace) -> _Outcome:
 
 def _mpc_options(args: argparse.Namespace, *, engine: bool = False) -> Any:
     """``--horizon``/``--torque-bound`` as MPCOptions for the MPC (else refused; None)."""
-    given = {name: value for name, value in (("horizon", args.horizon),
-                                             ("torque_bound", args.torque_bound))
-             if value is not None}
+    given = {key: getattr(args, key) for key in ("horizon", "torque_bound")
+             if getattr(args, key) is not None}
     choice = "--law" if engine else "--controller"
     if (args.law if engine else args.controller) != "mpc":
         if given:
@@ -694,8 +677,7 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
         raise UsageError("argument --perturbation: applies with --seeds N (a distribution of "
                          "N perturbed runs)")
     wheels = WheelSpec(radius=args.wheel_radius, friction=args.mu, cone=args.cone)
-    _check_t_final(args.t_final, wheels.control_dt)
-    start = _error_window(args, args.t_final)
+    start = _error_window(args, args.t_final, wheels.control_dt)
     reference = _path_reference(args)  # a bad path: refused here, before any folder
     mpc_options = _mpc_options(args, engine=True)
     out = _output_folder(args.output)
@@ -728,8 +710,8 @@ def _cmd_engine(args: argparse.Namespace) -> _Outcome:
 
 
 def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
-                  friction: dict[str, Any], out: Path, reference: Any = None,
-                  start: float | None = None, mpc_options: Any = None) -> _Outcome:
+                  friction: dict[str, Any], out: Path, reference: Any, start: float,
+                  mpc_options: Any) -> _Outcome:
     """``engine --seeds N``: the runs, their distribution (engine_seeds.json), median figures."""
     from tqdm import tqdm
 
@@ -777,8 +759,7 @@ def _engine_seeds(args: argparse.Namespace, params: SnakeParams, wheels: Any,
     atomic_write_bytes(table, (json_text(data, indent=2) + "\n").encode())
     files.insert(0, str(table))
     payload = {**data, "files": files}
-    text = (draws.text() + (f"\n  head errors and torques over t >= {start:g} s"
-                            if start is not None else "")
+    text = (draws.text() + f"\n  head errors and torques over t >= {start:g} s"
             + (f"\nmedian run: {stems[median]}" if median is not None else ""))
     if interrupted:
         return _Outcome(payload, text, EXIT_INTERRUPTED,
@@ -895,9 +876,8 @@ def _cmd_study(args: argparse.Namespace) -> _Outcome:
 def _cmd_bench_control(args: argparse.Namespace) -> _Outcome:
     from .runs import benchmark as bench
 
-    _check_t_final(args.t_final, SIMULATE_DT)
     start = _error_window(args, min(args.t_final, bench.QUICK_T_FINAL) if args.quick
-                          else args.t_final)
+                          else args.t_final, SIMULATE_DT)
     for name in args.scenario or []:
         if name not in bench.SCENARIOS:
             raise UsageError(f"argument --scenario: unknown {name!r}; choose from "
@@ -942,11 +922,12 @@ def _mpc_flags(parser: argparse.ArgumentParser, horizon: str, bound: str) -> Non
 
 
 def _command(parser: argparse.ArgumentParser, func: Callable[[argparse.Namespace], _Outcome],
-             output: str | None = "output folder", *, required: bool = True) -> None:
+             output: str | None = "output folder", *, required: bool = True,
+             json: str = "print one JSON object", **output_kwargs: Any) -> None:
     """A subcommand's ``-o/--output`` (unless None), ``--json`` and handler."""
     if output is not None:
-        parser.add_argument("-o", "--output", required=required, help=output)
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+        parser.add_argument("-o", "--output", required=required, help=output, **output_kwargs)
+    parser.add_argument("--json", action="store_true", help=json)
     parser.set_defaults(func=func)
 
 
@@ -1066,10 +1047,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="animation frame rate, 1..120")
     p.add_argument("--robot", metavar="ROBOT",
                    help=f"refuse a run of another robot ({_ROBOT_HELP}; compared by name)")
-    p.add_argument("--json", action="store_true",
-                   help="print one JSON object (with --html: the page; live: the URL, then "
-                   "serve until Ctrl-C)")
-    p.set_defaults(func=_cmd_view)
+    _command(p, _cmd_view, None, json="print one JSON object (with --html: the page; live: "
+             "the URL, then serve until Ctrl-C)")
 
     p = sub.add_parser("reproduce", help="run every experiment and write the HTML report",
                        description="Run the report stages and move the report into place when "
@@ -1090,8 +1069,6 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("study", help="run a study (grids and random samples of runs) on Dask, "
                        "resumable", description=_STUDY_DESCRIPTION)
     p.add_argument("study", metavar="STUDY.toml", help="the study file")
-    p.add_argument("-o", "--output", required=True, metavar="DIR",
-                   help="output folder (re-run the same command to finish an interrupted study)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="tcp://HOST:PORT or tls://HOST:PORT of an existing Dask scheduler "
                    "(default: a local cluster on 127.0.0.1, authenticated by TLS)")
@@ -1110,8 +1087,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "port, printed on stderr); off by default")
     p.add_argument("--verbose", action="store_true",
                    help="log on stderr even when it is not a terminal")
-    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
-    p.set_defaults(func=_cmd_study)
+    _command(p, _cmd_study, "output folder (re-run the same command to finish an interrupted "
+             "study)", json="print the summary as one JSON object", metavar="DIR")
 
     p = sub.add_parser("bench-control", help="controller benchmark on paths (scenarios x "
                        "controllers x models, with and without joint 5 failed)")

@@ -118,12 +118,6 @@ def _point(value: object, name: str) -> tuple[float, float]:
     return (_length(value[0], f"{name}[0]"), _length(value[1], f"{name}[1]"))
 
 
-def _flag(value: object, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise ParameterError(f"{name} must be true or false, got {brief(value)}")
-    return bool(value)
-
-
 def _set(obj: object, **values: Any) -> None:
     """Set attributes of a frozen dataclass: its checked fields and tables."""
     for name, value in values.items():
@@ -586,7 +580,9 @@ class Circle(Path):
 
     def __post_init__(self) -> None:
         radius = _length(self.radius, "radius", positive=True)
-        side = -1.0 if _flag(self.clockwise, "clockwise") else 1.0
+        if not isinstance(self.clockwise, (bool, np.bool_)):
+            raise ParameterError(f"clockwise must be true or false, got {brief(self.clockwise)}")
+        side = -1.0 if self.clockwise else 1.0
         # by default the circle through the origin heading along +x
         start = (_angle(self.start_angle, "start_angle") if self.start_angle is not None
                  else -side * _HALF_PI if self.centre is None else 0.0)
@@ -1204,12 +1200,6 @@ def _file_error(path: str | os.PathLike[str], message: str) -> PathFileError:
     return PathFileError(" ".join(f"{os.fspath(path)}: {message}".split()))
 
 
-def _read_file(path: str | os.PathLike[str]) -> str:
-    error = functools.partial(_file_error, path)
-    return decode_utf8(read_regular_file(path, limit=MAX_PATH_FILE_BYTES, kind="path file",
-                                         error=error), error=error)
-
-
 def _parse_toml(path: str | os.PathLike[str], text: str) -> dict[str, Any]:
     doc = parse_toml(text, error=functools.partial(_file_error, path))
     kind = doc.pop("type", None)
@@ -1297,8 +1287,6 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
             raise ParameterError(f"unknown parameter {next(iter(params))!r} for a Path object")
         return PathReference(spec, Timing(**timing))
     if isinstance(spec, str) and spec in _SHAPES:
-        if spec == "waypoints" and "points" not in params:
-            raise ParameterError("waypoints: points is required (or give a .toml/.csv file)")
         return PathReference(make_path(spec, **params), Timing(**timing))
     if not isinstance(spec, (str, os.PathLike)):
         raise ParameterError(f"path must be a name ({', '.join(PATH_NAMES)}) or a file, "
@@ -1308,7 +1296,9 @@ def load_path(spec: str | os.PathLike[str] | Path | PathReference,
     if suffix not in (".toml", ".csv"):
         raise ParameterError(f"unknown path {brief(file_name)}: expected one of "
                              f"{', '.join(PATH_NAMES)} or a .toml/.csv path file")
-    text = _read_file(spec)
+    error = functools.partial(_file_error, spec)
+    text = decode_utf8(read_regular_file(spec, limit=MAX_PATH_FILE_BYTES, kind="path file",
+                                         error=error), error=error)
     doc = _parse_toml(spec, text) if suffix == ".toml" else _parse_csv(spec, text)
     kind = doc.pop("type")
     file_timing = {k: doc.pop(k) for k in _TIMING_KEYS if k in doc}

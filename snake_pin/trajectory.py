@@ -122,10 +122,23 @@ class Trajectory:
         ConfigurationError
             The arrays are not a trajectory that :meth:`load` would accept.
         """
-        npz, js = _file_pair(path)
+        try:
+            given = Path(path)
+        except TypeError as exc:
+            raise ParameterError(f"not a file path: {reprlib.repr(path)}") from exc
+        stem = re.sub(r"\.(npz|json)\Z", "", given.name)
+        if stem in ("", ".", ".."):
+            raise ParameterError(f"trajectory file name is empty: {printable_path(path)}")
+        npz, js = given.with_name(stem + ".npz"), given.with_name(stem + ".json")
         if not npz.parent.is_dir():
             raise ParameterError(f"output directory does not exist: {npz.parent}")
-        arrays = self._file_arrays()
+        core = {name: np.asarray(getattr(self, name)) for name in _CORE}
+        signals = {name: np.asarray(value) for name, value in self.signals.items()}
+        problem = _array_problem(core, signals, self.params.n)
+        if problem:
+            raise ConfigurationError(f"cannot save this trajectory: {problem}")
+        arrays = {name: arr.astype(float, copy=False) for name, arr in core.items()}
+        arrays.update({_SIGNAL_PREFIX + k: v for k, v in signals.items()})
         header = {"params": self.params.to_dict(), "status": self.status,
                   "diverged": self.diverged, "reason": self.reason, "meta": self.meta,
                   "summary": self.summary, "signals": sorted(self.signals)}
@@ -140,17 +153,6 @@ class Trajectory:
                 handle, allow_pickle=True, **arrays))
             group.write_bytes(js.name, (summary_text + "\n").encode())
         return npz, js
-
-    def _file_arrays(self) -> dict[str, np.ndarray]:
-        """The arrays to save, checked as :meth:`load` checks them."""
-        core = {name: np.asarray(getattr(self, name)) for name in _CORE}
-        signals = {name: np.asarray(value) for name, value in self.signals.items()}
-        problem = _array_problem(core, signals, self.params.n)
-        if problem:
-            raise ConfigurationError(f"cannot save this trajectory: {problem}")
-        arrays = {name: arr.astype(float, copy=False) for name, arr in core.items()}
-        arrays.update({_SIGNAL_PREFIX + k: v for k, v in signals.items()})
-        return arrays
 
     def summary_dict(self) -> dict[str, Any]:
         """The JSON summary: run status plus :attr:`summary`.
@@ -202,18 +204,6 @@ class Trajectory:
         except Exception as exc:  # hostile input: whatever breaks while parsing is a refusal
             raise TrajectoryFileError(f"{shown} is not a readable snake_pin trajectory "
                                       f"({type(exc).__name__}: {one_line(str(exc))})") from None
-
-
-def _file_pair(path: str | os.PathLike[str]) -> tuple[Path, Path]:
-    """``(PATH.npz, PATH.json)`` for save: only a trailing .npz/.json is dropped."""
-    try:
-        given = Path(path)
-    except TypeError as exc:
-        raise ParameterError(f"not a file path: {reprlib.repr(path)}") from exc
-    name = re.sub(r"\.(npz|json)\Z", "", given.name)
-    if name in ("", ".", ".."):
-        raise ParameterError(f"trajectory file name is empty: {printable_path(path)}")
-    return given.with_name(name + ".npz"), given.with_name(name + ".json")
 
 
 def _resolve(path: str | os.PathLike[str]) -> Path:

@@ -81,16 +81,6 @@ def _stop_on_stdin_eof(loop: tornado.ioloop.IOLoop) -> None:
     loop.add_handler(fd, readable, tornado.ioloop.IOLoop.READ)
 
 
-def _silence() -> None:
-    """Point stdout and stderr at /dev/null, so no later print can block on a full pipe."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, 1)
-    os.dup2(devnull, 2)
-    os.close(devnull)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Start the bridge, print its URLs, serve until interrupted, the parent dies or stdin ends.
     """
@@ -113,8 +103,12 @@ def main(argv: list[str] | None = None) -> int:
         _stop_on_stdin_eof(bridge.ioloop)
     print(f"zmq_url={bridge.zmq_url}", flush=True)
     print(f"web_url={bridge.web_url}", flush=True)
-    if args.quiet:
-        _silence()
+    if args.quiet:  # stdout and stderr to /dev/null: no later print blocks on a full pipe
+        sys.stderr.flush()
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+        os.close(devnull)
     try:
         bridge.run()
     except KeyboardInterrupt:

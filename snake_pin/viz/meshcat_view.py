@@ -43,6 +43,8 @@ HOST = "127.0.0.1"
 
 def _port_problem(port: int) -> str | None:
     """Why 127.0.0.1:port cannot be bound now (in words), or None when it can."""
+    if not 1 <= port <= 65535:
+        return f"port must lie in 1..65535, got {port}"
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -87,12 +89,8 @@ def start_server(port: int | None = None, timeout: float = 20.0
                  ) -> tuple[subprocess.Popen[bytes], str, str]:
     """Start meshcat's bridge on 127.0.0.1 (``port``, or the first free one from 7000) in a
     child process that stops when this one ends; return it, its ZMQ URL and its web URL."""
-    if port is not None:
-        if not 1 <= port <= 65535:
-            raise ParameterError(f"port must lie in 1..65535, got {port}")
-        problem = _port_problem(port)
-        if problem is not None:
-            raise ParameterError(problem)
+    if port is not None and (problem := _port_problem(port)) is not None:
+        raise ParameterError(problem)
     cmd = [sys.executable, "-u", "-m", "snake_pin.viz.meshcat_server", "--stdin-eof", "--quiet"]
     if threading.current_thread() is threading.main_thread():
         # PR_SET_PDEATHSIG follows the thread that started the child: only from the main one

@@ -98,8 +98,7 @@ def plot_postures(snake: Snake, postures: Sequence[tuple[str, np.ndarray]],
     for ax, (label, q) in zip(axes.flat, postures, strict=False):
         draw_snake(ax, snake, q, frames=frames)
         ax.set_title(label, fontsize=10)
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
+        ax.set(xlabel="x [m]", ylabel="y [m]")
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[count:]:
         ax.axis("off")
@@ -124,8 +123,7 @@ def plot_trajectory(traj: Trajectory, path: str | os.PathLike[str] | None = None
         axes[2].semilogy(traj.t[held], norm)
     else:
         axes[2].plot(traj.t[held], norm)
-    axes[2].set_ylabel("||tau|| [N m]")
-    axes[2].set_xlabel("t [s]")
+    axes[2].set(ylabel="||tau|| [N m]", xlabel="t [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
     if traj.diverged:
@@ -150,8 +148,7 @@ def plot_head_path(traj: Trajectory, reference: np.ndarray,
             draw_snake(ax, snake, traj.q[i], alpha=0.3 + 0.7 * k / max(snapshots - 1, 1))
         ax.plot(reference[-1, 0], reference[-1, 1], "s", color="k", ms=5,
                 label=f"reference at t = {traj.t_end:.3g} s")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+    ax.set(xlabel="x [m]", ylabel="y [m]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
@@ -194,8 +191,7 @@ def plot_sweep(sweep: Any, path: str | os.PathLike[str] | None = None) -> plt.Fi
             ax.semilogy(sweep.values[zero], np.full(zero.sum(), floor), "v", color="firebrick",
                         label="numerically 0")
             ax.legend(fontsize=8)
-        ax.set_xlabel(sweep.label)
-        ax.set_ylabel(f"{name}{'~' if sweep.free_joint else ''}")
+        ax.set(xlabel=sweep.label, ylabel=f"{name}{'~' if sweep.free_joint else ''}")
         ax.set_title(f"{name} along '{sweep.family}'{suffix}", fontsize=10)
         ax.grid(alpha=0.3, which="both")
     return save_figure(fig, path)
@@ -211,8 +207,7 @@ def plot_r_maps(maps: Sequence[Any], path: str | os.PathLike[str] | None = None
         image = ax.pcolormesh(rmap.alpha, rmap.ts, np.log10(np.maximum(rmap.R, floor)),
                               shading="auto", cmap="viridis")
         fig.colorbar(image, ax=ax, label="log10 R")
-        ax.set_xlabel("alpha [rad]")
-        ax.set_ylabel("T_s")
+        ax.set(xlabel="alpha [rad]", ylabel="T_s")
         free = f", joint {rmap.free_joint} free" if rmap.free_joint else ""
         ax.set_title(f"R of the serpenoid{free}", fontsize=10)
     return save_figure(fig, path)
