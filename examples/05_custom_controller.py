@@ -34,9 +34,10 @@ class GaitPD(Controller):
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         phi, dphi = x[3:self.n + 2], x[self.n + 5:]        # x = [q, dq], q = [w, phi]
-        error = self.gait.angles(t) - phi
+        phi_r, dphi_r, _ = self.gait.derivatives(t)
+        error = phi_r - phi
         self._error = float(np.sqrt(np.mean(error**2)))
-        return self.k_p * error + self.k_d * (self.gait.velocities(t) - dphi)
+        return self.k_p * error + self.k_d * (dphi_r - dphi)
 
     def signals(self) -> dict[str, float]:
         """Recorded by the simulator at every control step."""

@@ -163,36 +163,6 @@ class Serpenoid:
         """
         return self._amplitudes[0] * np.sin(self.v * t - self._offsets)
 
-    def velocities(self, t: float = 0.0) -> np.ndarray:
-        """Return the joint velocities phi'(t) [rad/s].
-
-        Parameters
-        ----------
-        t : float, optional
-            Time [s].
-
-        Returns
-        -------
-        numpy.ndarray, shape (n - 1,)
-            phi'.
-        """
-        return self._amplitudes[1] * np.cos(self.v * t - self._offsets)
-
-    def accelerations(self, t: float = 0.0) -> np.ndarray:
-        """Return the joint accelerations phi''(t) [rad/s^2].
-
-        Parameters
-        ----------
-        t : float, optional
-            Time [s].
-
-        Returns
-        -------
-        numpy.ndarray, shape (n - 1,)
-            phi''.
-        """
-        return self._amplitudes[2] * np.sin(self.v * t - self._offsets)
-
     def derivatives(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (phi, phi', phi'') at time t with one sine and one cosine (a hot path).
 

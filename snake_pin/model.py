@@ -169,26 +169,6 @@ class Snake:
 
         return cls(read_urdf(path, friction=friction))
 
-    @classmethod
-    def from_file(cls, spec: str | os.PathLike[str], **overrides: Any) -> Snake:
-        """The snake a ``--robot`` value names: a preset, a ``.toml`` robot file or a URDF.
-
-        Parameters
-        ----------
-        spec : str or os.PathLike
-            As :func:`~snake_pin.robot_file.load_robot`.
-        **overrides
-            Fields of the robot to change (e.g. ``passive=(5,)``).
-
-        Returns
-        -------
-        Snake
-            The robot's model.
-        """
-        from .robot_file import load_robot
-
-        return cls(load_robot(spec, **overrides))
-
     # ------------------------------------------------------------ validation
     def check_q(self, q: object, name: str = "q") -> np.ndarray:
         """``q`` (configuration) as n + 2 finite floats, or ConfigurationError.
@@ -493,38 +473,6 @@ class Snake:
                                    ddq_dv=ddq_dv + minv @ dforce_dv,
                                    ddq_dtau=minv @ self.actuation_matrix,
                                    ddq=data.ddq.copy())
-
-    def friction_of_state(self, x: np.ndarray) -> np.ndarray:
-        """Friction force at the stacked state x = [q, dq] (as :meth:`friction_force`).
-
-        Parameters
-        ----------
-        x : numpy.ndarray
-            State ``[q, dq]`` (2(n + 2)).
-
-        Returns
-        -------
-        numpy.ndarray
-            The friction force, length n + 2 (a new array).
-        """
-        x = self.check_state(x)
-        return self.friction.calc_force(self._data.friction, x[:self.nq], x[self.nq:]).copy()
-
-    def bias_of_state(self, x: np.ndarray) -> np.ndarray:
-        """h at the stacked state x = [q, dq] (as :meth:`bias`).
-
-        Parameters
-        ----------
-        x : numpy.ndarray
-            State ``[q, dq]`` (2(n + 2)).
-
-        Returns
-        -------
-        numpy.ndarray
-            ``h``, length n + 2.
-        """
-        x = self.check_state(x)
-        return self.calc_mass_and_bias(self._data, x[:self.nq], x[self.nq:])[1].copy()
 
     def state_derivative(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """q'' for the stacked state x = [q, dq] (as :meth:`forward_dynamics`).

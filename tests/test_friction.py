@@ -41,7 +41,7 @@ def test_friction_equals_external_forces(c: tuple, rng: np.random.Generator,
         reference = (pin.rnea(snake.model, snake.data, q, dq, zero)
                      - pin.rnea(snake.model, snake.data, q, dq, zero, fext))
         assert np.allclose(snake.friction(q, dq), reference, rtol=1e-12, atol=1e-13)
-        assert np.allclose(snake.friction_of_state(np.r_[q, dq]), reference, atol=1e-13)
+        assert np.allclose(snake.friction_force(q, dq), reference, atol=1e-13)
         assert np.allclose(passes(q, dq), reference, rtol=1e-12, atol=1e-13)
         assert np.allclose(_closed_form(params, q, dq), reference, rtol=1e-12, atol=1e-13)
 
@@ -78,7 +78,7 @@ def test_isotropic_twin_equals_the_closed_form(c: tuple, rng: np.random.Generato
         q, dq = random_state(rng, params.n)
         expected = _closed_form(params, q, dq)
         assert np.allclose(snake.friction(q, dq), expected, rtol=1e-12, atol=1e-13)
-        assert np.allclose(snake.friction_of_state(np.r_[q, dq]), expected, rtol=1e-12,
+        assert np.allclose(snake.friction_force(q, dq), expected, rtol=1e-12,
                            atol=1e-13)
         c_twin = snake.friction.matrix(q)
         assert np.allclose(c_twin, paper.friction_matrix(params, q), rtol=1e-12, atol=1e-13)
@@ -99,7 +99,7 @@ def test_twin_with_wheels_equals_the_closed_form(c: tuple, rng: np.random.Genera
         expected = _closed_form(params, q, dq)
         scale = np.abs(expected).max()
         assert np.allclose(snake.friction(q, dq), expected, rtol=1e-12, atol=1e-13 * scale)
-        assert np.allclose(snake.friction_of_state(np.r_[q, dq]), expected, rtol=1e-12,
+        assert np.allclose(snake.friction_force(q, dq), expected, rtol=1e-12,
                            atol=1e-13 * scale)
         assert np.allclose(passes(q, dq), expected, rtol=1e-12, atol=1e-13 * scale)
     c_closed = paper.friction_matrix(params, q)

@@ -59,3 +59,17 @@ def test_n_is_an_integer_of_at_least_two(n: object) -> None:
     for call in (straight, initial_state, lambda m: arc(m, 0.1), lambda m: Serpenoid(m, 0.1, 1.0)):
         with pytest.raises(ParameterError, match="n must"):
             call(n)  # type: ignore[operator]
+
+
+@pytest.mark.parametrize("t", [0.0, 0.37, 2.5])
+def test_serpenoid_derivatives_are_those_of_its_angles(t: float) -> None:
+    """derivatives(t) is (phi, phi', phi'') of eq. (43): phi as angles(t), the rates by
+    central differences of angles in time."""
+    gait = Serpenoid(n=10, alpha=0.6, ts=1.3, v=2.1)
+    phi, dphi, ddphi = gait.derivatives(t)
+    h = 1e-4
+    before, after = gait.angles(t - h), gait.angles(t + h)
+    assert np.array_equal(phi, gait.angles(t))
+    assert np.allclose(dphi, (after - before) / (2 * h), rtol=1e-6, atol=1e-8)
+    assert np.allclose(ddphi, (after - 2 * phi + before) / h**2, rtol=1e-4, atol=1e-5)
+    assert np.abs(dphi).max() > 0.1 and np.abs(ddphi).max() > 0.1  # not a still gait

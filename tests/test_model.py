@@ -125,18 +125,19 @@ def test_head_pose_and_bad_sizes(table1: Snake) -> None:
 
 
 def test_state_methods_follow_in_place_changes(rng: np.random.Generator) -> None:
-    """friction_of_state, bias_of_state and state_derivative read the state they are given,
-    also one changed in place since the last call (no cache serves an old state)."""
+    """friction_force, bias and state_derivative read the arrays they are given, also ones
+    changed in place since the last call (no cache serves an old state)."""
     snake = Snake(SnakeParams.table1(c_y=5.0))
     q, dq = random_state(rng, snake.n)
     x = np.r_[q, dq]
     tau = rng.normal(size=snake.n - 1)
-    first = snake.friction_of_state(x)
+    q, dq = x[:snake.nq], x[snake.nq:]  # views of x
+    first, first_bias = snake.friction_force(q, dq), snake.bias(q, dq)
     x[snake.nq + 4] += 0.5  # same array object, new state
-    q, dq = x[:snake.nq], x[snake.nq:]
-    assert np.allclose(snake.friction_of_state(x), snake.friction(q, dq))
-    assert not np.allclose(snake.friction_of_state(x), first)
-    assert np.array_equal(snake.bias_of_state(x), snake.bias(q, dq))
+    assert np.allclose(snake.friction_force(q, dq), snake.friction(q.copy(), dq.copy()))
+    assert not np.allclose(snake.friction_force(q, dq), first)
+    assert not np.allclose(snake.bias(q, dq), first_bias)
+    assert np.array_equal(snake.bias(q, dq), snake.bias(q.copy(), dq.copy()))
     assert np.array_equal(snake.state_derivative(x, tau), snake.forward_dynamics(q, dq, tau))
 
 
@@ -214,14 +215,14 @@ def test_dynamics_derivatives_with_friction(n: int, friction: str,
 
 def test_snake_from_urdf_and_robot_file_round_trip(tmp_path, rng: np.random.Generator) -> None:
     """params -> TOML -> URDF -> Snake gives the same H and h to 1e-12 (friction kept)."""
-    from snake_pin.robot_file import write_robot_file
+    from snake_pin.robot_file import load_robot, write_robot_file
     from snake_pin.urdf import write_urdf
 
     from .conftest import heterogeneous_params
 
     params = heterogeneous_params(rng, 7, passive=(3,))
     toml_path = write_robot_file(params, tmp_path / "robot.toml")
-    from_toml = Snake.from_file(toml_path)
+    from_toml = Snake(load_robot(toml_path))
     urdf_path = write_urdf(from_toml.params, tmp_path / "robot.urdf")
     from_urdf = Snake.from_urdf(urdf_path)
     original = Snake(params)

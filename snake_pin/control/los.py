@@ -308,7 +308,7 @@ class LOSController(Controller):
         snake, nq, p = self.snake, self.snake.nq, self.params
         v = ddphi_r + p.k_joint_d * (dphi_r - x[nq + 3:]) + p.k_joint_p * (phi_r - x[3:nq])
         h_mat = snake.inertia_matrix(x[:nq])
-        h_vec = snake.bias_of_state(x)
+        h_vec = snake.bias(x[:nq], x[nq:])
         act, unact = self._act, self._unact
         uu, ua, au, aa = self._blocks
         solved, info = solve_spd(h_mat[uu], np.column_stack((h_mat[ua], h_vec[unact])))

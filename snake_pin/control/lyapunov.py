@@ -241,7 +241,7 @@ class LyapunovController(ReferenceLaw):
         """
         snake = self.snake
         h_inv = snake.inverse_inertia_matrix(x[:snake.nq])
-        return h_inv[:, self._act], -h_inv @ snake.bias_of_state(x)
+        return h_inv[:, self._act], -h_inv @ snake.bias(x[:snake.nq], x[snake.nq:])
 
     def lyapunov(self, x: np.ndarray, t: float) -> float:
         """V of eq. (83) at (x, t).

@@ -83,29 +83,12 @@ class Setting:
     models: tuple[str, ...] = MODELS
     controllers: tuple[str, ...] = CONTROLLERS
 
-    def applies(self, model: str, controller: str) -> bool:
-        """Whether this setting applies to a run of ``model`` and ``controller``.
-
-        Parameters
-        ----------
-        model, controller
-            The run's.
-
-        Returns
-        -------
-        bool
-            True where it applies.
-        """
+    def _applies(self, model: str, controller: str) -> bool:
+        """Whether this setting applies to a run of ``model`` and ``controller``."""
         return model in self.models and controller in self.controllers
 
-    def domain(self) -> str:
-        """The domain in words.
-
-        Returns
-        -------
-        str
-            E.g. ``"> 0"``, ``"in [0, 10]"``, ``"one of a, b"``.
-        """
+    def _domain(self) -> str:
+        """The domain in words, e.g. ``"> 0"``, ``"in [0, 10]"``, ``"one of a, b"``."""
         if self.kind == "bool":
             return "true or false"
         if self.choices:
@@ -116,31 +99,20 @@ class Setting:
             return f"{'>' if self.open_low else '>='} {self.low:g}"
         return "finite"
 
-    def problem(self, value: Any) -> str:
-        """Why a value (of the setting's kind) is outside the domain.
-
-        Parameters
-        ----------
-        value
-            The value.
-
-        Returns
-        -------
-        str
-            The reason, or "" when the value is inside.
-        """
+    def _problem(self, value: Any) -> str:
+        """Why a value (of the setting's kind) is outside the domain ("" when inside)."""
         if self.kind == "bool":
             return ""
         if self.kind == "str":
             return "" if not self.choices or value in self.choices else \
-                f"must be {self.domain()}, got {_short(value)}"
+                f"must be {self._domain()}, got {_short(value)}"
         if self.kind == "joints":
             return "" if all(k >= 1 for k in value) else \
                 f"joints are numbered from 1, got {_short(value)}"
         below = self.low is not None and (value < self.low or
                                           (self.open_low and value == self.low))
         above = self.high is not None and value > self.high
-        return f"must be {self.domain()}, got {value!r}" if below or above else ""
+        return f"must be {self._domain()}, got {value!r}" if below or above else ""
 
 
 #: The options dataclass of each controller: their fields are the laws' settings.
@@ -543,7 +515,7 @@ def _typed(where: _Where, label: str, setting: Setting, value: Any) -> Any:
         if len(set(value)) != len(value):
             raise where(f"{label} lists a joint twice: {_short(value)}")
         value = tuple(sorted(value))
-    problem = setting.problem(value)
+    problem = setting._problem(value)
     if problem:
         raise where(f"{label} {problem}")
     return value
@@ -624,7 +596,7 @@ def _axis(where: _Where, name: str, spec: Any, base: Mapping[str, Any]) -> Axis:
     values = []
     for i, v in enumerate(drawn):
         v = 0.0 if v == 0.0 else float(v)
-        problem = setting.problem(v)
+        problem = setting._problem(v)
         if problem:
             raise where(f"{label} value {i} ({v!r}) of {form}: {name} {problem}")
         values.append(v)
@@ -675,7 +647,7 @@ def _check_applicability(where: _Where, base: Mapping[str, Any], axes: Sequence[
     for name in sorted(explicit, key=list(SETTINGS).index):
         setting = SETTINGS[name]
         for model, controller in pairs:
-            if not setting.applies(model, controller):
+            if not setting._applies(model, controller):
                 scope, other = (f"the {'/'.join(setting.models)} model", f"model {model}") \
                     if model not in setting.models else \
                     (f"controller {'/'.join(setting.controllers)}", f"controller {controller}")
@@ -713,7 +685,7 @@ def _normalise(chosen: Mapping[str, Any]) -> dict[str, Any]:
     model = chosen.get("model", SETTINGS["model"].default)
     controller = chosen.get("controller", SETTINGS["controller"].default)
     settings = {name: chosen.get(name, s.default) for name, s in SETTINGS.items()
-                if s.applies(model, controller)}
+                if s._applies(model, controller)}
     settings["passive"] = list(settings["passive"])
     if model != "viscous":
         return settings
