@@ -87,19 +87,8 @@ class SingularSearch:
         """Families other than the straight posture."""
         return [f for f in self.families if not f.straight]
 
-    def smallest_non_straight_R(self, straight_tol: float = 1e-3) -> float:
-        """The smallest R among minima that are not the straight posture.
-
-        Parameters
-        ----------
-        straight_tol
-            A minimum with every ``abs(phi_i) <= straight_tol`` [rad] counts as straight.
-
-        Returns
-        -------
-        float
-            That R (NaN if every minimum is straight).
-        """
+    def _smallest_non_straight_R(self, straight_tol: float = 1e-3) -> float:
+        """The smallest R among minima with some ``abs(phi_i) > straight_tol`` [rad], or NaN."""
         mask = np.max(np.abs(self.minima_phi), axis=1) > straight_tol
         return float(self.minima_R[mask].min()) if np.any(mask) else float("nan")
 
@@ -122,7 +111,7 @@ class SingularSearch:
                                else self.free_joint),
                 "status": self.status,
                 "starts_requested": self.starts_requested or self.starts,
-                "smallest_non_straight_R": self.smallest_non_straight_R(),
+                "smallest_non_straight_R": self._smallest_non_straight_R(),
                 "non_straight_singular_exists": bool(self.non_straight)}
 
 
