@@ -142,12 +142,14 @@ def vector(value: object, name: str, *, size: int | None = None,
     """``value`` as a non-empty 1-D float vector (of ``size`` entries; finite unless told),
     or one ConfigurationError line (:func:`as_vector` flattens instead)."""
     try:
-        vec = np.asarray(value, dtype=float)
+        raw = np.asarray(value)
+        if raw.dtype.kind not in "iuf":  # no text, bool or object arrays cast to floats
+            raise TypeError(raw.dtype)
+        vec = raw.astype(float)
     except (TypeError, ValueError) as exc:
         raise ConfigurationError(f"{name} must be a vector of numbers, got {brief(value)}") \
             from exc
-    if isinstance(value, (bool, np.bool_)) or vec.ndim != 1 or vec.size == 0 \
-            or vec.size != (size or vec.size):
+    if vec.ndim != 1 or vec.size == 0 or vec.size != (size or vec.size):
         raise ConfigurationError(f"{name} must be a non-empty vector"
                                  f"{f' of {size} numbers' if size else ''}, got {brief(value)} "
                                  f"of shape {vec.shape}")

@@ -533,7 +533,7 @@ def _path_options(parser: argparse.ArgumentParser) -> None:
 
 def _path_summary(traj: Any, reference: Any, start: float, *,
                   head_tracking: bool = True) -> None:
-    """Fill a path run's summary: head error and :func:`~snake_pin.runs.benchmark.path_metrics`."""
+    """Fill a path run's summary: head error and ``path_metrics``."""
     import numpy as np
 
     from .metrics import head_error_summary

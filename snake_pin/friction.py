@@ -49,7 +49,7 @@ def _paper_model_of(model: object, params: object) -> tuple[pin.Model, SnakePara
 
 
 def damping_twin(model: pin.Model, params: SnakeParams) -> pin.Model:
-    """The snake's tree with each link's inertia replaced by its damping (module docstring).
+    """The snake's tree with each link's inertia replaced by its damping (:ref:`friction`).
 
     Joints 1 .. n + 2 of the twin are the snake's (same names and placements); with
     anisotropic friction the n wheels ``wheel_n`` .. ``wheel_1`` follow, tail first.

@@ -174,7 +174,7 @@ class Serpenoid:
         Returns
         -------
         phi, dphi, ddphi : numpy.ndarray, shape (n - 1,)
-            :meth:`angles`, :meth:`velocities` and :meth:`accelerations` at t.
+            phi at t (as :meth:`angles`) and its first and second time derivatives.
         """
         phase = self.v * t - self._offsets
         amplitude, velocity, acceleration = self._amplitudes

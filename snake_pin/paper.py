@@ -17,8 +17,9 @@ from ._validation import as_vector, check_params, integer, vector
 from .exceptions import ConfigurationError, ParameterError
 from .params import SnakeParams
 
-__all__ = ["actuation_matrix", "bias", "coriolis", "friction_matrix", "g2", "inertia_matrix",
-           "link_angles"]
+__all__ = ["actuation_matrix", "bias", "coriolis", "friction_matrix", "friction_matrix_bar",
+           "g2", "inertia_matrix", "inertia_matrix_bar", "jacobian_q", "jacobian_xy",
+           "k_matrix", "l_matrix", "link_angles", "w_matrix_bar"]
 
 
 def _theta(params: object, theta: object) -> tuple[SnakeParams, np.ndarray]:
@@ -34,7 +35,18 @@ def _q(params: object, q: object, name: str = "q") -> tuple[SnakeParams, np.ndar
 
 
 def k_matrix(params: SnakeParams) -> np.ndarray:
-    """K of eq. (4), (n, n) lower-triangular [m]: ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i)."""
+    """K of eq. (4): ``K_ij = 2l_j`` (j < i), ``d_i`` (j = i), 0 above the diagonal.
+
+    Parameters
+    ----------
+    params : SnakeParams
+        The robot.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n)
+        K [m], lower-triangular.
+    """
     check_params(params)
     lengths = params.link_lengths
     k = np.tril(np.broadcast_to(lengths, (params.n, params.n)), -1)
@@ -43,13 +55,35 @@ def k_matrix(params: SnakeParams) -> np.ndarray:
 
 
 def l_matrix(n: int) -> np.ndarray:
-    """L of eq. (17): lower-triangular ones, ``theta = L [theta_1, phi]``."""
+    """L of eq. (17): lower-triangular ones, ``theta = L [theta_1, phi]``.
+
+    Parameters
+    ----------
+    n : int
+        Number of links, >= 2.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n)
+        L.
+    """
     n = integer(n, "n", low=2)
     return np.tril(np.ones((n, n)))
 
 
 def jacobian_q(n: int) -> np.ndarray:
-    """``J_{q-bar q} = blockdiag(I_2, L)`` of eq. (17), mapping q' to q-bar' (constant)."""
+    """``J_{q-bar q} = blockdiag(I_2, L)`` of eq. (17), mapping q' to q-bar' (constant).
+
+    Parameters
+    ----------
+    n : int
+        Number of links, >= 2.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        The Jacobian.
+    """
     n = integer(n, "n", low=2)
     out = np.zeros((n + 2, n + 2))
     out[:2, :2] = np.eye(2)
@@ -87,8 +121,19 @@ def _link_angles(q: np.ndarray) -> np.ndarray:
 
 
 def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``J_{q-bar x}``, ``J_{q-bar y}`` of eq. (7), (n, n + 2) each: row i maps q-bar' to link
-    i's CM velocity along world x and y."""
+    """``J_{q-bar x}``, ``J_{q-bar y}`` of eq. (7): row i maps q-bar' to link i's CM velocity
+    along world x and y.
+
+    Parameters
+    ----------
+    params, theta : SnakeParams, array_like
+        The robot and its n absolute link angles [rad].
+
+    Returns
+    -------
+    tuple of numpy.ndarray, shape (n, n + 2) each
+        ``(J_{q-bar x}, J_{q-bar y})``.
+    """
     params, theta = _theta(params, theta)
     n = params.n
     k = k_matrix(params)
@@ -98,7 +143,18 @@ def jacobian_xy(params: SnakeParams, theta: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def inertia_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """H-bar of eq. (9): ``Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_i)``, M = diag(m_i)."""
+    """H-bar of eq. (9): ``Jx^T M Jx + Jy^T M Jy + diag(0, 0, J_i)``, M = diag(m_i).
+
+    Parameters
+    ----------
+    params, theta : SnakeParams, array_like
+        The robot and its n absolute link angles [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        H-bar, symmetric positive definite.
+    """
     params, theta = _theta(params, theta)
     jx, jy = jacobian_xy(params, theta)
     m = params.masses[:, None]
@@ -129,7 +185,18 @@ def inertia_matrix(params: SnakeParams, q: np.ndarray) -> np.ndarray:
 def w_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
     """W-bar of eq. (16), ``J_{q-bar x}^T M J_x + J_{q-bar y}^T M J_y``: the Coriolis term is
     ``W-bar (q-bar')^2``, with ``J_x = -K diag(cos theta)``, ``J_y = -K diag(sin theta)``
-    (two zero columns first) mapping ``theta'^2`` to the centripetal CM accelerations."""
+    (two zero columns first) mapping ``theta'^2`` to the centripetal CM accelerations.
+
+    Parameters
+    ----------
+    params, theta : SnakeParams, array_like
+        The robot and its n absolute link angles [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        W-bar.
+    """
     params, theta = _theta(params, theta)
     n = params.n
     k = k_matrix(params)
@@ -163,7 +230,18 @@ def coriolis(params: SnakeParams, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
 
 
 def friction_matrix_bar(params: SnakeParams, theta: np.ndarray) -> np.ndarray:
-    """``C-bar = C_tr + C_rot`` of eqs. (11)-(14) in q-bar coordinates (symmetric PSD)."""
+    """``C-bar = C_tr + C_rot`` of eqs. (11)-(14) in q-bar coordinates.
+
+    Parameters
+    ----------
+    params, theta : SnakeParams, array_like
+        The robot and its n absolute link angles [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 2, n + 2)
+        C-bar, symmetric positive semi-definite.
+    """
     params, theta = _theta(params, theta)
     c, s = np.cos(theta), np.sin(theta)
     cx, cy = params.per_link("c_x"), params.per_link("c_y")

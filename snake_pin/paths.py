@@ -364,7 +364,7 @@ class Path(abc.ABC):
         return None
 
     def _samples(self, lo: float, hi: float) -> _Samples:
-        """The path sampled every :data:`SAMPLE_STEP` (finer where it bends) over at least
+        """The path sampled every ``SAMPLE_STEP`` (finer where it bends) over at least
         [lo, hi]: a request beyond the table moves it, so its size stays bounded."""
         table: _Samples | None = self.__dict__.get("_near_table")
         if table is not None and table.s0 <= lo and table.end >= hi:
@@ -392,7 +392,7 @@ class Path(abc.ABC):
 
     def _project_near(self, points: np.ndarray, hint: np.ndarray, lo: float,
                       hi: float) -> np.ndarray:
-        """Closest point within :data:`HINT_RADIUS` of each hint: the nearest sample (coarse,
+        """Closest point within ``HINT_RADIUS`` of each hint: the nearest sample (coarse,
         then fine), then :func:`_expansion_newton` about it; one point goes by :meth:`_track_in`."""
         table = self._samples(max(lo, float(hint.min()) - HINT_RADIUS),
                               min(hi, float(hint.max()) + HINT_RADIUS))

@@ -124,7 +124,7 @@ def find_singular_postures(params: SnakeParams, *, starts: int = 200, bound: flo
     ----------
     params, starts, seed
         The robot; random starts (uniform in the box), 1 .. :data:`MAX_STARTS`; their seed,
-        0 .. :data:`MAX_SEED`.
+        0 .. ``MAX_SEED``.
     bound, free_joint
         Joint limit of the box [rad]; joint(s) free for R~, beside the passive joints.
     relative, progress

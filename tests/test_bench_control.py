@@ -316,13 +316,13 @@ def test_report_stage_mpc_rows_and_targets(tmp_path, monkeypatch) -> None:
     from snake_pin.experiments import bench_control as stage
     from snake_pin.experiments.context import Context
     from snake_pin.report import Report
-    from snake_pin.runs import outputs
+    from snake_pin.viz import plots
 
     original = stage.run_benchmark
     monkeypatch.setattr(stage, "run_benchmark",
                         lambda *a, **k: original(*a, **{**k, "t_final": 0.4, "workers": 1}))
     # the figures are drawn but not rendered to PNG (other tests render them)
-    monkeypatch.setattr(outputs, "_png", lambda fig: plt.close(fig) or b"")
+    monkeypatch.setattr(plots, "png_bytes", lambda fig, dpi=110: plt.close(fig) or b"")
     report = Report("test")
     stage.bench_control_stage(Context(folder=tmp_path, params=SnakeParams.table1(),
                                       report=report, quick=True))

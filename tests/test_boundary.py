@@ -429,10 +429,7 @@ for _method, _arguments in SNAKE_METHODS.items():
 #: Callables that left their module's ``__all__`` (a module's own pieces) but are still walked.
 UNLISTED = frozenset({"snake_pin.model.paper_model", "snake_pin.planar_joint.PlanarLayout",
                       "snake_pin.planar_joint.paper_dynamics",
-                      "snake_pin.planar_joint.velocity_map",
-                      *(f"snake_pin.paper.{name}" for name in (
-                          "friction_matrix_bar", "inertia_matrix_bar", "jacobian_q",
-                          "jacobian_xy", "k_matrix", "l_matrix", "w_matrix_bar"))})
+                      "snake_pin.planar_joint.velocity_map"})
 
 
 def _public() -> dict[str, Any]:

@@ -240,6 +240,7 @@ class LyapunovController(ReferenceLaw):
             ``A`` of shape (n + 2, number of actuated joints) and ``b`` of length n + 2.
         """
         snake = self.snake
+        x = snake.check_state(x)
         h_inv = snake.inverse_inertia_matrix(x[:snake.nq])
         return h_inv[:, self._act], -h_inv @ snake.bias(x[:snake.nq], x[snake.nq:])
 

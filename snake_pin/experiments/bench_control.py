@@ -59,7 +59,7 @@ def mpc_targets(rows: Sequence[dict[str, Any]],
     Parameters
     ----------
     rows : sequence of dict
-        Rows of one benchmark (:func:`~snake_pin.runs.benchmark.run_cell`).
+        Rows of one benchmark (``run_cell``).
     limit : float, optional
         The target on the MPC's head error [% of the body length].
 

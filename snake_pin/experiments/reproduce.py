@@ -32,7 +32,7 @@ __all__ = ["HONOURED", "MIN_LINKS", "reproduce", "stages"]
 #: Stage -> the robot fields (``SnakeParams`` names, plus "robot" for --robot) it takes
 #: from the robot it is given. Friction does not enter D and R, so the manipulability
 #: stage honours it trivially; the engine stage runs the engine robot of VI.3 for a
-#: preset and a robot of one's own itself (see :func:`unhonoured`).
+#: preset and a robot of one's own itself (see ``unhonoured``).
 HONOURED: dict[str, frozenset[str]] = {
     "robot": frozenset({"robot", "n", "passive", "c_x", "c_y", "c_theta"}),
     "manipulability": frozenset({"robot", "n", "c_x", "c_y", "c_theta"}),

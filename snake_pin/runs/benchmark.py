@@ -1,5 +1,5 @@
 """The controller benchmark on paths (:doc:`/paths`): the scenarios (:data:`SCENARIOS`), the
-built-in controllers (:data:`CONTROLLERS`), the per-run metrics (:func:`path_metrics`), the
+built-in controllers (:data:`CONTROLLERS`), the per-run metrics (``path_metrics``), the
 grid run in parallel (:func:`run_benchmark`) and its files (:func:`write_benchmark`), for
 ``snake-pin bench-control``, ``snake-pin simulate/engine --path`` and the report.
 """
@@ -39,8 +39,7 @@ from .tracking import initial_state, tracking_params
 
 __all__ = ["CONTROLLERS", "DEFAULT_CONTROLLERS", "ENGINE_DRAWS", "ENGINE_LAWS", "FAILED_JOINT",
            "METRIC_FIELDS", "MODELS", "PFL_CLIMB_R", "QUICK_T_FINAL", "SCENARIOS", "SPEED",
-           "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "path_metrics", "run_benchmark",
-           "write_benchmark"]
+           "WAYPOINTS", "BenchmarkResult", "ControllerFactory", "run_benchmark", "write_benchmark"]
 
 #: Reference speed along every path [m/s] (the paper's 0.1 m/s).
 SPEED = 0.1
@@ -143,35 +142,10 @@ def path_metrics(t: np.ndarray, q: np.ndarray, tau: np.ndarray, snake: Snake,
                  reference: PathReference, *, head_tracking: bool = True,
                  start: float = ERROR_WINDOW, criteria_dt: float | None = _CRITERIA_DT,
                  free_joint: int = FAILED_JOINT) -> dict[str, Any]:
-    """Return the benchmark metrics of one run over ``t >= start``.
-
-    Parameters
-    ----------
-    t : numpy.ndarray, shape (N,)
-        Sample times [s].
-    q : numpy.ndarray, shape (N, n + 2)
-        Configurations; ``q[:, :2]`` is the head.
-    tau : numpy.ndarray, shape (N, n - 1)
-        Torques [N m].
-    snake : Snake
-        The robot (for the CM and the criteria).
-    reference : PathReference
-        The path and its timing s_r(t).
-    head_tracking : bool, optional
-        Whether the time-indexed head error is reported (NaN otherwise).
-    start : float, optional
-        Start of the judged window [s].
-    criteria_dt : float or None, optional
-        Sampling of R, R~ and the lateral-constraint criterion [s]; None: not computed.
-    free_joint : int, optional
-        The joint treated as free for R~ (1-based).
-
-    Returns
-    -------
-    dict
-        The metrics of :doc:`/paths` (keys of :data:`METRIC_FIELDS`, and ``D_min``), NaN
-        where the window is empty, and ``series``: the criteria along the run.
-    """
+    """The benchmark metrics of one run over ``t >= start`` (:doc:`/paths`; keys of
+    :data:`METRIC_FIELDS` and ``D_min``, NaN where the window is empty) and ``series``, the
+    criteria along the run sampled every ``criteria_dt`` (None: not computed); R~ frees
+    ``free_joint``; without ``head_tracking`` the time-indexed head error is NaN."""
     path, body = reference.path, snake.params.body_length
     mask = t >= start - 1e-9
     tw, qw = t[mask], q[mask]
@@ -220,7 +194,7 @@ def _engine_cell(row: dict[str, Any], scenario: str, controller: str, failed: in
                  t_final: float, factory: ControllerFactory | None,
                  criteria_dt: float | None, draws: int,
                  robot: SnakeParams | None, start: float) -> dict[str, Any]:
-    """An engine cell of :func:`run_cell`: snapshots, head path and criteria of the median draw
+    """An engine cell of ``run_cell``: snapshots, head path and criteria of the median draw
     (head cross-track RMS), the median end time, the status of the first draw to stop early."""
     from ..engine.run import identify_friction, run_engine
 
@@ -383,7 +357,7 @@ class BenchmarkResult:
         Returns
         -------
         dict
-            The cell's row, as :func:`run_cell` returned it.
+            The cell's row, as ``run_cell`` returned it.
 
         Raises
         ------
@@ -640,7 +614,7 @@ def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Pa
     dict of str to pathlib.Path
         Name -> written file.
     """
-    from .outputs import _png
+    from ..viz.plots import png_bytes
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -653,19 +627,19 @@ def write_benchmark(result: BenchmarkResult, folder: str | Path) -> dict[str, Pa
             for kind in _TABLES:
                 name = f"{kind}_{model}_{failed}"
                 fig = _table_figure(result, model, failed, kind)
-                out[name] = group.write_bytes(f"{name}.png", _png(fig), figure=True)
+                out[name] = group.write_bytes(f"{name}.png", png_bytes(fig), figure=True)
             for scenario in dict.fromkeys(r["scenario"] for r in result.rows):
                 if any(r["snapshots"] for r in result.rows if r["scenario"] == scenario
                        and r["model"] == model and r["failed_joint"] == failed):
                     name = f"path_{scenario}_{model}_{failed}"
                     fig = _path_figure(result, scenario, model, failed)
-                    out[name] = group.write_bytes(f"{name}.png", _png(fig),
+                    out[name] = group.write_bytes(f"{name}.png", png_bytes(fig),
                                                   figure=True)
         for row in result.rows:
             if (row["scenario"].startswith("circle") and row["controller"] == "lyapunov"
                     and row["model"] == "viscous" and not row["failed_joint"]
                     and row["series"].get("t")):
                 name = f"claim_{row['scenario']}"
-                out[name] = group.write_bytes(f"{name}.png", _png(_claim_figure(row)),
+                out[name] = group.write_bytes(f"{name}.png", png_bytes(_claim_figure(row)),
                                               figure=True)
     return out

@@ -1,7 +1,7 @@
 """Section VI.3's runs on MuJoCo (Figs. 19-21): the summary and figures of a head-tracking
 run on the engine or the viscous model, and, since the engine runs are chaotic, their
-distributions over seeded perturbed starts (:func:`perturbations`, :func:`engine_draw`,
-:class:`Draws`) for ``snake-pin engine --seeds N``, the report and the benchmark.
+distributions over seeded perturbed starts (:func:`perturbations`, ``engine_draw``,
+``Draws``) for ``snake-pin engine --seeds N``, the report and the benchmark.
 """
 
 from __future__ import annotations
@@ -32,12 +32,12 @@ from ..metrics import (
 from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory
 
-__all__ = ["METRICS", "PERTURBATION", "distribution", "engine_draw", "perturbations"]
+__all__ = ["METRICS", "PERTURBATION", "distribution", "perturbations"]
 
 #: Default half-width of the uniform offsets of the initial joint angles [rad].
 PERTURBATION = 1e-6
 
-#: The metrics reported as distributions (summary keys of :func:`summarize`), with their
+#: The metrics reported as distributions (summary keys of ``summarize``), with their
 #: labels; errors and torques over the error window, R~ with a passive joint.
 METRICS: dict[str, str] = {
     "rms_percent": "RMS head error [% of body]",
@@ -212,35 +212,8 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
                 law: str = "velocity", reference: HeadReference | None = None,
                 error_window: float | None = None,
                 mpc_options: MPCOptions | None = None) -> EngineRun:
-    """One engine run from the arc of (82) with ``offset`` added to its joint angles (a
-    picklable job for :mod:`snake_pin.runs.parallel`).
-
-    Parameters
-    ----------
-    params
-        The robot (passive joints included).
-    offset
-        n - 1 offsets of the initial joint angles [rad], or None.
-    wheels
-        Wheels and contact settings.
-    t_final
-        Duration [s].
-    friction
-        The identified viscous model (:func:`~snake_pin.engine.run.identify_friction`).
-    law
-        "velocity", "acceleration" or "mpc" (:func:`~snake_pin.engine.run.run_engine`).
-    reference
-        The head reference (default :func:`~snake_pin.control.head_first_reference`).
-    error_window
-        Start of the head-error window [s] (None: :func:`summarize`'s default).
-    mpc_options
-        The MPC's settings with ``law="mpc"``.
-
-    Returns
-    -------
-    EngineRun
-        The run, its trajectory passed through :func:`summarize`.
-    """
+    """One engine run from the arc of (82) with ``offset`` [rad] added to its joint angles,
+    summarised (:func:`run_engine`'s arguments; a picklable job for ``runs.parallel``)."""
     run = run_engine(params, wheels=wheels, t_final=t_final, friction=friction, law=law,
                      initial_offset=offset, reference=reference, mpc_options=mpc_options)
     summarize(run.trajectory, reference=reference, start=error_window)
@@ -249,7 +222,7 @@ def engine_draw(params: SnakeParams, offset: Sequence[float] | np.ndarray | None
 
 def plot_engine(run: EngineRun | Trajectory, twin: Trajectory | None, folder: Path,
                 stem: str, reference: HeadReference | None = None) -> dict[str, Path]:
-    """Figs. 19 (head), 20 (D, R), 21 (snapshots) of a :func:`summarize`-d run, and beside
+    """Figs. 19 (head), 20 (D, R), 21 (snapshots) of a ``summarize``-d run, and beside
     the viscous ``twin`` if given: key -> ``folder/<stem>_<key>.png``."""
     import matplotlib.pyplot as plt
 

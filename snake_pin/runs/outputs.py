@@ -20,24 +20,12 @@ from ..model import Snake
 from ..params import SnakeParams
 from ..singular import SingularSearch
 from ..sweeps import Sweep
-from ..viz.plots import plot_postures
+from ..viz.plots import plot_postures, png_bytes
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__: list[str] = []
-
-
-def _png(fig: Figure) -> bytes:
-    """The figure as PNG bytes (closed), laid out once by the constrained engine."""
-    import matplotlib.pyplot as plt
-
-    if fig.get_layout_engine() is None:
-        fig.set_layout_engine("constrained")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
 
 
 def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path]:
@@ -51,7 +39,7 @@ def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path
     writer.writerow([result.label, "D", "R"])
     writer.writerows(result.rows())
     names = {ext: f"{result.stem}.{ext}" for ext in ("csv", "json", "png")}
-    png = _png(plot_sweep(result)) if result.values.size else b""
+    png = png_bytes(plot_sweep(result)) if result.values.size else b""
     with atomic_group(folder) as group:
         group.write_bytes(names["csv"], buf.getvalue().encode())
         group.write_bytes(names["json"], (json_text(result.to_dict()) + "\n").encode())
@@ -64,7 +52,7 @@ def write_sweep(result: Sweep, folder: str | os.PathLike[str]) -> dict[str, Path
 def write_singular(search: SingularSearch, folder: str | os.PathLike[str]) -> list[Path]:
     """Write ``singular_postures.json`` and ``.png`` of a search into ``folder`` together or
     not at all; their paths."""
-    png = _png(draw_singular(search, None))
+    png = png_bytes(draw_singular(search, None))
     with atomic_group(Path(folder)) as group:
         data = group.write_bytes("singular_postures.json",
                                  (json_text(search.to_dict(), indent=2) + "\n").encode())

@@ -1,6 +1,6 @@
 """Section VI.1's run: the PFL head controller (gains 79, reference 80, serpenoid 81,
 initial state 82) and its analysis (:func:`run_pfl`), breakdown threshold and figures
-(:func:`plot_pfl`), for ``snake-pin simulate --controller pfl`` and the report.
+(``plot_pfl``), for ``snake-pin simulate --controller pfl`` and the report.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ from ..params import SnakeParams
 from ..sim import simulate
 from ..trajectory import Trajectory
 
-__all__ = ["TAU_BREAKDOWN", "PFLRun", "initial_state", "run_pfl"]
+__all__ = ["TAU_BREAKDOWN", "PFLRun", "run_pfl"]
 
 #: ``||tau||`` above this [N m] counts as PFL's breakdown on the Table 1 robot (tracking
-#: needs 0.01-0.3 N m); other robots scale it (:func:`breakdown_threshold`).
+#: needs 0.01-0.3 N m); other robots scale it (``breakdown_threshold``).
 TAU_BREAKDOWN = 1.0
 #: m (2l)^2 of a Table 1 link [kg m^2]: the scale of :data:`TAU_BREAKDOWN`.
 _TABLE1_LINK = 0.182 * 0.12**2
@@ -39,18 +39,7 @@ def breakdown_threshold(params: SnakeParams) -> float:
 
 
 def initial_state(params: SnakeParams) -> np.ndarray:
-    """Eq. (82): w0 = 0, phi0 = pi/6 for every joint, at rest.
-
-    Parameters
-    ----------
-    params
-        The robot.
-
-    Returns
-    -------
-    numpy.ndarray
-        The state x = [q, dq], 2 (n + 2) values.
-    """
+    """The state x = [q, dq] of eq. (82): w0 = 0, phi0 = pi/6 for every joint, at rest."""
     return gaits.initial_state(params.n)
 
 
@@ -82,7 +71,7 @@ def run_pfl(params: SnakeParams | None = None, *, t_final: float = 10.0,
             error_window: float | None = None, progress: bool = False,
             options: PFLOptions | None = None) -> PFLRun:
     """Run Section VI.1; the summary's criteria, drift and errors are taken before the
-    breakdown (``||tau||`` above :func:`breakdown_threshold`), with the head error of
+    breakdown (``||tau||`` above ``breakdown_threshold``), with the head error of
     :func:`~snake_pin.metrics.head_error_summary`.
 
     Parameters

@@ -23,7 +23,7 @@ from ..model import Snake
 from ..params import ROBOTS, SnakeParams
 from ..sim import Trajectory, simulate
 
-__all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "initial_state", "run_tracking",
+__all__ = ["CRITERIA_EVERY", "REFERENCE", "TRACKING_FRICTION", "run_tracking",
            "tracking_params"]
 
 #: Friction of the tracking runs (erratum 3, :doc:`/errata`): c_x as Table 1, c_y = 50 c_x.
@@ -71,18 +71,8 @@ def tracking_friction(params: SnakeParams) -> tuple[SnakeParams, str]:
 
 
 def initial_state(params: SnakeParams) -> np.ndarray:
-    """Eq. (82)'s arc (phi = pi/6), head-first along +x: theta_1 = pi, at rest.
-
-    Parameters
-    ----------
-    params
-        The robot.
-
-    Returns
-    -------
-    numpy.ndarray
-        The state x = [q, dq], 2 (n + 2) values.
-    """
+    """The state x = [q, dq] on eq. (82)'s arc (phi = pi/6), head-first along +x (theta_1 =
+    pi), at rest."""
     return gaits.initial_state(params.n, theta_1=np.pi)
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import math
 import os
 from collections.abc import Sequence
@@ -68,6 +67,8 @@ def figure_plan(spec: StudySpec) -> tuple[str, list[str], list[str]]:
 
 def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> Path:
     """Write ``summary.json`` then ``index.html`` into the study folder."""
+    from ..viz.plots import png_bytes
+
     table = folder.read_table()
     keys = {s.key for s in spec.scenarios}
     columns = {name: table.column(name).to_pylist() for name in table.column_names}
@@ -75,7 +76,7 @@ def write_index(folder: StudyFolder, spec: StudySpec, summary: StudySummary) -> 
             if columns["key"][i] in keys]
     rows.sort(key=lambda r: r["index"])
     kind, plotted, replicate = figure_plan(spec)
-    figures = [(caption, base64.b64encode(_png(fig)).decode("ascii"))
+    figures = [(caption, base64.b64encode(png_bytes(fig, dpi=100)).decode("ascii"))
                for _, caption, fig in _figure_objects(kind, plotted, spec, rows)]
     page = _page(spec, summary, rows, figures, replicate)
     with atomic_group(folder.path) as group:
@@ -92,20 +93,16 @@ def _finite(value: Any) -> bool:
     return isinstance(value, (int, float)) and math.isfinite(value)
 
 
-def _png(fig: Any) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    return buf.getvalue()
-
-
 def save_figures(spec: StudySpec, rows: Sequence[dict[str, Any]],
                  folder: str | os.PathLike[str], stem: str) -> list[tuple[Path, str]]:
     """Write the study's figures (:func:`figure_plan`) as ``folder/STEM_METRIC.png``."""
+    from ..viz.plots import png_bytes
+
     kind, plotted, _ = figure_plan(spec)
     out = []
     for metric, caption, fig in _figure_objects(kind, plotted, spec, list(rows)):
         path = Path(folder) / f"{stem}_{metric}.png"
-        atomic_write_bytes(path, _png(fig))
+        atomic_write_bytes(path, png_bytes(fig, dpi=100))
         out.append((path, caption))
     return out
 

@@ -30,17 +30,21 @@ HEAD_COLOR = "#d9541a"
 PASSIVE_COLOR = "#1f4fd1"
 
 
+def png_bytes(fig: plt.Figure, dpi: int = 110) -> bytes:
+    """``fig`` as PNG bytes, then closed; a figure without a layout engine gets the
+    constrained one (one draw, where a tight bounding box takes two)."""
+    if fig.get_layout_engine() is None:
+        fig.set_layout_engine("constrained")
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()
+
+
 def save_figure(fig: plt.Figure, path: str | os.PathLike[str] | None) -> plt.Figure:
-    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it; a figure without a
-    layout engine gets the constrained one (one draw, where a tight bounding box takes two).
-    """
+    """Save ``fig`` as PNG to ``path`` (whole or not at all) and close it (:func:`png_bytes`)."""
     if path is not None:
-        if fig.get_layout_engine() is None:
-            fig.set_layout_engine("constrained")
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=110)
-        atomic_write_bytes(path, buf.getvalue())
-        plt.close(fig)
+        atomic_write_bytes(path, png_bytes(fig))
     return fig
 
 
