@@ -12,14 +12,12 @@ import numbers
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
 from .exceptions import ConfigurationError, ParameterError
-
-if TYPE_CHECKING:
-    from .params import SnakeParams
+from .params import SnakeParams, is_number
 
 __all__ = ["as_vector", "brief", "check_params", "finite_number", "flag", "float_arg",
            "instance", "int_arg", "integer", "is_number", "mebibytes", "model_data",
@@ -60,10 +58,6 @@ def printable_path(path: object) -> str:
     return text if text.isprintable() else repr(text)
 
 
-def is_number(value: object) -> bool:
-    """Whether ``value`` is a real number (a bool is not)."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
 
 def integer(value: object, name: str, *, low: int | None = None,
             high: int | None = None) -> int:
@@ -96,8 +90,6 @@ def instance(value: object, kind: type[_T], name: str, what: str | None = None) 
 
 def check_params(value: object, name: str = "params") -> SnakeParams:
     """``value`` if it is a :class:`~snake_pin.params.SnakeParams`, else ParameterError."""
-    from .params import SnakeParams
-
     return instance(value, SnakeParams, name)
 
 

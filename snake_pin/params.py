@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from ._validation import is_number
 from .exceptions import ParameterError
 
 __all__ = ["FIELD_RANGES", "FRICTION_RANGE", "INERTIA_RANGE", "LENGTH_RANGE", "LINK_FIELDS",
@@ -52,6 +51,11 @@ FIELD_RANGES: dict[str, tuple[float, float]] = {
 }
 _UNITS = {"link_length": "m", "mass": "kg", "inertia": "kg m^2", "com_offset": "m",
           "c_x": "N s/m", "c_y": "N s/m", "c_theta": "N m s"}
+
+
+def is_number(value: object) -> bool:
+    """Whether ``value`` is a real number (a bool is not)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 def _per_link(value: object, key: str, n: int, *, zero_ok: bool) -> PerLink:
